@@ -1,0 +1,90 @@
+"""Telemetry: one table schema for simulated and real robots, stored as Parquet with a JSON metadata record.
+
+A table has one row per sample and one column per channel, in SI units, plus an ``episode`` column. The metadata
+record (robot, model hash, controller, rate, units, source) travels inside the Parquet file under the key
+``skitter``. See docs/telemetry.md.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from envs.common.io import atomic_write
+
+SCHEMA_VERSION = 1
+METADATA_KEY = b"skitter"
+
+
+class TelemetrySource(Protocol):
+    def telemetry_row(self, power: float) -> np.ndarray: ...
+
+
+class TelemetryRecorder:
+    """Collects telemetry rows at the control rate, episode by episode.
+
+    Args:
+        meta: the metadata record (robot, model hash, controller, rate...).
+        units: column name -> unit, in the order of the source's ``telemetry_row``.
+    """
+
+    def __init__(self, meta: dict[str, Any], units: dict[str, str]):
+        self.meta = {**meta, "units": dict(units), "schema_version": SCHEMA_VERSION}
+        self.columns = list(units)
+        self._rows: list[np.ndarray] = []
+        self._episodes: list[int] = []
+        self._episode = -1
+
+    def start_episode(self) -> None:
+        self._episode += 1
+
+    def record(self, source: TelemetrySource, power: float) -> None:
+        self._rows.append(np.asarray(source.telemetry_row(power), dtype=np.float64))
+        self._episodes.append(self._episode)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def frame(self) -> pd.DataFrame:
+        data = np.vstack(self._rows) if self._rows else np.zeros((0, len(self.columns)))
+        df = pd.DataFrame(data, columns=self.columns)
+        df.insert(0, "episode", np.asarray(self._episodes, dtype=np.int64))
+        return df
+
+    def save(self, path: str | Path, **extra_meta: Any) -> Path:
+        return write_telemetry(path, self.frame(), {**self.meta, **extra_meta})
+
+    def clear(self) -> None:
+        self._rows.clear()
+        self._episodes.clear()
+        self._episode = -1
+
+
+def write_telemetry(path: str | Path, df: pd.DataFrame, meta: dict[str, Any]) -> Path:
+    """Write a telemetry table and its metadata record to one Parquet file, atomically."""
+    missing = [c for c in meta.get("units", {}) if c not in df.columns]
+    if missing:
+        raise ValueError(f"telemetry for {path} lacks columns {missing} named in its units")
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    record = json.dumps({**meta, "schema_version": SCHEMA_VERSION}).encode()
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), METADATA_KEY: record})
+    return atomic_write(path, lambda p: pq.write_table(table, p))
+
+
+def read_telemetry(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Read a telemetry Parquet file written by :func:`write_telemetry`: (table, metadata record)."""
+    path = Path(path)
+    try:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowInvalid) as exc:
+        raise ValueError(f"{path}: not a readable Parquet telemetry file ({exc})") from exc
+    raw = (table.schema.metadata or {}).get(METADATA_KEY)
+    if raw is None:
+        raise ValueError(f"{path}: Parquet file has no '{METADATA_KEY.decode()}' metadata record")
+    return table.to_pandas(), json.loads(raw)

@@ -1,0 +1,63 @@
+"""VelociRoACH names, source facts and firmware constants.
+
+The physical model constants (masses, geometry, stiffness, motor constants) live in the MJCF files under
+``assets/velociroach/``, each with its source. This module holds what the code needs beside them: the names it looks
+up, the facts from the sources that the model is checked against, and the constants of the robot's firmware (leg
+clock and PID), which are not part of the physical model.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "velociroach"
+SCENE_XML = ASSET_DIR / "scene.xml"
+ROBOT_XML = ASSET_DIR / "velociroach.xml"
+
+# --- names ------------------------------------------------------------------------------------------------------
+SIDES = ("left", "right")
+LEGS = ("FL", "ML", "BL", "FR", "MR", "BR")  # front/middle/back, left/right
+TRIPOD_A = ("FL", "BL", "MR")  # down at the home pose
+ROOT_BODY = "chassis"
+ROOT_JOINT = "root"
+CHASSIS_GEOM = "chassis"
+FLOOR_GEOM = "floor"
+CRANK_JOINTS = {"left": "crank_left", "right": "crank_right"}
+MOTORS = {"left": "motor_left", "right": "motor_right"}
+SENSOR_LEG_POS = {"left": "leg_pos_left", "right": "leg_pos_right"}
+SENSOR_LEG_VEL = {"left": "leg_vel_left", "right": "leg_vel_right"}
+SENSOR_MOTOR_TORQUE = {"left": "motor_torque_left", "right": "motor_torque_right"}
+SENSOR_MOTOR_VEL = {"left": "motor_vel_left", "right": "motor_vel_right"}
+SENSOR_GYRO = "gyro"
+SENSOR_ACCEL = "accel"
+SENSOR_BODY_POS = "body_pos"
+SENSOR_BODY_QUAT = "body_quat"
+SENSOR_BODY_VEL = "body_vel"
+SENSOR_CHASSIS_CONTACT = "chassis_contact"
+SENSOR_GRF = {leg: f"grf_{leg}" for leg in LEGS}
+NUMERIC_BATTERY = "battery_voltage"
+NUMERIC_SWEEP = "sweep_amplitude"
+NUMERIC_LIFT = "lift_amplitude"
+
+# --- facts from the sources (what the model is checked against) -------------------------------------------------
+MASS = 0.030  # kg, seed 000; ICRA 2013
+LENGTH = 0.10  # m, overall, seed 000; ICRA 2013
+COM_HEIGHT = 0.015  # m, V-REP model, seed 000 Table 1
+RELATIVE_LEG_STIFFNESS = 10.3  # k L / (m g) per leg, seed 000 (SLIP analysis)
+LEG_INERTIA = 30e-9  # kg m^2 (30 g mm^2), real robot, seed 000 Table 1
+GRF_PER_LEG = 0.1  # N in stance, seed 000 Table 1
+MAX_STRIDE_FREQUENCY = 45.0  # Hz, real robot, seed 000 Table 1
+TOP_SPEED = 2.7  # m/s, ICRA 2013 abstract
+STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmware phase 0x8000 of 65536)
+
+# --- firmware: leg clock and per-side PID (the lab's roach firmware runs them at 1 kHz) ----------------------------
+# The real firmware's gains (Kp=1800, Ki=200, Kd=100) are in its own fixed-point units; ours are in duty per leg
+# radian, chosen so that the leg tracks the clock within about 5 deg up to 45 Hz (benchmarks/speed_vs_frequency.py).
+PID_KP = 1.8  # duty / rad of leg angle error: full duty at about 32 deg
+PID_KI = 10.0  # duty / (rad s)
+PID_KD = 0.009  # duty / (rad/s)
+PID_INTEGRAL_LIMIT = 0.3  # duty: anti-windup bound of the integral term
+PHASE_SLEW = 2 * np.pi * 5.0  # rad/s: fastest change of the left/right phase the firmware makes
+MAX_COMMAND_FREQUENCY = 50.0  # Hz: bound of the gait action (a little above the real 45 Hz)
