@@ -1,4 +1,4 @@
-"""skitter environments. Importing this package registers them under the ``skitter/`` namespace and does nothing else."""
+"""skitter environments: importing this package registers them under ``skitter/`` and does nothing else."""
 
 from gymnasium.envs.registration import register
 

@@ -44,7 +44,9 @@ class RoachWalkEnv(RoachEnv):
     | 12:14 | 2 | left, right motor back-EMF | V |
     | 14 | 1 | battery voltage | V |
     | 15:19 | 4 | gait mode only: cos, sin of the firmware's commanded leg angles | |
-    | then | 7 | ``privileged_obs=True`` only: body linear velocity (body frame, m/s) and orientation quaternion (w, x, y, z). Privileged: the real robot does not sense these. | |
+    | last | 7 | ``privileged_obs=True`` only: body linear velocity (body frame) and orientation quaternion | m/s, 1 |
+
+    The privileged observations are ones the real robot does not sense; they are off by default.
 
     The body's world pose is in ``info``, never in the observation unless privileged.
 
