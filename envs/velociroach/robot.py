@@ -8,7 +8,14 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-from envs.common.mujoco_utils import SensorHistory, quat_up_z, sensor_slices, simulation_unstable, spec_hash
+from envs.common.mujoco_utils import (
+    SensorHistory,
+    bad_state_count,
+    quat_up_z,
+    sensor_slices,
+    simulation_unstable,
+    spec_hash,
+)
 from envs.velociroach import constants as C
 
 ActionMode = Literal["duty", "gait"]
@@ -108,6 +115,8 @@ class VelociRoach:
         # a spec edit may clamp the body to the world (a bench test): then there is no free joint
         root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
         self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None
+        self.sweep_amplitude = float(m.numeric(C.NUMERIC_SWEEP).data[0])
+        self.lift_amplitude = float(m.numeric(C.NUMERIC_LIFT).data[0])
         # every joint that the linkage ties to a crank: q = q0 + c0 + c1 (crank - crank0), read off the equalities
         self._linkage = []
         for crank in self._crank_qpos:
@@ -192,13 +201,14 @@ class VelociRoach:
         rate = advance / dt
         self.data.ctrl[self._ctrl_adr] = clock + advance
         self.data.ctrl[self._ctrl_adr + 1] = rate
-        self.model.actuator_dynprm[self._motor_ids, DC_DYN_SLEW] = np.abs(rate)
+        # a slew limit of 0 would switch the limiter (and its state) off; a standing clock gets a tiny one instead
+        self.model.actuator_dynprm[self._motor_ids, DC_DYN_SLEW] = np.maximum(np.abs(rate), 1e-9)
 
     def step(self) -> bool:
         """Advance one control step (``n_substeps`` physics steps). Returns False if the simulation went unstable."""
-        before = int(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number)
+        before = bad_state_count(self.data)
         mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
-        return not simulation_unstable(self.model, self.data, before)
+        return not simulation_unstable(self.data, before)
 
     # --- sensing (values at the end of the last physics step) --------------------------------------------------
     @property
@@ -232,6 +242,10 @@ class VelociRoach:
         current = sd[self._i_motor_torque] / self.motor_constant
         volts = self.resistance * current + self.motor_constant * sd[self._i_motor_vel]
         return volts / self.battery_voltage
+
+    def crank_torques(self) -> np.ndarray:
+        """Torque each motor applies to its crank (motor torque x gear), N m."""
+        return self.gear * self.data.sensordata[self._i_motor_torque]
 
     def electrical_power(self) -> float:
         """Mean electrical power drawn from the battery over the last control step, W, from every physics step.
@@ -275,6 +289,7 @@ class VelociRoach:
                 self.commanded_leg_angles(),
                 self.leg_angles(),
                 self.duty(),
+                self.crank_torques(),
                 self.back_emf(),
                 [self.battery_voltage],
                 self.imu(),
@@ -287,7 +302,8 @@ class VelociRoach:
 
 def _telemetry_columns() -> dict[str, str]:
     cols = {"time": "s"}
-    for channel, unit in (("leg_angle_cmd", "rad"), ("leg_angle", "rad"), ("duty", "1"), ("bemf", "V")):
+    channels = (("leg_angle_cmd", "rad"), ("leg_angle", "rad"), ("duty", "1"), ("torque", "N m"), ("bemf", "V"))
+    for channel, unit in channels:
         cols.update({f"{channel}_{side}": unit for side in C.SIDES})
     cols["vbatt"] = "V"
     cols.update({f"gyro_{a}": "rad/s" for a in "xyz"})

@@ -1,0 +1,39 @@
+"""Shared pieces of the benchmarks: where results go and what machine measured them."""
+
+from __future__ import annotations
+
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+import mujoco
+
+from envs.common.io import write_json, write_text
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def machine() -> dict[str, Any]:
+    return {
+        "cpu_count": os.cpu_count(),
+        "processor": platform.processor() or platform.machine(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+    }
+
+
+def save(name: str, result: dict[str, Any], markdown: str) -> None:
+    """Write ``results/<name>.json`` and ``results/<name>.md`` atomically and print the markdown."""
+    write_json(RESULTS / f"{name}.json", {**result, "machine": machine()})
+    write_text(RESULTS / f"{name}.md", markdown)
+    print(markdown)
+
+
+def md_table(header: list[str], rows: list[list[Any]]) -> str:
+    def fmt(x: Any) -> str:
+        return f"{x:.3g}" if isinstance(x, float) else str(x)
+
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(fmt(x) for x in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,129 @@
+"""Yaw rate against left/right phase offset for the tripod gait: the curve of seed 000 figures 16 and 17.
+
+Regenerates ``agents/data/roach_turn_table.json`` (used by the turning tripod, ``agents.tripod.TripodTurn``) and
+writes ``benchmarks/results/turn_table.{json,md,png}``. Run: ``python benchmarks/turn_table.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from scipy.optimize import isotonic_regression
+
+import envs  # noqa: F401  (registers the envs)
+from agents.tripod import TURN_TABLE, RoachObsLayout, TripodGait
+from benchmarks.common import RESULTS, md_table, save
+from envs.common.io import atomic_write, write_json
+
+PHASES_DEG = np.arange(90, 271, 10)
+WARMUP = 1.0
+
+
+def yaw_rate(env, policy: TripodGait, seed: int) -> float:
+    """Mean yaw rate (rad/s, counter-clockwise positive) after the first second of an episode."""
+    obs, info = env.reset(seed=seed)
+    rates = []
+    while True:
+        action, _ = policy.predict(obs)
+        obs, _, terminated, truncated, info = env.step(action)
+        if info["time"] > WARMUP:
+            rates.append(info["yaw_rate"])
+        if terminated or truncated:
+            break
+    return float(np.mean(rates))
+
+
+def monotonic_around_straight(phases: np.ndarray, rates: np.ndarray, se: np.ndarray) -> tuple[slice, np.ndarray]:
+    """The widest run of phases around 180 deg over which the yaw rate falls with the phase, allowing rises within
+    two standard errors, and the isotonic (non-increasing) fit of the rates on that run."""
+    centre = int(np.argmin(np.abs(phases - 180)))
+    lo = hi = centre
+    while lo > 0 and rates[lo - 1] > rates[lo] - 2 * np.hypot(se[lo - 1], se[lo]):
+        lo -= 1
+    while hi < len(rates) - 1 and rates[hi + 1] < rates[hi] + 2 * np.hypot(se[hi + 1], se[hi]):
+        hi += 1
+    run = slice(lo, hi + 1)
+    fit = isotonic_regression(rates[run], increasing=False).x
+    return run, fit
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frequencies", type=float, nargs="+", default=[5.0, 10.0, 20.0])
+    parser.add_argument("--table-frequency", type=float, default=10.0)
+    parser.add_argument("--seeds", type=int, default=6)
+    parser.add_argument("--seconds", type=float, default=8.0)
+    args = parser.parse_args()
+    env = gym.make("skitter/RoachWalk-v0", max_episode_steps=int(args.seconds * 50))
+    layout = RoachObsLayout.from_env(env)
+    curves = {}
+    for f in args.frequencies:
+        rows = []
+        for p in PHASES_DEG:
+            policy = TripodGait(layout, frequency=f, phase=np.radians(p))
+            rows.append([yaw_rate(env, policy, seed) for seed in range(args.seeds)])
+        curves[f] = np.array(rows)
+        print(
+            f"{f:g} Hz: "
+            + " ".join(f"{p}:{np.degrees(r.mean()):.0f}" for p, r in zip(PHASES_DEG, curves[f], strict=False))
+        )
+    mean = {f: c.mean(axis=1) for f, c in curves.items()}
+    sd = {f: c.std(axis=1, ddof=1) for f, c in curves.items()}
+    f0 = args.table_frequency
+    if f0 not in curves:
+        raise SystemExit(f"--table-frequency {f0} must be one of --frequencies {args.frequencies}")
+    mono, fit = monotonic_around_straight(PHASES_DEG, mean[f0], sd[f0] / np.sqrt(args.seeds))
+    table = {
+        "frequency_hz": f0,
+        "generated_by": "benchmarks/turn_table.py",
+        "model_hash": env.unwrapped.robot.model_hash,
+        "seeds": args.seeds,
+        "episode_seconds": args.seconds,
+        "phase_deg": PHASES_DEG.tolist(),
+        "yaw_rate": mean[f0].tolist(),
+        "yaw_rate_sd": sd[f0].tolist(),
+        "monotonic": {"phase_deg": PHASES_DEG[mono].tolist(), "yaw_rate": fit.tolist()},
+    }
+    write_json(TURN_TABLE, table)
+    plot(mean, sd, Path(RESULTS / "turn_table.png"))
+    header = ["phase (deg)"] + [f"yaw rate at {f:g} Hz (deg/s, mean ± sd)" for f in args.frequencies]
+    rows = [
+        [int(p)] + [f"{np.degrees(mean[f][i]):.0f} ± {np.degrees(sd[f][i]):.0f}" for f in args.frequencies]
+        for i, p in enumerate(PHASES_DEG)
+    ]
+    lo, hi = PHASES_DEG[mono][0], PHASES_DEG[mono][-1]
+    text = (
+        "# Yaw rate against phase offset (tripod gait)\n\n"
+        f"{args.seeds} seeds x {args.seconds:g} s per point, first {WARMUP:g} s left out; positive = counter-clockwise."
+        f"\nAt {f0:g} Hz the yaw rate falls with the phase from {lo} to {hi} deg (within two standard errors): "
+        "the turning tripod uses that range, fitted non-increasing (scipy's isotonic regression).\n\n"
+        + md_table(header, rows)
+    )
+    save("turn_table", {"curves": {str(f): c.tolist() for f, c in curves.items()}, "table": table}, text)
+
+
+def plot(mean: dict, sd: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for f in mean:
+        ax.errorbar(PHASES_DEG, np.degrees(mean[f]), yerr=np.degrees(sd[f]), marker="o", capsize=3, label=f"{f:g} Hz")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.axvline(180, color="k", lw=0.5, ls=":")
+    ax.set_xlabel("phase offset, right behind left (deg)")
+    ax.set_ylabel("yaw rate (deg/s, CCW +)")
+    ax.set_title("VelociRoACH model: turning rate vs phase offset")
+    ax.legend()
+    fig.tight_layout()
+    atomic_write(path, lambda p: fig.savefig(p, format="png", dpi=120))
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main()

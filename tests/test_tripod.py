@@ -1,0 +1,115 @@
+"""The reference policies: the alternating tripod gait and its turning variant."""
+
+import itertools
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agents import load_policy
+from agents.evaluation import run_episode
+from agents.tripod import RoachObsLayout, TripodGait, TripodTurn
+
+SECONDS = 4.0
+
+
+def run(env_id: str, policy_spec: str, seed: int = 0, seconds: float = SECONDS, **kwargs):
+    env = gym.make(env_id, **kwargs)
+    env = gym.wrappers.TimeLimit(env.unwrapped, max_episode_steps=round(seconds / env.unwrapped.dt))
+    return run_episode(env, load_policy(policy_spec, env), seed=seed)
+
+
+@pytest.fixture(scope="module")
+def speeds() -> dict[float, float]:
+    out = {}
+    for f in (5.0, 10.0, 20.0, 45.0):
+        episode = run("skitter/RoachWalk-v0", f"tripod:{f:g}")
+        assert not episode.unstable, f"{f} Hz: simulation unstable"
+        assert episode.metrics["falls"] == 0, f"{f} Hz: the robot fell"
+        assert episode.length == round(SECONDS * 50), f"{f} Hz: episode ended early"
+        out[f] = episode.metrics["speed"]
+    return out
+
+
+def test_tripod_runs_forward_at_5_to_45_hz_and_faster_with_frequency(speeds):
+    freqs = sorted(speeds)
+    assert all(speeds[f] > 0 for f in freqs), speeds
+    assert all(speeds[a] < speeds[b] for a, b in itertools.pairwise(freqs)), speeds
+
+
+def test_tripod_works_in_duty_mode_as_the_firmware_would():
+    """In duty mode the policy itself runs the leg clock and PID at 1 kHz."""
+    gait = run("skitter/RoachWalk-v0", "tripod:10", seconds=2.0)
+    duty = run("skitter/RoachWalkDuty-v0", "tripod:10", seconds=2.0)
+    assert duty.metrics["falls"] == 0
+    assert duty.metrics["speed"] == pytest.approx(gait.metrics["speed"], rel=0.25)
+
+
+def yaw_rate(phase_deg: float, seed: int) -> float:
+    env = gym.make("skitter/RoachWalk-v0", max_episode_steps=300)
+    policy = TripodGait(RoachObsLayout.from_env(env), frequency=10.0, phase=np.radians(phase_deg))
+    obs, info = env.reset(seed=seed)
+    rates = []
+    for _ in range(300):
+        obs, _, _terminated, _truncated, info = env.step(policy.predict(obs)[0])
+        if info["time"] > 1.0:
+            rates.append(info["yaw_rate"])
+    return float(np.mean(rates))
+
+
+def test_turning_direction_follows_the_sign_of_the_offset_from_180_deg():
+    """At 10 Hz: right legs trailing by less than half a cycle turn left (counter-clockwise), by more turn right."""
+    left = np.mean([yaw_rate(140, seed) for seed in range(3)])
+    straight = np.mean([yaw_rate(180, seed) for seed in range(3)])
+    right = np.mean([yaw_rate(220, seed) for seed in range(3)])
+    assert left > 0 > right, (left, straight, right)
+    assert abs(straight) < min(left, -right), "the straight gait turns less than the offset gaits"
+
+
+def test_turning_tripod_maps_the_command_through_the_measured_table():
+    env = gym.make("skitter/RoachTurn-v0")
+    policy = load_policy("tripod", env)
+    assert isinstance(policy, TripodTurn)
+    obs, _ = env.reset(seed=0)
+    phases = {}
+    for command in (-0.5, 0.0, 0.5):
+        o = obs.copy()
+        o[19] = command
+        phases[command] = policy.predict(o)[0][2]
+    assert phases[0.5] < phases[0.0] < phases[-0.5], "left turns need the right legs trailing by less than pi"
+
+
+@pytest.mark.parametrize("command", [0.6, -0.6])
+def test_turning_tripod_turns_the_commanded_way(command):
+    env = gym.make("skitter/RoachTurn-v0", max_episode_steps=300)
+    policy = load_policy("tripod", env)
+    obs, info = env.reset(seed=1, options={"yaw_rate": command})
+    rates = []
+    for _ in range(300):
+        obs, _, _terminated, _truncated, info = env.step(policy.predict(obs)[0])
+        if info["time"] > 1.0:
+            rates.append(info["yaw_rate"])
+    assert np.sign(np.mean(rates)) == np.sign(command)
+
+
+def test_predict_follows_sb3_shapes_single_and_batched():
+    env = gym.make("skitter/RoachWalkDuty-v0")
+    policy = load_policy("tripod:10", env)
+    obs, _ = env.reset(seed=0)
+    action, state = policy.predict(obs)
+    assert action.shape == (2,) and state.shape == (4,)
+    batch = np.stack([obs, obs, obs])
+    actions, states = policy.predict(batch, state=None, episode_start=np.ones(3, dtype=bool))
+    assert actions.shape == (3, 2) and states.shape == (3, 4)
+    np.testing.assert_allclose(actions[0], action)
+    assert env.action_space.contains(action)
+
+
+def test_unknown_policy_names_are_rejected_clearly():
+    env = gym.make("skitter/RoachWalk-v0")
+    with pytest.raises(ValueError, match="unknown policy"):
+        load_policy("hexapod-magic", env)
+    with pytest.raises(ValueError, match="not a number"):
+        load_policy("tripod:fast", env)
+    with pytest.raises(ValueError, match="frequency"):
+        load_policy("tripod:500", env)
