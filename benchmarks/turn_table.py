@@ -19,6 +19,9 @@ from benchmarks.common import RESULTS, md_table, save
 from envs.common.io import atomic_write, write_json
 
 PHASES_DEG = np.arange(90, 271, 10)
+# The table is searched within 120..240 deg: beyond it the model falls into spinning modes of either sign (+-150
+# deg/s at 90 and 270 deg), not a steady turn. The seed's V-REP model responded between 130 and 210 deg.
+TABLE_WINDOW = (120, 240)
 WARMUP = 1.0
 
 
@@ -40,10 +43,12 @@ def monotonic_around_straight(phases: np.ndarray, rates: np.ndarray, se: np.ndar
     """The widest run of phases around 180 deg over which the yaw rate falls with the phase, allowing rises within
     two standard errors, and the isotonic (non-increasing) fit of the rates on that run."""
     centre = int(np.argmin(np.abs(phases - 180)))
+    first = int(np.searchsorted(phases, TABLE_WINDOW[0]))
+    last = int(np.searchsorted(phases, TABLE_WINDOW[1], side="right")) - 1
     lo = hi = centre
-    while lo > 0 and rates[lo - 1] > rates[lo] - 2 * np.hypot(se[lo - 1], se[lo]):
+    while lo > first and rates[lo - 1] > rates[lo] - 2 * np.hypot(se[lo - 1], se[lo]):
         lo -= 1
-    while hi < len(rates) - 1 and rates[hi + 1] < rates[hi] + 2 * np.hypot(se[hi + 1], se[hi]):
+    while hi < last and rates[hi + 1] < rates[hi] + 2 * np.hypot(se[hi + 1], se[hi]):
         hi += 1
     run = slice(lo, hi + 1)
     fit = isotonic_regression(rates[run], increasing=False).x

@@ -67,18 +67,3 @@ def quat_up_z(quat: np.ndarray) -> float:
     """World-z component of the body's z axis: 1 upright, 0 on its side, -1 upside down."""
     _, x, y, _ = quat
     return float(1.0 - 2.0 * (x * x + y * y))
-
-
-_BAD_STATE = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-
-
-def bad_state_count(data: mujoco.MjData) -> int:
-    """How many times MuJoCo has found a NaN, infinite or huge position, velocity or acceleration (it then resets)."""
-    return sum(int(data.warning[w].number) for w in _BAD_STATE)
-
-
-def simulation_unstable(data: mujoco.MjData, count_before: int) -> bool:
-    """Whether the steps since ``count_before = bad_state_count(data)`` went numerically unstable."""
-    if bad_state_count(data) > count_before:
-        return True
-    return not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all())

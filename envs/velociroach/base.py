@@ -62,6 +62,7 @@ class RoachEnv(gym.Env):
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(n_obs,), dtype=np.float64)
         self.recorder = TelemetryRecorder(self._telemetry_meta(), TELEMETRY_COLUMNS) if telemetry else None
         self._last_obs = np.zeros(n_obs)
+        self._obs_buffer = np.zeros(n_obs)
         self._yaw = 0.0
 
     # --- the parts a task fills in ----------------------------------------------------------------------------
@@ -106,15 +107,25 @@ class RoachEnv(gym.Env):
     # --- observation ------------------------------------------------------------------------------------------
     def _get_obs(self) -> np.ndarray:
         r = self.robot
-        legs = r.leg_angles()
-        parts = [np.cos(legs), np.sin(legs), r.leg_velocities(), r.imu(), r.back_emf(), [r.battery_voltage]]
+        obs = self._obs_buffer
+        senses = r.senses()
+        obs[0:2] = np.cos(senses[0:2])
+        obs[2:4] = np.sin(senses[0:2])
+        obs[4:12] = senses[2:10]
+        obs[12:14] = r.motor_constant * senses[10:12]  # back-EMF
+        obs[14] = r.battery_voltage
+        i = 15
         if self.action_mode == "gait":
             clock = r.commanded_leg_angles()
-            parts += [np.cos(clock), np.sin(clock)]
-        parts.append(self._command_obs())
+            obs[15:17] = np.cos(clock)
+            obs[17:19] = np.sin(clock)
+            i = 19
+        n = self._command_size()
+        obs[i : i + n] = self._command_obs()
         if self.privileged_obs:
-            parts += [r.body_velocity(), r.body_pose()[3:]]
-        return np.concatenate(parts)
+            obs[i + n : i + n + 3] = r.body_velocity()
+            obs[i + n + 3 : i + n + 7] = r.body_pose()[3:]
+        return obs.copy()
 
     # --- gymnasium API ----------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

@@ -8,14 +8,7 @@ from typing import Literal
 import mujoco
 import numpy as np
 
-from envs.common.mujoco_utils import (
-    SensorHistory,
-    bad_state_count,
-    quat_up_z,
-    sensor_slices,
-    simulation_unstable,
-    spec_hash,
-)
+from envs.common.mujoco_utils import SensorHistory, quat_up_z, sensor_slices, spec_hash
 from envs.velociroach import constants as C
 
 ActionMode = Literal["duty", "gait"]
@@ -25,6 +18,10 @@ DC_GAIN_R, DC_GAIN_K = 0, 1
 DC_GAIN_PID = slice(4, 8)  # kp, ki, kd, Vmax (torque-space gains)
 DC_DYN_SLEW, DC_DYN_IMAX = 7, 8
 CTRLSPEC_POS_VEL = 3  # mjINPUT_POS | mjINPUT_VEL
+_BAD_STATE = [
+    int(w)
+    for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+]
 
 
 def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
@@ -138,6 +135,10 @@ class VelociRoach:
         self._i_motor_torque = idx(*(C.SENSOR_MOTOR_TORQUE[s] for s in C.SIDES))
         self._i_motor_vel = idx(*(C.SENSOR_MOTOR_VEL[s] for s in C.SIDES))
         self._i_imu = idx(C.SENSOR_GYRO, C.SENSOR_ACCEL)
+        # what the robot senses, in one gather: leg angles, leg rates, gyro, accelerometer, motor speeds
+        self._i_senses = np.concatenate(
+            [self._i_leg_pos, self._i_leg_vel, self._i_imu, idx(*(C.SENSOR_MOTOR_VEL[s] for s in C.SIDES))]
+        )
         self._i_pose = idx(C.SENSOR_BODY_POS, C.SENSOR_BODY_QUAT)
         self._i_body_vel = idx(C.SENSOR_BODY_VEL)
         self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in C.LEGS))
@@ -206,14 +207,20 @@ class VelociRoach:
 
     def step(self) -> bool:
         """Advance one control step (``n_substeps`` physics steps). Returns False if the simulation went unstable."""
-        before = bad_state_count(self.data)
-        mujoco.mj_step(self.model, self.data, nstep=self.n_substeps)
-        return not simulation_unstable(self.data, before)
+        d = self.data
+        before = d.warning.number[_BAD_STATE].sum()
+        mujoco.mj_step(self.model, d, nstep=self.n_substeps)
+        # MuJoCo counts (and resets the data on) NaN, infinite or huge positions, velocities and accelerations
+        return d.warning.number[_BAD_STATE].sum() == before and np.isfinite(d.qvel).all()
 
     # --- sensing (values at the end of the last physics step) --------------------------------------------------
     @property
     def sensordata(self) -> np.ndarray:
         return self.data.sensordata
+
+    def senses(self) -> np.ndarray:
+        """Leg angles (2), leg rates (2), gyro (3), accelerometer (3), motor speeds (2), gathered at once."""
+        return self.data.sensordata[self._i_senses]
 
     def leg_angles(self) -> np.ndarray:
         """Crank (leg) angles per side, unwrapped, rad."""
@@ -254,10 +261,9 @@ class VelociRoach:
         braking energy to the battery.
         """
         h = self._history.read(self.data)
-        torque, speed = h[:, :2], h[:, 2:]
-        current = torque / self.motor_constant
-        volts = self.resistance * current + self.motor_constant * speed
-        return float(np.maximum(volts * current, 0.0).sum(axis=1).mean())
+        current = h[:, :2] / self.motor_constant
+        volts = self.resistance * current + self.motor_constant * h[:, 2:]
+        return float(np.maximum(volts * current, 0.0).sum()) / self.n_substeps
 
     def body_pose(self) -> np.ndarray:
         """World position (3) and orientation quaternion w, x, y, z (4) of the body."""

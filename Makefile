@@ -1,0 +1,47 @@
+# skitter: `make demo` sets up and runs the main job; `make test` sets up and runs the tests and the lint.
+# Both create .venv if it is missing and install what they need, once (a stamp file records the install).
+
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.skitter-installed
+export MUJOCO_GL ?= egl
+
+# demo budget: PPO on RoachWalk for DEMO_STEPS environment steps (about 10 minutes on 2 cores), then evaluation
+DEMO_STEPS ?= 200000
+DEMO_EPISODES ?= 10
+DEMO_RUN := runs/demo
+
+.PHONY: setup test lint demo bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet torch==2.13.0
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+test: lint
+	$(BIN)/python -m pytest -n 2 -q
+
+demo: setup
+	rm -rf $(DEMO_RUN)
+	$(BIN)/python train.py --env skitter/RoachWalk-v0 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name demo
+	$(BIN)/python evaluate.py --env skitter/RoachWalk-v0 --policy tripod --policy $(DEMO_RUN)/model.zip \
+		--episodes $(DEMO_EPISODES) --seed 1000 --out results/demo
+
+bench: setup
+	$(BIN)/python -m benchmarks.env_speed
+	$(BIN)/python -m benchmarks.realtime
+	$(BIN)/python -m benchmarks.speed_vs_frequency
+	$(BIN)/python -m benchmarks.turn_table
+	$(BIN)/python -m benchmarks.model_scan
+
+clean:
+	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache
