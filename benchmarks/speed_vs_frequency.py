@@ -1,0 +1,126 @@
+"""The tripod gait's speed against stride frequency, 5 to 45 Hz, beside the real robot's 2.7 m/s top speed.
+
+Gait mode (the firmware's clock and PID), straight tripod, several seeds per frequency, 6 s episodes with the first
+second left out. Also reports leg tracking (the firmware clock's lead over the legs), power and cost of transport.
+Writes ``benchmarks/results/speed_vs_frequency.{json,md,png}``. Run: ``python -m benchmarks.speed_vs_frequency``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401
+from agents.tripod import RoachObsLayout, TripodGait
+from benchmarks.common import RESULTS, md_table, save
+from envs.common.io import atomic_write
+from envs.velociroach import constants as C
+
+WARMUP = 1.0
+
+
+def episode(env, policy, seed: int) -> dict[str, float]:
+    obs, info = env.reset(seed=seed)
+    robot = env.unwrapped.robot
+    x0 = y0 = t0 = None
+    lags, powers = [], []
+    fell = False
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
+        if info.get("sim_unstable"):
+            return {"unstable": 1.0}
+        fell |= info["fallen"]
+        if info["time"] > WARMUP:
+            if x0 is None:
+                x0, y0, t0 = info["x_position"], info["y_position"], info["time"]
+            lags.append(np.degrees(np.abs(robot.commanded_leg_angles() - robot.leg_angles())).mean())
+            powers.append(info["power"])
+        if terminated or truncated:
+            break
+    duration = info["time"] - t0
+    distance = np.hypot(info["x_position"] - x0, info["y_position"] - y0)
+    power = float(np.mean(powers))
+    return {
+        "speed": distance / duration,
+        "heading_drift_deg_per_s": float(np.degrees(info["yaw"]) / info["time"]),
+        "lag_deg": float(np.mean(lags)),
+        "power": power,
+        "cost_of_transport": power / (robot.mass * 9.81 * distance / duration),
+        "fell": float(fell),
+        "unstable": 0.0,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--seconds", type=float, default=6.0)
+    args = parser.parse_args()
+    freqs = np.arange(5.0, 46.0, 5.0)
+    env = gym.make("skitter/RoachWalk-v0", max_episode_steps=int(args.seconds * 50))
+    layout = RoachObsLayout.from_env(env)
+    results = {}
+    for f in freqs:
+        runs = [episode(env, TripodGait(layout, frequency=f), seed) for seed in range(args.seeds)]
+        results[float(f)] = runs
+        print(f"{f:g} Hz:", {k: round(float(np.mean([r.get(k, np.nan) for r in runs])), 3) for k in runs[0]})
+    rows = []
+    for f, runs in results.items():
+        sp = np.array([r["speed"] for r in runs])
+        rows.append(
+            [
+                f,
+                f"{sp.mean():.2f} ± {sp.std(ddof=1):.2f}",
+                round(sp.mean() / C.LENGTH, 1),
+                round(sp.mean() / f * 1000, 1),
+                round(float(np.mean([r["lag_deg"] for r in runs])), 1),
+                round(float(np.mean([r["power"] for r in runs])), 2),
+                round(float(np.mean([r["cost_of_transport"] for r in runs])), 2),
+                f"{np.mean([abs(r['heading_drift_deg_per_s']) for r in runs]):.1f}",
+                int(sum(r["fell"] + r["unstable"] for r in runs)),
+            ]
+        )
+    plot(results, args.seeds)
+    header = [
+        "stride (Hz)",
+        "speed (m/s, mean ± sd)",
+        "body lengths/s",
+        "mm per stride",
+        "clock lead (deg)",
+        "power (W)",
+        "cost of transport",
+        "|heading drift| (deg/s)",
+        "falls",
+    ]
+    top = results[45.0]
+    text = (
+        "# Tripod speed against stride frequency (RoachWalk-v0, gait mode)\n\n"
+        f"{args.seeds} seeds x {args.seconds:g} s per frequency, first {WARMUP:g} s left out. Real robot: "
+        f"{C.TOP_SPEED} m/s at up to {C.MAX_STRIDE_FREQUENCY:g} Hz (ICRA 2013); model at 45 Hz: "
+        f"{np.mean([r['speed'] for r in top]):.2f} m/s.\n\n" + md_table(header, rows)
+    )
+    save("speed_vs_frequency", {"results": {str(k): v for k, v in results.items()}}, text)
+
+
+def plot(results: dict, seeds: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    f = np.array(list(results))
+    speed = np.array([[r["speed"] for r in runs] for runs in results.values()])
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.errorbar(f, speed.mean(axis=1), yerr=speed.std(axis=1, ddof=1), marker="o", capsize=3, label="model, tripod")
+    ax.axhline(C.TOP_SPEED, color="C3", ls="--", label=f"real robot top speed, {C.TOP_SPEED} m/s")
+    ax.set(xlabel="stride frequency (Hz)", ylabel="speed (m/s)", title=f"VelociRoACH tripod, {seeds} seeds")
+    ax.legend()
+    fig.tight_layout()
+    atomic_write(RESULTS / "speed_vs_frequency.png", lambda p: fig.savefig(p, format="png", dpi=120))
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main()
