@@ -15,6 +15,7 @@ import argparse
 import os
 import re
 import sys
+import tempfile
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -44,7 +45,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--video", action="store_true", help="write an mp4 of the first episode of each policy")
     p.add_argument("--telemetry", action="store_true", help="write the telemetry of every episode as Parquet")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
+    p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     args = p.parse_args(argv)
+    if (args.out / "results.json").exists() and not args.overwrite:
+        p.error(f"--out {args.out} already holds results.json; choose another directory or pass --overwrite")
     if args.episodes < 1:
         p.error(f"--episodes must be at least 1, got {args.episodes}")
     if args.env not in gym.registry:
@@ -72,11 +76,12 @@ def evaluate_policy(args, spec: str, out: Path) -> list[Episode]:
         )
     recorder = env.unwrapped.recorder
     name = slug(spec)
-    telemetry_path = out / "telemetry" / f"{name}.parquet"
-    recorder.save(telemetry_path, controller=spec, env_id=args.env, seeds=[e.seed for e in episodes])
-    plot_episode(telemetry_path, out / "plots" / f"{name}.png", title=f"{spec} on {args.env}, seed {args.seed}")
-    if not args.telemetry:
-        telemetry_path.unlink()
+    with tempfile.TemporaryDirectory() as scratch:
+        telemetry_dir = out / "telemetry" if args.telemetry else Path(scratch)
+        telemetry_path = telemetry_dir / f"{name}.parquet"
+        meta = {"controller": spec, "env_id": args.env, "seeds": [e.seed for e in episodes]}
+        recorder.save(telemetry_path, overwrite=args.overwrite, **meta)
+        plot_episode(telemetry_path, out / "plots" / f"{name}.png", title=f"{spec} on {args.env}, seed {args.seed}")
     if args.video:
         write_video(episodes[0].frames, out / "videos" / f"{name}.mp4", fps=env.metadata["render_fps"])
     env.close()

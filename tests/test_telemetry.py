@@ -198,8 +198,10 @@ def test_parquet_write_is_atomic(sim_gait, tmp_path, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(telemetry_module.pq, "write_table", failing_write)
+    with pytest.raises(FileExistsError):
+        recorder.save(path)  # never replaced silently
     with pytest.raises(OSError, match="disk full"):
-        recorder.save(path)
+        recorder.save(path, overwrite=True)
     assert path.read_bytes() == b"earlier run"  # the old file is untouched
     assert [p.name for p in tmp_path.iterdir()] == ["walk.parquet"]  # the partial temporary file is gone
 

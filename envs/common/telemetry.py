@@ -16,7 +16,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from envs.common.io import atomic_write
+from envs.common.io import atomic_write, json_default, refuse_overwrite
 
 SCHEMA_VERSION = 1
 METADATA_KEY = b"skitter"
@@ -45,6 +45,8 @@ class TelemetryRecorder:
         self._episode += 1
 
     def record(self, source: TelemetrySource, power: float) -> None:
+        if self._episode < 0:
+            raise RuntimeError("TelemetryRecorder.record() before start_episode()")
         self._rows.append(np.asarray(source.telemetry_row(power), dtype=np.float64))
         self._episodes.append(self._episode)
 
@@ -57,8 +59,8 @@ class TelemetryRecorder:
         df.insert(0, "episode", np.asarray(self._episodes, dtype=np.int64))
         return df
 
-    def save(self, path: str | Path, **extra_meta: Any) -> Path:
-        return write_telemetry(path, self.frame(), {**self.meta, **extra_meta})
+    def save(self, path: str | Path, overwrite: bool = False, **extra_meta: Any) -> Path:
+        return write_telemetry(path, self.frame(), {**self.meta, **extra_meta}, overwrite=overwrite)
 
     def clear(self) -> None:
         self._rows.clear()
@@ -66,13 +68,16 @@ class TelemetryRecorder:
         self._episode = -1
 
 
-def write_telemetry(path: str | Path, df: pd.DataFrame, meta: dict[str, Any]) -> Path:
-    """Write a telemetry table and its metadata record to one Parquet file, atomically."""
+def write_telemetry(path: str | Path, df: pd.DataFrame, meta: dict[str, Any], overwrite: bool = False) -> Path:
+    """Write a telemetry table and its metadata record to one Parquet file, atomically. An existing file is kept
+    (``FileExistsError``) unless ``overwrite``."""
+    if not overwrite:
+        refuse_overwrite(path, "telemetry file")
     missing = [c for c in meta.get("units", {}) if c not in df.columns]
     if missing:
         raise ValueError(f"telemetry for {path} lacks columns {missing} named in its units")
     table = pa.Table.from_pandas(df, preserve_index=False)
-    record = json.dumps({**meta, "schema_version": SCHEMA_VERSION}).encode()
+    record = json.dumps({**meta, "schema_version": SCHEMA_VERSION}, default=json_default).encode()
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), METADATA_KEY: record})
     return atomic_write(path, lambda p: pq.write_table(table, p))
 
