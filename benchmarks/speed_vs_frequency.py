@@ -19,6 +19,9 @@ from envs.common.io import atomic_write
 from envs.velociroach import constants as C
 
 WARMUP = 1.0
+FAILED = dict.fromkeys(
+    ("speed", "heading_drift_deg_per_s", "lag_deg", "power", "cost_of_transport", "fell", "unstable"), np.nan
+)
 
 
 def episode(env, policy, seed: int) -> dict[str, float]:
@@ -30,7 +33,7 @@ def episode(env, policy, seed: int) -> dict[str, float]:
     while True:
         obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
         if info.get("sim_unstable"):
-            return {"unstable": 1.0}
+            return {**FAILED, "unstable": 1.0}
         fell |= info["fallen"]
         if info["time"] > WARMUP:
             if x0 is None:
@@ -39,6 +42,8 @@ def episode(env, policy, seed: int) -> dict[str, float]:
             powers.append(info["power"])
         if terminated or truncated:
             break
+    if t0 is None:  # fell within the warm-up
+        return {**FAILED, "fell": 1.0}
     duration = info["time"] - t0
     distance = np.hypot(info["x_position"] - x0, info["y_position"] - y0)
     power = float(np.mean(powers))
@@ -65,21 +70,25 @@ def main() -> None:
     for f in freqs:
         runs = [episode(env, TripodGait(layout, frequency=f), seed) for seed in range(args.seeds)]
         results[float(f)] = runs
-        print(f"{f:g} Hz:", {k: round(float(np.mean([r.get(k, np.nan) for r in runs])), 3) for k in runs[0]})
+        print(f"{f:g} Hz:", {k: round(float(np.nanmean([r[k] for r in runs])), 3) for k in runs[0]})
     rows = []
     for f, runs in results.items():
         sp = np.array([r["speed"] for r in runs])
+
+        def mean(key: str, runs=runs) -> float:
+            return float(np.nanmean([abs(r[key]) for r in runs]))
+
         rows.append(
             [
                 f,
-                f"{sp.mean():.2f} ± {sp.std(ddof=1):.2f}",
-                round(sp.mean() / C.LENGTH, 1),
-                round(sp.mean() / f * 1000, 1),
-                round(float(np.mean([r["lag_deg"] for r in runs])), 1),
-                round(float(np.mean([r["power"] for r in runs])), 2),
-                round(float(np.mean([r["cost_of_transport"] for r in runs])), 2),
-                f"{np.mean([abs(r['heading_drift_deg_per_s']) for r in runs]):.1f}",
-                int(sum(r["fell"] + r["unstable"] for r in runs)),
+                f"{np.nanmean(sp):.2f} ± {np.nanstd(sp, ddof=1):.2f}",
+                round(np.nanmean(sp) / C.LENGTH, 1),
+                round(np.nanmean(sp) / f * 1000, 1),
+                round(mean("lag_deg"), 1),
+                round(mean("power"), 2),
+                round(mean("cost_of_transport"), 2),
+                round(mean("heading_drift_deg_per_s"), 1),
+                int(sum(np.nan_to_num(r["fell"]) + np.nan_to_num(r["unstable"]) for r in runs)),
             ]
         )
     plot(results, args.seeds)
@@ -99,7 +108,8 @@ def main() -> None:
         "# Tripod speed against stride frequency (RoachWalk-v0, gait mode)\n\n"
         f"{args.seeds} seeds x {args.seconds:g} s per frequency, first {WARMUP:g} s left out. Real robot: "
         f"{C.TOP_SPEED} m/s at up to {C.MAX_STRIDE_FREQUENCY:g} Hz (ICRA 2013); model at 45 Hz: "
-        f"{np.mean([r['speed'] for r in top]):.2f} m/s.\n\n" + md_table(header, rows)
+        f"{np.nanmean([r['speed'] for r in top]):.2f} m/s. Falls: episodes that tipped over (speed and other columns "
+        "average the rest).\n\n" + md_table(header, rows)
     )
     save("speed_vs_frequency", {"results": {str(k): v for k, v in results.items()}}, text)
 
@@ -113,7 +123,8 @@ def plot(results: dict, seeds: int) -> None:
     f = np.array(list(results))
     speed = np.array([[r["speed"] for r in runs] for runs in results.values()])
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.errorbar(f, speed.mean(axis=1), yerr=speed.std(axis=1, ddof=1), marker="o", capsize=3, label="model, tripod")
+    mean, sd = np.nanmean(speed, axis=1), np.nanstd(speed, axis=1, ddof=1)
+    ax.errorbar(f, mean, yerr=sd, marker="o", capsize=3, label="model, tripod (mean ± sd over seeds)")
     ax.axhline(C.TOP_SPEED, color="C3", ls="--", label=f"real robot top speed, {C.TOP_SPEED} m/s")
     ax.set(xlabel="stride frequency (Hz)", ylabel="speed (m/s)", title=f"VelociRoACH tripod, {seeds} seeds")
     ax.legend()

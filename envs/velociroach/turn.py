@@ -10,7 +10,7 @@ from envs.velociroach import constants as C
 from envs.velociroach.base import RoachEnv
 from envs.velociroach.robot import ActionMode
 
-YAW_RATE_RANGE = 1.0  # rad/s: commands are drawn from U(-1, 1); the tripod turns at up to about 1.3 rad/s at 10 Hz
+YAW_RATE_RANGE = 0.8  # rad/s: commands are drawn from U(-0.8, 0.8), within the turning tripod's reach at 10 Hz
 
 
 class RoachTurnEnv(RoachEnv):
@@ -21,7 +21,8 @@ class RoachTurnEnv(RoachEnv):
 
     ## Command
     A yaw rate ``r`` (rad/s, positive counter-clockwise seen from above), drawn per episode from
-    ``U(-yaw_rate_range, yaw_rate_range)`` (default 1.0 rad/s), or set with ``reset(options={"yaw_rate": r})``.
+    ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.8 rad/s, within what the tripod reaches by phase alone,
+    ``benchmarks/results/turn_table.md``), or set with ``reset(options={"yaw_rate": r})``.
     The real robot turns by the phase offset between its sides (seed 000; Haldane and Fearing, ICRA 2014); so does
     this model, once its feet slip (docs/velociroach.md).
 
@@ -37,7 +38,7 @@ class RoachTurnEnv(RoachEnv):
     - ``energy``: ``-energy_cost_weight * P`` as in RoachWalk.
 
     ## Arguments
-    As RoachWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range`` (1.0 rad/s),
+    As RoachWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range`` (0.8 rad/s),
     ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.5 rad/s), ``speed_reward_weight`` (0.1).
 
     ## Version History

@@ -1,0 +1,161 @@
+"""train.py end to end: each test runs it as a subprocess on a tiny budget and checks what it leaves behind."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+import envs  # noqa: F401  (registers the skitter envs)
+from agents.sb3 import SB3Policy
+
+ROOT = Path(__file__).resolve().parents[1]
+WALK = "skitter/RoachWalk-v0"
+# SAC/TD3 on a budget: learning starts after 100 steps, small networks and buffer
+TINY_OFF_POLICY = """
+skitter/RoachWalk-v0:
+  normalize: {norm_obs: true, norm_reward: false}
+  buffer_size: 1000
+  learning_starts: 100
+  batch_size: 32
+  noise_type: normal
+  noise_std: 0.1
+  policy_kwargs: "dict(net_arch=[32, 32])"
+"""
+
+
+def run_train(*args: object) -> subprocess.CompletedProcess:
+    command = [sys.executable, str(ROOT / "train.py"), *map(str, args), "--no-progress"]
+    return subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=300)
+
+
+def train_ok(*args: object) -> subprocess.CompletedProcess:
+    result = run_train(*args)
+    assert result.returncode == 0, result.stderr
+    return result
+
+
+def scalars(tb_dir: Path) -> dict[str, list[tuple[int, float]]]:
+    accumulator = EventAccumulator(str(tb_dir))
+    accumulator.Reload()
+    return {tag: [(e.step, e.value) for e in accumulator.Scalars(tag)] for tag in accumulator.Tags()["scalars"]}
+
+
+def checkpoints(run_dir: Path) -> dict[int, Path]:
+    markers = (run_dir / "checkpoints").glob("step_*/checkpoint.json")
+    return {json.loads(marker.read_text())["num_timesteps"]: marker.parent for marker in markers}
+
+
+def assert_policy_acts(model: Path, env_id: str = WALK) -> SB3Policy:
+    policy = SB3Policy(model)
+    env = gym.make(env_id)
+    observation, _ = env.reset(seed=0)
+    action, _ = policy.predict(observation)
+    assert action.shape == env.action_space.shape
+    assert env.action_space.contains(action.astype(env.action_space.dtype))
+    return policy
+
+
+@pytest.fixture(scope="module")
+def ppo_run(tmp_path_factory) -> Path:
+    """A PPO run with the default hyperparameters: one update of 4 envs x 512 steps (each env ends an episode)."""
+    runs = tmp_path_factory.mktemp("runs")
+    train_ok(
+        "--env", WALK, "--algo", "ppo", "--timesteps", 2048, "--seed", 3, "--checkpoint-freq", 1024, "--runs-dir", runs
+    )
+    (run_dir,) = runs.iterdir()
+    return run_dir
+
+
+def test_ppo_run_writes_model_config_checkpoints_and_logs(ppo_run):
+    assert re.fullmatch(r"skitter_RoachWalk-v0__ppo__3__\d{8}-\d{6}", ppo_run.name)
+    for name in ("model.zip", "vecnormalize.pkl", "config.json", "command.txt"):
+        assert (ppo_run / name).is_file(), name
+    config = json.loads((ppo_run / "config.json").read_text())
+    assert (config["env_id"], config["algo"], config["seed"], config["timesteps"]) == (WALK, "ppo", 3, 2048)
+    assert config["n_envs"] == 4 and config["hyperparams"]["n_steps"] == 512
+    assert {"skitter", "stable-baselines3", "torch", "mujoco", "gymnasium"} <= set(config["versions"])
+    assert "--algo ppo --timesteps 2048" in (ppo_run / "command.txt").read_text()
+
+    saved = checkpoints(ppo_run)
+    assert sorted(saved) == [1024, 2048]
+    assert (saved[2048] / "model.zip").is_file() and (saved[2048] / "vecnormalize.pkl").is_file()
+
+    logs = scalars(ppo_run / "tb")
+    assert {"rollout/ep_rew_mean", "train/value_loss", "episode/forward_speed", "episode/fall_rate"} <= set(logs)
+    terms = [tag for tag in logs if tag.startswith("reward/")]
+    assert sorted(terms) == ["reward/energy", "reward/forward", "reward/upright"]
+    # the reward terms of the same episodes add up to SB3's own episode return
+    (step, mean_return) = logs["rollout/ep_rew_mean"][0]
+    assert sum(dict(logs[tag])[step] for tag in terms) == pytest.approx(mean_return, rel=1e-4, abs=1e-3)
+
+    policy = assert_policy_acts(ppo_run / "model.zip")
+    assert policy.normalizer is not None
+
+
+def test_resume_continues_the_run_in_its_folder(ppo_run, tmp_path):
+    run_dir = shutil.copytree(ppo_run, tmp_path / ppo_run.name)
+    train_ok("--resume", run_dir, "--timesteps", 4096)
+    assert sorted(path.name for path in tmp_path.iterdir()) == [ppo_run.name]
+    assert max(checkpoints(run_dir)) == 4096
+    assert SB3Policy(run_dir / "model.zip").model.num_timesteps == 4096
+    assert json.loads((run_dir / "config.json").read_text())["timesteps"] == 4096
+    assert len((run_dir / "command.txt").read_text().splitlines()) == 2
+    steps = [step for step, _ in scalars(run_dir / "tb")["reward/forward"]]
+    assert steps == [2048, 4096]
+
+
+def test_resume_without_checkpoint_is_a_clear_error(ppo_run, tmp_path):
+    shutil.copy(ppo_run / "config.json", tmp_path / "config.json")
+    result = run_train("--resume", tmp_path, "--timesteps", 4096)
+    assert result.returncode != 0
+    assert "Traceback" not in result.stderr
+    assert "no checkpoint" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_off_policy_algorithms_train(algo, tmp_path):
+    hyperparams = tmp_path / "tiny.yml"
+    hyperparams.write_text(TINY_OFF_POLICY)
+    runs = tmp_path / "runs"
+    train_ok("--env", WALK, "--algo", algo, "--timesteps", 300, "--runs-dir", runs, "--hyperparams", hyperparams)
+    (run_dir,) = runs.iterdir()
+    assert (run_dir / "vecnormalize.pkl").is_file()
+    assert (checkpoints(run_dir)[300] / "replay_buffer.pkl").is_file()
+    assert "train/critic_loss" in scalars(run_dir / "tb")  # gradient steps ran after learning_starts
+    policy = assert_policy_acts(run_dir / "model.zip")
+    assert type(policy.model).__name__ == algo.upper()
+
+
+BAD_INPUTS = {
+    "unknown env": ({}, ["--env", "skitter/NoSuchEnv-v0"], ["skitter/NoSuchEnv-v0"]),
+    "env missing from file": ({"skitter/RoachTurn-v0": "  n_steps: 64"}, [], ["bad.yml", WALK, "no entry"]),
+    "bad value": ({WALK: "  gamma: 1.5"}, [], ["bad.yml", "gamma", "1.5"]),
+    "wrong type": ({WALK: "  n_steps: lots"}, [], ["bad.yml", "n_steps", "lots"]),
+    "unknown field": ({WALK: "  n_step: 64"}, [], ["bad.yml", "n_step", "did you mean 'n_steps'"]),
+    "non-positive timesteps": ({}, ["--timesteps", "0"], ["--timesteps"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_INPUTS))
+def test_bad_input_is_a_one_line_error(case, tmp_path):
+    entries, extra, expected = BAD_INPUTS[case]
+    args = ["--env", WALK, "--algo", "ppo", "--timesteps", 100, "--runs-dir", tmp_path / "runs"]
+    if entries:
+        hyperparams = tmp_path / "bad.yml"
+        hyperparams.write_text("".join(f"{env}:\n{body}\n" for env, body in entries.items()))
+        args += ["--hyperparams", hyperparams]
+    result = run_train(*args, *extra)  # later flags win
+    assert result.returncode != 0
+    assert "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    for text in expected:
+        assert text in result.stderr
+    assert not (tmp_path / "runs").exists()

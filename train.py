@@ -1,0 +1,736 @@
+"""Train a Stable-Baselines3 agent (PPO, SAC or TD3) on a skitter environment.
+
+    python train.py --env skitter/RoachWalk-v0 --algo ppo --timesteps 500000 --seed 0
+    python train.py --resume runs/skitter_RoachWalk-v0__ppo__0__20250101-120000 --timesteps 1000000
+    tensorboard --logdir runs
+
+Hyperparameters come from ``hyperparams/<algo>.yml`` (RL Baselines3 Zoo style: one entry per env id, YAML anchors
+for shared defaults). An entry may set any argument of the algorithm's constructor except those train.py sets itself
+(env, seed, verbose, tensorboard_log), plus:
+
+- ``n_envs``: number of environments stepped together (DummyVecEnv; default 1);
+- ``normalize``: ``true`` to wrap the envs in VecNormalize (observations and rewards), or a mapping of VecNormalize
+  arguments such as ``{norm_obs: true, norm_reward: false}`` (default false);
+- ``env_kwargs``: a mapping passed to ``gymnasium.make``;
+- ``noise_type`` (``normal`` or ``ornstein-uhlenbeck``) and ``noise_std``: exploration noise for SAC and TD3.
+
+``policy_kwargs`` may be a mapping or a Zoo-style string such as ``"dict(net_arch=[64, 64], activation_fn=nn.Tanh)"``
+(read without ``eval``: only literals, ``dict(...)`` and torch classes are allowed). ``learning_rate`` and
+``clip_range`` accept ``lin_<value>``, a linear decay from the value to zero over the run.
+
+Each run writes ``<runs-dir>/<env>__<algo>__<seed>__<YYYYmmdd-HHMMSS>/`` holding ``config.json``, ``command.txt``,
+TensorBoard logs (``tb/``), checkpoints (``checkpoints/step_<N>/``: ``model.zip``, ``vecnormalize.pkl``, for SAC and
+TD3 the replay buffer of the latest checkpoint, and ``checkpoint.json`` written last) and, at the end, ``model.zip`` and
+``vecnormalize.pkl``, which ``agents.sb3.SB3Policy`` loads. Ctrl-C saves a checkpoint; ``--resume`` continues from it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import difflib
+import inspect
+import json
+import shlex
+import subprocess
+import sys
+from dataclasses import dataclass
+from datetime import datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.logger import configure
+from stable_baselines3.common.noise import (
+    ActionNoise,
+    NormalActionNoise,
+    OrnsteinUhlenbeckActionNoise,
+    VectorizedActionNoise,
+)
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.utils import LinearSchedule, set_random_seed
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
+
+import envs  # noqa: F401  (registers the skitter envs)
+from agents.sb3 import ALGOS
+from envs.common.io import atomic_write, refuse_overwrite, write_json, write_text
+
+ROOT = Path(__file__).resolve().parent
+HYPERPARAMS_DIR = ROOT / "hyperparams"
+DEFAULT_CHECKPOINT_FREQ = 50_000  # env steps
+# One torch thread: on a 2-core machine a second thread made PPO 6x and SAC 10x slower (the MLPs are tiny, and the
+# MuJoCo envs share the cores).
+TORCH_THREADS = 1
+
+# Entries train.py understands besides the algorithm's own arguments, with their defaults.
+TRAIN_DEFAULTS: dict[str, Any] = {"policy": "MlpPolicy", "n_envs": 1, "normalize": False, "env_kwargs": {}}
+NOISE_DEFAULTS: dict[str, Any] = {"noise_type": None, "noise_std": 0.1}  # SAC and TD3 only; None: no noise
+NOISE_TYPES = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
+SET_BY_TRAIN = {
+    "env": "--env",
+    "seed": "--seed",
+    "verbose": "train.py",
+    "tensorboard_log": "train.py (logs go to the run folder's tb/)",
+    "_init_setup_model": "train.py",
+    "action_noise": "noise_type and noise_std",
+}
+SCHEDULES = ("learning_rate", "clip_range")  # accept "lin_<value>"
+# Inclusive bounds (low, high) for numeric entries; None is unbounded.
+LIMITS: dict[str, tuple[float | None, float | None]] = {
+    "n_envs": (1, None),
+    "n_steps": (1, None),
+    "batch_size": (1, None),
+    "n_epochs": (1, None),
+    "buffer_size": (1, None),
+    "learning_starts": (0, None),
+    "gradient_steps": (-1, None),
+    "target_update_interval": (1, None),
+    "policy_delay": (1, None),
+    "stats_window_size": (1, None),
+    "learning_rate": (0, None),
+    "gamma": (0, 1),
+    "gae_lambda": (0, 1),
+    "tau": (0, 1),
+    "clip_range": (0, None),
+    "ent_coef": (0, None),
+    "vf_coef": (0, None),
+    "max_grad_norm": (0, None),
+    "target_policy_noise": (0, None),
+    "target_noise_clip": (0, None),
+    "noise_std": (0, None),
+}
+# Names a policy_kwargs expression may use for torch classes, e.g. nn.Tanh or th.optim.Adam.
+TORCH_MODULES = {
+    "nn": torch.nn,
+    "th.nn": torch.nn,
+    "torch.nn": torch.nn,
+    "optim": torch.optim,
+    "th.optim": torch.optim,
+    "torch.optim": torch.optim,
+}
+
+
+class ConfigError(Exception):
+    """A problem with the command line, a hyperparameter file or a run folder: reported in one line, no traceback."""
+
+
+# --- hyperparameters --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Hyperparams:
+    """One env's entry of a hyperparameter file, checked and split into what each consumer needs."""
+
+    where: str  # "FILE: ENV_ID", the prefix of error messages
+    raw: dict[str, Any]  # as written (anchors merged, train.py defaults filled in): what config.json records
+    model_kwargs: dict[str, Any]  # arguments of the algorithm's constructor, parsed
+    n_envs: int
+    normalize: dict[str, Any] | None  # VecNormalize arguments, or None for no normalisation
+    env_kwargs: dict[str, Any]
+    noise: tuple[str, float] | None  # (noise_type, noise_std)
+
+
+def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None) -> Hyperparams:
+    """The checked hyperparameters for ``env_id`` in the YAML file ``path``, with ``overrides`` (e.g. n_envs)."""
+    try:
+        table = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read hyperparameter file {path}: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = f" line {mark.line + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{path}:{line}: not valid YAML ({problem})") from None
+    if not isinstance(table, dict):
+        raise ConfigError(f"{path}: expected a mapping from env ids to hyperparameters")
+    if env_id not in table:
+        entries = ", ".join(str(key) for key in table) or "none"
+        raise ConfigError(f"{path}: no entry for env {env_id!r} (entries: {entries})")
+    entry = table[env_id]
+    if not isinstance(entry, dict):
+        raise ConfigError(f"{path}: {env_id}: expected a mapping of hyperparameters, got {entry!r}")
+    return resolve_hyperparams({**entry, **(overrides or {})}, algo, where=f"{path}: {env_id}")
+
+
+def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperparams:
+    """Check every field of ``entry`` for ``algo`` and parse the values; errors name ``where``, the field and value."""
+    defaults = algo_defaults(algo)
+    own_defaults = {**TRAIN_DEFAULTS, **(NOISE_DEFAULTS if "action_noise" in defaults else {})}
+    allowed = (set(defaults) - set(SET_BY_TRAIN)) | set(own_defaults)
+    for key in entry:
+        if key not in allowed:
+            raise ConfigError(f"{where}: {_unknown_field_message(key, allowed, algo)}")
+    raw = {**own_defaults, **entry}
+
+    def check(key: str, parse):
+        try:
+            return parse(raw[key])
+        except ValueError as exc:
+            raise ConfigError(f"{where}: field {key!r} = {raw[key]!r}: {exc}") from None
+
+    model_kwargs = {
+        key: check(key, lambda value, key=key: parse_model_value(key, value, defaults[key], algo))
+        for key in raw
+        if key in defaults
+    }
+    gamma = model_kwargs.get("gamma", defaults["gamma"])
+    noise = None
+    if raw.get("noise_type") is not None:
+        noise = (check("noise_type", _noise_type), check("noise_std", lambda v: _number("noise_std", v, float)))
+    n_envs = check("n_envs", lambda v: _number("n_envs", v, int))
+    if isinstance(model_kwargs.get("train_freq"), tuple) and model_kwargs["train_freq"][1] == "episode" and n_envs > 1:
+        raise ConfigError(f"{where}: field 'train_freq' = {raw['train_freq']!r}: needs n_envs 1, not {n_envs}")
+    return Hyperparams(
+        where=where,
+        raw=raw,
+        model_kwargs=model_kwargs,
+        n_envs=n_envs,
+        normalize=check("normalize", lambda v: _normalize_kwargs(v, gamma)),
+        env_kwargs=check("env_kwargs", _mapping),
+        noise=noise,
+    )
+
+
+def algo_defaults(algo: str) -> dict[str, Any]:
+    """The constructor arguments of ``algo`` and their defaults (``inspect.Parameter.empty`` for none)."""
+    params = inspect.signature(ALGOS[algo].__init__).parameters
+    return {name: p.default for name, p in params.items() if name not in ("self", "args", "kwargs")}
+
+
+def _unknown_field_message(key: str, allowed: set[str], algo: str) -> str:
+    if key in SET_BY_TRAIN:
+        return f"field {key!r} is set by {SET_BY_TRAIN[key]}, not in the hyperparameter file"
+    close = difflib.get_close_matches(str(key), sorted(allowed), n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown field {key!r} for {algo.upper()}{hint}"
+
+
+def parse_model_value(key: str, value: Any, default: Any, algo: str) -> Any:
+    """``value`` as the algorithm's constructor argument ``key`` wants it; ValueError saying why if it is not."""
+    if key == "policy":
+        if value not in ALGOS[algo].policy_aliases:
+            raise ValueError(f"expected one of {', '.join(ALGOS[algo].policy_aliases)}")
+        return value
+    if key == "policy_kwargs":
+        return parse_policy_kwargs(value)
+    if key == "train_freq":
+        return _train_freq(value)
+    if key in SCHEDULES and isinstance(value, str) and value.startswith("lin_"):
+        start = _number(key, value.removeprefix("lin_"), float)
+        return LinearSchedule(start, 0.0, 1.0)
+    return _like_default(key, value, default)
+
+
+def _like_default(key: str, value: Any, default: Any) -> Any:
+    """``value`` checked against the type of the argument's ``default``: bool, int, float, str or None."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ValueError("expected true or false")
+        return value
+    if isinstance(default, int | float):
+        return _number(key, value, type(default))
+    if isinstance(default, str):  # e.g. SAC's ent_coef "auto" or a number, device "cpu"
+        return value if isinstance(value, str) else _number(key, value, float)
+    if default is None and key.endswith("_kwargs"):
+        return _mapping(value)
+    if default is None and not key.endswith("_class"):  # optional numbers such as target_kl, clip_range_vf
+        return None if value is None else _number(key, value, float)
+    raise ValueError("train.py cannot set this field from a hyperparameter file")
+
+
+def _number(key: str, value: Any, kind: type) -> int | float:
+    """``value`` as an int or float within ``LIMITS[key]``. Floats may be strings: YAML reads ``3e-4`` as one."""
+    if kind is float and isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            raise ValueError("expected a number") from None
+    if isinstance(value, bool) or not isinstance(value, int if kind is int else int | float):
+        raise ValueError("expected an integer" if kind is int else "expected a number")
+    low, high = LIMITS.get(key, (None, None))
+    if (low is not None and value < low) or (high is not None and value > high):
+        bounds = f"between {low} and {high}" if high is not None else f"at least {low}"
+        raise ValueError(f"must be {bounds}")
+    return kind(value)
+
+
+def _mapping(value: Any) -> dict[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ValueError("expected a mapping")
+    return dict(value)
+
+
+def _train_freq(value: Any) -> int | tuple[int, str]:
+    if isinstance(value, list | tuple) and len(value) == 2 and value[1] in ("step", "episode"):
+        return (_number("train_freq", value[0], int), value[1])
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+        return value
+    raise ValueError('expected a positive integer or [N, "step" | "episode"]')
+
+
+def _noise_type(value: Any) -> str:
+    if value not in NOISE_TYPES:
+        raise ValueError(f"expected one of {', '.join(NOISE_TYPES)}")
+    return value
+
+
+def _normalize_kwargs(value: Any, gamma: float) -> dict[str, Any] | None:
+    """VecNormalize arguments from ``normalize``: a bool, a mapping, or a Zoo-style string of a dict."""
+    if isinstance(value, str):
+        value = parse_expression(value)
+    if isinstance(value, bool):
+        return {"gamma": gamma} if value else None
+    if not isinstance(value, dict):
+        raise ValueError("expected true, false or a mapping of VecNormalize arguments")
+    params = inspect.signature(VecNormalize.__init__).parameters
+    known = {name: p.default for name, p in params.items() if name not in ("self", "venv")}
+    unknown = sorted(set(value) - set(known))
+    if unknown:
+        raise ValueError(f"VecNormalize has no argument {unknown[0]!r} (it takes {', '.join(sorted(known))})")
+    checked = {}
+    for key, item in value.items():
+        try:
+            checked[key] = _like_default(key, item, known[key])
+        except ValueError as exc:
+            raise ValueError(f"{key}: {exc}") from None
+    return {"gamma": gamma, **checked}
+
+
+def parse_policy_kwargs(value: Any) -> dict[str, Any]:
+    """``policy_kwargs`` from a mapping or a Zoo-style string; class names (``nn.Tanh``) become torch classes."""
+    if isinstance(value, str):
+        value = parse_expression(value)
+    value = _mapping(value)
+    for key in ("activation_fn", "optimizer_class"):
+        if isinstance(value.get(key), str):
+            value[key] = parse_expression(value[key])
+    return value
+
+
+def parse_expression(text: str) -> Any:
+    """Read a Python literal, ``dict(...)`` call or torch class name (``nn.Tanh``) without ``eval``."""
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise ValueError(f"not a valid expression ({exc.msg})") from None
+    return _evaluate(tree.body)
+
+
+def _evaluate(node: ast.expr) -> Any:
+    match node:
+        case ast.Constant():
+            return node.value
+        case ast.UnaryOp(op=ast.USub(), operand=ast.Constant(value=int() | float())):
+            return -node.operand.value
+        case ast.List(elts=items):
+            return [_evaluate(item) for item in items]
+        case ast.Tuple(elts=items):
+            return tuple(_evaluate(item) for item in items)
+        case ast.Dict(keys=keys, values=values) if None not in keys:
+            return {_evaluate(k): _evaluate(v) for k, v in zip(keys, values, strict=True)}
+        case ast.Call(func=ast.Name(id="dict"), args=[], keywords=keywords) if all(kw.arg for kw in keywords):
+            return {kw.arg: _evaluate(kw.value) for kw in keywords}
+        case ast.Attribute(attr=name):
+            module = TORCH_MODULES.get(ast.unparse(node.value))
+            cls = getattr(module, name, None) if module is not None else None
+            if isinstance(cls, type):
+                return cls
+    raise ValueError(f"{ast.unparse(node)!r} is not allowed (only literals, dict(...) and torch classes like nn.Tanh)")
+
+
+# --- environments and models ------------------------------------------------------------------------------------
+
+
+def make_env(env_id: str, hp: Hyperparams, seed: int, vecnormalize: Path | None = None) -> VecEnv:
+    """``hp.n_envs`` copies of ``env_id`` seeded ``seed``, ``seed + 1``, ..., normalised as ``hp`` says.
+
+    ``vecnormalize``: saved VecNormalize statistics to continue from (when resuming).
+    """
+    try:
+        venv = make_vec_env(env_id, n_envs=hp.n_envs, seed=seed, env_kwargs=hp.env_kwargs, vec_env_cls=DummyVecEnv)
+    except TypeError as exc:
+        raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
+    if hp.normalize is None:
+        return venv
+    if vecnormalize is not None:
+        venv = VecNormalize.load(str(vecnormalize), venv)
+        venv.training = True
+        return venv
+    return VecNormalize(venv, **hp.normalize)
+
+
+def make_action_noise(hp: Hyperparams, venv: VecEnv) -> ActionNoise | None:
+    if hp.noise is None:
+        return None
+    noise_type, std = hp.noise
+    n_actions = venv.action_space.shape[-1]
+    noise = NOISE_TYPES[noise_type](mean=np.zeros(n_actions), sigma=std * np.ones(n_actions))
+    return VectorizedActionNoise(noise, venv.num_envs) if venv.num_envs > 1 else noise
+
+
+def build_model(algo: str, hp: Hyperparams, venv: VecEnv, seed: int) -> BaseAlgorithm:
+    """A new ``algo`` model on ``venv`` from ``hp``."""
+    kwargs = {"device": "cpu", **hp.model_kwargs}
+    if hp.noise is not None:
+        kwargs["action_noise"] = make_action_noise(hp, venv)
+    try:
+        return ALGOS[algo](env=venv, seed=seed, verbose=0, **kwargs)
+    except (ValueError, TypeError, AssertionError, KeyError) as exc:
+        message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"{hp.where}: cannot build the {algo.upper()} model: {message}") from None
+
+
+# --- run folders, checkpoints, saving ---------------------------------------------------------------------------
+
+
+def run_name(env_id: str, algo: str, seed: int) -> str:
+    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+    return f"{env_id.replace('/', '_')}__{algo}__{seed}__{stamp}"
+
+
+def make_run_dir(runs_dir: Path, name: str) -> Path:
+    """Create the empty run folder ``runs_dir/name``; never reuse an existing one."""
+    run_dir = runs_dir / name
+    try:
+        refuse_overwrite(run_dir, "run folder")
+        runs_dir.mkdir(parents=True, exist_ok=True)
+        run_dir.mkdir()
+    except FileExistsError:
+        raise ConfigError(f"run folder {run_dir} already exists; runs are never overwritten") from None
+    return run_dir
+
+
+def versions() -> dict[str, str]:
+    found = {"python": sys.version.split()[0]}
+    for package in ("skitter", "stable-baselines3", "torch", "mujoco", "gymnasium", "numpy"):
+        try:
+            found[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            found[package] = "not installed"
+    found["git_commit"] = _git_commit()
+    return found
+
+
+def _git_commit() -> str:
+    """The repository's commit, with "-dirty" if tracked files changed; "unknown" outside a git checkout."""
+
+    def git(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=10)
+
+    try:
+        commit = git("rev-parse", "HEAD")
+        if commit.returncode != 0:
+            return "unknown"
+        dirty = git("status", "--porcelain", "--untracked-files=no").stdout.strip()
+        return commit.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def command_line() -> str:
+    return shlex.join(sys.orig_argv)
+
+
+def save_model_files(model: BaseAlgorithm, folder: Path) -> Path:
+    """Write ``model.zip`` and, if the envs are normalised, ``vecnormalize.pkl`` into ``folder``, atomically."""
+    path = atomic_write(folder / "model.zip", model.save)
+    vecnormalize = model.get_vec_normalize_env()
+    if vecnormalize is not None:
+        atomic_write(folder / "vecnormalize.pkl", vecnormalize.save)
+    return path
+
+
+def save_checkpoint(model: BaseAlgorithm, checkpoints_dir: Path) -> Path:
+    """Save ``checkpoints_dir/step_<N>/``; its ``checkpoint.json``, written last, marks the checkpoint complete.
+
+    SAC and TD3 also save their replay buffer, kept only in the newest checkpoint (it can be hundreds of MB).
+    """
+    folder = checkpoints_dir / f"step_{model.num_timesteps:010d}"
+    save_model_files(model, folder)
+    if isinstance(model, OffPolicyAlgorithm):
+        atomic_write(folder / "replay_buffer.pkl", model.save_replay_buffer)
+    write_json(folder / "checkpoint.json", {"num_timesteps": model.num_timesteps, "saved": _now()})
+    for old in checkpoints_dir.glob("step_*/replay_buffer.pkl"):
+        if old.parent != folder:
+            old.unlink(missing_ok=True)
+    return folder
+
+
+def latest_checkpoint(run_dir: Path) -> tuple[Path, int]:
+    """The newest complete checkpoint folder of ``run_dir`` and its num_timesteps."""
+    found = []
+    for marker in (run_dir / "checkpoints").glob("step_*/checkpoint.json"):
+        if (marker.parent / "model.zip").is_file():
+            found.append((json.loads(marker.read_text())["num_timesteps"], marker.parent))
+    if not found:
+        raise ConfigError(f"{run_dir}: no checkpoint to resume from (expected {run_dir / 'checkpoints'}/step_*/)")
+    steps, folder = max(found)
+    return folder, steps
+
+
+def _now() -> str:
+    return datetime.now().isoformat(timespec="seconds")
+
+
+# --- callbacks --------------------------------------------------------------------------------------------------
+
+
+class EpisodeMetricsCallback(BaseCallback):
+    """Log, per finished episode, each reward term's sum (``reward/<term>``) and episode metrics (``episode/...``).
+
+    Values are averaged over the episodes finished since the last log dump (``Logger.record_mean``). At the end of
+    training the logger is dumped once more, so the last update's train/ metrics and last episodes are not lost.
+    """
+
+    def _on_training_start(self) -> None:
+        self._episodes = [_Episode() for _ in range(self.training_env.num_envs)]
+
+    def _on_step(self) -> bool:
+        for i, (info, done) in enumerate(zip(self.locals["infos"], self.locals["dones"], strict=True)):
+            self._episodes[i].add(info)
+            if done:
+                self._record(self._episodes[i], info)
+                self._episodes[i] = _Episode()
+        return True
+
+    def _on_training_end(self) -> None:
+        self.logger.dump(self.num_timesteps)
+
+    def _record(self, episode: _Episode, last_info: dict[str, Any]) -> None:
+        for term, total in episode.reward_terms.items():
+            self.logger.record_mean(f"reward/{term}", total)
+        for name, values in (("forward_speed", episode.x_velocity), ("power", episode.power)):
+            if values:
+                self.logger.record_mean(f"episode/{name}", float(np.mean(values)))
+        self.logger.record_mean("episode/fall_rate", float(bool(last_info.get("fallen", False))))
+        self.logger.record_mean("episode/sim_unstable_rate", float(bool(last_info.get("sim_unstable", False))))
+        self.logger.record_mean("episode/length", episode.length)
+
+
+class _Episode:
+    """Running sums of one env's current episode."""
+
+    def __init__(self) -> None:
+        self.reward_terms: dict[str, float] = {}
+        self.x_velocity: list[float] = []
+        self.power: list[float] = []
+        self.length = 0
+
+    def add(self, info: dict[str, Any]) -> None:
+        self.length += 1
+        for key, value in info.items():
+            if key.startswith("reward_"):
+                term = key.removeprefix("reward_")
+                self.reward_terms[term] = self.reward_terms.get(term, 0.0) + value
+        if "x_velocity" in info:
+            self.x_velocity.append(info["x_velocity"])
+        if "power" in info:
+            self.power.append(info["power"])
+
+
+class CheckpointCallback(BaseCallback):
+    """Save a checkpoint every ``freq`` env steps (all envs together) and at the end of training."""
+
+    def __init__(self, checkpoints_dir: Path, freq: int):
+        super().__init__()
+        self.checkpoints_dir = checkpoints_dir
+        self.freq = freq
+
+    def _on_training_start(self) -> None:
+        self._last_saved = self.num_timesteps
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self._last_saved >= self.freq:
+            self._save()
+        return True
+
+    def _on_training_end(self) -> None:
+        if self.num_timesteps != self._last_saved:
+            self._save()
+
+    def _save(self) -> None:
+        save_checkpoint(self.model, self.checkpoints_dir)
+        self._last_saved = self.num_timesteps
+
+
+# --- training ---------------------------------------------------------------------------------------------------
+
+
+def train(model: BaseAlgorithm, run_dir: Path, timesteps: int, checkpoint_freq: int, progress: bool) -> Path:
+    """Train ``model`` until it has taken ``timesteps`` env steps in all, logging and checkpointing into ``run_dir``.
+
+    Returns the path of the final ``model.zip``. On Ctrl-C, saves a checkpoint and re-raises KeyboardInterrupt.
+    """
+    torch.set_num_threads(TORCH_THREADS)
+    model.set_logger(configure(str(run_dir / "tb"), ["tensorboard"]))
+    checkpoints_dir = run_dir / "checkpoints"
+    callbacks = CallbackList([EpisodeMetricsCallback(), CheckpointCallback(checkpoints_dir, checkpoint_freq)])
+    try:
+        model.learn(
+            timesteps - model.num_timesteps, callback=callbacks, reset_num_timesteps=False, progress_bar=progress
+        )
+    except KeyboardInterrupt:
+        folder = save_checkpoint(model, checkpoints_dir)
+        print(f"\ninterrupted at {model.num_timesteps} steps; checkpoint saved in {folder}", file=sys.stderr)
+        print(f"continue with: python train.py --resume {run_dir}", file=sys.stderr)
+        raise
+    finally:
+        model.logger.close()
+    return save_model_files(model, run_dir)
+
+
+def start_run(args: argparse.Namespace) -> Path:
+    """A new run from the command line's settings; returns the final model's path."""
+    for flag, value in (("--env", args.env), ("--algo", args.algo), ("--timesteps", args.timesteps)):
+        if value is None:
+            raise ConfigError(f"{flag} is required (unless you --resume a run)")
+    check_env_id(args.env)
+    hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
+    overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
+    seed = 0 if args.seed is None else args.seed
+    set_random_seed(seed)
+    venv = make_env(args.env, hp, seed)
+    model = build_model(args.algo, hp, venv, seed)
+    run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(args.env, args.algo, seed))
+    config = {
+        "env_id": args.env,
+        "algo": args.algo,
+        "seed": seed,
+        "timesteps": args.timesteps,
+        "n_envs": hp.n_envs,
+        "normalize": hp.normalize is not None,
+        "checkpoint_freq": args.checkpoint_freq,
+        "hyperparams_file": str(hyperparams_file),
+        "hyperparams": hp.raw,
+        "versions": versions(),
+        "created": _now(),
+    }
+    write_json(run_dir / "config.json", config)
+    write_text(run_dir / "command.txt", command_line() + "\n")
+    print(f"run folder: {run_dir}")
+    return train(model, run_dir, args.timesteps, args.checkpoint_freq, progress=not args.no_progress)
+
+
+def resume_run(args: argparse.Namespace) -> Path:
+    """Continue the run in ``args.resume`` from its latest checkpoint; returns the final model's path."""
+    run_dir = Path(args.resume)
+    config_path = run_dir / "config.json"
+    try:
+        config = json.loads(config_path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"--resume {run_dir}: cannot read {config_path} ({exc})") from None
+    check_resume_flags(args, config)
+    algo, seed = config["algo"], config["seed"]
+    hp = resolve_hyperparams(config["hyperparams"], algo, where=str(config_path))
+    checkpoint, done = latest_checkpoint(run_dir)
+    timesteps = args.timesteps or config["timesteps"]
+    if timesteps <= done:
+        raise ConfigError(f"{run_dir} has already trained {done} steps; pass a larger --timesteps to continue")
+    set_random_seed(seed + done)  # not the first run's seeds: the resumed episodes should differ from its first ones
+    vecnormalize = checkpoint / "vecnormalize.pkl"
+    venv = make_env(config["env_id"], hp, seed + done, vecnormalize if vecnormalize.is_file() else None)
+    model = ALGOS[algo].load(checkpoint / "model.zip", env=venv, device=hp.model_kwargs.get("device", "cpu"))
+    replay_buffer = checkpoint / "replay_buffer.pkl"
+    if isinstance(model, OffPolicyAlgorithm) and replay_buffer.is_file():
+        model.load_replay_buffer(replay_buffer)
+    config["timesteps"] = timesteps
+    config.setdefault("resumed", []).append({"from_timesteps": done, "timesteps": timesteps, "time": _now()})
+    write_json(config_path, config)
+    command_file = run_dir / "command.txt"
+    previous = command_file.read_text() if command_file.is_file() else ""
+    write_text(command_file, previous + command_line() + "\n")
+    print(f"resuming {run_dir} from {checkpoint.name} ({done} steps) to {timesteps} steps")
+    checkpoint_freq = args.checkpoint_freq or config.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)
+    return train(model, run_dir, timesteps, checkpoint_freq, progress=not args.no_progress)
+
+
+def check_env_id(env_id: str) -> None:
+    if env_id not in gym.registry:
+        skitter = ", ".join(name for name in gym.registry if name.startswith("skitter/"))
+        raise ConfigError(f"unknown env {env_id!r}; the skitter envs are {skitter}")
+
+
+def check_resume_flags(args: argparse.Namespace, config: dict[str, Any]) -> None:
+    """With --resume, settings come from the run's config.json; flags may repeat them but not change them."""
+    for flag, given, recorded in (
+        ("--env", args.env, config["env_id"]),
+        ("--algo", args.algo, config["algo"]),
+        ("--seed", args.seed, config["seed"]),
+        ("--n-envs", args.n_envs, config["n_envs"]),
+    ):
+        if given is not None and given != recorded:
+            raise ConfigError(f"{flag} {given} differs from the resumed run's {recorded}; drop {flag} to resume")
+    for flag, given in (("--hyperparams", args.hyperparams), ("--run-name", args.run_name)):
+        if given is not None:
+            raise ConfigError(f"{flag} cannot be used with --resume: the run keeps its own folder and hyperparameters")
+
+
+# --- command line -----------------------------------------------------------------------------------------------
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, without argparse's usage block
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = _Parser(prog="train.py", description="Train an SB3 agent on a skitter env (see the module docstring).")
+    parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v0")
+    parser.add_argument("--algo", choices=sorted(ALGOS), help="algorithm")
+    parser.add_argument("--timesteps", type=_positive_int, help="total env steps (with --resume: default the run's)")
+    parser.add_argument("--seed", type=int, help="random seed (default 0)")
+    parser.add_argument("--n-envs", type=_positive_int, help="override the hyperparameter file's n_envs")
+    parser.add_argument("--hyperparams", help="hyperparameter YAML file (default hyperparams/<algo>.yml)")
+    parser.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its latest checkpoint")
+    parser.add_argument("--runs-dir", default="runs", help="where run folders are created (default runs)")
+    parser.add_argument("--run-name", help="run folder name (default <env>__<algo>__<seed>__<date-time>)")
+    parser.add_argument(
+        "--checkpoint-freq",
+        type=_positive_int,
+        help=f"env steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ})",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    if args.run_name is not None and (not args.run_name or Path(args.run_name).name != args.run_name):
+        parser.error(f"argument --run-name: expected a folder name without '/', got {args.run_name!r}")
+    if args.checkpoint_freq is None and not args.resume:
+        args.checkpoint_freq = DEFAULT_CHECKPOINT_FREQ
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        model_path = resume_run(args) if args.resume else start_run(args)
+    except ConfigError as exc:
+        print(f"train.py: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    print(f"model: {model_path}")
+    print(f"tensorboard: tensorboard --logdir {model_path.parent / 'tb'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
