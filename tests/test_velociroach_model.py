@@ -83,15 +83,41 @@ def test_sensor_history_reads_every_substep_in_order():
             assert samples[j, i] == pytest.approx(expected[0], abs=1e-12)
 
 
-def test_electrical_power_matches_v_times_i_at_constant_speed():
-    """On the bench at steady speed, power = V I with I from the motor equation."""
-    robot = VelociRoach("duty", control_dt=0.001, spec_edit=lambda s: s.delete(s.joint(C.ROOT_JOINT)))
+def test_electrical_power_at_stall_is_v_squared_over_r():
+    """Duty mode with the left crank blocked: no back-EMF, so the motor draws (d V)^2 / R."""
+
+    def block(spec):
+        spec.delete(spec.joint(C.ROOT_JOINT))
+        spec.body(C.ROOT_BODY).pos[2] = 0.5
+        crank = spec.joint(C.CRANK_JOINTS["left"])
+        crank.range = [-1e-4, 1e-4]
+        crank.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+
+    robot = VelociRoach("duty", control_dt=0.005, spec_edit=block)
     robot.reset()
-    for _ in range(600):
+    for _ in range(40):
         robot.command_duty(np.array([0.5, 0.0]))
         robot.step()
-    k, r, vb = robot.motor_constant[0], robot.resistance[0], robot.battery_voltage
-    speed = robot.data.sensordata[robot.sensor_slice[C.SENSOR_MOTOR_VEL["left"]]][0]
-    current = (0.5 * vb - k * speed) / r
-    assert robot.electrical_power() == pytest.approx(0.5 * vb * current, rel=0.15)
-    assert robot.duty()[0] == pytest.approx(0.5, abs=1e-9)
+    r, vb = robot.resistance[0], robot.battery_voltage
+    assert robot.electrical_power() == pytest.approx((0.5 * vb) ** 2 / r, rel=0.01)
+    assert robot.duty()[0] == pytest.approx(0.5, abs=1e-3)
+
+
+def test_braking_energy_is_not_returned_to_the_battery():
+    """Duty 0 while the legs still spin: the shorted motor brakes, current flows backward, and the battery supplies
+    nothing, so power is zero, not negative."""
+
+    def clamp(spec):
+        spec.delete(spec.joint(C.ROOT_JOINT))
+        spec.body(C.ROOT_BODY).pos[2] = 0.5
+
+    robot = VelociRoach("duty", control_dt=0.005, spec_edit=clamp)
+    robot.reset()
+    for _ in range(40):
+        robot.command_duty(np.array([1.0, 0.0]))
+        robot.step()
+    robot.command_duty(np.array([0.0, 0.0]))
+    robot.step()
+    torque = robot.data.sensordata[robot.sensor_slice[C.SENSOR_MOTOR_TORQUE["left"]]][0]
+    assert torque < 0, "the spinning motor brakes"
+    assert robot.electrical_power() == pytest.approx(0.0, abs=1e-12)
