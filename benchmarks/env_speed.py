@@ -36,27 +36,38 @@ def time_env(env, actions: np.ndarray) -> float:
     return len(actions) / (time.perf_counter() - start)
 
 
-def record_controls(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The controls (and firmware slew limits) the env writes at each step."""
+def record_controls(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The controls and firmware slew limits the env writes at each step, where it reset, and its final qpos."""
     robot = env.unwrapped.robot
     env.reset(seed=0)
-    ctrls, slews = [], []
+    ctrls, slews, resets = [], [], []
+    reset = False
     for a in actions:
-        env.step(a)
+        _, _, terminated, truncated, _ = env.step(a)
         ctrls.append(robot.data.ctrl.copy())
         slews.append(robot.model.actuator_dynprm[:, DC_DYN_SLEW].copy())
-    return np.array(ctrls), np.array(slews)
+        resets.append(reset)
+        final = robot.data.qpos.copy()
+        reset = terminated or truncated
+        if reset:
+            env.reset(seed=0)
+    return np.array(ctrls), np.array(slews), np.array(resets), final
 
 
-def time_raw(model: mujoco.MjModel, start: mujoco.MjData, ctrls: np.ndarray, nstep: int) -> float:
-    """Raw physics: set the recorded controls, step natively. No Python per physics step."""
+def time_raw(model, start: mujoco.MjData, ctrls, nstep: int, slews=None, resets=None) -> tuple[float, np.ndarray]:
+    """Raw physics: the recorded controls (and slew limits), stepped natively; no Python per physics step."""
     data = mujoco.MjData(model)
     mujoco.mj_copyData(data, model, start)
+    dynprm = model.actuator_dynprm
     t0 = time.perf_counter()
-    for c in ctrls:
+    for i, c in enumerate(ctrls):
+        if resets is not None and resets[i]:
+            mujoco.mj_copyData(data, model, start)
         data.ctrl[:] = c
+        if slews is not None:
+            dynprm[:, DC_DYN_SLEW] = slews[i]
         mujoco.mj_step(model, data, nstep=nstep)
-    return len(ctrls) / (time.perf_counter() - t0)
+    return len(ctrls) / (time.perf_counter() - t0), data.qpos.copy()
 
 
 def measure_skitter(env_id: str, steps: int, rounds: int) -> dict:
@@ -66,18 +77,21 @@ def measure_skitter(env_id: str, steps: int, rounds: int) -> dict:
     # straight-ish random actions keep the robot running rather than tumbling, like a policy would
     if env.unwrapped.action_mode == "gait":
         actions[:, 1] = actions[:, 0]
-    ctrls, slews = record_controls(env, actions)
     robot = env.unwrapped.robot
     env.reset(seed=0)
     start = mujoco.MjData(robot.model)
     mujoco.mj_copyData(start, robot.model, robot.data)
-    robot.model.actuator_dynprm[:, DC_DYN_SLEW] = slews.mean(axis=0)
+    ctrls, slews, resets, final = record_controls(env, actions)
     env_sps, raw_sps = [], []
     for _ in range(rounds):
         env_sps.append(time_env(env, actions))
-        raw_sps.append(time_raw(robot.model, start, ctrls, robot.n_substeps))
+        sps, raw_final = time_raw(robot.model, start, ctrls, robot.n_substeps, slews, resets)
+        raw_sps.append(sps)
+    # the raw loop must have simulated exactly what the env did, or the comparison means nothing
+    identical = bool(np.array_equal(final, raw_final))
     best_env, best_raw = max(env_sps), max(raw_sps)
     return {
+        "same_trajectory": identical,
         "env_id": env_id,
         "substeps": robot.n_substeps,
         "env_steps_per_s": best_env,
@@ -102,7 +116,7 @@ def measure_ant(steps: int, rounds: int) -> dict | None:
     env_sps, raw_sps = [], []
     for _ in range(rounds):
         env_sps.append(time_env(env, actions))
-        raw_sps.append(time_raw(u.model, start, actions, u.frame_skip))
+        raw_sps.append(time_raw(u.model, start, actions, u.frame_skip)[0])
     return {
         "env_id": "Ant-v5 (Gymnasium)",
         "substeps": u.frame_skip,
@@ -128,7 +142,7 @@ def main() -> None:
     if ant:
         rows.append(ant)
     table = md_table(
-        ["env", "physics steps per control step", "env steps/s", "raw mj_step steps/s", "ratio", "goal >= 0.9"],
+        ["env", "physics steps per step", "env steps/s", "raw mj_step steps/s", "ratio", "goal >= 0.9", "same run?"],
         [
             [
                 r["env_id"],
@@ -137,11 +151,15 @@ def main() -> None:
                 round(r["raw_steps_per_s"]),
                 round(r["ratio"], 3),
                 "met" if r["ratio"] >= GOAL else "MISSED",
+                {True: "identical", False: "DIFFERENT"}.get(r.get("same_trajectory"), "n/a"),
             ]
             for r in rows
         ],
     )
-    text = "# Env speed against raw mj_step (same model, same run)\n\n" + table
+    text = (
+        "# Env speed against raw mj_step (same model, same run)\n\n"
+        "'same run?': whether the raw loop, replaying the env's controls, ended in exactly the env's state.\n\n" + table
+    )
     save("env_speed", {"goal": GOAL, "rows": rows}, text)
 
 
