@@ -46,6 +46,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--telemetry", action="store_true", help="write the telemetry of every episode as Parquet")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
     p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
+    p.add_argument("--max-episode-steps", type=int, help="cut episodes short (default: the env's time limit)")
     args = p.parse_args(argv)
     if (args.out / "results.json").exists() and not args.overwrite:
         p.error(f"--out {args.out} already holds results.json; choose another directory or pass --overwrite")
@@ -65,7 +66,8 @@ def slug(spec: str) -> str:
 
 
 def evaluate_policy(args, spec: str, out: Path) -> list[Episode]:
-    env = gym.make(args.env, telemetry=True, render_mode="rgb_array" if args.video else None)
+    limit = {"max_episode_steps": args.max_episode_steps} if args.max_episode_steps else {}
+    env = gym.make(args.env, telemetry=True, render_mode="rgb_array" if args.video else None, **limit)
     policy = load_policy(spec, env)
     episodes = []
     for i in range(args.episodes):
