@@ -25,10 +25,12 @@ TURN_TABLE = Path(__file__).resolve().parent / "data" / "roach_turn_table.json"
 
 @dataclass(frozen=True)
 class RoachObsLayout:
-    """Where the tripod finds what it needs in a VelociRoACH observation."""
+    """What the tripod knows of the robot it drives: where to find things in its observation, its control period, and
+    (for the duty-mode firmware's feed-forward) the back-EMF per unit leg speed, Ke x gear, V s/rad."""
 
     action_mode: str
     control_dt: float
+    back_emf_per_leg_rate: float
     battery_index: int = 14
     command_index: int | None = None  # the yaw-rate command of RoachTurn
 
@@ -37,15 +39,8 @@ class RoachObsLayout:
         base = env.unwrapped
         size = 15 + (4 if base.action_mode == "gait" else 0)
         command = size if base._command_size() else None
-        return cls(base.action_mode, base.dt, command_index=command)
-
-
-@dataclass(frozen=True)
-class MotorModel:
-    """What the duty-mode firmware knows of its motors: back-EMF constant and gear, for the feed-forward."""
-
-    back_emf_constant: float = 0.00141  # V s/rad, as in assets/velociroach/velociroach.xml
-    gear: float = 7.0
+        robot = base.robot
+        return cls(base.action_mode, base.dt, float(robot.motor_constant[0] * robot.gear), command_index=command)
 
 
 class TripodGait:
@@ -63,7 +58,6 @@ class TripodGait:
         self.layout = layout
         self.frequency = float(frequency)
         self.phase = float(phase)
-        self.motor = MotorModel()
 
     def __repr__(self) -> str:
         return f"TripodGait(f={self.frequency:g} Hz, phase={np.degrees(self.phase):.0f} deg)"
@@ -121,7 +115,7 @@ class TripodGait:
         state[:, 2:] = np.clip(state[:, 2:] + C.PID_KI * error * dt, -C.PID_INTEGRAL_LIMIT, C.PID_INTEGRAL_LIMIT)
         clock_rate = np.column_stack([np.full(n, omega), omega + correction / dt])
         vbatt = obs[:, self.layout.battery_index : self.layout.battery_index + 1]
-        feedforward = self.motor.back_emf_constant * self.motor.gear * clock_rate / vbatt
+        feedforward = self.layout.back_emf_per_leg_rate * clock_rate / vbatt
         duty = C.PID_KP * error + state[:, 2:] + C.PID_KD * (clock_rate - obs[:, 4:6]) + feedforward
         return np.clip(duty, -1.0, 1.0), state
 

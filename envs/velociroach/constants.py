@@ -53,8 +53,10 @@ TOP_SPEED = 2.7  # m/s, ICRA 2013 abstract
 STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmware phase 0x8000 of 65536)
 
 # --- firmware: leg clock and per-side PID (the lab's roach firmware runs them at 1 kHz) ----------------------------
-# The real firmware's gains (Kp=1800, Ki=200, Kd=100) are in its own fixed-point units; ours are in duty per leg
-# radian, chosen so that the leg tracks the clock within about 5 deg up to 45 Hz (benchmarks/speed_vs_frequency.py).
+# The real firmware's gains are in its own fixed-point units: robots.md gives Kp=1800, Ki=200, Kd=100; the 2 Hz real
+# log's header lists [1800, 100, 200, 0, 200], which in the firmware's usual order (Kp, Ki, Kd, anti-windup,
+# feed-forward) reads Ki=100, Kd=200. Ours are in duty per leg radian, chosen so that the legs follow the clock within
+# 1 to 3 deg up to 45 Hz (benchmarks/speed_vs_frequency.py).
 PID_KP = 1.8  # duty / rad of leg angle error: full duty at about 32 deg
 PID_KI = 10.0  # duty / (rad s)
 PID_KD = 0.009  # duty / (rad/s)

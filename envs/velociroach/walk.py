@@ -65,7 +65,9 @@ class RoachWalkEnv(RoachEnv):
 
     ## Episode End
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
-      simulation goes numerically unstable (``info["sim_unstable"]``; the last finite observation is returned);
+      simulation goes numerically unstable (``info["sim_unstable"]``; the last finite observation is returned with
+      reward 0, and ``info`` holds only ``sim_unstable``, ``fallen`` and ``time``: MuJoCo has reset the state, so
+      there is no velocity or power to report);
     - truncated at the registration's time limit: 10 s (500 steps in gait mode, 10000 in duty mode).
 
     ## Info
