@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -15,10 +16,10 @@ from envs.velociroach import constants as C
 from envs.velociroach.robot import TELEMETRY_COLUMNS, ActionMode, VelociRoach
 
 DEFAULT_CONTROL_FREQ = {"gait": 50.0, "duty": 1000.0}  # Hz
-CAMERA = {"type": mujoco.mjtCamera.mjCAMERA_TRACKING, "trackbodyid": 1, "distance": 0.35, "elevation": -25.0}
+CAMERA = {"type": mujoco.mjtCamera.mjCAMERA_TRACKING, "distance": 0.35, "elevation": -25.0}  # tracks the body
 
 
-class RoachEnv(gym.Env):
+class RoachEnv(gym.Env, ABC):
     """Base of the VelociRoACH tasks; see :class:`envs.velociroach.walk.RoachWalkEnv` for the user's manual.
 
     Subclasses define ``_reward_terms`` (a dict of weighted terms whose sum is the reward), ``_command_obs`` and,
@@ -75,8 +76,9 @@ class RoachEnv(gym.Env):
     def _sample_command(self, options: dict[str, Any] | None) -> None:
         """Draw (or take from ``options``) the episode's command."""
 
+    @abstractmethod
     def _reward_terms(self, state: dict[str, float]) -> dict[str, float]:
-        raise NotImplementedError("a task defines its reward terms")
+        """The task's weighted reward terms for one step; the reward is their sum."""
 
     # --- actions ----------------------------------------------------------------------------------------------
     def action_to_command(self, action: np.ndarray) -> np.ndarray:
@@ -200,9 +202,8 @@ class RoachEnv(gym.Env):
         if self._renderer is None:
             from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
 
-            self._renderer = MujocoRenderer(
-                self.robot.model, self.robot.data, dict(CAMERA), width=self._width, height=self._height
-            )
+            camera = {**CAMERA, "trackbodyid": self.robot.model.body(C.ROOT_BODY).id}
+            self._renderer = MujocoRenderer(self.robot.model, self.robot.data, camera, self._width, self._height)
         return self._renderer.render(self.render_mode)
 
     def close(self):
