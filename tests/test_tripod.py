@@ -113,3 +113,14 @@ def test_unknown_policy_names_are_rejected_clearly():
         load_policy("tripod:fast", env)
     with pytest.raises(ValueError, match="frequency"):
         load_policy("tripod:500", env)
+
+
+def test_turning_table_was_measured_on_the_current_model():
+    import json
+
+    from agents.tripod import TURN_TABLE
+    from envs.velociroach.robot import VelociRoach
+
+    table = json.loads(TURN_TABLE.read_text())
+    current = VelociRoach("gait", control_dt=0.02).model_hash
+    assert table["model_hash"] == current, "the model changed: regenerate with python -m benchmarks.turn_table"
