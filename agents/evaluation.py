@@ -19,6 +19,7 @@ WARMUP_SECONDS = 1.0  # left out of the yaw-rate error: the gait settles in the 
 METRICS = {
     "return": "episode return",
     "speed": "mean speed along the body's heading, m/s",
+    "forward_speed": "progress along +x (RoachWalk's direction) over the episode, m/s",
     "speed_bl": "the same in body lengths per second",
     "cost_of_transport": "electrical energy / (m g distance travelled)",
     "falls": "1 if the episode ended with the robot fallen",
@@ -41,11 +42,13 @@ def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, rend
     obs, info = env.reset(seed=seed)
     state, start = None, np.array([True])
     total, steps, energy, distance = 0.0, 0, 0.0, 0.0
+    x_end = info["x_position"]
     yaw_rates: list[float] = []
     fallen = unstable = False
     frames = [env.render()] if render else []
     dt = env.unwrapped.dt
     command = info.get("yaw_rate_command")
+    x_start = info["x_position"]
     while True:
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
         start = np.array([False])
@@ -63,6 +66,7 @@ def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, rend
         if info["time"] > WARMUP_SECONDS:
             yaw_rates.append(info["yaw_rate"])
         fallen = bool(info.get("fallen", False))
+        x_end = info["x_position"]
         if terminated or truncated:
             break
     duration = steps * dt
@@ -75,6 +79,8 @@ def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, rend
         "cost_of_transport": energy / (robot.mass * 9.81 * distance) if distance > 1e-6 else float("nan"),
         "falls": float(fallen),
     }
+    if hasattr(env.unwrapped, "forward_reward_weight"):  # a task that runs along +x (RoachWalk)
+        metrics["forward_speed"] = (x_end - x_start) / duration if duration > 0 else 0.0
     if command is not None:
         metrics["yaw_rate_error"] = abs(float(np.mean(yaw_rates)) - command) if yaw_rates else float("nan")
     return Episode(seed=seed, length=steps, duration=duration, metrics=metrics, unstable=unstable, frames=frames)
