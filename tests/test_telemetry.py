@@ -26,10 +26,9 @@ from envs.velociroach.roach_csv import (
 )
 from envs.velociroach.robot import TELEMETRY_COLUMNS
 
-REAL = Path("/work/shared/data/real")
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 FILE_2HZ = REAL / "velociroach_behavior4_2Hz.txt"
 FILE_13HZ = REAL / "velociroach_13Hz_beetleshell_grass_run3.txt"
-needs_real = pytest.mark.skipif(not FILE_2HZ.exists() or not FILE_13HZ.exists(), reason="real data not present")
 
 COLUMNS_LINE = (
     "% time | Right Leg Pos | Left Leg Pos | Commanded Right Leg Pos | Commanded Left Leg Pos | DCR | DCL | "
@@ -75,7 +74,6 @@ def sim_gait():
 
 
 # --- the real files --------------------------------------------------------------------------------------------
-@needs_real
 def test_real_files_read_with_header_and_sampling(real_2hz, real_13hz):
     df, meta = real_2hz
     assert len(df) == 9832 and meta["rows"] == 9832
@@ -103,7 +101,6 @@ def test_real_files_read_with_header_and_sampling(real_2hz, real_13hz):
     assert 2400 <= meta13["missing_samples"] <= 2600  # the README: about 2,500
 
 
-@needs_real
 def test_2hz_legs_advance_two_strides_per_second(real_2hz):
     df, _ = real_2hz
     run = df[(df["time"] >= 1.1) & (df["time"] <= 9.1)]
@@ -117,7 +114,6 @@ def test_2hz_legs_advance_two_strides_per_second(real_2hz):
     assert rest["leg_angle_cmd_left"].nunique() == 1 and rest["leg_angle_cmd_right"].nunique() == 1
 
 
-@needs_real
 def test_real_battery_and_gravity(real_2hz, real_13hz):
     for df, _ in (real_2hz, real_13hz):
         rest = df[df["time"] < 0.1]
@@ -129,7 +125,6 @@ def test_real_battery_and_gravity(real_2hz, real_13hz):
         assert abs(rest["accel_x"].mean()) < 1.0 and abs(rest["accel_y"].mean()) < 2.0
 
 
-@needs_real
 def test_13hz_keeps_shell_sensors_and_reports_duty_clip(real_13hz):
     df, meta = real_13hz
     sensors = [f"S{i}" for i in range(1, 9)]
@@ -146,7 +141,6 @@ def test_13hz_keeps_shell_sensors_and_reports_duty_clip(real_13hz):
         assert df[f"duty_{side}"].min() == pytest.approx(-3000 / 3900)
 
 
-@needs_real
 def test_real_file_survives_read_write_read(real_13hz, tmp_path):
     df, meta = real_13hz
     out = write_roach_csv(df, tmp_path / "copy.txt", meta)
@@ -160,7 +154,6 @@ def test_real_file_survives_read_write_read(real_13hz, tmp_path):
         assert meta2[key] == meta[key]
 
 
-@needs_real
 def test_real_table_saves_as_parquet(real_2hz, tmp_path):
     df, meta = real_2hz
     path = write_telemetry(tmp_path / "real.parquet", df, meta)

@@ -36,7 +36,7 @@ from envs.common.io import atomic_write, refuse_overwrite
 from envs.common.telemetry import SCHEMA_VERSION
 from envs.velociroach.robot import TELEMETRY_COLUMNS
 
-# --- units of the real format (the lab's scaling script, see /work/shared/data/real/README.md) -----------------------
+# --- units of the real format (the lab's scaling script; docs/telemetry.md) ------------------------------------
 COUNTS_PER_REV = 65536  # leg position counts per leg revolution (cumulative)
 DUTY_FULL_SCALE = 3900  # PWM duty counts at 100 % (the README says "about 3900"; we take 3900)
 GYRO_LSB_PER_DPS = 16.384  # MPU6000 at +-2000 deg/s
