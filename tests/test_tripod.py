@@ -9,6 +9,7 @@ import pytest
 from agents import load_policy
 from agents.evaluation import run_episode
 from agents.tripod import RoachObsLayout, TripodGait, TripodTurn
+from benchmarks.turn_table import yaw_rate as benchmark_yaw_rate
 
 SECONDS = 4.0
 
@@ -48,13 +49,7 @@ def test_tripod_works_in_duty_mode_as_the_firmware_would():
 def yaw_rate(phase_deg: float, seed: int) -> float:
     env = gym.make("skitter/RoachWalk-v0", max_episode_steps=300)
     policy = TripodGait(RoachObsLayout.from_env(env), frequency=10.0, phase=np.radians(phase_deg))
-    obs, info = env.reset(seed=seed)
-    rates = []
-    for _ in range(300):
-        obs, _, _terminated, _truncated, info = env.step(policy.predict(obs)[0])
-        if info["time"] > 1.0:
-            rates.append(info["yaw_rate"])
-    return float(np.mean(rates))
+    return benchmark_yaw_rate(env, policy, seed)
 
 
 def test_turning_direction_follows_the_sign_of_the_offset_from_180_deg():

@@ -34,6 +34,19 @@ def test_relative_leg_stiffness_in_a_static_load_test():
     assert result["max_relative_compression"] < 0.05, "the load test stays in the small-compression range"
 
 
+def test_stance_legs_carry_about_0_1_n_each_standing():
+    """Seed 000 Table 1: about 0.1 N per leg. On a tripod the lone middle leg carries half the weight by statics
+    (it faces two legs across the body), the front and back legs a quarter each."""
+    robot = VelociRoach("gait", control_dt=0.01)
+    robot.reset()
+    facts.hold(robot, 1.0)
+    grf = dict(zip(C.LEGS, robot.ground_reaction_forces()[:, 2], strict=True))
+    stance = [grf[leg] for leg in C.TRIPOD_A]
+    assert np.mean(stance) == pytest.approx(C.GRF_PER_LEG, rel=0.05)
+    assert all(0.5 * C.GRF_PER_LEG < f < 1.5 * C.GRF_PER_LEG for f in stance), grf
+    assert all(abs(grf[leg]) < 1e-9 for leg in C.LEGS if leg not in C.TRIPOD_A), "the other tripod is in swing"
+
+
 def test_leg_inertia_felt_by_the_crank(robot):
     assert facts.reflected_leg_inertia(robot) == pytest.approx(C.LEG_INERTIA, rel=0.10)
 

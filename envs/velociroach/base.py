@@ -10,10 +10,10 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from envs.common.mujoco_utils import quat_to_yaw
+from envs.common.mujoco_utils import quat_to_yaw, quat_up_z
 from envs.common.telemetry import TelemetryRecorder
 from envs.velociroach import constants as C
-from envs.velociroach.robot import TELEMETRY_COLUMNS, ActionMode, VelociRoach
+from envs.velociroach.robot import TELEMETRY_COLUMNS, ActionMode, VelociRoach, wrap_angle
 
 DEFAULT_CONTROL_FREQ = {"gait": 50.0, "duty": 1000.0}  # Hz
 CAMERA = {"type": mujoco.mjtCamera.mjCAMERA_TRACKING, "distance": 0.35, "elevation": -25.0}  # tracks the body
@@ -64,7 +64,8 @@ class RoachEnv(gym.Env, ABC):
         self.recorder = TelemetryRecorder(self._telemetry_meta(), TELEMETRY_COLUMNS) if telemetry else None
         self._last_obs = np.zeros(n_obs)
         self._obs_buffer = np.zeros(n_obs)
-        self._yaw = 0.0
+        self._planar = (0.0, 0.0, 0.0)  # x, y, yaw at the end of the last step
+        self._min_up_z = float(np.cos(max_tilt))
 
     # --- the parts a task fills in ----------------------------------------------------------------------------
     def _command_size(self) -> int:
@@ -137,8 +138,8 @@ class RoachEnv(gym.Env, ABC):
         self.robot.reset(crank_left=rng.uniform(-noise, noise), phase=C.STRAIGHT_PHASE + rng.uniform(-noise, noise))
         self.robot.set_body_velocity(rng.normal(0.0, noise * 0.1, 3), rng.normal(0.0, noise, 3))
         self._sample_command(options)
-        self._yaw = quat_to_yaw(self.robot.body_pose()[3:])
-        self._fallen = False
+        pose = self.robot.body_pose()
+        self._planar = (pose[0], pose[1], quat_to_yaw(pose[3:]))
         obs = self._get_obs()
         self._last_obs = obs
         if self.recorder is not None:
@@ -146,40 +147,39 @@ class RoachEnv(gym.Env, ABC):
             self.recorder.record(self.robot, 0.0)
         if self.render_mode == "human":
             self.render()
-        return obs, self._info({})
+        return obs, self._info(pose, {})
 
     def step(self, action: np.ndarray):
         self._apply_action(action)
-        pose_before = self.robot.body_pose().copy()
         stable = self.robot.step()
         if not stable:
             # MuJoCo has reset the data; end the episode with the last good observation
             info = {"sim_unstable": True, "fallen": False, "time": float(self.robot.data.time)}
             return self._last_obs.copy(), 0.0, True, False, info
         pose = self.robot.body_pose()
-        yaw = quat_to_yaw(pose[3:])
+        x, y, yaw = pose[0], pose[1], quat_to_yaw(pose[3:])
+        x_before, y_before, yaw_before = self._planar
         state = {
-            "x_velocity": (pose[0] - pose_before[0]) / self.dt,
-            "y_velocity": (pose[1] - pose_before[1]) / self.dt,
-            "yaw_rate": float(np.angle(np.exp(1j * (yaw - self._yaw)))) / self.dt,
+            "x_velocity": (x - x_before) / self.dt,
+            "y_velocity": (y - y_before) / self.dt,
+            "yaw_rate": float(wrap_angle(yaw - yaw_before)) / self.dt,
             "yaw": yaw,
-            "up_z": self.robot.up_z(),
+            "up_z": quat_up_z(pose[3:]),
             "power": self.robot.electrical_power(),
         }
-        self._yaw = yaw
+        self._planar = (x, y, yaw)
         terms = self._reward_terms(state)
         reward = float(sum(terms.values()))
-        terminated = bool(state["up_z"] < np.cos(self.max_tilt))
+        terminated = bool(state["up_z"] < self._min_up_z)
         obs = self._get_obs()
         self._last_obs = obs
         if self.recorder is not None:
             self.recorder.record(self.robot, state["power"])
         if self.render_mode == "human":
             self.render()
-        return obs, reward, terminated, False, self._info(state, terms, fallen=terminated)
+        return obs, reward, terminated, False, self._info(pose, state, terms, fallen=terminated)
 
-    def _info(self, state: dict[str, float], terms: dict[str, float] | None = None, fallen: bool = False):
-        pose = self.robot.body_pose()
+    def _info(self, pose: np.ndarray, state: dict[str, float], terms: dict | None = None, fallen: bool = False):
         info: dict[str, Any] = {
             "x_position": float(pose[0]),
             "y_position": float(pose[1]),

@@ -14,7 +14,6 @@ import numpy as np
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "velociroach"
 SCENE_XML = ASSET_DIR / "scene.xml"
-ROBOT_XML = ASSET_DIR / "velociroach.xml"
 
 # --- names ------------------------------------------------------------------------------------------------------
 SIDES = ("left", "right")
@@ -35,7 +34,6 @@ SENSOR_ACCEL = "accel"
 SENSOR_BODY_POS = "body_pos"
 SENSOR_BODY_QUAT = "body_quat"
 SENSOR_BODY_VEL = "body_vel"
-SENSOR_CHASSIS_CONTACT = "chassis_contact"
 SENSOR_GRF = {leg: f"grf_{leg}" for leg in LEGS}
 NUMERIC_BATTERY = "battery_voltage"
 NUMERIC_SWEEP = "sweep_amplitude"

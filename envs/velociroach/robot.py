@@ -142,7 +142,6 @@ class VelociRoach:
         self._i_pose = idx(C.SENSOR_BODY_POS, C.SENSOR_BODY_QUAT)
         self._i_body_vel = idx(C.SENSOR_BODY_VEL)
         self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in C.LEGS))
-        self._i_chassis_contact = idx(C.SENSOR_CHASSIS_CONTACT)
         self._history = SensorHistory(
             m,
             [C.SENSOR_MOTOR_TORQUE[s] for s in C.SIDES] + [C.SENSOR_MOTOR_VEL[s] for s in C.SIDES],
@@ -214,10 +213,6 @@ class VelociRoach:
         return d.warning.number[_BAD_STATE].sum() == before and np.isfinite(d.qvel).all()
 
     # --- sensing (values at the end of the last physics step) --------------------------------------------------
-    @property
-    def sensordata(self) -> np.ndarray:
-        return self.data.sensordata
-
     def senses(self) -> np.ndarray:
         """Leg angles (2), leg rates (2), gyro (3), accelerometer (3), motor speeds (2), gathered at once."""
         return self.data.sensordata[self._i_senses]
@@ -279,9 +274,6 @@ class VelociRoach:
     def ground_reaction_forces(self) -> np.ndarray:
         """Force of the ground on each leg (FL, ML, BL, FR, MR, BR), world frame, N, shape (6, 3)."""
         return -self.data.sensordata[self._i_grf].reshape(6, 3)
-
-    def chassis_touches_ground(self) -> bool:
-        return bool(self.data.sensordata[self._i_chassis_contact][0] > 0)
 
     def up_z(self) -> float:
         return quat_up_z(self.body_pose()[3:])

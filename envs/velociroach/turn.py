@@ -115,7 +115,7 @@ class RoachTurnEnv(RoachEnv):
             "energy": -self.energy_cost_weight * state["power"],
         }
 
-    def _info(self, state, terms=None, fallen=False):
-        info = super()._info(state, terms, fallen)
+    def _info(self, pose, state, terms=None, fallen=False):
+        info = super()._info(pose, state, terms, fallen)
         info["yaw_rate_command"] = self.yaw_rate_command
         return info
