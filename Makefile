@@ -33,8 +33,8 @@ test: lint
 	$(BIN)/python -m pytest -n 2 -q
 
 demo: setup
-	$(BIN)/python train.py --env skitter/RoachWalk-v0 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
-	$(BIN)/python evaluate.py --env skitter/RoachWalk-v0 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
+	$(BIN)/python train.py --env skitter/RoachWalk-v1 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
+	$(BIN)/python evaluate.py --env skitter/RoachWalk-v1 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
 		--episodes $(DEMO_EPISODES) --seed 1000 --out results/$(DEMO_ID)
 
 bench: setup

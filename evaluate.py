@@ -1,12 +1,14 @@
 """Evaluate policies (scripted gaits and trained models) on the same episode seeds, with honest statistics.
 
-    python evaluate.py --env skitter/RoachWalk-v0 --policy tripod --policy runs/.../model.zip \
+    python evaluate.py --env skitter/RoachWalk-v1 --policy tripod --policy runs/.../model.zip \
         --episodes 10 --seed 0 --out results/walk [--video] [--telemetry]
 
 Prints a side-by-side table (mean and 95% bootstrap CI per metric), and writes DIR/results.json (every episode and
-the summaries), DIR/results.md, plots of one episode per policy (trajectory, leg angles, body angles, torques, ground
-reaction forces; like seed 000 figures 6 to 8) and, with --video, an mp4 per policy; with --telemetry, the
-telemetry of every episode as Parquet.
+the summaries), DIR/results.md, a plot of one episode per policy (trajectory, body angles and the robot's own channel
+groups) and, with --video, an mp4 per policy; with --telemetry, the telemetry of every episode as Parquet.
+
+Everything is checked before the first episode runs, and the results are written as one unit: into a temporary folder
+beside DIR, which then takes DIR's place.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -24,20 +27,22 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the envs)
-from agents import SCRIPTED, load_policy
-from agents.evaluation import METRICS, Episode, episode_record, paired_difference, run_episode, summarize
+from agents import describe_policies, load_policy
+from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episode, summarize
 from envs.common.io import atomic_write, write_json, write_text
 from envs.common.telemetry import read_telemetry
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, without argparse's usage block
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description="Compare policies on the same seeds.")
-    p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v0")
+    p = _Parser(prog="evaluate.py", description="Compare policies on the same seeds.")
+    p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v1")
     p.add_argument(
-        "--policy",
-        action="append",
-        required=True,
-        help="scripted gait (" + "; ".join(f"{k}: {v}" for k, v in SCRIPTED.items()) + ") or a model.zip; repeat",
+        "--policy", action="append", required=True, help=f"scripted gait ({describe_policies()}) or a model.zip; repeat"
     )
     p.add_argument("--episodes", type=int, default=10)
     p.add_argument("--seed", type=int, default=0, help="episode i runs with seed SEED + i, for every policy")
@@ -47,43 +52,60 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
     p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     p.add_argument("--max-episode-steps", type=int, help="cut episodes short (default: the env's time limit)")
+    p.add_argument(
+        "--unnormalized", action="store_true", help="accept a foreign SB3 model without normalization statistics"
+    )
     args = p.parse_args(argv)
-    if (args.out / "results.json").exists() and not args.overwrite:
-        p.error(f"--out {args.out} already holds results.json; choose another directory or pass --overwrite")
     if args.episodes < 1:
         p.error(f"--episodes must be at least 1, got {args.episodes}")
+    if args.seed < 0:
+        p.error(f"--seed must be >= 0 (numpy seeds are non-negative), got {args.seed}")
+    if args.max_episode_steps is not None and args.max_episode_steps < 1:
+        p.error(f"--max-episode-steps must be at least 1, got {args.max_episode_steps}")
     if args.env not in gym.registry:
         known = ", ".join(sorted(k for k in gym.registry if k.startswith("skitter/")))
         p.error(f"--env {args.env!r} is not registered; known: {known}")
+    repeated = sorted({s for s in args.policy if args.policy.count(s) > 1})
+    if repeated:
+        p.error(f"--policy {repeated[0]!r} is given twice")
+    if args.out.exists() and not args.out.is_dir():
+        p.error(f"--out {args.out} exists and is not a directory")
+    if args.out.is_dir() and any(args.out.iterdir()) and not args.overwrite:
+        p.error(f"--out {args.out} already holds files (results.json...); choose another directory or pass --overwrite")
     return args
 
 
-def slug(spec: str) -> str:
-    """A file-name-safe name for a policy spec."""
-    path = Path(spec)
-    name = f"{path.parent.name}_{path.stem}" if spec.endswith(".zip") else spec
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_")
+def slugs(specs: list[str]) -> dict[str, str]:
+    """A distinct file-name-safe name per policy spec (two runs' step_N/model.zip must not share a plot)."""
+    out: dict[str, str] = {}
+    for spec in specs:
+        path = Path(spec)
+        name = "_".join(path.with_suffix("").parts[-3:]) if spec.endswith(".zip") else spec
+        base = re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "policy"
+        slug, k = base, 1
+        while slug in out.values():
+            k += 1
+            slug = f"{base}-{k}"
+        out[spec] = slug
+    return out
 
 
-def evaluate_policy(args, spec: str, out: Path) -> list[Episode]:
+def make_env(args, render: bool):
     limit = {"max_episode_steps": args.max_episode_steps} if args.max_episode_steps else {}
-    env = gym.make(args.env, telemetry=True, render_mode="rgb_array" if args.video else None, **limit)
-    policy = load_policy(spec, env)
-    episodes = []
-    for i in range(args.episodes):
-        episodes.append(
-            run_episode(
-                env, policy, seed=args.seed + i, deterministic=not args.stochastic, render=args.video and i == 0
-            )
-        )
+    return gym.make(args.env, telemetry=True, render_mode="rgb_array" if render else None, **limit)
+
+
+def evaluate_policy(args, spec: str, policy, env, name: str, out: Path, scratch: Path) -> list[Episode]:
+    episodes = [
+        run_episode(env, policy, seed=args.seed + i, deterministic=not args.stochastic, render=args.video and i == 0)
+        for i in range(args.episodes)
+    ]
     recorder = env.unwrapped.recorder
-    name = slug(spec)
-    with tempfile.TemporaryDirectory() as scratch:
-        telemetry_dir = out / "telemetry" if args.telemetry else Path(scratch)
-        telemetry_path = telemetry_dir / f"{name}.parquet"
-        meta = {"controller": spec, "env_id": args.env, "seeds": [e.seed for e in episodes]}
-        recorder.save(telemetry_path, overwrite=args.overwrite, **meta)
-        plot_episode(telemetry_path, out / "plots" / f"{name}.png", title=f"{spec} on {args.env}, seed {args.seed}")
+    telemetry_path = (out / "telemetry" if args.telemetry else scratch) / f"{name}.parquet"
+    recorder.save(telemetry_path, controller=spec, env_id=args.env, seeds=[e.seed for e in episodes])
+    plot_episode(
+        env.unwrapped.robot, telemetry_path, out / "plots" / f"{name}.png", f"{spec} on {args.env}, seed {args.seed}"
+    )
     if args.video:
         write_video(episodes[0].frames, out / "videos" / f"{name}.mp4", fps=env.metadata["render_fps"])
     env.close()
@@ -103,8 +125,8 @@ def write_video(frames: list[np.ndarray], path: Path, fps: int) -> None:
     atomic_write(path, write)
 
 
-def plot_episode(telemetry: Path, path: Path, title: str) -> None:
-    """Trajectory, leg angles, body angles, crank torques and vertical ground reaction forces of episode 0."""
+def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:
+    """Trajectory, body angles and the robot's own channel groups (``robot.plot_groups``) of episode 0."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -114,38 +136,34 @@ def plot_episode(telemetry: Path, path: Path, title: str) -> None:
     df = df[df.episode == 0]
     t = df.time.to_numpy()
     w, x, y, z = (df[f"quat_{a}"].to_numpy() for a in "wxyz")
-    roll = np.degrees(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
-    pitch = np.degrees(np.arcsin(np.clip(2 * (w * y - z * x), -1, 1)))
-    yaw = np.degrees(np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))))
-    fig, ax = plt.subplots(3, 2, figsize=(11, 9))
-    ax[0, 0].plot(df.pos_x, df.pos_y)
-    ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="trajectory")
-    ax[0, 0].axis("equal")
-    for side, colour in (("left", "C0"), ("right", "C1")):
-        angle = np.degrees(np.mod(df[f"leg_angle_{side}"], 2 * np.pi))
-        ax[0, 1].plot(t, angle, colour + ".", ms=2, label=f"{side} (mod 360)")
-        if df[f"leg_angle_cmd_{side}"].notna().any():
-            error = np.degrees(df[f"leg_angle_{side}"] - df[f"leg_angle_cmd_{side}"])
-            ax[0, 1].plot(t, error, colour + "-", lw=0.8, label=f"{side} minus firmware clock")
-        ax[2, 0].plot(t, df[f"torque_{side}"] * 1e3, colour, label=side)
-    ax[0, 1].set(xlabel="time (s)", ylabel="deg", title="leg angles and tracking error")
-    ax[0, 1].legend(fontsize=7)
-    for series, label in ((roll, "roll"), (pitch, "pitch"), (yaw, "yaw")):
-        ax[1, 0].plot(t, series, label=label)
-    ax[1, 0].set(xlabel="time (s)", ylabel="deg", title="body angles")
-    ax[1, 0].legend(fontsize=7)
-    ax[1, 1].plot(t, df.duty_left, label="left")
-    ax[1, 1].plot(t, df.duty_right, label="right")
-    ax[1, 1].set(xlabel="time (s)", ylabel="duty", title="PWM duty")
-    ax[1, 1].legend(fontsize=7)
-    ax[2, 0].set(xlabel="time (s)", ylabel="mN m", title="crank torques")
-    ax[2, 0].legend(fontsize=7)
-    left = df[[f"grf_{leg}_z" for leg in ("FL", "ML", "BL")]].sum(axis=1)
-    right = df[[f"grf_{leg}_z" for leg in ("FR", "MR", "BR")]].sum(axis=1)
-    ax[2, 1].plot(t, left, label="left legs")
-    ax[2, 1].plot(t, right, label="right legs")
-    ax[2, 1].set(xlabel="time (s)", ylabel="N", title="vertical ground reaction force")
-    ax[2, 1].legend(fontsize=7)
+    angles = {
+        "roll": np.degrees(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))),
+        "pitch": np.degrees(np.arcsin(np.clip(2 * (w * y - z * x), -1, 1))),
+        "yaw": np.degrees(np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))),
+    }
+    groups = robot.plot_groups
+    rows = (2 + len(groups) + 1) // 2
+    fig, axes = plt.subplots(rows, 2, figsize=(11, 3 * rows), squeeze=False)
+    ax = axes.ravel()
+    ax[0].plot(df.pos_x, df.pos_y)
+    ax[0].set(xlabel="x (m)", ylabel="y (m)", title="trajectory")
+    ax[0].axis("equal")
+    for label, series in angles.items():
+        ax[1].plot(t, series, label=label)
+    ax[1].set(xlabel="time (s)", ylabel="deg", title="body angles")
+    ax[1].legend(fontsize=7)
+    for panel, group in zip(ax[2:], groups, strict=False):
+        for i, channel in enumerate(group.channels):
+            values = df[channel].to_numpy()
+            if group.minus:
+                values = values - df[group.minus[i]].to_numpy()
+            if np.isfinite(values).any():
+                label = channel if not group.minus else f"{channel} - {group.minus[i]}"
+                panel.plot(t, values * group.scale, lw=0.8, label=label)
+        panel.set(xlabel="time (s)", ylabel=group.unit, title=group.title)
+        panel.legend(fontsize=7)
+    for panel in ax[2 + len(groups) :]:
+        panel.axis("off")
     fig.suptitle(f"{title}\n(sampled at the control rate, {meta['rate_hz']:.0f} Hz)", fontsize=10)
     fig.tight_layout()
     atomic_write(path, lambda p: fig.savefig(p, format="png", dpi=100))
@@ -158,9 +176,11 @@ def fmt(s: dict[str, float]) -> str:
     return f"{s['mean']:.3g} [{s['ci_low']:.3g}, {s['ci_high']:.3g}]"
 
 
-def report(env_id: str, results: dict[str, list[Episode]], summaries: dict, comparisons: dict, seeds) -> str:
+def report(
+    env_id: str, results: dict[str, list[Episode]], summaries, comparisons, seeds, metrics: dict[str, str]
+) -> str:
     specs = list(results)
-    metrics = [m for m in METRICS if m in summaries[specs[0]]]
+    names = [m for m in metrics if m in summaries[specs[0]]]
     lines = [
         f"# {env_id}: {len(seeds)} episodes per policy, seeds {seeds[0]}..{seeds[-1]} (the same for every policy)",
         "",
@@ -169,55 +189,92 @@ def report(env_id: str, results: dict[str, list[Episode]], summaries: dict, comp
         "| metric | " + " | ".join(specs) + " |",
         "|---|" + "---|" * len(specs),
     ]
-    for m in metrics:
+    for m in names:
         lines.append(f"| {m} | " + " | ".join(fmt(summaries[s][m]) for s in specs) + " |")
     unstable = {s: sum(e.unstable for e in eps) for s, eps in results.items()}
     lines.append("| unstable episodes | " + " | ".join(str(unstable[s]) for s in specs) + " |")
     if comparisons:
         lines += ["", f"Paired differences against {specs[0]} (same seeds), mean [95% CI]:", ""]
-        lines += ["| policy | " + " | ".join(metrics) + " |", "|---|" + "---|" * len(metrics)]
+        lines += ["| policy | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
         for s, diffs in comparisons.items():
-            lines.append(f"| {s} | " + " | ".join(fmt(diffs[m]) for m in metrics) + " |")
-    lines += ["", "Metrics: " + "; ".join(f"{k}: {v}" for k, v in METRICS.items() if k in metrics) + "."]
+            lines.append(f"| {s} | " + " | ".join(fmt(diffs[m]) for m in names) + " |")
+    lines += ["", "Metrics: " + "; ".join(f"{k}: {v}" for k, v in metrics.items() if k in names) + "."]
     return "\n".join(lines) + "\n"
+
+
+def publish(tmp: Path, out: Path) -> None:
+    """Put the finished results folder in place of ``out`` (renames; the earlier results go only once it is in)."""
+    if out.exists():
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        os.replace(out, old)
+        os.replace(tmp, out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(tmp, out)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out: Path = args.out
-    results = {}
+    names = slugs(args.policy)
+    # every policy is loaded and checked against its env before any episode runs
+    prepared = {}
     for spec in args.policy:
+        env = make_env(args, render=args.video)
         try:
-            results[spec] = evaluate_policy(args, spec, out)
+            prepared[spec] = (load_policy(spec, env) if not args.unnormalized else _load_unnormalized(spec, env), env)
         except (ValueError, FileNotFoundError) as exc:
-            print(f"evaluate.py: policy {spec!r}: {exc}", file=sys.stderr)
+            print(f"evaluate.py: error: --policy {spec!r}: {exc}", file=sys.stderr)
             return 2
-    summaries = {s: summarize(eps) for s, eps in results.items()}
-    reference = args.policy[0]
-    comparisons = {
-        s: {m: paired_difference(results[reference], eps, m) for m in summaries[s]}
-        for s, eps in results.items()
-        if s != reference
-    }
-    seeds = [args.seed + i for i in range(args.episodes)]
-    text = report(args.env, results, summaries, comparisons, seeds)
-    write_json(
-        out / "results.json",
-        {
-            "env": args.env,
-            "seeds": seeds,
-            "deterministic": not args.stochastic,
-            "metrics": METRICS,
-            "policies": {
-                s: {"summary": summaries[s], "episodes": [episode_record(e) for e in eps]} for s, eps in results.items()
+    metrics = metric_descriptions(next(iter(prepared.values()))[1])
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with (
+        tempfile.TemporaryDirectory(prefix=f".{out.name}.", dir=out.parent) as tmp,
+        tempfile.TemporaryDirectory() as scratch,
+    ):
+        staging = Path(tmp) / "results"
+        results = {
+            spec: evaluate_policy(args, spec, policy, env, names[spec], staging, Path(scratch))
+            for spec, (policy, env) in prepared.items()
+        }
+        summaries = {s: summarize(eps) for s, eps in results.items()}
+        reference = args.policy[0]
+        comparisons = {
+            s: {m: paired_difference(results[reference], eps, m) for m in summaries[s]}
+            for s, eps in results.items()
+            if s != reference
+        }
+        seeds = [args.seed + i for i in range(args.episodes)]
+        text = report(args.env, results, summaries, comparisons, seeds, metrics)
+        write_json(
+            staging / "results.json",
+            {
+                "env": args.env,
+                "seeds": seeds,
+                "deterministic": not args.stochastic,
+                "metrics": metrics,
+                "files": names,
+                "policies": {
+                    s: {"summary": summaries[s], "episodes": [episode_record(e) for e in eps]}
+                    for s, eps in results.items()
+                },
+                "paired_differences": {"reference": reference, "policies": comparisons},
             },
-            "paired_differences": {"reference": reference, "policies": comparisons},
-        },
-    )
-    write_text(out / "results.md", text)
+        )
+        write_text(staging / "results.md", text)
+        publish(staging, out)
     print(text)
-    print(f"results in {out}/ (results.json, results.md, plots/{' videos/' if args.video else ''})")
+    extra = (" videos/" if args.video else "") + (" telemetry/" if args.telemetry else "")
+    print(f"results in {out}/ (results.json, results.md, plots/{extra})")
     return 0
+
+
+def _load_unnormalized(spec: str, env):
+    if spec.endswith(".zip") or Path(spec).is_file():
+        from agents.sb3 import SB3Policy
+
+        return SB3Policy(spec, env, allow_unnormalized=True)
+    return load_policy(spec, env)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Train a Stable-Baselines3 agent (PPO, SAC or TD3) on a skitter environment.
 
-    python train.py --env skitter/RoachWalk-v0 --algo ppo --timesteps 500000 --seed 0
-    python train.py --resume runs/skitter_RoachWalk-v0__ppo__0__20250101-120000 --timesteps 1000000
+    python train.py --env skitter/RoachWalk-v1 --algo ppo --timesteps 500000 --seed 0
+    python train.py --resume runs/skitter_RoachWalk-v1__ppo__0__20250101-120000 --timesteps 1000000
     tensorboard --logdir runs
 
 Hyperparameters come from ``hyperparams/<algo>.yml`` (RL Baselines3 Zoo style: one entry per env id, YAML anchors
@@ -19,9 +19,15 @@ for shared defaults). An entry may set any argument of the algorithm's construct
 ``clip_range`` accept ``lin_<value>``, a linear decay from the value to zero over the run.
 
 Each run writes ``<runs-dir>/<env>__<algo>__<seed>__<YYYYmmdd-HHMMSS>/`` holding ``config.json``, ``command.txt``,
-TensorBoard logs (``tb/``), checkpoints (``checkpoints/step_<N>/``: ``model.zip``, ``vecnormalize.pkl``, for SAC and
-TD3 the replay buffer of the latest checkpoint, and ``checkpoint.json`` written last) and, at the end, ``model.zip`` and
-``vecnormalize.pkl``, which ``agents.sb3.SB3Policy`` loads. Ctrl-C saves a checkpoint; ``--resume`` continues from it.
+TensorBoard logs (``tb/``), checkpoints (``checkpoints/step_<N>/``) and, at the end, ``model.zip``. A model file is
+one unit: SB3's archive with the observation-normalization statistics and a manifest inside it (agents/sb3.py),
+written atomically, so a kill during the save leaves the previous file or none, never a model without its statistics.
+A checkpoint is one folder, written under a temporary name and renamed into place: ``model.zip``, for SAC and TD3 the
+replay buffer (kept only in the newest checkpoint), and ``checkpoint.json``. ``--resume`` continues from the newest
+checkpoint that loads, and says which ones it skipped and why. Ctrl-C saves a checkpoint first.
+
+Every input is checked before anything is created: the command line, the hyperparameter file (each field against the
+algorithm's constructor), and ``env_kwargs`` (by making the env once).
 """
 
 from __future__ import annotations
@@ -31,9 +37,12 @@ import ast
 import difflib
 import inspect
 import json
+import os
 import shlex
+import shutil
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass
 from datetime import datetime
 from importlib import metadata
@@ -59,8 +68,9 @@ from stable_baselines3.common.utils import LinearSchedule, set_random_seed
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 import envs  # noqa: F401  (registers the skitter envs)
-from agents.sb3 import ALGOS
-from envs.common.io import atomic_write, refuse_overwrite, write_json, write_text
+from agents.evaluation import episode_metrics
+from agents.sb3 import ALGOS, ModelFileError, read_model_file, save_model
+from envs.common.io import refuse_overwrite, write_json, write_text
 
 ROOT = Path(__file__).resolve().parent
 HYPERPARAMS_DIR = ROOT / "hyperparams"
@@ -140,9 +150,11 @@ class Hyperparams:
 def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None) -> Hyperparams:
     """The checked hyperparameters for ``env_id`` in the YAML file ``path``, with ``overrides`` (e.g. n_envs)."""
     try:
-        table = yaml.safe_load(path.read_text())
+        table = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise ConfigError(f"cannot read hyperparameter file {path}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}" if mark else ""
@@ -350,21 +362,29 @@ def _evaluate(node: ast.expr) -> Any:
 # --- environments and models ------------------------------------------------------------------------------------
 
 
-def make_env(env_id: str, hp: Hyperparams, seed: int, vecnormalize: Path | None = None) -> VecEnv:
+def check_env_kwargs(env_id: str, hp: Hyperparams) -> None:
+    """Make the env once with the file's ``env_kwargs``, so a bad value fails here, before anything is created."""
+    try:
+        gym.make(env_id, **hp.env_kwargs).close()
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
+
+
+def make_env(env_id: str, hp: Hyperparams, seed: int, stats: VecNormalize | None = None) -> VecEnv:
     """``hp.n_envs`` copies of ``env_id`` seeded ``seed``, ``seed + 1``, ..., normalised as ``hp`` says.
 
-    ``vecnormalize``: saved VecNormalize statistics to continue from (when resuming).
+    ``stats``: VecNormalize statistics to continue from (when resuming).
     """
     try:
         venv = make_vec_env(env_id, n_envs=hp.n_envs, seed=seed, env_kwargs=hp.env_kwargs, vec_env_cls=DummyVecEnv)
-    except TypeError as exc:
+    except (TypeError, ValueError) as exc:
         raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
     if hp.normalize is None:
         return venv
-    if vecnormalize is not None:
-        venv = VecNormalize.load(str(vecnormalize), venv)
-        venv.training = True
-        return venv
+    if stats is not None:
+        stats.set_venv(venv)
+        stats.training = True
+        return stats
     return VecNormalize(venv, **hp.normalize)
 
 
@@ -440,41 +460,77 @@ def command_line() -> str:
     return shlex.join(sys.orig_argv)
 
 
-def save_model_files(model: BaseAlgorithm, folder: Path) -> Path:
-    """Write ``model.zip`` and, if the envs are normalised, ``vecnormalize.pkl`` into ``folder``, atomically."""
-    path = atomic_write(folder / "model.zip", model.save)
-    vecnormalize = model.get_vec_normalize_env()
-    if vecnormalize is not None:
-        atomic_write(folder / "vecnormalize.pkl", vecnormalize.save)
-    return path
-
-
-def save_checkpoint(model: BaseAlgorithm, checkpoints_dir: Path) -> Path:
-    """Save ``checkpoints_dir/step_<N>/``; its ``checkpoint.json``, written last, marks the checkpoint complete.
+def save_checkpoint(model: BaseAlgorithm, checkpoints_dir: Path, manifest: dict[str, Any]) -> Path:
+    """Save ``checkpoints_dir/step_<N>/`` as one unit: written under a temporary name, then renamed into place.
 
     SAC and TD3 also save their replay buffer, kept only in the newest checkpoint (it can be hundreds of MB).
     """
     folder = checkpoints_dir / f"step_{model.num_timesteps:010d}"
-    save_model_files(model, folder)
-    if isinstance(model, OffPolicyAlgorithm):
-        atomic_write(folder / "replay_buffer.pkl", model.save_replay_buffer)
-    write_json(folder / "checkpoint.json", {"num_timesteps": model.num_timesteps, "saved": _now()})
+    checkpoints_dir.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=checkpoints_dir))
+    try:
+        save_model(model, tmp / "model.zip", manifest)
+        if isinstance(model, OffPolicyAlgorithm):
+            model.save_replay_buffer(tmp / "replay_buffer.pkl")
+        write_json(tmp / "checkpoint.json", {"num_timesteps": model.num_timesteps, "saved": _now()})
+        os.chmod(tmp, 0o777 & ~_umask())
+        if folder.exists():  # the same step saved again (Ctrl-C right after a scheduled save): keep the newer one
+            shutil.rmtree(folder)
+        os.replace(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     for old in checkpoints_dir.glob("step_*/replay_buffer.pkl"):
         if old.parent != folder:
             old.unlink(missing_ok=True)
     return folder
 
 
-def latest_checkpoint(run_dir: Path) -> tuple[Path, int]:
-    """The newest complete checkpoint folder of ``run_dir`` and its num_timesteps."""
-    found = []
-    for marker in (run_dir / "checkpoints").glob("step_*/checkpoint.json"):
-        if (marker.parent / "model.zip").is_file():
-            found.append((json.loads(marker.read_text())["num_timesteps"], marker.parent))
-    if not found:
-        raise ConfigError(f"{run_dir}: no checkpoint to resume from (expected {run_dir / 'checkpoints'}/step_*/)")
-    steps, folder = max(found)
-    return folder, steps
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@dataclass
+class Checkpoint:
+    folder: Path
+    num_timesteps: int
+    stats: VecNormalize | None
+
+
+def checkpoints_newest_first(run_dir: Path) -> list[Path]:
+    return sorted((run_dir / "checkpoints").glob("step_*"), key=lambda p: p.name, reverse=True)
+
+
+def load_checkpoint(folder: Path) -> Checkpoint:
+    """Check one checkpoint folder: its marker, its model file (and statistics if it needs them); ConfigError if not."""
+    try:
+        record = json.loads((folder / "checkpoint.json").read_text())
+        steps = int(record["num_timesteps"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(f"{folder.name}: bad or missing checkpoint.json ({exc})") from None
+    try:
+        _, stats = read_model_file(folder / "model.zip")
+    except ModelFileError as exc:
+        raise ConfigError(str(exc)) from None
+    return Checkpoint(folder, steps, stats)
+
+
+def latest_checkpoint(run_dir: Path) -> Checkpoint:
+    """The newest checkpoint of ``run_dir`` that is whole; the broken ones newer than it are reported on stderr."""
+    skipped = []
+    for folder in checkpoints_newest_first(run_dir):
+        try:
+            checkpoint = load_checkpoint(folder)
+        except ConfigError as exc:
+            skipped.append(str(exc))
+            continue
+        for reason in skipped:
+            print(f"train.py: skipping a broken checkpoint: {reason}", file=sys.stderr)
+        return checkpoint
+    detail = f" ({'; '.join(skipped)})" if skipped else ""
+    raise ConfigError(f"{run_dir}: no checkpoint to resume from (expected {run_dir / 'checkpoints'}/step_*/){detail}")
 
 
 def _now() -> str:
@@ -485,65 +541,55 @@ def _now() -> str:
 
 
 class EpisodeMetricsCallback(BaseCallback):
-    """Log, per finished episode, each reward term's sum (``reward/<term>``) and episode metrics (``episode/...``).
+    """Log, per finished episode, each reward term's sum (``reward/<term>``) and the env's episode metrics
+    (``episode/<metric>``: speed, cost of transport, the task's own; see agents/evaluation.py).
 
-    Values are averaged over the episodes finished since the last log dump (``Logger.record_mean``). At the end of
-    training the logger is dumped once more, so the last update's train/ metrics and last episodes are not lost.
+    The metrics come from the episode's last ``info`` (the running sums every task reports), so they survive the
+    vectorized env's auto-reset. Values are averaged over the episodes finished since the last log dump. At the end
+    of training the logger is dumped once more, so the last update's train/ metrics and last episodes are not lost.
     """
 
     def _on_training_start(self) -> None:
-        self._episodes = [_Episode() for _ in range(self.training_env.num_envs)]
+        self._terms = [dict() for _ in range(self.training_env.num_envs)]
+        self._env = self.training_env.get_attr("unwrapped", [0])[0]
 
     def _on_step(self) -> bool:
         for i, (info, done) in enumerate(zip(self.locals["infos"], self.locals["dones"], strict=True)):
-            self._episodes[i].add(info)
+            terms = self._terms[i]
+            for key, value in info.items():
+                if key.startswith("reward_"):
+                    terms[key[7:]] = terms.get(key[7:], 0.0) + value
             if done:
-                self._record(self._episodes[i], info)
-                self._episodes[i] = _Episode()
+                self._record(terms, info)
+                self._terms[i] = {}
         return True
 
     def _on_training_end(self) -> None:
         self.logger.dump(self.num_timesteps)
 
-    def _record(self, episode: _Episode, last_info: dict[str, Any]) -> None:
-        for term, total in episode.reward_terms.items():
+    def _record(self, terms: dict[str, float], info: dict[str, Any]) -> None:
+        for term, total in terms.items():
             self.logger.record_mean(f"reward/{term}", total)
-        for name, values in (("forward_speed", episode.x_velocity), ("power", episode.power)):
-            if values:
-                self.logger.record_mean(f"episode/{name}", float(np.mean(values)))
-        self.logger.record_mean("episode/fall_rate", float(bool(last_info.get("fallen", False))))
-        self.logger.record_mean("episode/sim_unstable_rate", float(bool(last_info.get("sim_unstable", False))))
-        self.logger.record_mean("episode/length", episode.length)
-
-
-class _Episode:
-    """Running sums of one env's current episode."""
-
-    def __init__(self) -> None:
-        self.reward_terms: dict[str, float] = {}
-        self.x_velocity: list[float] = []
-        self.power: list[float] = []
-        self.length = 0
-
-    def add(self, info: dict[str, Any]) -> None:
-        self.length += 1
-        for key, value in info.items():
-            if key.startswith("reward_"):
-                term = key.removeprefix("reward_")
-                self.reward_terms[term] = self.reward_terms.get(term, 0.0) + value
-        if "x_velocity" in info:
-            self.x_velocity.append(info["x_velocity"])
-        if "power" in info:
-            self.power.append(info["power"])
+        unstable = bool(info.get("sim_unstable", False))
+        if not unstable:
+            metrics = episode_metrics(self._env, sum(terms.values()), info, bool(info.get("fallen", False)))
+            for name, value in metrics.items():
+                if name not in ("return", "falls") and np.isfinite(value):
+                    self.logger.record_mean(f"episode/{name}", value)
+        self.logger.record_mean("episode/fall_rate", float(bool(info.get("fallen", False))))
+        self.logger.record_mean("episode/sim_unstable_rate", float(unstable))
+        if "episode" in info:
+            self.logger.record_mean("episode/length", info["episode"]["l"])
 
 
 class CheckpointCallback(BaseCallback):
     """Save a checkpoint every ``freq`` env steps (all envs together) and at the end of training."""
 
-    def __init__(self, checkpoints_dir: Path, freq: int):
+    def __init__(self, checkpoints_dir: Path, freq: int, manifest: dict[str, Any]):
         super().__init__()
         self.checkpoints_dir = checkpoints_dir
         self.freq = freq
+        self.manifest = manifest
 
     def _on_training_start(self) -> None:
         self._last_saved = self.num_timesteps
@@ -558,34 +604,36 @@ class CheckpointCallback(BaseCallback):
             self._save()
 
     def _save(self) -> None:
-        save_checkpoint(self.model, self.checkpoints_dir)
+        save_checkpoint(self.model, self.checkpoints_dir, self.manifest)
         self._last_saved = self.num_timesteps
 
 
 # --- training ---------------------------------------------------------------------------------------------------
 
 
-def train(model: BaseAlgorithm, run_dir: Path, timesteps: int, checkpoint_freq: int, progress: bool) -> Path:
-    """Train ``model`` until it has taken ``timesteps`` env steps in all, logging and checkpointing into ``run_dir``.
-
-    Returns the path of the final ``model.zip``. On Ctrl-C, saves a checkpoint and re-raises KeyboardInterrupt.
-    """
+def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool) -> Path:
+    """Train ``model`` until it has taken ``config["timesteps"]`` env steps in all, logging and checkpointing into
+    ``run_dir``. Returns the path of the final ``model.zip``. On Ctrl-C, saves a checkpoint and re-raises."""
     torch.set_num_threads(TORCH_THREADS)
     model.set_logger(configure(str(run_dir / "tb"), ["tensorboard"]))
     checkpoints_dir = run_dir / "checkpoints"
-    callbacks = CallbackList([EpisodeMetricsCallback(), CheckpointCallback(checkpoints_dir, checkpoint_freq)])
+    manifest = {"algo": config["algo"], "env_id": config["env_id"], "seed": config["seed"]}
+    checkpointing = CheckpointCallback(checkpoints_dir, config["checkpoint_freq"], manifest)
     try:
         model.learn(
-            timesteps - model.num_timesteps, callback=callbacks, reset_num_timesteps=False, progress_bar=progress
+            config["timesteps"] - model.num_timesteps,
+            callback=CallbackList([EpisodeMetricsCallback(), checkpointing]),
+            reset_num_timesteps=False,
+            progress_bar=progress,
         )
     except KeyboardInterrupt:
-        folder = save_checkpoint(model, checkpoints_dir)
+        folder = save_checkpoint(model, checkpoints_dir, manifest)
         print(f"\ninterrupted at {model.num_timesteps} steps; checkpoint saved in {folder}", file=sys.stderr)
         print(f"continue with: python train.py --resume {run_dir}", file=sys.stderr)
         raise
     finally:
         model.logger.close()
-    return save_model_files(model, run_dir)
+    return save_model(model, run_dir / "model.zip", manifest)
 
 
 def start_run(args: argparse.Namespace) -> Path:
@@ -597,6 +645,7 @@ def start_run(args: argparse.Namespace) -> Path:
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
     hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
+    check_env_kwargs(args.env, hp)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
     venv = make_env(args.env, hp, seed)
@@ -618,40 +667,52 @@ def start_run(args: argparse.Namespace) -> Path:
     write_json(run_dir / "config.json", config)
     write_text(run_dir / "command.txt", command_line() + "\n")
     print(f"run folder: {run_dir}")
-    return train(model, run_dir, args.timesteps, args.checkpoint_freq, progress=not args.no_progress)
+    return train(model, run_dir, config, progress=not args.no_progress)
 
 
 def resume_run(args: argparse.Namespace) -> Path:
-    """Continue the run in ``args.resume`` from its latest checkpoint; returns the final model's path."""
+    """Continue the run in ``args.resume`` from its newest whole checkpoint; returns the final model's path."""
     run_dir = Path(args.resume)
     config_path = run_dir / "config.json"
     try:
         config = json.loads(config_path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        algo, seed, env_id = config["algo"], int(config["seed"]), config["env_id"]
+        hyperparams = config["hyperparams"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ConfigError(f"--resume {run_dir}: cannot read {config_path} ({exc})") from None
+    if algo not in ALGOS:
+        raise ConfigError(f"{config_path}: unknown algo {algo!r}")
     check_resume_flags(args, config)
-    algo, seed = config["algo"], config["seed"]
-    hp = resolve_hyperparams(config["hyperparams"], algo, where=str(config_path))
-    checkpoint, done = latest_checkpoint(run_dir)
+    check_env_id(env_id)
+    hp = resolve_hyperparams(hyperparams, algo, where=str(config_path))
+    checkpoint = latest_checkpoint(run_dir)
+    done = checkpoint.num_timesteps
     timesteps = args.timesteps or config["timesteps"]
     if timesteps <= done:
         raise ConfigError(f"{run_dir} has already trained {done} steps; pass a larger --timesteps to continue")
+    if hp.normalize is not None and checkpoint.stats is None:
+        raise ConfigError(f"{checkpoint.folder}: the run normalizes observations but the checkpoint has no statistics")
     set_random_seed(seed + done)  # not the first run's seeds: the resumed episodes should differ from its first ones
-    vecnormalize = checkpoint / "vecnormalize.pkl"
-    venv = make_env(config["env_id"], hp, seed + done, vecnormalize if vecnormalize.is_file() else None)
-    model = ALGOS[algo].load(checkpoint / "model.zip", env=venv, device=hp.model_kwargs.get("device", "cpu"))
-    replay_buffer = checkpoint / "replay_buffer.pkl"
-    if isinstance(model, OffPolicyAlgorithm) and replay_buffer.is_file():
-        model.load_replay_buffer(replay_buffer)
+    venv = make_env(env_id, hp, seed + done, checkpoint.stats)
+    model = ALGOS[algo].load(checkpoint.folder / "model.zip", env=venv, device=hp.model_kwargs.get("device", "cpu"))
+    replay_buffer = checkpoint.folder / "replay_buffer.pkl"
+    if isinstance(model, OffPolicyAlgorithm):
+        if replay_buffer.is_file():
+            model.load_replay_buffer(replay_buffer)
+        else:
+            print(
+                f"train.py: {checkpoint.folder.name} has no replay buffer; continuing with an empty one",
+                file=sys.stderr,
+            )
     config["timesteps"] = timesteps
+    config["checkpoint_freq"] = args.checkpoint_freq or config.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)
     config.setdefault("resumed", []).append({"from_timesteps": done, "timesteps": timesteps, "time": _now()})
     write_json(config_path, config)
     command_file = run_dir / "command.txt"
     previous = command_file.read_text() if command_file.is_file() else ""
     write_text(command_file, previous + command_line() + "\n")
-    print(f"resuming {run_dir} from {checkpoint.name} ({done} steps) to {timesteps} steps")
-    checkpoint_freq = args.checkpoint_freq or config.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)
-    return train(model, run_dir, timesteps, checkpoint_freq, progress=not args.no_progress)
+    print(f"resuming {run_dir} from {checkpoint.folder.name} ({done} steps) to {timesteps} steps")
+    return train(model, run_dir, config, progress=not args.no_progress)
 
 
 def check_env_id(env_id: str) -> None:
@@ -693,12 +754,22 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer (numpy seeds are), got {value}")
+    return value
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = _Parser(prog="train.py", description="Train an SB3 agent on a skitter env (see the module docstring).")
-    parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v0")
+    parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v1")
     parser.add_argument("--algo", choices=sorted(ALGOS), help="algorithm")
     parser.add_argument("--timesteps", type=_positive_int, help="total env steps (with --resume: default the run's)")
-    parser.add_argument("--seed", type=int, help="random seed (default 0)")
+    parser.add_argument("--seed", type=_seed, help="random seed, >= 0 (default 0)")
     parser.add_argument("--n-envs", type=_positive_int, help="override the hyperparameter file's n_envs")
     parser.add_argument("--hyperparams", help="hyperparameter YAML file (default hyperparams/<algo>.yml)")
     parser.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its latest checkpoint")

@@ -1,7 +1,16 @@
-"""Policies: scripted gaits and trained models behind one ``predict()``, resolved by name or path."""
+"""Policies: scripted gaits and trained models behind one ``predict()``, resolved by name or path.
+
+Each robot's scripted gaits live in ``agents/<robot>/``, whose ``__init__`` lists them in ``POLICIES`` (name ->
+:class:`ScriptedPolicy`); :func:`load_policy` finds them there, so adding a robot adds a folder and edits nothing
+here. A name may carry an argument after a colon (``tripod:20``).
+"""
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -18,32 +27,47 @@ class Policy(Protocol):
     ) -> tuple[np.ndarray, Any]: ...
 
 
-SCRIPTED = {
-    "tripod": "the alternating tripod: straight at 45 Hz on RoachWalk, the turning table on RoachTurn",
-    "tripod:F": "the alternating tripod running straight at F Hz, e.g. tripod:20",
-}
-WALK_TRIPOD_FREQUENCY = 45.0  # Hz: the real robot's top stride (seed 000 Table 1)
+@dataclass(frozen=True)
+class ScriptedPolicy:
+    """A scripted gait: for which robots, what it does, and how to build it for an env (``arg``: after the colon)."""
+
+    robots: tuple[str, ...]
+    description: str
+    build: Callable[[Any, str], Policy]
+
+
+def scripted_policies() -> dict[str, list[ScriptedPolicy]]:
+    """Every robot folder's scripted policies, by name (one name may serve several robots with different gaits)."""
+    found: dict[str, list[ScriptedPolicy]] = {}
+    for module in pkgutil.iter_modules(__path__):
+        if module.ispkg:
+            for name, entry in getattr(importlib.import_module(f"{__name__}.{module.name}"), "POLICIES", {}).items():
+                found.setdefault(name, []).append(entry)
+    return found
+
+
+def describe_policies() -> str:
+    """One line per scripted policy, for --help texts."""
+    return "; ".join(
+        f"{name} ({', '.join(e.robots)}): {e.description}"
+        for name, entries in scripted_policies().items()
+        for e in entries
+    )
 
 
 def load_policy(spec: str, env) -> Policy:
-    """A policy for ``env`` from a name (see ``SCRIPTED``) or the path of a trained ``model.zip``."""
-    from agents.tripod import RoachObsLayout, TripodGait, TripodTurn
-
+    """A policy for ``env`` from a scripted gait's name (see :func:`scripted_policies`) or a trained ``model.zip``."""
     if spec.endswith(".zip") or Path(spec).is_file():
         from agents.sb3 import SB3Policy
 
-        return SB3Policy(spec)
+        return SB3Policy(spec, env)
     name, _, arg = spec.partition(":")
-    if name == "tripod":
-        layout = RoachObsLayout.from_env(env)
-        if arg:
-            try:
-                frequency = float(arg)
-            except ValueError:
-                raise ValueError(f"policy {spec!r}: frequency {arg!r} is not a number") from None
-            return TripodGait(layout, frequency=frequency)
-        if layout.command_index is not None:
-            return TripodTurn(layout)
-        return TripodGait(layout, frequency=WALK_TRIPOD_FREQUENCY)
-    known = ", ".join(SCRIPTED)
-    raise ValueError(f"unknown policy {spec!r}: give a scripted gait ({known}) or the path of a model.zip")
+    robot = env.unwrapped.robot.name
+    policies = scripted_policies()
+    for entry in policies.get(name, []):
+        if robot in entry.robots:
+            return entry.build(env, arg)
+    fitting = ", ".join(n for n, entries in policies.items() if any(robot in e.robots for e in entries)) or "none"
+    raise ValueError(
+        f"unknown policy {spec!r} for the {robot}: give a scripted gait ({fitting}) or the path of a model.zip"
+    )

@@ -1,11 +1,16 @@
-"""Rollouts of a policy in an env, per-episode task metrics, and their statistics.
+"""Rollouts of a policy in an env, per-episode metrics, and their statistics.
 
 Every policy is run on the same episode seeds, so two policies can be compared episode by episode (paired).
 Confidence intervals are 95% bootstrap intervals (scipy.stats.bootstrap, BCa; percentile when BCa is undefined).
+
+Metrics come from the env's own metadata (the robot's mass and length, the task's metrics), never from one robot's
+constants: the generic ones below from the running sums every task reports in ``info``, the task's own from
+``task.episode_metrics``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -13,18 +18,41 @@ import numpy as np
 from scipy import stats
 
 from agents import Policy
-from envs.velociroach import constants as C
 
-WARMUP_SECONDS = 1.0  # left out of the yaw-rate error: the gait settles in the first second
-METRICS = {
+GRAVITY = 9.81
+GENERIC_METRICS = {
     "return": "episode return",
     "speed": "mean speed along the body's heading, m/s",
-    "forward_speed": "progress along +x (RoachWalk's direction) over the episode, m/s",
     "speed_bl": "the same in body lengths per second",
     "cost_of_transport": "electrical energy / (m g distance travelled)",
     "falls": "1 if the episode ended with the robot fallen",
-    "yaw_rate_error": "|mean yaw rate after the first second - command|, rad/s (RoachTurn)",
 }
+
+
+def metric_descriptions(env) -> dict[str, str]:
+    """Every metric an episode of ``env`` reports: the generic ones, then the task's."""
+    return {**GENERIC_METRICS, **env.unwrapped.task.metrics}
+
+
+def episode_metrics(env, total_reward: float, info: Mapping[str, Any], fallen: bool) -> dict[str, float]:
+    """Metrics of an episode from its return and its last complete ``info`` (the running sums)."""
+    context = env.unwrapped.metrics_context()
+    elapsed = float(info.get("elapsed", 0.0))
+    distance = float(info.get("distance", 0.0))
+    speed = distance / elapsed if elapsed > 0 else 0.0
+    energy = float(info.get("energy", 0.0))
+    metrics = {
+        "return": float(total_reward),
+        "speed": speed,
+        "speed_bl": speed / context["length"],
+        "cost_of_transport": energy / (context["mass"] * GRAVITY * distance) if distance > 1e-6 else float("nan"),
+        "falls": float(fallen),
+    }
+    if elapsed > 0:
+        metrics.update(context["task"].episode_metrics(info))
+    else:
+        metrics.update(dict.fromkeys(context["task"].metrics, float("nan")))
+    return metrics
 
 
 @dataclass
@@ -38,17 +66,13 @@ class Episode:
 
 
 def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, render: bool = False) -> Episode:
-    """Run one episode; the metrics come from the env's ``info`` at every step."""
+    """Run one episode; the metrics come from the env's ``info``."""
     obs, info = env.reset(seed=seed)
     state, start = None, np.array([True])
-    total, steps, energy, distance = 0.0, 0, 0.0, 0.0
-    x_end = info["x_position"]
-    yaw_rates: list[float] = []
-    fallen = unstable = False
+    total, steps = 0.0, 0
+    last = info  # the last info with the running sums (an unstable step's info has none)
+    unstable = fallen = False
     frames = [env.render()] if render else []
-    dt = env.unwrapped.dt
-    command = info.get("yaw_rate_command")
-    x_start = info["x_position"]
     while True:
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
         start = np.array([False])
@@ -60,30 +84,12 @@ def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, rend
         if info.get("sim_unstable"):
             unstable = True
             break
-        heading = np.array([np.cos(info["yaw"]), np.sin(info["yaw"])])
-        distance += float(heading @ np.array([info["x_velocity"], info["y_velocity"]])) * dt
-        energy += info["power"] * dt
-        if info["time"] > WARMUP_SECONDS:
-            yaw_rates.append(info["yaw_rate"])
+        last = info
         fallen = bool(info.get("fallen", False))
-        x_end = info["x_position"]
         if terminated or truncated:
             break
-    duration = steps * dt
-    robot = env.unwrapped.robot
-    speed = distance / duration if duration > 0 else 0.0
-    metrics = {
-        "return": total,
-        "speed": speed,
-        "speed_bl": speed / C.LENGTH,
-        "cost_of_transport": energy / (robot.mass * 9.81 * distance) if distance > 1e-6 else float("nan"),
-        "falls": float(fallen),
-    }
-    if hasattr(env.unwrapped, "forward_reward_weight"):  # a task that runs along +x (RoachWalk)
-        metrics["forward_speed"] = (x_end - x_start) / duration if duration > 0 else 0.0
-    if command is not None:
-        metrics["yaw_rate_error"] = abs(float(np.mean(yaw_rates)) - command) if yaw_rates else float("nan")
-    return Episode(seed=seed, length=steps, duration=duration, metrics=metrics, unstable=unstable, frames=frames)
+    metrics = episode_metrics(env, total, last, fallen)
+    return Episode(seed, steps, steps * env.unwrapped.dt, metrics, unstable, frames)
 
 
 def bootstrap_ci(values: np.ndarray, confidence: float = 0.95, seed: int = 0) -> tuple[float, float]:

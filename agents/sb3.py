@@ -1,47 +1,135 @@
-"""Trained Stable-Baselines3 models behind the same ``predict()`` as the scripted gaits."""
+"""Trained Stable-Baselines3 models behind the same ``predict()`` as the scripted gaits, saved as one file.
+
+A trained model is its weights plus the observation-normalization statistics it was trained with. train.py writes
+both into one ``model.zip``, atomically (a temporary file, then one rename): SB3's own archive with two more entries,
+``vecnormalize.pkl`` (the pickled ``VecNormalize`` statistics, when the run normalized) and ``skitter.json`` (algorithm,
+env id, whether the model needs statistics, observation size). SB3's ``load`` ignores both entries, so the file is
+still an ordinary SB3 model. A model whose manifest says it was normalized but which lacks its statistics is an
+error; a model from elsewhere (no manifest) is used with a ``vecnormalize.pkl`` beside it (RL Zoo's layout), and
+without one only if the caller allows unnormalized observations.
+"""
 
 from __future__ import annotations
 
 import json
 import pickle
+import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.vec_env import VecNormalize
+
+from envs.common.io import atomic_write
 
 ALGOS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3}
+MANIFEST = "skitter.json"
+STATS = "vecnormalize.pkl"
+FORMAT = 1
+
+
+class ModelFileError(ValueError):
+    """A model file that cannot be used: truncated, not a model, or lacking what it needs. The message says which."""
+
+
+def save_model(model: BaseAlgorithm, path: str | Path, manifest: dict[str, Any]) -> Path:
+    """Write ``model`` with its normalization statistics and ``manifest`` into one zip at ``path``, atomically."""
+    stats = model.get_vec_normalize_env()
+    record = {
+        "format": FORMAT,
+        **manifest,
+        "normalized": stats is not None,
+        "num_timesteps": int(model.num_timesteps),
+        "observation_size": int(np.prod(model.observation_space.shape)),
+    }
+
+    def write(tmp: Path) -> None:
+        model.save(tmp)
+        with zipfile.ZipFile(tmp, "a", compression=zipfile.ZIP_DEFLATED) as archive:
+            if stats is not None:
+                archive.writestr(STATS, pickle.dumps(stats))
+            archive.writestr(MANIFEST, json.dumps(record, indent=2))
+
+    return atomic_write(path, write)
+
+
+def read_model_file(path: str | Path) -> tuple[dict[str, Any] | None, VecNormalize | None]:
+    """The manifest (None for a model not written by train.py) and the statistics of a model file.
+
+    Raises ModelFileError for a missing, truncated or corrupt file, or a normalized model without statistics.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ModelFileError(f"no trained model at {path}")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            bad = archive.testzip()
+            if bad is not None:
+                raise ModelFileError(f"{path}: corrupt model file (entry {bad!r} fails its checksum)")
+            names = set(archive.namelist())
+            if "data" not in names:
+                raise ModelFileError(
+                    f"{path}: truncated or corrupt, or not a Stable-Baselines3 model (no 'data' entry)"
+                )
+            manifest = json.loads(archive.read(MANIFEST)) if MANIFEST in names else None
+            stats = pickle.loads(archive.read(STATS)) if STATS in names else None
+    except (zipfile.BadZipFile, EOFError, OSError) as exc:
+        raise ModelFileError(f"{path}: not a readable model file, truncated or corrupt ({exc})") from None
+    except (json.JSONDecodeError, pickle.UnpicklingError, AttributeError, ValueError) as exc:
+        raise ModelFileError(f"{path}: corrupt {MANIFEST} or {STATS} inside the model file ({exc})") from None
+    if manifest is not None and manifest.get("normalized") and stats is None:
+        raise ModelFileError(
+            f"{path}: the model was trained on normalized observations but its file lacks the statistics "
+            f"({STATS}); it would be scored on the wrong inputs"
+        )
+    return manifest, stats
 
 
 class SB3Policy:
-    """A trained model (``model.zip``) with the observation normalisation it was trained with, if any.
+    """A trained model with the observation normalization it was trained with.
 
-    train.py saves ``config.json`` (naming the algorithm) and ``vecnormalize.pkl`` beside the model; both are found
-    there. Without a config the algorithms are tried in turn.
+    Args:
+        path: a ``model.zip`` written by train.py (or any SB3 PPO, SAC or TD3 model).
+        env: the env it will act in; its observation size is checked against the model's.
+        allow_unnormalized: accept a model from elsewhere that has no statistics, in it or beside it.
     """
 
-    def __init__(self, path: str | Path, device: str = "cpu"):
+    def __init__(self, path: str | Path, env=None, allow_unnormalized: bool = False, device: str = "cpu"):
         path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"no trained model at {path}")
         self.path = path
-        config = path.parent / "config.json"
-        algo = json.loads(config.read_text()).get("algo") if config.is_file() else None
+        manifest, stats = read_model_file(path)
+        if manifest is None and stats is None:
+            beside = path.parent / STATS
+            if beside.is_file():
+                with beside.open("rb") as fh:
+                    stats = pickle.load(fh)
+            elif not allow_unnormalized:
+                raise ModelFileError(
+                    f"{path}: a model not written by train.py, with no {STATS} in it or beside it; if it was trained "
+                    "without observation normalization, allow unnormalized observations (evaluate.py --unnormalized)"
+                )
+        self.manifest = manifest or {}
+        self.normalizer = stats
+        algo = self.manifest.get("algo")
         candidates = [ALGOS[algo]] if algo in ALGOS else list(ALGOS.values())
         errors = []
         for cls in candidates:
             try:
                 self.model = cls.load(path, device=device)
                 break
-            except (ValueError, KeyError, RuntimeError, TypeError) as exc:
+            except (ValueError, KeyError, RuntimeError, TypeError, zipfile.BadZipFile, EOFError) as exc:
                 errors.append(f"{cls.__name__}: {exc}")
         else:
-            raise ValueError(f"{path}: not a Stable-Baselines3 PPO, SAC or TD3 model ({'; '.join(errors)})")
-        stats = path.parent / "vecnormalize.pkl"
-        self.normalizer = None
-        if stats.is_file():
-            with stats.open("rb") as fh:
-                self.normalizer = pickle.load(fh)
+            raise ModelFileError(f"{path}: not a loadable PPO, SAC or TD3 model ({'; '.join(errors)})")
+        if env is not None:
+            want, have = env.observation_space.shape, self.model.observation_space.shape
+            if want != have:
+                raise ModelFileError(
+                    f"{path}: the model observes {have} but {env.spec.id if env.spec else 'the env'} gives {want} "
+                    "(trained on another env or version?)"
+                )
 
     def __repr__(self) -> str:
         return f"SB3Policy({self.path})"

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from benchmarks.common import md_table, save
-from envs.common.mujoco_utils import quat_to_yaw
+from envs.common.locomotion import quat_up, quat_yaw
 from envs.velociroach import constants as C
 from envs.velociroach.robot import VelociRoach
 
@@ -99,26 +99,27 @@ VARIANTS: dict[str, Callable[[mujoco.MjSpec], None] | None] = {
 
 
 def run(robot: VelociRoach, freq: float, phase: float, seed: int, seconds: float) -> dict[str, float]:
-    robot.reset(phase=phase)
     rng = np.random.default_rng(seed)
+    robot.reset(np.array([0]), [rng], 0.0, {"crank_left": 0.0, "phase": phase})
     robot.set_body_velocity(rng.normal(0, 0.01, 3), rng.normal(0, 0.5, 3))
     yaws, fell = [], False
     start = None
+    command = np.array([[freq, freq, phase]])
     while robot.data.time < seconds:
-        robot.command_gait(freq, freq, phase)
-        if not robot.step():
+        robot.command(command)
+        if not robot.step()[0]:
             return {"fell": 1.0, "speed": np.nan, "yaw_rate": np.nan}
-        fell |= robot.up_z() < 0.2
+        readings = robot.read([rng])
+        pos, quat = readings["position"], readings["quaternion"]
+        fell |= bool(quat_up(quat)[0] < 0.2)
         if robot.data.time > 1.0:
-            pose = robot.body_pose()
             if start is None:
-                start = (robot.data.time, pose[0], pose[1])
-            yaws.append(quat_to_yaw(pose[3:]))
-    pose = robot.body_pose()
+                start = (robot.data.time, pos[0, 0], pos[0, 1])
+            yaws.append(quat_yaw(quat)[0])
     duration = robot.data.time - start[0]
     return {
         "fell": float(fell),
-        "speed": float(np.hypot(pose[0] - start[1], pose[1] - start[2]) / duration),
+        "speed": float(np.hypot(pos[0, 0] - start[1], pos[0, 1] - start[2]) / duration),
         "yaw_rate": float(np.degrees((np.unwrap(yaws)[-1] - yaws[0]) / duration)),
     }
 
@@ -130,7 +131,7 @@ def main() -> None:
     args = parser.parse_args()
     rows, out = [], {}
     for name, edit in VARIANTS.items():
-        robot = VelociRoach("gait", control_dt=0.02, spec_edit=edit)
+        robot = VelociRoach("gait", spec_edits=[edit])
         falls, speed45 = 0, []
         for f in (10.0, 20.0, 30.0, 35.0, 45.0):
             for seed in range(args.seeds):

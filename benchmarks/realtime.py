@@ -30,7 +30,7 @@ def main() -> None:
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
-    env = gym.make("skitter/RoachWalk-v0")
+    env = gym.make("skitter/RoachWalk-v1")
     policy = load_policy("tripod:45", env)
     rtfs, speeds = [], []
     for seed in range(args.episodes):
@@ -56,7 +56,7 @@ def main() -> None:
         ["seed 000 V-REP model", 0.1, ""],
     ]
     text = (
-        "# Real-time factor, RoachWalk-v0, tripod at 45 Hz, one core\n\n"
+        "# Real-time factor, RoachWalk-v1, tripod at 45 Hz, one core\n\n"
         + md_table(["what", "real-time factor (x)", "goal >= 10x"], rows)
         + f"\nMean forward speed in these episodes: {np.mean(speeds):.2f} m/s.\n"
     )

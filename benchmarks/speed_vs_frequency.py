@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401
-from agents.tripod import RoachObsLayout, TripodGait
+from agents.velociroach.tripod import TripodContext, TripodGait
 from benchmarks.common import RESULTS, md_table, save
 from envs.common.io import atomic_write
 from envs.velociroach import constants as C
@@ -38,7 +38,7 @@ def episode(env, policy, seed: int) -> dict[str, float]:
         if info["time"] > WARMUP:
             if x0 is None:
                 x0, y0, t0 = info["x_position"], info["y_position"], info["time"]
-            lags.append(np.degrees(np.abs(robot.commanded_leg_angles() - robot.leg_angles())).mean())
+            lags.append(np.degrees(np.abs(robot.clock[0] - robot.leg_angles()[0])).mean())
             powers.append(info["power"])
         if terminated or truncated:
             break
@@ -52,7 +52,7 @@ def episode(env, policy, seed: int) -> dict[str, float]:
         "heading_drift_deg_per_s": float(np.degrees(info["yaw"]) / info["time"]),
         "lag_deg": float(np.mean(lags)),
         "power": power,
-        "cost_of_transport": power / (robot.mass * 9.81 * distance / duration),
+        "cost_of_transport": power / (robot.facts.mass * 9.81 * distance / duration),
         "fell": float(fell),
         "unstable": 0.0,
     }
@@ -64,8 +64,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=6.0)
     args = parser.parse_args()
     freqs = np.arange(5.0, 46.0, 5.0)
-    env = gym.make("skitter/RoachWalk-v0", max_episode_steps=int(args.seconds * 50))
-    layout = RoachObsLayout.from_env(env)
+    env = gym.make("skitter/RoachWalk-v1", max_episode_steps=int(args.seconds * 50))
+    layout = TripodContext.from_env(env)
     results = {}
     for f in freqs:
         runs = [episode(env, TripodGait(layout, frequency=f), seed) for seed in range(args.seeds)]
@@ -105,7 +105,7 @@ def main() -> None:
     ]
     top = results[45.0]
     text = (
-        "# Tripod speed against stride frequency (RoachWalk-v0, gait mode)\n\n"
+        "# Tripod speed against stride frequency (RoachWalk-v1, gait mode)\n\n"
         f"{args.seeds} seeds x {args.seconds:g} s per frequency, first {WARMUP:g} s left out. Real robot: "
         f"{C.TOP_SPEED} m/s at up to {C.MAX_STRIDE_FREQUENCY:g} Hz (ICRA 2013); model at 45 Hz: "
         f"{np.nanmean([r['speed'] for r in top]):.2f} m/s. Falls: episodes that tipped over (speed and other columns "

@@ -1,7 +1,7 @@
 """Yaw rate against left/right phase offset for the tripod gait: the curve of seed 000 figures 16 and 17.
 
-Regenerates ``agents/data/roach_turn_table.json`` (used by the turning tripod, ``agents.tripod.TripodTurn``) and
-writes ``benchmarks/results/turn_table.{json,md,png}``. Run: ``python benchmarks/turn_table.py``.
+Regenerates ``agents/velociroach/turn_table.json`` (used by the turning tripod, ``agents.tripod.TripodTurn``) and
+writes ``benchmarks/results/turn_table.{json,md,png}``. Run: ``python -m benchmarks.turn_table``.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import isotonic_regression
 
 import envs  # noqa: F401  (registers the envs)
-from agents.tripod import TURN_TABLE, RoachObsLayout, TripodGait
+from agents.velociroach.tripod import TURN_TABLE, TripodContext, TripodGait
 from benchmarks.common import RESULTS, md_table, save
 from envs.common.io import atomic_write, write_json
 
@@ -54,8 +54,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=6)
     parser.add_argument("--seconds", type=float, default=8.0)
     args = parser.parse_args()
-    env = gym.make("skitter/RoachWalk-v0", max_episode_steps=int(args.seconds * 50))
-    layout = RoachObsLayout.from_env(env)
+    env = gym.make("skitter/RoachWalk-v1", max_episode_steps=int(args.seconds * 50))
+    layout = TripodContext.from_env(env)
     curves = {}
     for f in args.frequencies:
         rows = []

@@ -1,19 +1,15 @@
-"""skitter environments: importing this package registers them under ``skitter/`` and does nothing else."""
+"""skitter environments: importing this package registers them under ``skitter/`` and does nothing else.
+
+Each robot is a subpackage (``envs/<robot>/``) whose ``__init__`` lists its registrations in ``ENVS``; adding a robot
+adds a folder and edits nothing here.
+"""
+
+import importlib
+import pkgutil
 
 from gymnasium.envs.registration import register
 
-EPISODE_SECONDS = 10.0
-
-for _task, _entry in (("Walk", "envs.velociroach.walk:RoachWalkEnv"), ("Turn", "envs.velociroach.turn:RoachTurnEnv")):
-    register(
-        id=f"skitter/Roach{_task}-v0",
-        entry_point=_entry,
-        max_episode_steps=int(EPISODE_SECONDS * 50),
-        kwargs={"action_mode": "gait", "control_freq": 50.0},
-    )
-    register(
-        id=f"skitter/Roach{_task}Duty-v0",
-        entry_point=_entry,
-        max_episode_steps=int(EPISODE_SECONDS * 1000),
-        kwargs={"action_mode": "duty", "control_freq": 1000.0},
-    )
+for _module in pkgutil.iter_modules(__path__):
+    if _module.ispkg:
+        for _spec in getattr(importlib.import_module(f"{__name__}.{_module.name}"), "ENVS", ()):
+            register(**_spec)

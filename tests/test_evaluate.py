@@ -1,11 +1,15 @@
 """evaluate.py end to end, as a user runs it."""
 
 import json
+import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
+
+from tests.conftest import ENV_IDS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,11 +24,11 @@ def run(*args: str) -> subprocess.CompletedProcess:
 def model_zip(tmp_path_factory) -> Path:
     runs = tmp_path_factory.mktemp("runs")
     hp = runs / "ppo.yml"
-    hp.write_text("skitter/RoachWalk-v0:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  normalize: true\n")
+    hp.write_text("skitter/RoachWalk-v1:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  normalize: true\n")
     done = subprocess.run(
-        [sys.executable, str(ROOT / "train.py"), "--env", "skitter/RoachWalk-v0", "--algo", "ppo", "--timesteps",
+        [sys.executable, str(ROOT / "train.py"), "--env", "skitter/RoachWalk-v1", "--algo", "ppo", "--timesteps",
          "128", "--seed", "0", "--hyperparams", str(hp), "--runs-dir", str(runs), "--run-name", "tiny",
-         "--no-progress"],
+         "--checkpoint-freq", "64", "--no-progress"],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -33,7 +37,7 @@ def model_zip(tmp_path_factory) -> Path:
 
 def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zip, tmp_path):
     out = tmp_path / "walk"
-    done = run("--env", "skitter/RoachWalk-v0", "--policy", "tripod:20", "--policy", str(model_zip),
+    done = run("--env", "skitter/RoachWalk-v1", "--policy", "tripod:20", "--policy", str(model_zip),
                "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "60", "--video",
                "--telemetry")  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -46,42 +50,121 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
         assert all(e["length"] == 60 for e in policy["episodes"])
         s = policy["summary"]["speed"]
         assert s["n"] == 3 and s["ci_low"] <= s["mean"] <= s["ci_high"]
-        for metric in ("return", "speed", "speed_bl", "cost_of_transport", "falls"):
+        for metric in ("return", "speed", "speed_bl", "cost_of_transport", "falls", "forward_speed"):
             assert metric in policy["summary"]
     tripod = results["policies"]["tripod:20"]["summary"]["speed"]["mean"]
     assert tripod > 0.5, "the 20 Hz tripod runs forward"
     diff = results["paired_differences"]["policies"][str(model_zip)]["speed"]
     assert diff["n"] == 3
-    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v0")
+    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v1")
     pngs = sorted(p.name for p in (out / "plots").iterdir())
     assert len(pngs) == 2 and all(p.endswith(".png") for p in pngs)
     mp4s = list((out / "videos").glob("*.mp4"))
     assert len(mp4s) == 2 and all(p.stat().st_size > 1000 for p in mp4s)
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
+    assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten
-    again = run("--env", "skitter/RoachWalk-v0", "--policy", "tripod:20", "--episodes", "1", "--out", str(out))
-    assert again.returncode != 0 and "already holds results.json" in again.stderr
+    again = run("--env", "skitter/RoachWalk-v1", "--policy", "tripod:20", "--episodes", "1", "--out", str(out))
+    assert again.returncode != 0 and "already holds" in again.stderr
+    assert json.loads((out / "results.json").read_text())["seeds"] == [5, 6, 7]
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_runs_on_every_registered_env(env_id, tmp_path):
+    """No robot-specific code: the reference gait, metrics, plots and telemetry on every env."""
+    steps = "40" if "Duty" not in env_id else "300"
+    done = run("--env", env_id, "--policy", "tripod", "--episodes", "2", "--out", str(tmp_path / "r"),
+               "--max-episode-steps", steps, "--telemetry")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    results = json.loads((tmp_path / "r" / "results.json").read_text())
+    summary = results["policies"]["tripod"]["summary"]
+    assert set(results["metrics"]) <= set(summary)
+    assert summary["speed"]["mean"] > 0
+    assert (tmp_path / "r" / "plots" / "tripod.png").stat().st_size > 10_000
 
 
 def test_turn_reports_the_yaw_rate_error(tmp_path):
-    done = run("--env", "skitter/RoachTurn-v0", "--policy", "tripod", "--episodes", "2", "--out", str(tmp_path / "t"),
+    done = run("--env", "skitter/RoachTurn-v1", "--policy", "tripod", "--episodes", "2", "--out", str(tmp_path / "t"),
                "--max-episode-steps", "100")  # fmt: skip
     assert done.returncode == 0, done.stderr
     summary = json.loads((tmp_path / "t" / "results.json").read_text())["policies"]["tripod"]["summary"]
     assert 0 <= summary["yaw_rate_error"]["mean"] < 1.0
 
 
+def test_two_models_with_the_same_file_name_get_their_own_plots(model_zip, tmp_path):
+    """Two runs' checkpoints are both step_N/model.zip: each keeps its plot and telemetry."""
+    (checkpoint,) = (model_zip.parent / "checkpoints").glob("step_*64")
+    other = tmp_path / "other" / "checkpoints" / checkpoint.name
+    shutil.copytree(checkpoint, other)
+    out = tmp_path / "both"
+    done = run("--env", "skitter/RoachWalk-v1", "--policy", str(checkpoint / "model.zip"), "--policy",
+               str(other / "model.zip"), "--episodes", "1", "--out", str(out), "--max-episode-steps", "20",
+               "--telemetry")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert len(list((out / "plots").glob("*.png"))) == 2
+    assert len(list((out / "telemetry").glob("*.parquet"))) == 2
+    files = json.loads((out / "results.json").read_text())["files"]
+    assert len(set(files.values())) == 2
+
+
+def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip, tmp_path):
+    stripped = tmp_path / "stripped.zip"
+    with zipfile.ZipFile(model_zip) as src, zipfile.ZipFile(stripped, "w") as dst:
+        for item in src.infolist():
+            if item.filename != "vecnormalize.pkl":
+                dst.writestr(item, src.read(item))
+    done = run(
+        "--env", "skitter/RoachWalk-v1", "--policy", str(stripped), "--episodes", "1", "--out", str(tmp_path / "o")
+    )
+    assert done.returncode == 2
+    assert "lacks the statistics" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path):
+    truncated = tmp_path / "truncated.zip"
+    truncated.write_bytes(model_zip.read_bytes()[: model_zip.stat().st_size // 2])
+    done = run(
+        "--env", "skitter/RoachWalk-v1", "--policy", str(truncated), "--episodes", "1", "--out", str(tmp_path / "o")
+    )
+    assert done.returncode == 2
+    assert "truncated or corrupt" in done.stderr and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_a_model_of_another_env_is_refused(model_zip, tmp_path):
+    done = run(
+        "--env", "skitter/RoachTurn-v1", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")
+    )
+    assert done.returncode == 2 and "observes" in done.stderr and "Traceback" not in done.stderr
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
         (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "not registered"),
-        (["--env", "skitter/RoachWalk-v0", "--policy", "no/such/model.zip"], "no trained model"),
-        (["--env", "skitter/RoachWalk-v0", "--policy", "moonwalk"], "unknown policy"),
-        (["--env", "skitter/RoachWalk-v0", "--policy", "tripod", "--episodes", "0"], "--episodes"),
+        (["--env", "skitter/RoachWalk-v1", "--policy", "no/such/model.zip"], "no trained model"),
+        (["--env", "skitter/RoachWalk-v1", "--policy", "moonwalk"], "unknown policy"),
+        (["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "0"], "--episodes"),
+        (["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--seed", "-1"], "--seed"),
+        (["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--policy", "tripod"], "given twice"),
+        (["--env", "skitter/RoachWalk-v1", "--policy", "tripod:fast"], "not a number"),
     ],
 )
 def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, args, message):
     done = run(*args, "--out", str(tmp_path / "out"))
-    assert done.returncode != 0
+    assert done.returncode == 2
     assert message in done.stderr
     assert "Traceback" not in done.stderr
+    assert not (tmp_path / "out").exists(), "nothing is created for bad input"
+
+
+def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path):
+    out = tmp_path / "out"
+    (out / "telemetry").mkdir(parents=True)
+    (out / "telemetry" / "tripod.parquet").write_bytes(b"a user's file")
+    done = run(
+        "--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "1", "--out", str(out), "--telemetry"
+    )
+    assert done.returncode == 2 and "already holds" in done.stderr and "Traceback" not in done.stderr
+    assert (out / "telemetry" / "tripod.parquet").read_bytes() == b"a user's file"

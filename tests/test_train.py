@@ -5,8 +5,10 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import gymnasium as gym
@@ -14,13 +16,13 @@ import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import envs  # noqa: F401  (registers the skitter envs)
-from agents.sb3 import SB3Policy
+from agents.sb3 import SB3Policy, read_model_file
 
 ROOT = Path(__file__).resolve().parents[1]
-WALK = "skitter/RoachWalk-v0"
+WALK = "skitter/RoachWalk-v1"
 # SAC/TD3 on a budget: learning starts after 100 steps, small networks and buffer
 TINY_OFF_POLICY = """
-skitter/RoachWalk-v0:
+skitter/RoachWalk-v1:
   normalize: {norm_obs: true, norm_reward: false}
   buffer_size: 1000
   learning_starts: 100
@@ -54,8 +56,8 @@ def checkpoints(run_dir: Path) -> dict[int, Path]:
 
 
 def assert_policy_acts(model: Path, env_id: str = WALK) -> SB3Policy:
-    policy = SB3Policy(model)
     env = gym.make(env_id)
+    policy = SB3Policy(model, env)
     observation, _ = env.reset(seed=0)
     action, _ = policy.predict(observation)
     assert action.shape == env.action_space.shape
@@ -75,9 +77,14 @@ def ppo_run(tmp_path_factory) -> Path:
 
 
 def test_ppo_run_writes_model_config_checkpoints_and_logs(ppo_run):
-    assert re.fullmatch(r"skitter_RoachWalk-v0__ppo__3__\d{8}-\d{6}", ppo_run.name)
-    for name in ("model.zip", "vecnormalize.pkl", "config.json", "command.txt"):
+    assert re.fullmatch(r"skitter_RoachWalk-v1__ppo__3__\d{8}-\d{6}", ppo_run.name)
+    for name in ("model.zip", "config.json", "command.txt"):
         assert (ppo_run / name).is_file(), name
+    assert not (ppo_run / "vecnormalize.pkl").exists(), "the statistics live inside model.zip"
+    with zipfile.ZipFile(ppo_run / "model.zip") as archive:
+        assert {"data", "vecnormalize.pkl", "skitter.json"} <= set(archive.namelist())
+        manifest = json.loads(archive.read("skitter.json"))
+    assert manifest["normalized"] and manifest["algo"] == "ppo" and manifest["env_id"] == WALK
     config = json.loads((ppo_run / "config.json").read_text())
     assert (config["env_id"], config["algo"], config["seed"], config["timesteps"]) == (WALK, "ppo", 3, 2048)
     assert config["n_envs"] == 4 and config["hyperparams"]["n_steps"] == 512
@@ -86,10 +93,12 @@ def test_ppo_run_writes_model_config_checkpoints_and_logs(ppo_run):
 
     saved = checkpoints(ppo_run)
     assert sorted(saved) == [1024, 2048]
-    assert (saved[2048] / "model.zip").is_file() and (saved[2048] / "vecnormalize.pkl").is_file()
+    assert sorted(p.name for p in saved[2048].iterdir()) == ["checkpoint.json", "model.zip"]
+    assert not list((ppo_run / "checkpoints").glob(".*")), "no temporary checkpoint folder left behind"
 
     logs = scalars(ppo_run / "tb")
     assert {"rollout/ep_rew_mean", "train/value_loss", "episode/forward_speed", "episode/fall_rate"} <= set(logs)
+    assert {"episode/speed", "episode/cost_of_transport", "episode/speed_bl"} <= set(logs)
     terms = [tag for tag in logs if tag.startswith("reward/")]
     assert sorted(terms) == ["reward/energy", "reward/forward", "reward/upright"]
     # the reward terms of the same episodes add up to SB3's own episode return
@@ -106,6 +115,7 @@ def test_resume_continues_the_run_in_its_folder(ppo_run, tmp_path):
     assert sorted(path.name for path in tmp_path.iterdir()) == [ppo_run.name]
     assert max(checkpoints(run_dir)) == 4096
     assert SB3Policy(run_dir / "model.zip").model.num_timesteps == 4096
+    assert "skipping" not in (run_dir / "command.txt").read_text()
     assert json.loads((run_dir / "config.json").read_text())["timesteps"] == 4096
     assert len((run_dir / "command.txt").read_text().splitlines()) == 2
     steps = [step for step, _ in scalars(run_dir / "tb")["reward/forward"]]
@@ -127,7 +137,7 @@ def test_off_policy_algorithms_train(algo, tmp_path):
     runs = tmp_path / "runs"
     train_ok("--env", WALK, "--algo", algo, "--timesteps", 300, "--runs-dir", runs, "--hyperparams", hyperparams)
     (run_dir,) = runs.iterdir()
-    assert (run_dir / "vecnormalize.pkl").is_file()
+    assert SB3Policy(run_dir / "model.zip").normalizer is not None
     assert (checkpoints(run_dir)[300] / "replay_buffer.pkl").is_file()
     assert "train/critic_loss" in scalars(run_dir / "tb")  # gradient steps ran after learning_starts
     policy = assert_policy_acts(run_dir / "model.zip")
@@ -136,12 +146,76 @@ def test_off_policy_algorithms_train(algo, tmp_path):
 
 BAD_INPUTS = {
     "unknown env": ({}, ["--env", "skitter/NoSuchEnv-v0"], ["skitter/NoSuchEnv-v0"]),
+    "bad env_kwargs value": ({WALK: "  env_kwargs: {max_tilt: -1.0}"}, [], ["bad.yml", "env_kwargs", "max_tilt"]),
+    "unknown env_kwargs": ({WALK: "  env_kwargs: {legs: 8}"}, [], ["bad.yml", "env_kwargs", "legs"]),
+    "negative seed": ({}, ["--seed", "-1"], ["--seed", "-1"]),
     "env missing from file": ({"skitter/RoachTurn-v0": "  n_steps: 64"}, [], ["bad.yml", WALK, "no entry"]),
     "bad value": ({WALK: "  gamma: 1.5"}, [], ["bad.yml", "gamma", "1.5"]),
     "wrong type": ({WALK: "  n_steps: lots"}, [], ["bad.yml", "n_steps", "lots"]),
     "unknown field": ({WALK: "  n_step: 64"}, [], ["bad.yml", "n_step", "did you mean 'n_steps'"]),
     "non-positive timesteps": ({}, ["--timesteps", "0"], ["--timesteps"]),
 }
+
+
+def test_a_hyperparameter_file_that_is_not_utf8_is_a_one_line_error(tmp_path):
+    hyperparams = tmp_path / "latin1.yml"
+    hyperparams.write_bytes(f"{WALK}:\n  n_steps: 64 # caf\xe9\n".encode("latin-1"))
+    args = ["--env", WALK, "--algo", "ppo", "--timesteps", 100, "--runs-dir", tmp_path / "runs"]
+    result = run_train(*args, "--hyperparams", hyperparams)
+    assert result.returncode == 2 and "not UTF-8" in result.stderr and "latin1.yml" in result.stderr
+    assert "Traceback" not in result.stderr and not (tmp_path / "runs").exists()
+
+
+def break_truncated_zip(folder: Path) -> None:
+    model = folder / "model.zip"
+    model.write_bytes(model.read_bytes()[:1000])
+
+
+def break_marker(folder: Path) -> None:
+    (folder / "checkpoint.json").write_text("{not json")
+
+
+def break_statistics(folder: Path) -> None:
+    """Rewrite the model file with a truncated statistics pickle inside."""
+    model = folder / "model.zip"
+    with zipfile.ZipFile(model) as src:
+        entries = {item.filename: src.read(item) for item in src.infolist()}
+    entries["vecnormalize.pkl"] = entries["vecnormalize.pkl"][:40]
+    with zipfile.ZipFile(model, "w") as dst:
+        for name, data in entries.items():
+            dst.writestr(name, data)
+
+
+@pytest.mark.parametrize("breaker", [break_truncated_zip, break_marker, break_statistics])
+def test_resume_falls_back_past_a_corrupt_newest_checkpoint_and_says_so(ppo_run, tmp_path, breaker):
+    run_dir = shutil.copytree(ppo_run, tmp_path / ppo_run.name)
+    saved = checkpoints(run_dir)
+    breaker(saved[2048])
+    result = run_train("--resume", run_dir, "--timesteps", 3072)
+    assert result.returncode == 0, result.stderr
+    assert "skipping a broken checkpoint" in result.stderr and "step_0000002048" in result.stderr
+    assert "from step_0000001024 (1024 steps)" in result.stdout
+    assert SB3Policy(run_dir / "model.zip").model.num_timesteps == 3072
+
+
+def test_a_killed_run_never_leaves_a_model_without_its_statistics(tmp_path):
+    """SIGKILL at several moments: every model file present is whole (weights, statistics and manifest)."""
+    found = 0
+    for delay in (4.0, 6.0, 8.0):
+        runs = tmp_path / f"runs{delay}"
+        command = [sys.executable, str(ROOT / "train.py"), "--env", WALK, "--algo", "ppo", "--timesteps", "100000",
+                   "--checkpoint-freq", "2048", "--runs-dir", str(runs), "--no-progress"]  # fmt: skip
+        process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            process.wait(timeout=delay)
+        except subprocess.TimeoutExpired:
+            process.send_signal(signal.SIGKILL)
+            process.wait()
+        for model in runs.rglob("model.zip"):
+            manifest, stats = read_model_file(model)
+            assert manifest["normalized"] and stats is not None, model
+            found += 1
+    assert found, "the kills came late enough for checkpoints to exist"
 
 
 @pytest.mark.parametrize("case", list(BAD_INPUTS))

@@ -8,7 +8,7 @@ import pytest
 
 from agents import load_policy
 from agents.evaluation import run_episode
-from agents.tripod import RoachObsLayout, TripodGait, TripodTurn
+from agents.velociroach.tripod import TripodContext, TripodGait, TripodTurn
 from benchmarks.turn_table import yaw_rate as benchmark_yaw_rate
 
 SECONDS = 4.0
@@ -24,7 +24,7 @@ def run(env_id: str, policy_spec: str, seed: int = 0, seconds: float = SECONDS, 
 def speeds() -> dict[float, float]:
     out = {}
     for f in (5.0, 10.0, 20.0, 45.0):
-        episode = run("skitter/RoachWalk-v0", f"tripod:{f:g}")
+        episode = run("skitter/RoachWalk-v1", f"tripod:{f:g}")
         assert not episode.unstable, f"{f} Hz: simulation unstable"
         assert episode.metrics["falls"] == 0, f"{f} Hz: the robot fell"
         assert episode.length == round(SECONDS * 50), f"{f} Hz: episode ended early"
@@ -40,15 +40,15 @@ def test_tripod_runs_forward_at_5_to_45_hz_and_faster_with_frequency(speeds):
 
 def test_tripod_works_in_duty_mode_as_the_firmware_would():
     """In duty mode the policy itself runs the leg clock and PID at 1 kHz."""
-    gait = run("skitter/RoachWalk-v0", "tripod:10", seconds=2.0)
-    duty = run("skitter/RoachWalkDuty-v0", "tripod:10", seconds=2.0)
+    gait = run("skitter/RoachWalk-v1", "tripod:10", seconds=2.0)
+    duty = run("skitter/RoachWalkDuty-v1", "tripod:10", seconds=2.0)
     assert duty.metrics["falls"] == 0
     assert duty.metrics["speed"] == pytest.approx(gait.metrics["speed"], rel=0.25)
 
 
 def yaw_rate(phase_deg: float, seed: int) -> float:
-    env = gym.make("skitter/RoachWalk-v0", max_episode_steps=300)
-    policy = TripodGait(RoachObsLayout.from_env(env), frequency=10.0, phase=np.radians(phase_deg))
+    env = gym.make("skitter/RoachWalk-v1", max_episode_steps=300)
+    policy = TripodGait(TripodContext.from_env(env), frequency=10.0, phase=np.radians(phase_deg))
     return benchmark_yaw_rate(env, policy, seed)
 
 
@@ -62,21 +62,21 @@ def test_turning_direction_follows_the_sign_of_the_offset_from_180_deg():
 
 
 def test_turning_tripod_maps_the_command_through_the_measured_table():
-    env = gym.make("skitter/RoachTurn-v0")
+    env = gym.make("skitter/RoachTurn-v1")
     policy = load_policy("tripod", env)
     assert isinstance(policy, TripodTurn)
     obs, _ = env.reset(seed=0)
     phases = {}
     for command in (-0.5, 0.0, 0.5):
         o = obs.copy()
-        o[19] = command
+        o[env.unwrapped.task.layout["yaw_rate_command"]] = command
         phases[command] = policy.predict(o)[0][2]
     assert phases[0.5] < phases[0.0] < phases[-0.5], "left turns need the right legs trailing by less than pi"
 
 
 @pytest.mark.parametrize("command", [0.6, -0.6])
 def test_turning_tripod_turns_the_commanded_way(command):
-    env = gym.make("skitter/RoachTurn-v0", max_episode_steps=300)
+    env = gym.make("skitter/RoachTurn-v1", max_episode_steps=300)
     policy = load_policy("tripod", env)
     obs, info = env.reset(seed=1, options={"yaw_rate": command})
     rates = []
@@ -88,7 +88,7 @@ def test_turning_tripod_turns_the_commanded_way(command):
 
 
 def test_predict_follows_sb3_shapes_single_and_batched():
-    env = gym.make("skitter/RoachWalkDuty-v0")
+    env = gym.make("skitter/RoachWalkDuty-v1")
     policy = load_policy("tripod:10", env)
     obs, _ = env.reset(seed=0)
     action, state = policy.predict(obs)
@@ -101,8 +101,8 @@ def test_predict_follows_sb3_shapes_single_and_batched():
 
 
 def test_unknown_policy_names_are_rejected_clearly():
-    env = gym.make("skitter/RoachWalk-v0")
-    with pytest.raises(ValueError, match="unknown policy"):
+    env = gym.make("skitter/RoachWalk-v1")
+    with pytest.raises(ValueError, match=r"unknown policy .hexapod-magic. for the velociroach: .*tripod"):
         load_policy("hexapod-magic", env)
     with pytest.raises(ValueError, match="not a number"):
         load_policy("tripod:fast", env)
@@ -113,9 +113,28 @@ def test_unknown_policy_names_are_rejected_clearly():
 def test_turning_table_was_measured_on_the_current_model():
     import json
 
-    from agents.tripod import TURN_TABLE
+    from agents.velociroach.tripod import TURN_TABLE
     from envs.velociroach.robot import VelociRoach
 
     table = json.loads(TURN_TABLE.read_text())
-    current = VelociRoach("gait", control_dt=0.02).model_hash
-    assert table["model_hash"] == current, "the model changed: regenerate with python -m benchmarks.turn_table"
+    assert table["model_hash"] == VelociRoach("gait").model_hash, (
+        "the model changed: regenerate with python -m benchmarks.turn_table"
+    )
+
+
+def test_duty_tripod_reads_its_inputs_by_name_not_position():
+    """Reordering the observation (a different layout) changes nothing the tripod does, given the layout."""
+    from agents.velociroach.tripod import TripodContext
+    from envs.common.task import ObservationLayout
+
+    env = gym.make("skitter/RoachWalkDuty-v1")
+    obs, _ = env.reset(seed=0)
+    context = TripodContext.from_env(env)
+    names = list(context.layout.slices)
+    shuffled_names = names[::-1]
+    structure = {n: context.layout[n].stop - context.layout[n].start for n in shuffled_names}
+    shuffled = ObservationLayout.from_structure(structure)
+    shuffled_obs = np.concatenate([obs[context.layout[n]] for n in shuffled_names])
+    a = TripodGait(context, frequency=10.0).predict(obs)[0]
+    b = TripodGait(TripodContext(shuffled, context.mode, context.control_dt, context.back_emf_per_leg_rate), 10.0)
+    np.testing.assert_array_equal(a, b.predict(shuffled_obs)[0])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -22,16 +22,13 @@ SCHEMA_VERSION = 1
 METADATA_KEY = b"skitter"
 
 
-class TelemetrySource(Protocol):
-    def telemetry_row(self, power: float) -> np.ndarray: ...
-
-
 class TelemetryRecorder:
     """Collects telemetry rows at the control rate, episode by episode.
 
     Args:
         meta: the metadata record (robot, model hash, controller, rate...).
-        units: column name -> unit, in the order of the source's ``telemetry_row``.
+        units: column name -> unit, in the order of the robot's ``readings["telemetry"]`` (its
+            ``telemetry_channels``).
     """
 
     def __init__(self, meta: dict[str, Any], units: dict[str, str]):
@@ -44,10 +41,13 @@ class TelemetryRecorder:
     def start_episode(self) -> None:
         self._episode += 1
 
-    def record(self, source: TelemetrySource, power: float) -> None:
+    def record(self, row: np.ndarray) -> None:
         if self._episode < 0:
             raise RuntimeError("TelemetryRecorder.record() before start_episode()")
-        self._rows.append(np.asarray(source.telemetry_row(power), dtype=np.float64))
+        row = np.array(row, dtype=np.float64)
+        if row.shape != (len(self.columns),):
+            raise ValueError(f"telemetry row has shape {row.shape}, expected ({len(self.columns)},)")
+        self._rows.append(row)
         self._episodes.append(self._episode)
 
     def __len__(self) -> int:

@@ -1,0 +1,15 @@
+"""The VelociRoACH (seed 000): robot, tasks, real-telemetry format. ``ENVS`` is what envs/__init__.py registers."""
+
+EPISODE_SECONDS = 10.0
+_MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
+
+ENVS = [
+    {
+        "id": f"skitter/Roach{task}{suffix}-v1",
+        "entry_point": f"envs.velociroach.{task.lower()}:Roach{task}Env",
+        "max_episode_steps": round(EPISODE_SECONDS * freq),
+        "kwargs": {"action_mode": mode, "control_freq": freq},
+    }
+    for task in ("Walk", "Turn")
+    for suffix, (mode, freq) in _MODES.items()
+]

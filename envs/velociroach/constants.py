@@ -8,12 +8,11 @@ clock and PID), which are not part of the physical model.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "velociroach"
-SCENE_XML = ASSET_DIR / "scene.xml"
+import assets
+
+SCENE_XML = assets.path("velociroach", "scene.xml")
 
 # --- names ------------------------------------------------------------------------------------------------------
 SIDES = ("left", "right")
@@ -60,4 +59,4 @@ PID_KI = 10.0  # duty / (rad s)
 PID_KD = 0.009  # duty / (rad/s)
 PID_INTEGRAL_LIMIT = 0.3  # duty: anti-windup bound of the integral term
 PHASE_SLEW = 2 * np.pi * 5.0  # rad/s: fastest change of the left/right phase the firmware makes
-MAX_COMMAND_FREQUENCY = 50.0  # Hz: bound of the gait action (a little above the real 45 Hz)
+MAX_COMMAND_FREQUENCY = MAX_STRIDE_FREQUENCY  # Hz: the gait action's bound, what the real robot strides (v1; v0: 50)

@@ -15,9 +15,13 @@ from envs.velociroach.robot import VelociRoach
 GRAVITY = 9.81
 
 
+RNG = [np.random.default_rng(0)]
+ONE = np.array([0])
+
+
 def overall_length(robot: VelociRoach) -> float:
     """Fore-aft extent (m) of the robot's geoms at the home pose, legs included."""
-    robot.reset()
+    robot.reset(ONE, RNG)
     m, d = robot.model, robot.data
     root = m.body(C.ROOT_BODY).id
     xs = []
@@ -40,19 +44,19 @@ def hold(robot: VelociRoach, seconds: float, load: float = 0.0) -> tuple[float, 
     steps = max(1, round(seconds / robot.control_dt))
     heights = []
     for i in range(steps):
-        robot.command_gait(0.0, 0.0, robot.phase)
+        robot.command(np.array([[0.0, 0.0, robot.phase[0]]]))
         robot.step()
         if i >= 0.8 * steps:
             heights.append(robot.com_position()[2])
-    legs = int((robot.ground_reaction_forces()[:, 2] > 1e-3).sum())
+    legs = int((robot.ground_reaction_forces()[0, :, 2] > 1e-3).sum())
     d.xfrc_applied[body] = 0
     return float(np.mean(heights)), legs
 
 
 def standing_com_height(robot: VelociRoach | None = None) -> float:
     """Centre-of-mass height (m) standing on tripod A at the bottom of its stroke, motors holding."""
-    robot = robot or VelociRoach("gait", control_dt=0.01)
-    robot.reset()
+    robot = robot or VelociRoach("gait", control_freq=100.0)
+    robot.reset(ONE, RNG)
     return hold(robot, 1.0)[0]
 
 
@@ -63,8 +67,8 @@ def relative_leg_stiffness(loads: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15)) ->
     L = the 0.015 m centre-of-mass height of the source and m the robot's mass. The floor contact's own compliance is
     part of what the test measures, as it would be on a real robot.
     """
-    robot = VelociRoach("gait", control_dt=0.01)
-    robot.reset()
+    robot = VelociRoach("gait", control_freq=100.0)
+    robot.reset(ONE, RNG)
     hold(robot, 1.0)
     heights, legs = [], []
     for load in loads:
@@ -75,7 +79,7 @@ def relative_leg_stiffness(loads: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15)) ->
     k_total = -1.0 / slope
     n = legs[0]
     k_leg = k_total / n
-    weight = robot.mass * GRAVITY
+    weight = robot.facts.mass * GRAVITY
     return {
         "k_total": float(k_total),
         "legs_in_stance": n,
@@ -100,15 +104,17 @@ def motor_bench(duty: float = 1.0, seconds: float = 1.0) -> dict[str, float]:
         spec.delete(spec.joint(C.ROOT_JOINT))
         spec.body(C.ROOT_BODY).pos[2] = 0.5
 
-    robot = VelociRoach("duty", control_dt=0.001, spec_edit=clamp)
-    robot.reset()
-    robot.command_duty(np.array([duty, 0.0]))
+    robot = VelociRoach("duty", control_freq=1000.0, spec_edits=[clamp])
+    robot.reset(ONE, RNG)
+    command = np.array([[duty, 0.0]])
+    robot.command(command)
+    robot.data.ctrl[:] = robot.sim.ctrl[0, 0]
     mujoco.mj_forward(robot.model, robot.data)  # at rest: the stall torque
-    stall = float(robot.crank_torques()[0])
+    stall = float(robot.crank_torques()[0, 0])
     speeds = []
     for i in range(round(seconds / robot.control_dt)):
-        robot.command_duty(np.array([duty, 0.0]))
+        robot.command(command)
         robot.step()
         if i >= round(0.5 * seconds / robot.control_dt):
-            speeds.append(robot.leg_velocities()[0])
+            speeds.append(robot.leg_velocities()[0, 0])
     return {"stall_torque": stall, "free_stride_hz": float(np.mean(speeds) / (2 * np.pi))}

@@ -1,27 +1,22 @@
-"""The VelociRoACH robot: model, actuators, firmware and sensors. It knows nothing of tasks or rewards."""
+"""The VelociRoACH robot: model, motors, firmware, IMU and telemetry, on the robot contract; it knows no task."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Literal
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import ClassVar
 
 import mujoco
 import numpy as np
 
-from envs.common.mujoco_utils import SensorHistory, quat_up_z, sensor_slices, spec_hash
+from envs.actuators.dcmotor import DCMotors, PIDGains
+from envs.common.imu import Imu, ImuNoise
+from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
+from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
 from envs.velociroach import constants as C
 
-ActionMode = Literal["duty", "gait"]
-
-# Slots of MuJoCo's dcmotor parameters (checked against the compiler in tests/test_velociroach_model.py).
-DC_GAIN_R, DC_GAIN_K = 0, 1
-DC_GAIN_PID = slice(4, 8)  # kp, ki, kd, Vmax (torque-space gains)
-DC_DYN_SLEW, DC_DYN_IMAX = 7, 8
-CTRLSPEC_POS_VEL = 3  # mjINPUT_POS | mjINPUT_VEL
-_BAD_STATE = [
-    int(w)
-    for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-]
+GAIT, DUTY = "gait", "duty"
+FIRMWARE_PID = PIDGains(kp=C.PID_KP, ki=C.PID_KI, kd=C.PID_KD, integral_limit=C.PID_INTEGRAL_LIMIT)
 
 
 def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
@@ -29,276 +24,7 @@ def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
     return np.pi - np.mod(np.pi - x, 2.0 * np.pi)
 
 
-class VelociRoach:
-    """A VelociRoACH in a MuJoCo scene, stepped at a control rate with the physics running natively in between.
-
-    Two ways to drive it, chosen when it is built:
-
-    - ``duty``: the PWM duty cycle per side in [-1, 1]; the motor sees duty x battery voltage.
-    - ``gait``: the robot's firmware runs a leg clock per side at a commanded stride frequency, with a commanded
-      left/right phase, and a PID per side tracks it. The PID is MuJoCo's own dcmotor controller (P, I, D on the leg
-      angle, back-EMF compensation, output clipped to the battery voltage) evaluated at every physics step; the clock
-      is its rate-limited setpoint, advanced once per control step. No Python runs per physics step.
-
-    Args:
-        action_mode: ``"duty"`` or ``"gait"``.
-        control_dt: seconds between control steps; a whole number of physics steps (0.5 ms each).
-        battery_voltage: supply voltage; ``None`` takes the model's nominal 3.7 V.
-        spec_edit: optional function applied to the ``MjSpec`` before it compiles (terrain, calibration effects).
-    """
-
-    def __init__(
-        self,
-        action_mode: ActionMode = "gait",
-        control_dt: float = 0.02,
-        battery_voltage: float | None = None,
-        spec_edit: Callable[[mujoco.MjSpec], None] | None = None,
-    ):
-        if action_mode not in ("duty", "gait"):
-            raise ValueError(f"action_mode must be 'duty' or 'gait', got {action_mode!r}")
-        self.action_mode: ActionMode = action_mode
-        spec = mujoco.MjSpec.from_file(str(C.SCENE_XML))
-        timestep = spec.option.timestep
-        self.n_substeps = round(control_dt / timestep)
-        if self.n_substeps < 1 or abs(self.n_substeps * timestep - control_dt) > 1e-9:
-            raise ValueError(f"control_dt={control_dt} s is not a whole number of {timestep} s physics steps")
-        self.control_dt = self.n_substeps * timestep
-        if battery_voltage is None:
-            battery_voltage = float(spec.numeric(C.NUMERIC_BATTERY).data[0])
-        if not battery_voltage > 0:
-            raise ValueError(f"battery_voltage must be positive, got {battery_voltage}")
-        self.battery_voltage = float(battery_voltage)
-        self._configure(spec)
-        if spec_edit is not None:
-            spec_edit(spec)
-        self.model = spec.compile()
-        self.model_hash = spec_hash(spec)
-        self.data = mujoco.MjData(self.model)
-        self._lookup()
-        self.phase = C.STRAIGHT_PHASE  # firmware's current left/right phase (gait mode)
-
-    # --- building ---------------------------------------------------------------------------------------------
-    def _configure(self, spec: mujoco.MjSpec) -> None:
-        """Edit the nominal spec for this instance: battery, firmware, history buffers."""
-        vb = self.battery_voltage
-        for side in C.SIDES:
-            motor = spec.actuator(C.MOTORS[side])
-            motor.ctrlrange = [-vb, vb]
-            if self.action_mode == "gait":
-                r, k = motor.gainprm[DC_GAIN_R], motor.gainprm[DC_GAIN_K]
-                gear = motor.gear[0]
-                to_torque = vb * k / (r * gear)  # duty per leg radian -> motor torque per motor radian
-                ki = C.PID_KI * to_torque
-                motor.ctrlspec = CTRLSPEC_POS_VEL
-                motor.ctrllimited = 0
-                motor.gainprm[DC_GAIN_PID] = [C.PID_KP * to_torque, ki, C.PID_KD * to_torque, vb]
-                motor.dynprm[DC_DYN_SLEW] = 1.0  # rewritten at every control step
-                motor.dynprm[DC_DYN_IMAX] = C.PID_INTEGRAL_LIMIT * vb * k / (r * ki)
-                motor.actdim = 2  # [clock (rate-limited setpoint), integral]
-            # keep every physics step of a control step for power and telemetry
-            for sensor in (C.SENSOR_MOTOR_TORQUE[side], C.SENSOR_MOTOR_VEL[side]):
-                spec.sensor(sensor).nsample = self.n_substeps
-
-    def _lookup(self) -> None:
-        """Look up addresses once."""
-        m = self.model
-        self._motor_ids = np.array([m.actuator(C.MOTORS[s]).id for s in C.SIDES])
-        self.gear = float(m.actuator_gear[self._motor_ids[0], 0])
-        self.resistance = m.actuator_gainprm[self._motor_ids, DC_GAIN_R].copy()
-        self.motor_constant = m.actuator_gainprm[self._motor_ids, DC_GAIN_K].copy()
-        self._ctrl_adr = m.actuator_ctrladr[self._motor_ids].copy()
-        self._act_adr = m.actuator_actadr[self._motor_ids].copy()
-        self._crank_qpos = np.array([m.joint(C.CRANK_JOINTS[s]).qposadr[0] for s in C.SIDES])
-        # a spec edit may clamp the body to the world (a bench test): then there is no free joint
-        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
-        self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None
-        self.sweep_amplitude = float(m.numeric(C.NUMERIC_SWEEP).data[0])
-        self.lift_amplitude = float(m.numeric(C.NUMERIC_LIFT).data[0])
-        # every joint that the linkage ties to a crank: q = q0 + c0 + c1 (crank - crank0), read off the equalities
-        self._linkage = []
-        for crank in self._crank_qpos:
-            crank_joint = int(np.flatnonzero(m.jnt_qposadr == crank)[0])
-            tied = []
-            for e in range(m.neq):
-                if m.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and m.eq_obj2id[e] == crank_joint:
-                    q1 = int(m.jnt_qposadr[m.eq_obj1id[e]])
-                    tied.append((q1, float(m.eq_data[e, 0]), float(m.eq_data[e, 1])))
-            self._linkage.append(tied)
-        sl = sensor_slices(m, [m.sensor(i).name for i in range(m.nsensor)])
-        self.sensor_slice = sl
-
-        def idx(*names: str) -> np.ndarray:
-            return np.concatenate([np.arange(sl[n].start, sl[n].stop) for n in names])
-
-        self._i_leg_pos = idx(*(C.SENSOR_LEG_POS[s] for s in C.SIDES))
-        self._i_leg_vel = idx(*(C.SENSOR_LEG_VEL[s] for s in C.SIDES))
-        self._i_motor_torque = idx(*(C.SENSOR_MOTOR_TORQUE[s] for s in C.SIDES))
-        self._i_motor_vel = idx(*(C.SENSOR_MOTOR_VEL[s] for s in C.SIDES))
-        self._i_imu = idx(C.SENSOR_GYRO, C.SENSOR_ACCEL)
-        # what the robot senses, in one gather: leg angles, leg rates, gyro, accelerometer, motor speeds
-        self._i_senses = np.concatenate(
-            [self._i_leg_pos, self._i_leg_vel, self._i_imu, idx(*(C.SENSOR_MOTOR_VEL[s] for s in C.SIDES))]
-        )
-        self._i_pose = idx(C.SENSOR_BODY_POS, C.SENSOR_BODY_QUAT)
-        self._i_body_vel = idx(C.SENSOR_BODY_VEL)
-        self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in C.LEGS))
-        self._history = SensorHistory(
-            m,
-            [C.SENSOR_MOTOR_TORQUE[s] for s in C.SIDES] + [C.SENSOR_MOTOR_VEL[s] for s in C.SIDES],
-            self.n_substeps,
-        )
-        self.mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
-
-    # --- state ------------------------------------------------------------------------------------------------
-    def set_crank_angles(self, left: float, right: float) -> None:
-        """Put the cranks at the given angles (rad) with every linkage joint consistent with them."""
-        q, q0 = self.data.qpos, self.model.qpos0
-        for tied, theta, crank in zip(self._linkage, (left, right), self._crank_qpos, strict=True):
-            q[crank] = theta
-            for adr, c0, c1 in tied:
-                q[adr] = q0[adr] + c0 + c1 * (theta - q0[crank])
-
-    def reset(self, crank_left: float = 0.0, phase: float = C.STRAIGHT_PHASE) -> None:
-        """Reset to the home pose: tripod A (FL, BL, MR) at the bottom of its stroke when ``crank_left`` is 0, the
-        right crank ``phase`` behind the left."""
-        m, d = self.model, self.data
-        mujoco.mj_resetData(m, d)
-        self.set_crank_angles(crank_left, crank_left - phase)
-        self.phase = float(phase)
-        if self.action_mode == "gait":
-            d.act[self._act_adr] = self.gear * d.qpos[self._crank_qpos]
-            d.act[self._act_adr + 1] = 0.0
-            d.ctrl[self._ctrl_adr] = d.act[self._act_adr]
-            d.ctrl[self._ctrl_adr + 1] = 0.0
-        mujoco.mj_forward(m, d)
-
-    def set_body_velocity(self, linear: np.ndarray, angular: np.ndarray) -> None:
-        """Set the free joint's velocity (world-frame linear, body-frame angular), e.g. to randomise a reset."""
-        if self._root_qvel is None:
-            raise ValueError("this robot's body is clamped to the world")
-        self.data.qvel[self._root_qvel : self._root_qvel + 3] = linear
-        self.data.qvel[self._root_qvel + 3 : self._root_qvel + 6] = angular
-        mujoco.mj_forward(self.model, self.data)
-
-    # --- acting -----------------------------------------------------------------------------------------------
-    def command_duty(self, duty: np.ndarray) -> None:
-        """PWM duty cycle per side (left, right), each in [-1, 1]."""
-        self.data.ctrl[self._ctrl_adr] = np.clip(duty, -1.0, 1.0) * self.battery_voltage
-
-    def command_gait(self, freq_left: float, freq_right: float, phase: float) -> None:
-        """Advance the firmware's leg clocks over the next control step.
-
-        Each side's clock runs at its stride frequency (Hz); the right clock trails the left by ``phase`` (rad),
-        which the firmware moves toward the command at most ``PHASE_SLEW`` rad/s. With equal frequencies the offset
-        between the sides is ``phase``; with different ones it drifts by 2 pi (f_left - f_right) per second.
-        """
-        dt = self.control_dt
-        step = C.PHASE_SLEW * dt
-        dphi = float(np.clip(wrap_angle(phase - self.phase), -step, step))
-        self.phase += dphi
-        clock = self.data.act[self._act_adr]
-        advance = self.gear * np.array([2.0 * np.pi * freq_left * dt, 2.0 * np.pi * freq_right * dt - dphi])
-        rate = advance / dt
-        self.data.ctrl[self._ctrl_adr] = clock + advance
-        self.data.ctrl[self._ctrl_adr + 1] = rate
-        # a slew limit of 0 would switch the limiter (and its state) off; a standing clock gets a tiny one instead
-        self.model.actuator_dynprm[self._motor_ids, DC_DYN_SLEW] = np.maximum(np.abs(rate), 1e-9)
-
-    def step(self) -> bool:
-        """Advance one control step (``n_substeps`` physics steps). Returns False if the simulation went unstable."""
-        d = self.data
-        before = d.warning.number[_BAD_STATE].sum()
-        mujoco.mj_step(self.model, d, nstep=self.n_substeps)
-        # MuJoCo counts (and resets the data on) NaN, infinite or huge positions, velocities and accelerations
-        return d.warning.number[_BAD_STATE].sum() == before and np.isfinite(d.qvel).all()
-
-    # --- sensing (values at the end of the last physics step) --------------------------------------------------
-    def senses(self) -> np.ndarray:
-        """Leg angles (2), leg rates (2), gyro (3), accelerometer (3), motor speeds (2), gathered at once."""
-        return self.data.sensordata[self._i_senses]
-
-    def leg_angles(self) -> np.ndarray:
-        """Crank (leg) angles per side, unwrapped, rad."""
-        return self.data.sensordata[self._i_leg_pos]
-
-    def leg_velocities(self) -> np.ndarray:
-        return self.data.sensordata[self._i_leg_vel]
-
-    def commanded_leg_angles(self) -> np.ndarray:
-        """The firmware clock per side (rad); NaN in duty mode, where there is no firmware clock."""
-        if self.action_mode == "duty":
-            return np.full(2, np.nan)
-        return self.data.act[self._act_adr] / self.gear
-
-    def imu(self) -> np.ndarray:
-        """Gyro (rad/s, body frame) then accelerometer (m/s^2, body frame, +g upward at rest)."""
-        return self.data.sensordata[self._i_imu]
-
-    def back_emf(self) -> np.ndarray:
-        """Motor back-EMF per side, V."""
-        return self.motor_constant * self.data.sensordata[self._i_motor_vel]
-
-    def duty(self) -> np.ndarray:
-        """The duty cycle the motor driver applies per side, from terminal voltage = R i + Ke w."""
-        sd = self.data.sensordata
-        current = sd[self._i_motor_torque] / self.motor_constant
-        volts = self.resistance * current + self.motor_constant * sd[self._i_motor_vel]
-        return volts / self.battery_voltage
-
-    def crank_torques(self) -> np.ndarray:
-        """Torque each motor applies to its crank (motor torque x gear), N m."""
-        return self.gear * self.data.sensordata[self._i_motor_torque]
-
-    def electrical_power(self) -> float:
-        """Mean electrical power drawn from the battery over the last control step, W, from every physics step.
-
-        Per motor, power = terminal voltage x current, counted only when positive: the H-bridge does not return
-        braking energy to the battery.
-        """
-        h = self._history.read(self.data)
-        current = h[:, :2] / self.motor_constant
-        volts = self.resistance * current + self.motor_constant * h[:, 2:]
-        return float(np.maximum(volts * current, 0.0).sum()) / self.n_substeps
-
-    def body_pose(self) -> np.ndarray:
-        """World position (3) and orientation quaternion w, x, y, z (4) of the body."""
-        return self.data.sensordata[self._i_pose]
-
-    def body_velocity(self) -> np.ndarray:
-        """Linear velocity of the body in its own frame, m/s."""
-        return self.data.sensordata[self._i_body_vel]
-
-    def com_position(self) -> np.ndarray:
-        return self.data.subtree_com[self.model.body(C.ROOT_BODY).id]
-
-    def ground_reaction_forces(self) -> np.ndarray:
-        """Force of the ground on each leg (FL, ML, BL, FR, MR, BR), world frame, N, shape (6, 3)."""
-        return -self.data.sensordata[self._i_grf].reshape(6, 3)
-
-    def up_z(self) -> float:
-        return quat_up_z(self.body_pose()[3:])
-
-    # --- telemetry ----------------------------------------------------------------------------------------------
-    def telemetry_row(self, power: float) -> np.ndarray:
-        """One row of telemetry in the order of ``TELEMETRY_COLUMNS``; ``power`` is the step's mean power (W)."""
-        return np.concatenate(
-            [
-                [self.data.time],
-                self.commanded_leg_angles(),
-                self.leg_angles(),
-                self.duty(),
-                self.crank_torques(),
-                self.back_emf(),
-                [self.battery_voltage],
-                self.imu(),
-                self.body_pose(),
-                self.ground_reaction_forces().ravel(),
-                [power],
-            ]
-        )
-
-
-def _telemetry_columns() -> dict[str, str]:
+def _telemetry_channels() -> dict[str, str]:
     cols = {"time": "s"}
     channels = (("leg_angle_cmd", "rad"), ("leg_angle", "rad"), ("duty", "1"), ("torque", "N m"), ("bemf", "V"))
     for channel, unit in channels:
@@ -313,4 +39,315 @@ def _telemetry_columns() -> dict[str, str]:
     return cols
 
 
-TELEMETRY_COLUMNS: dict[str, str] = _telemetry_columns()  # name -> unit
+TELEMETRY_COLUMNS: dict[str, str] = _telemetry_channels()  # name -> unit, in table order
+
+
+class VelociRoach(Robot):
+    """A VelociRoACH in a MuJoCo scene: two DC motors driving six C-legs through a crank linkage, and its firmware.
+
+    Two action modes:
+
+    - ``gait`` (50 Hz): the firmware runs a leg clock per side at a commanded stride frequency (0 to 45 Hz, the real
+      robot's range), the right clock trailing the left by a commanded phase, which the firmware moves at most
+      ``PHASE_SLEW``; a PID per side tracks its clock. The PID is MuJoCo's dcmotor controller (P, I, D, back-EMF
+      compensation, output clipped to the battery voltage) evaluated at every physics step; the clock is its
+      setpoint, given for every physics step of the control block. No Python runs per physics step and nothing
+      writes the model.
+    - ``duty`` (1 kHz): the PWM duty cycle per side in [-1, 1]; the motor sees duty x battery voltage.
+
+    Args:
+        action_mode: ``"gait"`` or ``"duty"``.
+        control_freq: control steps per second (default 50 in gait mode, 1000 in duty mode).
+        battery_voltage: supply voltage, V (default the model's nominal 3.7 V).
+        imu_noise: the IMU's error model (default the MPU-6000's); None for a perfect IMU.
+        spec_edits: functions applied to the spec before it compiles.
+        num_sims: simulations stepped together.
+    """
+
+    name = "velociroach"
+    root_body = C.ROOT_BODY
+    action_modes: ClassVar[dict[str, ActionMode]] = {
+        GAIT: ActionMode(
+            GAIT,
+            ("freq_left", "freq_right", "phase"),
+            ("Hz", "Hz", "rad"),
+            (0.0, 0.0, 0.0),
+            (C.MAX_COMMAND_FREQUENCY, C.MAX_COMMAND_FREQUENCY, 2 * np.pi),
+            50.0,
+            "stride frequency per side and how far the right clock trails the left (pi: alternating tripod)",
+        ),
+        DUTY: ActionMode(DUTY, ("duty_left", "duty_right"), ("1", "1"), (-1.0, -1.0), (1.0, 1.0), 1000.0, "PWM duty"),
+    }
+
+    def __init__(
+        self,
+        action_mode: str = GAIT,
+        control_freq: float | None = None,
+        battery_voltage: float | None = None,
+        imu_noise: ImuNoise | None = ImuNoise(),  # noqa: B008 (frozen dataclass)
+        spec_edits: Sequence[SpecEdit] = (),
+        num_sims: int = 1,
+    ):
+        self._battery_arg = (
+            None if battery_voltage is None else check_number("battery_voltage", battery_voltage, 0, strict=True)
+        )
+        self.imu_noise = imu_noise
+        super().__init__(action_mode, control_freq, spec_edits, num_sims)
+
+    @classmethod
+    def xml_path(cls) -> Path:
+        return C.SCENE_XML
+
+    # --- building -----------------------------------------------------------------------------------------------
+    def configure(self, spec: mujoco.MjSpec) -> None:
+        nominal = float(spec.numeric(C.NUMERIC_BATTERY).data[0])
+        self.nominal_battery = nominal if self._battery_arg is None else self._battery_arg
+        pid = FIRMWARE_PID if self.action_mode == GAIT else None
+        self.motors = DCMotors([C.MOTORS[s] for s in C.SIDES], self.nominal_battery, pid)
+        self.motors.configure(spec)
+
+    def setup(self) -> None:
+        m, n = self.model, self.num_sims
+        self.motors.bind(m)
+        self.gear = float(self.motors.gear[0])
+        self._crank_qpos = np.array([m.joint(C.CRANK_JOINTS[s]).qposadr[0] for s in C.SIDES])
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
+        self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None  # a bench clamp removes the free joint
+        self.sweep_amplitude = float(m.numeric(C.NUMERIC_SWEEP).data[0])
+        self.lift_amplitude = float(m.numeric(C.NUMERIC_LIFT).data[0])
+        # every joint the linkage ties to a crank: q = q0 + c0 + c1 (crank - crank0), read off the equalities
+        self._linkage = []
+        for crank in self._crank_qpos:
+            crank_joint = int(np.flatnonzero(m.jnt_qposadr == crank)[0])
+            tied = []
+            for e in range(m.neq):
+                if m.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and m.eq_obj2id[e] == crank_joint:
+                    tied.append((int(m.jnt_qposadr[m.eq_obj1id[e]]), float(m.eq_data[e, 0]), float(m.eq_data[e, 1])))
+            self._linkage.append(tied)
+
+        def idx(*names: str) -> np.ndarray:
+            return np.concatenate([np.arange(self.sensors[k].start, self.sensors[k].stop) for k in names])
+
+        self._i_leg_pos = idx(*(C.SENSOR_LEG_POS[s] for s in C.SIDES))
+        self._i_leg_vel = idx(*(C.SENSOR_LEG_VEL[s] for s in C.SIDES))
+        self._i_torque = idx(*(C.SENSOR_MOTOR_TORQUE[s] for s in C.SIDES))
+        self._i_speed = idx(*(C.SENSOR_MOTOR_VEL[s] for s in C.SIDES))
+        self._i_gyro, self._i_accel = idx(C.SENSOR_GYRO), idx(C.SENSOR_ACCEL)
+        self._i_pos, self._i_quat = idx(C.SENSOR_BODY_POS), idx(C.SENSOR_BODY_QUAT)
+        self._i_vel = idx(C.SENSOR_BODY_VEL)
+        self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in C.LEGS))
+        self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
+        # per-simulation firmware state
+        self.battery = np.full(n, self.nominal_battery)
+        self.clock = np.zeros((n, 2))  # firmware leg clocks, rad at the leg (gait mode)
+        self.phase = np.full(n, C.STRAIGHT_PHASE)  # firmware's current left/right phase
+        self.last_duty = np.zeros((n, 2))  # duty mode: the duty of the last command
+        self.imu = Imu(n, self.imu_noise)
+        self._substep_times = np.arange(self.n_substeps) * float(m.opt.timestep)
+
+    def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
+        """The VelociRoACH's physical parameters, each with the model fields it sets (see docs/velociroach.md)."""
+        ids = np.array([model.actuator(C.MOTORS[s]).id for s in C.SIDES])
+        chassis = model.body(C.ROOT_BODY).id
+        springs = np.array([model.joint(f"{leg}_spring").id for leg in C.LEGS])
+        spring_dofs = model.jnt_dofadr[springs]
+        feet = np.array([g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.endswith("_leg")])
+        floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
+        contact = np.append(feet, floor) if floor >= 0 else feet
+        r0, k0 = (float(model.actuator_gainprm[ids[0], s]) for s in (0, 1))
+        pid = self.action_mode == GAIT
+        gain = (ids, slice(4, 7))  # the firmware's torque-space gains: duty gains x V K / (R gear)
+        p = ParameterMap()
+        p.add(Parameter("battery_voltage", "V", self.nominal_battery, 2.5, 4.5,
+                        "supply voltage (1-cell LiPo, 3.5-3.9 V in the real logs)",
+                        self.motors.supply_fields(), attribute="battery"))  # fmt: skip
+        firmware_r = (FieldRef("actuator_gainprm", gain, "inverse"),) if pid else ()
+        firmware_k = (FieldRef("actuator_gainprm", gain, "scale"),) if pid else ()
+        p.add(Parameter("motor_resistance", "ohm", r0, 0.5 * r0, 3.0 * r0, "winding resistance, both motors",
+                        (FieldRef("actuator_gainprm", (ids, 0)), *firmware_r)))  # fmt: skip
+        p.add(Parameter("motor_constant", "N m/A", k0, 0.5 * k0, 2.0 * k0, "torque and back-EMF constant, both motors",
+                        (FieldRef("actuator_gainprm", (ids, 1)), *firmware_k)))  # fmt: skip
+        p.add(Parameter("chassis_mass", "kg", float(model.body_mass[chassis]), 0.01, 0.06,
+                        "mass of the chassis body (its inertia scales with it)",
+                        (FieldRef("body_mass", (chassis,), "scale"), FieldRef("body_inertia", (chassis,), "scale")),
+                        setconst=True))  # fmt: skip
+        p.add(Parameter("leg_stiffness", "N/m", float(model.jnt_stiffness[springs[0]]), 50.0, 1000.0,
+                        "radial stiffness of each C-leg", (FieldRef("jnt_stiffness", (springs,)),)))  # fmt: skip
+        p.add(Parameter("leg_damping", "N s/m", float(model.dof_damping[spring_dofs[0]]), 0.05, 5.0,
+                        "radial damping of each C-leg", (FieldRef("dof_damping", (spring_dofs,)),)))  # fmt: skip
+        p.add(Parameter("foot_friction", "1", float(model.geom_friction[feet[0], 0]), 0.05, 1.5,
+                        "sliding friction of foot-ground contact (feet and floor together: MuJoCo takes the larger)",
+                        (FieldRef("geom_friction", (contact, 0)),)))  # fmt: skip
+        p.add(Parameter("motor_armature", "kg m^2", float(model.actuator_armature[ids[0]]), 0.0, 1e-7,
+                        "rotor inertia at the motor shaft", (FieldRef("actuator_armature", (ids,)),)))  # fmt: skip
+        return p
+
+    # --- the contract -------------------------------------------------------------------------------------------
+    @property
+    def facts(self) -> Facts:
+        return Facts(
+            mass=self._mass,
+            length=C.LENGTH,
+            sides=C.SIDES,
+            legs=C.LEGS,
+            extra={"sweep_amplitude": self.sweep_amplitude, "lift_amplitude": self.lift_amplitude, "gear": self.gear},
+        )
+
+    @property
+    def sense_structure(self) -> dict[str, int]:
+        senses = {"leg_cos": 2, "leg_sin": 2, "leg_velocity": 2, "gyro": 3, "accel": 3, "back_emf": 2, "battery": 1}
+        if self.action_mode == GAIT:
+            senses.update({"clock_cos": 2, "clock_sin": 2})
+        return senses
+
+    @property
+    def telemetry_channels(self) -> dict[str, str]:
+        return TELEMETRY_COLUMNS
+
+    @property
+    def plot_groups(self) -> tuple[PlotGroup, ...]:
+        return (
+            PlotGroup(
+                "leg angle minus firmware clock",
+                "deg",
+                ("leg_angle_left", "leg_angle_right"),
+                180 / np.pi,
+                ("leg_angle_cmd_left", "leg_angle_cmd_right"),
+            ),
+            PlotGroup("PWM duty", "1", ("duty_left", "duty_right")),
+            PlotGroup("crank torques", "mN m", ("torque_left", "torque_right"), scale=1e3),
+            PlotGroup("vertical ground reaction force, left legs", "N", ("grf_FL_z", "grf_ML_z", "grf_BL_z")),
+            PlotGroup("vertical ground reaction force, right legs", "N", ("grf_FR_z", "grf_MR_z", "grf_BR_z")),
+        )
+
+    def linkage_qpos(self, left: float, right: float) -> np.ndarray:
+        """A qpos with the cranks at these angles (rad) and every linkage joint consistent with them."""
+        q0 = self.model.qpos0
+        q = q0.copy()
+        for tied, theta, crank in zip(self._linkage, (left, right), self._crank_qpos, strict=True):
+            q[crank] = theta
+            for adr, c0, c1 in tied:
+                q[adr] = q0[adr] + c0 + c1 * (theta - q0[crank])
+        return q
+
+    def reset(
+        self, ids: np.ndarray, rngs: Sequence[np.random.Generator], noise: float = 0.0, options: Mapping | None = None
+    ) -> None:
+        """Home pose: tripod A (FL, BL, MR) at the bottom of its stroke, the right crank half a cycle behind the left;
+        crank angle and phase perturbed by U(-noise, noise) rad, body angular velocity by N(0, noise) rad/s and linear
+        velocity by N(0, noise / 10) m/s. ``options`` may give ``crank_left`` and ``phase`` (rad) exactly."""
+        options = options or {}
+        m = self.model
+        qpos, qvel = np.zeros((len(ids), m.nq)), np.zeros((len(ids), m.nv))
+        for j, rng in enumerate(rngs):
+            crank = rng.uniform(-noise, noise)
+            phase = C.STRAIGHT_PHASE + rng.uniform(-noise, noise)
+            lin, ang = rng.normal(0.0, noise * 0.1, 3), rng.normal(0.0, noise, 3)
+            crank = float(options.get("crank_left", crank))
+            phase = float(options.get("phase", phase))
+            qpos[j] = self.linkage_qpos(crank, crank - phase)
+            if self._root_qvel is not None:
+                qvel[j, self._root_qvel : self._root_qvel + 6] = np.concatenate([lin, ang])
+            self.phase[ids[j]] = phase
+        cranks = qpos[:, self._crank_qpos]
+        self.clock[ids] = cranks
+        self.last_duty[ids] = 0.0
+        state = {"qpos": qpos, "qvel": qvel, "act": np.zeros((len(ids), m.na))}
+        ctrl = np.zeros((len(ids), m.nu))
+        if self.action_mode == GAIT:
+            ctrl[:, self.motors.ctrl_adr] = cranks * self.gear
+        state["ctrl"] = ctrl
+        self.sim.reset(ids, state)
+        self.imu.reset(ids, rngs)
+
+    def command(self, command: np.ndarray) -> None:
+        """Gait mode: (n, 3) stride frequencies (Hz) and phase (rad); duty mode: (n, 2) duty per side."""
+        ctrl = self.sim.ctrl
+        if self.action_mode == DUTY:
+            self.last_duty[:] = np.clip(command, -1.0, 1.0)
+            self.motors.set_duty(ctrl, self.last_duty, self.battery)
+            return
+        dt = self.control_dt
+        step = C.PHASE_SLEW * dt
+        dphi = np.clip(wrap_angle(command[:, 2] - self.phase), -step, step)
+        self.phase += dphi
+        rate = 2.0 * np.pi * command[:, :2]
+        rate[:, 1] -= dphi / dt  # the right clock falls behind by the phase change over the step
+        # the clock at the start of each physics step is the PID's setpoint during that step
+        setpoint = self.clock[:, None, :] + rate[:, None, :] * self._substep_times[None, :, None]
+        self.motors.set_setpoints(ctrl, setpoint, np.broadcast_to(rate[:, None, :], setpoint.shape))
+        self.clock += rate * dt
+
+    def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
+        sd, sub = self.sim.sensordata, self.sim.substep_sensordata
+        if stepped:
+            torque, speed = sub[:, :, self._i_torque], sub[:, :, self._i_speed]
+            power = self.motors.battery_power(torque, speed).sum(axis=2).mean(axis=1)
+            self.imu.integrate(sub[:, :, self._i_gyro[2]], float(self.model.opt.timestep))
+        else:
+            power = np.zeros(len(sd))
+        gyro, accel = self.imu.read(
+            sd[:, self._i_gyro], sd[:, self._i_accel], rngs, self.control_dt if stepped else 0.0
+        )
+        legs = sd[:, self._i_leg_pos]
+        bemf = self.motors.motor_constant * sd[:, self._i_speed]
+        parts = [np.cos(legs), np.sin(legs), sd[:, self._i_leg_vel], gyro, accel, bemf, self.battery[:, None]]
+        if self.action_mode == GAIT:
+            parts += [np.cos(self.clock), np.sin(self.clock)]
+        duty = self.motors.terminal_voltage(sd[:, self._i_torque], sd[:, self._i_speed]) / self.battery[:, None]
+        clock = self.clock if self.action_mode == GAIT else np.full_like(legs, np.nan)
+        time = self.sim.time
+        telemetry = np.concatenate(
+            [
+                time[:, None],
+                clock,
+                legs,
+                duty,
+                sd[:, self._i_torque] * self.gear,
+                bemf,
+                self.battery[:, None],
+                gyro,
+                accel,
+                sd[:, self._i_pos],
+                sd[:, self._i_quat],
+                -sd[:, self._i_grf],
+                power[:, None],
+            ],
+            axis=1,
+        )
+        return {
+            "time": time,
+            "position": sd[:, self._i_pos],
+            "quaternion": sd[:, self._i_quat],
+            "velocity": sd[:, self._i_vel],
+            "power": power,
+            "heading": self.imu.heading.copy(),
+            "senses": np.concatenate(parts, axis=1),
+            "telemetry": telemetry,
+        }
+
+    # --- helpers for tests, benchmarks and facts ------------------------------------------------------------------
+    def leg_angles(self) -> np.ndarray:
+        """Crank (leg) angles per side, unwrapped, rad: (num_sims, 2)."""
+        return self.sim.sensordata[:, self._i_leg_pos]
+
+    def leg_velocities(self) -> np.ndarray:
+        return self.sim.sensordata[:, self._i_leg_vel]
+
+    def crank_torques(self) -> np.ndarray:
+        """Torque each motor applies to its crank (motor torque x gear), N m: (num_sims, 2)."""
+        return self.gear * self.sim.sensordata[:, self._i_torque]
+
+    def ground_reaction_forces(self) -> np.ndarray:
+        """Force of the ground on each leg (FL, ML, BL, FR, MR, BR), world frame, N: (num_sims, 6, 3)."""
+        return -self.sim.sensordata[:, self._i_grf].reshape(-1, 6, 3)
+
+    def com_position(self) -> np.ndarray:
+        return self.data.subtree_com[self.model.body(C.ROOT_BODY).id]
+
+    def set_body_velocity(self, linear: np.ndarray, angular: np.ndarray) -> None:
+        """Set simulation 0's free-joint velocity (world-frame linear, body-frame angular)."""
+        if self._root_qvel is None:
+            raise ValueError("this robot's body is clamped to the world")
+        self.data.qvel[self._root_qvel : self._root_qvel + 6] = np.concatenate([linear, angular])
+        mujoco.mj_forward(self.model, self.data)

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from envs.velociroach import constants as C
-from envs.velociroach.base import RoachEnv
-from envs.velociroach.robot import ActionMode
+from collections.abc import Mapping, Sequence
+
+from envs.common.env import SkitterEnv
+from envs.common.imu import ImuNoise
+from envs.common.locomotion import WalkTask
+from envs.velociroach.robot import GAIT, VelociRoach
 
 
-class RoachWalkEnv(RoachEnv):
+class RoachWalkEnv(SkitterEnv):
     """Run a 10 cm, 30 g VelociRoACH hexapod forward (+x) on flat ground.
 
     The robot (``assets/velociroach/``, documented in docs/velociroach.md): a chassis on six compliant C-legs, moved
@@ -15,40 +18,43 @@ class RoachWalkEnv(RoachEnv):
     phase and the middle leg half a cycle apart. Physics at 2 kHz.
 
     ## Action Space
-    ``Box(-1, 1)``; out-of-range actions are clipped to [-1, 1]; NaN or infinite actions raise ``ValueError``.
+    ``Box(-1, 1)``; out-of-range actions are clipped to [-1, 1]; NaN or infinite actions raise ``ValueError``. Each
+    entry maps linearly from [-1, 1] onto its physical range (``env.unwrapped.robot.mode``):
 
     - ``action_mode="gait"`` (default, 50 Hz), shape (3,): the robot's firmware runs a leg clock per side and a PID
       that tracks it at every physics step, as the real firmware accepts commands:
 
-      | index | command | mapping |
+      | index | command | range |
       |---|---|---|
-      | 0 | left stride frequency | ``50 Hz * a`` (negative runs the legs backward) |
-      | 1 | right stride frequency | ``50 Hz * a`` |
-      | 2 | left/right phase: how far the right clock trails the left | ``pi * (1 + a)`` rad; 0 = pi = tripod |
+      | 0 | left stride frequency | 0 to 45 Hz (the real robot's range, seed 000 Table 1) |
+      | 1 | right stride frequency | 0 to 45 Hz |
+      | 2 | how far the right clock trails the left | 0 to 2 pi rad (0 action: pi, the alternating tripod) |
 
-      The firmware moves its phase toward the command at up to 5 cycles/s. ``RoachEnv.gait_action(f_l, f_r, phase)``
+      The firmware moves its phase toward the command at up to 5 cycles/s. ``robot.mode.to_action([f_l, f_r, phase])``
       builds an action from physical values.
-    - ``action_mode="duty"`` (default 1 kHz), shape (2,): PWM duty cycle of the left and right motor, as the motor
-      driver sees it (terminal voltage = duty x battery voltage).
+    - ``action_mode="duty"`` (default 1 kHz), shape (2,): PWM duty cycle of the left and right motor in [-1, 1], as
+      the motor driver sees it (terminal voltage = duty x battery voltage).
 
     ## Observation Space
-    What the real robot senses, in SI units (``Box(-inf, inf)``, float64):
+    What the real robot senses, in SI units (``Box(-inf, inf)``, float64), laid out by name in
+    ``env.unwrapped.observation_structure``:
 
-    | slice | size | observation | unit |
+    | name | size | observation | unit |
     |---|---|---|---|
-    | 0:2 | 2 | cos of left, right leg (crank) angle | |
-    | 2:4 | 2 | sin of left, right leg angle | |
-    | 4:6 | 2 | left, right leg angular velocity (encoders) | rad/s |
-    | 6:9 | 3 | gyro, body frame | rad/s |
-    | 9:12 | 3 | accelerometer, body frame (+9.81 up at rest) | m/s^2 |
-    | 12:14 | 2 | left, right motor back-EMF | V |
-    | 14 | 1 | battery voltage | V |
-    | 15:19 | 4 | gait mode only: cos, sin of the firmware's commanded leg angles | |
-    | last | 7 | ``privileged_obs=True`` only: body linear velocity (body frame) and orientation quaternion | m/s, 1 |
+    | ``leg_cos``, ``leg_sin`` | 2 + 2 | cos, sin of the left, right leg (crank) angle | |
+    | ``leg_velocity`` | 2 | left, right leg angular velocity (encoders) | rad/s |
+    | ``gyro`` | 3 | gyro, body frame, with the MPU-6000's noise and a bias drawn per episode | rad/s |
+    | ``accel`` | 3 | accelerometer, body frame (+9.81 up at rest), with noise | m/s^2 |
+    | ``back_emf`` | 2 | left, right motor back-EMF | V |
+    | ``battery`` | 1 | battery voltage | V |
+    | ``clock_cos``, ``clock_sin`` | 2 + 2 | gait mode only: the firmware's leg clocks | |
+    | ``heading_error`` | 2 | sin, cos of (heading estimate - commanded heading); see below | |
+    | ``body_velocity``, ``body_quaternion`` | 3 + 4 | privileged only: body velocity (body frame), pose | m/s, 1 |
 
-    The privileged observations are ones the real robot does not sense; they are off by default.
-
-    The body's world pose is in ``info``, never in the observation unless privileged.
+    Size 21 in gait mode, 17 in duty mode, 7 more with ``privileged_obs``. The heading estimate is what the firmware
+    integrates from its z gyro since the reset; the commanded heading is +x (the heading at reset). It drifts as the
+    real robot's would: its gyro bias (0.5 deg/s per axis, 1 sigma) integrates to a few degrees over an episode. The
+    body's world pose is in ``info``, never in the observation unless privileged.
 
     ## Rewards
     ``reward = forward + energy + upright``, each term weighted, each in ``info["reward_<term>"]``:
@@ -61,33 +67,41 @@ class RoachWalkEnv(RoachEnv):
     ## Starting State
     Tripod A (front-left, back-left, middle-right legs) at the bottom of its stroke, the right crank half a cycle
     behind the left; crank angle and phase perturbed by ``U(-reset_noise_scale, reset_noise_scale)`` rad, body angular
-    velocity by ``N(0, reset_noise_scale)`` rad/s and linear velocity by ``N(0, reset_noise_scale / 10)`` m/s.
+    velocity by ``N(0, reset_noise_scale)`` rad/s and linear velocity by ``N(0, reset_noise_scale / 10)`` m/s. With
+    ``randomize``, the named physical parameters (``env.unwrapped.robot.parameters``) are drawn at every reset.
 
     ## Episode End
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
       simulation goes numerically unstable (``info["sim_unstable"]``; the last finite observation is returned with
-      reward 0, and ``info`` holds only ``sim_unstable``, ``fallen`` and ``time``: MuJoCo has reset the state, so
-      there is no velocity or power to report);
+      reward 0, and ``info`` holds only ``sim_unstable``, ``fallen`` and ``time``: MuJoCo has reset the state);
     - truncated at the registration's time limit: 10 s (500 steps in gait mode, 10000 in duty mode).
 
     ## Info
-    ``x_position``, ``y_position``, ``z_position``, ``quaternion``, ``x_velocity``, ``y_velocity``, ``yaw``,
-    ``yaw_rate``, ``up_z``, ``power`` (W), ``time``, ``fallen``, ``sim_unstable`` and the reward terms.
+    ``x_position``, ``y_position``, ``z_position``, ``quaternion``, ``x_velocity``, ``y_velocity``, ``speed`` (along
+    the heading), ``yaw``, ``yaw_rate``, ``up_z``, ``power`` (W), ``heading_error``, ``time``, ``fallen``,
+    ``sim_unstable``, the reward terms, and the episode's running sums ``distance`` (along the heading, m),
+    ``energy`` (J), ``progress_x`` (m), ``elapsed`` (s), ``yaw_travel`` (rad, unwrapped) and
+    ``yaw_travel_warmup`` (its value at 1 s, where rate metrics start).
 
     ## Arguments
-    ``gymnasium.make("skitter/RoachWalk-v0", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
+    ``gymnasium.make("skitter/RoachWalk-v1", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
     mode, 1000 in duty mode), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.1 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``battery_voltage`` (V,
-    default the model's 3.7), ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode``
-    (``"human"``, ``"rgb_array"``), ``width``, ``height``.
+    default the model's 3.7), ``sensor_noise`` (True: the IMU's noise and bias), ``randomize`` (parameter name ->
+    (low, high)), ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode`` (``"human"``,
+    ``"rgb_array"``), ``width``, ``height``.
 
     ## Version History
+    - v1: the heading error from the integrated gyro joins the observation, with the gyro's noise and bias; the
+      stride frequencies are bounded to the real robot's 0-45 Hz (v0: -50 to 50 Hz); the firmware's clock is given to
+      the motor controller at every physics step through ``ctrl`` (v0 rewrote the model's slew limit at every step),
+      so any episode replays exactly from its controls.
     - v0: first release.
     """
 
     def __init__(
         self,
-        action_mode: ActionMode = "gait",
+        action_mode: str = GAIT,
         control_freq: float | None = None,
         privileged_obs: bool = False,
         forward_reward_weight: float = 1.0,
@@ -96,30 +110,15 @@ class RoachWalkEnv(RoachEnv):
         max_tilt: float = 1.4,
         reset_noise_scale: float = 0.1,
         battery_voltage: float | None = None,
+        sensor_noise: bool = True,
+        randomize: Mapping[str, Sequence[float]] | None = None,
         telemetry: bool = False,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
     ):
-        self.forward_reward_weight = forward_reward_weight
-        self.upright_reward_weight = upright_reward_weight
-        super().__init__(
-            action_mode=action_mode,
-            control_freq=control_freq,
-            privileged_obs=privileged_obs,
-            energy_cost_weight=energy_cost_weight,
-            max_tilt=max_tilt,
-            reset_noise_scale=reset_noise_scale,
-            battery_voltage=battery_voltage,
-            telemetry=telemetry,
-            render_mode=render_mode,
-            width=width,
-            height=height,
+        robot = VelociRoach(action_mode, control_freq, battery_voltage, ImuNoise() if sensor_noise else None)
+        task = WalkTask(
+            robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
         )
-
-    def _reward_terms(self, state: dict[str, float]) -> dict[str, float]:
-        return {
-            "forward": self.forward_reward_weight * state["x_velocity"] / C.LENGTH,
-            "energy": -self.energy_cost_weight * state["power"],
-            "upright": self.upright_reward_weight * state["up_z"],
-        }
+        super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)

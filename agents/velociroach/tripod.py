@@ -6,7 +6,8 @@ other offsets turn). In gait mode the clock and its PID are the robot's firmware
 angle at the control rate and outputs the duty cycle, with a back-EMF feed-forward.
 
 Both follow Stable-Baselines3's ``predict(observation, state, episode_start, deterministic) -> (action, state)``,
-batched or not. The policy's clock lives in ``state``, so it depends only on its observations and its own clock.
+batched or not. They read their inputs by name from the env's observation layout, and the policy's clock lives in
+``state``, so it depends only on its observations and its own clock.
 """
 
 from __future__ import annotations
@@ -17,45 +18,48 @@ from pathlib import Path
 
 import numpy as np
 
+from envs.common.robot import ActionMode
+from envs.common.task import ObservationLayout
 from envs.velociroach import constants as C
-from envs.velociroach.robot import wrap_angle
+from envs.velociroach.robot import DUTY, FIRMWARE_PID, wrap_angle
 
-TURN_TABLE = Path(__file__).resolve().parent / "data" / "roach_turn_table.json"
+TURN_TABLE = Path(__file__).resolve().parent / "turn_table.json"
+WALK_FREQUENCY = 45.0  # Hz: the real robot's top stride (seed 000 Table 1)
 
 
 @dataclass(frozen=True)
-class RoachObsLayout:
-    """What the tripod knows of the robot it drives: where to find things in its observation, its control period, and
-    (for the duty-mode firmware's feed-forward) the back-EMF per unit leg speed, Ke x gear, V s/rad."""
+class TripodContext:
+    """What the tripod knows of the env it drives: the observation layout, the action mode, the control period and,
+    for the duty-mode firmware's feed-forward, the back-EMF per unit leg speed (Ke x gear, V s/rad)."""
 
-    action_mode: str
+    layout: ObservationLayout
+    mode: ActionMode
     control_dt: float
     back_emf_per_leg_rate: float
-    battery_index: int = 14
-    command_index: int | None = None  # the yaw-rate command of RoachTurn
 
     @classmethod
-    def from_env(cls, env) -> RoachObsLayout:
+    def from_env(cls, env) -> TripodContext:
         base = env.unwrapped
-        size = 15 + (4 if base.action_mode == "gait" else 0)
-        command = size if base._command_size() else None
         robot = base.robot
-        return cls(base.action_mode, base.dt, float(robot.motor_constant[0] * robot.gear), command_index=command)
+        if robot.name != "velociroach":
+            raise ValueError(f"the tripod drives a VelociRoACH, not a {robot.name}")
+        emf = float(robot.motors.motor_constant[0] * robot.gear)
+        return cls(base.task.layout, robot.mode, robot.control_dt, emf)
 
 
 class TripodGait:
     """Alternating tripod at a fixed stride frequency and left/right phase.
 
     Args:
-        layout: observation layout and control period of the env it drives.
+        context: the env's layout and control period (:meth:`TripodContext.from_env`).
         frequency: stride frequency, Hz.
         phase: how far the right legs trail the left, rad (pi: alternating tripod, straight).
     """
 
-    def __init__(self, layout: RoachObsLayout, frequency: float = 20.0, phase: float = C.STRAIGHT_PHASE):
+    def __init__(self, context: TripodContext, frequency: float = 20.0, phase: float = C.STRAIGHT_PHASE):
         if not 0 <= frequency <= C.MAX_COMMAND_FREQUENCY:
-            raise ValueError(f"frequency must be in [0, {C.MAX_COMMAND_FREQUENCY}] Hz, got {frequency}")
-        self.layout = layout
+            raise ValueError(f"frequency must be in [0, {C.MAX_COMMAND_FREQUENCY:g}] Hz, got {frequency}")
+        self.context = context
         self.frequency = float(frequency)
         self.phase = float(phase)
 
@@ -77,12 +81,11 @@ class TripodGait:
         single = obs.ndim == 1
         obs = np.atleast_2d(obs)
         phase = self.phase_for(obs)
-        if self.layout.action_mode == "gait":
-            f = self.frequency / C.MAX_COMMAND_FREQUENCY
-            action = np.column_stack([np.full(len(obs), f), np.full(len(obs), f), phase / np.pi - 1.0])
-            new_state = None
-        else:
+        if self.context.mode.name == DUTY:
             action, new_state = self._duty(obs, phase, state, episode_start)
+        else:
+            f = np.full(len(obs), self.frequency)
+            action, new_state = self.context.mode.to_action(np.column_stack([f, f, phase])), None
         action = action.astype(np.float32)
         return (action[0], None if new_state is None else new_state[0]) if single else (action, new_state)
 
@@ -91,8 +94,8 @@ class TripodGait:
 
         State per env: [clock_L, clock_R, integral_L, integral_R].
         """
-        n = len(obs)
-        measured = np.arctan2(obs[:, 2:4], obs[:, 0:2])
+        layout, n = self.context.layout, len(obs)
+        measured = np.arctan2(layout.get(obs, "leg_sin"), layout.get(obs, "leg_cos"))
         if state is None:
             state = np.zeros((n, 4))
             fresh = np.ones(n, dtype=bool)
@@ -104,7 +107,7 @@ class TripodGait:
             state[fresh, 0] = measured[fresh, 0]
             state[fresh, 1] = measured[fresh, 0] - phase[fresh]
             state[fresh, 2:] = 0.0
-        dt = self.layout.control_dt
+        dt = self.context.control_dt
         omega = 2.0 * np.pi * self.frequency
         # the right clock moves toward its phase at most PHASE_SLEW, as the firmware does
         lag = wrap_angle(state[:, 0] - state[:, 1] - phase)
@@ -112,27 +115,27 @@ class TripodGait:
         state[:, 0] += omega * dt
         state[:, 1] += omega * dt + correction
         error = wrap_angle(state[:, :2] - measured)
-        state[:, 2:] = np.clip(state[:, 2:] + C.PID_KI * error * dt, -C.PID_INTEGRAL_LIMIT, C.PID_INTEGRAL_LIMIT)
+        pid = FIRMWARE_PID
+        state[:, 2:] = np.clip(state[:, 2:] + pid.ki * error * dt, -pid.integral_limit, pid.integral_limit)
         clock_rate = np.column_stack([np.full(n, omega), omega + correction / dt])
-        vbatt = obs[:, self.layout.battery_index : self.layout.battery_index + 1]
-        feedforward = self.layout.back_emf_per_leg_rate * clock_rate / vbatt
-        duty = C.PID_KP * error + state[:, 2:] + C.PID_KD * (clock_rate - obs[:, 4:6]) + feedforward
+        feedforward = self.context.back_emf_per_leg_rate * clock_rate / layout.get(obs, "battery")
+        duty = pid.kp * error + state[:, 2:] + pid.kd * (clock_rate - layout.get(obs, "leg_velocity")) + feedforward
         return np.clip(duty, -1.0, 1.0), state
 
 
 class TripodTurn(TripodGait):
-    """The tripod that turns: it maps RoachTurn's commanded yaw rate to a left/right phase.
+    """The tripod that turns: it maps a commanded yaw rate to a left/right phase.
 
     The map is the yaw rate measured against phase in this simulation (the curve of seed 000 figures 16 and 17),
-    written by ``benchmarks/turn_table.py`` to ``agents/data/roach_turn_table.json``; the policy inverts its monotonic
-    part and clips commands beyond it.
+    written by ``benchmarks/turn_table.py`` to ``agents/velociroach/turn_table.json``; the policy inverts its
+    monotonic part and clips commands beyond it.
     """
 
-    def __init__(self, layout: RoachObsLayout, table: str | Path = TURN_TABLE):
-        if layout.command_index is None:
-            raise ValueError("TripodTurn needs an env with a yaw-rate command (skitter/RoachTurn-*)")
+    def __init__(self, context: TripodContext, table: str | Path = TURN_TABLE):
+        if "yaw_rate_command" not in context.layout:
+            raise ValueError("the turning tripod needs an env with a yaw-rate command (skitter/RoachTurn-*)")
         data = json.loads(Path(table).read_text())
-        super().__init__(layout, frequency=float(data["frequency_hz"]))
+        super().__init__(context, frequency=float(data["frequency_hz"]))
         phase = np.radians(np.asarray(data["monotonic"]["phase_deg"], dtype=float))
         rate = np.asarray(data["monotonic"]["yaw_rate"], dtype=float)
         order = np.argsort(rate)
@@ -142,5 +145,19 @@ class TripodTurn(TripodGait):
         return f"TripodTurn(f={self.frequency:g} Hz, yaw rate {self._rates[0]:.2f}..{self._rates[-1]:.2f} rad/s)"
 
     def phase_for(self, obs: np.ndarray) -> np.ndarray:
-        command = obs[:, self.layout.command_index]
+        command = self.context.layout.get(obs, "yaw_rate_command")[:, 0]
         return np.interp(command, self._rates, self._phases)
+
+
+def tripod_for(env, arg: str = "") -> TripodGait:
+    """``tripod`` (straight at 45 Hz, or the turning table where the task commands a yaw rate) or ``tripod:F``."""
+    context = TripodContext.from_env(env)
+    if arg:
+        try:
+            frequency = float(arg)
+        except ValueError:
+            raise ValueError(f"policy 'tripod:{arg}': frequency {arg!r} is not a number") from None
+        return TripodGait(context, frequency=frequency)
+    if "yaw_rate_command" in context.layout:
+        return TripodTurn(context)
+    return TripodGait(context, frequency=WALK_FREQUENCY)

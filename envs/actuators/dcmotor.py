@@ -1,0 +1,147 @@
+"""DC motors on MuJoCo's native ``dcmotor`` actuator, driven by a PWM duty cycle or by an on-board PID.
+
+MuJoCo's dcmotor (MuJoCo 4.0) is a brushed DC motor with back-EMF: torque ``K i``, current ``i = (v - K w) / R`` for
+terminal voltage ``v`` and motor speed ``w`` (both at the motor shaft, the joint seeing ``gear`` times the torque).
+Two ways to drive it here, both through ``ctrl`` only:
+
+- **voltage**: ``ctrl = duty x supply voltage``, held over each physics step of a control block.
+- **pid**: the motor's on-board controller tracks setpoints given per physics step (a firmware's clock ramps within
+  a control step). MuJoCo's controller commands torque ``kp e + ki x_I + kd (u_vel - l')`` in motor-shaft units and
+  drives ``v = (R/K) torque + K l'`` clipped to ``Vmax``. Firmware gains are written here as a voltage-mode
+  controller writes them, in duty (fraction of the supply voltage) per radian at the joint, and converted. With
+  ``compensate_back_emf=False`` a derivative term of exactly ``K^2/R`` cancels MuJoCo's back-EMF compensation, which
+  leaves a plain voltage-mode controller, ``v = supply x clip(duty)``: what a hobby servo's amplifier does.
+
+Electrical readouts come from the motor's torque and speed sensors (``actuatorfrc``, ``actuatorvel``) at every
+physics step. The H-bridge returns no braking energy to the supply: battery power is ``max(v i, 0)`` per motor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from envs.common.parameters import FieldRef
+
+# actuator_ctrlspec bits of a dcmotor's inputs (checked against the compiler in tests/test_actuators.py)
+INPUT_POS, INPUT_VEL, INPUT_FF, INPUT_VOLTAGE = 1, 2, 4, 8
+# where the compiler keeps a dcmotor's constants and controller (checked likewise)
+GAIN_R, GAIN_K = 0, 1
+GAIN_KP, GAIN_KI, GAIN_KD, GAIN_VMAX = 4, 5, 6, 7
+DYN_SLEW, DYN_IMAX = 7, 8
+
+
+@dataclass(frozen=True)
+class PIDGains:
+    """A firmware's PID in its own terms: duty per unit of joint error.
+
+    Attributes:
+        kp: duty per rad of position error.
+        ki: duty per (rad s) of integrated error.
+        kd: duty per rad/s of velocity error.
+        integral_limit: bound of the integral term, in duty (0: unbounded).
+        velocity_setpoint: the firmware also sends a velocity setpoint (inputs ``pos vel``); else ``pos`` only.
+        compensate_back_emf: keep MuJoCo's back-EMF compensation (a current-mode driver); False: plain voltage mode.
+        max_duty: bound of the controller's output, a fraction of the supply voltage.
+    """
+
+    kp: float
+    ki: float = 0.0
+    kd: float = 0.0
+    integral_limit: float = 0.0
+    velocity_setpoint: bool = True
+    compensate_back_emf: bool = True
+    max_duty: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.compensate_back_emf and (self.velocity_setpoint or self.kd):
+            raise ValueError("cancelling the back-EMF compensation needs a position-only setpoint and kd = 0")
+        if not 0 < self.max_duty <= 1:
+            raise ValueError(f"max_duty must be in (0, 1], got {self.max_duty}")
+
+
+class DCMotors:
+    """A group of dcmotor actuators of a spec, configured for one drive mode.
+
+    Args:
+        actuators: names of ``dcmotor`` actuators in the spec (their R, K and gear come from the MJCF).
+        supply_voltage: nominal supply (battery) voltage, V.
+        pid: the on-board controller's gains, or None to drive the motors by duty cycle.
+    """
+
+    def __init__(self, actuators: Sequence[str], supply_voltage: float, pid: PIDGains | None = None):
+        self.names = tuple(actuators)
+        self.supply_voltage = float(supply_voltage)
+        self.pid = pid
+
+    @property
+    def mode(self) -> str:
+        return "voltage" if self.pid is None else "pid"
+
+    def configure(self, spec: mujoco.MjSpec) -> None:
+        """Set the inputs and controller of every motor in the spec."""
+        vs = self.supply_voltage
+        for name in self.names:
+            a = spec.actuator(name)
+            a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE  # duty is clipped in code; setpoints are unbounded
+            if self.pid is None:
+                a.ctrlspec = INPUT_VOLTAGE
+                continue
+            r, k, gear = a.gainprm[GAIN_R], a.gainprm[GAIN_K], a.gear[0]
+            to_torque = vs * k / (r * gear)  # duty per joint radian -> motor torque per motor radian
+            g = self.pid
+            kd = g.kd * to_torque + (0.0 if g.compensate_back_emf else k * k / r)
+            ki = g.ki * to_torque
+            a.ctrlspec = INPUT_POS | (INPUT_VEL if g.velocity_setpoint else 0)
+            a.gainprm[GAIN_KP] = g.kp * to_torque
+            a.gainprm[GAIN_KI] = ki
+            a.gainprm[GAIN_KD] = kd
+            a.gainprm[GAIN_VMAX] = g.max_duty * vs
+            a.dynprm[DYN_SLEW] = 0.0  # setpoints come per physics step: no slew limiter, no setpoint state
+            a.dynprm[DYN_IMAX] = g.integral_limit * vs * k / (r * ki) if ki > 0 and g.integral_limit > 0 else 0.0
+            a.actdim = 1 if ki > 0 else 0
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        """Look up the compiled motors."""
+        self.ids = np.array([model.actuator(n).id for n in self.names])
+        self.ctrl_adr = model.actuator_ctrladr[self.ids].copy()
+        self.act_adr = model.actuator_actadr[self.ids].copy()
+        self.gear = model.actuator_gear[self.ids, 0].copy()
+        self.resistance = model.actuator_gainprm[self.ids, GAIN_R].copy()
+        self.motor_constant = model.actuator_gainprm[self.ids, GAIN_K].copy()
+
+    # --- commands into the control block ------------------------------------------------------------------------
+    def set_duty(self, ctrl: np.ndarray, duty: np.ndarray, supply: np.ndarray) -> None:
+        """Voltage mode: hold duty (n, motors), clipped to [-1, 1], times the supply (n,) over the whole block."""
+        ctrl[:, :, self.ctrl_adr] = (np.clip(duty, -1.0, 1.0) * supply[:, None])[:, None, :]
+
+    def set_setpoints(self, ctrl: np.ndarray, position: np.ndarray, velocity: np.ndarray | None = None) -> None:
+        """PID mode: joint-angle setpoints (n, substeps, motors) in rad and, with a velocity input, their rates."""
+        ctrl[:, :, self.ctrl_adr] = position * self.gear
+        if self.pid is not None and self.pid.velocity_setpoint:
+            ctrl[:, :, self.ctrl_adr + 1] = velocity * self.gear
+
+    # --- electrical readouts from motor torque and speed (any leading axes, motors last) ---------------------------
+    def current(self, torque: np.ndarray) -> np.ndarray:
+        """Winding current, A, from the motor-shaft torque (N m)."""
+        return torque / self.motor_constant
+
+    def terminal_voltage(self, torque: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        """Voltage across the motor, V: R i + K w."""
+        return self.resistance * self.current(torque) + self.motor_constant * speed
+
+    def battery_power(self, torque: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        """Power drawn from the supply per motor, W; braking energy is not returned (max(v i, 0))."""
+        return np.maximum(self.terminal_voltage(torque, speed) * self.current(torque), 0.0)
+
+    # --- parameters ---------------------------------------------------------------------------------------------
+    def supply_fields(self) -> tuple[FieldRef, ...]:
+        """Model fields that scale with the supply voltage: the PID's torque-space gains (duty x supply) and its
+        output bound (the derivative term of a cancelled back-EMF compensation does not scale)."""
+        if self.pid is None:
+            return ()
+        slots = [GAIN_KP, GAIN_KI, GAIN_VMAX] + ([GAIN_KD] if self.pid.compensate_back_emf else [])
+        return tuple(FieldRef("actuator_gainprm", (self.ids, slot), "scale") for slot in slots)

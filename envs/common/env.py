@@ -1,0 +1,197 @@
+"""The single Gymnasium env over a robot and a task: a batch of one.
+
+Robots and tasks compute with a leading simulation axis; this env runs one simulation and takes element 0. Like
+Gymnasium's ``MujocoEnv`` it exposes ``model`` and ``data`` (the live ``MjData``), ``dt``, ``observation_structure``,
+``render()`` and ``close()``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from envs.common.parameters import check_randomize, sample
+from envs.common.robot import Robot, check_number
+from envs.common.task import Task
+from envs.common.telemetry import TelemetryRecorder
+
+MAX_FRAME = (4096, 4096)  # largest width, height of a rendered frame
+
+
+class SkitterEnv(gym.Env):
+    """A robot doing a task, one simulation. The user's manual of each env is its subclass's docstring.
+
+    Args:
+        robot: the robot (built with ``num_sims=1``).
+        task: the task over that robot.
+        reset_noise_scale: how much the robot's reset pose and velocity are perturbed (see the robot's ``reset``).
+        randomize: physical parameters to draw at every reset, name -> (low, high), uniform; names from
+            ``robot.parameters`` (off by default).
+        telemetry: record the robot's telemetry channels at every control step (``env.unwrapped.recorder``).
+        render_mode: ``"human"`` or ``"rgb_array"``.
+        width, height: size of rendered frames, pixels.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 50}
+
+    def __init__(
+        self,
+        robot: Robot,
+        task: Task,
+        reset_noise_scale: float = 0.1,
+        randomize: Mapping[str, Sequence[float]] | None = None,
+        telemetry: bool = False,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+    ):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, got {render_mode!r}")
+        for name, value, most in (("width", width, MAX_FRAME[0]), ("height", height, MAX_FRAME[1])):
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= most:
+                raise ValueError(f"{name} must be a whole number of pixels in [1, {most}], got {value!r}")
+        self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
+        self.robot = robot
+        self.task = task
+        self.randomize = check_randomize(randomize, robot.parameters)
+        self.parameter_values: dict[str, float] = {}
+        self.dt = robot.control_dt
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.dt)}
+        self._width, self._height = int(width), int(height)
+        self._renderer = None
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(robot.mode.size,), dtype=np.float32)
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.layout.size,), dtype=np.float64)
+        self.recorder = TelemetryRecorder(self.telemetry_metadata(), robot.telemetry_channels) if telemetry else None
+        self._ids = np.array([0])
+        self._last_obs = np.zeros(task.layout.size)
+
+    # --- like MujocoEnv -------------------------------------------------------------------------------------------
+    @property
+    def model(self) -> mujoco.MjModel:
+        return self.robot.model
+
+    @property
+    def data(self) -> mujoco.MjData:
+        return self.robot.data
+
+    @property
+    def observation_structure(self) -> dict[str, int]:
+        return self.task.observation_structure
+
+    # --- gymnasium API --------------------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        rngs = [self.np_random]
+        if self.randomize:
+            self.parameter_values = sample(self.randomize, self.np_random)
+            self.robot.set_parameters(self._ids, self.parameter_values)
+        self.robot.reset(self._ids, rngs, self.reset_noise_scale, options)
+        readings = self.robot.read(rngs, stepped=False)
+        self.task.reset(self._ids, rngs, options, readings)
+        obs = self.task.observe(readings)[0]
+        self._last_obs = obs
+        if self.recorder is not None:
+            self.recorder.start_episode()
+            self.recorder.record(readings["telemetry"][0])
+        if self.render_mode == "human":
+            self.render()
+        return obs.copy(), self._info(readings, {}, {}, fallen=False)
+
+    def step(self, action: np.ndarray):
+        action = np.asarray(action, dtype=np.float64).reshape(-1)
+        if action.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {action.shape}")
+        if not np.isfinite(action).all():
+            raise ValueError(f"action must be finite, got {action}")
+        self.robot.command(self.robot.mode.to_command(action[None]))
+        if not self.robot.step()[0]:
+            # MuJoCo has reset the data; end the episode with the last good observation
+            info = {"sim_unstable": True, "fallen": False, "time": float(self.data.time)}
+            return self._last_obs.copy(), 0.0, True, False, info
+        rngs = [self.np_random]
+        readings = self.robot.read(rngs)
+        state = self.task.update(readings)
+        terms = {name: float(value[0]) for name, value in self.task.reward_terms(state).items()}
+        reward = sum(terms.values())
+        terminated = bool(self.task.terminated(state)[0])
+        obs = self.task.observe(readings)[0]
+        self._last_obs = obs
+        if self.recorder is not None:
+            self.recorder.record(readings["telemetry"][0])
+        if self.render_mode == "human":
+            self.render()
+        return (
+            obs.copy(),
+            reward,
+            terminated,
+            False,
+            self._info(readings, self.task.info(readings, state), terms, terminated),
+        )
+
+    def _info(self, readings: dict, state: dict, terms: dict[str, float], fallen: bool) -> dict[str, Any]:
+        pos = readings["position"][0]
+        info: dict[str, Any] = {
+            "x_position": float(pos[0]),
+            "y_position": float(pos[1]),
+            "z_position": float(pos[2]),
+            "quaternion": readings["quaternion"][0].copy(),
+            "sim_unstable": False,
+            "fallen": fallen,
+            "time": float(readings["time"][0]),
+        }
+        info.update({k: float(v[0]) for k, v in state.items()})
+        info.update({f"reward_{k}": v for k, v in terms.items()})
+        return info
+
+    # --- rendering ------------------------------------------------------------------------------------------------
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self._renderer is None:
+            from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
+
+            vis = self.model.vis.global_
+            # the offscreen buffer must hold the frame, or larger frames come back padded
+            vis.offwidth, vis.offheight = max(vis.offwidth, self._width), max(vis.offheight, self._height)
+            camera = {**self.camera_config(), "trackbodyid": self.model.body(self.robot.root_body).id}
+            self._renderer = MujocoRenderer(self.model, self.data, camera, self._width, self._height)
+        return self._renderer.render(self.render_mode)
+
+    def camera_config(self) -> dict[str, Any]:
+        """The tracking camera, scaled to the robot's length."""
+        return {
+            "type": mujoco.mjtCamera.mjCAMERA_TRACKING,
+            "distance": 3.5 * self.robot.facts.length,
+            "elevation": -25.0,
+        }
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_renderer"] = None
+        return state
+
+    # --- metadata ---------------------------------------------------------------------------------------------------
+    def telemetry_metadata(self) -> dict[str, Any]:
+        return {
+            **self.robot.metadata(),
+            "task": self.task.name,
+            "controller": f"{self.robot.action_mode} mode",
+            "rate_hz": 1.0 / self.dt,
+        }
+
+    def metrics_context(self) -> dict[str, Any]:
+        """What evaluation needs to turn an episode's last ``info`` into metrics: the robot's mass and length, the
+        task's own metrics."""
+        return {"mass": self.robot.facts.mass, "length": self.robot.facts.length, "task": self.task}

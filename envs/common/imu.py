@@ -1,0 +1,77 @@
+"""An inertial measurement unit's errors: white noise per sample and a bias per episode, as its datasheet gives them.
+
+The robots read their IMU in firmware at ``sample_rate``; a control step sees the newest sample, and a heading
+estimate integrates the z-axis gyro over every physics step, as firmware integrating at its own rate would (the
+body's z rate, not the world's yaw rate: the firmware has no attitude estimate). The bias is what remains after the
+firmware's start-up calibration (averaging the gyro at rest), so the integral drifts by ``bias x time``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """Noise densities and residual biases of an IMU.
+
+    Defaults: the InvenSense MPU-6000 of the VelociRoACH's ImageProc 2.5 board (shared/data/real/README.md), from
+    its product specification (PS-MPU-6000A rev. 3.4): gyro rate noise spectral density 0.005 deg/s/sqrt(Hz),
+    accelerometer noise power spectral density 400 ug/sqrt(Hz). The gyro's zero-rate output varies by +-20 deg/s
+    over -40..85 C (0.16 deg/s per C); the residual bias after a start-up calibration, with a few degrees of warm-up,
+    is taken as 0.5 deg/s per axis (1 sigma, assumed: the datasheet gives the temperature slope, not the warm-up).
+    """
+
+    gyro_noise_density: float = math.radians(0.005)  # rad/s/sqrt(Hz)
+    gyro_bias_sigma: float = math.radians(0.5)  # rad/s, per axis, drawn once per episode
+    accel_noise_density: float = 400e-6 * 9.81  # m/s^2/sqrt(Hz)
+    sample_rate: float = 1000.0  # Hz: the firmware's read rate
+
+    @property
+    def gyro_sample_sigma(self) -> float:
+        """Standard deviation of one gyro sample's noise, rad/s (white noise over the Nyquist band)."""
+        return self.gyro_noise_density * math.sqrt(self.sample_rate / 2.0)
+
+    @property
+    def accel_sample_sigma(self) -> float:
+        return self.accel_noise_density * math.sqrt(self.sample_rate / 2.0)
+
+
+class Imu:
+    """Noisy gyro and accelerometer readings and an integrated-gyro heading, for ``n`` simulations.
+
+    Args:
+        n: number of simulations.
+        noise: the error model, or None for a perfect IMU.
+    """
+
+    def __init__(self, n: int, noise: ImuNoise | None):
+        self.noise = noise
+        self.gyro_bias = np.zeros((n, 3))
+        self.heading = np.zeros(n)
+
+    def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
+        self.heading[ids] = 0.0
+        for i, rng in zip(ids, rngs, strict=True):
+            self.gyro_bias[i] = rng.normal(0.0, self.noise.gyro_bias_sigma, 3) if self.noise else 0.0
+
+    def integrate(self, gyro_z: np.ndarray, dt: float) -> None:
+        """Advance the heading over a control step from the true z rate at every physics step (n, substeps)."""
+        self.heading += gyro_z.sum(axis=1) * dt + self.gyro_bias[:, 2] * dt * gyro_z.shape[1]
+
+    def read(
+        self, gyro: np.ndarray, accel: np.ndarray, rngs: Sequence[np.random.Generator], step_time: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Noisy (gyro, accel) from the true values (n, 3); the heading gets its random walk over ``step_time``."""
+        if self.noise is None:
+            return gyro.copy(), accel.copy()
+        nz = self.noise
+        draws = np.array([rng.standard_normal(7) for rng in rngs])
+        gyro = gyro + self.gyro_bias + nz.gyro_sample_sigma * draws[:, 0:3]
+        accel = accel + nz.accel_sample_sigma * draws[:, 3:6]
+        self.heading += nz.gyro_noise_density * math.sqrt(step_time) * draws[:, 6]
+        return gyro, accel

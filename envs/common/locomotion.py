@@ -1,0 +1,231 @@
+"""Walking and turning tasks for any legged robot of the contract.
+
+Both observe what the robot senses, its heading error and (optionally, privileged) the body's velocity and
+orientation; both end the episode when the body tilts past ``max_tilt``. The heading error is the robot's own estimate
+of its heading (integrating its gyro, as firmware can, so that it drifts with the gyro's bias) against the commanded
+heading: +x for walking, a heading that turns at the commanded rate for turning. Running sums of distance, progress,
+energy and yaw give the episode metrics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from envs.common.robot import Robot, check_number
+from envs.common.task import Task
+
+GRAVITY = 9.81
+METRIC_WARMUP = 1.0  # s: left out of rate metrics, while the gait settles
+
+
+def wrap(x: np.ndarray) -> np.ndarray:
+    """Wrap angles to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - x, 2.0 * np.pi)
+
+
+def quat_yaw(q: np.ndarray) -> np.ndarray:
+    """Heading about world z of unit quaternions (n, 4) (w, x, y, z)."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def quat_up(q: np.ndarray) -> np.ndarray:
+    """World-z component of the body's z axis (n,): 1 upright, 0 on its side, -1 upside down."""
+    return 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2)
+
+
+class LocomotionTask(Task):
+    """What walking and turning share. Subclasses give ``_command_structure``, ``_draw_command``,
+    ``_target_heading`` and ``reward_terms``."""
+
+    metrics: ClassVar[dict[str, str]] = {}
+
+    def __init__(
+        self,
+        robot: Robot,
+        privileged_obs: bool = False,
+        energy_cost_weight: float = 0.1,
+        max_tilt: float = 1.4,
+    ):
+        self.privileged_obs = bool(privileged_obs)
+        self.energy_cost_weight = check_number("energy_cost_weight", energy_cost_weight, 0)
+        self.max_tilt = check_number("max_tilt", max_tilt, 0, np.pi, strict=True)
+        self._min_up = float(np.cos(self.max_tilt))
+        n = robot.num_sims
+        self.length = robot.facts.length
+        self._planar = np.zeros((n, 3))  # x, y, yaw at the end of the last step
+        self._start = np.zeros((n, 3))  # x, y, time at reset
+        self._sums = np.zeros((n, 4))  # distance along heading, energy, yaw travelled, yaw travelled at warm-up
+        self._heading_error = np.zeros(n)
+        super().__init__(robot)
+
+    # --- layout -------------------------------------------------------------------------------------------------
+    @property
+    def observation_structure(self) -> dict[str, int]:
+        structure = {**self.robot.sense_structure, "heading_error": 2, **self._command_structure()}
+        if self.privileged_obs:
+            structure.update({"body_velocity": 3, "body_quaternion": 4})
+        return structure
+
+    def _command_structure(self) -> dict[str, int]:
+        return {}
+
+    def _command_obs(self) -> list[np.ndarray]:
+        return []
+
+    def _draw_command(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
+        """Draw (or take from ``options``) the commands of simulations ``ids``."""
+
+    def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
+        """The commanded heading of every simulation (n,) at its time since reset (0 at reset: the heading then)."""
+        return np.zeros_like(elapsed)
+
+    # --- the contract -------------------------------------------------------------------------------------------
+    def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
+        self._draw_command(ids, rngs, options)
+        pos, quat = readings["position"][ids], readings["quaternion"][ids]
+        self._planar[ids] = np.column_stack([pos[:, 0], pos[:, 1], quat_yaw(quat)])
+        self._start[ids] = np.column_stack([pos[:, 0], pos[:, 1], readings["time"][ids]])
+        self._sums[ids] = 0.0
+        self._heading_error[ids] = wrap(readings["heading"][ids])
+
+    def update(self, readings: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        dt = self.robot.control_dt
+        pos, quat, time = readings["position"], readings["quaternion"], readings["time"]
+        yaw = quat_yaw(quat)
+        x_velocity = (pos[:, 0] - self._planar[:, 0]) / dt
+        y_velocity = (pos[:, 1] - self._planar[:, 1]) / dt
+        yaw_step = wrap(yaw - self._planar[:, 2])
+        self._planar = np.column_stack([pos[:, 0], pos[:, 1], yaw])
+        speed = np.cos(yaw) * x_velocity + np.sin(yaw) * y_velocity
+        elapsed = time - self._start[:, 2]
+        self._sums[:, 0] += speed * dt
+        self._sums[:, 1] += readings["power"] * dt
+        self._sums[:, 2] += yaw_step
+        warming = elapsed <= METRIC_WARMUP + 1e-9
+        self._sums[warming, 3] = self._sums[warming, 2]
+        self._heading_error = wrap(readings["heading"] - self._target_heading(elapsed))
+        return {
+            "x_velocity": x_velocity,
+            "y_velocity": y_velocity,
+            "speed": speed,
+            "yaw": yaw,
+            "yaw_rate": yaw_step / dt,
+            "up_z": quat_up(quat),
+            "power": readings["power"],
+            "heading_error": self._heading_error.copy(),
+            "distance": self._sums[:, 0].copy(),
+            "energy": self._sums[:, 1].copy(),
+            "progress_x": pos[:, 0] - self._start[:, 0],
+            "elapsed": elapsed,
+            "yaw_travel": self._sums[:, 2].copy(),
+            "yaw_travel_warmup": self._sums[:, 3].copy(),
+        }
+
+    def observe(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        parts = [readings["senses"], np.sin(self._heading_error)[:, None], np.cos(self._heading_error)[:, None]]
+        parts += self._command_obs()
+        if self.privileged_obs:
+            parts += [readings["velocity"], readings["quaternion"]]
+        return np.concatenate(parts, axis=1)
+
+    def terminated(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        return state["up_z"] < self._min_up
+
+    def _energy(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        return -self.energy_cost_weight * state["power"]
+
+
+class WalkTask(LocomotionTask):
+    """Walk along +x (the heading at reset): reward = forward + energy + upright (see the robot's env docstring)."""
+
+    name = "walk"
+    metrics: ClassVar[dict[str, str]] = {"forward_speed": "progress along +x over the episode, m/s"}
+
+    def __init__(
+        self,
+        robot: Robot,
+        privileged_obs: bool = False,
+        forward_reward_weight: float = 1.0,
+        energy_cost_weight: float = 0.1,
+        upright_reward_weight: float = 1.0,
+        max_tilt: float = 1.4,
+    ):
+        self.forward_reward_weight = check_number("forward_reward_weight", forward_reward_weight)
+        self.upright_reward_weight = check_number("upright_reward_weight", upright_reward_weight)
+        super().__init__(robot, privileged_obs, energy_cost_weight, max_tilt)
+
+    def reward_terms(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {
+            "forward": self.forward_reward_weight * state["x_velocity"] / self.length,
+            "energy": self._energy(state),
+            "upright": self.upright_reward_weight * state["up_z"],
+        }
+
+    def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
+        elapsed = info["elapsed"]
+        return {"forward_speed": info["progress_x"] / elapsed if elapsed > 0 else float("nan")}
+
+
+class TurnTask(LocomotionTask):
+    """Turn at a commanded yaw rate while running: reward = tracking + speed + energy."""
+
+    name = "turn"
+    metrics: ClassVar[dict[str, str]] = {
+        "yaw_rate_error": "|mean yaw rate after the first second - command|, rad/s",
+    }
+
+    def __init__(
+        self,
+        robot: Robot,
+        privileged_obs: bool = False,
+        yaw_rate_range: float = 0.8,
+        tracking_reward_weight: float = 1.0,
+        tracking_sigma: float = 0.5,
+        speed_reward_weight: float = 0.1,
+        energy_cost_weight: float = 0.1,
+        max_tilt: float = 1.4,
+    ):
+        self.yaw_rate_range = check_number("yaw_rate_range", yaw_rate_range, 0)
+        self.tracking_reward_weight = check_number("tracking_reward_weight", tracking_reward_weight)
+        self.tracking_sigma = check_number("tracking_sigma", tracking_sigma, 0, strict=True)
+        self.speed_reward_weight = check_number("speed_reward_weight", speed_reward_weight)
+        self.yaw_rate_command = np.zeros(robot.num_sims)
+        super().__init__(robot, privileged_obs, energy_cost_weight, max_tilt)
+
+    def _command_structure(self) -> dict[str, int]:
+        return {"yaw_rate_command": 1}
+
+    def _command_obs(self) -> list[np.ndarray]:
+        return [self.yaw_rate_command[:, None]]
+
+    def _draw_command(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
+        for i, rng in zip(ids, rngs, strict=True):
+            drawn = rng.uniform(-self.yaw_rate_range, self.yaw_rate_range)
+            if options and "yaw_rate" in options:
+                drawn = check_number("options['yaw_rate']", options["yaw_rate"])
+            self.yaw_rate_command[i] = drawn
+
+    def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
+        return self.yaw_rate_command * elapsed
+
+    def reward_terms(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        error = (state["yaw_rate"] - self.yaw_rate_command) / self.tracking_sigma
+        return {
+            "tracking": self.tracking_reward_weight * np.exp(-np.square(error)),
+            "speed": self.speed_reward_weight * state["speed"] / self.length,
+            "energy": self._energy(state),
+        }
+
+    def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {**state, "yaw_rate_command": self.yaw_rate_command.copy()}
+
+    def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
+        after = info["elapsed"] - METRIC_WARMUP
+        if after <= 1e-9:
+            return {"yaw_rate_error": float("nan")}
+        mean_rate = (info["yaw_travel"] - info["yaw_travel_warmup"]) / after
+        return {"yaw_rate_error": abs(mean_rate - info["yaw_rate_command"])}

@@ -1,0 +1,163 @@
+"""Named physical parameters of a robot: one map from a name to the model fields (and controller settings) it sets.
+
+Calibration fits these parameters and domain randomization samples them. Each parameter writes compiled-model fields
+that change no model structure (masses, frictions, stiffnesses, damping, actuator constants), so setting one on a
+compiled ``MjModel`` is what editing the ``MjSpec`` and recompiling would give, without the recompile; a batch of
+simulations sets them per simulation through ``mujoco.batch.Batch.expand``. ``mj_setConst`` runs afterwards, so
+that derived constants (subtree masses, ...) follow.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import mujoco
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FieldRef:
+    """Entries of one ``MjModel`` field that a parameter sets.
+
+    ``how="set"``: each entry becomes the value itself; ``"scale"``: nominal x value / parameter nominal (e.g. a mass
+    that scales the inertia too); ``"inverse"``: nominal x parameter nominal / value (e.g. a controller's torque gain
+    when the motor's resistance grows).
+    """
+
+    field: str
+    index: tuple  # numpy index into the field, e.g. (body_id,) or (ids, slot)
+    how: Literal["set", "scale", "inverse"] = "set"
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named physical parameter with its unit, nominal value, plausible range and where it lives in the model.
+
+    ``attribute``: a per-simulation array of the robot's controller that the parameter also sets (for example the
+    battery voltage that turns a duty cycle into volts).
+    """
+
+    name: str
+    unit: str
+    nominal: float
+    low: float
+    high: float
+    description: str
+    fields: tuple[FieldRef, ...] = ()
+    attribute: str | None = None
+    setconst: bool = False  # the fields feed mj_setConst (masses, inertias)
+
+    def __post_init__(self) -> None:
+        if not (self.low <= self.nominal <= self.high):
+            raise ValueError(f"parameter {self.name}: nominal {self.nominal} outside [{self.low}, {self.high}]")
+
+
+@dataclass
+class ParameterMap:
+    """A robot's parameters by name, with the nominal model's field values to scale from."""
+
+    parameters: dict[str, Parameter] = field(default_factory=dict)
+    _nominal_fields: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def add(self, parameter: Parameter) -> None:
+        if parameter.name in self.parameters:
+            raise ValueError(f"parameter {parameter.name!r} defined twice")
+        self.parameters[parameter.name] = parameter
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.parameters
+
+    def __getitem__(self, name: str) -> Parameter:
+        return self.parameters[name]
+
+    def __iter__(self):
+        return iter(self.parameters.values())
+
+    def names(self) -> list[str]:
+        return list(self.parameters)
+
+    def remember_nominal(self, model: mujoco.MjModel) -> None:
+        """Keep the compiled nominal values of every field a parameter touches (scaling starts from them)."""
+        for p in self:
+            for ref in p.fields:
+                if ref.field not in self._nominal_fields:
+                    self._nominal_fields[ref.field] = np.array(getattr(model, ref.field), copy=True)
+
+    def apply(self, model: mujoco.MjModel, values: Mapping[str, float], data: mujoco.MjData | None = None) -> None:
+        """Set parameters on a compiled model; parameters not named return to nominal.
+
+        Fields shared by several parameters compose: each starts from its nominal value, a ``set`` writes, and
+        ``scale`` and ``inverse`` multiply (the battery voltage and the motor resistance both act on a PID's gains).
+        """
+        for name, nominal in self._nominal_fields.items():
+            getattr(model, name)[...] = nominal
+        touched = False
+        for p in self:
+            value = float(values.get(p.name, p.nominal))
+            for ref in p.fields:
+                target = getattr(model, ref.field)
+                if ref.how == "set":
+                    target[ref.index] = value
+                elif ref.how == "scale":
+                    target[ref.index] = target[ref.index] * (value / p.nominal)
+                else:
+                    target[ref.index] = target[ref.index] * (p.nominal / value)
+            touched |= p.setconst
+        if touched:
+            mujoco.mj_setConst(model, data if data is not None else mujoco.MjData(model))
+
+    def describe(self) -> list[dict[str, Any]]:
+        return [
+            {
+                "name": p.name,
+                "unit": p.unit,
+                "nominal": p.nominal,
+                "low": p.low,
+                "high": p.high,
+                "description": p.description,
+            }
+            for p in self
+        ]
+
+
+Ranges = Mapping[str, Sequence[float]]
+
+
+def check_randomize(randomize: Ranges | None, parameters: ParameterMap, where: str = "randomize") -> dict:
+    """Validate ``randomize`` (parameter name -> (low, high)) against the robot's parameters; return it as floats.
+
+    Each range must be finite, ordered and within the parameter's plausible range.
+    """
+    if randomize is None:
+        return {}
+    if not isinstance(randomize, Mapping):
+        raise ValueError(f"{where} must map parameter names to (low, high) ranges, got {randomize!r}")
+    out = {}
+    for name, bounds in randomize.items():
+        if name not in parameters:
+            known = ", ".join(parameters.names())
+            raise ValueError(f"{where}: unknown parameter {name!r} (this robot's parameters: {known})")
+        try:
+            low, high = (float(b) for b in bounds)
+        except (TypeError, ValueError):
+            raise ValueError(f"{where}[{name!r}] must be a (low, high) pair of numbers, got {bounds!r}") from None
+        p = parameters[name]
+        if not (math.isfinite(low) and math.isfinite(high)) or low > high:
+            raise ValueError(f"{where}[{name!r}] = ({low}, {high}): expected finite low <= high")
+        if low < p.low or high > p.high:
+            raise ValueError(
+                f"{where}[{name!r}] = ({low}, {high}) leaves the parameter's range [{p.low}, {p.high}] {p.unit}"
+            )
+        out[name] = (low, high)
+    return out
+
+
+def sample(ranges: Mapping[str, tuple[float, float]], rng: np.random.Generator) -> dict[str, float]:
+    """One draw of every randomized parameter, uniform in its range, in a fixed order (same seed, same draw)."""
+    return {name: float(rng.uniform(low, high)) for name, (low, high) in sorted(ranges.items())}
+
+
+SpecEdit = Callable[[mujoco.MjSpec], None]

@@ -1,0 +1,260 @@
+"""The robot contract: what every robot (and every one-joint actuator bench rig) gives tasks, tools and policies.
+
+A robot is built from its MJCF through ``mujoco.MjSpec``; its own configuration (action mode, firmware, options) and
+any caller's edits (terrain, calibration effects) change the spec before it compiles. It owns its simulations (one,
+or a batch), their reset, its actuators and firmware, its sensors and its telemetry; it knows nothing of rewards.
+Everything it returns carries a leading simulation axis, so that a task computes observations, rewards and
+termination for one simulation or many with the same code.
+
+A control step::
+
+    robot.command(command)        # (n, command size) in the action mode's physical units: fills the control block
+    stable = robot.step()         # (n,) bool: the physics ran natively; False where a simulation went unstable
+    readings = robot.read(rngs)   # named arrays (n, ...): senses, pose, power, time, ...
+
+Every robot's telemetry channels include ``time``, ``pos_x``/``_y``/``_z``, ``quat_w``/``_x``/``_y``/``_z`` (its root
+body) and ``power``; the plots of evaluate.py rely on them.
+
+The readings every robot gives (tasks rely on them): ``time`` (n,), ``position`` (n, 3) of its root body in the world,
+``quaternion`` (n, 4) (w, x, y, z), ``velocity`` (n, 3) of the root in its own frame, ``power`` (n,) the mean
+electrical power drawn over the step (W), ``senses`` (n, size) what the robot senses of itself, laid out by
+:attr:`Robot.sense_structure`; and ``telemetry`` (n, channels) in the order of :attr:`Robot.telemetry_channels`.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from envs.common.mujoco_utils import sensor_slices, spec_hash
+from envs.common.parameters import ParameterMap, SpecEdit
+from envs.common.simulation import Simulation
+
+
+@dataclass(frozen=True)
+class ActionMode:
+    """One way to command a robot: named command entries with their physical bounds.
+
+    A normalized action ``a`` in [-1, 1] maps to ``low + (a + 1) / 2 * (high - low)`` per entry.
+    """
+
+    name: str
+    commands: tuple[str, ...]  # names of the command entries, e.g. ("freq_left", "freq_right", "phase")
+    units: tuple[str, ...]
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+    control_freq: float  # default control rate, Hz
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(self.commands)
+        if not (len(self.units) == len(self.low) == len(self.high) == n):
+            raise ValueError(f"action mode {self.name}: commands, units and bounds differ in length")
+
+    @property
+    def size(self) -> int:
+        return len(self.commands)
+
+    def to_command(self, action: np.ndarray) -> np.ndarray:
+        """Physical commands from normalized actions (..., size), clipped to [-1, 1] first."""
+        low, high = np.asarray(self.low), np.asarray(self.high)
+        a = np.clip(action, -1.0, 1.0)
+        return low + (a + 1.0) * 0.5 * (high - low)
+
+    def to_action(self, command: np.ndarray) -> np.ndarray:
+        """Normalized actions from physical commands (the inverse of :meth:`to_command` inside the bounds)."""
+        low, high = np.asarray(self.low), np.asarray(self.high)
+        return (2.0 * (np.asarray(command, dtype=np.float64) - low) / (high - low) - 1.0).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Facts:
+    """A robot's physical facts as the model has them, for metrics and checks."""
+
+    mass: float  # kg, everything the robot carries
+    length: float  # m, the body length: speeds are also reported in lengths per second
+    sides: tuple[str, ...] = ()  # e.g. ("left", "right"); channels named per side end in _<side>
+    legs: tuple[str, ...] = ()
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PlotGroup:
+    """Telemetry channels plotted together (same unit): what evaluate.py draws for a robot.
+
+    With ``minus``, each channel is plotted less its partner (a tracking error: measured minus commanded).
+    """
+
+    title: str
+    unit: str
+    channels: tuple[str, ...]
+    scale: float = 1.0  # plotted value = channel x scale (e.g. 1e3 for mN m)
+    minus: tuple[str, ...] = ()
+
+
+def check_number(name: str, value: Any, low: float | None = None, high: float | None = None, strict: bool = False):
+    """``value`` as a finite float within bounds; ValueError naming the argument and value otherwise."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if low is not None and (x <= low if strict else x < low):
+        raise ValueError(f"{name} must be {'>' if strict else '>='} {low}, got {value!r}")
+    if high is not None and x > high:
+        raise ValueError(f"{name} must be <= {high}, got {value!r}")
+    return x
+
+
+class Robot(ABC):
+    """Base of every robot and bench rig. Subclasses set the class attributes and fill in the abstract methods.
+
+    Args:
+        action_mode: one of :attr:`action_modes`.
+        control_freq: control steps per second (default: the action mode's); a whole number of physics steps each.
+        spec_edits: functions applied to the ``MjSpec`` after the robot's own configuration, before it compiles
+            (terrain, calibration effects, a bench clamp).
+        num_sims: number of simulations stepped together (1: one ``MjData``).
+    """
+
+    name: ClassVar[str]
+    action_modes: ClassVar[Mapping[str, ActionMode]]
+    root_body: ClassVar[str]
+
+    def __init__(
+        self,
+        action_mode: str,
+        control_freq: float | None = None,
+        spec_edits: Sequence[SpecEdit] = (),
+        num_sims: int = 1,
+    ):
+        if action_mode not in self.action_modes:
+            raise ValueError(f"action_mode must be one of {sorted(self.action_modes)}, got {action_mode!r}")
+        self.mode = self.action_modes[action_mode]
+        self.action_mode = action_mode
+        freq = (
+            self.mode.control_freq
+            if control_freq is None
+            else check_number("control_freq", control_freq, 0, strict=True)
+        )
+        spec = mujoco.MjSpec.from_file(str(self.xml_path()))
+        timestep = spec.option.timestep
+        self.n_substeps = max(1, round(1.0 / (freq * timestep)))
+        if abs(self.n_substeps * timestep - 1.0 / freq) > 1e-9 * max(1.0, 1.0 / freq):
+            raise ValueError(
+                f"control_freq={freq} Hz is not a whole number of {timestep} s physics steps per control step"
+            )
+        self.control_dt = self.n_substeps * timestep
+        self.num_sims = int(num_sims)
+        self.configure(spec)
+        for edit in spec_edits:
+            edit(spec)
+        self.model = spec.compile()
+        self.model_hash = spec_hash(spec)
+        self.sensors: dict[str, slice] = sensor_slices(
+            self.model, [self.model.sensor(i).name for i in range(self.model.nsensor)]
+        )
+        self.sim = self.make_simulation()
+        self.setup()
+        self.parameters = self.build_parameters(self.model)
+        self.parameters.remember_nominal(self.model)
+
+    # --- building (subclasses) ------------------------------------------------------------------------------------
+    @classmethod
+    @abstractmethod
+    def xml_path(cls) -> Path:
+        """The robot's scene MJCF."""
+
+    @abstractmethod
+    def configure(self, spec: mujoco.MjSpec) -> None:
+        """Edit the nominal spec for this instance (action mode, firmware, options) before it compiles."""
+
+    @abstractmethod
+    def setup(self) -> None:
+        """Look up addresses in the compiled model and allocate per-simulation controller state."""
+
+    def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
+        """The robot's named physical parameters (see envs/common/parameters.py)."""
+        return ParameterMap()
+
+    def make_simulation(self):
+        if self.num_sims != 1:
+            raise NotImplementedError("batched simulations come with the batched envs")
+        return Simulation(self.model, self.n_substeps)
+
+    # --- the contract ------------------------------------------------------------------------------------------
+    @property
+    def data(self) -> mujoco.MjData:
+        """The ``MjData`` of simulation 0 (the single env's, live)."""
+        return self.sim.get_data(0)
+
+    @property
+    @abstractmethod
+    def facts(self) -> Facts: ...
+
+    @property
+    @abstractmethod
+    def sense_structure(self) -> dict[str, int]:
+        """What ``readings["senses"]`` holds, in order: name -> size."""
+
+    @property
+    @abstractmethod
+    def telemetry_channels(self) -> dict[str, str]:
+        """Telemetry channel name -> unit, in the order of ``readings["telemetry"]``."""
+
+    @property
+    def plot_groups(self) -> tuple[PlotGroup, ...]:
+        """Channel groups evaluate.py plots for this robot (beside the trajectory and body angles)."""
+        return ()
+
+    @abstractmethod
+    def reset(
+        self, ids: np.ndarray, rngs: Sequence[np.random.Generator], noise: float, options: Mapping | None
+    ) -> None:
+        """Reset simulations ``ids`` to the robot's starting pose, perturbed by ``noise`` (see each robot)."""
+
+    @abstractmethod
+    def command(self, command: np.ndarray) -> None:
+        """Fill the next control block from physical commands (num_sims, mode size) of the current action mode."""
+
+    def step(self) -> np.ndarray:
+        """Run the control block natively; (num_sims,) bool, False where a simulation went unstable."""
+        return self.sim.step()
+
+    @abstractmethod
+    def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
+        """The readings after the last step (see the module docstring); sensor noise drawn from ``rngs``, one
+        generator per simulation. ``stepped=False`` right after a reset: no step to integrate or draw power over."""
+
+    def sensor(self, name: str, sensordata: np.ndarray | None = None) -> np.ndarray:
+        """Values of the named sensor in every simulation, (num_sims, dim)."""
+        sd = self.sim.sensordata if sensordata is None else sensordata
+        return sd[..., self.sensors[name]]
+
+    def set_parameters(self, ids: np.ndarray, values: Mapping[str, float]) -> None:
+        """Set named physical parameters for simulations ``ids``; parameters not named return to nominal."""
+        unknown = set(values) - set(self.parameters.names())
+        if unknown:
+            raise ValueError(f"{self.name}: unknown parameters {sorted(unknown)}; known: {self.parameters.names()}")
+        self.parameters.apply(self.model, values, self.sim.data if self.num_sims == 1 else None)
+        for p in self.parameters:
+            if p.attribute is not None:
+                getattr(self, p.attribute)[ids] = float(values.get(p.name, p.nominal))
+
+    def metadata(self) -> dict[str, Any]:
+        """The robot's part of a telemetry or results record."""
+        return {
+            "robot": self.name,
+            "model_hash": self.model_hash,
+            "action_mode": self.action_mode,
+            "control_dt": self.control_dt,
+            "physics_dt": float(self.model.opt.timestep),
+        }

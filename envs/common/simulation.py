@@ -1,0 +1,139 @@
+"""Stepping the physics natively: a control step is a block of per-physics-step controls run by ``mujoco.rollout``.
+
+Every input to the physics is a ``ctrl`` value, given for each physics step of a control step (a firmware's clock
+ramps within the step; a held duty cycle repeats), and one native call runs them: no Python per physics step, and
+nothing writes the model during an episode. A recorded episode is its initial state plus the concatenated control
+blocks, and ``mujoco.rollout`` replays it exactly (tests/test_contract.py).
+
+:class:`Simulation` holds one ``MjData`` (the single Gymnasium env: a batch of one). The batched envs run the same
+robots and tasks on ``mujoco.batch.Batch``; both give arrays with a leading simulation axis.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+# MuJoCo raises these warnings (and resets the data) when the state is NaN, infinite or huge
+BAD_STATE_WARNINGS = np.array(
+    [
+        int(w)
+        for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+    ]
+)
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS  # what a control block starts from (time, qpos, qvel, act, history)
+CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
+# applied forces (a user's push through data.qfrc_applied or xfrc_applied) are held over the block with the controls
+APPLIED_SPEC = CTRL_SPEC | mujoco.mjtState.mjSTATE_QFRC_APPLIED.value | mujoco.mjtState.mjSTATE_XFRC_APPLIED.value
+
+
+class Simulation:
+    """One simulation of ``model``, advanced a control block (``n_substeps`` physics steps) at a time.
+
+    Arrays carry a leading simulation axis of length 1, as a batch's would.
+
+    Attributes:
+        ctrl: the next control block, (1, n_substeps, nu); the robot writes it before :meth:`step`.
+        substep_sensordata: sensor values of every physics step of the last block, (1, n_substeps, nsensordata),
+            each as ``mj_step`` leaves it (computed at the state before that step's integration).
+    """
+
+    num_sims = 1
+
+    def __init__(self, model: mujoco.MjModel, n_substeps: int):
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.n_substeps = n_substeps
+        self.ctrl = np.zeros((1, n_substeps, model.nu))
+        self.substep_sensordata = np.zeros((1, n_substeps, model.nsensordata))
+        self._rollout = rollout.Rollout(nthread=0)
+        self._start = np.zeros((1, mujoco.mj_stateSize(model, STATE_SPEC)))
+        self._warmstart = np.zeros((1, model.nv))
+
+    # --- views with the simulation axis -------------------------------------------------------------------------
+    @property
+    def sensordata(self) -> np.ndarray:
+        return self.data.sensordata[None]
+
+    @property
+    def qpos(self) -> np.ndarray:
+        return self.data.qpos[None]
+
+    @property
+    def qvel(self) -> np.ndarray:
+        return self.data.qvel[None]
+
+    @property
+    def act(self) -> np.ndarray:
+        return self.data.act[None]
+
+    @property
+    def time(self) -> np.ndarray:
+        return np.array([self.data.time])
+
+    def get_data(self, sim: int = 0) -> mujoco.MjData:
+        """The simulation's ``MjData`` (live: writes to it change the simulation)."""
+        if sim != 0:
+            raise IndexError(f"a single simulation has only simulation 0, not {sim}")
+        return self.data
+
+    # --- stepping -----------------------------------------------------------------------------------------------
+    def reset(self, ids: np.ndarray, state: dict[str, np.ndarray]) -> None:
+        """Reset the simulations ``ids`` (here [0]) to the model's defaults, then write ``state`` (qpos, qvel, act,
+        ctrl; each (len(ids), ...)) and compute the derived quantities."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        for name, value in state.items():
+            getattr(d, name)[:] = value[0]
+        mujoco.mj_forward(m, d)
+        self.substep_sensordata[:] = d.sensordata
+
+    def step(self) -> np.ndarray:
+        """Run the control block in ``ctrl``. Returns, per simulation, whether it stayed numerically stable; an
+        unstable one has been reset by MuJoCo and should end its episode."""
+        m, d = self.model, self.data
+        before = d.warning.number[BAD_STATE_WARNINGS].sum()
+        mujoco.mj_getState(m, d, self._start[0], STATE_SPEC)
+        self._warmstart[0] = d.qacc_warmstart
+        control, spec = self.ctrl, CTRL_SPEC
+        if d.qfrc_applied.any() or d.xfrc_applied.any():
+            control, spec = self._with_applied_forces(), APPLIED_SPEC
+        self._rollout.rollout(
+            [m],
+            [d],
+            self._start,
+            control,
+            control_spec=spec,
+            skip_checks=True,
+            nstep=self.n_substeps,
+            initial_warmstart=self._warmstart,
+            state=None,
+            sensordata=self.substep_sensordata,
+            chunk_size=1,
+        )
+        stable = d.warning.number[BAD_STATE_WARNINGS].sum() == before and np.isfinite(d.qvel).all()
+        return np.array([stable])
+
+    def _with_applied_forces(self) -> np.ndarray:
+        """The control block with the data's applied forces held over it (the rollout would zero them otherwise)."""
+        inputs = np.empty(mujoco.mj_stateSize(self.model, APPLIED_SPEC))
+        mujoco.mj_getState(self.model, self.data, inputs, APPLIED_SPEC)
+        block = np.tile(inputs, (1, self.n_substeps, 1))
+        block[0, :, : self.model.nu] = self.ctrl[0]
+        return block
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        del state["_rollout"]  # a thread pool handle: made anew on unpickling
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._rollout = rollout.Rollout(nthread=0)
+
+    def initial_state(self) -> np.ndarray:
+        """The full physics state (``mjSTATE_FULLPHYSICS``) now, to replay from with ``mujoco.rollout``."""
+        state = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        mujoco.mj_getState(self.model, self.data, state, STATE_SPEC)
+        return state
