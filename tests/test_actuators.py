@@ -60,7 +60,7 @@ def test_motor_stall_torque_and_no_load_speed_in_simulation():
     for _ in range(20):
         blocked.command(np.array([[1.0]]))
         blocked.step()
-    torque = blocked.read(RNG)["telemetry"][0][list(blocked.telemetry_channels).index("torque")]
+    torque = blocked.telemetry(blocked.read(RNG))[0][list(blocked.telemetry_channels).index("torque")]
     assert torque == pytest.approx(2.17, abs=0.005)
     free = MotorRig(load_inertia=1e-4)
     free.reset(ONE, RNG)
@@ -106,7 +106,7 @@ def servo_stall_torque(volts: float) -> float:
     for _ in range(10):
         rig.command(np.array([[1023.0]]))
         rig.step()
-    return float(rig.read(RNG)["telemetry"][0][list(rig.telemetry_channels).index("torque")])
+    return float(rig.telemetry(rig.read(RNG))[0][list(rig.telemetry_channels).index("torque")])
 
 
 @pytest.mark.parametrize(("volts", "torque", "speed"), DATASHEET)
@@ -125,7 +125,7 @@ def test_servo_goal_counts_map_onto_300_degrees_and_report_whole_counts():
     for _ in range(50):
         rig.command(np.array([[700.0]]))
         rig.step()
-    row = dict(zip(rig.telemetry_channels, rig.read(RNG)["telemetry"][0], strict=True))
+    row = dict(zip(rig.telemetry_channels, rig.telemetry(rig.read(RNG))[0], strict=True))
     assert row["present_position"] == round(row["present_position"])
     assert abs(row["present_position"] - 700) <= 1, "a free servo settles on its goal"
     assert abs(c.counts_of(row["angle"]) - 700) < 1.0

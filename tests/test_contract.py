@@ -71,7 +71,7 @@ def test_telemetry_channels_have_units(robot):
     robot.reset(np.array([0]), rngs)
     robot.command(mid_command(robot))
     robot.step()
-    row = robot.read(rngs)["telemetry"]
+    row = robot.telemetry(robot.read(rngs))
     assert row.shape == (1, len(channels))
     for group in robot.plot_groups:
         assert set(group.channels) | set(group.minus) <= set(channels), group.title

@@ -86,7 +86,7 @@ def test_electrical_power_at_stall_is_v_squared_over_r():
     r, vb = robot.motors.resistance[0], robot.nominal_battery
     readings = robot.read(RNG)
     assert readings["power"][0] == pytest.approx((0.5 * vb) ** 2 / r, rel=0.01)
-    row = dict(zip(robot.telemetry_channels, readings["telemetry"][0], strict=True))
+    row = dict(zip(robot.telemetry_channels, robot.telemetry(readings)[0], strict=True))
     assert row["duty_left"] == pytest.approx(0.5, abs=1e-3)
 
 

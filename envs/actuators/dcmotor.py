@@ -112,17 +112,29 @@ class DCMotors:
         self.gear = model.actuator_gear[self.ids, 0].copy()
         self.resistance = model.actuator_gainprm[self.ids, GAIN_R].copy()
         self.motor_constant = model.actuator_gainprm[self.ids, GAIN_K].copy()
+        self._pos, self._vel = _as_index(self.ctrl_adr), _as_index(self.ctrl_adr + 1)
+        k, r = self.motor_constant, self.resistance
+        self._power_coefficient = r / (k * k)  # v i = (R i + K w) i = R tau^2 / K^2 + w tau
 
     # --- commands into the control block ------------------------------------------------------------------------
     def set_duty(self, ctrl: np.ndarray, duty: np.ndarray, supply: np.ndarray) -> None:
         """Voltage mode: hold duty (n, motors), clipped to [-1, 1], times the supply (n,) over the whole block."""
-        ctrl[:, :, self.ctrl_adr] = (np.clip(duty, -1.0, 1.0) * supply[:, None])[:, None, :]
+        ctrl[:, :, self._pos] = (np.minimum(np.maximum(duty, -1.0), 1.0) * supply[:, None])[:, None, :]
 
     def set_setpoints(self, ctrl: np.ndarray, position: np.ndarray, velocity: np.ndarray | None = None) -> None:
         """PID mode: joint-angle setpoints (n, substeps, motors) in rad and, with a velocity input, their rates."""
-        ctrl[:, :, self.ctrl_adr] = position * self.gear
+        ctrl[:, :, self._pos] = position * self.gear
         if self.pid is not None and self.pid.velocity_setpoint:
-            ctrl[:, :, self.ctrl_adr + 1] = velocity * self.gear
+            ctrl[:, :, self._vel] = velocity * self.gear
+
+    def set_ramps(self, ctrl: np.ndarray, start: np.ndarray, rate: np.ndarray, times: np.ndarray) -> None:
+        """PID mode: setpoints that ramp from ``start`` (n, motors) at ``rate`` (rad/s), sampled at ``times`` (s from
+        the block's start, one per physics step, shaped (1, substeps, 1)), with ``rate`` as the velocity setpoint."""
+        g = self.gear
+        motor_rate = (rate * g)[:, None, :]
+        ctrl[:, :, self._pos] = (start * g)[:, None, :] + motor_rate * times
+        if self.pid is not None and self.pid.velocity_setpoint:
+            ctrl[:, :, self._vel] = motor_rate
 
     # --- electrical readouts from motor torque and speed (any leading axes, motors last) ---------------------------
     def current(self, torque: np.ndarray) -> np.ndarray:
@@ -135,7 +147,7 @@ class DCMotors:
 
     def battery_power(self, torque: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Power drawn from the supply per motor, W; braking energy is not returned (max(v i, 0))."""
-        return np.maximum(self.terminal_voltage(torque, speed) * self.current(torque), 0.0)
+        return np.maximum((self._power_coefficient * torque + speed) * torque, 0.0)
 
     # --- parameters ---------------------------------------------------------------------------------------------
     def supply_fields(self) -> tuple[FieldRef, ...]:
@@ -145,3 +157,12 @@ class DCMotors:
             return ()
         slots = [GAIN_KP, GAIN_KI, GAIN_VMAX] + ([GAIN_KD] if self.pid.compensate_back_emf else [])
         return tuple(FieldRef("actuator_gainprm", (self.ids, slot), "scale") for slot in slots)
+
+
+def _as_index(addresses: np.ndarray) -> slice | np.ndarray:
+    """Evenly spaced addresses as a slice (basic indexing is several times faster than a gather), else as given."""
+    if len(addresses) > 1 and len(set(np.diff(addresses))) == 1 and addresses[1] > addresses[0]:
+        return slice(int(addresses[0]), int(addresses[-1]) + 1, int(addresses[1] - addresses[0]))
+    if len(addresses) == 1:
+        return slice(int(addresses[0]), int(addresses[0]) + 1)
+    return addresses

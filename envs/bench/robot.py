@@ -128,8 +128,6 @@ class BenchRig(Robot):
         angle, speed = sd[:, self._i_angle], sd[:, self._i_speed]
         pos, quat = sd[:, self._i_pos], sd[:, self._i_quat]
         time = self.sim.time
-        channels = self.actuator_readings(sd)
-        telemetry = np.column_stack([time, *channels, pos, quat, power])
         return {
             "time": time,
             "position": pos,
@@ -137,8 +135,13 @@ class BenchRig(Robot):
             "velocity": np.zeros_like(pos),
             "power": power,
             "senses": np.column_stack([angle, speed]),
-            "telemetry": telemetry,
         }
+
+    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        channels = self.actuator_readings(self.sim.sensordata)
+        return np.column_stack(
+            [readings["time"], *channels, readings["position"], readings["quaternion"], readings["power"]]
+        )
 
     def substep_power(self) -> np.ndarray:
         raise NotImplementedError

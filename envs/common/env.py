@@ -98,7 +98,7 @@ class SkitterEnv(gym.Env):
         self._last_obs = obs
         if self.recorder is not None:
             self.recorder.start_episode()
-            self.recorder.record(readings["telemetry"][0])
+            self.recorder.record(self.robot.telemetry(readings)[0])
         if self.render_mode == "human":
             self.render()
         return obs.copy(), self._info(readings, {}, {}, fallen=False)
@@ -117,13 +117,13 @@ class SkitterEnv(gym.Env):
         rngs = [self.np_random]
         readings = self.robot.read(rngs)
         state = self.task.update(readings)
-        terms = {name: float(value[0]) for name, value in self.task.reward_terms(state).items()}
+        terms = {name: value.item() for name, value in self.task.reward_terms(state).items()}
         reward = sum(terms.values())
-        terminated = bool(self.task.terminated(state)[0])
+        terminated = self.task.terminated(state).item()
         obs = self.task.observe(readings)[0]
         self._last_obs = obs
         if self.recorder is not None:
-            self.recorder.record(readings["telemetry"][0])
+            self.recorder.record(self.robot.telemetry(readings)[0])
         if self.render_mode == "human":
             self.render()
         return (
@@ -135,18 +135,20 @@ class SkitterEnv(gym.Env):
         )
 
     def _info(self, readings: dict, state: dict, terms: dict[str, float], fallen: bool) -> dict[str, Any]:
-        pos = readings["position"][0]
+        x, y, z = readings["position"][0].tolist()
         info: dict[str, Any] = {
-            "x_position": float(pos[0]),
-            "y_position": float(pos[1]),
-            "z_position": float(pos[2]),
+            "x_position": x,
+            "y_position": y,
+            "z_position": z,
             "quaternion": readings["quaternion"][0].copy(),
             "sim_unstable": False,
             "fallen": fallen,
-            "time": float(readings["time"][0]),
+            "time": readings["time"].item(),
         }
-        info.update({k: float(v[0]) for k, v in state.items()})
-        info.update({f"reward_{k}": v for k, v in terms.items()})
+        for key, value in state.items():
+            info[key] = value.item()
+        for key, value in terms.items():
+            info[f"reward_{key}"] = value
         return info
 
     # --- rendering ------------------------------------------------------------------------------------------------

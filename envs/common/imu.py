@@ -53,25 +53,31 @@ class Imu:
         self.noise = noise
         self.gyro_bias = np.zeros((n, 3))
         self.heading = np.zeros(n)
+        self._bias = np.zeros((n, 6))  # gyro bias, then zeros for the accelerometer
+        if noise is not None:
+            self._sigma = np.array([noise.gyro_sample_sigma] * 3 + [noise.accel_sample_sigma] * 3)
 
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
         self.heading[ids] = 0.0
         for i, rng in zip(ids, rngs, strict=True):
             self.gyro_bias[i] = rng.normal(0.0, self.noise.gyro_bias_sigma, 3) if self.noise else 0.0
+        self._bias[:, :3] = self.gyro_bias
 
-    def integrate(self, gyro_z: np.ndarray, dt: float) -> None:
-        """Advance the heading over a control step from the true z rate at every physics step (n, substeps)."""
-        self.heading += gyro_z.sum(axis=1) * dt + self.gyro_bias[:, 2] * dt * gyro_z.shape[1]
-
-    def read(
-        self, gyro: np.ndarray, accel: np.ndarray, rngs: Sequence[np.random.Generator], step_time: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Noisy (gyro, accel) from the true values (n, 3); the heading gets its random walk over ``step_time``."""
+    def update(
+        self,
+        imu: np.ndarray,
+        gyro_z: np.ndarray | None,
+        physics_dt: float,
+        rngs: Sequence[np.random.Generator],
+        step_time: float,
+    ) -> np.ndarray:
+        """Noisy gyro and accelerometer (n, 6) from the true ones (n, 6), after advancing the heading over a control
+        step from the true z rate at every physics step (``gyro_z``, (n, substeps); None right after a reset)."""
+        if gyro_z is not None:
+            self.heading += gyro_z.sum(axis=1) * physics_dt + self.gyro_bias[:, 2] * (gyro_z.shape[1] * physics_dt)
         if self.noise is None:
-            return gyro.copy(), accel.copy()
-        nz = self.noise
-        draws = np.array([rng.standard_normal(7) for rng in rngs])
-        gyro = gyro + self.gyro_bias + nz.gyro_sample_sigma * draws[:, 0:3]
-        accel = accel + nz.accel_sample_sigma * draws[:, 3:6]
-        self.heading += nz.gyro_noise_density * math.sqrt(step_time) * draws[:, 6]
-        return gyro, accel
+            return imu.copy()
+        draws = rngs[0].standard_normal((1, 7)) if len(rngs) == 1 else np.array([r.standard_normal(7) for r in rngs])
+        if step_time > 0:
+            self.heading += draws[:, 6] * (self.noise.gyro_noise_density * math.sqrt(step_time))
+        return imu + self._bias + draws[:, :6] * self._sigma

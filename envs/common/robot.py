@@ -18,7 +18,8 @@ body) and ``power``; the plots of evaluate.py rely on them.
 The readings every robot gives (tasks rely on them): ``time`` (n,), ``position`` (n, 3) of its root body in the world,
 ``quaternion`` (n, 4) (w, x, y, z), ``velocity`` (n, 3) of the root in its own frame, ``power`` (n,) the mean
 electrical power drawn over the step (W), ``senses`` (n, size) what the robot senses of itself, laid out by
-:attr:`Robot.sense_structure`; and ``telemetry`` (n, channels) in the order of :attr:`Robot.telemetry_channels`.
+:attr:`Robot.sense_structure`. ``robot.telemetry(readings)`` gives the telemetry channels (n, channels) in the order
+of :attr:`Robot.telemetry_channels`, computed only when asked (recording costs nothing when it is off).
 """
 
 from __future__ import annotations
@@ -57,6 +58,8 @@ class ActionMode:
         n = len(self.commands)
         if not (len(self.units) == len(self.low) == len(self.high) == n):
             raise ValueError(f"action mode {self.name}: commands, units and bounds differ in length")
+        object.__setattr__(self, "_low", np.asarray(self.low, dtype=np.float64))
+        object.__setattr__(self, "_half_span", 0.5 * (np.asarray(self.high) - self._low))
 
     @property
     def size(self) -> int:
@@ -64,9 +67,7 @@ class ActionMode:
 
     def to_command(self, action: np.ndarray) -> np.ndarray:
         """Physical commands from normalized actions (..., size), clipped to [-1, 1] first."""
-        low, high = np.asarray(self.low), np.asarray(self.high)
-        a = np.clip(action, -1.0, 1.0)
-        return low + (a + 1.0) * 0.5 * (high - low)
+        return self._low + (np.minimum(np.maximum(action, -1.0), 1.0) + 1.0) * self._half_span
 
     def to_action(self, command: np.ndarray) -> np.ndarray:
         """Normalized actions from physical commands (the inverse of :meth:`to_command` inside the bounds)."""
@@ -208,7 +209,7 @@ class Robot(ABC):
     @property
     @abstractmethod
     def telemetry_channels(self) -> dict[str, str]:
-        """Telemetry channel name -> unit, in the order of ``readings["telemetry"]``."""
+        """Telemetry channel name -> unit, in the order of :meth:`telemetry`'s columns."""
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:
@@ -233,6 +234,10 @@ class Robot(ABC):
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
         """The readings after the last step (see the module docstring); sensor noise drawn from ``rngs``, one
         generator per simulation. ``stepped=False`` right after a reset: no step to integrate or draw power over."""
+
+    @abstractmethod
+    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        """Telemetry channels (num_sims, channels) after the step that gave ``readings``."""
 
     def sensor(self, name: str, sensordata: np.ndarray | None = None) -> np.ndarray:
         """Values of the named sensor in every simulation, (num_sims, dim)."""

@@ -15,13 +15,6 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-# MuJoCo raises these warnings (and resets the data) when the state is NaN, infinite or huge
-BAD_STATE_WARNINGS = np.array(
-    [
-        int(w)
-        for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-    ]
-)
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS  # what a control block starts from (time, qpos, qvel, act, history)
 CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
 # applied forces (a user's push through data.qfrc_applied or xfrc_applied) are held over the block with the controls
@@ -50,11 +43,18 @@ class Simulation:
         self._rollout = rollout.Rollout(nthread=0)
         self._start = np.zeros((1, mujoco.mj_stateSize(model, STATE_SPEC)))
         self._warmstart = np.zeros((1, model.nv))
+        self._views()
+
+    def _views(self) -> None:
+        """Views of the data's buffers, looked up once (each attribute access makes a new array object)."""
+        self._qfrc_applied, self._xfrc_applied = self.data.qfrc_applied, self.data.xfrc_applied
+        self._sensordata = self.data.sensordata[None]
+        self._block_time = self.n_substeps * self.model.opt.timestep
 
     # --- views with the simulation axis -------------------------------------------------------------------------
     @property
     def sensordata(self) -> np.ndarray:
-        return self.data.sensordata[None]
+        return self._sensordata
 
     @property
     def qpos(self) -> np.ndarray:
@@ -93,11 +93,11 @@ class Simulation:
         """Run the control block in ``ctrl``. Returns, per simulation, whether it stayed numerically stable; an
         unstable one has been reset by MuJoCo and should end its episode."""
         m, d = self.model, self.data
-        before = d.warning.number[BAD_STATE_WARNINGS].sum()
+        end = d.time + self._block_time
         mujoco.mj_getState(m, d, self._start[0], STATE_SPEC)
         self._warmstart[0] = d.qacc_warmstart
         control, spec = self.ctrl, CTRL_SPEC
-        if d.qfrc_applied.any() or d.xfrc_applied.any():
+        if self._qfrc_applied.any() or self._xfrc_applied.any():
             control, spec = self._with_applied_forces(), APPLIED_SPEC
         self._rollout.rollout(
             [m],
@@ -112,8 +112,8 @@ class Simulation:
             sensordata=self.substep_sensordata,
             chunk_size=1,
         )
-        stable = d.warning.number[BAD_STATE_WARNINGS].sum() == before and np.isfinite(d.qvel).all()
-        return np.array([stable])
+        # on a NaN, infinite or huge state MuJoCo warns, resets the data (time 0) and the rollout stops early
+        return np.array([abs(d.time - end) < 0.5 * m.opt.timestep])
 
     def _with_applied_forces(self) -> np.ndarray:
         """The control block with the data's applied forces held over it (the rollout would zero them otherwise)."""
@@ -125,12 +125,19 @@ class Simulation:
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        del state["_rollout"]  # a thread pool handle: made anew on unpickling
+        for name in (
+            "_rollout",
+            "_qfrc_applied",
+            "_xfrc_applied",
+            "_sensordata",
+        ):  # a thread pool handle and views: made anew
+            del state[name]
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._rollout = rollout.Rollout(nthread=0)
+        self._views()
 
     def initial_state(self) -> np.ndarray:
         """The full physics state (``mjSTATE_FULLPHYSICS``) now, to replay from with ``mujoco.rollout``."""

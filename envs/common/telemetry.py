@@ -27,7 +27,7 @@ class TelemetryRecorder:
 
     Args:
         meta: the metadata record (robot, model hash, controller, rate...).
-        units: column name -> unit, in the order of the robot's ``readings["telemetry"]`` (its
+        units: column name -> unit, in the order of the columns of ``robot.telemetry()`` (its
             ``telemetry_channels``).
     """
 

@@ -20,8 +20,8 @@ FIRMWARE_PID = PIDGains(kp=C.PID_KP, ki=C.PID_KI, kd=C.PID_KD, integral_limit=C.
 
 
 def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
-    """Wrap to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - x, 2.0 * np.pi)
+    """Wrap to [-pi, pi]."""
+    return np.arctan2(np.sin(x), np.cos(x))
 
 
 def _telemetry_channels() -> dict[str, str]:
@@ -136,6 +136,13 @@ class VelociRoach(Robot):
         self._i_pos, self._i_quat = idx(C.SENSOR_BODY_POS), idx(C.SENSOR_BODY_QUAT)
         self._i_vel = idx(C.SENSOR_BODY_VEL)
         self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in C.LEGS))
+        # one gather per step: legs 0:2, leg rates 2:4, gyro 4:7, accel 7:10, motor speeds 10:12, position 12:15,
+        # quaternion 15:19, body velocity 19:22; and per physics step: torques, speeds, z gyro
+        self._i_read = np.concatenate(
+            [self._i_leg_pos, self._i_leg_vel, self._i_gyro, self._i_accel, self._i_speed, self._i_pos, self._i_quat,
+             self._i_vel]
+        )  # fmt: skip
+        self._i_motor = np.concatenate([self._i_torque, self._i_speed, self._i_gyro[2:]])
         self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
         # per-simulation firmware state
         self.battery = np.full(n, self.nominal_battery)
@@ -143,7 +150,10 @@ class VelociRoach(Robot):
         self.phase = np.full(n, C.STRAIGHT_PHASE)  # firmware's current left/right phase
         self.last_duty = np.zeros((n, 2))  # duty mode: the duty of the last command
         self.imu = Imu(n, self.imu_noise)
-        self._substep_times = np.arange(self.n_substeps) * float(m.opt.timestep)
+        self._senses = np.zeros((n, sum(self.sense_structure.values())))
+        self._imu = np.zeros((n, 6))  # the last (noisy) gyro and accelerometer readings
+        self._physics_dt = float(m.opt.timestep)
+        self._substep_times = (np.arange(self.n_substeps) * float(m.opt.timestep))[None, :, None]
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """The VelociRoACH's physical parameters, each with the model fields it sets (see docs/velociroach.md)."""
@@ -264,67 +274,69 @@ class VelociRoach(Robot):
         """Gait mode: (n, 3) stride frequencies (Hz) and phase (rad); duty mode: (n, 2) duty per side."""
         ctrl = self.sim.ctrl
         if self.action_mode == DUTY:
-            self.last_duty[:] = np.clip(command, -1.0, 1.0)
+            self.last_duty[:] = np.minimum(np.maximum(command, -1.0), 1.0)
             self.motors.set_duty(ctrl, self.last_duty, self.battery)
             return
         dt = self.control_dt
         step = C.PHASE_SLEW * dt
-        dphi = np.clip(wrap_angle(command[:, 2] - self.phase), -step, step)
+        dphi = np.minimum(np.maximum(wrap_angle(command[:, 2] - self.phase), -step), step)
         self.phase += dphi
         rate = 2.0 * np.pi * command[:, :2]
         rate[:, 1] -= dphi / dt  # the right clock falls behind by the phase change over the step
         # the clock at the start of each physics step is the PID's setpoint during that step
-        setpoint = self.clock[:, None, :] + rate[:, None, :] * self._substep_times[None, :, None]
-        self.motors.set_setpoints(ctrl, setpoint, np.broadcast_to(rate[:, None, :], setpoint.shape))
+        self.motors.set_ramps(ctrl, self.clock, rate, self._substep_times)
         self.clock += rate * dt
 
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
-        sd, sub = self.sim.sensordata, self.sim.substep_sensordata
+        v = self.sim.sensordata[:, self._i_read]  # every sensor the readings use, in one gather
         if stepped:
-            torque, speed = sub[:, :, self._i_torque], sub[:, :, self._i_speed]
-            power = self.motors.battery_power(torque, speed).sum(axis=2).mean(axis=1)
-            self.imu.integrate(sub[:, :, self._i_gyro[2]], float(self.model.opt.timestep))
+            sub = self.sim.substep_sensordata[:, :, self._i_motor]  # motor torques and speeds, z gyro, per physics step
+            power = self.motors.battery_power(sub[:, :, :2], sub[:, :, 2:4]).sum(axis=(1, 2)) / self.n_substeps
+            imu = self.imu.update(v[:, 4:10], sub[:, :, 4], self._physics_dt, rngs, self.control_dt)
         else:
-            power = np.zeros(len(sd))
-        gyro, accel = self.imu.read(
-            sd[:, self._i_gyro], sd[:, self._i_accel], rngs, self.control_dt if stepped else 0.0
-        )
-        legs = sd[:, self._i_leg_pos]
-        bemf = self.motors.motor_constant * sd[:, self._i_speed]
-        parts = [np.cos(legs), np.sin(legs), sd[:, self._i_leg_vel], gyro, accel, bemf, self.battery[:, None]]
+            power = np.zeros(len(v))
+            imu = self.imu.update(v[:, 4:10], None, self._physics_dt, rngs, 0.0)
+        self._imu = imu
+        senses = self._senses
+        senses[:, 0:2] = np.cos(v[:, 0:2])
+        senses[:, 2:4] = np.sin(v[:, 0:2])
+        senses[:, 4:6] = v[:, 2:4]
+        senses[:, 6:12] = imu
+        senses[:, 12:14] = v[:, 10:12] * self.motors.motor_constant
+        senses[:, 14] = self.battery
         if self.action_mode == GAIT:
-            parts += [np.cos(self.clock), np.sin(self.clock)]
-        duty = self.motors.terminal_voltage(sd[:, self._i_torque], sd[:, self._i_speed]) / self.battery[:, None]
-        clock = self.clock if self.action_mode == GAIT else np.full_like(legs, np.nan)
-        time = self.sim.time
-        telemetry = np.concatenate(
-            [
-                time[:, None],
-                clock,
-                legs,
-                duty,
-                sd[:, self._i_torque] * self.gear,
-                bemf,
-                self.battery[:, None],
-                gyro,
-                accel,
-                sd[:, self._i_pos],
-                sd[:, self._i_quat],
-                -sd[:, self._i_grf],
-                power[:, None],
-            ],
-            axis=1,
-        )
+            senses[:, 15:17] = np.cos(self.clock)
+            senses[:, 17:19] = np.sin(self.clock)
         return {
-            "time": time,
-            "position": sd[:, self._i_pos],
-            "quaternion": sd[:, self._i_quat],
-            "velocity": sd[:, self._i_vel],
+            "time": self.sim.time,
+            "position": v[:, 12:15],
+            "quaternion": v[:, 15:19],
+            "velocity": v[:, 19:22],
             "power": power,
             "heading": self.imu.heading.copy(),
-            "senses": np.concatenate(parts, axis=1),
-            "telemetry": telemetry,
+            "senses": senses,  # the robot's buffer: valid until the next read
         }
+
+    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        sd = self.sim.sensordata
+        torque, speed = sd[:, self._i_torque], sd[:, self._i_speed]
+        n = len(sd)
+        clock = self.clock if self.action_mode == GAIT else np.full((n, 2), np.nan)
+        columns = [
+            readings["time"][:, None],
+            clock,
+            sd[:, self._i_leg_pos],
+            self.motors.terminal_voltage(torque, speed) / self.battery[:, None],
+            torque * self.gear,
+            speed * self.motors.motor_constant,
+            self.battery[:, None],
+            self._imu,
+            readings["position"],
+            readings["quaternion"],
+            -sd[:, self._i_grf],
+            readings["power"][:, None],
+        ]
+        return np.concatenate(columns, axis=1)
 
     # --- helpers for tests, benchmarks and facts ------------------------------------------------------------------
     def leg_angles(self) -> np.ndarray:
