@@ -8,7 +8,9 @@ Hyperparameters come from ``hyperparams/<algo>.yml`` (RL Baselines3 Zoo style: o
 for shared defaults). An entry may set any argument of the algorithm's constructor except those train.py sets itself
 (env, seed, verbose, tensorboard_log), plus:
 
-- ``n_envs``: number of environments stepped together (DummyVecEnv; default 1);
+- ``n_envs``: number of environments stepped together (default 1);
+- ``vec_env``: ``batched`` (default: every env in one ``mujoco.batch`` on the machine's cores, agents/vec_env.py) or
+  ``dummy`` (SB3's DummyVecEnv, one env after another); ``nthread``: the batch's threads (default: the cores);
 - ``normalize``: ``true`` to wrap the envs in VecNormalize (observations and rewards), or a mapping of VecNormalize
   arguments such as ``{norm_obs: true, norm_reward: false}`` (default false);
 - ``env_kwargs``: a mapping passed to ``gymnasium.make``;
@@ -70,6 +72,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 import envs  # noqa: F401  (registers the skitter envs)
 from agents.evaluation import episode_metrics
 from agents.sb3 import ALGOS, ModelFileError, read_model_file, save_model
+from agents.vec_env import make_batched_vec_env
 from envs.common.io import refuse_overwrite, write_json, write_text
 
 ROOT = Path(__file__).resolve().parent
@@ -80,7 +83,15 @@ DEFAULT_CHECKPOINT_FREQ = 50_000  # env steps
 TORCH_THREADS = 1
 
 # Entries train.py understands besides the algorithm's own arguments, with their defaults.
-TRAIN_DEFAULTS: dict[str, Any] = {"policy": "MlpPolicy", "n_envs": 1, "normalize": False, "env_kwargs": {}}
+TRAIN_DEFAULTS: dict[str, Any] = {
+    "policy": "MlpPolicy",
+    "n_envs": 1,
+    "normalize": False,
+    "env_kwargs": {},
+    "vec_env": "batched",
+    "nthread": None,
+}
+VEC_ENVS = ("batched", "dummy")  # the batched env on mujoco.batch (one process, every core), or SB3's DummyVecEnv
 NOISE_DEFAULTS: dict[str, Any] = {"noise_type": None, "noise_std": 0.1}  # SAC and TD3 only; None: no noise
 NOISE_TYPES = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
 SET_BY_TRAIN = {
@@ -95,6 +106,7 @@ SCHEDULES = ("learning_rate", "clip_range")  # accept "lin_<value>"
 # Inclusive bounds (low, high) for numeric entries; None is unbounded.
 LIMITS: dict[str, tuple[float | None, float | None]] = {
     "n_envs": (1, None),
+    "nthread": (1, None),
     "n_steps": (1, None),
     "batch_size": (1, None),
     "n_epochs": (1, None),
@@ -145,6 +157,8 @@ class Hyperparams:
     normalize: dict[str, Any] | None  # VecNormalize arguments, or None for no normalisation
     env_kwargs: dict[str, Any]
     noise: tuple[str, float] | None  # (noise_type, noise_std)
+    vec_env: str = "batched"
+    nthread: int | None = None
 
 
 def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None) -> Hyperparams:
@@ -207,6 +221,8 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperpa
         normalize=check("normalize", lambda v: _normalize_kwargs(v, gamma)),
         env_kwargs=check("env_kwargs", _mapping),
         noise=noise,
+        vec_env=check("vec_env", _vec_env),
+        nthread=check("nthread", lambda v: None if v is None else _number("nthread", v, int)),
     )
 
 
@@ -287,6 +303,12 @@ def _train_freq(value: Any) -> int | tuple[int, str]:
     if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
         return value
     raise ValueError('expected a positive integer or [N, "step" | "episode"]')
+
+
+def _vec_env(value: Any) -> str:
+    if value not in VEC_ENVS:
+        raise ValueError(f"expected one of {', '.join(VEC_ENVS)}")
+    return value
 
 
 def _noise_type(value: Any) -> str:
@@ -371,12 +393,16 @@ def check_env_kwargs(env_id: str, hp: Hyperparams) -> None:
 
 
 def make_env(env_id: str, hp: Hyperparams, seed: int, stats: VecNormalize | None = None) -> VecEnv:
-    """``hp.n_envs`` copies of ``env_id`` seeded ``seed``, ``seed + 1``, ..., normalised as ``hp`` says.
+    """``hp.n_envs`` copies of ``env_id`` seeded ``seed``, ``seed + 1``, ..., normalised as ``hp`` says: by default
+    the batched env (all of them in one ``mujoco.batch`` on ``hp.nthread`` threads), or SB3's ``DummyVecEnv``.
 
     ``stats``: VecNormalize statistics to continue from (when resuming).
     """
     try:
-        venv = make_vec_env(env_id, n_envs=hp.n_envs, seed=seed, env_kwargs=hp.env_kwargs, vec_env_cls=DummyVecEnv)
+        if hp.vec_env == "batched" and gym.spec(env_id).vector_entry_point is not None:
+            venv = make_batched_vec_env(env_id, hp.n_envs, seed, {**hp.env_kwargs, "nthread": hp.nthread})
+        else:
+            venv = make_vec_env(env_id, hp.n_envs, seed=seed, env_kwargs=hp.env_kwargs, vec_env_cls=DummyVecEnv)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
     if hp.normalize is None:

@@ -131,7 +131,7 @@ def main() -> None:
     args = parser.parse_args()
     rows, out = [], {}
     for name, edit in VARIANTS.items():
-        robot = VelociRoach("gait", spec_edits=[edit])
+        robot = VelociRoach("gait", spec_edits=[edit] if edit else [])
         falls, speed45 = 0, []
         for f in (10.0, 20.0, 30.0, 35.0, 45.0):
             for seed in range(args.seeds):

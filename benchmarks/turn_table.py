@@ -39,6 +39,17 @@ def yaw_rate(env, policy: TripodGait, seed: int) -> float:
     return float(np.mean(rates))
 
 
+def fingerprint() -> list[float]:
+    """The body's pose after a short turning run: it changes when the model or the firmware changes, so a table
+    measured on another model or firmware shows itself (tests/test_tripod.py)."""
+    env = gym.make("skitter/RoachWalk-v1", sensor_noise=False, max_episode_steps=25)
+    policy = TripodGait(TripodContext.from_env(env), frequency=10.0, phase=np.radians(160.0))
+    obs, info = env.reset(seed=0)
+    for _ in range(25):
+        obs, *_, info = env.step(policy.predict(obs)[0])
+    return [round(info[k], 5) for k in ("x_position", "y_position", "yaw")]
+
+
 def fit_table(phases: np.ndarray, rates: np.ndarray) -> tuple[slice, np.ndarray]:
     """The phases of ``TABLE_WINDOW`` and the non-increasing (isotonic) fit of their yaw rates."""
     first = int(np.searchsorted(phases, TABLE_WINDOW[0]))
@@ -78,6 +89,7 @@ def main() -> None:
         "frequency_hz": f0,
         "generated_by": "benchmarks/turn_table.py",
         "model_hash": env.unwrapped.robot.model_hash,
+        "fingerprint": fingerprint(),
         "seeds": args.seeds,
         "episode_seconds": args.seconds,
         "phase_deg": PHASES_DEG.tolist(),

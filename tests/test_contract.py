@@ -7,15 +7,22 @@ import pytest
 
 from envs.bench.robot import MotorRig, ServoRig
 from envs.common.simulation import CTRL_SPEC, STATE_SPEC
-from envs.velociroach.robot import VelociRoach
 from tests.conftest import ENV_IDS
 
-ROBOTS = {
-    "velociroach-gait": lambda: VelociRoach("gait"),
-    "velociroach-duty": lambda: VelociRoach("duty"),
-    "motor-rig": MotorRig,
-    "servo-rig": ServoRig,
-}
+
+def _robots_of_registered_envs() -> dict:
+    """One robot per (robot, action mode) among the registered envs: a new robot's envs bring it in."""
+    found = {}
+    for env_id in ENV_IDS:
+        spec = gym.spec(env_id)
+        robot = gym.make(env_id).unwrapped.robot
+        key = f"{robot.name}-{robot.action_mode}"
+        if key not in found:
+            found[key] = lambda spec=spec: gym.make(spec.id).unwrapped.robot
+    return found
+
+
+ROBOTS = {**_robots_of_registered_envs(), "motor-rig": MotorRig, "servo-rig": ServoRig}
 REQUIRED_CHANNELS = {"time", "power", *(f"pos_{a}" for a in "xyz"), *(f"quat_{a}" for a in "wxyz")}
 READINGS = {"time": (), "position": (3,), "quaternion": (4,), "velocity": (3,), "power": ()}
 
@@ -75,6 +82,10 @@ def test_telemetry_channels_have_units(robot):
     assert row.shape == (1, len(channels))
     for group in robot.plot_groups:
         assert set(group.channels) | set(group.minus) <= set(channels), group.title
+
+
+def test_the_velociroach_comes_in_both_action_modes():
+    assert {"velociroach-gait", "velociroach-duty", "motor-rig", "servo-rig"} <= set(ROBOTS)
 
 
 def test_facts(robot):

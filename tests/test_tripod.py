@@ -114,12 +114,13 @@ def test_turning_table_was_measured_on_the_current_model():
     import json
 
     from agents.velociroach.tripod import TURN_TABLE
+    from benchmarks.turn_table import fingerprint
     from envs.velociroach.robot import VelociRoach
 
     table = json.loads(TURN_TABLE.read_text())
-    assert table["model_hash"] == VelociRoach("gait").model_hash, (
-        "the model changed: regenerate with python -m benchmarks.turn_table"
-    )
+    message = "the model or the firmware changed: regenerate with python -m benchmarks.turn_table"
+    assert table["model_hash"] == VelociRoach("gait").model_hash, message
+    assert np.allclose(table["fingerprint"], fingerprint(), atol=1e-4), message
 
 
 def test_duty_tripod_reads_its_inputs_by_name_not_position():

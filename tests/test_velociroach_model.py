@@ -55,7 +55,7 @@ def test_leg_inertia_felt_by_the_crank(robot):
 
 def test_motor_reaches_a_45_hz_stride_with_headroom_and_stalls_at_its_datasheet_torque(robot):
     bench = facts.motor_bench(duty=1.0)
-    k, r, v = robot.motors.motor_constant[0], robot.motors.resistance[0], robot.nominal_battery
+    k, r, v = robot.motors.motor_constant[0, 0], robot.motors.resistance[0, 0], robot.nominal_battery
     assert bench["stall_torque"] == pytest.approx(robot.gear * k * v / r, rel=0.02)
     no_load = v / k / robot.gear / (2 * np.pi)
     assert C.MAX_STRIDE_FREQUENCY < bench["free_stride_hz"] < no_load
@@ -83,7 +83,7 @@ def test_electrical_power_at_stall_is_v_squared_over_r():
     for _ in range(40):
         robot.command(np.array([[0.5, 0.0]]))
         robot.step()
-    r, vb = robot.motors.resistance[0], robot.nominal_battery
+    r, vb = robot.motors.resistance[0, 0], robot.nominal_battery
     readings = robot.read(RNG)
     assert readings["power"][0] == pytest.approx((0.5 * vb) ** 2 / r, rel=0.01)
     row = dict(zip(robot.telemetry_channels, robot.telemetry(readings)[0], strict=True))

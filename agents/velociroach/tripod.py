@@ -43,7 +43,7 @@ class TripodContext:
         robot = base.robot
         if robot.name != "velociroach":
             raise ValueError(f"the tripod drives a VelociRoACH, not a {robot.name}")
-        emf = float(robot.motors.motor_constant[0] * robot.gear)
+        emf = float(robot.motors.motor_constant[0, 0] * robot.gear)
         return cls(base.task.layout, robot.mode, robot.control_dt, emf)
 
 

@@ -104,17 +104,26 @@ class DCMotors:
             a.dynprm[DYN_IMAX] = g.integral_limit * vs * k / (r * ki) if ki > 0 and g.integral_limit > 0 else 0.0
             a.actdim = 1 if ki > 0 else 0
 
-    def bind(self, model: mujoco.MjModel) -> None:
-        """Look up the compiled motors."""
+    def bind(self, model: mujoco.MjModel, num_sims: int = 1) -> None:
+        """Look up the compiled motors; their constants are kept per simulation, (num_sims, motors)."""
         self.ids = np.array([model.actuator(n).id for n in self.names])
         self.ctrl_adr = model.actuator_ctrladr[self.ids].copy()
         self.act_adr = model.actuator_actadr[self.ids].copy()
         self.gear = model.actuator_gear[self.ids, 0].copy()
-        self.resistance = model.actuator_gainprm[self.ids, GAIN_R].copy()
-        self.motor_constant = model.actuator_gainprm[self.ids, GAIN_K].copy()
         self._pos, self._vel = _as_index(self.ctrl_adr), _as_index(self.ctrl_adr + 1)
-        k, r = self.motor_constant, self.resistance
-        self._power_coefficient = r / (k * k)  # v i = (R i + K w) i = R tau^2 / K^2 + w tau
+        self.resistance = np.zeros((num_sims, len(self.ids)))
+        self.motor_constant = np.zeros((num_sims, len(self.ids)))
+        self._power_coefficient = np.zeros((num_sims, len(self.ids)))
+        self.refresh(
+            np.arange(num_sims), np.broadcast_to(model.actuator_gainprm, (num_sims, *model.actuator_gainprm.shape))
+        )
+
+    def refresh(self, ids: np.ndarray, gainprm: np.ndarray) -> None:
+        """Take the motors' R and K of simulations ``ids`` from their gain parameters (num_sims, nu, 10)."""
+        self.resistance[ids] = gainprm[ids][:, self.ids, GAIN_R]
+        self.motor_constant[ids] = gainprm[ids][:, self.ids, GAIN_K]
+        k = self.motor_constant[ids]
+        self._power_coefficient[ids] = self.resistance[ids] / (k * k)  # v i = R tau^2 / K^2 + w tau
 
     # --- commands into the control block ------------------------------------------------------------------------
     def set_duty(self, ctrl: np.ndarray, duty: np.ndarray, supply: np.ndarray) -> None:
@@ -136,18 +145,23 @@ class DCMotors:
         if self.pid is not None and self.pid.velocity_setpoint:
             ctrl[:, :, self._vel] = motor_rate
 
-    # --- electrical readouts from motor torque and speed (any leading axes, motors last) ---------------------------
+    # --- electrical readouts from motor torque and speed: (num_sims, motors) or (num_sims, substeps, motors) -------
+    @staticmethod
+    def _per_sim(constant: np.ndarray, like: np.ndarray) -> np.ndarray:
+        return constant if like.ndim == 2 else constant[:, None, :]
+
     def current(self, torque: np.ndarray) -> np.ndarray:
         """Winding current, A, from the motor-shaft torque (N m)."""
-        return torque / self.motor_constant
+        return torque / self._per_sim(self.motor_constant, torque)
 
     def terminal_voltage(self, torque: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Voltage across the motor, V: R i + K w."""
-        return self.resistance * self.current(torque) + self.motor_constant * speed
+        k = self._per_sim(self.motor_constant, torque)
+        return self._per_sim(self.resistance, torque) * (torque / k) + k * speed
 
     def battery_power(self, torque: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Power drawn from the supply per motor, W; braking energy is not returned (max(v i, 0))."""
-        return np.maximum((self._power_coefficient * torque + speed) * torque, 0.0)
+        return np.maximum((self._per_sim(self._power_coefficient, torque) * torque + speed) * torque, 0.0)
 
     # --- parameters ---------------------------------------------------------------------------------------------
     def supply_fields(self) -> tuple[FieldRef, ...]:

@@ -147,8 +147,8 @@ class Servo:
                 )
         self.motors.configure(spec)
 
-    def bind(self, model: mujoco.MjModel) -> None:
-        self.motors.bind(model)
+    def bind(self, model: mujoco.MjModel, num_sims: int = 1) -> None:
+        self.motors.bind(model, num_sims)
 
         def adr(suffix: str) -> np.ndarray:
             return np.array([model.sensor_adr[model.sensor(f"{j}{suffix}").id] for j in self.joints])

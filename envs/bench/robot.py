@@ -35,7 +35,7 @@ class BenchRig(Robot):
         load_inertia: inertia of the load about the shaft, kg m^2.
         friction: Coulomb friction of the shaft, N m.
         damping: viscous damping of the shaft, N m s/rad.
-        spec_edits, num_sims: as for every robot.
+        spec_edits, num_sims, nthread, batched: as for every robot.
     """
 
     root_body = LOAD
@@ -49,12 +49,14 @@ class BenchRig(Robot):
         friction: float = 0.0,
         damping: float = 0.0,
         spec_edits: Sequence[SpecEdit] = (),
-        num_sims: int = 1,
+        num_sims: int | None = None,
+        nthread: int | None = None,
+        batched: bool | None = None,
     ):
         self.load_inertia = check_number("load_inertia", load_inertia, 0, strict=True)
         self.friction = check_number("friction", friction, 0)
         self.damping = check_number("damping", damping, 0)
-        super().__init__(action_mode, control_freq, spec_edits, num_sims)
+        super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched)
 
     @classmethod
     def xml_path(cls) -> Path:
@@ -122,9 +124,9 @@ class BenchRig(Robot):
         """The command that holds the shaft where it is."""
         return np.zeros((len(angle), self.mode.size))
 
-    def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
+    def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
         sd = self.sim.sensordata
-        power = self.substep_power() if stepped else np.zeros(len(sd))
+        power = np.where(stepped, self.substep_power(), 0.0) if stepped is not True else self.substep_power()
         angle, speed = sd[:, self._i_angle], sd[:, self._i_speed]
         pos, quat = sd[:, self._i_pos], sd[:, self._i_quat]
         time = self.sim.time
@@ -180,10 +182,12 @@ class MotorRig(BenchRig):
         constants: MotorConstants | None = None,
         armature: float = 0.0,
         spec_edits: Sequence[SpecEdit] = (),
-        num_sims: int = 1,
+        num_sims: int | None = None,
+        nthread: int | None = None,
+        batched: bool | None = None,
     ):
         self.motor = Motor([JOINT], constants, check_number("armature", armature, 0))
-        super().__init__("duty", control_freq, load_inertia, friction, damping, spec_edits, num_sims)
+        super().__init__("duty", control_freq, load_inertia, friction, damping, spec_edits, num_sims, nthread, batched)
 
     def configure_actuator(self, spec: mujoco.MjSpec) -> None:
         self.motor.configure(spec)
@@ -236,17 +240,19 @@ class ServoRig(BenchRig):
         damping: float = 0.0,
         constants: ServoConstants | None = None,
         spec_edits: Sequence[SpecEdit] = (),
-        num_sims: int = 1,
+        num_sims: int | None = None,
+        nthread: int | None = None,
+        batched: bool | None = None,
     ):
         self.servo = Servo([JOINT], constants)
-        super().__init__("goal", control_freq, load_inertia, friction, damping, spec_edits, num_sims)
+        super().__init__("goal", control_freq, load_inertia, friction, damping, spec_edits, num_sims, nthread, batched)
 
     def configure_actuator(self, spec: mujoco.MjSpec) -> None:
         self.servo.configure(spec)
 
     def setup(self) -> None:
         super().setup()
-        self.servo.bind(self.model)
+        self.servo.bind(self.model, self.num_sims)
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         p = super().build_parameters(model)
@@ -254,6 +260,9 @@ class ServoRig(BenchRig):
         p.add(Parameter("supply_voltage", "V", vs, 5.0, 13.0, "the servo's supply (AX-12: 7-10 V, AX-12A: 9-12 V)",
                         self.servo.supply_fields()))  # fmt: skip
         return p
+
+    def parameters_changed(self, ids: np.ndarray) -> None:
+        self.servo.motors.refresh(ids, self.field("actuator_gainprm"))
 
     def rest_command(self, angle: np.ndarray) -> np.ndarray:
         return self.servo.constants.counts_of(angle)[:, None]

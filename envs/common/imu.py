@@ -66,18 +66,24 @@ class Imu:
     def update(
         self,
         imu: np.ndarray,
-        gyro_z: np.ndarray | None,
+        gyro_z: np.ndarray,
         physics_dt: float,
         rngs: Sequence[np.random.Generator],
         step_time: float,
+        stepped: bool | np.ndarray = True,
     ) -> np.ndarray:
         """Noisy gyro and accelerometer (n, 6) from the true ones (n, 6), after advancing the heading over a control
-        step from the true z rate at every physics step (``gyro_z``, (n, substeps); None right after a reset)."""
-        if gyro_z is not None:
-            self.heading += gyro_z.sum(axis=1) * physics_dt + self.gyro_bias[:, 2] * (gyro_z.shape[1] * physics_dt)
+        step of ``step_time`` from the true z rate at every physics step (``gyro_z``, (n, substeps)); only where
+        ``stepped`` (False, or False per simulation, right after a reset)."""
+        if self.noise is not None:
+            draws = (
+                rngs[0].standard_normal((1, 7)) if len(rngs) == 1 else np.array([r.standard_normal(7) for r in rngs])
+            )
+        if stepped is not False:
+            change = gyro_z.sum(axis=1) * physics_dt + self.gyro_bias[:, 2] * (gyro_z.shape[1] * physics_dt)
+            if self.noise is not None:
+                change = change + draws[:, 6] * (self.noise.gyro_noise_density * math.sqrt(step_time))
+            self.heading += change if stepped is True else np.where(stepped, change, 0.0)
         if self.noise is None:
             return imu.copy()
-        draws = rngs[0].standard_normal((1, 7)) if len(rngs) == 1 else np.array([r.standard_normal(7) for r in rngs])
-        if step_time > 0:
-            self.heading += draws[:, 6] * (self.noise.gyro_noise_density * math.sqrt(step_time))
         return imu + self._bias + draws[:, :6] * self._sigma

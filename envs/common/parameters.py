@@ -86,28 +86,29 @@ class ParameterMap:
                 if ref.field not in self._nominal_fields:
                     self._nominal_fields[ref.field] = np.array(getattr(model, ref.field), copy=True)
 
-    def apply(self, model: mujoco.MjModel, values: Mapping[str, float], data: mujoco.MjData | None = None) -> None:
-        """Set parameters on a compiled model; parameters not named return to nominal.
+    def apply(self, target: Callable[[str], np.ndarray], values: Mapping[str, float]) -> bool:
+        """Set parameters for one simulation, whose writable field arrays ``target(field)`` gives (the model's own
+        field, or one simulation's row of a batch's); parameters not named return to nominal. Returns whether
+        ``mj_setConst`` must follow (masses changed).
 
         Fields shared by several parameters compose: each starts from its nominal value, a ``set`` writes, and
         ``scale`` and ``inverse`` multiply (the battery voltage and the motor resistance both act on a PID's gains).
         """
         for name, nominal in self._nominal_fields.items():
-            getattr(model, name)[...] = nominal
-        touched = False
+            target(name)[...] = nominal
+        setconst = False
         for p in self:
             value = float(values.get(p.name, p.nominal))
             for ref in p.fields:
-                target = getattr(model, ref.field)
+                array = target(ref.field)
                 if ref.how == "set":
-                    target[ref.index] = value
+                    array[ref.index] = value
                 elif ref.how == "scale":
-                    target[ref.index] = target[ref.index] * (value / p.nominal)
+                    array[ref.index] = array[ref.index] * (value / p.nominal)
                 else:
-                    target[ref.index] = target[ref.index] * (p.nominal / value)
-            touched |= p.setconst
-        if touched:
-            mujoco.mj_setConst(model, data if data is not None else mujoco.MjData(model))
+                    array[ref.index] = array[ref.index] * (p.nominal / value)
+            setconst |= p.setconst
+        return setconst
 
     def describe(self) -> list[dict[str, Any]]:
         return [

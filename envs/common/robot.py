@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -34,9 +36,25 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from envs.common.batch import BatchSimulation
 from envs.common.mujoco_utils import sensor_slices, spec_hash
 from envs.common.parameters import ParameterMap, SpecEdit
 from envs.common.simulation import Simulation
+
+# (num_sims, nthread) for robots built inside `batched_robots`: how an env class's own constructor builds the robot of
+# its batched env (envs/common/vector.py) without a second copy of its arguments
+_BATCH: ContextVar[tuple[int, int | None] | None] = ContextVar("skitter_batch", default=None)
+
+
+@contextmanager
+def batched_robots(num_sims: int, nthread: int | None = None) -> Iterator[None]:
+    """Robots built inside this block (with ``num_sims`` left unset) run ``num_sims`` simulations on a
+    ``mujoco.batch.Batch`` of ``nthread`` threads."""
+    token = _BATCH.set((int(num_sims), nthread))
+    try:
+        yield
+    finally:
+        _BATCH.reset(token)
 
 
 @dataclass(frozen=True)
@@ -123,7 +141,10 @@ class Robot(ABC):
         control_freq: control steps per second (default: the action mode's); a whole number of physics steps each.
         spec_edits: functions applied to the ``MjSpec`` after the robot's own configuration, before it compiles
             (terrain, calibration effects, a bench clamp).
-        num_sims: number of simulations stepped together (1: one ``MjData``).
+        num_sims: number of simulations stepped together; None: one, or what an enclosing :func:`batched_robots`
+            says.
+        nthread: threads of the batch (default: the machine's cores).
+        batched: run on ``mujoco.batch.Batch`` even for one simulation (default: when ``num_sims > 1``).
     """
 
     name: ClassVar[str]
@@ -135,8 +156,18 @@ class Robot(ABC):
         action_mode: str,
         control_freq: float | None = None,
         spec_edits: Sequence[SpecEdit] = (),
-        num_sims: int = 1,
+        num_sims: int | None = None,
+        nthread: int | None = None,
+        batched: bool | None = None,
     ):
+        context = _BATCH.get()
+        if num_sims is None:
+            num_sims, nthread = context if context is not None else (1, nthread)
+            batched = context is not None if batched is None else batched
+        if isinstance(num_sims, bool) or not isinstance(num_sims, int | np.integer) or num_sims < 1:
+            raise ValueError(f"num_sims must be a whole number >= 1, got {num_sims!r}")
+        self.batched = num_sims > 1 if batched is None else bool(batched)
+        self.nthread = nthread
         if action_mode not in self.action_modes:
             raise ValueError(f"action_mode must be one of {sorted(self.action_modes)}, got {action_mode!r}")
         self.mode = self.action_modes[action_mode]
@@ -186,9 +217,11 @@ class Robot(ABC):
         """The robot's named physical parameters (see envs/common/parameters.py)."""
         return ParameterMap()
 
-    def make_simulation(self):
+    def make_simulation(self) -> Simulation | BatchSimulation:
+        if self.batched:
+            return BatchSimulation(self.model, self.n_substeps, self.num_sims, self.nthread)
         if self.num_sims != 1:
-            raise NotImplementedError("batched simulations come with the batched envs")
+            raise ValueError(f"one MjData runs one simulation, not {self.num_sims}: pass batched=True")
         return Simulation(self.model, self.n_substeps)
 
     # --- the contract ------------------------------------------------------------------------------------------
@@ -226,14 +259,16 @@ class Robot(ABC):
     def command(self, command: np.ndarray) -> None:
         """Fill the next control block from physical commands (num_sims, mode size) of the current action mode."""
 
-    def step(self) -> np.ndarray:
-        """Run the control block natively; (num_sims,) bool, False where a simulation went unstable."""
-        return self.sim.step()
+    def step(self, ids: np.ndarray | None = None) -> np.ndarray:
+        """Run the control blocks natively (of simulations ``ids``, default all); (num_sims,) bool, False where a
+        simulation went unstable (True for those not stepped)."""
+        return self.sim.step() if ids is None else self.sim.step(ids)
 
     @abstractmethod
-    def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
+    def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
         """The readings after the last step (see the module docstring); sensor noise drawn from ``rngs``, one
-        generator per simulation. ``stepped=False`` right after a reset: no step to integrate or draw power over."""
+        generator per simulation. ``stepped``: False (or False per simulation) right after a reset, with no step to
+        integrate or draw power over."""
 
     @abstractmethod
     def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
@@ -249,10 +284,28 @@ class Robot(ABC):
         unknown = set(values) - set(self.parameters.names())
         if unknown:
             raise ValueError(f"{self.name}: unknown parameters {sorted(unknown)}; known: {self.parameters.names()}")
-        self.parameters.apply(self.model, values, self.sim.data if self.num_sims == 1 else None)
+        if self.batched:
+            for i in ids:
+                self.parameters.apply(lambda name, i=i: self.sim.expand(name)[i], values)
+            if any(p.setconst for p in self.parameters):
+                self.sim.set_const(np.asarray(ids))
+        elif self.parameters.apply(lambda name: getattr(self.model, name), values):
+            mujoco.mj_setConst(self.model, self.sim.data)
         for p in self.parameters:
             if p.attribute is not None:
                 getattr(self, p.attribute)[ids] = float(values.get(p.name, p.nominal))
+        self.parameters_changed(np.asarray(ids))
+
+    def parameters_changed(self, ids: np.ndarray) -> None:  # noqa: B027 (an optional hook)
+        """Refresh what the robot keeps from model fields (motor constants...) for simulations ``ids``."""
+
+    def field(self, name: str) -> np.ndarray:
+        """A model field's values in every simulation, (num_sims, ...): per-simulation ones where a batch holds them."""
+        if self.batched:
+            values = self.sim.batch.expanded(name)
+            if values is not None:
+                return values
+        return np.broadcast_to(getattr(self.model, name), (self.num_sims, *getattr(self.model, name).shape))
 
     def metadata(self) -> dict[str, Any]:
         """The robot's part of a telemetry or results record."""

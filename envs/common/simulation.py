@@ -89,9 +89,11 @@ class Simulation:
         mujoco.mj_forward(m, d)
         self.substep_sensordata[:] = d.sensordata
 
-    def step(self) -> np.ndarray:
+    def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control block in ``ctrl``. Returns, per simulation, whether it stayed numerically stable; an
-        unstable one has been reset by MuJoCo and should end its episode."""
+        unstable one has been reset by MuJoCo and should end its episode. ``ids``: [0] or empty (step nothing)."""
+        if ids is not None and len(ids) == 0:
+            return np.array([True])
         m, d = self.model, self.data
         end = d.time + self._block_time
         mujoco.mj_getState(m, d, self._start[0], STATE_SPEC)

@@ -7,6 +7,7 @@ ENVS = [
     {
         "id": f"skitter/Roach{task}{suffix}-v1",
         "entry_point": f"envs.velociroach.{task.lower()}:Roach{task}Env",
+        "vector_entry_point": f"envs.velociroach.{task.lower()}:make_batched",
         "max_episode_steps": round(EPISODE_SECONDS * freq),
         "kwargs": {"action_mode": mode, "control_freq": freq},
     }

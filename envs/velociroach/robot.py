@@ -61,7 +61,7 @@ class VelociRoach(Robot):
         battery_voltage: supply voltage, V (default the model's nominal 3.7 V).
         imu_noise: the IMU's error model (default the MPU-6000's); None for a perfect IMU.
         spec_edits: functions applied to the spec before it compiles.
-        num_sims: simulations stepped together.
+        num_sims, nthread, batched: simulations stepped together, on how many threads (see ``Robot``).
     """
 
     name = "velociroach"
@@ -86,13 +86,15 @@ class VelociRoach(Robot):
         battery_voltage: float | None = None,
         imu_noise: ImuNoise | None = ImuNoise(),  # noqa: B008 (frozen dataclass)
         spec_edits: Sequence[SpecEdit] = (),
-        num_sims: int = 1,
+        num_sims: int | None = None,
+        nthread: int | None = None,
+        batched: bool | None = None,
     ):
         self._battery_arg = (
             None if battery_voltage is None else check_number("battery_voltage", battery_voltage, 0, strict=True)
         )
         self.imu_noise = imu_noise
-        super().__init__(action_mode, control_freq, spec_edits, num_sims)
+        super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched)
 
     @classmethod
     def xml_path(cls) -> Path:
@@ -108,7 +110,7 @@ class VelociRoach(Robot):
 
     def setup(self) -> None:
         m, n = self.model, self.num_sims
-        self.motors.bind(m)
+        self.motors.bind(m, n)
         self.gear = float(self.motors.gear[0])
         self._crank_qpos = np.array([m.joint(C.CRANK_JOINTS[s]).qposadr[0] for s in C.SIDES])
         root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
@@ -153,7 +155,7 @@ class VelociRoach(Robot):
         self._senses = np.zeros((n, sum(self.sense_structure.values())))
         self._imu = np.zeros((n, 6))  # the last (noisy) gyro and accelerometer readings
         self._physics_dt = float(m.opt.timestep)
-        self._substep_times = (np.arange(self.n_substeps) * float(m.opt.timestep))[None, :, None]
+        self._substep_times = (np.arange(1, self.n_substeps + 1) * float(m.opt.timestep))[None, :, None]
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """The VelociRoACH's physical parameters, each with the model fields it sets (see docs/velociroach.md)."""
@@ -191,6 +193,9 @@ class VelociRoach(Robot):
         p.add(Parameter("motor_armature", "kg m^2", float(model.actuator_armature[ids[0]]), 0.0, 1e-7,
                         "rotor inertia at the motor shaft", (FieldRef("actuator_armature", (ids,)),)))  # fmt: skip
         return p
+
+    def parameters_changed(self, ids: np.ndarray) -> None:
+        self.motors.refresh(ids, self.field("actuator_gainprm"))
 
     # --- the contract -------------------------------------------------------------------------------------------
     @property
@@ -283,19 +288,21 @@ class VelociRoach(Robot):
         self.phase += dphi
         rate = 2.0 * np.pi * command[:, :2]
         rate[:, 1] -= dphi / dt  # the right clock falls behind by the phase change over the step
-        # the clock at the start of each physics step is the PID's setpoint during that step
+        # as the firmware advances its clock, then runs its PID: the clock at the end of each physics step is the
+        # setpoint during that step (the last one ends the block at the new clock)
         self.motors.set_ramps(ctrl, self.clock, rate, self._substep_times)
         self.clock += rate * dt
 
-    def read(self, rngs: Sequence[np.random.Generator], stepped: bool = True) -> dict[str, np.ndarray]:
+    def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
         v = self.sim.sensordata[:, self._i_read]  # every sensor the readings use, in one gather
-        if stepped:
-            sub = self.sim.substep_sensordata[:, :, self._i_motor]  # motor torques and speeds, z gyro, per physics step
-            power = self.motors.battery_power(sub[:, :, :2], sub[:, :, 2:4]).sum(axis=(1, 2)) / self.n_substeps
-            imu = self.imu.update(v[:, 4:10], sub[:, :, 4], self._physics_dt, rngs, self.control_dt)
-        else:
+        sub = self.sim.substep_sensordata[:, :, self._i_motor]  # motor torques and speeds, z gyro, per physics step
+        if stepped is False:
             power = np.zeros(len(v))
-            imu = self.imu.update(v[:, 4:10], None, self._physics_dt, rngs, 0.0)
+        else:
+            power = self.motors.battery_power(sub[:, :, :2], sub[:, :, 2:4]).sum(axis=(1, 2)) / self.n_substeps
+            if stepped is not True:
+                power = np.where(stepped, power, 0.0)
+        imu = self.imu.update(v[:, 4:10], sub[:, :, 4], self._physics_dt, rngs, self.control_dt, stepped)
         self._imu = imu
         senses = self._senses
         senses[:, 0:2] = np.cos(v[:, 0:2])

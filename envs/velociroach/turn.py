@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
+from envs.common.vector import vector_entry_point
 from envs.velociroach.robot import GAIT, VelociRoach
 
 YAW_RATE_RANGE = 0.8  # rad/s: commands are drawn from U(-0.8, 0.8), within the turning tripod's reach at 10 Hz
@@ -77,3 +78,6 @@ class RoachTurnEnv(SkitterEnv):
             max_tilt,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
+
+
+make_batched = vector_entry_point(RoachTurnEnv)

@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
+from envs.common.vector import vector_entry_point
 from envs.velociroach.robot import GAIT, VelociRoach
 
 
@@ -122,3 +123,6 @@ class RoachWalkEnv(SkitterEnv):
             robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
+
+
+make_batched = vector_entry_point(RoachWalkEnv)

@@ -1,0 +1,113 @@
+"""Many simulations of one robot model in one process, on ``mujoco.batch.Batch``.
+
+:class:`BatchSimulation` has the interface of :class:`envs.common.simulation.Simulation` with a leading axis of
+``num_sims``: a control block per simulation, run by one ``Batch.rollout`` call on the batch's thread pool. MuJoCo's
+batch is bit-identical to a loop over single ``MjData``s at any thread count, and it starts each block from the same
+state the single simulation does (time, qpos, qvel, act, warm-start accelerations, ...), so N single envs and one
+batched env of N give identical results (tests/test_batch.py). Physical parameters are per simulation through the
+batch's expanded model fields.
+"""
+
+from __future__ import annotations
+
+import os
+
+import mujoco
+import numpy as np
+from mujoco import batch
+
+from envs.common.simulation import CTRL_SPEC
+
+
+def default_threads() -> int:
+    """The machine's cores (those this process may use)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+class BatchSimulation:
+    """``num_sims`` simulations of ``model``, advanced a control block at a time on ``nthread`` threads.
+
+    Attributes:
+        ctrl: the next control blocks, (num_sims, n_substeps, nu).
+        substep_sensordata: sensor values of every physics step of the last blocks, (num_sims, n_substeps, nsensor).
+        sensordata: the sensor values after the last block, (num_sims, nsensordata), as ``mj_step`` leaves them.
+    """
+
+    def __init__(self, model: mujoco.MjModel, n_substeps: int, num_sims: int, nthread: int | None = None):
+        if num_sims < 1:
+            raise ValueError(f"num_sims must be at least 1, got {num_sims}")
+        self.model = model
+        self.num_sims = num_sims
+        self.n_substeps = n_substeps
+        self.nthread = default_threads() if nthread is None else int(nthread)
+        if self.nthread < 1:
+            raise ValueError(f"nthread must be at least 1, got {nthread}")
+        self.batch = batch.Batch(model, num_sims, self.nthread)
+        self.ctrl = np.zeros((num_sims, n_substeps, model.nu))
+        self.substep_sensordata = np.zeros((num_sims, n_substeps, model.nsensordata))
+        self._bind()
+
+    def _bind(self) -> None:
+        b = self.batch
+        self.qpos, self.qvel, self.act = b.bind("qpos"), b.bind("qvel"), b.bind("act")
+        self._time = b.bind("time")
+        # an output field is refreshed after every call once bound (bound later, it reads zero until the next call)
+        self._sensordata = b.bind("sensordata")
+        self._out = {"sensordata": self.substep_sensordata}
+        self._block_time = self.n_substeps * self.model.opt.timestep
+
+    @property
+    def sensordata(self) -> np.ndarray:
+        return self.substep_sensordata[:, -1]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self._time.copy()
+
+    @property
+    def data(self) -> mujoco.MjData:
+        raise AttributeError("a batch of simulations has no single MjData: use get_data(i)")
+
+    def get_data(self, sim: int = 0) -> mujoco.MjData:
+        """A copy of simulation ``sim``'s state, with its derived quantities computed (for rendering, inspection)."""
+        model = self.batch.get_model(sim)
+        data = self.batch.get_data(sim)
+        mujoco.mj_forward(model, data)
+        return data
+
+    def reset(self, ids: np.ndarray, state: dict[str, np.ndarray]) -> None:
+        """Reset simulations ``ids`` to the model's defaults, write ``state`` (qpos, qvel, act, ctrl; (len(ids), ...))
+        and compute their derived quantities (sensordata among them)."""
+        b = self.batch
+        b.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        for name, value in state.items():
+            b.bind(name)[ids] = value
+        b.forward(ids)
+        self.substep_sensordata[ids] = self._sensordata[ids][:, None, :]
+
+    def step(self, ids: np.ndarray | None = None) -> np.ndarray:
+        """Run the control blocks of simulations ``ids`` (default all). (num_sims,) bool: False where one went
+        numerically unstable (MuJoCo stopped it; its episode should end); True for those not stepped."""
+        end = self._time + self._block_time
+        if ids is None:
+            self.batch.rollout(self.n_substeps, self.ctrl, CTRL_SPEC, record=("sensordata",), out=self._out)
+            return np.abs(self._time - end) < 0.5 * self.model.opt.timestep
+        stable = np.ones(self.num_sims, dtype=bool)
+        if len(ids):
+            out = self.batch.rollout(self.n_substeps, self.ctrl[ids], CTRL_SPEC, record=("sensordata",), ids=ids)
+            self.substep_sensordata[ids] = out["sensordata"]
+            stable[ids] = np.abs(self._time[ids] - end[ids]) < 0.5 * self.model.opt.timestep
+        return stable
+
+    def expand(self, field: str) -> np.ndarray:
+        """Per-simulation values of a model field, (num_sims, ...) (see ``Batch.expand``)."""
+        return self.batch.expand(field)
+
+    def set_const(self, ids: np.ndarray) -> None:
+        self.batch.set_const(ids)
+
+    def __getstate__(self):
+        raise TypeError(
+            "a batched simulation holds a thread pool and cannot be pickled; make the env again from its id "
+            "(gymnasium.make_vec) instead"
+        )

@@ -1,0 +1,160 @@
+"""Batched envs on mujoco.batch: the same results as single envs, Gymnasium's vector API, SB3's VecEnv, randomization
+per simulation, instability per simulation, telemetry, rendering."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import data_equivalence
+
+from tests.conftest import ENV_IDS
+
+N = 3
+
+
+def make_batched(env_id: str, n: int = N, **kwargs):
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+
+
+def make_singles(env_id: str, n: int = N, **kwargs):
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", **kwargs)
+
+
+def run(venv, actions: np.ndarray, seed: int):
+    obs, _ = venv.reset(seed=seed)
+    out = {"obs": [obs], "reward": [], "terminated": [], "truncated": [], "x": []}
+    for a in actions:
+        obs, reward, terminated, truncated, info = venv.step(a)
+        out["obs"].append(obs)
+        out["reward"].append(reward)
+        out["terminated"].append(terminated)
+        out["truncated"].append(truncated)
+        out["x"].append(np.where(info["_x_position"], info["x_position"], np.nan))
+    return {k: np.array(v) for k, v in out.items()}
+
+
+@pytest.mark.parametrize("nthread", [1, 2])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_resets(env_id, nthread):
+    duty = "Duty" in env_id
+    steps, limit = (150, 60) if duty else (40, 15)
+    kwargs = {"max_episode_steps": limit, "randomize": {"foot_friction": (0.3, 0.5), "battery_voltage": (3.4, 3.9)}}
+    singles, batched = make_singles(env_id, **kwargs), make_batched(env_id, nthread=nthread, **kwargs)
+    rng = np.random.default_rng(7)
+    actions = rng.uniform(-1, 1, (steps, N, singles.single_action_space.shape[0]))
+    a, b = run(singles, actions, seed=11), run(batched, actions, seed=11)
+    assert a["truncated"].sum() >= 2 * N, "the run crosses resets"
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_vector_info_carries_every_step_key_with_masks():
+    venv = make_batched("skitter/RoachTurn-v1", max_episode_steps=5)
+    venv.reset(seed=0)
+    for _ in range(5):
+        *_, info = venv.step(venv.action_space.sample())
+    assert {"reward_tracking", "_reward_tracking", "yaw_rate_command", "distance", "sim_unstable"} <= set(info)
+    *_, info = venv.step(venv.action_space.sample())  # every simulation resets in this call (next-step autoreset)
+    assert not info["_reward_tracking"].any() and info["_x_position"].all()
+
+
+def test_gymnasium_vector_checks_and_spaces(env_id=ENV_IDS[0]):
+    for env_id in ENV_IDS:
+        venv = make_batched(env_id)
+        single = gym.make(env_id)
+        assert venv.single_observation_space == single.observation_space
+        assert venv.single_action_space == single.action_space
+        assert venv.metadata["autoreset_mode"] == gym.vector.AutoresetMode.NEXT_STEP
+        obs, _ = venv.reset(seed=1)
+        assert venv.observation_space.contains(obs)
+        obs, reward, terminated, truncated, _ = venv.step(venv.action_space.sample())
+        assert obs.shape == (N, *single.observation_space.shape) and reward.shape == (N,)
+        assert terminated.dtype == truncated.dtype == np.bool_
+
+
+def test_reset_mask_resets_only_the_chosen_simulations():
+    venv = make_batched("skitter/RoachWalk-v1")
+    venv.reset(seed=0)
+    for _ in range(10):
+        before, *_ = venv.step(venv.action_space.sample())
+    obs, _ = venv.reset(options={"reset_mask": np.array([False, True, False])})
+    np.testing.assert_array_equal(obs[[0, 2]], before[[0, 2]])
+    assert not np.array_equal(obs[1], before[1])
+    with pytest.raises(ValueError, match="reset_mask"):
+        venv.reset(options={"reset_mask": np.zeros(N, dtype=bool)})
+
+
+def test_an_unstable_simulation_ends_its_own_episode_and_the_others_go_on():
+    venv = make_batched("skitter/RoachWalk-v1")
+    venv.reset(seed=0)
+    action = np.zeros((N, 3), dtype=np.float32)
+    venv.step(action)
+    venv.unwrapped.robot.sim.qvel[1] = 1e12
+    obs, reward, terminated, _, info = venv.step(action)
+    assert info["sim_unstable"].tolist() == [False, True, False]
+    assert terminated.tolist() == [False, True, False] and reward[1] == 0.0
+    assert np.isfinite(obs).all()
+    obs, reward, terminated, *_ = venv.step(action)  # simulation 1 resets, the others step
+    assert np.isfinite(obs).all() and not terminated.any()
+    assert reward[1] == 0.0 and reward[0] != 0.0
+
+
+def test_randomize_draws_per_simulation_through_the_batch_model_fields():
+    venv = make_batched("skitter/RoachWalk-v1", randomize={"foot_friction": (0.3, 0.5)})
+    venv.reset(seed=0)
+    drawn = [p["foot_friction"] for p in venv.unwrapped.parameter_values]
+    assert len(set(drawn)) == N
+    friction = venv.unwrapped.robot.sim.batch.expanded("geom_friction")
+    floor = venv.unwrapped.robot.model.geom("floor").id
+    np.testing.assert_array_equal(friction[:, floor, 0], drawn)
+
+
+def test_batched_motor_constants_follow_randomized_parameters():
+    venv = make_batched("skitter/RoachWalk-v1", randomize={"motor_resistance": (2.0, 6.0)})
+    venv.reset(seed=0)
+    robot = venv.unwrapped.robot
+    drawn = [p["motor_resistance"] for p in venv.unwrapped.parameter_values]
+    np.testing.assert_allclose(robot.motors.resistance[:, 0], drawn)
+
+
+def test_seeding_per_simulation():
+    venv = make_batched("skitter/RoachWalk-v1")
+    a, _ = venv.reset(seed=[5, 6, 7])
+    b, _ = venv.reset(seed=5)
+    np.testing.assert_array_equal(a, b)
+    c, _ = venv.reset(seed=6)
+    np.testing.assert_array_equal(a[1], c[0])
+
+
+def test_telemetry_per_simulation_and_render_one():
+    venv = make_batched("skitter/RoachWalk-v1", telemetry=True, render_mode="rgb_array", render_sim=2, width=160,
+                        height=120)  # fmt: skip
+    venv.reset(seed=0)
+    for _ in range(5):
+        venv.step(venv.action_space.sample())
+    recorders = venv.unwrapped.recorders
+    assert len(recorders) == N and all(len(r) == 6 for r in recorders)
+    frames = [r.frame() for r in recorders]
+    assert not data_equivalence(frames[0]["pos_y"].to_numpy(), frames[1]["pos_y"].to_numpy())
+    frame = venv.render()
+    assert frame.shape == (120, 160, 3) and frame.std() > 5
+
+
+def test_pickling_gives_a_clear_error():
+    import pickle
+
+    venv = make_batched("skitter/RoachWalk-v1")
+    with pytest.raises(TypeError, match="cannot be pickled"):
+        pickle.dumps(venv.unwrapped)
+
+
+@pytest.mark.parametrize("bad", [{"num_envs": 0}, {"num_envs": 2, "nthread": 0}, {"num_envs": 2, "render_sim": 5}])
+def test_bad_batch_arguments_are_refused(bad):
+    with pytest.raises(ValueError):
+        gym.make_vec("skitter/RoachWalk-v1", vectorization_mode="vector_entry_point", **bad)
+
+
+def test_threads_default_to_the_machines_cores():
+    import os
+
+    venv = make_batched("skitter/RoachWalk-v1")
+    assert venv.unwrapped.robot.sim.nthread == len(os.sched_getaffinity(0))
