@@ -25,12 +25,13 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import gymnasium as gym
 import numpy as np
+import pandas as pd
 
 import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
-from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episode, summarize
+from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
 from envs.common.io import atomic_write, write_json, write_text
-from envs.common.telemetry import read_telemetry
+from envs.common.telemetry import read_telemetry, write_telemetry
 
 
 class _Parser(argparse.ArgumentParser):
@@ -91,18 +92,29 @@ def slugs(specs: list[str]) -> dict[str, str]:
 
 
 def make_env(args, render: bool):
+    """All the episodes of a policy at once: a batched env of one simulation per episode (the same results as single
+    envs run one after another, tests/test_batch.py)."""
     limit = {"max_episode_steps": args.max_episode_steps} if args.max_episode_steps else {}
-    return gym.make(args.env, telemetry=True, render_mode="rgb_array" if render else None, **limit)
+    return gym.make_vec(
+        args.env,
+        num_envs=args.episodes,
+        vectorization_mode="vector_entry_point",
+        telemetry=True,
+        render_mode="rgb_array" if render else None,
+        **limit,
+    )
 
 
 def evaluate_policy(args, spec: str, policy, env, name: str, out: Path, scratch: Path) -> list[Episode]:
-    episodes = [
-        run_episode(env, policy, seed=args.seed + i, deterministic=not args.stochastic, render=args.video and i == 0)
-        for i in range(args.episodes)
-    ]
-    recorder = env.unwrapped.recorder
+    seeds = [args.seed + i for i in range(args.episodes)]
+    episodes = run_episodes(env, policy, seeds, deterministic=not args.stochastic, render_first=args.video)
+    base = env.unwrapped
+    # each simulation's first episode is the evaluation's episode i
+    frames = [rec.frame().query("episode == 0").assign(episode=i) for i, rec in enumerate(base.recorders)]
     telemetry_path = (out / "telemetry" if args.telemetry else scratch) / f"{name}.parquet"
-    recorder.save(telemetry_path, controller=spec, env_id=args.env, seeds=[e.seed for e in episodes])
+    meta = {**base.recorders[0].meta, "controller": spec, "env_id": args.env, "seeds": seeds}
+    meta.pop("simulation", None)
+    write_telemetry(telemetry_path, pd.concat(frames, ignore_index=True), meta)
     plot_episode(
         env.unwrapped.robot, telemetry_path, out / "plots" / f"{name}.png", f"{spec} on {args.env}, seed {args.seed}"
     )

@@ -92,6 +92,50 @@ def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, rend
     return Episode(seed, steps, steps * env.unwrapped.dt, metrics, unstable, frames)
 
 
+def run_episodes(
+    venv, policy: Policy, seeds: list[int], deterministic: bool = True, render_first: bool = False
+) -> list[Episode]:
+    """Run one episode per seed at once, simulation i with seed ``seeds[i]``, on a batched env of ``len(seeds)``
+    simulations; the same episodes :func:`run_episode` runs one after another (a batched env gives each simulation
+    a single env's results). Each simulation's first episode counts; what it does after it ends is not used."""
+    base = venv.unwrapped
+    n = base.num_envs
+    if n != len(seeds):
+        raise ValueError(f"{len(seeds)} seeds for {n} simulations")
+    obs, info = venv.reset(seed=list(seeds))
+    state, start = None, np.ones(n, dtype=bool)
+    running = np.ones(n, dtype=bool)
+    totals, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
+    last: list[dict[str, Any]] = [_row(info, i) for i in range(n)]
+    fallen, unstable = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    frames = [venv.render()] if render_first else []
+    while running.any():
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=deterministic)
+        start = np.zeros(n, dtype=bool)
+        obs, reward, terminated, truncated, info = venv.step(action)
+        totals[running] += reward[running]
+        steps[running] += 1
+        if render_first and running[0]:
+            frames.append(venv.render())
+        for i in np.flatnonzero(running):
+            if info["sim_unstable"][i]:
+                unstable[i] = True
+            else:
+                last[i] = _row(info, i)
+                fallen[i] = bool(info["fallen"][i])
+        running &= ~(terminated | truncated)
+    return [
+        Episode(seed, int(steps[i]), int(steps[i]) * base.dt, episode_metrics(venv, totals[i], last[i], fallen[i]),
+                bool(unstable[i]), frames if i == 0 else [])
+        for i, seed in enumerate(seeds)
+    ]  # fmt: skip
+
+
+def _row(info: Mapping[str, Any], i: int) -> dict[str, Any]:
+    """Simulation i's entries of a vector info."""
+    return {k: v[i] for k, v in info.items() if not k.startswith("_") and info[f"_{k}"][i]}
+
+
 def bootstrap_ci(values: np.ndarray, confidence: float = 0.95, seed: int = 0) -> tuple[float, float]:
     """95% bootstrap interval of the mean (BCa; percentile if BCa is undefined, e.g. all values equal)."""
     x = np.asarray(values, dtype=float)

@@ -124,7 +124,8 @@ class SB3Policy:
         else:
             raise ModelFileError(f"{path}: not a loadable PPO, SAC or TD3 model ({'; '.join(errors)})")
         if env is not None:
-            want, have = env.observation_space.shape, self.model.observation_space.shape
+            space = getattr(env, "single_observation_space", env.observation_space)  # a batched env's, per simulation
+            want, have = space.shape, self.model.observation_space.shape
             if want != have:
                 raise ModelFileError(
                     f"{path}: the model observes {have} but {env.spec.id if env.spec else 'the env'} gives {want} "

@@ -158,3 +158,67 @@ def test_threads_default_to_the_machines_cores():
 
     venv = make_batched("skitter/RoachWalk-v1")
     assert venv.unwrapped.robot.sim.nthread == len(os.sched_getaffinity(0))
+
+
+def test_gymnasium_vector_wrappers_work_on_it():
+    from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
+
+    venv = DictInfoToList(RecordEpisodeStatistics(make_batched("skitter/RoachWalk-v1", max_episode_steps=4)))
+    venv.reset(seed=0)
+    for _ in range(4):
+        *_, infos = venv.step(venv.action_space.sample())
+    assert isinstance(infos, list) and len(infos) == N
+    assert all("episode" in info and info["episode"]["l"] == 4 for info in infos)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sb3_vec_env_trains_ppo_on_every_id(env_id):
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents.vec_env import make_batched_vec_env
+
+    vec = VecNormalize(make_batched_vec_env(env_id, 2, seed=0, env_kwargs={"max_episode_steps": 24}))
+    model = PPO("MlpPolicy", vec, n_steps=32, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.learn(64)
+    assert model.num_timesteps == 64
+    assert len(model.ep_info_buffer) >= 2, "VecMonitor saw the episodes end"
+    obs = vec.reset()
+    assert obs.shape == (2, *vec.observation_space.shape)
+
+
+def test_sb3_vec_env_resets_finished_envs_in_the_same_step():
+    from agents.vec_env import SkitterVecEnv
+
+    vec = SkitterVecEnv(make_batched("skitter/RoachWalk-v1", n=2, max_episode_steps=3))
+    vec.seed(4)
+    obs = vec.reset()
+    for _ in range(3):
+        obs, _, done, infos = vec.step(np.zeros((2, 3), dtype=np.float32))
+    assert done.all()
+    for i, info in enumerate(infos):
+        assert info["TimeLimit.truncated"] and "distance" in info
+        assert not np.array_equal(info["terminal_observation"], obs[i]), "the returned observation starts anew"
+    single = gym.make("skitter/RoachWalk-v1", max_episode_steps=3)
+    single.reset(seed=4)
+    for _ in range(3):
+        single.step(np.zeros(3, dtype=np.float32))
+    again, _ = single.reset()
+    np.testing.assert_array_equal(again, obs[0])
+
+
+@pytest.mark.parametrize("env_id", ["skitter/RoachTurn-v1", "skitter/RoachWalkDuty-v1"])
+def test_episodes_run_together_match_episodes_run_one_by_one(env_id):
+    """evaluate.py runs a policy's episodes as one batch: the metrics equal those of single envs, seed by seed."""
+    from agents import load_policy
+    from agents.evaluation import run_episode, run_episodes
+
+    limit = 70 if "Duty" not in env_id else 300
+    seeds = [3, 4, 5]
+    venv = make_batched(env_id, n=3, max_episode_steps=limit)
+    together = run_episodes(venv, load_policy("tripod", venv), seeds)
+    single = gym.make(env_id, max_episode_steps=limit)
+    for episode, seed in zip(together, seeds, strict=True):
+        alone = run_episode(single, load_policy("tripod", single), seed)
+        np.testing.assert_equal(episode.metrics, alone.metrics)
+        assert episode.length == alone.length == limit

@@ -233,3 +233,20 @@ def test_bad_input_is_a_one_line_error(case, tmp_path):
     for text in expected:
         assert text in result.stderr
     assert not (tmp_path / "runs").exists()
+
+
+def test_batched_and_dummy_vec_envs_train_the_same_model(tmp_path):
+    """The batched env gives each simulation exactly a single env's results, so PPO learns the same weights."""
+    import torch
+
+    weights = {}
+    for vec_env in ("batched", "dummy"):
+        hyperparams = tmp_path / f"{vec_env}.yml"
+        hyperparams.write_text(f"{WALK}:\n  n_envs: 2\n  n_steps: 64\n  batch_size: 64\n  n_epochs: 2\n"
+                               f"  normalize: true\n  vec_env: {vec_env}\n")  # fmt: skip
+        runs = tmp_path / vec_env
+        train_ok("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--runs-dir", runs, "--hyperparams", hyperparams)
+        (run_dir,) = runs.iterdir()
+        weights[vec_env] = SB3Policy(run_dir / "model.zip").model.policy.state_dict()
+    for name, tensor in weights["batched"].items():
+        assert torch.equal(tensor, weights["dummy"][name]), name

@@ -41,8 +41,15 @@ class ImuNoise:
         return self.accel_noise_density * math.sqrt(self.sample_rate / 2.0)
 
 
+NOISE_BLOCK = 128  # control steps of noise drawn at once per simulation (one generator call instead of 128)
+
+
 class Imu:
     """Noisy gyro and accelerometer readings and an integrated-gyro heading, for ``n`` simulations.
+
+    Each simulation's noise comes from its own generator, drawn a block of ``NOISE_BLOCK`` steps at a time (at reset,
+    and again when a block is used up), so that a simulation's random stream is the same whether it runs alone or in
+    a batch, at a fraction of the cost of a generator call per simulation and step.
 
     Args:
         n: number of simulations.
@@ -54,21 +61,45 @@ class Imu:
         self.gyro_bias = np.zeros((n, 3))
         self.heading = np.zeros(n)
         self._bias = np.zeros((n, 6))  # gyro bias, then zeros for the accelerometer
+        self._rows = np.arange(n)
         if noise is not None:
-            self._sigma = np.array([noise.gyro_sample_sigma] * 3 + [noise.accel_sample_sigma] * 3)
+            self._scale = np.array(
+                [noise.gyro_sample_sigma] * 3 + [noise.accel_sample_sigma] * 3 + [noise.gyro_noise_density]
+            )
+            self._block = np.zeros((n, NOISE_BLOCK, 7))
+            self._next = np.full(n, NOISE_BLOCK)
 
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
         self.heading[ids] = 0.0
         for i, rng in zip(ids, rngs, strict=True):
-            self.gyro_bias[i] = rng.normal(0.0, self.noise.gyro_bias_sigma, 3) if self.noise else 0.0
+            if self.noise is None:
+                continue
+            self.gyro_bias[i] = rng.normal(0.0, self.noise.gyro_bias_sigma, 3)
+            self._block[i] = rng.standard_normal((NOISE_BLOCK, 7)) * self._scale
+            self._next[i] = 0
         self._bias[:, :3] = self.gyro_bias
+
+    def _draw(self, rngs: Sequence[np.random.Generator | None]) -> np.ndarray:
+        """This step's noise (n, 7): gyro and accelerometer sample noise, and the heading's white-noise density.
+        A simulation whose generator is None draws nothing (its row is not used)."""
+        spent = np.flatnonzero(self._next >= NOISE_BLOCK)
+        for i in spent:
+            if rngs[i] is not None:
+                self._block[i] = rngs[i].standard_normal((NOISE_BLOCK, 7)) * self._scale
+                self._next[i] = 0
+        draws = self._block[self._rows, np.minimum(self._next, NOISE_BLOCK - 1)]
+        if None in rngs:
+            self._next += np.array([r is not None for r in rngs])
+        else:
+            self._next += 1
+        return draws
 
     def update(
         self,
         imu: np.ndarray,
         gyro_z: np.ndarray,
         physics_dt: float,
-        rngs: Sequence[np.random.Generator],
+        rngs: Sequence[np.random.Generator | None],
         step_time: float,
         stepped: bool | np.ndarray = True,
     ) -> np.ndarray:
@@ -76,14 +107,12 @@ class Imu:
         step of ``step_time`` from the true z rate at every physics step (``gyro_z``, (n, substeps)); only where
         ``stepped`` (False, or False per simulation, right after a reset)."""
         if self.noise is not None:
-            draws = (
-                rngs[0].standard_normal((1, 7)) if len(rngs) == 1 else np.array([r.standard_normal(7) for r in rngs])
-            )
+            draws = self._draw(rngs)
         if stepped is not False:
             change = gyro_z.sum(axis=1) * physics_dt + self.gyro_bias[:, 2] * (gyro_z.shape[1] * physics_dt)
             if self.noise is not None:
-                change = change + draws[:, 6] * (self.noise.gyro_noise_density * math.sqrt(step_time))
+                change = change + draws[:, 6] * math.sqrt(step_time)
             self.heading += change if stepped is True else np.where(stepped, change, 0.0)
         if self.noise is None:
             return imu.copy()
-        return imu + self._bias + draws[:, :6] * self._sigma
+        return imu + self._bias + draws[:, :6]

@@ -63,7 +63,6 @@ class SkitterVectorEnv(VectorEnv):
         self.action_space = batch_space(env.action_space, n)
         self.observation_space = batch_space(env.observation_space, n)
         self.rngs: list[np.random.Generator] = [seeding.np_random()[0] for _ in range(n)]
-        self._scratch = np.random.default_rng(0)
         self.parameter_values: list[dict[str, float]] = [{} for _ in range(n)]
         self.recorders = (
             [
@@ -75,6 +74,7 @@ class SkitterVectorEnv(VectorEnv):
         )
         self._steps = np.zeros(n, dtype=np.int64)
         self._needs_reset = np.zeros(n, dtype=bool)
+        self._no_ids = np.zeros(0, dtype=np.int64)
         self._obs = np.zeros((n, env.observation_space.shape[0]))
         self._render_model: mujoco.MjModel | None = None
         self._renderer = None
@@ -108,15 +108,15 @@ class SkitterVectorEnv(VectorEnv):
             bad = int(np.flatnonzero(~np.isfinite(actions).all(axis=1))[0])
             raise ValueError(f"actions must be finite; simulation {bad} got {actions[bad]}")
         resetting = self._needs_reset.copy()
-        stepping = np.flatnonzero(~resetting)
-        self.robot.command(self.robot.mode.to_command(actions))
-        stable = self.robot.step(stepping if resetting.any() else None)
-        reset_ids = np.flatnonzero(resetting)
-        if len(reset_ids):
-            self._reset_robot(reset_ids, None)
+        any_reset = bool(resetting.any())
         stepped = ~resetting
-        readings = self.robot.read(self.rngs, stepped if resetting.any() else True)
-        if len(reset_ids):
+        self.robot.command(self.robot.mode.to_command(actions))
+        stable = self.robot.step(np.flatnonzero(stepped) if any_reset else None)
+        reset_ids = np.flatnonzero(resetting) if any_reset else self._no_ids
+        if any_reset:
+            self._reset_robot(reset_ids, None)
+        readings = self.robot.read(self.rngs, stepped if any_reset else True)
+        if any_reset:
             self.task.reset(reset_ids, [self.rngs[i] for i in reset_ids], None, readings)
         state = self.task.update(readings)
         terms = self.task.reward_terms(state)
@@ -128,7 +128,7 @@ class SkitterVectorEnv(VectorEnv):
         obs[unstable] = self._obs[unstable]
         reward = np.where(stepped & stable, reward, 0.0)
         terminated = (terminated | unstable) & stepped
-        self._steps[stepped] += 1
+        self._steps += stepped
         self._steps[reset_ids] = 0
         truncated = np.zeros(n, dtype=bool)
         if self.max_episode_steps is not None:
@@ -142,8 +142,9 @@ class SkitterVectorEnv(VectorEnv):
 
     def _reset(self, ids: np.ndarray, options: Mapping | None) -> dict[str, np.ndarray]:
         self._reset_robot(ids, options)
-        # the simulations not reset keep their state and their random streams: their readings here are not used
-        rngs = [self.rngs[i] if reset else self._scratch for i, reset in enumerate(self._mask(ids, True))]
+        # the simulations not reset keep their state and their random streams (None: draw nothing); their readings
+        # here are not used
+        rngs = [self.rngs[i] if reset else None for i, reset in enumerate(self._mask(ids, True))]
         readings = self.robot.read(rngs, False)
         self.task.reset(ids, [self.rngs[i] for i in ids], options, readings)
         self._obs[ids] = self.task.observe(readings)[ids]
@@ -179,28 +180,30 @@ class SkitterVectorEnv(VectorEnv):
 
     def _infos(self, readings, state, terms, fallen, reset_ids, unstable=None) -> dict[str, np.ndarray]:
         """Gymnasium's vector info: an array per key, and ``_key`` marking the simulations that have it. The step's
-        quantities and reward terms are absent for simulations that reset in this call."""
+        quantities and reward terms are absent for simulations that reset in this call (and unstable ones)."""
         n = self.num_envs
-        has_step = self._mask(reset_ids, False) if state else np.zeros(n, dtype=bool)
-        unstable = np.zeros(n, dtype=bool) if unstable is None else unstable
         everyone = np.ones(n, dtype=bool)
-        infos: dict[str, np.ndarray] = {}
-
-        def put(key: str, value: np.ndarray, mask: np.ndarray) -> None:
-            infos[key], infos[f"_{key}"] = value, mask
-
-        put("x_position", readings["position"][:, 0], everyone)
-        put("y_position", readings["position"][:, 1], everyone)
-        put("z_position", readings["position"][:, 2], everyone)
-        put("quaternion", readings["quaternion"], everyone)
-        put("time", readings["time"], everyone)
-        put("sim_unstable", unstable, everyone)
-        put("fallen", np.asarray(fallen, dtype=bool), everyone)
-        good = has_step & ~unstable
-        for key, value in state.items():
-            put(key, np.asarray(value), good)
-        for key, value in terms.items():
-            put(f"reward_{key}", np.asarray(value), good)
+        unstable = np.zeros(n, dtype=bool) if unstable is None else unstable
+        pos = readings["position"]
+        infos: dict[str, np.ndarray] = {
+            "x_position": pos[:, 0],
+            "y_position": pos[:, 1],
+            "z_position": pos[:, 2],
+            "quaternion": readings["quaternion"],
+            "time": readings["time"],
+            "sim_unstable": unstable,
+            "fallen": np.asarray(fallen, dtype=bool),
+        }
+        masks = {f"_{key}": everyone for key in infos}
+        if state:
+            good = ~unstable
+            if len(reset_ids):
+                good = good & self._mask(reset_ids, False)
+            for key, value in state.items():
+                infos[key], masks[f"_{key}"] = value, good
+            for key, value in terms.items():
+                infos[f"reward_{key}"], masks[f"_reward_{key}"] = value, good
+        infos.update(masks)
         return infos
 
     # --- seeding, rendering, metadata ------------------------------------------------------------------------------
