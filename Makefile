@@ -7,8 +7,8 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.skitter-installed
 export MUJOCO_GL ?= egl
 
-# demo budget: PPO on RoachWalk for DEMO_STEPS environment steps (about 9 minutes at ~925 steps/s on these
-# machines), then 10 evaluation episodes each of the trained policy and the tripod gait. Each demo makes a new run
+# demo budget: PPO on RoachWalk for DEMO_STEPS environment steps (the batched env on both cores), then 10 evaluation
+# episodes each of the trained policy and the tripod gait. Each demo makes a new run
 # folder and a new results folder; nothing earlier is replaced.
 DEMO_STEPS ?= 500000
 DEMO_EPISODES ?= 10
@@ -39,6 +39,8 @@ demo: setup
 
 bench: setup
 	$(BIN)/python -m benchmarks.env_speed
+	$(BIN)/python -m benchmarks.batch_speed
+	$(BIN)/python -m benchmarks.train_speed
 	$(BIN)/python -m benchmarks.realtime
 	$(BIN)/python -m benchmarks.speed_vs_frequency
 	$(BIN)/python -m benchmarks.turn_table

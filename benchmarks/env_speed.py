@@ -6,8 +6,9 @@ same start with those controls, one native call per control step: ``mj_step(mode
 controls are constant (duty mode), ``mujoco.rollout`` of the block where they change within it (gait mode: the
 firmware's clock ramps). The ratio env/raw is the cost of everything we add in Python (actions, firmware, sensors,
 observation, reward, info, wrappers). The whole recorded run in one ``mujoco.rollout`` call (no Python between
-control steps at all) is reported beside it. Rounds alternate env and raw and the best of each is kept, since these
-machines are shared. Gymnasium's Ant-v5 is measured the same way for comparison. Goal: ratio >= 0.9.
+control steps at all) is reported beside it. These machines are shared and their speed drifts, so the env and the
+raw loop alternate in short rounds and the ratio is the median of the rounds' ratios (the rates shown are the best
+rounds'). Gymnasium's Ant-v5 is measured the same way for comparison. Goal: ratio >= 0.9.
 
 Run: ``python -m benchmarks.env_speed``.
 """
@@ -108,17 +109,18 @@ def measure_skitter(env_id: str, steps: int, rounds: int) -> dict:
         sps, raw_final = time_raw(model, start, blocks, resets)
         raw_sps.append(sps)
         one_sps.append(time_one_call(model, start, blocks))
-    best_env, best_raw = max(env_sps), max(raw_sps)
+    ratios = np.array(env_sps) / np.array(raw_sps)
     return {
         "same_trajectory": bool(np.array_equal(final, raw_final)),
         "env_id": env_id,
         "substeps": base.robot.n_substeps,
-        "env_steps_per_s": best_env,
-        "raw_steps_per_s": best_raw,
-        "ratio": best_env / best_raw,
+        "env_steps_per_s": max(env_sps),
+        "raw_steps_per_s": max(raw_sps),
+        "ratio": float(np.median(ratios)),
+        "ratio_rounds": ratios.tolist(),
         "one_call_steps_per_s": max(one_sps),
-        "ratio_to_one_call": best_env / max(one_sps),
-        "physics_steps_per_s_raw": best_raw * base.robot.n_substeps,
+        "ratio_to_one_call": float(np.median(np.array(env_sps) / np.array(one_sps))),
+        "physics_steps_per_s_raw": max(raw_sps) * base.robot.n_substeps,
     }
 
 
@@ -144,15 +146,15 @@ def measure_ant(steps: int, rounds: int) -> dict | None:
         "substeps": u.frame_skip,
         "env_steps_per_s": max(env_sps),
         "raw_steps_per_s": max(raw_sps),
-        "ratio": max(env_sps) / max(raw_sps),
+        "ratio": float(np.median(np.array(env_sps) / np.array(raw_sps))),
         "physics_steps_per_s_raw": max(raw_sps) * u.frame_skip,
     }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000, help="control steps per timing (duty envs: x10)")
-    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--steps", type=int, default=600, help="control steps per round (duty envs: x10)")
+    parser.add_argument("--rounds", type=int, default=9)
     args = parser.parse_args()
     ids = sorted(k for k in gym.registry if k.startswith("skitter/"))
     rows = []
@@ -190,6 +192,7 @@ def main() -> None:
     )
     text = (
         "# Env speed against raw stepping (same model, same controls, same run)\n\n"
+        "ratio: the median over alternating rounds of env/raw steps per second.\n"
         "raw: one native call per control step (mj_step with constant controls, mujoco.rollout of the block when the "
         "controls ramp within it). 'same run?': whether the raw loop ended in exactly the env's state. Last column: "
         "against the whole run in a single rollout call.\n\n" + table

@@ -141,7 +141,9 @@ class DCMotors:
         the block's start, one per physics step, shaped (1, substeps, 1)), with ``rate`` as the velocity setpoint."""
         g = self.gear
         motor_rate = (rate * g)[:, None, :]
-        ctrl[:, :, self._pos] = (start * g)[:, None, :] + motor_rate * times
+        ramp = np.multiply(motor_rate, times)
+        ramp += (start * g)[:, None, :]
+        ctrl[:, :, self._pos] = ramp
         if self.pid is not None and self.pid.velocity_setpoint:
             ctrl[:, :, self._vel] = motor_rate
 

@@ -54,40 +54,44 @@ class Imu:
     Args:
         n: number of simulations.
         noise: the error model, or None for a perfect IMU.
+        step_time: the control step, s (the heading's random walk accumulates over it).
+        substep_time: the physics step, s (the heading integrates the gyro at every one).
     """
 
-    def __init__(self, n: int, noise: ImuNoise | None):
+    def __init__(self, n: int, noise: ImuNoise | None, step_time: float, substep_time: float):
         self.noise = noise
         self.gyro_bias = np.zeros((n, 3))
         self.heading = np.zeros(n)
         self._bias = np.zeros((n, 6))  # gyro bias, then zeros for the accelerometer
+        self._bias_step = np.zeros(n)  # the heading the z bias adds over a control step
+        self._step_time, self._substep_time = step_time, substep_time
         self._rows = np.arange(n)
         if noise is not None:
-            self._scale = np.array(
-                [noise.gyro_sample_sigma] * 3 + [noise.accel_sample_sigma] * 3 + [noise.gyro_noise_density]
-            )
-            self._block = np.zeros((n, NOISE_BLOCK, 7))
+            walk = noise.gyro_noise_density * math.sqrt(step_time)  # the heading's random walk over a step
+            self._scale = np.array([noise.gyro_sample_sigma] * 3 + [noise.accel_sample_sigma] * 3 + [walk])
+            self._block = np.zeros((n, NOISE_BLOCK + 1, 7))  # a spare row of zeros past the end
             self._next = np.full(n, NOISE_BLOCK)
 
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
         self.heading[ids] = 0.0
+        if self.noise is None:
+            return
         for i, rng in zip(ids, rngs, strict=True):
-            if self.noise is None:
-                continue
             self.gyro_bias[i] = rng.normal(0.0, self.noise.gyro_bias_sigma, 3)
-            self._block[i] = rng.standard_normal((NOISE_BLOCK, 7)) * self._scale
+            self._block[i, :NOISE_BLOCK] = rng.standard_normal((NOISE_BLOCK, 7)) * self._scale
             self._next[i] = 0
         self._bias[:, :3] = self.gyro_bias
+        self._bias_step = self.gyro_bias[:, 2] * self._step_time
 
     def _draw(self, rngs: Sequence[np.random.Generator | None]) -> np.ndarray:
-        """This step's noise (n, 7): gyro and accelerometer sample noise, and the heading's white-noise density.
-        A simulation whose generator is None draws nothing (its row is not used)."""
-        spent = np.flatnonzero(self._next >= NOISE_BLOCK)
-        for i in spent:
-            if rngs[i] is not None:
-                self._block[i] = rngs[i].standard_normal((NOISE_BLOCK, 7)) * self._scale
-                self._next[i] = 0
-        draws = self._block[self._rows, np.minimum(self._next, NOISE_BLOCK - 1)]
+        """This step's noise (n, 7): gyro and accelerometer sample noise, and the heading's random walk. A simulation
+        whose generator is None draws nothing (its row is not used)."""
+        if np.count_nonzero(self._next >= NOISE_BLOCK):
+            for i in np.flatnonzero(self._next >= NOISE_BLOCK):
+                if rngs[i] is not None:
+                    self._block[i, :NOISE_BLOCK] = rngs[i].standard_normal((NOISE_BLOCK, 7)) * self._scale
+                    self._next[i] = 0
+        draws = self._block[self._rows, self._next]  # a used-up block that draws nothing reads its row of zeros
         if None in rngs:
             self._next += np.array([r is not None for r in rngs])
         else:
@@ -98,20 +102,18 @@ class Imu:
         self,
         imu: np.ndarray,
         gyro_z: np.ndarray,
-        physics_dt: float,
         rngs: Sequence[np.random.Generator | None],
-        step_time: float,
         stepped: bool | np.ndarray = True,
     ) -> np.ndarray:
         """Noisy gyro and accelerometer (n, 6) from the true ones (n, 6), after advancing the heading over a control
-        step of ``step_time`` from the true z rate at every physics step (``gyro_z``, (n, substeps)); only where
-        ``stepped`` (False, or False per simulation, right after a reset)."""
+        step from the true z rate at every physics step (``gyro_z``, (n, substeps)); only where ``stepped`` (False,
+        or False per simulation, right after a reset)."""
         if self.noise is not None:
             draws = self._draw(rngs)
         if stepped is not False:
-            change = gyro_z.sum(axis=1) * physics_dt + self.gyro_bias[:, 2] * (gyro_z.shape[1] * physics_dt)
+            change = gyro_z.sum(axis=1) * self._substep_time + self._bias_step
             if self.noise is not None:
-                change = change + draws[:, 6] * math.sqrt(step_time)
+                change += draws[:, 6]
             self.heading += change if stepped is True else np.where(stepped, change, 0.0)
         if self.noise is None:
             return imu.copy()

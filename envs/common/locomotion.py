@@ -57,10 +57,12 @@ class LocomotionTask(Task):
         n = robot.num_sims
         self.length = robot.facts.length
         # per simulation: x, y, yaw at the end of the last step; x and time at reset; the episode's running sums
-        self._x, self._y, self._yaw, self._x0, self._t0 = (np.zeros(n) for _ in range(5))
+        self._xy = np.zeros((n, 2))
+        self._yaw, self._x0, self._t0 = (np.zeros(n) for _ in range(3))
         self._distance, self._energy_used, self._yaw_travel, self._yaw_warmup = (np.zeros(n) for _ in range(4))
         self._heading_error = np.zeros(n)
         self._dt = robot.control_dt
+        self._rate = 1.0 / robot.control_dt
         super().__init__(robot)
 
     # --- layout -------------------------------------------------------------------------------------------------
@@ -89,8 +91,7 @@ class LocomotionTask(Task):
         self._draw_command(ids, rngs, options)
         pos, quat = readings["position"][ids], readings["quaternion"][ids]
         for name, value in (
-            ("_x", pos[:, 0]),
-            ("_y", pos[:, 1]),
+            ("_xy", pos[:, :2]),
             ("_yaw", quat_yaw(quat)),
             ("_x0", pos[:, 0]),
             ("_t0", readings["time"][ids]),
@@ -108,12 +109,12 @@ class LocomotionTask(Task):
         dt = self._dt
         pos, quat, time = readings["position"], readings["quaternion"], readings["time"]
         w, x, y, z = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
-        px, py = pos[:, 0], pos[:, 1]
+        px = pos[:, 0]
         yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-        x_velocity = (px - self._x) / dt
-        y_velocity = (py - self._y) / dt
+        velocity = (pos[:, :2] - self._xy) * self._rate
+        x_velocity, y_velocity = velocity[:, 0], velocity[:, 1]
         yaw_step = wrap(yaw - self._yaw)
-        self._x, self._y, self._yaw = px, py, yaw
+        self._xy, self._yaw = pos[:, :2], yaw
         speed = np.cos(yaw) * x_velocity + np.sin(yaw) * y_velocity
         elapsed = time - self._t0
         # running sums, rebound (not updated in place) so that a state handed out keeps its values

@@ -151,10 +151,9 @@ class VelociRoach(Robot):
         self.clock = np.zeros((n, 2))  # firmware leg clocks, rad at the leg (gait mode)
         self.phase = np.full(n, C.STRAIGHT_PHASE)  # firmware's current left/right phase
         self.last_duty = np.zeros((n, 2))  # duty mode: the duty of the last command
-        self.imu = Imu(n, self.imu_noise)
+        self.imu = Imu(n, self.imu_noise, self.control_dt, float(m.opt.timestep))
         self._senses = np.zeros((n, sum(self.sense_structure.values())))
         self._imu = np.zeros((n, 6))  # the last (noisy) gyro and accelerometer readings
-        self._physics_dt = float(m.opt.timestep)
         self._substep_times = (np.arange(1, self.n_substeps + 1) * float(m.opt.timestep))[None, :, None]
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
@@ -302,7 +301,7 @@ class VelociRoach(Robot):
             power = self.motors.battery_power(sub[:, :, :2], sub[:, :, 2:4]).sum(axis=(1, 2)) / self.n_substeps
             if stepped is not True:
                 power = np.where(stepped, power, 0.0)
-        imu = self.imu.update(v[:, 4:10], sub[:, :, 4], self._physics_dt, rngs, self.control_dt, stepped)
+        imu = self.imu.update(v[:, 4:10], sub[:, :, 4], rngs, stepped)
         self._imu = imu
         senses = self._senses
         senses[:, 0:2] = np.cos(v[:, 0:2])
