@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -30,7 +29,7 @@ import pandas as pd
 import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
 from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
-from envs.common.io import atomic_write, write_json, write_text
+from envs.common.io import atomic_write, publish_folder, write_json, write_text
 from envs.common.telemetry import read_telemetry, write_telemetry
 
 
@@ -214,17 +213,6 @@ def report(
     return "\n".join(lines) + "\n"
 
 
-def publish(tmp: Path, out: Path) -> None:
-    """Put the finished results folder in place of ``out`` (renames; the earlier results go only once it is in)."""
-    if out.exists():
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
-        os.replace(out, old)
-        os.replace(tmp, out)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(tmp, out)
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     out: Path = args.out
@@ -274,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
             },
         )
         write_text(staging / "results.md", text)
-        publish(staging, out)
+        publish_folder(staging, out)
     print(text)
     extra = (" videos/" if args.video else "") + (" telemetry/" if args.telemetry else "")
     print(f"results in {out}/ (results.json, results.md, plots/{extra})")

@@ -56,6 +56,20 @@ def json_default(obj: Any) -> Any:
     raise TypeError(f"cannot write {type(obj).__name__} as JSON")
 
 
+def publish_folder(tmp: str | Path, out: str | Path) -> None:
+    """Put a finished folder in place of ``out`` by renames; an earlier ``out`` goes only once the new one is in."""
+    import shutil
+
+    tmp, out = Path(tmp), Path(out)
+    if out.exists():
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        os.replace(out, old)
+        os.replace(tmp, out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(tmp, out)
+
+
 def refuse_overwrite(path: str | Path, what: str = "file") -> Path:
     """Raise a clear error if ``path`` exists: we never overwrite a user's file silently."""
     path = Path(path)

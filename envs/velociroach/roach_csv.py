@@ -111,6 +111,8 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
     ``time`` comes from the file's time column. Columns after the 16 standard ones (e.g. the shell sensors S1..S8)
     are kept raw, as integers, under their own names.
 
+    Header lines start with ``%``, or (the lab's older scripts) are wrapped in double quotes, ``"% ... "``.
+
     A malformed file raises ``ValueError`` naming the file, the line and the offending field or value. A malformed
     data row (a field that is not an integer, the wrong number of fields, time not increasing) raises as well, unless
     ``skip_bad_rows`` is true: then the row is left out, a warning is issued, and the record's ``skipped_rows`` lists
@@ -128,6 +130,8 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
         stripped = line.strip()
         if not stripped:
             continue
+        if stripped.startswith('"%'):  # the dialect of the lab's older scripts: header lines in double quotes
+            stripped = stripped[1:-1] if stripped.endswith('"') and len(stripped) > 2 else stripped[1:]
         if stripped.startswith("%"):
             header.append((number, stripped[1:].strip(), line.rstrip("\r\n")))
         else:

@@ -1,0 +1,429 @@
+"""Calibration adapters of the bench rigs: the seed's gearmotor (``--robot motor``) and the AX-12 servo
+(``--robot servo``) replayed against their logs.
+
+Both rigs measure the output shaft. Their effects:
+
+| effect | motor | servo | applied as |
+|---|---|---|---|
+| delay | x | x | the command shifted in time (as MuJoCo's actuator delay would; whole physics steps) |
+| coulomb_friction, viscous_friction, armature | x | x | the shaft's frictionloss, damping, armature |
+| backlash | x | x | a second hinge on the load, free within +-gap/2 of the driven one (spec edit) |
+| deadband | x | | the driver outputs nothing below a duty threshold |
+| torque_constant, back_emf_constant, supply_voltage | x | supply only | the motor formula's Kt, Ks, Vs |
+| supply_sag | x | | the supply's internal resistance: d^2 Rs added to the formula's d^2 Ramp |
+| pwm_decay | x | | the bridge coasts through a fraction of the off-time: the back-EMF term scaled by 1 - m (1 - d) |
+| servo_gain | | x | the amplifier's gain (compliance slope) |
+| sensor_gain (angle), sensor_bias (speed) | x | | on the predicted channel |
+| sensor_bias (position) | | x | on the predicted channel, counts |
+
+A servo log without its goal (the AX-12A step file) gets the goal as a nuisance: its level at the log's start, and
+for each move between plateaus of the position (and a move still under way at the log's end) a step of fitted time
+and level (smooth: the step is spread over the physics step it falls in).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pandas as pd
+
+from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
+from envs.actuators.motor import MotorConstants
+from envs.bench.robot import JOINT, MotorRig, ServoRig
+from sysid import effects as E
+from sysid.effects import Effect, Param
+from sysid.logs import Log
+from sysid.problem import Adapter, Segment, Setting
+
+PLAY = "play"
+SERVO_TOP_SPEED = "servo top speed: viscous friction / supply voltage"
+
+
+def add_backlash(gap: float, rotor_inertia: float):
+    """Spec edit: the load gets a second hinge ``play``, limited to +-gap/2, on the driven shaft's axis; the driven
+    joint keeps a rotor inertia of its own, so that the load is free within the gap."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        load = spec.body("load")
+        joint = load.add_joint(name=PLAY, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+        joint.range = [-gap / 2, gap / 2]
+        joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        spec.joint(JOINT).armature += rotor_inertia
+        spec.add_sensor(name="play_angle", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                        objname=PLAY)  # fmt: skip
+        spec.add_sensor(name="play_speed", type=mujoco.mjtSensor.mjSENS_JOINTVEL, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                        objname=PLAY)  # fmt: skip
+
+    return edit
+
+
+def add_disturbance(spec: mujoco.MjSpec) -> None:
+    """Spec edit (synthetic data only): a torque on the load from outside the model."""
+    a = spec.add_actuator(name="disturbance", target=JOINT, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+
+
+class RigAdapter(Adapter):
+    """What the two rigs share: the shaft's effects, backlash, the disturbance, initial states and observations."""
+
+    rig_class: type
+    rig_kwargs: dict = {}  # noqa: RUF012 (read-only per class)
+    angle_channel: str
+
+    def __init__(self, load_inertia: float | None = None) -> None:
+        super().__init__()
+        self.load_inertia = load_inertia
+        rig = self._rig()
+        self.nominal_model = rig.model
+        self._h = float(rig.model.opt.timestep)
+        self._dof = int(rig.model.joint(JOINT).dofadr[0])
+
+    def _rig(self, edits=()):
+        kwargs = dict(self.rig_kwargs)
+        if self.load_inertia is not None:
+            kwargs["load_inertia"] = self.load_inertia
+        return self.rig_class(spec_edits=list(edits), **kwargs)
+
+    @property
+    def physics_dt(self) -> float:
+        return self._h
+
+    def shaft_effects(self, friction: float, damping: float, armature: float) -> list[Effect]:
+        return [
+            E.make("delay", seconds=(0.0, 0.0, 0.05, self._h)),
+            E.make("coulomb_friction", torque=(0.0, 0.0, friction)),
+            E.make("viscous_friction", damping=(0.0, 0.0, damping)),
+            E.make("armature", inertia=(0.0, 0.0, armature)),
+            E.make("backlash", gap=(0.0, 0.0, 0.2)),
+        ]
+
+    def out_of_catalog(self) -> list[Effect]:
+        return [E.make("disturbance", torque=(0.0, 0.0, 0.5), frequency=(3.0, 0.5, 10.0))]
+
+    def structure(self, setting: Setting) -> tuple:
+        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
+        return (gap if gap > 1e-6 else 0.0, setting.get("disturbance.torque", 0.0) > 0)
+
+    def compile(self, setting: Setting) -> mujoco.MjModel:
+        gap, disturbed = self.structure(setting)
+        edits = []
+        if gap:
+            edits.append(
+                add_backlash(gap, 0.01 * float(self.nominal_model.body_inertia[self.nominal_model.body("load").id, 2]))
+            )
+        if disturbed:
+            edits.append(add_disturbance)
+        return self._rig(edits).model
+
+    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
+        d = int(model.joint(JOINT).dofadr[0])
+        model.dof_frictionloss[d] += setting.get("coulomb_friction.torque", 0.0)
+        model.dof_damping[d] += setting.get("viscous_friction.damping", 0.0)
+        model.dof_armature[d] += setting.get("armature.inertia", 0.0)
+
+    def _shaft(self, model: mujoco.MjModel, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and speed of the load (driven shaft plus play)."""
+        angle = sensordata[:, model.sensor("angle").adr[0]]
+        speed = sensordata[:, model.sensor("speed").adr[0]]
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, "play_angle") >= 0:
+            angle = angle + sensordata[:, model.sensor("play_angle").adr[0]]
+            speed = speed + sensordata[:, model.sensor("play_speed").adr[0]]
+        return angle, speed
+
+    def disturbance_ctrl(self, model: mujoco.MjModel, ctrl: np.ndarray, segment: Segment, setting: Setting) -> None:
+        a = setting.get("disturbance.torque", 0.0)
+        if a > 0:
+            f = setting.get("disturbance.frequency", 3.0)
+            t = segment.t0 + np.arange(len(ctrl)) * self._h
+            ctrl[:, model.actuator("disturbance").id] = a * np.sin(2 * math.pi * f * t)
+
+    def set_load(self, model: mujoco.MjModel, data: mujoco.MjData, angle: float, speed: float | None) -> None:
+        """Put the load (driven shaft plus play) at a measured angle and speed (None: keep the speed); the play
+        keeps its state (carried over from the previous segment), the driven shaft takes the rest."""
+        play_angle = play_speed = 0.0
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, PLAY) >= 0:
+            play = model.joint(PLAY)
+            play_angle = float(data.qpos[play.qposadr[0]])
+            play_speed = float(data.qvel[play.dofadr[0]])
+        j = model.joint(JOINT)
+        data.qpos[j.qposadr[0]] = angle - play_angle
+        if speed is not None:
+            data.qvel[j.dofadr[0]] = speed - play_speed
+
+    def compiled(self, setting: Setting) -> mujoco.MjModel:
+        """The compiled model of a setting's structure (shared; not to be written)."""
+        key = self.structure(setting)
+        if key not in self._models:
+            self._models[key] = self.compile(setting)
+        return self._models[key]
+
+
+class MotorAdapter(RigAdapter):
+    """The seed's DC gearmotor on the rig, replayed from its duty cycle; compared on shaft angle and speed."""
+
+    name = "motor"
+    channels = {"angle": "rad", "speed": "rad/s"}  # noqa: RUF012
+    commands = ("duty",)
+    context = {"velocity": "speed", "command": "duty"}  # noqa: RUF012
+    rig_class = MotorRig
+
+    def __init__(self, load_inertia: float | None = None) -> None:
+        super().__init__(load_inertia)
+        self.constants = MotorConstants()
+
+    def effects(self) -> dict[str, Effect]:
+        # ranges of the same order as the motor's own: stall 2.17 N m, back-EMF damping 0.073 N m s/rad
+        # wide enough to take the seed's model to another gearmotor of its kind (the RHex3 log's runs at half its
+        # no-load speed)
+        out = [
+            *self.shaft_effects(friction=0.4, damping=0.2, armature=0.01),
+            E.make("deadband", duty=(0.0, 0.0, 0.2)),
+            E.make("torque_constant", scale=(1.0, 0.3, 3.0)),
+            E.make("back_emf_constant", scale=(1.0, 0.3, 3.0)),
+            E.make("supply_voltage", scale=(1.0, 0.3, 1.5)),
+            E.make("supply_sag", resistance=(0.0, 0.0, 10.0)),
+            E.make("pwm_decay", coast=(0.0, 0.0, 1.0)),
+            E.make("sensor_gain", target="angle", scale=(1.0, 0.8, 1.25)),
+            E.make("sensor_bias", target="speed", offset=(0.0, -2.0, 2.0)),
+            *self.out_of_catalog(),
+        ]
+        return {e.name: e for e in out}
+
+    def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
+        """PWM steps of random level and length (a fifth of them off), sampled every 10 ms as the real log is."""
+        t = np.arange(0.0, seconds, 0.01)
+        duty = np.zeros_like(t)
+        start = 0.0
+        while start < seconds:
+            hold = rng.uniform(0.15, 0.6)
+            level = 0.0 if rng.random() < 0.2 else rng.uniform(-1.0, 1.0)
+            duty[(t >= start) & (t < start + hold)] = level
+            start += hold
+        return pd.DataFrame({"time": t, "duty": np.round(duty * 255) / 255, "angle": 0.0, "speed": 0.0})
+
+    def synth_noise(self) -> dict[str, float]:
+        return {"angle": 2e-3, "speed": 0.05}
+
+    def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
+        speed = segment.data["speed"][0] - setting.get("sensor_bias_speed.offset", 0.0)
+        self.set_load(model, data, segment.data["angle"][0], speed)
+
+    def initial_uncertainty(self, model, segment: Segment, setting: Setting) -> list[tuple[str, int, float]]:
+        j = model.joint(JOINT)
+        return [("qpos", int(j.qposadr[0]), segment.sigma["angle"]), ("qvel", int(j.dofadr[0]), segment.sigma["speed"])]
+
+    def controls(self, model, segment: Segment, setting: Setting) -> np.ndarray:
+        t = self.physics_times(segment)
+        duty = segment.command_at("duty", t, setting.get("delay.seconds", 0.0))
+        band = setting.get("deadband.duty", 0.0)
+        if band > 0:
+            duty = np.sign(duty) * np.maximum(np.abs(duty) - band, 0.0)
+        duty = np.clip(duty, -1.0, 1.0)
+        c = self.constants
+        kt = c.torque_constant * setting.get("torque_constant.scale", 1.0)
+        ks = c.speed_constant * setting.get("back_emf_constant.scale", 1.0)
+        vs = c.supply_voltage * setting.get("supply_voltage.scale", 1.0)
+        # a supply of internal resistance Rs drops by Rs d i: the motor sees d Vs - d^2 Rs i, an amplifier resistance
+        r = c.motor_resistance + duty**2 * (c.amplifier_resistance + setting.get("supply_sag.resistance", 0.0))
+        per_amp = c.efficiency * c.gear_ratio * kt
+        ctrl = np.zeros((len(t), model.nu))
+        ctrl[:, model.actuator(f"{JOINT}_drive").id] = per_amp * duty * vs / r
+        # coasting through a fraction m of the off-time, the back-EMF brakes during 1 - m (1 - |d|) of the period
+        coast = setting.get("pwm_decay.coast", 0.0)
+        ctrl[:, model.actuator(f"{JOINT}_emf").id] = per_amp * ks / r * (1.0 - coast * (1.0 - np.abs(duty)))
+        self.disturbance_ctrl(model, ctrl, segment, setting)
+        return ctrl
+
+    def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
+        angle, speed = self._shaft(self.compiled(setting), sensordata)
+        start = segment.data["angle"][0]
+        angle = start + (angle - start) * setting.get("sensor_gain_angle.scale", 1.0)
+        return np.column_stack([angle, speed + setting.get("sensor_bias_speed.offset", 0.0)])
+
+
+class ServoAdapter(RigAdapter):
+    """The AX-12 on the rig, replayed from its goal (or from a fitted goal when the log lacks it); compared on the
+    position it reports, in counts."""
+
+    name = "servo"
+    channels = {"present_position": "count"}  # noqa: RUF012
+    segment_seconds = 0.5  # a servo settles within a quarter second: shorter segments, more of them
+    commands = ()
+    rig_class = ServoRig
+
+    def __init__(self, load_inertia: float | None = None) -> None:
+        super().__init__(load_inertia)
+        rig = self._rig()
+        self.servo_constants = rig.servo.constants
+        self._servo = rig.servo.actuator_name(JOINT)
+
+    def effects(self) -> dict[str, Effect]:
+        shaft = {e.name: e for e in self.shaft_effects(friction=0.3, damping=0.05, armature=0.005)}
+        # on a position-only channel, viscous friction and the supply both set the servo's top speed
+        shaft["viscous_friction"] = replace(shaft["viscous_friction"], alias=SERVO_TOP_SPEED)
+        out = [
+            *shaft.values(),
+            E.make("servo_gain", scale=(1.0, 0.25, 4.0)),
+            E.make("supply_voltage", scale=(1.0, 0.5, 1.5), alias=SERVO_TOP_SPEED),
+            E.make("sensor_bias", target="position", offset=(0.0, -20.0, 20.0)),
+            *self.out_of_catalog(),
+        ]
+        return {e.name: e for e in out}
+
+    # --- the goal: logged, or a nuisance -----------------------------------------------------------------------------
+    def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
+        out = {}
+        for log in logs:
+            if "goal" not in log.df.columns:
+                out.update(self.goal_plan(log))
+        return out
+
+    @staticmethod
+    def plateaus(log: Log) -> list[tuple[int, int]]:
+        """Runs of rows where the reported position holds still (under 2 counts per 16 ms) for at least 0.15 s."""
+        t = log.time
+        x = log.df["present_position"].to_numpy(dtype=float)
+        still = np.abs(np.gradient(x, t)) < 2.0 / 0.016
+        runs, start = [], None
+        for i, s in enumerate(still):
+            if s and start is None:
+                start = i
+            if (not s or i == len(x) - 1) and start is not None:
+                end = i if not s else i + 1
+                if t[end - 1] - t[start] >= 0.15:
+                    runs.append((start, end))
+                start = None
+        return runs
+
+    def goal_plan(self, log: Log) -> dict[str, Param]:
+        """An unlogged goal as nuisance parameters: its level at the log's start, and a step (time, level) for each
+        move between plateaus of the reported position, and for a move still under way when the log ends. A level
+        seen on a plateau may differ from it by the servo's steady error (+-40 counts); one never seen (the log
+        starts or ends moving) gets a wide range."""
+        tag = f"goal_{_tag(log.path)}_"
+        t = log.time
+        x = log.df["present_position"].to_numpy(dtype=float)
+        runs = self.plateaus(log)
+        wide = 300.0
+        out: dict[str, Param] = {}
+        if not runs:
+            out[f"{tag}start.level"] = Param("level", "count", x[-1], x[-1] - wide, x[-1] + wide)
+            return out
+        first = float(np.median(x[runs[0][0] : runs[0][1]]))
+        near = 40.0 if runs[0][0] == 0 else wide
+        out[f"{tag}start.level"] = Param("level", "count", first, first - near, first + near)
+        k = 0
+        for (a0, a1), (b0, b1) in itertools.pairwise(runs):
+            before, after = float(np.median(x[a0:a1])), float(np.median(x[b0:b1]))
+            if abs(after - before) > 5:
+                t_move = float(t[a1 - 1])
+                out[f"{tag}{k}.time"] = Param("time", "s", t_move, t_move - 0.3, t_move + 0.05)
+                out[f"{tag}{k}.level"] = Param("level", "count", after, after - 40, after + 40)
+                k += 1
+        last0, last1 = runs[-1]
+        held = float(np.median(x[last0:last1]))
+        if last1 < len(x) and abs(x[-1] - held) > 5:  # moving when the log ends
+            t_move = float(t[last1 - 1])
+            reach = max(wide, 2 * abs(x[-1] - held))
+            out[f"{tag}{k}.time"] = Param("time", "s", t_move, t_move - 0.3, t_move + 0.05)
+            out[f"{tag}{k}.level"] = Param("level", "count", x[-1], x[-1] - reach, x[-1] + reach)
+        return out
+
+    def goal(self, segment: Segment, setting: Setting, times: np.ndarray) -> np.ndarray:
+        """The goal (counts) at physics times of a segment: the log's, or the fitted steps between plateaus; each
+        fitted step is spread over the physics step it falls in, so that its time is a smooth parameter."""
+        delay = setting.get("delay.seconds", 0.0)
+        if "goal" in segment.data:
+            return segment.command_at("goal", times, delay)
+        tag = f"goal_{_tag(segment.log)}_"
+        steps = sorted((setting[k], k) for k in setting if k.startswith(tag) and k.endswith(".time"))
+        absolute = segment.t0 + times - delay
+        level = float(setting[f"{tag}start.level"])
+        goal = np.full(len(times), level)
+        for t_step, key in steps:
+            new = setting[key.replace(".time", ".level")]
+            goal += np.clip((absolute - t_step) / self._h + 1.0, 0.0, 1.0) * (new - level)
+            level = new
+        return goal
+
+    def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
+        """The measured position; the speed (not logged) carried over, or from the first two samples."""
+        start = segment.data["present_position"][0] - setting.get("sensor_bias_position.offset", 0.0)
+        speed = None if carried else self._start_speed(segment)[0]
+        self.set_load(model, data, self.servo_constants.angle(start), speed)
+
+    def _start_speed(self, segment: Segment) -> tuple[float, float]:
+        """The load's speed at a segment's start from the first two samples, and its standard deviation."""
+        x, t = segment.data["present_position"], segment.data["time"]
+        if len(x) < 2 or t[1] <= t[0]:
+            return 0.0, 1.0
+        rad = self.servo_constants.angle(1.0) - self.servo_constants.angle(0.0)  # rad per count
+        dt = float(t[1] - t[0])
+        sd = math.sqrt(2.0) * segment.sigma.get("present_position", 1.0) * rad / dt
+        return float((x[1] - x[0]) * rad / dt), sd
+
+    def initial_uncertainty(self, model, segment: Segment, setting: Setting) -> list[tuple[str, int, float]]:
+        j = model.joint(JOINT)
+        rad = abs(self.servo_constants.angle(1.0) - self.servo_constants.angle(0.0))
+        return [
+            ("qpos", int(j.qposadr[0]), segment.sigma["present_position"] * rad),
+            ("qvel", int(j.dofadr[0]), self._start_speed(segment)[1]),
+        ]
+
+    def controls(self, model, segment: Segment, setting: Setting) -> np.ndarray:
+        t = self.physics_times(segment)
+        goal = np.clip(self.goal(segment, setting, t), 0, self.servo_constants.counts - 1)
+        ctrl = np.zeros((len(t), model.nu))
+        servo = model.actuator(self._servo).id
+        ctrl[:, model.actuator_ctrladr[servo]] = model.actuator_gear[servo, 0] * self.servo_constants.angle(goal)
+        self.disturbance_ctrl(model, ctrl, segment, setting)
+        return ctrl
+
+    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
+        super().apply_fields(model, setting)
+        a = model.actuator(self._servo).id
+        gain = setting.get("servo_gain.scale", 1.0)
+        supply = setting.get("supply_voltage.scale", 1.0)
+        model.actuator_gainprm[a, GAIN_KP] *= gain * supply
+        model.actuator_gainprm[a, GAIN_VMAX] *= supply
+
+    def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
+        """Goal steps of random size and length, sampled every 12 to 20 ms (irregular, as the Wizard samples)."""
+        t = np.cumsum(rng.uniform(0.012, 0.020, int(seconds / 0.012) + 10))
+        t = t[t < seconds] - t[0]
+        goal = np.full_like(t, 512.0)
+        start = rng.uniform(0.2, 0.5)
+        while start < seconds:
+            hold = rng.uniform(0.4, 1.0)
+            goal[t >= start] = float(rng.integers(250, 775))
+            start += hold
+        return pd.DataFrame({"time": t, "goal": goal, "present_position": 512.0})
+
+    def synth_noise(self) -> dict[str, float]:
+        return {"present_position": 0.3}
+
+    def measure(self, channel: str, values: np.ndarray) -> np.ndarray:
+        return np.rint(values)  # the servo reports whole counts
+
+    def recorded_noise(self, noise: dict[str, float]) -> dict[str, float]:
+        return {c: float(np.sqrt(s * s + 1.0 / 12.0)) for c, s in noise.items()}
+
+    def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
+        angle, _ = self._shaft(self.compiled(setting), sensordata)
+        # not rounded: the prediction stays smooth in the parameters; the reported counts' rounding is noise
+        return (self.servo_constants.counts_of(angle) + setting.get("sensor_bias_position.offset", 0.0))[:, None]
+
+    def noise(self, log: Log) -> dict[str, float]:
+        recorded = log.meta.get("noise_sigma") or {}
+        # the servo reports whole counts: quantisation noise of one count, sigma 1/sqrt(12)
+        return {"present_position": float(recorded.get("present_position", 1.0 / math.sqrt(12)))}
+
+
+def _tag(path: str) -> str:
+    return hashlib.sha1(str(path).encode()).hexdigest()[:6]

@@ -1,0 +1,109 @@
+"""Calibration files: the effects ``calibrate.py`` found for a robot, applied by the robot when an env is made with
+``calibration=PATH``. The nominal model is never modified; a calibrated robot is the nominal one plus these effects.
+
+A file is JSON::
+
+    {"format": "skitter calibration", "version": 1, "robot": "velociroach",
+     "effects": {"viscous_friction_left": {"damping": {"value": 2.1e-5, "ci95": 3e-7, "unit": "N m s/rad"}}},
+     "provenance": {"train": [...], "test": [...], "error_before": 41.2, "error_after": 3.1, ...}}
+
+Values may also be written bare (``{"damping": 2.1e-5}``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+FORMAT = "skitter calibration"
+VERSION = 1
+
+
+class CalibrationError(ValueError):
+    """A calibration file that cannot be used; the message names the file, field and value."""
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A robot's calibrated effects: ``effects[name][param]`` is the value."""
+
+    robot: str
+    effects: Mapping[str, Mapping[str, float]]
+    path: str = ""
+    provenance: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def setting(self) -> dict[str, float]:
+        """The effects as one flat dict, ``effect.param -> value``."""
+        return {f"{e}.{p}": float(v) for e, params in self.effects.items() for p, v in params.items()}
+
+    def check(self, known: Mapping[str, Mapping[str, tuple[float, float]]]) -> None:
+        """Refuse effects or parameters the robot does not know, or values outside their range; ``known`` is
+        effect -> parameter -> (low, high)."""
+        for name, params in self.effects.items():
+            if name not in known:
+                raise CalibrationError(
+                    f"{self.path}: field 'effects.{name}': robot {self.robot!r} has no effect {name!r} "
+                    f"(known: {', '.join(sorted(known))})"
+                )
+            for param, value in params.items():
+                if param not in known[name]:
+                    raise CalibrationError(
+                        f"{self.path}: field 'effects.{name}.{param}': {name} has no parameter {param!r} "
+                        f"(it has {', '.join(known[name])})"
+                    )
+                low, high = known[name][param]
+                if not low <= value <= high:
+                    raise CalibrationError(
+                        f"{self.path}: field 'effects.{name}.{param}': {value:g} is outside its range "
+                        f"[{low:g}, {high:g}]"
+                    )
+
+
+def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
+    """Read and check a calibration file (for ``robot`` if given)."""
+    path = Path(path)
+    if not path.is_file():
+        raise CalibrationError(f"{path}: no such calibration file")
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CalibrationError(f"{path}: not a readable JSON calibration file ({exc})") from None
+    if not isinstance(data, dict):
+        raise CalibrationError(f"{path}: a calibration file is a JSON object, not {type(data).__name__}")
+    if data.get("format") != FORMAT:
+        raise CalibrationError(f"{path}: field 'format': {data.get('format')!r} is not {FORMAT!r}")
+    if data.get("version") != VERSION:
+        raise CalibrationError(
+            f"{path}: field 'version': {data.get('version')!r}; this skitter reads version {VERSION}"
+        )
+    name = data.get("robot")
+    if not isinstance(name, str):
+        raise CalibrationError(f"{path}: field 'robot': {name!r} is not a robot name")
+    if robot is not None and name != robot:
+        raise CalibrationError(f"{path}: field 'robot': the file calibrates {name!r}, not {robot!r}")
+    raw = data.get("effects")
+    if not isinstance(raw, dict):
+        raise CalibrationError(f"{path}: field 'effects': {raw!r} is not an object of effects")
+    effects: dict[str, dict[str, float]] = {}
+    for effect, params in raw.items():
+        if not isinstance(params, dict) or not params:
+            raise CalibrationError(f"{path}: field 'effects.{effect}': {params!r} is not an object of parameters")
+        effects[effect] = {}
+        for param, entry in params.items():
+            value = entry.get("value") if isinstance(entry, dict) else entry
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise CalibrationError(f"{path}: field 'effects.{effect}.{param}': {value!r} is not a finite number")
+            effects[effect][param] = float(value)
+    return Calibration(name, effects, str(path), data.get("provenance") or {})
+
+
+def calibration_record(
+    robot: str, effects: Mapping[str, Mapping[str, Mapping[str, Any]]], provenance: Mapping[str, Any]
+) -> dict[str, Any]:
+    """The JSON object of a calibration file."""
+    return {"format": FORMAT, "version": VERSION, "robot": robot, "effects": effects, "provenance": provenance}

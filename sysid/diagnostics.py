@@ -1,0 +1,105 @@
+"""Residual diagnostics that point to a cause: lag, dependence on the sign of velocity, on velocity, acceleration and
+command, drift with time or supply voltage, spectral peaks, constant bias, left against right.
+
+Each is a number per channel with a plain reading; the report lists the strongest, and the effect ranking (a score
+statistic of each effect's parameters, sysid/select.py) is explained by them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from sysid.problem import Problem, Residual
+
+
+def _corr(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = a - a.mean(), b - b.mean()
+    denom = float(np.sqrt((a @ a) * (b @ b)))
+    return float(a @ b) / denom if denom > 0 else 0.0
+
+
+def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[str, str]) -> dict[str, dict]:
+    """Diagnostics of normalized residuals per channel.
+
+    ``context`` names the log columns that explain a residual: ``velocity``, ``command``, optionally ``supply``.
+    """
+    out: dict[str, dict] = {}
+    segs = problem.segments
+    cat = {k: np.concatenate([s.data[v] for s in segs]) for k, v in context.items() if all(v in s.data for s in segs)}
+    times = np.concatenate([s.data["time"] for s in segs])
+    for c, name in enumerate(problem.channels):
+        r = np.concatenate([x.data[:, c] for x in residuals])
+        rms = float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+        entry = {"rms": rms, "bias": float(r.mean()) if r.size else 0.0}
+        if r.size < 8:
+            out[name] = entry
+            continue
+        entry["drift_with_time"] = _corr(r, times)
+        if "velocity" in cat:
+            v = cat["velocity"]
+            entry["with_sign_of_velocity"] = _corr(r, np.sign(v))
+            entry["with_velocity"] = _corr(r, v)
+            dt = np.gradient(times)
+            dt[dt <= 0] = np.median(dt[dt > 0]) if (dt > 0).any() else 1.0
+            entry["with_acceleration"] = _corr(r, np.gradient(v) / dt)
+        if "command" in cat:
+            u = cat["command"]
+            entry["with_command"] = _corr(r, u)
+            entry["lag_of_command"] = _best_lag(r, u, times)
+        if "supply" in cat:
+            entry["with_supply"] = _corr(r, cat["supply"])
+        entry["spectral_peak_hz"], entry["spectral_peak_share"] = _spectral_peak(r, times)
+        out[name] = entry
+    return out
+
+
+def _best_lag(r: np.ndarray, u: np.ndarray, t: np.ndarray) -> float:
+    """The lag (s) at which the command's change best correlates with the residual."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    du = np.diff(u, prepend=u[0])
+    best, best_lag = 0.0, 0.0
+    for k in range(0, min(50, len(r) // 4)):
+        c = abs(_corr(r[k:], du[: len(du) - k])) if k else abs(_corr(r, du))
+        if c > best:
+            best, best_lag = c, k * dt
+    return best_lag
+
+
+def _spectral_peak(r: np.ndarray, t: np.ndarray) -> tuple[float, float]:
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    spectrum = np.abs(np.fft.rfft(r - r.mean())) ** 2
+    if len(spectrum) < 3 or spectrum.sum() <= 0:
+        return 0.0, 0.0
+    k = int(np.argmax(spectrum[1:])) + 1
+    return float(k / (len(r) * dt)), float(spectrum[k] / spectrum.sum())
+
+
+def summarize(diagnostics: Mapping[str, dict], limit: int = 3) -> list[str]:
+    """The strongest findings, as sentences."""
+    findings: list[tuple[float, str]] = []
+    for channel, d in diagnostics.items():
+        if d.get("rms", 0.0) <= 1.2:
+            continue
+        if abs(d.get("bias", 0.0)) > 0.5 * d["rms"]:
+            findings.append((abs(d["bias"]), f"{channel}: a constant offset ({d['bias']:+.2f} noise levels)"))
+        for key, text in (
+            ("with_sign_of_velocity", "follows the sign of velocity (dry friction, backlash, deadband)"),
+            ("with_velocity", "grows with velocity (viscous friction, back-EMF)"),
+            ("with_acceleration", "follows acceleration (inertia, armature, delay)"),
+            ("with_command", "follows the command (torque constant, supply, deadband)"),
+            ("drift_with_time", "drifts over time (supply sag, heating)"),
+            ("with_supply", "follows the supply voltage"),
+        ):
+            c = d.get(key)
+            if c is not None and abs(c) > 0.3:
+                findings.append((abs(c) * d["rms"], f"{channel}: the residual {text}, correlation {c:+.2f}"))
+        if d.get("spectral_peak_share", 0.0) > 0.2:
+            findings.append(
+                (d["spectral_peak_share"] * d["rms"],
+                 f"{channel}: a spectral peak at {d['spectral_peak_hz']:.2f} Hz holds "
+                 f"{d['spectral_peak_share']:.0%} of the residual's power")
+            )  # fmt: skip
+    findings.sort(key=lambda x: -x[0])
+    return [text for _, text in findings[:limit]]

@@ -1,0 +1,239 @@
+"""Fitting an effect's parameters: least squares through ``mujoco.sysid`` for smooth ones, a grid refined by CMA-ES
+(``cma``) for non-smooth ones, with 95% intervals sized by the residual's effective number of samples.
+
+Parameters are fitted in normalized coordinates (0 at the low bound, 1 at the high one), so that one finite-
+difference step suits a friction of 0.01 N m and a rotor inertia of 1e-8 kg m^2 alike. The residual function is
+vectorized: the columns of a finite-difference Jacobian are candidate settings of one batched rollout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from sysid.effects import Param
+from sysid.problem import Problem, Residual, Setting, data_size, flatten, total_cost
+
+FD_STEP = 1e-3  # finite-difference step in normalized coordinates
+GRID_POINTS = 9
+XTOL = 1e-6  # stop when a step moves the parameters by less than this (relative, in normalized coordinates)
+MU_FACTOR = 10**0.5  # the regularizer's growth after a failed step (mujoco.minimize's default 10^0.1 takes many)
+
+
+@dataclass
+class FitResult:
+    """Fitted values (every parameter of the fit, nuisance included), their 95% half-widths, and the cost."""
+
+    values: dict[str, float]
+    ci95: dict[str, float]
+    cost: float  # sum of squared normalized residuals (the start's corrections included)
+    n: int  # data samples x channels
+    n_eff: float
+    residuals: list[Residual] = field(repr=False, default_factory=list)
+
+    @property
+    def error(self) -> float:
+        return math.sqrt(self.cost / max(self.n, 1))
+
+
+def evaluate(problem: Problem, setting: Setting, segments: Sequence[int] | None = None) -> FitResult:
+    """The cost of one setting (no fitting), the start's correction anchored at the setting itself."""
+    residuals = problem.residuals([setting], segments)[0]
+    return FitResult(dict(setting), {}, total_cost(residuals), data_size(residuals),
+                     problem.effective_samples(residuals), residuals)  # fmt: skip
+
+
+def costs(problem: Problem, settings: Sequence[Setting], segments, anchor: Setting) -> list[float]:
+    """The cost of each setting, the start's correction anchored at ``anchor`` (one batched rollout)."""
+    return [total_cost(r) for r in problem.residuals(settings, segments, anchor=anchor)]
+
+
+def fit(
+    problem: Problem,
+    base: Setting,
+    params: Mapping[str, Param],
+    segments: Sequence[int] | None = None,
+    start: Mapping[str, float] | None = None,
+    max_iter: int = 25,
+) -> FitResult:
+    """Fit ``params`` (flat name -> Param) from ``base``: smooth ones by least squares, then non-smooth ones by grid
+    and CMA-ES with the smooth ones refitted at the best grid point."""
+    start = dict(start or {})
+    smooth = {k: p for k, p in params.items() if p.smooth}
+    rough = {k: p for k, p in params.items() if not p.smooth}
+    setting = {**base, **{k: start.get(k, base.get(k, p.nominal)) for k, p in params.items()}}
+    if rough:
+        setting = _grid_search(problem, setting, rough, smooth, segments)
+    if smooth:
+        return _least_squares(problem, setting, smooth, segments, max_iter, rough)
+    result = evaluate(problem, setting, segments)
+    result.ci95 = _profile_intervals(problem, setting, rough, segments, result)
+    return result
+
+
+def _to_unit(p: Param, x: float) -> float:
+    return (x - p.low) / p.span if p.span > 0 else 0.0
+
+
+def _from_unit(p: Param, u: float) -> float:
+    return p.low + u * p.span
+
+
+def _least_squares(
+    problem: Problem,
+    setting: dict[str, float],
+    params: Mapping[str, Param],
+    segments: Sequence[int] | None,
+    max_iter: int,
+    rough: Mapping[str, Param],
+) -> FitResult:
+    from mujoco import sysid
+
+    names = list(params)
+    u0 = np.clip([_to_unit(params[k], setting[k]) for k in names], 2e-3, 1 - 2e-3)  # off the bounds: can stall
+
+    def settings_of(u: np.ndarray) -> list[dict[str, float]]:
+        u = u.reshape(len(names), -1)
+        return [{**setting, **{k: _from_unit(params[k], float(u[i, j])) for i, k in enumerate(names)}}
+                for j in range(u.shape[1])]  # fmt: skip
+
+    def optimize(u_start: np.ndarray, anchor: Setting, iterations: int) -> np.ndarray:
+        def residual_fn(x: np.ndarray, _params=None):
+            columns = problem.residuals(settings_of(np.asarray(x, dtype=float)), segments, anchor=anchor)
+            flat = np.column_stack([flatten(c) for c in columns])
+            return [flat if np.ndim(x) == 2 else flat[:, 0]], None, None
+
+        pdict = sysid.ParameterDict({k: sysid.Parameter(k, u_start[i], 0.0, 1.0) for i, k in enumerate(names)})
+        # sysid.optimize's own ``verbose`` shadows the backend's, which then prints every iteration: silence it
+        with contextlib.redirect_stdout(io.StringIO()):
+            fitted, _ = sysid.optimize(pdict, residual_fn, optimizer="mujoco", verbose=False, max_iters=iterations,
+                                       eps=FD_STEP, xtol=XTOL, mu_factor=MU_FACTOR)  # fmt: skip
+        return np.clip(fitted.as_vector(), 0.0, 1.0)
+
+    # the start's correction and what segments carry over are taken from an anchor: the starting point, then, if
+    # that changed the cost at the optimum by more than a percent, the optimum of the first pass
+    start = settings_of(u0)[0]
+    u = optimize(u0, start, max_iter)
+    best = settings_of(u)[0]
+    result = evaluate(problem, best, segments)
+    anchored = total_cost(problem.residuals([best], segments, anchor=start)[0])
+    if abs(anchored - result.cost) > 0.01 * result.cost:
+        u = optimize(np.clip(u, 2e-3, 1 - 2e-3), best, max(3, max_iter // 3))
+        best = settings_of(u)[0]
+        result = evaluate(problem, best, segments)
+    # the Jacobian at the optimum (normalized coordinates), one batched rollout for all its columns
+    steps = np.where(u > 0.5, -FD_STEP, FD_STEP)
+    probe = u[:, None] + np.diag(steps)
+    columns = problem.residuals(settings_of(probe), segments, anchor=best)
+    r0 = flatten(result.residuals)
+    jac = np.column_stack([(flatten(c) - r0) / steps[i] for i, c in enumerate(columns)])
+    half = _intervals(r0, jac, result.n_eff)
+    result.ci95 = {k: float(half[i] * params[k].span) for i, k in enumerate(names)}
+    if rough:
+        result.ci95.update(_profile_intervals(problem, best, rough, segments, result))
+    return result
+
+
+def _intervals(r: np.ndarray, jac: np.ndarray, n_eff: float) -> np.ndarray:
+    """95% half-widths from the Jacobian at the optimum (``mujoco.sysid.calculate_intervals``), widened by
+    sqrt(n / n_eff) and with a t quantile on n_eff - p degrees of freedom, since autocorrelated residuals carry
+    fewer independent samples than their count."""
+    from mujoco import sysid
+
+    p = jac.shape[1]
+    if p == 0:
+        return np.zeros(0)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a singular Jacobian gives infinite intervals, not noise
+        _, half = sysid.calculate_intervals([r], jac)
+    n = r.size
+    dof_raw = max(n - p, 1)
+    dof_eff = max(n_eff - p, 1.0)
+    t_raw = stats.t.ppf(0.975, dof_raw)
+    t_eff = stats.t.ppf(0.975, dof_eff)
+    return np.asarray(half) * math.sqrt(n / max(n_eff, 1.0)) * (t_eff / t_raw)
+
+
+def _grid_search(
+    problem: Problem,
+    setting: dict[str, float],
+    rough: Mapping[str, Param],
+    smooth: Mapping[str, Param],
+    segments: Sequence[int] | None,
+) -> dict[str, float]:
+    """The best grid point of the non-smooth parameters (all grid points in one batched rollout), refined by
+    CMA-ES when there are several."""
+    names = list(rough)
+    grids = [np.linspace(rough[k].low, rough[k].high, GRID_POINTS) for k in names]
+    points = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(names), -1).T
+    candidates = [{**setting, **dict(zip(names, map(float, pt), strict=True))} for pt in points]
+    cost = costs(problem, candidates, segments, anchor=setting)
+    best = candidates[int(np.argmin(cost))]
+    if len(names) > 1:
+        import cma
+
+        u0 = [_to_unit(rough[k], best[k]) for k in names]
+        es = cma.CMAEvolutionStrategy(u0, 0.1, {"bounds": [0, 1], "maxfevals": 60, "verbose": -9, "seed": 1})
+        while not es.stop():
+            us = es.ask()
+            trial = [{**best, **{k: _from_unit(rough[k], u[i]) for i, k in enumerate(names)}} for u in us]
+            es.tell(us, costs(problem, trial, segments, anchor=setting))
+        u = es.result.xbest
+        best = {**best, **{k: _from_unit(rough[k], u[i]) for i, k in enumerate(names)}}
+    else:
+        # refine a single parameter around the best grid point, down to its resolution
+        (k,) = names
+        p = rough[k]
+        step = p.span / (GRID_POINTS - 1)
+        while step > p.resolution:
+            fine = np.unique(np.clip(best[k] + np.linspace(-step, step, 9), p.low, p.high))
+            trial = [{**best, k: float(v)} for v in fine]
+            best = trial[int(np.argmin(costs(problem, trial, segments, anchor=setting)))]
+            step /= 4
+    return best
+
+
+def _profile_intervals(
+    problem: Problem, best: Mapping[str, float], rough: Mapping[str, Param], segments, result: FitResult
+) -> dict[str, float]:
+    """95% half-widths of non-smooth parameters by profile likelihood: how far the value can move (the others
+    held) before the cost rises by the chi^2(1) quantile times the residual variance, scaled by n / n_eff for
+    the residual's autocorrelation. Bracketed outward in doubling steps from the parameter's resolution, then
+    refined between the last point inside and the first outside; a side that never leaves reaches its bound."""
+    s2 = result.cost / max(result.n - len(rough), 1) * (result.n / max(result.n_eff, 1.0))
+    threshold = result.cost + stats.chi2.ppf(0.95, 1) * s2
+    out = {}
+    for k, p in rough.items():
+        x0 = best[k]
+        offsets = p.resolution * 2.0 ** np.arange(0, math.ceil(math.log2(max(p.span / p.resolution, 1.0))) + 1)
+        reach = {}
+        for side in (-1.0, 1.0):
+            values = np.clip(x0 + side * offsets, p.low, p.high)
+            values = values[np.abs(values - x0) > 0]
+            if not len(values):
+                reach[side] = (0.0, 0.0)
+                continue
+            cost = np.array(costs(problem, [{**best, k: float(v)} for v in values], segments, anchor=best))
+            outside = np.flatnonzero(cost > threshold)
+            if not len(outside):
+                reach[side] = (float(abs(values[-1] - x0)), float(abs(values[-1] - x0)))
+                continue
+            first = int(outside[0])
+            inside = float(abs(values[first - 1] - x0)) if first else 0.0
+            reach[side] = (inside, float(abs(values[first] - x0)))
+        # refine each side's crossing between its last point inside and first outside
+        half = p.resolution  # values within one step of each other are not told apart
+        for side, (inside, outside) in reach.items():
+            if outside > inside:
+                grid = np.linspace(inside, outside, 8)[1:-1]
+                values = x0 + side * grid
+                cost = np.array(costs(problem, [{**best, k: float(v)} for v in values], segments, anchor=best))
+                inside = max([inside, *grid[cost <= threshold]])
+            half = max(half, inside)
+        out[k] = float(half)
+    return out

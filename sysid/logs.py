@@ -1,0 +1,353 @@
+"""Logs for calibration: every format read into one table (SI units, our channel names) with a record of its source.
+
+Formats, recognized by their content:
+
+- skitter telemetry (``.parquet``, envs/common/telemetry.py);
+- the VelociRoACH's text telemetry (``%`` header lines, or the lab's older double-quoted ones; envs/velociroach/
+  roach_csv.py);
+- DYNAMIXEL Wizard exports (a ``DYNAMIXEL Graph`` header, then ``Time[ms]`` and the plotted items, e.g.
+  ``Present Position`` in counts);
+- the RHex-style gearmotor log (``time,pos,speed,power``: ms, encoder clicks, clicks/s, PWM of 255);
+- any other CSV or JSON with a column map (:class:`ColumnMap`): our channel -> the file's column, its unit and,
+  for counts, how many counts make one unit.
+
+Sampling need not be regular: every channel keeps the file's time column. A malformed row is dropped with a warning
+naming the file and row; the log is refused (``LogError``: one line naming the file, row and column) for a missing
+required column, time that does not increase, an unknown unit, a log too short to calibrate on, or more than 5%
+bad rows.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+MAX_BAD_FRACTION = 0.05
+MIN_DURATION = 1.0  # s: less than one segment cannot be calibrated on
+MIN_ROWS = 20
+
+# unit -> factor to SI (the channel's SI unit is implied by the channel: s, rad, rad/s, V, N m, 1)
+UNITS: dict[str, float] = {
+    "s": 1.0,
+    "ms": 1e-3,
+    "us": 1e-6,
+    "min": 60.0,
+    "rad": 1.0,
+    "deg": math.pi / 180,
+    "rev": 2 * math.pi,
+    "rad/s": 1.0,
+    "deg/s": math.pi / 180,
+    "rpm": 2 * math.pi / 60,
+    "rev/s": 2 * math.pi,
+    "V": 1.0,
+    "mV": 1e-3,
+    "A": 1.0,
+    "mA": 1e-3,
+    "N m": 1.0,
+    "mN m": 1e-3,
+    "1": 1.0,
+    "%": 0.01,
+    "m": 1.0,
+    "mm": 1e-3,
+    "m/s": 1.0,
+    "m/s^2": 1.0,
+    "g": 9.81,
+    "count": 1.0,  # a count channel keeps counts unless the map gives counts_per_unit
+}
+
+
+class LogError(ValueError):
+    """A log that cannot be used; the message names the file, row and column."""
+
+
+@dataclass
+class Log:
+    """One log: a table with a ``time`` column (s, increasing) and channels in SI units, and its record."""
+
+    path: str
+    df: pd.DataFrame
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.df["time"].to_numpy()
+
+    @property
+    def duration(self) -> float:
+        t = self.time
+        return float(t[-1] - t[0]) if len(t) else 0.0
+
+    def between(self, start: float, end: float) -> Log:
+        """The samples with ``start <= time < end``."""
+        t = self.time
+        return Log(self.path, self.df[(t >= start) & (t < end)].reset_index(drop=True), dict(self.meta))
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """How to read a log of unknown format: our channel -> (the file's column, its unit, counts per unit).
+
+    Written as JSON: ``{"time": {"column": "t_ms", "unit": "ms"}, "angle": {"column": "enc", "unit": "rev",
+    "counts_per_unit": 3592}}``.
+    """
+
+    columns: Mapping[str, Mapping[str, Any]]
+
+    @classmethod
+    def load(cls, path: str | Path) -> ColumnMap:
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise LogError(f"{path}: not a readable JSON column map ({exc})") from None
+        if not isinstance(data, dict) or "time" not in data:
+            raise LogError(f"{path}: a column map is a JSON object with at least a 'time' entry")
+        for name, entry in data.items():
+            if not isinstance(entry, dict) or "column" not in entry:
+                raise LogError(f"{path}: entry {name!r} needs a 'column' (and a 'unit')")
+            unit = entry.get("unit", "1")
+            if unit not in UNITS:
+                raise LogError(f"{path}: entry {name!r}: unknown unit {unit!r} (known: {', '.join(UNITS)})")
+        return cls(data)
+
+
+def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnMap | None = None) -> Log:
+    """Read one log in any known format (or with ``column_map``), check it, and drop malformed rows with a warning."""
+    path = Path(path)
+    if not path.is_file():
+        raise LogError(f"{path}: no such file")
+    if column_map is not None:
+        log = _read_mapped(path, column_map)
+    elif path.suffix == ".parquet":
+        log = _read_parquet(path)
+    else:
+        head = _head(path)
+        if head.startswith("DYNAMIXEL"):
+            log = _read_dynamixel(path)
+        elif head.startswith("%") or head.startswith('"%'):
+            log = _read_roach(path)
+        elif head.replace(" ", "").lower().startswith("time,pos,speed,power"):
+            log = _read_gearmotor(path)
+        else:
+            raise LogError(f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns)")
+    return check_log(log, required)
+
+
+def check_log(log: Log, required: Sequence[str]) -> Log:
+    """Required columns present, time increasing, long enough."""
+    missing = [c for c in ("time", *required) if c not in log.df.columns]
+    if missing:
+        raise LogError(
+            f"{log.path}: column {missing[0]!r} is missing (needed: {', '.join(required)}; "
+            f"the file has: {', '.join(map(str, log.df.columns))})"
+        )
+    log = _drop_time_glitches(log)
+    t = log.time
+    backwards = np.flatnonzero(np.diff(t) <= 0)
+    if len(backwards):
+        row = int(backwards[0]) + 1
+        raise LogError(
+            f"{log.path}: row {_row_label(log, row)}, column 'time': {t[row]:.6g} s does not increase "
+            f"(previous {t[row - 1]:.6g} s): time runs backwards"
+        )
+    if len(t) < MIN_ROWS or log.duration < MIN_DURATION:
+        raise LogError(
+            f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s "
+            f"(at least {MIN_ROWS} rows over {MIN_DURATION:g} s)"
+        )
+    for column in required:
+        values = log.df[column].to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise LogError(f"{log.path}: row {_row_label(log, int(bad[0]))}, column {column!r}: not a finite number")
+    return log
+
+
+def _drop_time_glitches(log: Log) -> Log:
+    """Drop single rows whose time is out of order with both neighbours (a corrupted field, as in the AX-12A file's
+    ``71`` between 4239 and 4288 ms) as malformed rows, with a warning; a log whose time itself goes back (every
+    row after a point earlier than the rows before it) is left for the caller to refuse."""
+    t = log.time
+    bad: list[int] = []
+    i = 1
+    while i < len(t):
+        if t[i] > t[i - 1]:
+            i += 1
+            continue
+        if i + 1 >= len(t) or t[i + 1] > t[i - 1]:  # row i is the odd one: t[i-1] < t[i+1]
+            bad.append(i)
+            i += 2
+        elif i >= 2 and t[i] > t[i - 2] and t[i + 1] > t[i]:  # row i-1 jumped ahead
+            bad.append(i - 1)
+            i += 1
+        else:
+            break  # the log's time itself runs backwards
+    if not bad:
+        return log
+    lines = [(int(_row_label(log, k)), f"time {t[k]:.6g} s out of order with its neighbours") for k in bad]
+    _drop_bad_rows(Path(log.path), lines, len(t))
+    keep = np.setdiff1d(np.arange(len(t)), bad)
+    meta = dict(log.meta)
+    if meta.get("file_rows") is not None:
+        meta["file_rows"] = [meta["file_rows"][k] for k in keep]
+    return Log(log.path, log.df.iloc[keep].reset_index(drop=True), meta)
+
+
+def _row_label(log: Log, index: int) -> str:
+    rows = log.meta.get("file_rows")
+    return str(rows[index]) if rows is not None and index < len(rows) else str(index + 1)
+
+
+def _head(path: Path) -> str:
+    with path.open("rb") as fh:
+        for raw in fh:
+            line = raw.decode("utf-8", errors="replace").strip()
+            if line:
+                return line
+    raise LogError(f"{path}: empty file")
+
+
+def _drop_bad_rows(path: Path, bad: list[tuple[int, str]], total: int) -> None:
+    """Warn about dropped rows; refuse the log if more than 5% were bad."""
+    if not bad:
+        return
+    if len(bad) > MAX_BAD_FRACTION * total:
+        line, reason = bad[0]
+        raise LogError(
+            f"{path}: {len(bad)} of {total} rows are malformed (more than {MAX_BAD_FRACTION:.0%}); "
+            f"the first, line {line}: {reason}"
+        )
+    for line, reason in bad:
+        warnings.warn(f"{path}: dropped malformed line {line}: {reason}", stacklevel=3)
+
+
+# --- the formats ----------------------------------------------------------------------------------------------------
+def _read_parquet(path: Path) -> Log:
+    from envs.common.telemetry import read_telemetry
+
+    try:
+        df, meta = read_telemetry(path)
+    except ValueError as exc:
+        raise LogError(str(exc)) from None
+    if "episode" in df.columns and df["episode"].nunique() > 1:
+        first = int(df["episode"].iloc[0])
+        warnings.warn(f"{path}: holds {df['episode'].nunique()} episodes; using episode {first}", stacklevel=3)
+        df = df[df["episode"] == first].reset_index(drop=True)
+    return Log(str(path), df, {**meta, "format": "skitter telemetry"})
+
+
+def _read_roach(path: Path) -> Log:
+    from envs.velociroach.roach_csv import read_roach_csv
+
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        try:
+            df, meta = read_roach_csv(path, skip_bad_rows=True)
+        except ValueError as exc:
+            raise LogError(str(exc)) from None
+    skipped = meta.get("skipped_rows", [])
+    _drop_bad_rows(path, [(s["line"], s["reason"].split(": ", 1)[-1]) for s in skipped], len(df) + len(skipped))
+    return Log(str(path), df, meta)
+
+
+def _read_dynamixel(path: Path) -> Log:
+    """A DYNAMIXEL Wizard graph export: header lines until one starting ``Time``, then ``time, item, ...`` rows."""
+    lines = path.read_text(errors="replace").splitlines()
+    header_at = next((i for i, line in enumerate(lines) if line.strip().lower().startswith("time")), None)
+    if header_at is None:
+        raise LogError(f"{path}: a DYNAMIXEL export without a 'Time[ms], ...' column line")
+    names = [c.strip() for c in lines[header_at].split(",")]
+    time_unit = "ms" if "[ms]" in names[0].lower() else "s"
+    rows, file_rows, bad = [], [], []
+    for number, line in enumerate(lines[header_at + 1 :], start=header_at + 2):
+        if not line.strip():
+            continue
+        fields = [f.strip() for f in line.split(",")]
+        try:
+            if len(fields) != len(names) or any(f == "" for f in fields):
+                raise ValueError(f"{len(fields)} fields, expected {len(names)}")
+            rows.append([float(f) for f in fields])
+            file_rows.append(number)
+        except ValueError as exc:
+            bad.append((number, f"{line.strip()!r} ({exc})"))
+    _drop_bad_rows(path, bad, len(rows) + len(bad))
+    data = np.asarray(rows, dtype=float).reshape(-1, len(names))
+    df = pd.DataFrame({"time": data[:, 0] * UNITS[time_unit]})
+    for i, name in enumerate(names[1:], start=1):
+        key = name.lower().replace(" ", "_")
+        df[key] = data[:, i]  # counts, as the servo reports them
+    meta = {"format": "DYNAMIXEL Wizard export", "model": lines[1].split(",")[0] if len(lines) > 1 else None,
+            "columns": names, "file_rows": file_rows, "units": {"present_position": "count"}}  # fmt: skip
+    return Log(str(path), df, meta)
+
+
+GEARMOTOR_CLICKS_PER_REV = 3592  # shared/data/real/README.md
+
+
+def _read_gearmotor(path: Path) -> Log:
+    """``time`` ms, ``pos`` encoder clicks (3592 per output revolution), ``speed`` clicks/s, ``power`` PWM of 255."""
+    lines = path.read_text(errors="replace").splitlines()
+    rows, file_rows, bad = [], [], []
+    for number, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        fields = line.split(",")
+        try:
+            if len(fields) != 4:
+                raise ValueError(f"{len(fields)} fields, expected 4")
+            rows.append([float(f) for f in fields])
+            file_rows.append(number)
+        except ValueError as exc:
+            bad.append((number, f"{line.strip()!r} ({exc})"))
+    _drop_bad_rows(path, bad, len(rows) + len(bad))
+    data = np.asarray(rows, dtype=float).reshape(-1, 4)
+    per_click = 2 * math.pi / GEARMOTOR_CLICKS_PER_REV
+    df = pd.DataFrame(
+        {
+            "time": data[:, 0] * 1e-3,
+            "angle": data[:, 1] * per_click,
+            "speed": data[:, 2] * per_click,
+            "duty": data[:, 3] / 255.0,
+        }
+    )
+    meta = {"format": "gearmotor CSV (time ms, pos clicks, speed clicks/s, power PWM/255)", "file_rows": file_rows,
+            "quantisation": {"angle": per_click, "duty": 1 / 255.0}}  # fmt: skip
+    return Log(str(path), df, meta)
+
+
+def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
+    try:
+        if path.suffix.lower() == ".json":
+            raw = pd.read_json(path)
+        else:
+            raw = pd.read_csv(path, comment="#", skipinitialspace=True)
+    except (ValueError, OSError) as exc:
+        raise LogError(
+            f"{path}: not readable as {'JSON' if path.suffix.lower() == '.json' else 'CSV'} ({exc})"
+        ) from None
+    df = pd.DataFrame()
+    bad_rows: set[int] = set()
+    for name, entry in column_map.columns.items():
+        column = entry["column"]
+        if column not in raw.columns:
+            raise LogError(f"{path}: column {column!r} (for {name!r}) is missing; the file has {list(raw.columns)}")
+        values = pd.to_numeric(raw[column], errors="coerce").to_numpy(dtype=float)
+        bad_rows |= set(np.flatnonzero(~np.isfinite(values)).tolist())
+        scale = UNITS[entry.get("unit", "1")] / float(entry.get("counts_per_unit", 1.0))
+        df[name] = values * scale
+    header_lines = 1 if path.suffix.lower() != ".json" else 0
+    bad = sorted(bad_rows)
+    _drop_bad_rows(path, [(i + 1 + header_lines, "not a number in a mapped column") for i in bad], len(raw))
+    keep = np.setdiff1d(np.arange(len(df)), bad)
+    df = df.iloc[keep].reset_index(drop=True)
+    meta = {"format": "mapped " + path.suffix.lstrip("."), "column_map": dict(column_map.columns),
+            "file_rows": (keep + 1 + header_lines).tolist()}  # fmt: skip
+    return Log(str(path), df, meta)

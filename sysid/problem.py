@@ -1,0 +1,532 @@
+"""Replaying logs in the model: segments, batched rollouts of candidate settings, residuals on the noise scale.
+
+A log is cut into segments of about a second (multiple shooting): each starts from the measured joint state, so one
+early divergence does not dominate the error. A *setting* is a flat dict of effect parameters (``effect.param``);
+the robot's adapter turns a setting into a model (spec edits or field writes), controls (delay, deadband, supply),
+and predicted channels (sensor bias and gain). Every (setting, segment) pair is one row of a single
+``mujoco.rollout`` call on the machine's cores: candidate settings of a fit, of a finite-difference Jacobian, or of
+a grid run together.
+
+Residuals are measured minus predicted, divided by each channel's noise level (so 1 is the noise floor).
+
+A segment's measured start is itself noisy (an encoder's noise, a speed from differences), and an error in it grows
+along the segment. So the start is refined, not trusted: the adapter names the start's uncertain coordinates and
+their standard deviations, the prediction's sensitivity to each is measured at an *anchor* setting (one batched
+rollout, a perturbed start per row), and every residual is the least-squares remainder after the best correction
+of the start, with the correction itself as residual rows against its prior (in units of its standard deviation).
+The correction is linear in the residual (variable projection), so it costs no rollout per candidate; with its
+prior rows counted, the expected cost of the true model is still one per data sample.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from envs.common.batch import default_threads
+from sysid.effects import Effect, Param
+from sysid.logs import Log
+
+Setting = Mapping[str, float]
+STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
+LEAD_SECONDS = 0.25  # s of the log kept before each segment: the commands a delayed actuator still acts on
+TIME_TOLERANCE = 1e-9  # s: sample and physics times that differ by rounding alone are the same time
+
+
+@dataclass
+class Segment:
+    """A piece of a log replayed from its measured start.
+
+    Attributes:
+        log: the log's path; index: the segment's number in it; t0: its start time in the log, s.
+        steps: physics step (from the segment's start) of each sample; samples: the samples' rows in the log.
+        measured: the compared channels at the samples, (samples, channels).
+        data: the log's columns over the segment (commands, start values), as arrays.
+    """
+
+    log: str
+    index: int
+    t0: float
+    steps: np.ndarray
+    samples: np.ndarray
+    measured: np.ndarray
+    data: dict[str, np.ndarray] = field(default_factory=dict)
+    sigma: dict[str, float] = field(default_factory=dict)  # the channels' noise levels (set by Problem)
+    lead: dict[str, np.ndarray] = field(default_factory=dict)  # the log's rows just before t0 (for delays)
+    carry_steps: int = 0  # physics steps to the next segment's start, if it follows on directly
+    n_steps: int = 0  # physics steps rolled out (the same for every segment of a problem)
+
+    def command_at(self, column: str, physics_times: np.ndarray, delay: float = 0.0) -> np.ndarray:
+        """The log's ``column`` held (zero-order) from each sample to the next, at physics times (s from t0),
+        ``delay`` seconds late: before the segment's first sample, the log's samples before it (``lead``)."""
+        lead = self.lead.get("time", np.zeros(0))
+        t = np.concatenate([lead, self.data["time"]]) - self.t0 - TIME_TOLERANCE  # a sample acts from its step
+        values = np.concatenate([self.lead.get(column, np.zeros(0)), self.data[column]])
+        index = np.searchsorted(t, physics_times - delay, side="right") - 1
+        return values[np.clip(index, 0, len(values) - 1)]
+
+
+class Adapter(ABC):
+    """How calibration replays one robot's logs. Each robot (and bench rig) provides one in its folder.
+
+    Class attributes:
+        name: the robot's name for ``calibrate.py --robot``.
+        channels: the compared channels, name -> unit.
+        commands: the columns a log must hold to be replayed (besides ``channels`` and ``time``).
+        context: the log columns the residual diagnostics relate the residual to (``velocity``, ``command``,
+            ``supply``).
+    """
+
+    name: str
+    robot: str = ""  # the robot's name in calibration files (default: ``name``)
+    channels: Mapping[str, str]
+    commands: tuple[str, ...] = ()
+    segment_seconds: float = 1.0
+    context: Mapping[str, str] = {}  # log columns for the diagnostics: velocity, command, supply
+    carry_over: bool = True  # a segment starts from the previous one's end, its measured coordinates overwritten
+
+    def __init__(self) -> None:
+        self._models: dict[tuple, mujoco.MjModel] = {}
+        self.robot = self.robot or self.name
+
+    # --- what the robot offers ------------------------------------------------------------------------------------
+    @abstractmethod
+    def effects(self) -> dict[str, Effect]:
+        """The catalog effects this robot can apply and its channels can observe, by name."""
+
+    def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
+        """Parameters fitted with every candidate but never reported as effects (e.g. an unlogged servo goal)."""
+        return {}
+
+    def required(self) -> tuple[str, ...]:
+        return (*self.commands, *self.channels)
+
+    def known_effects(self) -> dict[str, dict[str, tuple[float, float]]]:
+        """effect -> parameter -> (low, high), of the catalog effects (for checking calibration files)."""
+        return {n: {p.name: (p.low, p.high) for p in e.params} for n, e in self.effects().items() if e.catalogued}
+
+    def check_logs(self, logs: Sequence[Log]) -> None:  # noqa: B027 (optional hook)
+        """Robot-specific checks of logs before anything runs (raise ``LogError`` naming file, row and column)."""
+
+    @property
+    @abstractmethod
+    def physics_dt(self) -> float: ...
+
+    # --- replay ---------------------------------------------------------------------------------------------------
+    def segments(self, log: Log) -> list[Segment]:
+        """Cut a log into segments of about ``segment_seconds`` (a shorter tail, under half a segment, is left out).
+        A segment starts at its first sample; ``carry_steps`` is the number of physics steps to the next segment's
+        start when that follows on directly (0 otherwise)."""
+        t = log.time
+        h = self.physics_dt
+        columns = {
+            c: log.df[c].to_numpy(dtype=float) for c in log.df.columns if np.issubdtype(log.df[c].dtype, np.number)
+        }
+        edges = np.arange(t[0], t[-1] - 0.5 * self.segment_seconds + 1e-12, self.segment_seconds)
+        out: list[Segment] = []
+        for index, start in enumerate(edges):
+            rows = np.flatnonzero((t >= start) & (t < start + self.segment_seconds))
+            if len(rows) < 3:
+                continue
+            t0 = float(t[rows[0]])
+            steps = np.round((t[rows] - t0) / h).astype(int)
+            measured = np.column_stack([columns[c][rows] for c in self.channels])
+            data = {c: v[rows] for c, v in columns.items()}
+            before = np.flatnonzero((t >= t0 - LEAD_SECONDS) & (t < t0))
+            lead = {c: v[before] for c, v in columns.items()}
+            out.append(Segment(log.path, index, t0, steps, rows, measured, data, lead=lead))
+        for seg, following in itertools.pairwise(out):
+            if following.index == seg.index + 1:
+                seg.carry_steps = round((following.t0 - seg.t0) / h)
+        for seg in out:
+            seg.n_steps = max(int(seg.steps[-1]) + 1, seg.carry_steps)
+        return out
+
+    def physics_times(self, segment: Segment) -> np.ndarray:
+        """The time of every physics step of a segment's rollout, s from its start."""
+        return np.arange(segment.n_steps) * self.physics_dt
+
+    @abstractmethod
+    def structure(self, setting: Setting) -> tuple:
+        """The part of a setting that needs its own compiled model (a spec edit); () if fields suffice."""
+
+    @abstractmethod
+    def compile(self, setting: Setting) -> mujoco.MjModel:
+        """A model for a setting's structural effects (spec edits), nominal otherwise."""
+
+    @abstractmethod
+    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
+        """Write a setting's field effects into (a copy of) a compiled model."""
+
+    @abstractmethod
+    def initial_state(
+        self, model: mujoco.MjModel, data: mujoco.MjData, segment: Segment, setting: Setting, carried: bool = False
+    ) -> None:
+        """Put ``data`` at the segment's measured start: ``data`` is fresh from ``mj_resetData`` or, ``carried``,
+        holds the previous segment's end state; write the coordinates the log measures (and, fresh, estimates of
+        the others)."""
+
+    @abstractmethod
+    def controls(self, model: mujoco.MjModel, segment: Segment, setting: Setting) -> np.ndarray:
+        """The control of every physics step of the segment, (segment.n_steps, nu)."""
+
+    @abstractmethod
+    def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
+        """Predicted channels at the segment's samples from the sensor data at their physics steps."""
+
+    def initial_uncertainty(
+        self, model: mujoco.MjModel, segment: Segment, setting: Setting
+    ) -> list[tuple[str, int, float]]:
+        """The uncertain coordinates of a segment's start: (``"qpos"`` or ``"qvel"``, address, standard deviation)."""
+        return []
+
+    def report_extra(self, result) -> dict:
+        """Robot-specific additions to the report: ``{"sections": {title: markdown}, ...}`` (e.g. channels
+        compared as distributions)."""
+        return {}
+
+    def model_for(self, setting: Setting) -> mujoco.MjModel:
+        key = self.structure(setting)
+        if key not in self._models:
+            self._models[key] = self.compile(setting)
+        model = _copy_model(self._models[key])
+        self.apply_fields(model, setting)
+        # MuJoCo 4 keeps constants derived from masses and armature: recompute them after the writes
+        mujoco.mj_setConst(model, mujoco.MjData(model))
+        return model
+
+    # --- synthetic data (sysid/synth.py) -----------------------------------------------------------------------------
+    def excite(self, seconds: float, rng: np.random.Generator):
+        """A command table (``time``, the commands, the channels' start values) that excites the robot."""
+        raise NotImplementedError(f"{self.name} has no excitation for synthetic logs")
+
+    def synth_noise(self) -> dict[str, float]:
+        """The sensor noise (standard deviation per channel) of synthetic logs."""
+        raise NotImplementedError
+
+    def measure(self, channel: str, values: np.ndarray) -> np.ndarray:
+        """What the sensor reports of a noisy value (rounding to counts, for example)."""
+        return values
+
+    def recorded_noise(self, noise: dict[str, float]) -> dict[str, float]:
+        """The noise level a synthetic log records per channel (its sensor noise, and rounding)."""
+        return dict(noise)
+
+    # --- noise ------------------------------------------------------------------------------------------------------
+    def noise(self, log: Log) -> dict[str, float]:
+        """Each channel's noise level: the log's own record if it has one (synthetic data), else the larger of its
+        quantisation step / sqrt(12) and a robust estimate of white noise from second differences."""
+        recorded = log.meta.get("noise_sigma") or {}
+        quantisation = log.meta.get("quantisation") or {}
+        out = {}
+        for c in self.channels:
+            if c in recorded:
+                out[c] = float(recorded[c])
+                continue
+            x = log.df[c].to_numpy(dtype=float)
+            d2 = np.diff(x, 2)
+            white = float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6)) if len(d2) else 0.0
+            q = float(quantisation.get(c, 0.0)) / math.sqrt(12)
+            out[c] = max(white, q, 1e-12)
+        return out
+
+
+def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    import copy
+
+    return copy.copy(model)
+
+
+@dataclass
+class Residual:
+    """One segment's residual under one setting: ``data`` (samples, channels) is measured minus predicted over the
+    noise, after the start's correction ``prior`` (one entry per uncertain coordinate, in its standard deviations)."""
+
+    data: np.ndarray
+    prior: np.ndarray
+
+    def flat(self) -> np.ndarray:
+        return np.concatenate([self.data.ravel(), self.prior])
+
+    @cached_property
+    def cost(self) -> float:
+        return float(np.sum(self.data * self.data) + self.prior @ self.prior)
+
+
+def flatten(residuals: Sequence[Residual]) -> np.ndarray:
+    return np.concatenate([r.flat() for r in residuals])
+
+
+def total_cost(residuals: Sequence[Residual]) -> float:
+    return float(sum(r.cost for r in residuals))
+
+
+def data_size(residuals: Sequence[Residual]) -> int:
+    return int(sum(r.data.size for r in residuals))
+
+
+class Problem:
+    """The logs of one robot, cut into segments, replayed under candidate settings.
+
+    Args:
+        adapter: the robot's adapter.
+        logs: the logs (already read and checked).
+        nthread: rollout threads (default: the machine's cores).
+    """
+
+    def __init__(self, adapter: Adapter, logs: Sequence[Log], nthread: int | None = None):
+        self.adapter = adapter
+        self.logs = list(logs)
+        self.segments: list[Segment] = [s for log in self.logs for s in adapter.segments(log)]
+        if not self.segments:
+            raise ValueError("no segment to replay: the logs are too short")
+        noise = [adapter.noise(log) for log in self.logs]
+        self.sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
+        self._sigma = np.array([self.sigma[c] for c in adapter.channels])
+        for seg in self.segments:
+            seg.sigma = dict(self.sigma)
+        self.nthread = nthread or default_threads()
+        self._runner = rollout.Rollout(nthread=self.nthread)
+        self.n_steps = max(seg.n_steps for seg in self.segments)
+        for seg in self.segments:
+            seg.n_steps = self.n_steps
+        self._sensitivity: dict[tuple, list[np.ndarray]] = {}
+        self._carry: dict[tuple, dict[int, np.ndarray | None]] = {}
+        self._datas: dict[tuple, list[mujoco.MjData]] = {}
+        by_log: dict[str, list[int]] = {}
+        for i, seg in enumerate(self.segments):
+            by_log.setdefault(seg.log, []).append(i)
+        self._by_log = list(by_log.values())
+        self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
+
+    @property
+    def channels(self) -> list[str]:
+        return list(self.adapter.channels)
+
+    def _index(self, segments: Sequence[int] | None) -> list[int]:
+        return list(range(len(self.segments))) if segments is None else list(segments)
+
+    def predict(
+        self, settings: Sequence[Setting], segments: Sequence[int] | None = None, anchor: Setting | None = None
+    ) -> list[list[np.ndarray]]:
+        """Predicted channels for every setting and segment: ``out[k][s]`` is (samples, channels).
+
+        With ``anchor`` (inside a fit), what a segment carries over from the one before is taken from the anchor's
+        own run, so that every segment of every setting runs in one batched rollout; settings whose model structure
+        differs from the anchor's, and calls without an anchor, run the segments of each log in order."""
+        index = self._index(segments)
+        if anchor is None or not self.adapter.carry_over:
+            predictions, _ = self._chain(settings, index)
+            return [[predictions[(k, i)] for i in index] for k in range(len(settings))]
+        key = self.adapter.structure(anchor)
+        same = [k for k, s in enumerate(settings) if self.adapter.structure(s) == key]
+        other = [k for k in range(len(settings)) if self.adapter.structure(settings[k]) != key]
+        predictions: dict = {}
+        if same:
+            carry = self._carried(anchor)
+            subset = [settings[k] for k in same]
+            models = [self.adapter.model_for(s) for s in subset]
+            rows = [(j, i, ("carry", carry[i]) if carry.get(i) is not None else None)
+                    for j in range(len(subset)) for i in index]  # fmt: skip
+            pred, _, _ = self._run(subset, models, rows)
+            predictions.update({(same[j], i): v for (j, i), v in pred.items()})
+        if other:
+            pred, _ = self._chain([settings[k] for k in other], index)
+            predictions.update({(other[j], i): v for (j, i), v in pred.items()})
+        return [[predictions[(k, i)] for i in index] for k in range(len(settings))]
+
+    def _carried(self, anchor: Setting) -> dict[int, np.ndarray | None]:
+        """The state each segment carries over from the one before, in the anchor's run over every segment."""
+        key = tuple(sorted(anchor.items()))
+        if key not in self._carry:
+            _, _, carry = self._chain([anchor], self._index(None), with_carry=True)
+            if len(self._carry) > 16:
+                self._carry.clear()
+            self._carry[key] = {i: v for (_, i), v in carry.items()}
+        return self._carry[key]
+
+    def _chain(self, settings: Sequence[Setting], index: Sequence[int], with_carry: bool = False):
+        """Roll out every setting over the segments of ``index``: the predictions and start states per (setting,
+        segment). Each segment starts from its measured state; with ``carry_over`` the rest of the state (what
+        the log does not hold) is the previous segment's end, so the segments of a log run in order (each step
+        batched over the settings), from the log's first segment up to the last one asked for. ``with_carry`` adds
+        the state each (setting, segment) carried over (None for a log's first segment)."""
+        adapter = self.adapter
+        wanted = set(index)
+        models = [adapter.model_for(s) for s in settings]
+        if not adapter.carry_over:
+            rows = [(k, i, None) for k in range(len(settings)) for i in index]
+            predictions, starts, _ = self._run(settings, models, rows)
+            return (predictions, starts, {key: None for key in predictions}) if with_carry else (predictions, starts)
+        chains = []
+        for log_segments in self._by_log:
+            needed = [j for j, i in enumerate(log_segments) if i in wanted]
+            if needed:
+                chains.append(log_segments[: needed[-1] + 1])
+        predictions: dict[tuple[int, int], np.ndarray] = {}
+        starts: dict[tuple[int, int], np.ndarray] = {}
+        ends: dict[tuple[int, int], np.ndarray] = {}
+        carried: dict[tuple[int, int], np.ndarray | None] = {}
+        for j in range(max((len(c) for c in chains), default=0)):
+            rows = []
+            for chain in chains:
+                if j >= len(chain):
+                    continue
+                i = chain[j]
+                previous = chain[j - 1] if j else None
+                contiguous = previous is not None and self.segments[i].index == self.segments[previous].index + 1
+                for k in range(len(settings)):
+                    carried[(k, i)] = ends[(k, previous)] if contiguous else None
+                    rows.append((k, i, ("carry", ends[(k, previous)]) if contiguous else None))
+            pred, start, end = self._run(settings, models, rows, keep_end=True)
+            predictions.update(pred)
+            starts.update(start)
+            ends = end
+        return (predictions, starts, carried) if with_carry else (predictions, starts)
+
+    def _run(self, settings, models, rows, keep_end: bool = False):
+        """Roll out rows (setting number, segment number, how to start): the start is the measured state
+        (None), the measured state over a carried one (``("carry", state)``), or a given state perturbed
+        (``("perturb", state, [(kind, address, delta), ...])``). Rows whose settings share a model structure run
+        in one batched rollout. Returns predictions, start states and (``keep_end``) end states per row key."""
+        groups: dict[tuple, list[int]] = {}
+        for r, (k, _, _) in enumerate(rows):
+            groups.setdefault(self.adapter.structure(settings[k]), []).append(r)
+        predictions, starts, ends = {}, {}, {}
+        for members in groups.values():
+            self._rollout(settings, models, [rows[r] for r in members], predictions, starts, ends, keep_end)
+        return predictions, starts, ends
+
+    def _rollout(self, settings, models, rows, predictions, starts, ends, keep_end) -> None:
+        adapter = self.adapter
+        m0 = models[rows[0][0]]
+        nstate = mujoco.mj_stateSize(m0, STATE_SPEC)
+        n = len(rows)
+        state = np.empty((n, nstate))
+        control = np.empty((n, self.n_steps, m0.nu))
+        data = mujoco.MjData(m0)
+        controls: dict[tuple[int, int], np.ndarray] = {}
+        for row, (k, i, how) in enumerate(rows):
+            model, setting, seg = models[k], settings[k], self.segments[i]
+            mujoco.mj_resetData(model, data)
+            if how is not None and how[0] == "perturb":
+                mujoco.mj_setState(model, data, how[1], STATE_SPEC)
+                for kind, address, delta in how[2]:
+                    getattr(data, kind)[address] += delta
+            else:
+                if how is not None:
+                    mujoco.mj_setState(model, data, how[1], STATE_SPEC)
+                    data.time = 0.0
+                adapter.initial_state(model, data, seg, setting, carried=how is not None)
+            mujoco.mj_forward(model, data)
+            mujoco.mj_getState(model, data, state[row], STATE_SPEC)
+            if (k, i) not in controls:
+                controls[(k, i)] = adapter.controls(model, seg, setting)
+            control[row] = controls[(k, i)]
+        sensordata = np.empty((n, self.n_steps, m0.nsensordata))
+        trajectory = np.empty((n, self.n_steps, nstate)) if keep_end else None
+        size = (m0.nq, m0.nv, m0.na, m0.nu, m0.nsensordata, m0.nbody, m0.njnt, m0.neq)
+        if size not in self._datas:
+            self._datas[size] = [mujoco.MjData(m0) for _ in range(self.nthread)]
+        datas = self._datas[size]
+        self._runner.rollout([models[k] for k, _, _ in rows], datas, state, control, control_spec=CTRL_SPEC,
+                             initial_warmstart=np.zeros((n, m0.nv)), sensordata=sensordata,
+                             state=trajectory)  # fmt: skip
+        self.rollouts += n
+        for row, (k, i, how) in enumerate(rows):
+            seg = self.segments[i]
+            key = (k, i) if how is None or how[0] != "perturb" else (k, i, id(how))
+            # a sample at step k is the state after k physics steps: the sensors computed at the start of step k
+            predictions[key] = adapter.observe(sensordata[row, np.minimum(seg.steps, self.n_steps - 1)], seg,
+                                               settings[k])  # fmt: skip
+            starts[key] = state[row].copy()
+            if keep_end and seg.carry_steps:
+                ends[key] = trajectory[row, seg.carry_steps - 1].copy()
+
+    # --- the start's correction -------------------------------------------------------------------------------------
+    def sensitivity(self, anchor: Setting, segments: Sequence[int] | None = None) -> list[np.ndarray]:
+        """Per segment, the change of the normalized prediction per standard deviation of each uncertain start
+        coordinate, at ``anchor``: (samples x channels, k)."""
+        index = self._index(segments)
+        key = (tuple(sorted(anchor.items())), tuple(index))
+        if key in self._sensitivity:
+            return self._sensitivity[key]
+        model = self.adapter.model_for(anchor)
+        coords = {i: self.adapter.initial_uncertainty(model, self.segments[i], anchor) for i in index}
+        base, starts = self._chain([anchor], index) if any(coords.values()) else ({}, {})
+        rows = []
+        for i in index:
+            rows.extend((0, i, ("perturb", starts[(0, i)], [c])) for c in coords[i])
+        perturbed, _, _ = self._run([anchor], [model], rows) if rows else ({}, {}, {})
+        out = []
+        for i in index:
+            columns = [
+                ((perturbed[(0, i, id(how))] - base[(0, i)]) / self._sigma).ravel() for _, j, how in rows if j == i
+            ]
+            out.append(
+                np.column_stack(columns) if columns else np.zeros((len(self.segments[i].steps) * len(self._sigma), 0))
+            )
+        if len(self._sensitivity) > 64:
+            self._sensitivity.clear()
+        self._sensitivity[key] = out
+        return out
+
+    def residuals(
+        self, settings: Sequence[Setting], segments: Sequence[int] | None = None, anchor: Setting | None = None
+    ) -> list[list[Residual]]:
+        """Residuals per setting and segment, the start corrected with sensitivities at ``anchor`` (default: at
+        each setting itself, exact but one rollout per uncertain coordinate more)."""
+        index = self._index(segments)
+        predictions = self.predict(settings, index, anchor)
+        out = []
+        for k, per in enumerate(predictions):
+            sens = self.sensitivity(anchor if anchor is not None else settings[k], index)
+            row = []
+            for i, p, a in zip(index, per, sens, strict=True):
+                r = (self.segments[i].measured - p) / self._sigma
+                if a.shape[1]:
+                    delta = np.linalg.solve(a.T @ a + np.eye(a.shape[1]), a.T @ r.ravel())
+                    r = r - (a @ delta).reshape(r.shape)
+                else:
+                    delta = np.zeros(0)
+                row.append(Residual(r, delta))
+            out.append(row)
+        return out
+
+    def error(self, residuals: Sequence[Residual]) -> float:
+        """RMS of the normalized residual (the start's correction counted against its prior) per data sample and
+        channel: 1 is the noise floor."""
+        n = data_size(residuals)
+        return math.sqrt(total_cost(residuals) / n) if n else float("nan")
+
+    def channel_errors(self, residuals: Sequence[Residual]) -> dict[str, float]:
+        r = np.concatenate([x.data for x in residuals])
+        return {c: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, c in enumerate(self.channels)}
+
+    def segment_costs(self, residuals: Sequence[Residual]) -> np.ndarray:
+        """Cost per data sample of each segment (for paired bootstraps over segments)."""
+        return np.array([r.cost / max(r.data.size, 1) for r in residuals])
+
+    def effective_samples(self, residuals: Sequence[Residual]) -> float:
+        """The residual's samples, discounted for their autocorrelation: n (1 - rho) / (1 + rho) per segment and
+        channel, with rho the lag-1 autocorrelation (residuals at 1 kHz are far from independent)."""
+        total = 0.0
+        for res in residuals:
+            r = res.data
+            for c in range(r.shape[1]):
+                x = r[:, c] - r[:, c].mean()
+                n = len(x)
+                denom = float(x @ x)
+                rho = float(x[:-1] @ x[1:]) / denom if denom > 0 and n > 2 else 0.0
+                rho = min(max(rho, 0.0), 0.99)
+                total += n * (1 - rho) / (1 + rho)
+        return max(total, 1.0)

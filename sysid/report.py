@@ -1,0 +1,187 @@
+"""What ``calibrate.py`` writes: ``report.json``, ``report.md``, the residual plots and ``calibration.json``."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from envs.common.calibration import calibration_record
+from sysid import diagnostics
+from sysid.effects import Effect
+from sysid.pipeline import UNEXPLAINED_ABOVE, Result
+
+
+def _round(x: float, digits: int = 6) -> float:
+    return float(f"{x:.{digits}g}") if math.isfinite(x) else x
+
+
+def _params(effect: Effect, values: Mapping[str, float], ci95: Mapping[str, float]) -> dict[str, dict[str, Any]]:
+    return {
+        p.name: {
+            "value": _round(values[effect.key(p.name)]),
+            "ci95": _round(ci95.get(effect.key(p.name), math.nan)),
+            "unit": p.unit,
+            "nominal": p.nominal,
+            "range": [p.low, p.high],
+        }
+        for p in effect.params
+    }
+
+
+def report_dict(result: Result, seconds: float, start: str | None = None) -> dict[str, Any]:
+    """The content of report.json."""
+    out = result.outcome
+    adapter = result.adapter
+    chosen = []
+    for choice, step in zip(out.chosen, result.steps, strict=True):
+        chosen.append(
+            {
+                "name": choice.effect.name,
+                "alias_group": choice.effect.alias,
+                "params": _params(choice.effect, choice.values, choice.ci95),
+                "error_after": _round(step.error, 4),
+                "per_channel_after": {k: _round(v, 4) for k, v in step.per_channel.items()},
+                "training_error_after": _round(choice.training_error, 4),
+                "score": _round(choice.score, 4),
+            }
+        )
+    test_diag = diagnostics.diagnose(result.test_problem, result.after.residuals, adapter.context)
+    before_diag = diagnostics.diagnose(result.test_problem, result.before.residuals, adapter.context)
+    return {
+        "robot": adapter.name,
+        "train": [log.path for log in result.train],
+        "test": [log.path for log in result.test],
+        "start": start,
+        "error_before": _round(result.before.error, 4),
+        "error_after": _round(result.after.error, 4),
+        "per_channel": {
+            c: {"before": _round(result.before.per_channel[c], 4), "after": _round(result.after.per_channel[c], 4)}
+            for c in adapter.channels
+        },
+        "mode": out.mode,
+        "chosen": chosen,
+        "rejected": list(out.rejected),
+        "unexplained": result.unexplained,
+        "unexplained_reason": result.where(),
+        "noise": {
+            "threshold_unexplained": UNEXPLAINED_ABOVE,
+            "sigma": result.test_problem.sigma,
+            "units": dict(adapter.channels),
+        },
+        "nuisance": {k: _round(v) for k, v in out.nuisance.items()},
+        "ranking": [
+            [
+                {k: (_round(v, 4) if isinstance(v, float) else v) for k, v in entry.items() if k != "start"}
+                for entry in round_
+            ]
+            for round_ in out.rounds
+        ],
+        "diagnostics": {
+            "before": before_diag,
+            "after": test_diag,
+            "findings_before": diagnostics.summarize(before_diag),
+            "findings_after": diagnostics.summarize(test_diag),
+        },
+        "extra": adapter.report_extra(result),
+        "segments": {
+            "train": len(result.train_problem.segments),
+            "test": len(result.test_problem.segments),
+            "seconds_each": adapter.segment_seconds,
+        },
+        "rollouts": result.train_problem.rollouts + result.test_problem.rollouts,
+        "wall_seconds": round(seconds, 1),
+    }
+
+
+def calibration_dict(result: Result, report: Mapping[str, Any], base: Mapping[str, Any] | None = None) -> dict:
+    """The content of calibration.json: the chosen effects (and those of a starting calibration)."""
+    effects: dict[str, dict] = {k: dict(v) for k, v in (base or {}).items()}
+    for entry in report["chosen"]:
+        effects[entry["name"]] = {p: {k: v[k] for k in ("value", "ci95", "unit")} for p, v in entry["params"].items()}
+    provenance = {k: report[k] for k in ("train", "test", "start", "error_before", "error_after", "unexplained")}
+    return calibration_record(result.adapter.name, effects, provenance)
+
+
+def report_markdown(report: Mapping[str, Any]) -> str:
+    r = report
+    lines = [
+        f"# Calibration of {r['robot']}",
+        "",
+        f"Trained on {', '.join(map(str, r['train']))}; tested on {', '.join(map(str, r['test']))}"
+        + (f"; started from {r['start']}" if r.get("start") else "")
+        + ".",
+        "",
+        "Errors are the RMS of the held-out residual over each channel's noise level: 1 is the noise floor.",
+        "",
+        f"**Held-out error: {r['error_before']:.3g} before, {r['error_after']:.3g} after.** "
+        + ("Unexplained: " if r["unexplained"] else "")
+        + r["unexplained_reason"],
+        "",
+        "| channel | before | after |",
+        "|---|---|---|",
+    ]
+    lines += [f"| {c} | {v['before']:.3g} | {v['after']:.3g} |" for c, v in r["per_channel"].items()]
+    lines += ["", "## Effects kept, in order" if r["mode"] == "select" else "## Effects fitted (named with --fit)", ""]
+    if r["chosen"]:
+        lines += [
+            "| effect | alias group | parameter | value | 95% interval | held-out error after |",
+            "|---|---|---|---|---|---|",
+        ]
+        for c in r["chosen"]:
+            for name, p in c["params"].items():
+                lines.append(
+                    f"| {c['name']} | {c['alias_group']} | {name} | {p['value']:.4g} {p['unit']} | "
+                    f"+-{p['ci95']:.2g} | {c['error_after']:.3g} |"
+                )
+    else:
+        lines.append("None: no catalog effect earned its place.")
+    if r["rejected"]:
+        lines += ["", "## Tried and rejected", ""]
+        lines += [f"- **{x['name']}**: {x['reason']}" for x in r["rejected"]]
+    if r["diagnostics"]["findings_before"]:
+        lines += ["", "## What the residual pointed to (held-out, before)", ""]
+        lines += [f"- {x}" for x in r["diagnostics"]["findings_before"]]
+    if r["ranking"]:
+        lines += ["", "## First ranking (score statistic of each effect at the nominal model)", ""]
+        lines += ["| effect | alias group | score | p | share of residual explained |", "|---|---|---|---|---|"]
+        for e in r["ranking"][0][:10]:
+            lines.append(
+                f"| {e['effect']} | {e['alias_group']} | {e['score']:.4g} | {e['p_value']:.2g} | "
+                f"{e['explained_fraction']:.1%} |"
+            )
+    for title, text in (r.get("extra") or {}).get("sections", {}).items():
+        lines += ["", f"## {title}", "", text]
+    lines += [
+        "",
+        f"{r['segments']['train']} training and {r['segments']['test']} test segments of "
+        f"{r['segments']['seconds_each']:g} s; {r['rollouts']} segment rollouts; {r['wall_seconds']} s.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def plot_residuals(result: Result, path: Path, which: str) -> None:
+    """The held-out residual per channel over time (``which``: before or after)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    held = result.before if which == "before" else result.after
+    problem = result.test_problem
+    channels = problem.channels
+    fig, axes = plt.subplots(len(channels), 1, figsize=(10, 2.2 * len(channels) + 0.6), sharex=True, squeeze=False)
+    for c, ax in enumerate(axes[:, 0]):
+        for seg, res in zip(problem.segments, held.residuals, strict=True):
+            t = seg.data["time"]
+            ax.plot(t, res.data[:, c], lw=0.6, color="C0" if which == "before" else "C2")
+        ax.axhline(1, color="0.6", lw=0.5, ls="--")
+        ax.axhline(-1, color="0.6", lw=0.5, ls="--")
+        ax.set_ylabel(f"{channels[c]}\n(noise levels)")
+        ax.set_title(f"{channels[c]}: RMS {held.per_channel[channels[c]]:.3g}", fontsize=9)
+    axes[-1, 0].set_xlabel("time in the test log, s")
+    fig.suptitle(f"{result.adapter.name}: held-out residual {which} calibration (error {held.error:.3g})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

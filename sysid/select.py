@@ -1,0 +1,391 @@
+"""The calibration loop: rank the effects the residual points to, fit the best, keep it only if it earns its place,
+and stop when nothing helps.
+
+1. Nuisance parameters (what the log does not hold, e.g. an unlogged servo goal) are fitted first, and with every
+   candidate after.
+2. **Rank** every catalog effect the robot's channels can observe by a score statistic of its parameters at the
+   current model: how much of the residual their Jacobian can explain (the residual projected on the columns of
+   ``J``, over the residual variance per effective sample; chi^2 with as many degrees of freedom as parameters when
+   the effect is absent), or, where larger, what the best point of a small grid across its range explains (the
+   only measure for non-smooth effects: delay, backlash, deadband). One batched rollout holds every column.
+3. **Fit** the top candidates (those within half the best score) on the training segments and **keep** the best by
+   BIC among those that earn their place: they lower the information criterion (BIC on the effective number of
+   samples), their cross-validated held-out gain (each of ``FOLDS`` folds of segments, stratified by excitation,
+   predicted by a fit on the others) beats a paired bootstrap interval over segments, and the data identify every
+   parameter (a 95% interval narrower than half the parameter's range, the value off the range's ends).
+   Otherwise record why, and try the next candidate. If no single effect earns its place, chains of two or three
+   effects that may help only together are grown by the score statistic at each step's fit (``_chains``).
+4. Effects of an alias group that already has a member are not offered again: the data cannot tell them apart.
+5. Stop when nothing is kept or the training residual reaches the noise floor.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from sysid import diagnostics
+from sysid.effects import Effect, Param
+from sysid.fit import FD_STEP, FitResult, evaluate, fit
+from sysid.problem import Problem, Setting, flatten
+
+MAX_EFFECTS = 4
+TRIES_PER_ROUND = 3
+NOISE_FLOOR = 1.05  # stop when the validation error is this close to the noise floor
+SCORE_GRID = 5
+CHAIN_SEEDS = 2  # effects that help only together: chains grown from the singles that fitted best,
+CHAIN_WIDTH = 3  # with this many candidates tried at the second step (then the best chain grows by one),
+CHAIN_DEPTH = 3  # up to this many effects
+CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
+FOLDS = 3  # cross-validation folds of the held-out test
+
+
+@dataclass
+class Choice:
+    effect: Effect
+    values: dict[str, float]
+    ci95: dict[str, float]
+    score: float
+    training_error: float
+    together: list[str] = field(default_factory=list)  # effects kept in the same step (a pair)
+
+
+@dataclass
+class Outcome:
+    setting: dict[str, float]
+    nominal: dict[str, float]
+    chosen: list[Choice] = field(default_factory=list)
+    rejected: list[dict[str, str]] = field(default_factory=list)
+    rounds: list[list[dict]] = field(default_factory=list)
+    nuisance: dict[str, float] = field(default_factory=dict)
+    training_errors: list[float] = field(default_factory=list)
+    history: list[dict[str, float]] = field(default_factory=list)  # the setting before and after each kept effect
+    mode: str = "select"  # "fit": the effects were named by the user (calibrate.py --fit), not selected
+    diagnostics_before: dict = field(default_factory=dict)
+    diagnostics_after: dict = field(default_factory=dict)
+
+
+def split(problem: Problem) -> list[list[int]]:
+    """FOLDS folds of segments, stratified by excitation: segments sorted by how much their measured channels move
+    (variance over the noise) are dealt out in turn, so every fold holds quiet and lively segments alike. The first
+    fold is the validation set of the loop's own bookkeeping; every fold is held out once in the held-out test."""
+    n = len(problem.segments)
+    excitation = [float(np.sum(np.var(seg.measured, axis=0) / problem._sigma**2)) for seg in problem.segments]
+    order = sorted(range(n), key=lambda i: (excitation[i], i))
+    folds = [sorted(order[k] for k in range(start, n, FOLDS)) for start in (1, 2, 0)]
+    return [f for f in folds if f]
+
+
+def nominal_setting(effects: Mapping[str, Effect], start: Mapping[str, float] | None = None) -> dict[str, float]:
+    setting = {}
+    for e in effects.values():
+        setting.update(e.nominal())
+    setting.update(start or {})
+    return setting
+
+
+def _params(effect: Effect) -> dict[str, Param]:
+    return {effect.key(p.name): p for p in effect.params}
+
+
+def calibrate(
+    problem: Problem,
+    start: Mapping[str, float] | None = None,
+    say: Callable[[str], None] = print,
+) -> Outcome:
+    """Run the loop on a problem's segments (the training logs)."""
+    adapter = problem.adapter
+    effects = {k: e for k, e in adapter.effects().items() if e.catalogued}
+    nuisance = adapter.nuisance(problem.logs)
+    folds = split(problem)
+    fitting = None  # every training segment: the held-out test cross-validates over the folds
+    current = nominal_setting(effects, start)
+    nominal = dict(current)
+    if nuisance:  # what the log does not hold is fitted on every segment that shows it
+        current = fit(problem, current, nuisance).values
+        nominal.update({k: current[k] for k in nuisance})
+    outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance})
+    outcome.history.append(dict(current))
+    before = evaluate(problem, current, fitting)
+    outcome.diagnostics_before = diagnostics.diagnose(problem, problem.residuals([current])[0], adapter.context)
+    outcome.training_errors.append(before.error)
+    say(f"nominal model: error {before.error:.2f} on the training logs")
+    offered = {k: e for k, e in effects.items() if not any(key in (start or {}) for key in e.nominal())}
+    used_groups: set[str] = set()
+    for _ in range(MAX_EFFECTS):
+        if before.error <= NOISE_FLOOR:
+            say("the residual is at the noise floor: stop")
+            break
+        candidates = {k: e for k, e in offered.items() if e.alias not in used_groups}
+        if not candidates:
+            break
+        ranking = score(problem, current, candidates, None)  # every training segment
+        outcome.rounds.append(ranking)
+        say("ranking: " + ", ".join(f"{r['effect']} {r['score']:.1f}" for r in ranking[:5]))
+        # the close contenders (a score within CONTENDERS of the best) are all fitted and the best by BIC is kept;
+        # if none earns its place, the next ones are tried in turn; if no single effect does, chains of effects
+        # that may help only together (_chains)
+        significant = [e for e in ranking if e["p_value"] <= 0.05]
+        top = significant[0]["score"] if significant else 0.0
+        first = [e for e in significant[:TRIES_PER_ROUND] if e["score"] >= CONTENDERS * top]
+        later = significant[len(first) : TRIES_PER_ROUND]
+        failed: dict[str, str] = {}
+        singles: list[tuple[float, Effect, dict, FitResult]] = []
+
+        def attempt(group_effects: list[Effect], start_values: Mapping[str, float], current=current, before=before,
+                    failed=failed):  # fmt: skip
+            verdict, trial, bic = _try(problem, current, group_effects, nuisance, fitting, folds, before,
+                                       start_values)  # fmt: skip
+            label = " + ".join(e.name for e in group_effects)
+            if verdict is not None:
+                failed.setdefault(label, verdict)
+                say(f"rejected {label}: {verdict}")
+            return verdict, trial, bic
+
+        chosen_group = None
+        for stage_number, stage in enumerate((first, later)):
+            accepted = []
+            for entry in stage:
+                effect = candidates[entry["effect"]]
+                verdict, trial, bic = attempt([effect], entry["start"])
+                singles.append((trial.cost, effect, entry, trial))
+                if verdict is None:
+                    accepted.append((bic, [effect], [entry], trial))
+                    if stage_number == 1:
+                        break
+            if accepted:
+                chosen_group = min(accepted, key=lambda x: x[0])
+                for _, others, _, _ in accepted:
+                    if others is not chosen_group[1]:
+                        say(f"{others[0].name} also fits, less well than {chosen_group[1][0].name} by BIC")
+                break
+        if chosen_group is None and singles:
+            chosen_group = _chains(problem, current, candidates, singles, fitting, used_groups, attempt, say)
+        if chosen_group is not None:
+            _, group_effects, entries, trial = chosen_group
+            label = " + ".join(e.name for e in group_effects)
+            params = {k: p for e in group_effects for k, p in _params(e).items()}
+            refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values)
+            current = refit.values
+            before = evaluate(problem, current, fitting)
+            outcome.training_errors.append(before.error)
+            for effect, entry in zip(group_effects, entries, strict=True):
+                outcome.chosen.append(
+                    Choice(effect, {k: current[k] for k in _params(effect)},
+                           {k: refit.ci95.get(k, float("nan")) for k in _params(effect)}, entry["score"],
+                           outcome.training_errors[-1], together=[e.name for e in group_effects if e is not effect])
+                )  # fmt: skip
+                outcome.history.append(dict(current))
+                used_groups.add(effect.alias)
+                offered.pop(effect.name)
+                failed.pop(effect.name, None)
+            say(f"kept {label}: error {outcome.training_errors[-1]:.2f} on the training logs")
+        for label, verdict in failed.items():
+            if " + " not in label:
+                outcome.rejected.append({"name": label, "reason": verdict})
+                offered.pop(label, None)
+            elif chosen_group is None:
+                outcome.rejected.append({"name": label, "reason": "together: " + verdict})
+        kept = chosen_group is not None
+        if not kept:
+            break
+    for k in nuisance:
+        outcome.nuisance[k] = current[k]
+    outcome.setting = current
+    outcome.diagnostics_after = diagnostics.diagnose(problem, problem.residuals([current])[0], adapter.context)
+    return outcome
+
+
+def fit_chosen(
+    problem: Problem,
+    names: Sequence[str],
+    start: Mapping[str, float] | None = None,
+    say: Callable[[str], None] = print,
+) -> Outcome:
+    """Fit the named effects together, without selection (``calibrate.py --fit``): for effects the user already
+    chose, as ``mujoco.sysid`` does, with the same intervals and report."""
+    adapter = problem.adapter
+    effects = {k: e for k, e in adapter.effects().items() if e.catalogued}
+    unknown = [n for n in names if n not in effects]
+    if unknown:
+        raise ValueError(f"--fit {unknown[0]!r}: {adapter.name} has no such effect (known: {', '.join(effects)})")
+    nuisance = adapter.nuisance(problem.logs)
+    current = nominal_setting(effects, start)
+    current.update({k: p.nominal for k, p in nuisance.items() if k not in current})
+    if nuisance:
+        current = fit(problem, current, nuisance).values
+    outcome = Outcome(setting=current, nominal=dict(current), nuisance={k: current[k] for k in nuisance}, mode="fit")
+    outcome.history.append(dict(current))
+    before = evaluate(problem, current)
+    outcome.training_errors.append(before.error)
+    outcome.diagnostics_before = diagnostics.diagnose(problem, before.residuals, adapter.context)
+    params = {k: p for n in names for k, p in _params(effects[n]).items()}
+    result = fit(problem, current, {**params, **nuisance})
+    current = result.values
+    outcome.training_errors.append(result.error)
+    for n in names:
+        e = effects[n]
+        outcome.chosen.append(Choice(e, {k: current[k] for k in _params(e)},
+                                     {k: result.ci95.get(k, float("nan")) for k in _params(e)}, float("nan"),
+                                     result.error, together=[m for m in names if m != n]))  # fmt: skip
+        outcome.history.append(dict(current))
+    say(f"fitted {', '.join(names)}: error {before.error:.2f} -> {result.error:.2f} on the training logs")
+    outcome.setting = current
+    outcome.nuisance = {k: current[k] for k in nuisance}
+    outcome.diagnostics_after = diagnostics.diagnose(problem, result.residuals, adapter.context)
+    return outcome
+
+
+def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], segments) -> list[dict]:
+    """Each candidate's score statistic at ``current``, highest first.
+
+    For an effect's parameters the statistic is the residual sum of squares their Jacobian can explain (the
+    residual projected on its columns) over the residual variance per effective sample: chi^2 with as many degrees
+    of freedom as parameters when the effect is absent. A linearization at the nominal value misjudges large
+    effects (and says nothing of non-smooth ones), so each effect is also tried on a small grid across its range
+    (a diagonal for several parameters); the statistic is the larger of the two reductions. Every Jacobian column
+    and grid point runs in one batched rollout. Each entry keeps its best grid point, where its fit starts.
+    """
+    base = evaluate(problem, current, segments)
+    r0 = flatten(base.residuals)
+    s2 = base.cost / base.n_eff  # residual variance per effective sample
+    probes, owners = [], []
+    for name, e in candidates.items():
+        for p in e.params:
+            if p.smooth:
+                key = e.key(p.name)
+                u = (current[key] - p.low) / p.span
+                step = FD_STEP * 10 if u < 0.5 else -FD_STEP * 10
+                probes.append({**current, key: current[key] + step * p.span})
+                owners.append((name, "fd", step * p.span))
+        for f in np.linspace(0.0, 1.0, SCORE_GRID):
+            point = {e.key(p.name): float(p.low + f * p.span) for p in e.params}
+            if all(np.isclose(v, current[k]) for k, v in point.items()):
+                continue
+            probes.append({**current, **point})
+            owners.append((name, "grid", point))
+    columns = problem.residuals(probes, segments, anchor=current) if probes else []
+    by_effect: dict[str, dict] = {n: {"jac": [], "grid": []} for n in candidates}
+    for (name, kind, arg), col in zip(owners, columns, strict=True):
+        r = flatten(col)
+        if kind == "fd":
+            by_effect[name]["jac"].append((r - r0) / arg)
+        else:
+            by_effect[name]["grid"].append((float(r @ r), arg))
+    out = []
+    for name, e in candidates.items():
+        parts = by_effect[name]
+        explained, start = 0.0, {}
+        if parts["jac"]:
+            jac = np.column_stack(parts["jac"])
+            coef, *_ = np.linalg.lstsq(jac, r0, rcond=None)
+            fitted = jac @ coef
+            explained = float(fitted @ fitted)
+        if parts["grid"]:
+            cost, point = min(parts["grid"], key=lambda x: x[0])
+            if base.cost - cost > explained or not parts["jac"]:
+                explained, start = base.cost - cost, point
+        stat = max(explained, 0.0) / max(s2, 1e-300)
+        out.append({"effect": name, "alias_group": e.alias, "score": stat,
+                    "p_value": float(stats.chi2.sf(stat, len(e.params))),
+                    "explained_fraction": max(explained, 0.0) / max(base.cost, 1e-300), "start": start})  # fmt: skip
+    out.sort(key=lambda d: -d["score"])
+    return out
+
+
+def _chains(problem: Problem, current: Setting, candidates, singles, fitting, used_groups, attempt, say):
+    """Effects that help only together: when no single effect earns its place, grow chains from the singles that
+    fitted best (CHAIN_SEEDS of them). Each step adds one of the candidates the score statistic ranks highest at the
+    chain's fitted values (what the residual still points to once the chain is in; CHAIN_WIDTH of them at the
+    second step, the best one after), fits the chain jointly and tests it by the same rules as a single effect.
+    The first chain that earns its place is returned as (BIC change, effects, ranking entries, fit)."""
+    for _, seed, seed_entry, seed_trial in sorted(singles, key=lambda x: x[0])[:CHAIN_SEEDS]:
+        frontier = [([seed], [seed_entry], seed_trial)]
+        for depth in range(2, CHAIN_DEPTH + 1):
+            grown = []
+            for chain, entries, trial in frontier:
+                groups = {e.alias for e in chain} | used_groups
+                rest = {k: e for k, e in candidates.items() if e.alias not in groups}
+                if not rest:
+                    continue
+                ranking = [e for e in score(problem, trial.values, rest, fitting) if e["p_value"] <= 0.05]
+                for entry in ranking[: CHAIN_WIDTH if depth == 2 else 1]:
+                    effects = [*chain, candidates[entry["effect"]]]
+                    say(f"trying together: {' + '.join(e.name for e in effects)}")
+                    verdict, fitted, bic = attempt(effects, {**trial.values, **entry["start"]})
+                    if verdict is None:
+                        return bic, effects, [*entries, entry], fitted
+                    grown.append((effects, [*entries, entry], fitted))
+            frontier = sorted(grown, key=lambda x: x[2].cost)[:1]
+            if not frontier:
+                break
+    return None
+
+
+def _try(
+    problem: Problem,
+    current: Setting,
+    effects: Sequence[Effect],
+    nuisance: Mapping[str, Param],
+    fitting,
+    folds: Sequence[Sequence[int]],
+    before: FitResult,
+    start: Mapping[str, float],
+) -> tuple[str | None, FitResult, float]:
+    """Fit effects together on the fitting segments: (None if they earn their place else the reason, the fit, the
+    BIC change). The held-out gain is cross-validated: each fold's segments are predicted by a fit on the others,
+    and the paired gains of every segment are bootstrapped."""
+    params = {k: p for e in effects for k, p in _params(e).items()}
+    trial = fit(problem, current, {**params, **nuisance}, fitting, start=start)
+    for k, p in params.items():
+        value = trial.values[k]
+        if p.span > 0 and min(value - p.low, p.high - value) < 0.01 * p.span and not np.isclose(value, p.nominal):
+            return (
+                f"{k} pushes against the end of its range ({value:.3g} {p.unit}): something else is at work",
+                trial,
+                0.0,
+            )
+        half = trial.ci95.get(k, float("inf"))
+        if not np.isfinite(half) or half > 0.5 * p.span:
+            return (
+                f"the data cannot identify {k}: 95% interval +-{half:.3g} {p.unit} over a range of {p.span:.3g}",
+                trial,
+                0.0,
+            )
+    n_eff = before.n_eff
+    bic = n_eff * math.log(max(trial.cost, 1e-300) / max(before.cost, 1e-300)) + len(params) * math.log(n_eff)
+    if bic >= 0:
+        return (
+            f"no better by the information criterion (BIC change {bic:+.1f} on {n_eff:.0f} effective samples)",
+            trial,
+            bic,
+        )
+    gains = []
+    everything = range(len(problem.segments))
+    for fold in folds:
+        rest = [i for i in everything if i not in fold]
+        fitted = fit(problem, current, {**params, **nuisance}, rest, start=trial.values) if rest else trial
+        old = problem.segment_costs(problem.residuals([current], fold)[0])
+        new = problem.segment_costs(problem.residuals([fitted.values], fold)[0])
+        gains.append(old - new)
+    gain = np.concatenate(gains)
+    if len(gain) < 2:
+        ok = gain.sum() > 0
+        low = float(gain.mean()) if len(gain) else 0.0
+    else:
+        res = stats.bootstrap((gain,), np.mean, confidence_level=0.95, method="percentile",
+                              random_state=np.random.default_rng(0))  # fmt: skip
+        low = float(res.confidence_interval.low)
+        ok = low > 0
+    if not ok:
+        return (
+            f"no held-out gain: the paired bootstrap interval of its cross-validated gain per segment reaches "
+            f"{low:.3g}",
+            trial,
+            bic,
+        )
+    return None, trial, bic

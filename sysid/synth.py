@@ -1,0 +1,217 @@
+"""Synthetic logs with hidden effects: telemetry from the model with effects nobody declares, under exciting commands
+and sensor noise, to test calibration.
+
+    python -m sysid.synth --robot motor --effect viscous_friction --seed 3 --out data.parquet
+    python -m sysid.synth --robot servo --effect delay=0.02 --effect servo_gain=1.8 --seed 0 --out servo.parquet
+    python -m sysid.synth --robot motor --effect disturbance=torque:0.3,frequency:4 --out disturbed.parquet
+    python -m sysid.synth --list
+
+An effect given without a value is drawn from its range with the seed, far enough from its nominal value that the
+nominal model's error on the data is at least 3 (three times the noise floor). The log holds the commands, the
+measured channels (with noise) and the noise levels; the truth goes to a separate ``<out>.truth.json`` that
+calibration never reads. Out-of-catalog effects (a terrain bump, a periodic disturbance) can be injected too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pandas as pd
+from mujoco import rollout
+
+from envs.common.io import refuse_overwrite, write_json
+from envs.common.telemetry import write_telemetry
+from sysid.effects import Effect
+from sysid.logs import Log
+from sysid.problem import CTRL_SPEC, STATE_SPEC, Adapter, Problem, Segment
+from sysid.robots import adapter as make_adapter
+from sysid.robots import adapters
+
+MIN_NOMINAL_ERROR = 3.0
+
+
+def simulate(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFrame) -> np.ndarray:
+    """The adapter's channels (without noise) at the command table's sample times, from one long replay."""
+    t = commands["time"].to_numpy()
+    h = adapter.physics_dt
+    long = copy.copy(adapter)
+    long.segment_seconds = float(t[-1] - t[0]) + h
+    steps = np.round((t - t[0]) / h).astype(int)
+    data = {c: commands[c].to_numpy(dtype=float) for c in commands.columns}
+    segment = Segment("synthetic", 0, float(t[0]), steps, np.arange(len(t)), np.zeros((len(t), len(adapter.channels))),
+                      data, n_steps=int(steps[-1]) + 1)  # fmt: skip
+    model = long.model_for(setting)
+    d = mujoco.MjData(model)
+    long.initial_state(model, d, segment, setting)
+    mujoco.mj_forward(model, d)
+    state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+    mujoco.mj_getState(model, d, state, STATE_SPEC)
+    control = long.controls(model, segment, setting)
+    _, sensordata = rollout.rollout(model, mujoco.MjData(model), state[None], control[None], control_spec=CTRL_SPEC)
+    return long.observe(sensordata[0, np.minimum(steps, len(control) - 1)], segment, setting)
+
+
+def synthesize(
+    robot: str,
+    injected: Mapping[str, float | Mapping[str, float] | None],
+    seed: int,
+    seconds: float = 10.0,
+) -> tuple[Log, dict]:
+    """A synthetic log of ``robot`` with effects ``name -> value`` (a number for the first parameter, a dict per
+    parameter, or None: drawn). Returns the log and the truth."""
+    adapter = make_adapter(robot)
+    catalog = adapter.effects()
+    rng = np.random.default_rng(seed)
+    commands = adapter.excite(seconds, rng)
+    noise = adapter.synth_noise()
+    setting: dict[str, float] = {}
+    truth: dict[str, dict[str, float]] = {}
+    for name, value in injected.items():
+        if name not in catalog:
+            raise ValueError(f"robot {robot!r} has no effect {name!r} (see --list)")
+        effect = catalog[name]
+        values = _values(effect, value, rng)
+        setting.update({effect.key(k): v for k, v in values.items()})
+        truth[name] = values
+    drawn = [n for n, v in injected.items() if v is None]
+    for attempt in range(12):
+        clean = simulate(adapter, setting, commands)
+        log = _log(adapter, commands, clean, noise, rng_noise(seed), robot)
+        error = nominal_error(adapter, log)
+        if error >= MIN_NOMINAL_ERROR or not drawn:
+            break
+        for name in drawn:  # push the drawn values further from nominal
+            effect = catalog[name]
+            truth[name] = _values(effect, None, rng, push=min(1.0, 0.5 + 0.1 * (attempt + 1)))
+            setting.update({effect.key(k): v for k, v in truth[name].items()})
+    else:
+        raise ValueError(
+            f"{', '.join(drawn)}: even far from nominal the nominal model's error is {error:.2f} < "
+            f"{MIN_NOMINAL_ERROR}: these channels barely see it"
+        )
+    return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
+
+
+def rng_noise(seed: int) -> np.random.Generator:
+    return np.random.default_rng([seed, 1])
+
+
+def _values(
+    effect: Effect, value: float | Mapping[str, float] | None, rng: np.random.Generator, push: float = 0.0
+) -> dict[str, float]:
+    """Values of an effect's parameters: given (a number for the first parameter, the rest nominal; or a value per
+    parameter), else drawn away from nominal: between 35% and 100% of the way from nominal to a bound (the farther
+    bound, three times in four), at least ``push`` of the way."""
+    if value is not None:
+        given = dict(value) if isinstance(value, Mapping) else {effect.params[0].name: float(value)}
+        names = [p.name for p in effect.params]
+        for name in given:
+            if name not in names:
+                raise ValueError(f"{effect.name} has no parameter {name!r} (it has {', '.join(names)})")
+        out = {}
+        for p in effect.params:
+            v = float(given.get(p.name, p.nominal))
+            if not p.low <= v <= p.high:
+                raise ValueError(f"{effect.name}.{p.name}={v:g}: outside its range [{p.low:g}, {p.high:g}] {p.unit}")
+            out[p.name] = v
+        return out
+    out = {}
+    for p in effect.params:
+        up, down = p.high - p.nominal, p.nominal - p.low
+        direction = 1.0 if (up >= down if rng.random() < 0.75 else up < down) and up > 0 else -1.0
+        reach = up if direction > 0 else down
+        fraction = max(push, rng.uniform(0.35, 1.0)) if push else rng.uniform(0.35, 1.0)
+        out[p.name] = float(p.nominal + direction * fraction * reach)
+    return out
+
+
+def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Mapping[str, float], rng, robot) -> Log:
+    df = commands.copy()
+    for i, c in enumerate(adapter.channels):
+        df[c] = adapter.measure(c, clean[:, i] + rng.normal(0.0, noise[c], len(df)))
+    meta = {"robot": robot, "format": "skitter synthetic log", "noise_sigma": adapter.recorded_noise(noise),
+            "units": {"time": "s", **dict(adapter.channels)}}  # fmt: skip
+    return Log("synthetic", df, meta)
+
+
+def nominal_error(adapter: Adapter, log: Log) -> float:
+    """The nominal model's error on a log (nuisance parameters fitted first)."""
+    from sysid.fit import fit
+    from sysid.select import nominal_setting
+
+    problem = Problem(adapter, [log])
+    setting = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
+    nuisance = adapter.nuisance([log])
+    if nuisance:
+        setting = fit(problem, setting, nuisance).values
+    return problem.error(problem.residuals([setting])[0])
+
+
+def listing() -> str:
+    """Every effect the generator can inject, per robot: parameters and ranges, alias group, and whether the
+    calibration catalog holds it."""
+    lines = [
+        "effect | robot | parameters (unit, nominal, range) | alias group | in the catalog",
+        "---|---|---|---|---",
+    ]
+    for robot in sorted(adapters()):
+        for name, e in make_adapter(robot).effects().items():
+            params = "; ".join(f"{p.name} ({p.unit}, {p.nominal:g}, [{p.low:g}, {p.high:g}])" for p in e.params)
+            lines.append(f"{name} | {robot} | {params} | {e.alias} | {'yes' if e.catalogued else 'no'}")
+    return "\n".join(lines)
+
+
+def _parse_effect(text: str) -> tuple[str, float | dict[str, float] | None]:
+    """``NAME``, ``NAME=VALUE`` (the first parameter) or ``NAME=param:value,param:value``."""
+    name, _, value = text.partition("=")
+    if not value:
+        return name, None
+    try:
+        if ":" in value:
+            return name, {k.strip(): float(v) for k, v in (part.split(":", 1) for part in value.split(","))}
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--effect {text!r}: {value!r} is not a number or param:number,...") from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", choices=sorted(adapters()))
+    parser.add_argument(
+        "--effect", action="append", default=[], type=_parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--out", type=Path)
+    parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--list", action="store_true", help="list every effect that can be injected")
+    args = parser.parse_args(argv)
+    if args.list:
+        print(listing())
+        return 0
+    if args.robot is None or args.out is None:
+        parser.error("--robot and --out are required (or --list)")
+    try:
+        if not args.overwrite:
+            refuse_overwrite(args.out, "synthetic log")
+        log, truth = synthesize(args.robot, dict(args.effect), args.seed, args.seconds)
+    except (ValueError, FileExistsError) as exc:
+        print(f"sysid.synth: error: {exc}", file=sys.stderr)
+        return 2
+    write_telemetry(args.out, log.df, log.meta, overwrite=args.overwrite)
+    write_json(args.out.with_name(args.out.name + ".truth.json"), truth)
+    print(
+        f"{args.out}: {len(log.df)} samples over {log.duration:.1f} s;"
+        f" nominal model's error {truth['nominal_error']:.2f}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,131 @@
+"""The calibration loop on data with effects nobody declared to it: synthetic logs from sysid.synth with a hidden
+effect (drawn by the generator), and the null and out-of-catalog cases. One fast case per robot here; the full matrix
+(every robot and effect, coverage over seeds) is ``python -m benchmarks.calibration_matrix`` (docs/calibration.md)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import calibrate
+from envs.common.calibration import read_calibration
+from envs.common.telemetry import write_telemetry
+from sysid import synth
+from sysid.effects import base_name
+from sysid.pipeline import UNEXPLAINED_ABOVE, relative_excess, run
+from sysid.robots import adapter as make_adapter
+
+
+def _pair(robot: str, effects: dict, seed: int):
+    """A training log with hidden effects (drawn when None), and a test log of the same truth under other commands."""
+    train, truth = synth.synthesize(robot, effects, seed)
+    test, test_truth = synth.synthesize(robot, truth["effects"], seed + 1000)
+    assert test_truth["effects"] == truth["effects"]
+    return train, test, truth
+
+
+def _check_recovery(robot: str, effect: str, seed: int):
+    adapter = make_adapter(robot)
+    train, test, truth = _pair(robot, {effect: None}, seed)
+    assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
+    result = run(adapter, [train], [test], say=lambda s: None)
+    assert result.outcome.chosen, f"nothing chosen for {effect}; rejected: {result.outcome.rejected}"
+    first = result.outcome.chosen[0]
+    injected = adapter.effects()[effect]
+    assert first.effect.alias == injected.alias, f"picked {first.effect.name} for {effect}"
+    if first.effect.name == effect:
+        for p in injected.params:
+            key = injected.key(p.name)
+            true, got, half = truth["effects"][effect][p.name], first.values[key], first.ci95[key]
+            assert abs(got - true) <= max(2 * half, 0.05 * p.span), (key, true, got, half)
+    # the held-out error's excess over the noise floor at least halves
+    assert relative_excess(result.before.error, result.after.error) <= 0.5, (result.before.error, result.after.error)
+    return result
+
+
+def test_motor_recovers_a_drawn_viscous_friction():
+    _check_recovery("motor", "viscous_friction", seed=11)
+
+
+def test_servo_recovers_a_drawn_delay():
+    _check_recovery("servo", "delay", seed=12)
+
+
+def test_null_noise_only_chooses_nothing():
+    train, test, _ = _pair("motor", {}, seed=13)
+    result = run(make_adapter("motor"), [train], [test], say=lambda s: None)
+    assert result.outcome.chosen == []
+    assert result.after.error < UNEXPLAINED_ABOVE and not result.unexplained
+
+
+def test_out_of_catalog_disturbance_is_unexplained():
+    train, test, truth = _pair("motor", {"disturbance": None}, seed=14)
+    assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
+    result = run(make_adapter("motor"), [train], [test], say=lambda s: None)
+    assert result.unexplained and result.after.error > UNEXPLAINED_ABOVE
+    assert "above the noise floor" in result.where()
+    # no catalog effect claims to have fixed it: whatever was kept leaves most of the excess
+    assert relative_excess(result.before.error, result.after.error) > 0.5
+
+
+def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys):
+    assert synth.main(["--list"]) == 0
+    listing = capsys.readouterr().out
+    for robot in ("motor", "servo"):
+        for name, effect in make_adapter(robot).effects().items():
+            row = next(line for line in listing.splitlines() if line.startswith(f"{name} | {robot} |"))
+            assert effect.alias in row
+            assert row.endswith("| yes") == effect.catalogued
+    assert "disturbance" in listing and "| no" in listing
+    out = tmp_path / "log.parquet"
+    assert synth.main(["--robot", "motor", "--effect", "armature", "--seed", "3", "--out", str(out)]) == 0
+    truth = json.loads(out.with_name("log.parquet.truth.json").read_text())
+    assert set(truth["effects"]) == {"armature"} and truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
+    df = pd.read_parquet(out)
+    assert {"time", "duty", "angle", "speed"} <= set(df.columns)
+    # the log carries no truth
+    assert "armature" not in out.read_bytes().decode("latin-1")
+    # never overwritten silently; a value outside the range is refused
+    assert synth.main(["--robot", "motor", "--effect", "armature", "--out", str(out)]) == 2
+    assert synth.main(["--robot", "motor", "--effect", "armature=5", "--out", str(tmp_path / "b.parquet")]) == 2
+    assert "outside its range" in capsys.readouterr().err
+
+
+def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
+    train, test, _ = _pair("motor", {"coulomb_friction": 0.2}, seed=15)
+    paths = []
+    for name, log in (("train", train), ("test", test)):
+        path = tmp_path / f"{name}.parquet"
+        write_telemetry(path, log.df, log.meta)
+        paths.append(path)
+    out = tmp_path / "cal"
+    argv = ["--robot", "motor", "--train", str(paths[0]), "--test", str(paths[1]), "--out", str(out), "--quiet"]
+    assert calibrate.main(argv) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "calibration.json", "report.json", "report.md", "residual_after.png", "residual_before.png"
+    ]  # fmt: skip
+    report = json.loads((out / "report.json").read_text())
+    for key in ("robot", "train", "test", "error_before", "error_after", "per_channel", "chosen", "rejected",
+                "unexplained", "unexplained_reason"):  # fmt: skip
+        assert key in report
+    assert report["robot"] == "motor" and report["train"] == [str(paths[0])]
+    assert report["error_before"] > 3 and report["error_after"] < report["error_before"]
+    assert set(report["per_channel"]) == {"angle", "speed"}
+    first = report["chosen"][0]
+    assert base_name(make_adapter("motor").effects()[first["name"]]) in ("coulomb_friction", "backlash", "deadband")
+    assert {"value", "ci95"} <= set(next(iter(first["params"].values())))
+    assert math.isfinite(first["error_after"])
+    calibration = read_calibration(out / "calibration.json", "motor")
+    assert first["name"] in calibration.effects
+    # a second run starts from the first one's calibration and does not offer its effects again
+    out2 = tmp_path / "cal2"
+    argv2 = [*argv[:6], "--out", str(out2), "--calibration", str(out / "calibration.json"), "--quiet"]
+    assert calibrate.main(argv2) == 0
+    report2 = json.loads((out2 / "report.json").read_text())
+    assert report2["error_before"] == pytest.approx(report["error_after"], rel=0.05)
+    assert all(c["name"] != first["name"] for c in report2["chosen"])
+    assert np.isfinite(report2["error_after"])

@@ -1,0 +1,213 @@
+"""Calibration inputs: every log format read into one table, and bad input refused by ``calibrate.py`` with one line
+naming the file, row and column, exit code 2, and nothing written."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import calibrate
+from envs.common.telemetry import write_telemetry
+from sysid.logs import ColumnMap, LogError, read_log
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+GEARMOTOR = REAL / "rhex3_motor_speedRamp.csv"
+AX12A = REAL / "ax12a_step_NOLOAD_1.csv"
+ROACH_2HZ = REAL / "velociroach_behavior4_2Hz.txt"
+
+
+def test_gearmotor_log_reads_in_si_units():
+    log = read_log(GEARMOTOR, ("duty", "angle", "speed"))
+    df = log.df
+    assert len(df) == 1047
+    assert df["time"].iloc[0] == pytest.approx(0.021)
+    assert df["duty"].max() == pytest.approx(1.0) and df["duty"].min() == pytest.approx(10 / 255)
+    # full PWM turns the shaft at about 2.15 rev/s (shared/data/real/README.md)
+    full = df[(df["time"] > 0.5) & (df["time"] < 1.0)]
+    assert full["speed"].median() / (2 * math.pi) == pytest.approx(2.15, abs=0.05)
+    # the angle is the integral of the speed: encoder clicks of 2 pi / 3592
+    travelled = np.trapezoid(df["speed"], df["time"])
+    assert df["angle"].iloc[-1] - df["angle"].iloc[0] == pytest.approx(travelled, rel=0.03)
+    assert log.meta["quantisation"]["angle"] == pytest.approx(2 * math.pi / 3592)
+
+
+def test_dynamixel_export_drops_its_broken_row_with_a_warning():
+    with pytest.warns(UserWarning) as caught:
+        log = read_log(AX12A, ("present_position",))
+    messages = sorted(str(w.message) for w in caught)
+    # the row without a time, and one whose time lost its leading digits (71 ms between 4239 and 4288)
+    assert any(re.search(r"ax12a_step_NOLOAD_1\.csv: dropped malformed line 206: '499'", m) for m in messages)
+    assert any(re.search(r"dropped malformed line 195: time 0.071 s out of order", m) for m in messages)
+    assert len(log.df) == 205  # 207 data lines, two broken
+    assert log.df["present_position"].iloc[0] == pytest.approx(1)
+    assert log.df["present_position"].iloc[-1] == pytest.approx(498, abs=10)
+    dt = np.diff(log.time)
+    assert dt.min() > 0 and 0.010 < np.median(dt) < 0.020  # irregular, about 16 ms
+
+
+def test_roach_log_reads_in_both_header_dialects(tmp_path):
+    text = ROACH_2HZ.read_text().splitlines()
+    quoted = ['"' + line + '"' if line.startswith("%") else line for line in text[:1500]]
+    path = tmp_path / "quoted.txt"
+    path.write_text("\n".join(quoted) + "\n")
+    a = read_log(ROACH_2HZ, ("leg_angle_left",))
+    b = read_log(path, ("leg_angle_left",))
+    pd.testing.assert_frame_equal(a.df.iloc[: len(b.df)], b.df)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".json"])
+def test_a_column_map_reads_logs_of_any_format(tmp_path, suffix):
+    t = np.arange(400) * 5.0  # ms
+    raw = pd.DataFrame({"t_ms": t, "enc": (t * 3).astype(int), "pwm_pct": 50.0})
+    path = tmp_path / f"log{suffix}"
+    raw.to_csv(path, index=False) if suffix == ".csv" else raw.to_json(path, orient="records")
+    mapping = tmp_path / "map.json"
+    mapping.write_text(
+        json.dumps(
+            {
+                "time": {"column": "t_ms", "unit": "ms"},
+                "angle": {"column": "enc", "unit": "rev", "counts_per_unit": 1000},
+                "duty": {"column": "pwm_pct", "unit": "%"},
+            }
+        )
+    )
+    log = read_log(path, ("angle", "duty"), ColumnMap.load(mapping))
+    assert log.time[1] == pytest.approx(0.005)
+    assert log.df["angle"].iloc[1] == pytest.approx(15 / 1000 * 2 * math.pi)
+    assert log.df["duty"].iloc[0] == pytest.approx(0.5)
+
+
+# --- bad input: calibrate.py stops before anything is written ---------------------------------------------------
+def _gearmotor_rows(n: int = 300) -> list[str]:
+    return [f"{10 * (i + 1)},{i * 5},{500},{128}" for i in range(n)]
+
+
+def _write(tmp_path: Path, name: str, lines: list[str]) -> Path:
+    path = tmp_path / name
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _run(capsys, tmp_path: Path, robot: str, train: Path, test: Path, *extra: str) -> tuple[int, str]:
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_info:
+        raise SystemExit(
+            calibrate.main(["--robot", robot, "--train", str(train), "--test", str(test), "--out", str(out), *extra])
+        )
+    err = capsys.readouterr().err.strip()
+    assert not out.exists(), "nothing may be written for bad input"
+    return exit_info.value.code, err
+
+
+def _bad(tmp_path: Path, kind: str) -> tuple[Path, str]:
+    header = "time,pos,speed,power"
+    rows = _gearmotor_rows()
+    if kind == "missing column":
+        t = np.arange(0, 3, 0.01)
+        path = tmp_path / "bad.parquet"
+        write_telemetry(path, pd.DataFrame({"time": t, "duty": 0.5, "angle": t}), {"robot": "motor"})
+        return path, "column 'speed' is missing"
+    if kind == "time backwards":  # a second recording appended: its clock starts again
+        rows = rows[:150] + [f"{10 * (i + 1)},{i * 5},500,128" for i in range(150)]
+        return _write(tmp_path, "bad.csv", [header, *rows]), "row 152, column 'time'"
+    if kind == "too short":
+        return _write(tmp_path, "bad.csv", [header, *rows[:30]]), "too short to calibrate on"
+    if kind == "many bad rows":
+        for i in range(0, 300, 10):
+            rows[i] = "x,y"
+        return _write(tmp_path, "bad.csv", [header, *rows]), "30 of 300 rows are malformed"
+    if kind == "no such file":
+        return tmp_path / "nothing.csv", "no such file"
+    if kind == "unknown format":
+        return _write(tmp_path, "bad.csv", ["a;b;c", "1;2;3"]), "unknown log format"
+    raise AssertionError(kind)
+
+
+@pytest.mark.parametrize(
+    "kind", ["missing column", "time backwards", "too short", "many bad rows", "no such file", "unknown format"]
+)
+@pytest.mark.parametrize("side", ["train", "test"])
+def test_bad_logs_stop_calibrate_with_one_line(capsys, tmp_path, kind, side):
+    good = _write(tmp_path, "good.csv", ["time,pos,speed,power", *_gearmotor_rows()])
+    bad, needle = _bad(tmp_path, kind)
+    train, test = (bad, good) if side == "train" else (good, bad)
+    code, err = _run(capsys, tmp_path, "motor", train, test)
+    assert code == 2
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert str(bad) in err and needle in err
+
+
+def test_a_malformed_row_is_dropped_with_a_warning_naming_file_and_line(tmp_path):
+    rows = _gearmotor_rows()
+    rows[40] = "410,200"
+    path = _write(tmp_path, "one_bad.csv", ["time,pos,speed,power", *rows])
+    with pytest.warns(UserWarning, match=r"one_bad\.csv: dropped malformed line 42"):
+        log = read_log(path, ("duty",))
+    assert len(log.df) == 299
+
+
+def test_unknown_unit_in_a_column_map_is_refused(capsys, tmp_path):
+    mapping = _write(tmp_path, "map.json", [json.dumps({"time": {"column": "t", "unit": "fortnight"}})])
+    data = _write(tmp_path, "x.csv", ["t,a", "0,1"])
+    code, err = _run(capsys, tmp_path, "motor", data, data.with_name("y.csv"), "--columns", str(mapping))
+    assert code == 2 and "map.json" in err and "unknown unit 'fortnight'" in err
+
+
+def test_test_data_may_not_overlap_training_data(capsys, tmp_path):
+    code, err = _run(capsys, tmp_path, "motor", Path(f"{GEARMOTOR}@0:5"), Path(f"{GEARMOTOR}@4:8"))
+    assert code == 2 and "overlaps the training log" in err
+    code, err = _run(capsys, tmp_path, "motor", GEARMOTOR, GEARMOTOR)
+    assert code == 2 and "overlaps" in err
+
+
+def test_windows_of_one_log(tmp_path):
+    logs = calibrate.read_logs([Path(f"{GEARMOTOR}@2:4.5")], ("duty",), None)
+    assert logs[0].time[0] >= 2 and logs[0].time[-1] < 4.5
+    with pytest.raises(LogError, match="ends"):
+        calibrate.read_logs([Path(f"{GEARMOTOR}@4:2")], ("duty",), None)
+
+
+def test_out_dir_with_files_is_not_overwritten(capsys, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "mine.txt").write_text("keep")
+    with pytest.raises(SystemExit) as exit_info:
+        calibrate.main(["--robot", "motor", "--train", str(GEARMOTOR), "--test", str(AX12A), "--out", str(out)])
+    assert exit_info.value.code == 2 and "--overwrite" in capsys.readouterr().err
+    assert (out / "mine.txt").read_text() == "keep"
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [
+        ("{", "not a readable JSON"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "servo", "effects": {}}', "not 'motor'"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "motor", "effects": {"warp": {"x": 1}}}',
+         "field 'effects.warp'"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "motor", '
+         '"effects": {"viscous_friction": {"damping": {"value": 99}}}}', "'effects.viscous_friction.damping': 99"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "motor", '
+         '"effects": {"viscous_friction": {"damping": "lots"}}}', "'lots' is not a finite number"),
+    ],
+)  # fmt: skip
+def test_bad_calibration_file_is_refused(capsys, tmp_path, content, needle):
+    start = _write(tmp_path, "start.json", [content])
+    code, err = _run(
+        capsys, tmp_path, "motor", Path(f"{GEARMOTOR}@0:5"), Path(f"{GEARMOTOR}@5:"), "--calibration", str(start)
+    )
+    assert code == 2 and "start.json" in err and needle in err
+
+
+def test_parquet_telemetry_is_a_log(tmp_path):
+    t = np.arange(0, 2, 0.01)
+    df = pd.DataFrame({"time": t, "duty": 0.5, "angle": t, "speed": 1.0})
+    path = tmp_path / "t.parquet"
+    write_telemetry(path, df, {"robot": "motor"})
+    log = read_log(path, ("duty", "angle", "speed"))
+    assert len(log.df) == 200 and log.meta["format"] == "skitter telemetry"
