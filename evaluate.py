@@ -29,6 +29,7 @@ import pandas as pd
 import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
 from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
+from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import atomic_write, publish_folder, write_json, write_text
 from envs.common.telemetry import read_telemetry, write_telemetry
 
@@ -53,6 +54,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
     p.add_argument("--max-episode-steps", type=int, help="cut episodes short (default: the env's time limit)")
     p.add_argument(
+        "--calibration",
+        type=Path,
+        help="a calibration file from calibrate.py: episodes run on the calibrated model (docs/calibration.md)",
+    )
+    p.add_argument(
         "--unnormalized", action="store_true", help="accept a foreign SB3 model without normalization statistics"
     )
     args = p.parse_args(argv)
@@ -65,6 +71,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.env not in gym.registry:
         known = ", ".join(sorted(k for k in gym.registry if k.startswith("skitter/")))
         p.error(f"--env {args.env!r} is not registered; known: {known}")
+    if args.calibration is not None:
+        try:
+            read_calibration(args.calibration)
+        except CalibrationError as exc:
+            p.error(f"--calibration: {exc}")
     repeated = sorted({s for s in args.policy if args.policy.count(s) > 1})
     if repeated:
         p.error(f"--policy {repeated[0]!r} is given twice")
@@ -94,6 +105,8 @@ def make_env(args, render: bool):
     """All the episodes of a policy at once: a batched env of one simulation per episode (the same results as single
     envs run one after another, tests/test_batch.py)."""
     limit = {"max_episode_steps": args.max_episode_steps} if args.max_episode_steps else {}
+    if args.calibration is not None:
+        limit["calibration"] = str(args.calibration)
     return gym.make_vec(
         args.env,
         num_envs=args.episodes,
@@ -220,7 +233,11 @@ def main(argv: list[str] | None = None) -> int:
     # every policy is loaded and checked against its env before any episode runs
     prepared = {}
     for spec in args.policy:
-        env = make_env(args, render=args.video)
+        try:
+            env = make_env(args, render=args.video)
+        except CalibrationError as exc:
+            print(f"evaluate.py: error: --calibration: {exc}", file=sys.stderr)
+            return 2
         try:
             prepared[spec] = (load_policy(spec, env) if not args.unnormalized else _load_unnormalized(spec, env), env)
         except (ValueError, FileNotFoundError) as exc:
@@ -250,6 +267,7 @@ def main(argv: list[str] | None = None) -> int:
             staging / "results.json",
             {
                 "env": args.env,
+                "calibration": None if args.calibration is None else str(args.calibration),
                 "seeds": seeds,
                 "deterministic": not args.stochastic,
                 "metrics": metrics,

@@ -20,8 +20,9 @@ from scipy import stats
 from sysid.effects import Param
 from sysid.problem import Problem, Residual, Setting, data_size, flatten, total_cost
 
-FD_STEP = 1e-3  # finite-difference step in normalized coordinates
+FD_STEP = 1e-3  # finite-difference step in normalized coordinates (an adapter may ask for more: ``fd_step``)
 GRID_POINTS = 9
+CMA_EVALS = 120  # cost evaluations of a derivative-free fit (the second, re-anchored pass gets half)
 XTOL = 1e-6  # stop when a step moves the parameters by less than this (relative, in normalized coordinates)
 MU_FACTOR = 10**0.5  # the regularizer's growth after a failed step (mujoco.minimize's default 10^0.1 takes many)
 
@@ -68,6 +69,8 @@ def fit(
     smooth = {k: p for k, p in params.items() if p.smooth}
     rough = {k: p for k, p in params.items() if not p.smooth}
     setting = {**base, **{k: start.get(k, base.get(k, p.nominal)) for k, p in params.items()}}
+    if problem.adapter.rough_cost:
+        return _derivative_free(problem, setting, dict(params), segments)
     if rough:
         setting = _grid_search(problem, setting, rough, smooth, segments)
     if smooth:
@@ -96,6 +99,7 @@ def _least_squares(
     from mujoco import sysid
 
     names = list(params)
+    fd = max(FD_STEP, getattr(problem.adapter, "fd_step", FD_STEP))
     u0 = np.clip([_to_unit(params[k], setting[k]) for k in names], 2e-3, 1 - 2e-3)  # off the bounds: can stall
 
     def settings_of(u: np.ndarray) -> list[dict[str, float]]:
@@ -113,7 +117,7 @@ def _least_squares(
         # sysid.optimize's own ``verbose`` shadows the backend's, which then prints every iteration: silence it
         with contextlib.redirect_stdout(io.StringIO()):
             fitted, _ = sysid.optimize(pdict, residual_fn, optimizer="mujoco", verbose=False, max_iters=iterations,
-                                       eps=FD_STEP, xtol=XTOL, mu_factor=MU_FACTOR)  # fmt: skip
+                                       eps=fd, xtol=XTOL, mu_factor=MU_FACTOR)  # fmt: skip
         return np.clip(fitted.as_vector(), 0.0, 1.0)
 
     # the start's correction and what segments carry over are taken from an anchor: the starting point, then, if
@@ -128,7 +132,7 @@ def _least_squares(
         best = settings_of(u)[0]
         result = evaluate(problem, best, segments)
     # the Jacobian at the optimum (normalized coordinates), one batched rollout for all its columns
-    steps = np.where(u > 0.5, -FD_STEP, FD_STEP)
+    steps = np.where(u > 0.5, -fd, fd)
     probe = u[:, None] + np.diag(steps)
     columns = problem.residuals(settings_of(probe), segments, anchor=best)
     r0 = flatten(result.residuals)
@@ -196,6 +200,81 @@ def _grid_search(
             best = trial[int(np.argmin(costs(problem, trial, segments, anchor=setting)))]
             step /= 4
     return best
+
+
+def _derivative_free(
+    problem: Problem, setting: dict[str, float], params: Mapping[str, Param], segments: Sequence[int] | None
+) -> FitResult:
+    """For robots whose cost is rough at small scales (contacts; ``Adapter.rough_cost``), where finite-difference
+    Jacobians mislead a least-squares step: one parameter by a batched grid shrinking around its best point, several
+    by CMA-ES (``cma``) in normalized coordinates, each generation one batched rollout; the start's correction is
+    re-anchored at the best point once; 95% intervals by profile likelihood."""
+    names = list(params)
+    best = dict(setting)
+    for anchor_pass in range(2):
+        anchor = dict(best)
+        u0 = np.clip([_to_unit(params[k], best[k]) for k in names], 0.0, 1.0)
+
+        def trial(u, _best=best):
+            return {**_best, **{k: _from_unit(params[k], float(u[i])) for i, k in enumerate(names)}}
+
+        start_cost = costs(problem, [best], segments, anchor=anchor)[0]
+        found, found_cost = u0, start_cost
+        budget = CMA_EVALS // (anchor_pass + 1)
+        if len(names) == 1:
+            width = 1.0 / (anchor_pass + 1)
+            for _ in range(max(1, budget // (2 * GRID_POINTS))):
+                us = np.clip(found[0] + width * np.linspace(-0.5, 0.5, GRID_POINTS), 0.0, 1.0)
+                cs = costs(problem, [trial([u]) for u in us], segments, anchor=anchor)
+                if min(cs) < found_cost:
+                    found, found_cost = np.array([us[int(np.argmin(cs))]]), min(cs)
+                width /= 4.0
+        else:
+            import cma
+
+            options = {"bounds": [0, 1], "maxfevals": budget, "verbose": -9, "seed": 1, "tolx": 1e-3,
+                       "popsize": max(6, 4 + int(3 * math.log(len(names))))}  # fmt: skip
+            es = cma.CMAEvolutionStrategy(list(u0), 0.15 / (anchor_pass + 1), options)
+            while not es.stop():
+                us = es.ask()
+                es.tell(us, costs(problem, [trial(u) for u in us], segments, anchor=anchor))
+            if es.result.fbest is not None and es.result.fbest < found_cost:
+                found, found_cost = np.asarray(es.result.xbest), float(es.result.fbest)
+        best = trial(found)
+        result = evaluate(problem, best, segments)  # anchored at itself
+        if abs(result.cost - found_cost) <= 0.01 * found_cost:
+            break
+    result.ci95 = _smoothed_profile(problem, best, params, segments, result)
+    return result
+
+
+def _smoothed_profile(
+    problem: Problem, best: Mapping[str, float], params: Mapping[str, Param], segments, result: FitResult
+) -> dict[str, float]:
+    """95% half-widths where the cost is rough (contacts): a parabola fitted by least squares to the cost at
+    GRID_POINTS values across a window around the best point (the others held), its curvature read as the profile
+    likelihood's (the chi^2(1) quantile times the residual variance, scaled by n / n_eff), plus the distance from
+    the best point to the parabola's vertex (where the smoothed cost puts the optimum). The window widens until it
+    holds the interval; a parameter whose window reaches its whole range without curvature gets the whole range."""
+    s2 = result.cost / max(result.n - len(params), 1) * (result.n / max(result.n_eff, 1.0))
+    rise = stats.chi2.ppf(0.95, 1) * s2
+    out = {}
+    for k, p in params.items():
+        x0, width, half = best[k], 0.1 * p.span, p.span
+        for _ in range(4):
+            xs = np.unique(np.clip(x0 + width * np.linspace(-1.0, 1.0, GRID_POINTS), p.low, p.high))
+            cs = np.array(costs(problem, [{**best, k: float(x)} for x in xs], segments, anchor=best))
+            a, b, _c = np.polyfit((xs - x0) / p.span, cs, 2)
+            if a <= 0:
+                half = p.span
+            else:
+                vertex = -b / (2 * a) * p.span
+                half = math.sqrt(rise / a) * p.span + min(abs(vertex), p.span)
+            if half <= width or width >= p.span:
+                break
+            width = min(2.0 * half, p.span)
+        out[k] = float(min(max(half, p.resolution), p.span))
+    return out
 
 
 def _profile_intervals(

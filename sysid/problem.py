@@ -29,6 +29,7 @@ from functools import cached_property
 
 import mujoco
 import numpy as np
+import pandas as pd
 from mujoco import rollout
 
 from envs.common.batch import default_threads
@@ -93,6 +94,9 @@ class Adapter(ABC):
     segment_seconds: float = 1.0
     context: Mapping[str, str] = {}  # log columns for the diagnostics: velocity, command, supply
     carry_over: bool = True  # a segment starts from the previous one's end, its measured coordinates overwritten
+    replay_floor: bool = False  # add what replay cannot match on the model's own data to the noise (see Problem)
+    fd_step: float = 1e-3  # finite-difference step, a fraction of each parameter's range (larger for chaotic models)
+    rough_cost: bool = False  # the cost is rough at small scales (contacts): fit derivative-free (sysid/fit.py)
 
     def __init__(self) -> None:
         self._models: dict[tuple, mujoco.MjModel] = {}
@@ -189,6 +193,11 @@ class Adapter(ABC):
         """The uncertain coordinates of a segment's start: (``"qpos"`` or ``"qvel"``, address, standard deviation)."""
         return []
 
+    def segment_model(self, model: mujoco.MjModel, segment: Segment, setting: Setting) -> mujoco.MjModel:
+        """The model one segment runs on (default ``model``; a robot may copy it and write what depends on the
+        segment, such as a controller's gains for the segment's battery voltage)."""
+        return model
+
     def report_extra(self, result) -> dict:
         """Robot-specific additions to the report: ``{"sections": {title: markdown}, ...}`` (e.g. channels
         compared as distributions)."""
@@ -212,6 +221,10 @@ class Adapter(ABC):
     def synth_noise(self) -> dict[str, float]:
         """The sensor noise (standard deviation per channel) of synthetic logs."""
         raise NotImplementedError
+
+    def synth_meta(self) -> dict:
+        """What a synthetic log's record holds besides the noise (a firmware's gains, for example)."""
+        return {}
 
     def measure(self, channel: str, values: np.ndarray) -> np.ndarray:
         """What the sensor reports of a noisy value (rounding to counts, for example)."""
@@ -281,19 +294,22 @@ class Problem:
         adapter: the robot's adapter.
         logs: the logs (already read and checked).
         nthread: rollout threads (default: the machine's cores).
+        floor_setting: the setting the replay floor is measured at (default nominal; adapters with
+            ``replay_floor``).
     """
 
-    def __init__(self, adapter: Adapter, logs: Sequence[Log], nthread: int | None = None):
+    def __init__(
+        self,
+        adapter: Adapter,
+        logs: Sequence[Log],
+        nthread: int | None = None,
+        floor_setting: Mapping[str, float] | None = None,
+    ):
         self.adapter = adapter
         self.logs = list(logs)
         self.segments: list[Segment] = [s for log in self.logs for s in adapter.segments(log)]
         if not self.segments:
             raise ValueError("no segment to replay: the logs are too short")
-        noise = [adapter.noise(log) for log in self.logs]
-        self.sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
-        self._sigma = np.array([self.sigma[c] for c in adapter.channels])
-        for seg in self.segments:
-            seg.sigma = dict(self.sigma)
         self.nthread = nthread or default_threads()
         self._runner = rollout.Rollout(nthread=self.nthread)
         self.n_steps = max(seg.n_steps for seg in self.segments)
@@ -307,10 +323,40 @@ class Problem:
             by_log.setdefault(seg.log, []).append(i)
         self._by_log = list(by_log.values())
         self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
+        noise = [adapter.noise(log) for log in self.logs]
+        self.sensor_sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
+        self.replay_sigma = self._replay_floor(floor_setting) if adapter.replay_floor else {}
+        self.sigma = {c: float(np.hypot(s, self.replay_sigma.get(c, 0.0))) for c, s in self.sensor_sigma.items()}
+        self._sigma = np.array([self.sigma[c] for c in adapter.channels])
+        for seg in self.segments:
+            seg.sigma = dict(self.sigma)
 
     @property
     def channels(self) -> list[str]:
         return list(self.adapter.channels)
+
+    def _replay_floor(self, setting: Mapping[str, float] | None) -> dict[str, float]:
+        """What replay cannot match even with the right model, per channel: the log's commands run through the
+        model without a break (``simulate``), then replayed in segments as the real log is; the RMS of the
+        difference. It comes from what the log does not hold (a legged robot's body state, which its contacts
+        make sensitive), and is added to the sensor noise as the floor errors are measured against."""
+        adapter = self.adapter
+        nominal = {k: v for e in adapter.effects().values() if e.catalogued for k, v in e.nominal().items()}
+        setting = {**nominal, **(setting or {})}
+        self._sigma = np.ones(len(adapter.channels))
+        squares = np.zeros(len(adapter.channels))
+        count = 0
+        for log in self.logs:
+            clean = simulate(adapter, setting, log.df)
+            index = [i for i, seg in enumerate(self.segments) if seg.log == log.path]
+            predictions = self.predict([setting], index)[0]
+            for i, p in zip(index, predictions, strict=True):
+                d = clean[self.segments[i].samples] - p
+                squares += np.sum(d * d, axis=0)
+                count += len(d)
+        self._sensitivity.clear()
+        self._carry.clear()
+        return {c: float(np.sqrt(squares[j] / max(count, 1))) for j, c in enumerate(adapter.channels)}
 
     def _index(self, segments: Sequence[int] | None) -> list[int]:
         return list(range(len(self.segments))) if segments is None else list(segments)
@@ -415,8 +461,11 @@ class Problem:
         control = np.empty((n, self.n_steps, m0.nu))
         data = mujoco.MjData(m0)
         controls: dict[tuple[int, int], np.ndarray] = {}
+        row_models = []
         for row, (k, i, how) in enumerate(rows):
-            model, setting, seg = models[k], settings[k], self.segments[i]
+            setting, seg = settings[k], self.segments[i]
+            model = adapter.segment_model(models[k], seg, setting)
+            row_models.append(model)
             mujoco.mj_resetData(model, data)
             if how is not None and how[0] == "perturb":
                 mujoco.mj_setState(model, data, how[1], STATE_SPEC)
@@ -438,7 +487,7 @@ class Problem:
         if size not in self._datas:
             self._datas[size] = [mujoco.MjData(m0) for _ in range(self.nthread)]
         datas = self._datas[size]
-        self._runner.rollout([models[k] for k, _, _ in rows], datas, state, control, control_spec=CTRL_SPEC,
+        self._runner.rollout(row_models, datas, state, control, control_spec=CTRL_SPEC,
                              initial_warmstart=np.zeros((n, m0.nv)), sensordata=sensordata,
                              state=trajectory)  # fmt: skip
         self.rollouts += n
@@ -530,3 +579,35 @@ class Problem:
                 rho = min(max(rho, 0.0), 0.99)
                 total += n * (1 - rho) / (1 + rho)
         return max(total, 1.0)
+
+
+def simulate(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFrame) -> np.ndarray:
+    """The adapter's channels (without noise) at the command table's sample times: the adapter's own segments of the
+    table, run one after another, each from the full state the previous one ended in (nothing re-measured), so the
+    robot is simulated without a break; only what the adapter makes per segment (a controller's gains for the
+    segment's battery voltage) changes at the segment boundaries. Rows past the last segment stay zero."""
+    log = Log("synthetic", commands, dict(adapter.synth_meta()))
+    segments = adapter.segments(log)
+    h = adapter.physics_dt
+    out = np.zeros((len(commands), len(adapter.channels)))
+    base = adapter.model_for(setting)
+    state = None
+    for k, segment in enumerate(segments):
+        following = segments[k + 1] if k + 1 < len(segments) else None
+        end = following.t0 if following is not None else float(commands["time"].iloc[-1]) + h
+        segment.n_steps = max(int(segment.steps[-1]) + 1, round((end - segment.t0) / h))
+        model = adapter.segment_model(base, segment, setting)
+        d = mujoco.MjData(model)
+        if state is None:
+            adapter.initial_state(model, d, segment, setting)
+            mujoco.mj_forward(model, d)
+            state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+            mujoco.mj_getState(model, d, state, STATE_SPEC)
+        state[0] = 0.0  # time from the segment's start
+        control = adapter.controls(model, segment, setting)
+        states, sensordata = rollout.rollout(model, d, state[None], control[None], control_spec=CTRL_SPEC,
+                                             initial_warmstart=np.zeros((1, model.nv)))  # fmt: skip
+        out[segment.samples] = adapter.observe(sensordata[0, np.minimum(segment.steps, len(control) - 1)], segment,
+                                               setting)  # fmt: skip
+        state = states[0, round((end - segment.t0) / h) - 1].copy()
+    return out

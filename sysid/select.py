@@ -36,12 +36,15 @@ from sysid.problem import Problem, Setting, flatten
 MAX_EFFECTS = 4
 TRIES_PER_ROUND = 3
 NOISE_FLOOR = 1.05  # stop when the validation error is this close to the noise floor
-SCORE_GRID = 5
-CHAIN_SEEDS = 2  # effects that help only together: chains grown from the singles that fitted best,
-CHAIN_WIDTH = 3  # with this many candidates tried at the second step (then the best chain grows by one),
+SCORE_GRID = 5  # grid points across the range of a non-smooth effect in the ranking
+SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian)
+CHAIN_SEEDS = 1  # effects that help only together: chains grown from the singles that fitted best,
+CHAIN_WIDTH = 2  # with this many candidates tried at the second step (then the best chain grows by one),
 CHAIN_DEPTH = 3  # up to this many effects
 CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
-FOLDS = 3  # cross-validation folds of the held-out test
+FOLDS = 3  # folds of the held-out test
+SINGLE_FOLD_FROM = 9  # segments from which one held-out fold suffices (fewer: every fold held out in turn)
+MAX_DECISION_SEGMENTS = 12  # segments the loop decides on; kept effects are refitted on all
 
 
 @dataclass
@@ -69,15 +72,33 @@ class Outcome:
     diagnostics_after: dict = field(default_factory=dict)
 
 
-def split(problem: Problem) -> list[list[int]]:
-    """FOLDS folds of segments, stratified by excitation: segments sorted by how much their measured channels move
-    (variance over the noise) are dealt out in turn, so every fold holds quiet and lively segments alike. The first
-    fold is the validation set of the loop's own bookkeeping; every fold is held out once in the held-out test."""
+def decision_segments(problem: Problem) -> list[int]:
+    """The segments the loop decides on (ranking, fits, held-out tests): all of them up to MAX_DECISION_SEGMENTS,
+    else that many spread evenly over the segments sorted by excitation (variance of the measured channels over
+    the noise), so quiet and lively stretches are both represented. Kept effects are refitted on every segment."""
     n = len(problem.segments)
-    excitation = [float(np.sum(np.var(seg.measured, axis=0) / problem._sigma**2)) for seg in problem.segments]
-    order = sorted(range(n), key=lambda i: (excitation[i], i))
+    if n <= MAX_DECISION_SEGMENTS:
+        return list(range(n))
+    order = _by_excitation(problem, range(n))
+    picks = np.unique(np.round(np.linspace(0, n - 1, MAX_DECISION_SEGMENTS)).astype(int))
+    return sorted(order[k] for k in picks)
+
+
+def _by_excitation(problem: Problem, index) -> list[int]:
+    excitation = {i: float(np.sum(np.var(problem.segments[i].measured, axis=0) / problem._sigma**2)) for i in index}
+    return sorted(index, key=lambda i: (excitation[i], i))
+
+
+def split(problem: Problem, index: Sequence[int]) -> list[list[int]]:
+    """Held-out folds of the segments ``index``, stratified by excitation: sorted by how much their measured
+    channels move, the segments are dealt out in turn to FOLDS folds, so every fold holds quiet and lively ones.
+    With fewer than SINGLE_FOLD_FROM segments every fold is held out once (cross-validation); with more, the first
+    fold alone (one refit per candidate)."""
+    order = _by_excitation(problem, list(index))
+    n = len(order)
     folds = [sorted(order[k] for k in range(start, n, FOLDS)) for start in (1, 2, 0)]
-    return [f for f in folds if f]
+    folds = [f for f in folds if f]
+    return folds if n < SINGLE_FOLD_FROM else folds[:1]
 
 
 def nominal_setting(effects: Mapping[str, Effect], start: Mapping[str, float] | None = None) -> dict[str, float]:
@@ -101,8 +122,8 @@ def calibrate(
     adapter = problem.adapter
     effects = {k: e for k, e in adapter.effects().items() if e.catalogued}
     nuisance = adapter.nuisance(problem.logs)
-    folds = split(problem)
-    fitting = None  # every training segment: the held-out test cross-validates over the folds
+    fitting = decision_segments(problem)
+    folds = split(problem, fitting)
     current = nominal_setting(effects, start)
     nominal = dict(current)
     if nuisance:  # what the log does not hold is fitted on every segment that shows it
@@ -111,19 +132,20 @@ def calibrate(
     outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance})
     outcome.history.append(dict(current))
     before = evaluate(problem, current, fitting)
-    outcome.diagnostics_before = diagnostics.diagnose(problem, problem.residuals([current])[0], adapter.context)
-    outcome.training_errors.append(before.error)
-    say(f"nominal model: error {before.error:.2f} on the training logs")
+    everything = evaluate(problem, current)
+    outcome.diagnostics_before = diagnostics.diagnose(problem, everything.residuals, adapter.context)
+    outcome.training_errors.append(everything.error)
+    say(f"nominal model: error {everything.error:.2f} on the training logs")
     offered = {k: e for k, e in effects.items() if not any(key in (start or {}) for key in e.nominal())}
     used_groups: set[str] = set()
     for _ in range(MAX_EFFECTS):
-        if before.error <= NOISE_FLOOR:
+        if outcome.training_errors[-1] <= NOISE_FLOOR:
             say("the residual is at the noise floor: stop")
             break
         candidates = {k: e for k, e in offered.items() if e.alias not in used_groups}
         if not candidates:
             break
-        ranking = score(problem, current, candidates, None)  # every training segment
+        ranking = score(problem, current, candidates, fitting)
         outcome.rounds.append(ranking)
         say("ranking: " + ", ".join(f"{r['effect']} {r['score']:.1f}" for r in ranking[:5]))
         # the close contenders (a score within CONTENDERS of the best) are all fitted and the best by BIC is kept;
@@ -172,7 +194,7 @@ def calibrate(
             refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values)
             current = refit.values
             before = evaluate(problem, current, fitting)
-            outcome.training_errors.append(before.error)
+            outcome.training_errors.append(refit.error)
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)},
@@ -259,10 +281,11 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
             if p.smooth:
                 key = e.key(p.name)
                 u = (current[key] - p.low) / p.span
-                step = FD_STEP * 10 if u < 0.5 else -FD_STEP * 10
+                fd = max(FD_STEP * 10, problem.adapter.fd_step)
+                step = fd if u < 0.5 else -fd
                 probes.append({**current, key: current[key] + step * p.span})
                 owners.append((name, "fd", step * p.span))
-        for f in np.linspace(0.0, 1.0, SCORE_GRID):
+        for f in np.linspace(0.0, 1.0, SCORE_GRID if not e.smooth else SCORE_GRID_SMOOTH):
             point = {e.key(p.name): float(p.low + f * p.span) for p in e.params}
             if all(np.isclose(v, current[k]) for k, v in point.items()):
                 continue
@@ -365,9 +388,8 @@ def _try(
             bic,
         )
     gains = []
-    everything = range(len(problem.segments))
     for fold in folds:
-        rest = [i for i in everything if i not in fold]
+        rest = [i for i in (fitting if fitting is not None else range(len(problem.segments))) if i not in fold]
         fitted = fit(problem, current, {**params, **nuisance}, rest, start=trial.values) if rest else trial
         old = problem.segment_costs(problem.residuals([current], fold)[0])
         new = problem.segment_costs(problem.residuals([fitted.values], fold)[0])

@@ -15,46 +15,22 @@ calibration never reads. Out-of-catalog effects (a terrain bump, a periodic dist
 from __future__ import annotations
 
 import argparse
-import copy
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pandas as pd
-from mujoco import rollout
 
 from envs.common.io import refuse_overwrite, write_json
 from envs.common.telemetry import write_telemetry
 from sysid.effects import Effect
 from sysid.logs import Log
-from sysid.problem import CTRL_SPEC, STATE_SPEC, Adapter, Problem, Segment
+from sysid.problem import Adapter, Problem, simulate
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
 
 MIN_NOMINAL_ERROR = 3.0
-
-
-def simulate(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFrame) -> np.ndarray:
-    """The adapter's channels (without noise) at the command table's sample times, from one long replay."""
-    t = commands["time"].to_numpy()
-    h = adapter.physics_dt
-    long = copy.copy(adapter)
-    long.segment_seconds = float(t[-1] - t[0]) + h
-    steps = np.round((t - t[0]) / h).astype(int)
-    data = {c: commands[c].to_numpy(dtype=float) for c in commands.columns}
-    segment = Segment("synthetic", 0, float(t[0]), steps, np.arange(len(t)), np.zeros((len(t), len(adapter.channels))),
-                      data, n_steps=int(steps[-1]) + 1)  # fmt: skip
-    model = long.model_for(setting)
-    d = mujoco.MjData(model)
-    long.initial_state(model, d, segment, setting)
-    mujoco.mj_forward(model, d)
-    state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
-    mujoco.mj_getState(model, d, state, STATE_SPEC)
-    control = long.controls(model, segment, setting)
-    _, sensordata = rollout.rollout(model, mujoco.MjData(model), state[None], control[None], control_spec=CTRL_SPEC)
-    return long.observe(sensordata[0, np.minimum(steps, len(control) - 1)], segment, setting)
 
 
 def synthesize(
@@ -136,7 +112,7 @@ def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Map
     for i, c in enumerate(adapter.channels):
         df[c] = adapter.measure(c, clean[:, i] + rng.normal(0.0, noise[c], len(df)))
     meta = {"robot": robot, "format": "skitter synthetic log", "noise_sigma": adapter.recorded_noise(noise),
-            "units": {"time": "s", **dict(adapter.channels)}}  # fmt: skip
+            "units": {"time": "s", **dict(adapter.channels)}, **adapter.synth_meta()}  # fmt: skip
     return Log("synthetic", df, meta)
 
 

@@ -37,6 +37,7 @@ import mujoco
 import numpy as np
 
 from envs.common.batch import BatchSimulation
+from envs.common.calibration import Calibration, CalibrationError, read_calibration
 from envs.common.mujoco_utils import sensor_slices, spec_hash
 from envs.common.parameters import ParameterMap, SpecEdit
 from envs.common.simulation import Simulation
@@ -145,6 +146,9 @@ class Robot(ABC):
             says.
         nthread: threads of the batch (default: the machine's cores).
         batched: run on ``mujoco.batch.Batch`` even for one simulation (default: when ``num_sims > 1``).
+        calibration: a calibration file written by ``calibrate.py`` (or a read :class:`Calibration`): its effects
+            are added to the nominal model (:meth:`calibration_edits` before it compiles, :meth:`apply_calibration`
+            after); the nominal model files are not touched.
     """
 
     name: ClassVar[str]
@@ -159,7 +163,9 @@ class Robot(ABC):
         num_sims: int | None = None,
         nthread: int | None = None,
         batched: bool | None = None,
+        calibration: str | Path | Calibration | None = None,
     ):
+        self.calibration = None if calibration is None else self.load_calibration(calibration)
         context = _BATCH.get()
         if num_sims is None:
             num_sims, nthread = context if context is not None else (1, nthread)
@@ -187,10 +193,17 @@ class Robot(ABC):
         self.control_dt = self.n_substeps * timestep
         self.num_sims = int(num_sims)
         self.configure(spec)
+        if self.calibration is not None:
+            for edit in self.calibration_edits(self.calibration):
+                edit(spec)
         for edit in spec_edits:
             edit(spec)
         self.model = spec.compile()
         self.model_hash = spec_hash(spec)
+        if self.calibration is not None:
+            self.apply_calibration(self.model, self.calibration)
+            mujoco.mj_setConst(self.model, mujoco.MjData(self.model))
+            self.model_hash = f"{self.model_hash}+calibration:{self.calibration.digest}"
         self.sensors: dict[str, slice] = sensor_slices(
             self.model, [self.model.sensor(i).name for i in range(self.model.nsensor)]
         )
@@ -212,6 +225,27 @@ class Robot(ABC):
     @abstractmethod
     def setup(self) -> None:
         """Look up addresses in the compiled model and allocate per-simulation controller state."""
+
+    # --- calibration (subclasses that take calibration files) ---------------------------------------------------
+    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
+        """Effect -> parameter -> (low, high) of what a calibration file may hold for this robot."""
+        raise CalibrationError(f"robot {self.name!r} takes no calibration files")
+
+    def load_calibration(self, calibration: str | Path | Calibration) -> Calibration:
+        """Read and check a calibration file against this robot's effects (one-line errors naming file and field)."""
+        cal = calibration if isinstance(calibration, Calibration) else read_calibration(calibration, self.name)
+        if cal.robot != self.name:
+            raise CalibrationError(f"{cal.path}: field 'robot': the file calibrates {cal.robot!r}, not {self.name!r}")
+        cal.check(self.calibration_ranges())
+        return cal
+
+    def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
+        """Spec edits of a calibration's structural effects (actuator delay...), applied after :meth:`configure`."""
+        return ()
+
+    def apply_calibration(self, model: mujoco.MjModel, calibration: Calibration) -> None:
+        """Write a calibration's effects into the compiled model's fields (``mj_setConst`` follows)."""
+        raise CalibrationError(f"robot {self.name!r} takes no calibration files")
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """The robot's named physical parameters (see envs/common/parameters.py)."""
@@ -312,6 +346,7 @@ class Robot(ABC):
         return {
             "robot": self.name,
             "model_hash": self.model_hash,
+            "calibration": None if self.calibration is None else self.calibration.path,
             "action_mode": self.action_mode,
             "control_dt": self.control_dt,
             "physics_dt": float(self.model.opt.timestep),

@@ -1,6 +1,8 @@
-"""The VelociRoACH (seed 000): robot, tasks, real-telemetry format. ``ENVS`` is what envs/__init__.py registers."""
+"""The VelociRoACH (seed 000): robot, tasks, real-telemetry format. ``ENVS`` is what envs/__init__.py registers;
+``CALIBRATION`` names the calibration adapter (``calibrate.py --robot roach``)."""
 
 EPISODE_SECONDS = 10.0
+CALIBRATION = {"roach": "envs.velociroach.calibration:RoachAdapter"}
 _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
 
 ENVS = [

@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 
 from envs.actuators.dcmotor import DCMotors, PIDGains
+from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
@@ -59,6 +60,10 @@ class VelociRoach(Robot):
         action_mode: ``"gait"`` or ``"duty"``.
         control_freq: control steps per second (default 50 in gait mode, 1000 in duty mode).
         battery_voltage: supply voltage, V (default the model's nominal 3.7 V).
+        calibration: a calibration file from ``calibrate.py --robot roach`` (docs/calibration.md): its friction,
+            rotor inertia, motor constant, delay, supply scale (on the battery voltage), foot friction, ground
+            contact, leg stiffness, mass and centre-of-mass effects are added to the nominal model; its sensor
+            effects (back-EMF offsets) describe the log's instruments and leave the env's senses alone.
         imu_noise: the IMU's error model (default the MPU-6000's); None for a perfect IMU.
         spec_edits: functions applied to the spec before it compiles.
         num_sims, nthread, batched: simulations stepped together, on how many threads (see ``Robot``).
@@ -89,12 +94,13 @@ class VelociRoach(Robot):
         num_sims: int | None = None,
         nthread: int | None = None,
         batched: bool | None = None,
+        calibration: str | Path | Calibration | None = None,
     ):
         self._battery_arg = (
             None if battery_voltage is None else check_number("battery_voltage", battery_voltage, 0, strict=True)
         )
         self.imu_noise = imu_noise
-        super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched)
+        super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched, calibration)
 
     @classmethod
     def xml_path(cls) -> Path:
@@ -104,6 +110,8 @@ class VelociRoach(Robot):
     def configure(self, spec: mujoco.MjSpec) -> None:
         nominal = float(spec.numeric(C.NUMERIC_BATTERY).data[0])
         self.nominal_battery = nominal if self._battery_arg is None else self._battery_arg
+        if self.calibration is not None:  # what reaches the motors of the calibrated robot's battery
+            self.nominal_battery *= self.calibration.setting.get("supply_voltage.scale", 1.0)
         pid = FIRMWARE_PID if self.action_mode == GAIT else None
         self.motors = DCMotors([C.MOTORS[s] for s in C.SIDES], self.nominal_battery, pid)
         self.motors.configure(spec)
@@ -155,6 +163,37 @@ class VelociRoach(Robot):
         self._senses = np.zeros((n, sum(self.sense_structure.values())))
         self._imu = np.zeros((n, 6))  # the last (noisy) gyro and accelerometer readings
         self._substep_times = (np.arange(1, self.n_substeps + 1) * float(m.opt.timestep))[None, :, None]
+
+    # --- calibration (envs/velociroach/calibration.py holds the effects) ----------------------------------------
+    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
+        from envs.velociroach.calibration import roach_effects
+
+        return {name: {p.name: (p.low, p.high) for p in e.params}
+                for name, e in roach_effects(self.physics_dt()).items() if e.catalogued}  # fmt: skip
+
+    @classmethod
+    def physics_dt(cls) -> float:
+        """The scene's physics time step (s)."""
+        return float(mujoco.MjSpec.from_file(str(cls.xml_path())).option.timestep)
+
+    def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
+        from envs.velociroach.calibration import delay_edit
+
+        delay = calibration.setting.get("delay.seconds", 0.0)
+        return [delay_edit(delay)] if delay > 0 else []
+
+    def apply_calibration(self, model: mujoco.MjModel, calibration: Calibration) -> None:
+        import copy
+
+        from envs.actuators.dcmotor import GAIN_KD, GAIN_KP
+        from envs.velociroach.calibration import RoachEffects
+
+        setting = calibration.setting
+        RoachEffects(model).apply(model, copy.copy(model), setting)
+        if self.action_mode == GAIT:  # the firmware's torque-space gains carry the motor constant (duty x V K / R)
+            for side in C.SIDES:
+                a = model.actuator(C.MOTORS[side]).id
+                model.actuator_gainprm[a, GAIN_KP : GAIN_KD + 1] *= setting.get(f"torque_constant_{side}.scale", 1.0)
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """The VelociRoACH's physical parameters, each with the model fields it sets (see docs/velociroach.md)."""

@@ -61,12 +61,15 @@ class RoachTurnEnv(SkitterEnv):
         battery_voltage: float | None = None,
         sensor_noise: bool = True,
         randomize: Mapping[str, Sequence[float]] | None = None,
+        calibration: str | None = None,
         telemetry: bool = False,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
     ):
-        robot = VelociRoach(action_mode, control_freq, battery_voltage, ImuNoise() if sensor_noise else None)
+        robot = VelociRoach(
+            action_mode, control_freq, battery_voltage, ImuNoise() if sensor_noise else None, calibration=calibration
+        )
         task = TurnTask(
             robot,
             privileged_obs,

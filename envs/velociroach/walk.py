@@ -89,8 +89,9 @@ class RoachWalkEnv(SkitterEnv):
     mode, 1000 in duty mode), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.1 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``battery_voltage`` (V,
     default the model's 3.7), ``sensor_noise`` (True: the IMU's noise and bias), ``randomize`` (parameter name ->
-    (low, high)), ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode`` (``"human"``,
-    ``"rgb_array"``), ``width``, ``height``.
+    (low, high)), ``calibration`` (a calibration file from ``calibrate.py --robot roach``: the model with its
+    effects, docs/calibration.md), ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode``
+    (``"human"``, ``"rgb_array"``), ``width``, ``height``.
 
     ## Version History
     - v1: the heading error from the integrated gyro joins the observation, with the gyro's noise and bias; the
@@ -113,12 +114,15 @@ class RoachWalkEnv(SkitterEnv):
         battery_voltage: float | None = None,
         sensor_noise: bool = True,
         randomize: Mapping[str, Sequence[float]] | None = None,
+        calibration: str | None = None,
         telemetry: bool = False,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
     ):
-        robot = VelociRoach(action_mode, control_freq, battery_voltage, ImuNoise() if sensor_noise else None)
+        robot = VelociRoach(
+            action_mode, control_freq, battery_voltage, ImuNoise() if sensor_noise else None, calibration=calibration
+        )
         task = WalkTask(
             robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
         )

@@ -1,0 +1,443 @@
+"""Calibration of the VelociRoACH against its telemetry (``calibrate.py --robot roach``), and the calibrated model
+(``gym.make("skitter/RoachWalk-v1", calibration=PATH)``).
+
+**Replay.** The real logs hold the firmware's commanded leg angles (its leg clock), the measured leg angles, the PWM
+duty it applied and the battery voltage, at 1 kHz. They are replayed through the firmware's own PID law with the
+gains in the log's header (the lab's ``pid-ip2.5.c``, ``UpdatePID``)::
+
+    p = (Kp * e) >> 12;  i = (Ki * i_error) >> 12;  d = Kd * v_error
+    out = ff + p + (i >> 4) + (d >> 4),  clipped to +-MAXTHROT;   i_error += e >> 4 every 1 ms tick
+
+with ``e`` in encoder counts (65536 per leg revolution), ``v_error`` the commanded minus the measured counts per
+tick (the firmware's first-difference velocity), and the output in PWM counts of a 3900-count period. In duty per
+radian: Kp 1800 -> 1.175 /rad, Ki 100 -> 0.255 /(rad s), Kd 200 -> 0.033 /(rad/s), ff 200 -> 0.051 (a regression
+of the logged duty on these terms gives the same gains, docs/calibration.md). The law runs natively as MuJoCo's
+``dcmotor`` controller in plain voltage mode (terminal voltage = battery x duty, clipped to MAXTHROT): its gains are
+written per segment for the segment's logged battery voltage; the derivative gain also cancels MuJoCo's back-EMF
+compensation, and the feed-forward rides on the velocity input (:func:`firmware_gains`). What the log does not hold
+is carried over from the previous segment (the body's pose and motion) or read off the log (the firmware's
+integrator, from the logged duty at the segment's start).
+
+**Channels** compared: leg angle, duty and back-EMF reading per side. **Effects** (per side where the robot has
+sides): delay of the commands, Coulomb and viscous friction and rotor inertia of each side's drive, each motor's
+torque (= back-EMF) constant, the supply (a scale on the logged battery voltage), foot friction, ground stiffness
+and damping, leg stiffness, body mass and centre of mass, the back-EMF reading's offset. Backlash and deadband are
+not offered: the crank linkage has no free play to give, and the firmware's duty is its own output (no driver
+deadband is observable beside it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import mujoco
+import numpy as np
+
+from envs.actuators.dcmotor import (
+    DYN_IMAX,
+    DYN_SLEW,
+    GAIN_K,
+    GAIN_KD,
+    GAIN_KI,
+    GAIN_KP,
+    GAIN_R,
+    GAIN_VMAX,
+    INPUT_POS,
+    INPUT_VEL,
+)
+from envs.velociroach import constants as C
+from sysid import effects as E
+from sysid.effects import Effect, Param
+from sysid.logs import Log, LogError
+from sysid.problem import Adapter, Segment, Setting
+
+SIDES = C.SIDES
+COUNTS_PER_RAD = 65536 / (2 * math.pi)  # leg encoder counts (the firmware's p_state) per radian
+PWM_PERIOD = 3900  # PWM counts of full duty (docs/telemetry.md)
+TICK = 1e-3  # s, the firmware's PID period
+
+
+def duty_gains(gains: Sequence[float]) -> dict[str, float]:
+    """The firmware's integer gains [Kp, Ki, Kd, Kaw, ff] in duty per joint unit (see the module docstring)."""
+    kp, ki, kd, _kaw, ff = (float(g) for g in gains)
+    return {
+        "kp": kp / 4096 * COUNTS_PER_RAD / PWM_PERIOD,  # duty / rad
+        "ki": ki / (4096 * 16 * 16) * COUNTS_PER_RAD / TICK / PWM_PERIOD,  # duty / (rad s)
+        "kd": kd / 16 * COUNTS_PER_RAD * TICK / PWM_PERIOD,  # duty / (rad/s)
+        "ff": ff / PWM_PERIOD,  # duty
+    }
+
+
+def firmware_gains(gains: Mapping[str, float], battery: float, resistance: float, k: float, gear: float) -> dict:
+    """MuJoCo dcmotor controller gains that make its terminal voltage the firmware's ``battery x duty``.
+
+    MuJoCo drives ``v = (R/K) [kp_m e_m + ki_m x_m + kd_m (u_vel - w_m)] + K w_m`` in motor-shaft units (``e_m = gear
+    e``, ``w_m = gear w``); the firmware wants ``v = Vb [ff + kp e + ki int(e) + kd (v_cmd - w)]``. Matching the terms:
+    ``kp_m = Vb kp K / (R gear)`` (and ki alike), ``kd_m = (Vb kd + K gear) K / (R gear)`` (which also cancels the
+    back-EMF compensation), and the velocity input ``u_vel = (Vb kd v_cmd + Vb ff) gear / (Vb kd + K gear)``.
+    """
+    scale = battery * k / (resistance * gear)
+    kd_m = (battery * gains["kd"] + k * gear) * k / (resistance * gear)
+    return {"kp": gains["kp"] * scale, "ki": gains["ki"] * scale, "kd": kd_m,
+            "vel_per_cmd": battery * gains["kd"] * gear / (battery * gains["kd"] + k * gear),
+            "vel_offset": battery * gains["ff"] * gear / (battery * gains["kd"] + k * gear)}  # fmt: skip
+
+
+def configure_firmware(spec: mujoco.MjSpec) -> None:
+    """Spec edit: both motors take a position and a velocity input and run a PID with an integrator (gains are
+    written per segment)."""
+    for side in SIDES:
+        a = spec.actuator(C.MOTORS[side])
+        a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        a.ctrlspec = INPUT_POS | INPUT_VEL
+        a.gainprm[GAIN_KP] = 1.0
+        a.gainprm[GAIN_KI] = 1.0
+        a.gainprm[GAIN_KD] = 1.0
+        a.gainprm[GAIN_VMAX] = 3.7
+        a.dynprm[DYN_SLEW] = 0.0
+        a.dynprm[DYN_IMAX] = 0.0  # the firmware's integrator is unbounded (Kaw = 0 in the logs)
+        a.actdim = 1
+
+
+# --- the effects, applied by calibration and by the calibrated envs alike ---------------------------------------
+def roach_effects(dt: float) -> dict[str, Effect]:
+    """The VelociRoACH's catalog effects with their bounds (nominal values are the model's; see docs/velociroach.md).
+    Ranges: the crank's Coulomb friction up to 1.4 times the motor's stall torque at the crank (11 mN m at 3.7 V: the
+    2 Hz log's right leg stands stalled at full duty); its
+    viscous friction up to three times the motor's own back-EMF damping (2.9e-5 N m s/rad); rotor inertia up to 70
+    times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to 4 times the lab script's 1.41 mN m/A (the
+    real logs' back-EMF is two to three times the model's, issue 7); the back-EMF reading's offset +-0.3 V (the board
+    subtracts an offset measured at start-up)."""
+    out: list[Effect] = [E.make("delay", seconds=(0.0, 0.0, 0.02, dt))]
+    for side in SIDES:
+        out += [
+            E.make("coulomb_friction", side, torque=(0.0, 0.0, 15e-3)),
+            E.make("viscous_friction", side, damping=(0.0, 0.0, 1e-4)),
+            E.make("armature", side, inertia=(0.0, 0.0, 1e-7)),
+            E.make("torque_constant", side, scale=(1.0, 0.3, 4.0)),
+            E.make("sensor_bias", f"bemf_{side}", offset=(0.0, -0.3, 0.3)),
+        ]
+    out += [
+        E.make("supply_voltage", scale=(1.0, 0.8, 1.2)),
+        E.make("foot_friction", mu=(0.4, 0.05, 1.5)),
+        E.make("ground_contact", timeconst=(0.002, 0.001, 0.02), dampratio=(1.0, 0.2, 2.0)),
+        E.make("leg_stiffness", scale=(1.0, 0.3, 3.0)),
+        E.make("mass", scale=(1.0, 0.5, 2.0)),
+        E.make("com_offset", x=(0.0, -0.02, 0.02)),
+        E.make("terrain_bump", height=(0.0, 0.0, 0.01)),
+        E.make("disturbance", torque=(0.0, 0.0, 2e-3), frequency=(3.0, 0.5, 10.0)),
+    ]
+    return {e.name: e for e in out}
+
+
+class RoachEffects:
+    """Where each effect lands in a compiled VelociRoACH model (field writes; no recompilation)."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.motor = {s: model.actuator(C.MOTORS[s]).id for s in SIDES}
+        self.crank_dof = {s: int(model.joint(C.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
+        self.chassis = model.body(C.ROOT_BODY).id
+        self.springs = np.array([model.joint(f"{leg}_spring").id for leg in C.LEGS])
+        self.feet = np.array([g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.endswith("_leg")])
+        self.floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
+
+    def apply(self, model: mujoco.MjModel, nominal: mujoco.MjModel, setting: Setting) -> None:
+        """Write a setting's effects into ``model`` (a copy of ``nominal``); call ``mj_setConst`` after."""
+        for side in SIDES:
+            dof, act = self.crank_dof[side], self.motor[side]
+            model.dof_frictionloss[dof] = nominal.dof_frictionloss[dof] + setting.get(
+                f"coulomb_friction_{side}.torque", 0
+            )
+            model.dof_damping[dof] = nominal.dof_damping[dof] + setting.get(f"viscous_friction_{side}.damping", 0.0)
+            model.actuator_armature[act] = nominal.actuator_armature[act] + setting.get(f"armature_{side}.inertia", 0)
+            model.actuator_gainprm[act, GAIN_K] = nominal.actuator_gainprm[act, GAIN_K] * setting.get(
+                f"torque_constant_{side}.scale", 1.0
+            )
+        if "foot_friction.mu" in setting:
+            contact = np.append(self.feet, self.floor) if self.floor >= 0 else self.feet
+            model.geom_friction[contact, 0] = setting["foot_friction.mu"]
+        if self.floor >= 0:
+            solref = nominal.geom_solref[self.floor]
+            model.geom_solref[self.floor] = [setting.get("ground_contact.timeconst", solref[0]),
+                                             setting.get("ground_contact.dampratio", solref[1])]  # fmt: skip
+        model.jnt_stiffness[self.springs] = nominal.jnt_stiffness[self.springs] * setting.get("leg_stiffness.scale", 1)
+        scale = setting.get("mass.scale", 1.0)
+        model.body_mass[self.chassis] = nominal.body_mass[self.chassis] * scale
+        model.body_inertia[self.chassis] = nominal.body_inertia[self.chassis] * scale
+        model.body_ipos[self.chassis, 0] = nominal.body_ipos[self.chassis, 0] + setting.get("com_offset.x", 0.0)
+
+
+def delay_edit(seconds: float):
+    """Spec edit of the calibrated envs: both motors' inputs delayed by ``seconds`` through MuJoCo's actuator delay
+    (a history of the inputs, held between samples), as the replay shifts the logged commands."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        steps = math.ceil(seconds / spec.option.timestep - 1e-9)
+        for side in SIDES:
+            a = spec.actuator(C.MOTORS[side])
+            a.delay, a.nsample, a.interp = float(seconds), steps + 2, 0
+
+    return edit
+
+
+def add_bump(height: float, x: float = 0.15):
+    """Spec edit (synthetic data only): a bump of the floor across the robot's path, ``x`` ahead of the start."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        body = spec.worldbody
+        g = body.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, 0.5, 0],
+                          pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
+        g.rgba = [0.6, 0.5, 0.4, 1]
+
+    return edit
+
+
+def add_disturbance(spec: mujoco.MjSpec) -> None:
+    """Spec edit (synthetic data only): a yaw torque on the body from outside the model."""
+    a = spec.add_actuator(name="disturbance", target=C.ROOT_BODY, trntype=mujoco.mjtTrn.mjTRN_BODY)
+    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    a.gear = [0, 0, 0, 0, 0, 1]
+
+
+class RoachAdapter(Adapter):
+    """The VelociRoACH replayed from its logged leg commands through the firmware's PID with the logged gains."""
+
+    name = "roach"
+    robot = "velociroach"
+    channels = {"leg_angle_left": "rad", "leg_angle_right": "rad", "duty_left": "1", "duty_right": "1",  # noqa: RUF012
+                "bemf_left": "V", "bemf_right": "V"}  # fmt: skip
+    commands = ("leg_angle_cmd_left", "leg_angle_cmd_right", "vbatt")
+    segment_seconds = 1.0
+    replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
+    fd_step = 0.02  # contacts make the cost rough at small scales: difference over 2% of each range,
+    rough_cost = True  # and fit without derivatives
+
+    def __init__(self) -> None:
+        super().__init__()
+        from envs.velociroach.robot import VelociRoach
+
+        self._robot_class = VelociRoach
+        robot = self._make_robot(())
+        self.nominal_model = robot.model
+        self._h = float(robot.model.opt.timestep)
+        self._linkage = robot._linkage
+        self._crank_qpos = {s: int(robot.model.joint(C.CRANK_JOINTS[s]).qposadr[0]) for s in SIDES}
+        self._crank_dof = {s: int(robot.model.joint(C.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
+        self._home = robot.linkage_qpos(0.0, -np.pi)
+        self._where = RoachEffects(robot.model)
+        self._motor = {s: robot.model.actuator(C.MOTORS[s]).id for s in SIDES}
+        self._gear = float(robot.model.actuator_gear[self._motor["left"], 0])
+        names = (*C.SENSOR_LEG_POS.values(), *C.SENSOR_MOTOR_TORQUE.values(), *C.SENSOR_MOTOR_VEL.values())
+        self._sensors = {name: int(robot.model.sensor(name).adr[0]) for name in names}
+
+    def _make_robot(self, edits):
+        return self._robot_class(action_mode="duty", imu_noise=None, spec_edits=[configure_firmware, *edits])
+
+    @property
+    def physics_dt(self) -> float:
+        return self._h
+
+    def effects(self) -> dict[str, Effect]:
+        return roach_effects(self._h)
+
+    # --- logs -------------------------------------------------------------------------------------------------------
+    def check_logs(self, logs: Sequence[Log]) -> None:
+        for log in logs:
+            gains = log.meta.get("motor_gains")
+            if gains is None or len(gains) != 10:
+                raise LogError(
+                    f"{log.path}: header field 'Motor Gains' is missing or not 10 numbers ({gains!r}): the replay "
+                    "runs the firmware's PID with the logged gains"
+                )
+            if float(log.meta.get("duty_clip") or 0) <= 0:
+                raise LogError(f"{log.path}: no duty clip level in the log's record")
+
+    def segments(self, log: Log) -> list[Segment]:
+        out = super().segments(log)
+        gains = log.meta["motor_gains"]
+        # the log's columns put the right side first: [Kp, Ki, Kd, Kaw, ff] right, then left
+        per_side = {"right": duty_gains(gains[0:5]), "left": duty_gains(gains[5:10])}
+        clip = float(log.meta["duty_clip"])
+        t = log.time
+        for seg in out:
+            for side in SIDES:
+                for key, value in per_side[side].items():
+                    seg.data[f"gain_{key}_{side}"] = np.array([value])
+                cmd = log.df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float)
+                rate = np.gradient(cmd, t)  # the firmware's v_input: its clock's rate
+                seg.data[f"leg_rate_cmd_{side}"] = rate[seg.samples]
+                seg.lead[f"leg_rate_cmd_{side}"] = rate[np.searchsorted(t, seg.lead.get("time", np.zeros(0)))]
+                x = log.df[f"leg_angle_{side}"].to_numpy(dtype=float)
+                seg.data[f"leg_rate_{side}"] = np.gradient(x, t)[seg.samples]
+            seg.data["duty_clip"] = np.array([clip])
+            seg.data["battery"] = np.array([float(np.mean(seg.data["vbatt"]))])
+        return out
+
+    # --- replay -----------------------------------------------------------------------------------------------------
+    def structure(self, setting: Setting) -> tuple:
+        return (round(float(setting.get("terrain_bump.height", 0.0)), 6), setting.get("disturbance.torque", 0) > 0)
+
+    def compile(self, setting: Setting) -> mujoco.MjModel:
+        bump, disturbed = self.structure(setting)
+        edits = ([add_bump(bump)] if bump > 0 else []) + ([add_disturbance] if disturbed else [])
+        return self._make_robot(edits).model
+
+    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
+        self._where.apply(model, self.nominal_model, setting)
+
+    def segment_model(self, model: mujoco.MjModel, segment: Segment, setting: Setting) -> mujoco.MjModel:
+        """The firmware's gains for the segment's battery voltage (copy of ``model``)."""
+        import copy
+
+        out = copy.copy(model)
+        battery = self._battery(segment, setting)
+        clip = float(segment.data["duty_clip"][0])
+        for side in SIDES:
+            a = self._motor[side]
+            g = firmware_gains(self._gains(segment, side), battery, out.actuator_gainprm[a, GAIN_R],
+                               out.actuator_gainprm[a, GAIN_K], self._gear)  # fmt: skip
+            out.actuator_gainprm[a, GAIN_KP] = g["kp"]
+            out.actuator_gainprm[a, GAIN_KI] = g["ki"]
+            out.actuator_gainprm[a, GAIN_KD] = g["kd"]
+            out.actuator_gainprm[a, GAIN_VMAX] = clip * battery
+        return out
+
+    def _gains(self, segment: Segment, side: str) -> dict[str, float]:
+        return {k: float(segment.data[f"gain_{k}_{side}"][0]) for k in ("kp", "ki", "kd", "ff")}
+
+    def _battery(self, segment: Segment, setting: Setting) -> float:
+        return float(segment.data["battery"][0]) * setting.get("supply_voltage.scale", 1.0)
+
+    def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
+        """The measured leg angles and rates (the linkage moved with them); the body carried over, or standing at
+        rest on the first segment; the firmware's integrator read off the logged duty."""
+        if not carried:
+            data.qpos[:] = self._home
+            data.qvel[:] = 0.0
+        for k, side in enumerate(SIDES):
+            crank = self._crank_qpos[side]
+            target = float(segment.data[f"leg_angle_{side}"][0]) + setting.get(f"crank_offset.{side}", 0.0)
+            rate = float(segment.data[f"leg_rate_{side}"][0])
+            shift = target - data.qpos[crank]
+            data.qpos[crank] = target
+            data.qvel[self._crank_dof[side]] = rate
+            for adr, _c0, c1 in self._linkage[k]:
+                data.qpos[adr] += c1 * shift
+                dof = int(np.flatnonzero(model.jnt_qposadr == adr)[0])
+                data.qvel[model.jnt_dofadr[dof]] = c1 * rate
+            integral = self._integral(segment, side)
+            if integral is not None:
+                data.act[model.actuator_actadr[self._motor[side]]] = self._gear * integral
+
+    def _integral(self, segment: Segment, side: str) -> float | None:
+        """The firmware's integrated error (rad s) at the segment's start, from its logged duty: (duty - ff - kp e -
+        kd (v_cmd - v)) / ki; None when the duty is clipped there (the integrator is then not observable)."""
+        g = self._gains(segment, side)
+        duty = float(segment.data[f"duty_{side}"][0])
+        if g["ki"] <= 0 or abs(duty) >= 0.995 * float(segment.data["duty_clip"][0]):
+            return None
+        e = float(segment.data[f"leg_angle_cmd_{side}"][0] - segment.data[f"leg_angle_{side}"][0])
+        dv = float(segment.data[f"leg_rate_cmd_{side}"][0] - segment.data[f"leg_rate_{side}"][0])
+        return (duty - g["ff"] - g["kp"] * e - g["kd"] * dv) / g["ki"]
+
+    def initial_uncertainty(self, model, segment: Segment, setting: Setting) -> list[tuple[str, int, float]]:
+        """The integrators: read off a duty quantised to 1/3900 and measured a tick apart from the angles."""
+        out = []
+        for side in SIDES:
+            g = self._gains(segment, side)
+            if g["ki"] > 0:
+                sd = self._gear * max(segment.sigma.get(f"duty_{side}", 1e-3), 1e-3) / g["ki"]
+                out.append(("act", int(model.actuator_actadr[self._motor[side]]), sd))
+        return out
+
+    def controls(self, model, segment: Segment, setting: Setting) -> np.ndarray:
+        t = self.physics_times(segment)
+        delay = setting.get("delay.seconds", 0.0)
+        battery = self._battery(segment, setting)
+        ctrl = np.zeros((len(t), model.nu))
+        for side in SIDES:
+            a = self._motor[side]
+            g = firmware_gains(self._gains(segment, side), battery, model.actuator_gainprm[a, GAIN_R],
+                               model.actuator_gainprm[a, GAIN_K], self._gear)  # fmt: skip
+            adr = model.actuator_ctrladr[a]
+            offset = setting.get(f"crank_offset.{side}", 0.0)
+            ctrl[:, adr] = self._gear * (segment.command_at(f"leg_angle_cmd_{side}", t, delay) + offset)
+            rate = segment.command_at(f"leg_rate_cmd_{side}", t, delay)
+            ctrl[:, adr + 1] = g["vel_per_cmd"] * rate + g["vel_offset"]
+        if setting.get("disturbance.torque", 0.0) > 0:
+            f = setting.get("disturbance.frequency", 3.0)
+            ctrl[:, model.actuator("disturbance").id] = setting["disturbance.torque"] * np.sin(
+                2 * math.pi * f * (segment.t0 + t)
+            )
+        return ctrl
+
+    def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
+        model = self.nominal_model
+        battery = self._battery(segment, setting)
+        columns = [sensordata[:, self._sensors[C.SENSOR_LEG_POS[s]]] - setting.get(f"crank_offset.{s}", 0.0)
+                   for s in SIDES]  # fmt: skip
+        for side in SIDES:
+            a = self._motor[side]
+            r = model.actuator_gainprm[a, GAIN_R]
+            k = model.actuator_gainprm[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
+            torque = sensordata[:, self._sensors[C.SENSOR_MOTOR_TORQUE[side]]]
+            speed = sensordata[:, self._sensors[C.SENSOR_MOTOR_VEL[side]]]
+            columns.append((r * torque / k + k * speed) / battery)
+        for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed, plus its offset
+            a = self._motor[side]
+            k = model.actuator_gainprm[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
+            speed = sensordata[:, self._sensors[C.SENSOR_MOTOR_VEL[side]]]
+            columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0))
+        return np.column_stack(columns)
+
+    def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
+        return {}
+
+    # --- synthetic logs ---------------------------------------------------------------------------------------------
+    SYNTH_GAINS = (1800, 100, 200, 0, 200)  # the 2 Hz real log's, per side
+    SYNTH_CLIP = 3800 / PWM_PERIOD
+
+    def synth_meta(self) -> dict:
+        return {"motor_gains": [*self.SYNTH_GAINS, *self.SYNTH_GAINS], "duty_clip": self.SYNTH_CLIP,
+                "duty_full_scale_counts": PWM_PERIOD}  # fmt: skip
+
+    def excite(self, seconds: float, rng: np.random.Generator):
+        """The firmware's leg clocks at 1 kHz (a few samples dropped, as the real board drops them): the stride
+        frequency redrawn in 0.5 to 12 Hz every 0.5 to 2 s, a pause now and then, the right side half a cycle
+        behind the left with a wandering offset (turning); the battery sagging slowly from 3.8 V."""
+        import pandas as pd
+
+        t = np.arange(0.0, seconds, 1e-3)
+        keep = rng.random(len(t)) > 0.02
+        keep[0] = True
+        t = t[keep]
+        freq = np.zeros_like(t)
+        offset = np.zeros_like(t)
+        start = 0.0
+        while start < seconds:
+            hold = rng.uniform(0.5, 2.0)
+            here = (t >= start) & (t < start + hold)
+            freq[here] = 0.0 if rng.random() < 0.15 else rng.uniform(0.5, 12.0)
+            offset[here] = rng.uniform(-0.6, 0.6)
+            start += hold
+        phase = 2 * np.pi * np.concatenate([[0.0], np.cumsum(freq[:-1] * np.diff(t))])
+        smooth = np.convolve(offset, np.ones(200) / 200, mode="same")
+        left = phase
+        right = phase - np.pi - smooth
+        battery = 3.8 - 0.2 * t / max(seconds, 1e-9) + rng.normal(0.0, 0.005, len(t))
+        return pd.DataFrame({"time": t, "leg_angle_cmd_left": left, "leg_angle_cmd_right": right, "vbatt": battery,
+                             "leg_angle_left": left, "leg_angle_right": right, "duty_left": 0.0, "duty_right": 0.0,
+                             "bemf_left": 0.0, "bemf_right": 0.0})  # fmt: skip
+
+    def synth_noise(self) -> dict[str, float]:
+        # the encoders' count (9.6e-5 rad) and vibration; the duty's PWM count; the back-EMF ADC's 10 mV and ripple
+        return {"leg_angle_left": 2e-4, "leg_angle_right": 2e-4, "duty_left": 0.01, "duty_right": 0.01,
+                "bemf_left": 0.03, "bemf_right": 0.03}  # fmt: skip
+
+    def measure(self, channel: str, values: np.ndarray) -> np.ndarray:
+        if channel.startswith("leg_angle"):
+            return np.round(values * COUNTS_PER_RAD) / COUNTS_PER_RAD
+        if channel.startswith("duty"):
+            return np.round(values * PWM_PERIOD) / PWM_PERIOD
+        return values
