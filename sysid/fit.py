@@ -220,20 +220,19 @@ def _derivative_free(
 
         start_cost = costs(problem, [best], segments, anchor=anchor)[0]
         found, found_cost = u0, start_cost
-        budget = CMA_EVALS // (anchor_pass + 1)
-        if len(names) == 1:
-            width = 1.0 / (anchor_pass + 1)
-            for _ in range(max(1, budget // (2 * GRID_POINTS))):
-                us = np.clip(found[0] + width * np.linspace(-0.5, 0.5, GRID_POINTS), 0.0, 1.0)
+        if len(names) == 1:  # the whole range, then windows a quarter as wide around the best point each round
+            widths = [0.0, 0.25, 1 / 16, 1 / 64] if anchor_pass == 0 else [1 / 16, 1 / 64]  # (0: the whole range)
+            for width in widths:
+                grid = np.linspace(-0.5, 0.5, GRID_POINTS)
+                us = np.linspace(0.0, 1.0, GRID_POINTS) if width == 0 else np.clip(found[0] + width * grid, 0, 1)
                 cs = costs(problem, [trial([u]) for u in us], segments, anchor=anchor)
                 if min(cs) < found_cost:
                     found, found_cost = np.array([us[int(np.argmin(cs))]]), min(cs)
-                width /= 4.0
         else:
             import cma
 
-            options = {"bounds": [0, 1], "maxfevals": budget, "verbose": -9, "seed": 1, "tolx": 1e-3,
-                       "popsize": max(6, 4 + int(3 * math.log(len(names))))}  # fmt: skip
+            options = {"bounds": [0, 1], "maxfevals": CMA_EVALS // (anchor_pass + 1), "verbose": -9, "seed": 1,
+                       "tolx": 1e-3, "popsize": max(6, 4 + int(3 * math.log(len(names))))}  # fmt: skip
             es = cma.CMAEvolutionStrategy(list(u0), 0.15 / (anchor_pass + 1), options)
             while not es.stop():
                 us = es.ask()

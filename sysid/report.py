@@ -101,7 +101,7 @@ def calibration_dict(result: Result, report: Mapping[str, Any], base: Mapping[st
     for entry in report["chosen"]:
         effects[entry["name"]] = {p: {k: v[k] for k in ("value", "ci95", "unit")} for p, v in entry["params"].items()}
     provenance = {k: report[k] for k in ("train", "test", "start", "error_before", "error_after", "unexplained")}
-    return calibration_record(result.adapter.name, effects, provenance)
+    return calibration_record(result.adapter.robot, effects, provenance)
 
 
 def report_markdown(report: Mapping[str, Any]) -> str:

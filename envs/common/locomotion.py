@@ -159,7 +159,10 @@ class WalkTask(LocomotionTask):
     """Walk along +x (the heading at reset): reward = forward + energy + upright (see the robot's env docstring)."""
 
     name = "walk"
-    metrics: ClassVar[dict[str, str]] = {"forward_speed": "progress along +x over the episode, m/s"}
+    metrics: ClassVar[dict[str, str]] = {
+        "forward_speed": "progress along +x over the episode, m/s",
+        "heading_drift": "mean yaw rate after the first second (signed; + is to the left), rad/s",
+    }
 
     def __init__(
         self,
@@ -183,7 +186,9 @@ class WalkTask(LocomotionTask):
 
     def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
         elapsed = info["elapsed"]
-        return {"forward_speed": info["progress_x"] / elapsed if elapsed > 0 else float("nan")}
+        after = elapsed - METRIC_WARMUP
+        drift = (info["yaw_travel"] - info["yaw_travel_warmup"]) / after if after > 1e-9 else float("nan")
+        return {"forward_speed": info["progress_x"] / elapsed if elapsed > 0 else float("nan"), "heading_drift": drift}
 
 
 class TurnTask(LocomotionTask):
