@@ -45,6 +45,8 @@ bench: setup
 	$(BIN)/python -m benchmarks.speed_vs_frequency
 	$(BIN)/python -m benchmarks.turn_table
 	$(BIN)/python -m benchmarks.model_scan
+	$(BIN)/python -m benchmarks.calibrate_speed
+	$(BIN)/python -m benchmarks.calibration_matrix
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     for robot in args.robots:
         adapter = make_adapter(robot)
         catalogued = [name for name, e in adapter.effects().items() if e.catalogued]
-        plan += [("effect", robot, name, 1) for name in catalogued]
+        plan += [("effect", robot, name, 1 + k) for k, name in enumerate(catalogued)]  # a draw of its own each
         plan += [("null", robot, None, 2)]
         plan += [("ooc", robot, name, 3) for name in OUT_OF_CATALOG.get(robot, [])]
         plan += [("coverage", robot, name, 100 + s) for name in COVERAGE.get(robot, []) for s in range(args.seeds)]
@@ -78,14 +78,14 @@ def main(argv: list[str] | None = None) -> int:
     minutes = (time.perf_counter() - start) / 60
     md = [f"# Calibration matrix\n\n{minutes:.1f} min on this machine; budget {args.minutes:g} min.\n"]
     ok = [r for r in rows if "error" not in r]
-    md.append("\n## Each catalogued effect, drawn by the generator (seed 1)\n\n")
+    md.append("\n## Each catalogued effect, drawn by the generator (effect k of a robot's catalog: seed k + 1)\n\n")
     md.append(md_table(
-        ["robot", "effect", "truth", "first pick", "alias ok", "estimate +- 95%", "recovered", "before", "after",
-         "excess after/before", "halved", "s"],
-        [[r["robot"], r["effect"], _values(r, 0), r["first"] or "none", _yn(r["first_in_alias_group"]),
+        ["robot", "effect", "seed", "truth", "first pick", "alias ok", "estimate +- 95%", "recovered", "before",
+         "after", "excess after/before", "halved", "s"],
+        [[r["robot"], r["effect"], r["seed"], _values(r, 0), r["first"] or "none", _yn(r["first_in_alias_group"]),
           _values(r, 1), _yn(r["recovered"]), r["error_before"], r["error_after"], r["excess_ratio"],
           _yn(r["halved"]), round(r["seconds"])] for r in ok]
-        + [[r["robot"], r["effect"], "-", "not generated: " + r["error"], "", "", "", "", "", "", "", ""]
+        + [[r["robot"], r["effect"], r["seed"], "-", "not generated: " + r["error"], "", "", "", "", "", "", "", ""]
            for r in rows if "error" in r],
     ))  # fmt: skip
     for robot in args.robots:

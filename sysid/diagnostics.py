@@ -1,5 +1,6 @@
-"""Residual diagnostics that point to a cause: lag, dependence on the sign of velocity, on velocity, acceleration and
-command, drift with time or supply voltage, spectral peaks, constant bias, left against right.
+"""Residual diagnostics that point to a cause: lag, dependence on the sign of velocity, on velocity, acceleration,
+command and load, drift with time or supply voltage, spectral peaks, constant bias, stance against swing, left against
+right.
 
 Each is a number per channel with a plain reading; the report lists the strongest, and the effect ranking (a score
 statistic of each effect's parameters, sysid/select.py) is explained by them.
@@ -7,7 +8,9 @@ statistic of each effect's parameters, sysid/select.py) is explained by them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,15 +23,27 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float:
     return float(a @ b) / denom if denom > 0 else 0.0
 
 
-def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[str, str]) -> dict[str, dict]:
+def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[str, Any]) -> dict[str, dict]:
     """Diagnostics of normalized residuals per channel.
 
-    ``context`` names the log columns that explain a residual: ``velocity``, ``command``, optionally ``supply``.
+    ``context`` names the log columns that explain a residual: ``velocity``, ``command``, ``load``, ``supply``, and
+    ``phase`` (a crank or joint angle whose cosine is positive in stance). Each is one column for every channel, or
+    a dict channel -> column (a robot with sides relates each side's channels to that side's columns). Channels
+    named ``..._left`` and ``..._right`` are also compared with each other.
     """
     out: dict[str, dict] = {}
     segs = problem.segments
-    cat = {k: np.concatenate([s.data[v] for s in segs]) for k, v in context.items() if all(v in s.data for s in segs)}
     times = np.concatenate([s.data["time"] for s in segs])
+    dt = np.gradient(times) if len(times) > 1 else np.ones_like(times)
+    dt[dt <= 0] = np.median(dt[dt > 0]) if (dt > 0).any() else 1.0
+
+    def column(key: str, channel: str) -> np.ndarray | None:
+        name = context.get(key)
+        name = name.get(channel) if isinstance(name, Mapping) else name
+        if name is None or not all(name in s.data for s in segs):
+            return None
+        return np.concatenate([s.data[name] for s in segs])
+
     for c, name in enumerate(problem.channels):
         r = np.concatenate([x.data[:, c] for x in residuals])
         rms = float(np.sqrt(np.mean(r * r))) if r.size else 0.0
@@ -37,21 +52,31 @@ def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[s
             out[name] = entry
             continue
         entry["drift_with_time"] = _corr(r, times)
-        if "velocity" in cat:
-            v = cat["velocity"]
+        v = column("velocity", name)
+        if v is not None:
             entry["with_sign_of_velocity"] = _corr(r, np.sign(v))
             entry["with_velocity"] = _corr(r, v)
-            dt = np.gradient(times)
-            dt[dt <= 0] = np.median(dt[dt > 0]) if (dt > 0).any() else 1.0
             entry["with_acceleration"] = _corr(r, np.gradient(v) / dt)
-        if "command" in cat:
-            u = cat["command"]
+        u = column("command", name)
+        if u is not None:
             entry["with_command"] = _corr(r, u)
             entry["lag_of_command"] = _best_lag(r, u, times)
-        if "supply" in cat:
-            entry["with_supply"] = _corr(r, cat["supply"])
+        for key in ("load", "supply"):
+            x = column(key, name)
+            if x is not None:
+                entry[f"with_{key}"] = _corr(r, x)
+        phase = column("phase", name)
+        if phase is not None:
+            stance = np.cos(phase) > 0
+            if stance.any() and (~stance).any():
+                entry["stance_over_swing"] = float(np.sqrt(np.mean(r[stance] ** 2) / max(np.mean(r[~stance] ** 2),
+                                                                                          1e-12)))  # fmt: skip
         entry["spectral_peak_hz"], entry["spectral_peak_share"] = _spectral_peak(r, times)
         out[name] = entry
+    for name, entry in out.items():
+        if name.endswith("_left") and name[:-5] + "_right" in out:
+            right = out[name[:-5] + "_right"]["rms"]
+            entry["left_over_right"] = entry["rms"] / right if right > 0 else float("inf")
     return out
 
 
@@ -91,10 +116,21 @@ def summarize(diagnostics: Mapping[str, dict], limit: int = 3) -> list[str]:
             ("with_command", "follows the command (torque constant, supply, deadband)"),
             ("drift_with_time", "drifts over time (supply sag, heating)"),
             ("with_supply", "follows the supply voltage"),
+            ("with_load", "follows the load (compliance, current limit)"),
         ):
             c = d.get(key)
             if c is not None and abs(c) > 0.3:
                 findings.append((abs(c) * d["rms"], f"{channel}: the residual {text}, correlation {c:+.2f}"))
+        ratio = d.get("stance_over_swing")
+        if ratio is not None and (ratio > 1.5 or ratio < 1 / 1.5):
+            where = "stance" if ratio > 1 else "swing"
+            findings.append((abs(math.log(ratio)) * d["rms"] / 2, f"{channel}: the residual is larger in {where} "
+                             f"({max(ratio, 1 / ratio):.1f} times; contacts, legs, feet)"))  # fmt: skip
+        ratio = d.get("left_over_right")
+        if ratio is not None and (ratio > 2 or ratio < 0.5):
+            side, other = ("left", "right") if ratio > 1 else ("right", "left")
+            findings.append((abs(math.log(ratio)) * d["rms"] / 2, f"{channel[:-5]}: the {side} side's residual is "
+                             f"{max(ratio, 1 / ratio):.1f} times the {other}'s (a per-side effect)"))  # fmt: skip
         if d.get("spectral_peak_share", 0.0) > 0.2:
             findings.append(
                 (d["spectral_peak_share"] * d["rms"],

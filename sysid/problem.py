@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -84,7 +84,7 @@ class Adapter(ABC):
         channels: the compared channels, name -> unit.
         commands: the columns a log must hold to be replayed (besides ``channels`` and ``time``).
         context: the log columns the residual diagnostics relate the residual to (``velocity``, ``command``,
-            ``supply``).
+            ``load``, ``supply``, ``phase``), each one column or a dict channel -> column (sysid/diagnostics.py).
     """
 
     name: str
@@ -92,7 +92,7 @@ class Adapter(ABC):
     channels: Mapping[str, str]
     commands: tuple[str, ...] = ()
     segment_seconds: float = 1.0
-    context: Mapping[str, str] = {}  # log columns for the diagnostics: velocity, command, supply
+    context: Mapping[str, str | Mapping[str, str]] = {}  # log columns for the diagnostics
     carry_over: bool = True  # a segment starts from the previous one's end, its measured coordinates overwritten
     replay_floor: bool = False  # add what replay cannot match on the model's own data to the noise (see Problem)
     fd_step: float = 1e-3  # finite-difference step, a fraction of each parameter's range (larger for chaotic models)
@@ -581,15 +581,25 @@ class Problem:
         return max(total, 1.0)
 
 
-def simulate(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFrame) -> np.ndarray:
+def simulate(
+    adapter: Adapter,
+    setting: Mapping[str, float],
+    commands: pd.DataFrame,
+    meta: Mapping | None = None,
+    observe: Callable[[np.ndarray, Segment, Setting], np.ndarray] | None = None,
+) -> np.ndarray:
     """The adapter's channels (without noise) at the command table's sample times: the adapter's own segments of the
     table, run one after another, each from the full state the previous one ended in (nothing re-measured), so the
     robot is simulated without a break; only what the adapter makes per segment (a controller's gains for the
-    segment's battery voltage) changes at the segment boundaries. Rows past the last segment stay zero."""
-    log = Log("synthetic", commands, dict(adapter.synth_meta()))
+    segment's battery voltage) changes at the segment boundaries. Rows past the last segment stay zero.
+
+    ``meta`` is the log's record (default the synthetic logs'); ``observe`` reads other columns off the sensor data
+    (default the adapter's channels), e.g. body rates to compare as distributions."""
+    log = Log("synthetic", commands, dict(adapter.synth_meta() if meta is None else meta))
     segments = adapter.segments(log)
     h = adapter.physics_dt
-    out = np.zeros((len(commands), len(adapter.channels)))
+    observe = observe or adapter.observe
+    out = None
     base = adapter.model_for(setting)
     state = None
     for k, segment in enumerate(segments):
@@ -607,7 +617,9 @@ def simulate(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFr
         control = adapter.controls(model, segment, setting)
         states, sensordata = rollout.rollout(model, d, state[None], control[None], control_spec=CTRL_SPEC,
                                              initial_warmstart=np.zeros((1, model.nv)))  # fmt: skip
-        out[segment.samples] = adapter.observe(sensordata[0, np.minimum(segment.steps, len(control) - 1)], segment,
-                                               setting)  # fmt: skip
+        columns = observe(sensordata[0, np.minimum(segment.steps, len(control) - 1)], segment, setting)
+        if out is None:
+            out = np.zeros((len(commands), columns.shape[1]))
+        out[segment.samples] = columns
         state = states[0, round((end - segment.t0) / h) - 1].copy()
-    return out
+    return out if out is not None else np.zeros((len(commands), len(adapter.channels)))

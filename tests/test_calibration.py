@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -20,6 +22,7 @@ from sysid.cases import Case, run_case
 from sysid.effects import base_name
 from sysid.pipeline import UNEXPLAINED_ABOVE, relative_excess, run
 from sysid.robots import adapter as make_adapter
+from sysid.select import nominal_setting
 
 
 def _pair(robot: str, effects: dict, seed: int):
@@ -167,3 +170,26 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
     assert report2["error_before"] == pytest.approx(report["error_after"], rel=0.05)
     assert all(c["name"] != first["name"] for c in report2["chosen"])
     assert np.isfinite(report2["error_after"])
+
+
+def test_roach_body_rates_are_compared_as_distributions():
+    """The gyro cannot be aligned in time with a log whose body pose is unknown: the report compares the model's
+    body rates with the log's by spread, band power and distribution distance."""
+    adapter = make_adapter("roach")
+    (log,) = calibrate.read_logs([Path("data/real/velociroach_behavior4_2Hz.txt@1:4")], adapter.required(), None)
+    nominal = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
+    stronger = {**nominal, "torque_constant_left.scale": 2.0, "torque_constant_right.scale": 2.0}
+    result = SimpleNamespace(test=[log], outcome=SimpleNamespace(nominal=nominal, setting=stronger))
+    extra = adapter.report_extra(result)
+    stats = extra["distributions"]
+    assert len(stats) == 3 and "Body rates compared as distributions" in extra["sections"]
+    t = log.time
+    for key, entry in stats.items():
+        column = key.rsplit(":", 1)[1]
+        measured = log.df[column].to_numpy()[t >= t[0] + 1.0]
+        assert entry["log"]["std"] == pytest.approx(float(np.std(measured)))
+        for source in ("nominal", "calibrated"):
+            assert entry[source]["std"] > 0 and math.isfinite(entry[source]["wasserstein"])
+            assert 0.0 <= sum(entry[source]["bands"]) <= 1.0 + 1e-9
+        # a different model moves differently
+        assert entry["nominal"]["std"] != pytest.approx(entry["calibrated"]["std"], rel=1e-3)

@@ -1,0 +1,80 @@
+"""Wall time of the whole calibration loop on 60 s of 1 kHz VelociRoACH telemetry (issue 7's benchmark; goal: under
+5 minutes on 2 cores).
+
+A synthetic log (sysid.synth: the firmware's clocks at 1 kHz with a hidden effect drawn by the seed) is written as
+Parquet; ``calibrate.py --robot roach --train LOG@0:45 --test LOG@45:`` runs on it, as a user would run it. Beside
+the wall time, the time of one replay of the whole log through the model (every segment, the nominal setting) gives
+the loop's cost in replays, a number that does not depend on the machine's load.
+
+Run: ``python -m benchmarks.calibrate_speed [--seconds 60] [--effect coulomb_friction_right] [--seed 0]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import calibrate
+from benchmarks.common import md_table, save
+from envs.common.telemetry import write_telemetry
+from sysid import synth
+from sysid.problem import Problem
+from sysid.robots import adapter as make_adapter
+from sysid.select import nominal_setting
+
+GOAL_MINUTES = 5.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seconds", type=float, default=60.0)
+    p.add_argument("--effect", default="coulomb_friction_right")
+    p.add_argument("--seed", type=int, default=0)
+    args = p.parse_args(argv)
+    adapter = make_adapter("roach")
+    t0 = time.perf_counter()
+    log, truth = synth.synthesize("roach", {args.effect: None}, args.seed, seconds=args.seconds)
+    synth_seconds = time.perf_counter() - t0
+    problem = Problem(adapter, [log])
+    setting = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
+    problem.residuals([setting])  # warm the caches, as the loop's first replay does
+    t0 = time.perf_counter()
+    problem.residuals([setting])
+    replay = time.perf_counter() - t0
+    split = round(0.75 * args.seconds, 3)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "roach.parquet"
+        write_telemetry(path, log.df, log.meta)
+        argv_cal = ["--robot", "roach", "--train", f"{path}@0:{split}", "--test", f"{path}@{split}:",
+                    "--out", str(Path(tmp) / "out"), "--quiet"]  # fmt: skip
+        t0 = time.perf_counter()
+        code = calibrate.main(argv_cal)
+        wall = time.perf_counter() - t0
+        report = json.loads((Path(tmp) / "out" / "report.json").read_text()) if code == 0 else {}
+    minutes = wall / 60
+    verdict = "met" if code == 0 and minutes < GOAL_MINUTES else "MISSED"
+    chosen = ", ".join(c["name"] for c in report.get("chosen", [])) or "none"
+    md = (
+        f"# calibrate.py on {args.seconds:g} s of 1 kHz VelociRoACH telemetry\n\n"
+        f"{os.cpu_count()} cores. Hidden effect {args.effect} = {truth['effects'][args.effect]} (seed {args.seed}); "
+        f"train 0-{split:g} s, test {split:g}-{args.seconds:g} s.\n\n"
+        + md_table(
+            ["whole loop (min)", "goal (min)", "goal", "one replay of the log (s)", "loop in replays", "chosen",
+             "held-out error before", "after", "exit code"],
+            [[minutes, GOAL_MINUTES, verdict, replay, wall / replay, chosen, report.get("error_before", float("nan")),
+              report.get("error_after", float("nan")), code]],
+        )
+        + f"\n(generating the log took {synth_seconds:.0f} s, not counted)\n"
+    )  # fmt: skip
+    save("calibrate_speed", {"seconds_of_log": args.seconds, "effect": args.effect, "truth": truth["effects"],
+                             "wall_seconds": wall, "goal_minutes": GOAL_MINUTES, "verdict": verdict,
+                             "replay_seconds": replay, "exit_code": code, "report": report}, md)  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
