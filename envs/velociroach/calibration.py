@@ -407,49 +407,78 @@ class RoachAdapter(Adapter):
     BANDS = ((0.5, 5.0), (5.0, 20.0), (20.0, 100.0))  # Hz: body sway, stride, vibration
 
     def report_extra(self, result) -> dict:
-        """The body rates, compared as distributions: the body's pose is not logged, so its rates cannot be aligned
-        in time with the model's; the held-out logs are simulated without a break (the log's commands, nothing
-        re-measured) under the nominal and the calibrated model, and their gyro readings compared with the log's by
-        spread (standard deviation), by the share of power in three bands, and by the Wasserstein distance between
-        the samples' distributions (over the log's standard deviation). The IMU board's axes are taken as the
-        body's (its mounting is not recorded)."""
+        """Two views of the held-out logs simulated without a break (the log's commands through the logged firmware,
+        nothing re-measured) under the nominal and the calibrated model:
+
+        - **tracking**, the quantities of issue 7's table: the leg's tracking error (median and 95th percentile,
+          deg), the mean |duty|, and the back-EMF per leg speed (the slope of the reading on the leg's rate,
+          mV s/rad), per side, over the commanded stretch from its first second on;
+        - **body rates compared as distributions**: the body's pose is not logged, so its rates cannot be aligned
+          in time with the model's; the gyro readings are compared with the log's by spread (standard deviation),
+          the share of power in three bands and the Wasserstein distance between the samples (over the log's
+          standard deviation). The IMU board's axes are taken as the body's (its mounting is not recorded).
+
+        Neither enters the fit."""
         from scipy.stats import wasserstein_distance
 
-        logs = [log for log in result.test if all(c in log.df for c in self.BODY_RATES)]
-        if not logs:
-            return {}
         gyro = slice(self._sensors_gyro, self._sensors_gyro + 3)
+        n = len(self.channels)
 
-        def body_rates(sensordata, segment, setting):
-            return sensordata[:, gyro]
+        def channels_and_rates(sensordata, segment, setting):
+            return np.column_stack([self.observe(sensordata, segment, setting), sensordata[:, gyro]])
 
-        rows, stats = [], {}
-        for name, setting in (("nominal", result.outcome.nominal), ("calibrated", result.outcome.setting)):
-            for log in logs:
-                model = simulate(self, setting, log.df, log.meta, body_rates)
+        tracking: dict[str, dict] = {}
+        rates: dict[str, dict] = {}
+        for log in result.test:
+            t = log.time
+            window = self._commanded(log)
+            tracking[log.path] = {"log": self._tracking(log.df, t, window)}
+            has_rates = all(c in log.df for c in self.BODY_RATES)
+            for name, setting in (("nominal", result.outcome.nominal), ("calibrated", result.outcome.setting)):
+                sim = simulate(self, setting, log.df, log.meta, channels_and_rates)
+                model = log.df.copy()
+                for i, c in enumerate(self.channels):
+                    model[c] = sim[:, i]
+                tracking[log.path][name] = self._tracking(model, t, window)
+                if not has_rates:
+                    continue
                 measured = log.df[list(self.BODY_RATES)].to_numpy(dtype=float)
-                t = log.time
-                keep = t >= t[0] + 1.0  # after the first second, as the episode metrics
                 for axis, column in enumerate(self.BODY_RATES):
-                    entry = stats.setdefault(f"{log.path}:{column}", {"log": _spread(measured[keep, axis], t[keep],
-                                                                                     self.BANDS)})  # fmt: skip
-                    entry[name] = _spread(model[keep, axis], t[keep], self.BANDS)
-                    scale = max(float(np.std(measured[keep, axis])), 1e-9)
-                    entry[name]["wasserstein"] = float(wasserstein_distance(model[keep, axis], measured[keep, axis])
-                                                       / scale)  # fmt: skip
-        for key, entry in stats.items():
-            for name in ("log", "nominal", "calibrated"):
-                e = entry[name]
-                rows.append(f"| {key.rsplit(':', 1)[1]} | {name} | {e['std']:.3g} | "
-                            + " | ".join(f"{x:.0%}" for x in e["bands"])
-                            + f" | {e.get('wasserstein', float('nan')):.2f} |")  # fmt: skip
-        bands = " | ".join(f"{lo:g}-{hi:g} Hz" for lo, hi in self.BANDS)
-        table = (f"| rate | source | std (rad/s) | {bands} | Wasserstein / log std |\n"
-                 + "|---" * (4 + len(self.BANDS)) + "|\n" + "\n".join(rows) + "\n")  # fmt: skip
-        note = ("Body rates cannot be aligned in time with the log (the body's pose is not logged): the held-out "
-                "logs are simulated without a break under each model and the distributions compared. These "
-                "channels do not enter the fit.\n\n")  # fmt: skip
-        return {"distributions": stats, "sections": {"Body rates compared as distributions": note + table}}
+                    key = f"{log.path}:{column}"
+                    entry = rates.setdefault(key, {"log": _spread(measured[window, axis], t[window], self.BANDS)})
+                    entry[name] = _spread(sim[window, n + axis], t[window], self.BANDS)
+                    scale = max(float(np.std(measured[window, axis])), 1e-9)
+                    entry[name]["wasserstein"] = float(
+                        wasserstein_distance(sim[window, n + axis], measured[window, axis]) / scale
+                    )
+        sections = {"Tracking on the held-out logs (issue 7's table)": _tracking_table(tracking)}
+        if rates:
+            sections["Body rates compared as distributions"] = _rates_table(rates, self.BANDS)
+        return {"tracking": tracking, "distributions": rates, "sections": sections}
+
+    def _commanded(self, log: Log) -> np.ndarray:
+        """The samples from one second after the legs were first commanded to move to the last commanded move."""
+        t = log.time
+        moving = np.zeros(len(t), dtype=bool)
+        for side in SIDES:
+            moving |= np.abs(np.gradient(log.df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float), t)) > 1e-6
+        if not moving.any():
+            return np.ones(len(t), dtype=bool)
+        first, last = t[np.flatnonzero(moving)[[0, -1]]]
+        return (t >= first + 1.0) & (t <= last)
+
+    def _tracking(self, df, t: np.ndarray, window: np.ndarray) -> dict[str, float]:
+        out = {}
+        for side in SIDES:
+            angle = df[f"leg_angle_{side}"].to_numpy(dtype=float)
+            error = np.degrees(np.abs(df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float) - angle))[window]
+            rate = np.gradient(angle, t)[window]
+            bemf = df[f"bemf_{side}"].to_numpy(dtype=float)[window]
+            slope = float(np.polyfit(rate, bemf, 1)[0]) if np.ptp(rate) > 0 else float("nan")
+            out.update({f"error_median_{side}": float(np.median(error)), f"error_p95_{side}": float(np.percentile(
+                error, 95)), f"duty_mean_abs_{side}": float(np.mean(np.abs(df[f"duty_{side}"].to_numpy()[window]))),
+                f"bemf_per_speed_{side}": 1e3 * slope})  # fmt: skip
+        return out
 
     # --- synthetic logs ---------------------------------------------------------------------------------------------
     SYNTH_GAINS = (1800, 100, 200, 0, 200)  # the 2 Hz real log's, per side
@@ -509,3 +538,34 @@ def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
     f, power = periodogram(x - x.mean(), fs=1.0 / dt)
     total = float(power[f >= bands[0][0]].sum()) or 1.0
     return {"std": float(np.std(x)), "bands": [float(power[(f >= lo) & (f < hi)].sum() / total) for lo, hi in bands]}
+
+
+def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]]) -> str:
+    rows = [("leg tracking error, median (deg)", "error_median", ".1f"),
+            ("leg tracking error, 95th percentile (deg)", "error_p95", ".0f"),
+            ("mean \\|duty\\|", "duty_mean_abs", ".2f"),
+            ("back-EMF per leg speed (mV s/rad)", "bemf_per_speed", ".0f")]  # fmt: skip
+    out = []
+    for path, entry in tracking.items():
+        out.append(f"{path} (left \\| right):\n\n| | log | nominal model | calibrated model |\n|---|---|---|---|")
+        for label, key, fmt in rows:
+            cells = [f"{format(entry[s][f'{key}_left'], fmt)} \\| {format(entry[s][f'{key}_right'], fmt)}"
+                     for s in ("log", "nominal", "calibrated")]  # fmt: skip
+            out.append(f"| {label} | " + " | ".join(cells) + " |")
+        out.append("")
+    return "\n".join(out) + "\n"
+
+
+def _rates_table(rates: Mapping[str, Mapping[str, Mapping]], bands) -> str:
+    rows = []
+    for key, entry in rates.items():
+        for name in ("log", "nominal", "calibrated"):
+            e = entry[name]
+            rows.append(f"| {key.rsplit(':', 1)[1]} | {name} | {e['std']:.3g} | "
+                        + " | ".join(f"{x:.0%}" for x in e["bands"])
+                        + f" | {e.get('wasserstein', float('nan')):.2f} |")  # fmt: skip
+    header = " | ".join(f"{lo:g}-{hi:g} Hz" for lo, hi in bands)
+    return ("Body rates cannot be aligned in time with the log (the body's pose is not logged): the held-out logs "
+            "are simulated without a break under each model and the distributions compared.\n\n"
+            f"| rate | source | std (rad/s) | {header} | Wasserstein / log std |\n"
+            + "|---" * (4 + len(bands)) + "|\n" + "\n".join(rows) + "\n")  # fmt: skip
