@@ -337,25 +337,43 @@ class Problem:
 
     def _replay_floor(self, setting: Mapping[str, float] | None) -> dict[str, float]:
         """What replay cannot match even with the right model, per channel: the log's commands run through the
-        model without a break (``simulate``), then replayed in segments as the real log is; the RMS of the
-        difference. It comes from what the log does not hold (a legged robot's body state, which its contacts
-        make sensitive), and is added to the sensor noise as the floor errors are measured against."""
+        model without a break (``simulate``), giving a twin of the log whose channels the model itself made; the
+        twin replayed in segments as the real log is (each segment from the twin's own measured state); the RMS of
+        the difference. It comes from what the log does not hold (a legged robot's body state, which its contacts
+        make sensitive), and is added to the sensor noise as the floor errors are measured against. The twin, not
+        the log, is replayed, so that what the model lacks stays in the residual and out of the floor."""
         adapter = self.adapter
         nominal = {k: v for e in adapter.effects().values() if e.catalogued for k, v in e.nominal().items()}
         setting = {**nominal, **(setting or {})}
         self._sigma = np.ones(len(adapter.channels))
         squares = np.zeros(len(adapter.channels))
         count = 0
-        for log in self.logs:
-            clean = simulate(adapter, setting, log.df)
-            index = [i for i, seg in enumerate(self.segments) if seg.log == log.path]
-            predictions = self.predict([setting], index)[0]
-            for i, p in zip(index, predictions, strict=True):
-                d = clean[self.segments[i].samples] - p
-                squares += np.sum(d * d, axis=0)
-                count += len(d)
-        self._sensitivity.clear()
-        self._carry.clear()
+        real = self.segments
+        try:
+            for log in self.logs:
+                clean = simulate(adapter, setting, log.df, log.meta)
+                twin = log.df.copy()
+                for j, c in enumerate(adapter.channels):
+                    twin[c] = clean[:, j]
+                twin_segments = adapter.segments(Log(log.path, twin, log.meta))
+                index = [i for i, seg in enumerate(real) if seg.log == log.path]
+                if len(twin_segments) != len(index):
+                    raise RuntimeError(f"{log.path}: the twin log cut into other segments than the log")
+                self.segments = list(real)
+                for i, seg in zip(index, twin_segments, strict=True):
+                    seg.n_steps = self.n_steps
+                    self.segments[i] = seg
+                predictions = self.predict([setting], index)[0]
+                for i, p in zip(index, predictions, strict=True):
+                    d = clean[real[i].samples] - p
+                    squares += np.sum(d * d, axis=0)
+                    count += len(d)
+                self._sensitivity.clear()
+                self._carry.clear()
+        finally:
+            self.segments = real
+            self._sensitivity.clear()
+            self._carry.clear()
         return {c: float(np.sqrt(squares[j] / max(count, 1))) for j, c in enumerate(adapter.channels)}
 
     def _index(self, segments: Sequence[int] | None) -> list[int]:

@@ -97,6 +97,13 @@ def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, chang
     assert str(path) in str(info.value) and field in str(info.value)
 
 
+def test_a_calibration_that_is_not_a_file_is_refused():
+    with pytest.raises(ValueError, match="calibration must be the path of a calibration file, got 3"):
+        gym.make("skitter/RoachWalk-v1", calibration=3)
+    with pytest.raises(ValueError, match="no such calibration file"):
+        gym.make("skitter/RoachWalk-v1", calibration="nowhere.json")
+
+
 def test_evaluate_refuses_a_bad_calibration_before_writing(tmp_path, capsys):
     bad = _write(tmp_path / "bad.json", robot="motor", effects={"viscous_friction": {"damping": 1e-4}})
     out = tmp_path / "results"

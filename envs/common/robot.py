@@ -233,6 +233,8 @@ class Robot(ABC):
 
     def load_calibration(self, calibration: str | Path | Calibration) -> Calibration:
         """Read and check a calibration file against this robot's effects (one-line errors naming file and field)."""
+        if not isinstance(calibration, str | Path | Calibration):
+            raise CalibrationError(f"calibration must be the path of a calibration file, got {calibration!r}")
         cal = calibration if isinstance(calibration, Calibration) else read_calibration(calibration, self.name)
         if cal.robot != self.name:
             raise CalibrationError(f"{cal.path}: field 'robot': the file calibrates {cal.robot!r}, not {self.name!r}")

@@ -334,19 +334,21 @@ class RoachAdapter(Adapter):
                 data.qpos[adr] += c1 * shift
                 dof = int(np.flatnonzero(model.jnt_qposadr == adr)[0])
                 data.qvel[model.jnt_dofadr[dof]] = c1 * rate
-            integral = self._integral(segment, side)
+            integral = self._integral(segment, side, setting.get("delay.seconds", 0.0))
             if integral is not None:
                 data.act[model.actuator_actadr[self._motor[side]]] = self._gear * integral
 
-    def _integral(self, segment: Segment, side: str) -> float | None:
+    def _integral(self, segment: Segment, side: str, delay: float = 0.0) -> float | None:
         """The firmware's integrated error (rad s) at the segment's start, from its logged duty: (duty - ff - kp e -
-        kd (v_cmd - v)) / ki; None when the duty is clipped there (the integrator is then not observable)."""
+        kd (v_cmd - v)) / ki, with the commands as the delayed controller sees them; None when the duty is clipped
+        there (the integrator is then not observable)."""
         g = self._gains(segment, side)
         duty = float(segment.data[f"duty_{side}"][0])
         if g["ki"] <= 0 or abs(duty) >= 0.995 * float(segment.data["duty_clip"][0]):
             return None
-        e = float(segment.data[f"leg_angle_cmd_{side}"][0] - segment.data[f"leg_angle_{side}"][0])
-        dv = float(segment.data[f"leg_rate_cmd_{side}"][0] - segment.data[f"leg_rate_{side}"][0])
+        t0 = np.zeros(1)
+        e = float(segment.command_at(f"leg_angle_cmd_{side}", t0, delay)[0] - segment.data[f"leg_angle_{side}"][0])
+        dv = float(segment.command_at(f"leg_rate_cmd_{side}", t0, delay)[0] - segment.data[f"leg_rate_{side}"][0])
         return (duty - g["ff"] - g["kp"] * e - g["kd"] * dv) / g["ki"]
 
     def initial_uncertainty(self, model, segment: Segment, setting: Setting) -> list[tuple[str, int, float]]:
