@@ -11,7 +11,8 @@ out-of-catalog cases (a periodic disturbance torque, and for the roach a terrain
 Every case that ran is reported; a budget (``--minutes``, default 45) stops new cases from starting, and the cases
 left out are listed as not run, never counted as passes.
 
-Run: ``python -m benchmarks.calibration_matrix [--robots motor servo roach] [--seeds 20] [--minutes 45]``.
+Run: ``python -m benchmarks.calibration_matrix [--robots motor servo roach] [--seeds 20] [--minutes 45]``; a part
+of it: ``--kinds null ooc --robots roach --name calibration_matrix_roach``.
 """
 
 from __future__ import annotations
@@ -43,6 +44,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robots", nargs="+", default=["motor", "servo", "roach"])
     p.add_argument("--seeds", type=int, default=20, help="seeds of the coverage runs")
     p.add_argument("--minutes", type=float, default=45.0, help="no case starts after this budget")
+    p.add_argument("--kinds", nargs="+", default=["effect", "null", "ooc", "coverage"],
+                   choices=["effect", "null", "ooc", "coverage"], help="which cases to run")  # fmt: skip
+    p.add_argument("--effects", nargs="+", help="only these effects (default: every catalogued one)")
+    p.add_argument("--name", default="calibration_matrix", help="results file name under benchmarks/results/")
     args = p.parse_args(argv)
     start = time.perf_counter()
 
@@ -58,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         plan += [("null", robot, None, 2)]
         plan += [("ooc", robot, name, 3) for name in OUT_OF_CATALOG.get(robot, [])]
         plan += [("coverage", robot, name, 100 + s) for name in COVERAGE.get(robot, []) for s in range(args.seeds)]
+    plan = [c for c in plan if c[0] in args.kinds and (args.effects is None or c[0] == "null" or c[2] in args.effects)]
     for kind, robot, name, seed in plan:
         if not left():
             not_run.append(f"{kind} {robot} {name or ''} seed {seed}")
@@ -118,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     if not_run:
         md.append(f"\n## Not run within the budget ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
         md.append("\n")
-    save("calibration_matrix", {"minutes": minutes, "budget_minutes": args.minutes, "effects": rows,
+    save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "effects": rows,
                                 "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
                                 "not_run": not_run}, "".join(md))  # fmt: skip
     return 0
