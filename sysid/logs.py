@@ -19,10 +19,11 @@ bad rows.
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -132,13 +133,35 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
         head = _head(path)
         if head.startswith("DYNAMIXEL"):
             log = _read_dynamixel(path)
-        elif head.startswith("%") or head.startswith('"%'):
-            log = _read_roach(path)
+        elif (reader := _robot_reader(head)) is not None:
+            log = reader.read(path)
         elif head.replace(" ", "").lower().startswith("time,pos,speed,power"):
             log = _read_gearmotor(path)
         else:
             raise LogError(f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns)")
     return check_log(log, required)
+
+
+@dataclass(frozen=True)
+class LogReader:
+    """A robot's own log format, declared in its folder (``LOG_READERS`` in ``envs/<robot>/__init__.py``): whether
+    a file's first non-empty line is its, and how to read it (raising :class:`LogError`; malformed rows through
+    :func:`drop_bad_rows`)."""
+
+    name: str
+    matches: Callable[[str], bool]
+    read: Callable[[Path], Log]
+
+
+def _robot_reader(head: str) -> LogReader | None:
+    from sysid.robots import declared
+
+    for spec in declared("LOG_READERS"):
+        module, _, attr = spec.partition(":")
+        reader = getattr(importlib.import_module(module), attr)
+        if reader.matches(head):
+            return reader
+    return None
 
 
 def check_log(log: Log, required: Sequence[str]) -> Log:
@@ -193,7 +216,7 @@ def _drop_time_glitches(log: Log) -> Log:
     if not bad:
         return log
     lines = [(int(_row_label(log, k)), f"time {t[k]:.6g} s out of order with its neighbours") for k in bad]
-    _drop_bad_rows(Path(log.path), lines, len(t))
+    drop_bad_rows(Path(log.path), lines, len(t))
     keep = np.setdiff1d(np.arange(len(t)), bad)
     meta = dict(log.meta)
     if meta.get("file_rows") is not None:
@@ -215,7 +238,7 @@ def _head(path: Path) -> str:
     raise LogError(f"{path}: empty file")
 
 
-def _drop_bad_rows(path: Path, bad: list[tuple[int, str]], total: int) -> None:
+def drop_bad_rows(path: Path, bad: list[tuple[int, str]], total: int) -> None:
     """Warn about dropped rows; refuse the log if more than 5% were bad."""
     if not bad:
         return
@@ -244,20 +267,6 @@ def _read_parquet(path: Path) -> Log:
     return Log(str(path), df, {**meta, "format": "skitter telemetry"})
 
 
-def _read_roach(path: Path) -> Log:
-    from envs.velociroach.roach_csv import read_roach_csv
-
-    with warnings.catch_warnings(record=True):
-        warnings.simplefilter("always")
-        try:
-            df, meta = read_roach_csv(path, skip_bad_rows=True)
-        except ValueError as exc:
-            raise LogError(str(exc)) from None
-    skipped = meta.get("skipped_rows", [])
-    _drop_bad_rows(path, [(s["line"], s["reason"].split(": ", 1)[-1]) for s in skipped], len(df) + len(skipped))
-    return Log(str(path), df, meta)
-
-
 def _read_dynamixel(path: Path) -> Log:
     """A DYNAMIXEL Wizard graph export: header lines until one starting ``Time``, then ``time, item, ...`` rows."""
     lines = path.read_text(errors="replace").splitlines()
@@ -278,7 +287,7 @@ def _read_dynamixel(path: Path) -> Log:
             file_rows.append(number)
         except ValueError as exc:
             bad.append((number, f"{line.strip()!r} ({exc})"))
-    _drop_bad_rows(path, bad, len(rows) + len(bad))
+    drop_bad_rows(path, bad, len(rows) + len(bad))
     data = np.asarray(rows, dtype=float).reshape(-1, len(names))
     df = pd.DataFrame({"time": data[:, 0] * UNITS[time_unit]})
     for i, name in enumerate(names[1:], start=1):
@@ -307,7 +316,7 @@ def _read_gearmotor(path: Path) -> Log:
             file_rows.append(number)
         except ValueError as exc:
             bad.append((number, f"{line.strip()!r} ({exc})"))
-    _drop_bad_rows(path, bad, len(rows) + len(bad))
+    drop_bad_rows(path, bad, len(rows) + len(bad))
     data = np.asarray(rows, dtype=float).reshape(-1, 4)
     per_click = 2 * math.pi / GEARMOTOR_CLICKS_PER_REV
     df = pd.DataFrame(
@@ -345,7 +354,7 @@ def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
         df[name] = values * scale
     header_lines = 1 if path.suffix.lower() != ".json" else 0
     bad = sorted(bad_rows)
-    _drop_bad_rows(path, [(i + 1 + header_lines, "not a number in a mapped column") for i in bad], len(raw))
+    drop_bad_rows(path, [(i + 1 + header_lines, "not a number in a mapped column") for i in bad], len(raw))
     keep = np.setdiff1d(np.arange(len(df)), bad)
     df = df.iloc[keep].reset_index(drop=True)
     meta = {"format": "mapped " + path.suffix.lstrip("."), "column_map": dict(column_map.columns),

@@ -1,4 +1,5 @@
-"""The calibration adapters of every robot, found in the robots' folders (``CALIBRATION`` in ``envs/<robot>/``)."""
+"""What the robots' folders declare for calibration: adapters (``CALIBRATION``) and log readers (``LOG_READERS``),
+found in ``envs/<robot>/__init__.py``."""
 
 from __future__ import annotations
 
@@ -9,13 +10,21 @@ import envs
 from sysid.problem import Adapter
 
 
-def adapters() -> dict[str, str]:
-    """Robot name -> ``module:Class`` of its adapter."""
-    found: dict[str, str] = {}
+def declared(name: str) -> list:
+    """What every robot folder declares under ``name`` (``envs/<robot>/__init__.py``), a dict's items merged or a
+    list's entries joined: how the shared tools find a robot's parts without naming it."""
+    found: list = []
     for module in pkgutil.iter_modules(envs.__path__):
         if module.ispkg:
-            found.update(getattr(importlib.import_module(f"envs.{module.name}"), "CALIBRATION", {}))
+            value = getattr(importlib.import_module(f"envs.{module.name}"), name, None)
+            if value:
+                found += list(value.items()) if isinstance(value, dict) else list(value)
     return found
+
+
+def adapters() -> dict[str, str]:
+    """Robot name -> ``module:Class`` of its adapter."""
+    return dict(declared("CALIBRATION"))
 
 
 def adapter(name: str) -> Adapter:
