@@ -38,6 +38,7 @@ from sysid.logs import Log
 
 Setting = Mapping[str, float]
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+MODEL_CACHE = 2048  # compiled models kept per adapter (settings x segment keys) before the cache starts over
 CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
 LEAD_SECONDS = 0.25  # s of the log kept before each segment: the commands a delayed actuator still acts on
 TIME_TOLERANCE = 1e-9  # s: sample and physics times that differ by rounding alone are the same time
@@ -159,17 +160,19 @@ class Adapter(ABC):
         """The time of every physics step of a segment's rollout, s from its start."""
         return np.arange(segment.n_steps) * self.physics_dt
 
-    @abstractmethod
     def structure(self, setting: Setting) -> tuple:
-        """The part of a setting that needs its own compiled model (a spec edit); () if fields suffice."""
+        """The part of a setting that changes the model's sizes (a joint or actuator added): rows of one batched
+        rollout share it. () when no effect adds anything."""
+        return ()
 
     @abstractmethod
-    def compile(self, setting: Setting) -> mujoco.MjModel:
-        """A model for a setting's structural effects (spec edits), nominal otherwise."""
+    def spec_edits(self, setting: Setting) -> list[Callable[[mujoco.MjSpec], None]]:
+        """A setting's effects as ``MjSpec`` edits, applied to the nominal spec before it compiles (nothing writes
+        a compiled model: what runs is what the spec says, and ``mujoco.rollout`` replays it from ``ctrl``)."""
 
     @abstractmethod
-    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
-        """Write a setting's field effects into (a copy of) a compiled model."""
+    def build(self, edits: Sequence[Callable[[mujoco.MjSpec], None]]) -> mujoco.MjModel:
+        """The robot's model compiled with ``edits`` after its own configuration."""
 
     @abstractmethod
     def initial_state(
@@ -193,24 +196,26 @@ class Adapter(ABC):
         """The uncertain coordinates of a segment's start: (``"qpos"`` or ``"qvel"``, address, standard deviation)."""
         return []
 
-    def segment_model(self, model: mujoco.MjModel, segment: Segment, setting: Setting) -> mujoco.MjModel:
-        """The model one segment runs on (default ``model``; a robot may copy it and write what depends on the
-        segment, such as a controller's gains for the segment's battery voltage)."""
-        return model
+    def segment_edits(self, segment: Segment, setting: Setting) -> tuple[tuple, list[Callable[[mujoco.MjSpec], None]]]:
+        """What a segment's model holds beyond the setting's (a controller's gains for the segment's battery
+        voltage), as a key (segments with equal keys share a model) and spec edits; default nothing."""
+        return (), []
 
     def report_extra(self, result) -> dict:
         """Robot-specific additions to the report: ``{"sections": {title: markdown}, ...}`` (e.g. channels
         compared as distributions)."""
         return {}
 
-    def model_for(self, setting: Setting) -> mujoco.MjModel:
-        key = self.structure(setting)
-        if key not in self._models:
-            self._models[key] = self.compile(setting)
-        model = _copy_model(self._models[key])
-        self.apply_fields(model, setting)
-        # MuJoCo 4 keeps constants derived from masses and armature: recompute them after the writes
-        mujoco.mj_setConst(model, mujoco.MjData(model))
+    def model_for(self, setting: Setting, segment: Segment | None = None) -> mujoco.MjModel:
+        """The compiled model of a setting (of one segment, with :meth:`segment_edits`); compiled once per distinct
+        setting and segment key (a compile takes milliseconds, a segment's rollout far longer)."""
+        extra_key, extra = self.segment_edits(segment, setting) if segment is not None else ((), [])
+        key = (tuple(sorted((k, round(float(v), 12)) for k, v in setting.items())), extra_key)
+        model = self._models.get(key)
+        if model is None:
+            if len(self._models) >= MODEL_CACHE:
+                self._models.clear()
+            model = self._models[key] = self.build([*self.spec_edits(setting), *extra])
         return model
 
     # --- synthetic data (sysid/synth.py) -----------------------------------------------------------------------------
@@ -251,12 +256,6 @@ class Adapter(ABC):
             q = float(quantisation.get(c, 0.0)) / math.sqrt(12)
             out[c] = max(white, q, 1e-12)
         return out
-
-
-def _copy_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    import copy
-
-    return copy.copy(model)
 
 
 @dataclass
@@ -482,7 +481,7 @@ class Problem:
         row_models = []
         for row, (k, i, how) in enumerate(rows):
             setting, seg = settings[k], self.segments[i]
-            model = adapter.segment_model(models[k], seg, setting)
+            model = adapter.model_for(setting, seg)
             row_models.append(model)
             mujoco.mj_resetData(model, data)
             if how is not None and how[0] == "perturb":
@@ -618,13 +617,12 @@ def simulate(
     h = adapter.physics_dt
     observe = observe or adapter.observe
     out = None
-    base = adapter.model_for(setting)
     state = None
     for k, segment in enumerate(segments):
         following = segments[k + 1] if k + 1 < len(segments) else None
         end = following.t0 if following is not None else float(commands["time"].iloc[-1]) + h
         segment.n_steps = max(int(segment.steps[-1]) + 1, round((end - segment.t0) / h))
-        model = adapter.segment_model(base, segment, setting)
+        model = adapter.model_for(setting, segment)
         d = mujoco.MjData(model)
         if state is None:
             adapter.initial_state(model, d, segment, setting)

@@ -63,6 +63,18 @@ def add_backlash(gap: float, rotor_inertia: float):
     return edit
 
 
+def shaft_edit(setting: Setting):
+    """Spec edit: the shaft's Coulomb and viscous friction and rotor inertia, added to the nominal joint's."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        joint = spec.joint(JOINT)
+        joint.frictionloss += setting.get("coulomb_friction.torque", 0.0)
+        joint.damping += setting.get("viscous_friction.damping", 0.0)
+        joint.armature += setting.get("armature.inertia", 0.0)
+
+    return edit
+
+
 def add_disturbance(spec: mujoco.MjSpec) -> None:
     """Spec edit (synthetic data only): a torque on the load from outside the model."""
     a = spec.add_actuator(name="disturbance", target=JOINT, trntype=mujoco.mjtTrn.mjTRN_JOINT)
@@ -80,8 +92,8 @@ class RigAdapter(Adapter):
         super().__init__()
         self.load_inertia = load_inertia
         rig = self._rig()
-        self.nominal_model = rig.model
         self._h = float(rig.model.opt.timestep)
+        self._load_inertia = float(rig.model.body_inertia[rig.model.body("load").id, 2])
         self._dof = int(rig.model.joint(JOINT).dofadr[0])
 
     def _rig(self, edits=()):
@@ -110,22 +122,17 @@ class RigAdapter(Adapter):
         gap = round(float(setting.get("backlash.gap", 0.0)), 6)
         return (gap if gap > 1e-6 else 0.0, setting.get("disturbance.torque", 0.0) > 0)
 
-    def compile(self, setting: Setting) -> mujoco.MjModel:
+    def spec_edits(self, setting: Setting) -> list:
         gap, disturbed = self.structure(setting)
-        edits = []
+        edits = [shaft_edit(setting)]
         if gap:
-            edits.append(
-                add_backlash(gap, 0.01 * float(self.nominal_model.body_inertia[self.nominal_model.body("load").id, 2]))
-            )
+            edits.append(add_backlash(gap, 0.01 * self._load_inertia))
         if disturbed:
             edits.append(add_disturbance)
-        return self._rig(edits).model
+        return edits
 
-    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
-        d = int(model.joint(JOINT).dofadr[0])
-        model.dof_frictionloss[d] += setting.get("coulomb_friction.torque", 0.0)
-        model.dof_damping[d] += setting.get("viscous_friction.damping", 0.0)
-        model.dof_armature[d] += setting.get("armature.inertia", 0.0)
+    def build(self, edits) -> mujoco.MjModel:
+        return self._rig(edits).model
 
     def _shaft(self, model: mujoco.MjModel, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Angle and speed of the load (driven shaft plus play)."""
@@ -155,13 +162,6 @@ class RigAdapter(Adapter):
         data.qpos[j.qposadr[0]] = angle - play_angle
         if speed is not None:
             data.qvel[j.dofadr[0]] = speed - play_speed
-
-    def compiled(self, setting: Setting) -> mujoco.MjModel:
-        """The compiled model of a setting's structure (shared; not to be written)."""
-        key = self.structure(setting)
-        if key not in self._models:
-            self._models[key] = self.compile(setting)
-        return self._models[key]
 
 
 class MotorAdapter(RigAdapter):
@@ -241,7 +241,7 @@ class MotorAdapter(RigAdapter):
         return ctrl
 
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
-        angle, speed = self._shaft(self.compiled(setting), sensordata)
+        angle, speed = self._shaft(self.model_for(setting), sensordata)
         start = segment.data["angle"][0]
         angle = start + (angle - start) * setting.get("sensor_gain_angle.scale", 1.0)
         return np.column_stack([angle, speed + setting.get("sensor_bias_speed.offset", 0.0)])
@@ -385,13 +385,16 @@ class ServoAdapter(RigAdapter):
         self.disturbance_ctrl(model, ctrl, segment, setting)
         return ctrl
 
-    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
-        super().apply_fields(model, setting)
-        a = model.actuator(self._servo).id
+    def spec_edits(self, setting: Setting) -> list:
         gain = setting.get("servo_gain.scale", 1.0)
         supply = setting.get("supply_voltage.scale", 1.0)
-        model.actuator_gainprm[a, GAIN_KP] *= gain * supply
-        model.actuator_gainprm[a, GAIN_VMAX] *= supply
+
+        def servo_edit(spec: mujoco.MjSpec) -> None:  # after the servo's own configuration (robot spec edits run last)
+            a = spec.actuator(self._servo)
+            a.gainprm[GAIN_KP] *= gain * supply
+            a.gainprm[GAIN_VMAX] *= supply
+
+        return [*super().spec_edits(setting), servo_edit]
 
     def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
         """Goal steps of random size and length, sampled every 12 to 20 ms (irregular, as the Wizard samples)."""
@@ -415,7 +418,7 @@ class ServoAdapter(RigAdapter):
         return {c: float(np.sqrt(s * s + 1.0 / 12.0)) for c, s in noise.items()}
 
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
-        angle, _ = self._shaft(self.compiled(setting), sensordata)
+        angle, _ = self._shaft(self.model_for(setting), sensordata)
         # not rounded: the prediction stays smooth in the parameters; the reported counts' rounding is noise
         return (self.servo_constants.counts_of(angle) + setting.get("sensor_bias_position.offset", 0.0))[:, None]
 

@@ -37,14 +37,6 @@ class Calibration:
     provenance: Mapping[str, Any] = field(default_factory=dict)
 
     @property
-    def digest(self) -> str:
-        """A short hash of the effects' values (a calibrated model's identity beside the nominal model's hash)."""
-        import hashlib
-
-        text = json.dumps({k: dict(sorted(v.items())) for k, v in sorted(self.effects.items())}, sort_keys=True)
-        return hashlib.sha256(text.encode()).hexdigest()[:12]
-
-    @property
     def setting(self) -> dict[str, float]:
         """The effects as one flat dict, ``effect.param -> value``."""
         return {f"{e}.{p}": float(v) for e, params in self.effects.items() for p, v in params.items()}

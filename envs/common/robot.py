@@ -147,8 +147,8 @@ class Robot(ABC):
         nthread: threads of the batch (default: the machine's cores).
         batched: run on ``mujoco.batch.Batch`` even for one simulation (default: when ``num_sims > 1``).
         calibration: a calibration file written by ``calibrate.py`` (or a read :class:`Calibration`): its effects
-            are added to the nominal model (:meth:`calibration_edits` before it compiles, :meth:`apply_calibration`
-            after); the nominal model files are not touched.
+            are added to the nominal spec before it compiles (:meth:`calibration_edits`); the nominal model files are
+            not touched.
     """
 
     name: ClassVar[str]
@@ -199,11 +199,7 @@ class Robot(ABC):
         for edit in spec_edits:
             edit(spec)
         self.model = spec.compile()
-        self.model_hash = spec_hash(spec)
-        if self.calibration is not None:
-            self.apply_calibration(self.model, self.calibration)
-            mujoco.mj_setConst(self.model, mujoco.MjData(self.model))
-            self.model_hash = f"{self.model_hash}+calibration:{self.calibration.digest}"
+        self.model_hash = spec_hash(spec)  # a calibration's effects are in the spec: its own hash
         self.sensors: dict[str, slice] = sensor_slices(
             self.model, [self.model.sensor(i).name for i in range(self.model.nsensor)]
         )
@@ -242,11 +238,8 @@ class Robot(ABC):
         return cal
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
-        """Spec edits of a calibration's structural effects (actuator delay...), applied after :meth:`configure`."""
-        return ()
-
-    def apply_calibration(self, model: mujoco.MjModel, calibration: Calibration) -> None:
-        """Write a calibration's effects into the compiled model's fields (``mj_setConst`` follows)."""
+        """A calibration's effects as spec edits, applied after :meth:`configure` and before callers' edits (every
+        effect lands in the spec: nothing writes the compiled model)."""
         raise CalibrationError(f"robot {self.name!r} takes no calibration files")
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:

@@ -131,41 +131,46 @@ def roach_effects(dt: float) -> dict[str, Effect]:
     return {e.name: e for e in out}
 
 
-class RoachEffects:
-    """Where each effect lands in a compiled VelociRoACH model (field writes; no recompilation)."""
+def effects_edit(setting: Setting):
+    """Spec edit of a setting's model effects (calibration and the calibrated envs alike), added to the nominal
+    spec's values: each crank's Coulomb and viscous friction, each motor's rotor inertia and motor constant, the
+    feet's and floor's friction, the floor's contact time constant and damping ratio, the C-legs' stiffness, and the
+    chassis' mass (its inertia with it) and centre of mass (its inertial written explicitly, from the compiled
+    nominal body)."""
 
-    def __init__(self, model: mujoco.MjModel):
-        self.motor = {s: model.actuator(C.MOTORS[s]).id for s in SIDES}
-        self.crank_dof = {s: int(model.joint(C.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
-        self.chassis = model.body(C.ROOT_BODY).id
-        self.springs = np.array([model.joint(f"{leg}_spring").id for leg in C.LEGS])
-        self.feet = np.array([g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.endswith("_leg")])
-        self.floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
-
-    def apply(self, model: mujoco.MjModel, nominal: mujoco.MjModel, setting: Setting) -> None:
-        """Write a setting's effects into ``model`` (a copy of ``nominal``); call ``mj_setConst`` after."""
+    def edit(spec: mujoco.MjSpec) -> None:
         for side in SIDES:
-            dof, act = self.crank_dof[side], self.motor[side]
-            model.dof_frictionloss[dof] = nominal.dof_frictionloss[dof] + setting.get(
-                f"coulomb_friction_{side}.torque", 0
-            )
-            model.dof_damping[dof] = nominal.dof_damping[dof] + setting.get(f"viscous_friction_{side}.damping", 0.0)
-            model.actuator_armature[act] = nominal.actuator_armature[act] + setting.get(f"armature_{side}.inertia", 0)
-            model.actuator_gainprm[act, GAIN_K] = nominal.actuator_gainprm[act, GAIN_K] * setting.get(
-                f"torque_constant_{side}.scale", 1.0
-            )
+            crank = spec.joint(C.CRANK_JOINTS[side])
+            crank.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
+            crank.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
+            motor = spec.actuator(C.MOTORS[side])
+            motor.armature += setting.get(f"armature_{side}.inertia", 0.0)
+            motor.gainprm[GAIN_K] *= setting.get(f"torque_constant_{side}.scale", 1.0)
         if "foot_friction.mu" in setting:
-            contact = np.append(self.feet, self.floor) if self.floor >= 0 else self.feet
-            model.geom_friction[contact, 0] = setting["foot_friction.mu"]
-        if self.floor >= 0:
-            solref = nominal.geom_solref[self.floor]
-            model.geom_solref[self.floor] = [setting.get("ground_contact.timeconst", solref[0]),
-                                             setting.get("ground_contact.dampratio", solref[1])]  # fmt: skip
-        model.jnt_stiffness[self.springs] = nominal.jnt_stiffness[self.springs] * setting.get("leg_stiffness.scale", 1)
-        scale = setting.get("mass.scale", 1.0)
-        model.body_mass[self.chassis] = nominal.body_mass[self.chassis] * scale
-        model.body_inertia[self.chassis] = nominal.body_inertia[self.chassis] * scale
-        model.body_ipos[self.chassis, 0] = nominal.body_ipos[self.chassis, 0] + setting.get("com_offset.x", 0.0)
+            for geom in spec.geoms:
+                body = geom.parent
+                if geom.name == C.FLOOR_GEOM or (body is not None and body.name.endswith("_leg")):
+                    geom.friction[0] = setting["foot_friction.mu"]
+        floor = spec.geom(C.FLOOR_GEOM)
+        if floor is not None:
+            floor.solref = [setting.get("ground_contact.timeconst", floor.solref[0]),
+                            setting.get("ground_contact.dampratio", floor.solref[1])]  # fmt: skip
+        stiffness = setting.get("leg_stiffness.scale", 1.0)
+        for joint in spec.joints:
+            if joint.name.endswith("_spring"):
+                joint.stiffness[0] *= stiffness
+        scale, shift = setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0)
+        if scale != 1.0 or shift != 0.0:
+            nominal = spec.compile()
+            i = nominal.body(C.ROOT_BODY).id
+            body = spec.body(C.ROOT_BODY)
+            body.explicitinertial = True
+            body.mass = float(nominal.body_mass[i]) * scale
+            body.inertia = nominal.body_inertia[i] * scale
+            body.ipos = nominal.body_ipos[i] + [shift, 0.0, 0.0]
+            body.iquat = nominal.body_iquat[i]
+
+    return edit
 
 
 def delay_edit(seconds: float):
@@ -226,13 +231,12 @@ class RoachAdapter(Adapter):
 
         self._robot_class = VelociRoach
         robot = self._make_robot(())
-        self.nominal_model = robot.model
+        self._nominal_gains = robot.model.actuator_gainprm.copy()
         self._h = float(robot.model.opt.timestep)
         self._linkage = robot._linkage
         self._crank_qpos = {s: int(robot.model.joint(C.CRANK_JOINTS[s]).qposadr[0]) for s in SIDES}
         self._crank_dof = {s: int(robot.model.joint(C.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
         self._home = robot.linkage_qpos(0.0, -np.pi)
-        self._where = RoachEffects(robot.model)
         self._motor = {s: robot.model.actuator(C.MOTORS[s]).id for s in SIDES}
         self._gear = float(robot.model.actuator_gear[self._motor["left"], 0])
         names = (*C.SENSOR_LEG_POS.values(), *C.SENSOR_MOTOR_TORQUE.values(), *C.SENSOR_MOTOR_VEL.values())
@@ -286,30 +290,30 @@ class RoachAdapter(Adapter):
     def structure(self, setting: Setting) -> tuple:
         return (round(float(setting.get("terrain_bump.height", 0.0)), 6), setting.get("disturbance.torque", 0) > 0)
 
-    def compile(self, setting: Setting) -> mujoco.MjModel:
+    def spec_edits(self, setting: Setting) -> list:
         bump, disturbed = self.structure(setting)
-        edits = ([add_bump(bump)] if bump > 0 else []) + ([add_disturbance] if disturbed else [])
+        return [effects_edit(setting), *([add_bump(bump)] if bump > 0 else []),
+                *([add_disturbance] if disturbed else [])]  # fmt: skip
+
+    def build(self, edits) -> mujoco.MjModel:
         return self._make_robot(edits).model
 
-    def apply_fields(self, model: mujoco.MjModel, setting: Setting) -> None:
-        self._where.apply(model, self.nominal_model, setting)
-
-    def segment_model(self, model: mujoco.MjModel, segment: Segment, setting: Setting) -> mujoco.MjModel:
-        """The firmware's gains for the segment's battery voltage (copy of ``model``)."""
-        import copy
-
-        out = copy.copy(model)
+    def segment_edits(self, segment: Segment, setting: Setting) -> tuple[tuple, list]:
+        """The firmware's gains for the segment's battery voltage and duty clip (after the setting's edits, which
+        set the motor constant the gains are matched through)."""
         battery = self._battery(segment, setting)
         clip = float(segment.data["duty_clip"][0])
-        for side in SIDES:
-            a = self._motor[side]
-            g = firmware_gains(self._gains(segment, side), battery, out.actuator_gainprm[a, GAIN_R],
-                               out.actuator_gainprm[a, GAIN_K], self._gear)  # fmt: skip
-            out.actuator_gainprm[a, GAIN_KP] = g["kp"]
-            out.actuator_gainprm[a, GAIN_KI] = g["ki"]
-            out.actuator_gainprm[a, GAIN_KD] = g["kd"]
-            out.actuator_gainprm[a, GAIN_VMAX] = clip * battery
-        return out
+        gains = {side: self._gains(segment, side) for side in SIDES}
+
+        def edit(spec: mujoco.MjSpec) -> None:
+            for side in SIDES:
+                a = spec.actuator(C.MOTORS[side])
+                g = firmware_gains(gains[side], battery, a.gainprm[GAIN_R], a.gainprm[GAIN_K], self._gear)
+                a.gainprm[GAIN_KP], a.gainprm[GAIN_KI], a.gainprm[GAIN_KD] = g["kp"], g["ki"], g["kd"]
+                a.gainprm[GAIN_VMAX] = clip * battery
+
+        key = (round(battery, 9), clip, tuple(tuple(sorted(g.items())) for g in gains.values()))
+        return key, [edit]
 
     def _gains(self, segment: Segment, side: str) -> dict[str, float]:
         return {k: float(segment.data[f"gain_{k}_{side}"][0]) for k in ("kp", "ki", "kd", "ff")}
@@ -383,20 +387,20 @@ class RoachAdapter(Adapter):
         return ctrl
 
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
-        model = self.nominal_model
+        gains = self._nominal_gains
         battery = self._battery(segment, setting)
         columns = [sensordata[:, self._sensors[C.SENSOR_LEG_POS[s]]] - setting.get(f"crank_offset.{s}", 0.0)
                    for s in SIDES]  # fmt: skip
         for side in SIDES:
             a = self._motor[side]
-            r = model.actuator_gainprm[a, GAIN_R]
-            k = model.actuator_gainprm[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
+            r = gains[a, GAIN_R]
+            k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
             torque = sensordata[:, self._sensors[C.SENSOR_MOTOR_TORQUE[side]]]
             speed = sensordata[:, self._sensors[C.SENSOR_MOTOR_VEL[side]]]
             columns.append((r * torque / k + k * speed) / battery)
         for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed, plus its offset
             a = self._motor[side]
-            k = model.actuator_gainprm[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
+            k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
             speed = sensordata[:, self._sensors[C.SENSOR_MOTOR_VEL[side]]]
             columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0))
         return np.column_stack(columns)

@@ -177,23 +177,20 @@ class VelociRoach(Robot):
         return float(mujoco.MjSpec.from_file(str(cls.xml_path())).option.timestep)
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
-        from envs.velociroach.calibration import delay_edit
-
-        delay = calibration.setting.get("delay.seconds", 0.0)
-        return [delay_edit(delay)] if delay > 0 else []
-
-    def apply_calibration(self, model: mujoco.MjModel, calibration: Calibration) -> None:
-        import copy
-
         from envs.actuators.dcmotor import GAIN_KD, GAIN_KP
-        from envs.velociroach.calibration import RoachEffects
+        from envs.velociroach.calibration import delay_edit, effects_edit
 
         setting = calibration.setting
-        RoachEffects(model).apply(model, copy.copy(model), setting)
-        if self.action_mode == GAIT:  # the firmware's torque-space gains carry the motor constant (duty x V K / R)
+
+        def firmware(spec: mujoco.MjSpec) -> None:  # its torque-space gains carry the motor constant (duty V K / R)
             for side in C.SIDES:
-                a = model.actuator(C.MOTORS[side]).id
-                model.actuator_gainprm[a, GAIN_KP : GAIN_KD + 1] *= setting.get(f"torque_constant_{side}.scale", 1.0)
+                spec.actuator(C.MOTORS[side]).gainprm[GAIN_KP : GAIN_KD + 1] *= setting.get(
+                    f"torque_constant_{side}.scale", 1.0
+                )
+
+        delay = setting.get("delay.seconds", 0.0)
+        return [effects_edit(setting), *([firmware] if self.action_mode == GAIT else []),
+                *([delay_edit(delay)] if delay > 0 else [])]  # fmt: skip
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """The VelociRoACH's physical parameters, each with the model fields it sets (see docs/velociroach.md)."""
@@ -228,8 +225,10 @@ class VelociRoach(Robot):
         p.add(Parameter("foot_friction", "1", float(model.geom_friction[feet[0], 0]), 0.05, 1.5,
                         "sliding friction of foot-ground contact (feet and floor together: MuJoCo takes the larger)",
                         (FieldRef("geom_friction", (contact, 0)),)))  # fmt: skip
-        p.add(Parameter("motor_armature", "kg m^2", float(model.actuator_armature[ids[0]]), 0.0, 1e-7,
-                        "rotor inertia at the motor shaft", (FieldRef("actuator_armature", (ids,)),)))  # fmt: skip
+        armature = float(model.actuator_armature[ids].max())  # a calibrated model may carry more than 1e-7
+        p.add(Parameter("motor_armature", "kg m^2", armature, 0.0, max(1e-7, 2 * armature),
+                        "rotor inertia at the motor shaft (up to 1e-7, or twice a calibrated model's)",
+                        (FieldRef("actuator_armature", (ids,)),)))  # fmt: skip
         return p
 
     def parameters_changed(self, ids: np.ndarray) -> None:
