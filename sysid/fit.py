@@ -99,7 +99,7 @@ def _least_squares(
     from mujoco import sysid
 
     names = list(params)
-    fd = max(FD_STEP, getattr(problem.adapter, "fd_step", FD_STEP))
+    fd = max(FD_STEP, problem.adapter.fd_step)
     u0 = np.clip([_to_unit(params[k], setting[k]) for k in names], 2e-3, 1 - 2e-3)  # off the bounds: can stall
 
     def settings_of(u: np.ndarray) -> list[dict[str, float]]:
@@ -208,7 +208,7 @@ def _derivative_free(
     """For robots whose cost is rough at small scales (contacts; ``Adapter.rough_cost``), where finite-difference
     Jacobians mislead a least-squares step: one parameter by a batched grid shrinking around its best point, several
     by CMA-ES (``cma``) in normalized coordinates, each generation one batched rollout; the start's correction is
-    re-anchored at the best point once; 95% intervals by profile likelihood."""
+    re-anchored at the best point once; 95% intervals from a parabola over the profile (:func:`_smoothed_profile`)."""
     names = list(params)
     best = dict(setting)
     for anchor_pass in range(2):
@@ -218,8 +218,7 @@ def _derivative_free(
         def trial(u, _best=best):
             return {**_best, **{k: _from_unit(params[k], float(u[i])) for i, k in enumerate(names)}}
 
-        start_cost = costs(problem, [best], segments, anchor=anchor)[0]
-        found, found_cost = u0, start_cost
+        found, found_cost = u0, costs(problem, [best], segments, anchor=anchor)[0]
         if len(names) == 1:  # the whole range, then windows a quarter as wide around the best point each round
             widths = [0.0, 0.25, 1 / 16, 1 / 64] if anchor_pass == 0 else [1 / 16, 1 / 64]  # (0: the whole range)
             for width in widths:

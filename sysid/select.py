@@ -131,8 +131,9 @@ def calibrate(
         nominal.update({k: current[k] for k in nuisance})
     outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance})
     outcome.history.append(dict(current))
-    before = evaluate(problem, current, fitting)
     everything = evaluate(problem, current)
+    # the loop decides on ``fitting``: the same residuals when that is every segment
+    before = everything if len(fitting) == len(problem.segments) else evaluate(problem, current, fitting)
     outcome.diagnostics_before = diagnostics.diagnose(problem, everything.residuals, adapter.context)
     outcome.training_errors.append(everything.error)
     say(f"nominal model: error {everything.error:.2f} on the training logs")

@@ -272,16 +272,17 @@ class RoachAdapter(Adapter):
         per_side = {"right": duty_gains(gains[0:5]), "left": duty_gains(gains[5:10])}
         clip = float(log.meta["duty_clip"])
         t = log.time
+        # the firmware's v_input (its clock's rate) and the measured leg rate, once per log
+        clock_rate = {s: np.gradient(log.df[f"leg_angle_cmd_{s}"].to_numpy(dtype=float), t) for s in SIDES}
+        leg_rate = {s: np.gradient(log.df[f"leg_angle_{s}"].to_numpy(dtype=float), t) for s in SIDES}
         for seg in out:
+            lead = np.searchsorted(t, seg.lead.get("time", np.zeros(0)))
             for side in SIDES:
                 for key, value in per_side[side].items():
                     seg.data[f"gain_{key}_{side}"] = np.array([value])
-                cmd = log.df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float)
-                rate = np.gradient(cmd, t)  # the firmware's v_input: its clock's rate
-                seg.data[f"leg_rate_cmd_{side}"] = rate[seg.samples]
-                seg.lead[f"leg_rate_cmd_{side}"] = rate[np.searchsorted(t, seg.lead.get("time", np.zeros(0)))]
-                x = log.df[f"leg_angle_{side}"].to_numpy(dtype=float)
-                seg.data[f"leg_rate_{side}"] = np.gradient(x, t)[seg.samples]
+                seg.data[f"leg_rate_cmd_{side}"] = clock_rate[side][seg.samples]
+                seg.lead[f"leg_rate_cmd_{side}"] = clock_rate[side][lead]
+                seg.data[f"leg_rate_{side}"] = leg_rate[side][seg.samples]
             seg.data["duty_clip"] = np.array([clip])
             seg.data["battery"] = np.array([float(np.mean(seg.data["vbatt"]))])
         return out
