@@ -1,0 +1,21 @@
+"""xJüs's scripted controller (seed 001): ``POLICIES`` for agents/__init__.py."""
+
+from agents import ScriptedPolicy
+
+
+def _buehler(env, arg: str):
+    from agents.xjus.buehler import buehler_for
+
+    return buehler_for(env, arg)
+
+
+_DESCRIPTION = (
+    "the seed's Buehler clock, PD and motor model: walk at T = 0.5 s on walking tasks, turn by a different ground "
+    "sweep per side on a turning task; buehler:stand, buehler:walk, buehler:turn, buehler:T (walk at period T s)"
+)
+
+POLICIES = {
+    "buehler": ScriptedPolicy(("xjus",), _DESCRIPTION, _buehler),
+    # the shared tools and tests run "tripod" on every robot: xJüs's tripod is its Buehler-clock tripod
+    "tripod": ScriptedPolicy(("xjus",), "the same as buehler (xJüs's alternating tripod)", _buehler),
+}
