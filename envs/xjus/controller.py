@@ -30,6 +30,11 @@ from envs.xjus import constants as C
 
 _K = 2.0 * np.arange(1, C.FOURIER_TERMS + 1) - 1.0  # 2m - 1
 _TWO_PI_K = 2.0 * np.pi * _K
+# theta_d = 2 pi s + (theta_g - pi) F(s): the series' weights of F, F' and F'' on cos and sin of the harmonics
+_W = 4.0 / (np.square(_K) * np.pi**2)
+_W_SUM = float(_W.sum())
+_W_RATE = _W * _TWO_PI_K
+_W_ACCEL = _W * np.square(_TWO_PI_K)
 
 
 def wrap_angle(x: np.ndarray) -> np.ndarray:
@@ -49,14 +54,13 @@ def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndar
         by T and T^2 for time derivatives.
     """
     s = np.asarray(s, dtype=np.float64)
-    turns = np.floor(s)
-    frac = (s - turns)[..., None]
-    amplitude = (np.asarray(sweep, dtype=np.float64) - np.pi)[..., None] * 4.0 / (np.square(_K) * np.pi**2)
-    phase = _TWO_PI_K * frac
-    cos, sin = np.cos(phase), np.sin(phase)
-    angle = 2.0 * np.pi * s + (amplitude * (1.0 - cos)).sum(axis=-1)
-    rate = 2.0 * np.pi + (amplitude * _TWO_PI_K * sin).sum(axis=-1)
-    accel = (amplitude * np.square(_TWO_PI_K) * cos).sum(axis=-1)
+    frac = s - np.floor(s)
+    harmonics = np.exp(1j * (frac[..., None] * _TWO_PI_K))  # cos and sin of every odd harmonic at once
+    cos, sin = harmonics.real, harmonics.imag
+    amplitude = np.asarray(sweep, dtype=np.float64) - np.pi
+    angle = 2.0 * np.pi * s + amplitude * (_W_SUM - cos @ _W)
+    rate = 2.0 * np.pi + amplitude * (sin @ _W_RATE)
+    accel = amplitude * (cos @ _W_ACCEL)
     return angle, rate, accel
 
 
