@@ -9,6 +9,9 @@ spine axes, and a rigid chassis. The gait is the reference Buehler-clock tripod 
 10 s per episode. Terrains: level ground and random ground at two RMS roughness levels (0.02 and 0.04 m), and a
 0.05 m step, a 0.1 m step and 0.05 m stairs on lightly rough ground (0.01 m RMS, so that lanes differ).
 
+The spine's damping scales with the square root of its stiffness, so that every setting has the damping ratio of
+the default (about 0.1); ``--damping constant`` keeps 0.1 N m s/rad instead (the stiff settings then ring).
+
 Per setting and terrain, over the lanes, with 95% bootstrap intervals (``agents.evaluation.bootstrap_ci``): forward
 speed (progress along +x / time), cost of transport (battery energy / (m g distance along the heading); the seed's
 motor constants cap the motor's efficiency at 0.37), the variance of the middle segment's roll and pitch after the
@@ -72,9 +75,10 @@ def roll_pitch(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run_batch(terrain: TerrainSpec, scales: list[float | None], lanes: int, seconds: float, threads: int,
-              terrain_seed: int) -> list[dict]:  # fmt: skip
+              terrain_seed: int, damping: str = "ratio") -> list[dict]:  # fmt: skip
     """One episode per (setting, lane) on one batch; a scale of None is the rigid chassis (all of ``scales`` must
-    then be None). Returns a record per episode."""
+    then be None). ``damping="ratio"`` scales the spine's damping with the square root of its stiffness (the same
+    damping ratio at every stiffness), ``"constant"`` keeps 0.1 N m s/rad. Returns a record per episode."""
     rigid = scales[0] is None
     n = len(scales) * lanes
     steps = round(seconds * C.CONTROL_FREQ)
@@ -87,7 +91,9 @@ def run_batch(terrain: TerrainSpec, scales: list[float | None], lanes: int, seco
     lane = np.tile(np.arange(lanes), len(scales))
     if not rigid:
         for i in range(n):
-            robot.set_parameters(np.array([i]), {"spine_stiffness_scale": scales[setting[i]]})
+            scale = scales[setting[i]]
+            damping_scale = np.sqrt(scale) if damping == "ratio" else 1.0
+            robot.set_parameters(np.array([i]), {"spine_stiffness_scale": scale, "spine_damping_scale": damping_scale})
     seeds = [1000 + int(k) for k in lane]
     for k in range(lanes):
         venv.reset(seed=seeds, options={"reset_mask": lane == k, "start": k})
@@ -241,6 +247,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--terrain-seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument(
+        "--damping",
+        choices=["ratio", "constant"],
+        default="ratio",
+        help="spine damping: the same damping ratio at every stiffness, or 0.1 N m s/rad throughout",
+    )
     parser.add_argument("--name", default="spine_study", help="results name (benchmarks/results/<name>.*)")
     args = parser.parse_args()
     if args.lanes < 1 or args.stiffnesses < 1 or not args.roughness:
@@ -256,7 +268,9 @@ def main() -> None:
     for terrain in terrains:
         for batch in (scales, [None]):
             t0 = time.perf_counter()
-            records += run_batch(terrain, batch, args.lanes, args.seconds, args.threads, args.terrain_seed)
+            records += run_batch(
+                terrain, batch, args.lanes, args.seconds, args.threads, args.terrain_seed, args.damping
+            )
             timings.append({"terrain": terrain.name, "episodes": len(batch) * args.lanes,
                             "seconds": time.perf_counter() - t0})  # fmt: skip
             print(timings[-1], flush=True)
@@ -275,7 +289,13 @@ def main() -> None:
         f"({os.cpu_count()} cores, shared); the default study (20 lanes, 6 stiffnesses + rigid, 6 terrains, 10 s) "
         f"takes about {full * per_episode_second / 60:.1f} min at this rate.\n",
         "Gait: Buehler-clock tripod, T = 0.5 s, 60 deg sweep (gait mode). Stiffness per spine axis = scale x 19.4 "
-        "N m/rad (the seed's 60 lbf in at 20 deg). Speed: progress along +x over the episode's time (to a flip). "
+        "N m/rad (the seed's 60 lbf in at 20 deg); damping "
+        + (
+            "0.1 x sqrt(scale) N m s/rad, the same damping ratio (about 0.1) at every stiffness. "
+            if args.damping == "ratio"
+            else "0.1 N m s/rad at every stiffness. "
+        )
+        + "Speed: progress along +x over the episode's time (to a flip). "
         "Cost of transport: battery energy / (m g distance along the heading); the seed's motor constants cap the "
         "motor's efficiency at 0.37. Roll and pitch: the middle segment's, variance after the first second.\n",
         "## Findings (95% CIs of paired differences against rigid on the same lanes)\n",

@@ -172,6 +172,37 @@ def flat_ground(period: float, seeds: list[int], threads: int, **kwargs) -> dict
     return row
 
 
+def turning(seeds: list[int], threads: int) -> dict:
+    """Yaw rate against the sweep difference (right minus left, around 60 deg) at T = 0.5 s, and the turn routine's
+    tracking of commanded yaw rates (XjusTurn-v0, 10 s episodes)."""
+    differences = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
+    open_loop = []
+    for diff in differences:
+        venv = gym.make_vec(WALK, num_envs=len(seeds), vectorization_mode="vector_entry_point", nthread=threads,
+                            max_episode_steps=EPISODE)  # fmt: skip
+        command = np.array([0.5, C.WALK_SWEEP - diff / 2, C.WALK_SWEEP + diff / 2])
+        action = np.tile(venv.unwrapped.robot.mode.to_action(command), (len(seeds), 1))
+        venv.reset(seed=seeds)
+        for _ in range(EPISODE):
+            *_, info = venv.step(action)
+        rates = (info["yaw_travel"] - info["yaw_travel_warmup"]) / (info["elapsed"] - 1.0)
+        open_loop.append({"difference_deg": float(np.degrees(diff)), "yaw_rate": rates.tolist()})
+    tracking = []
+    for command in (-0.4, -0.2, 0.2, 0.4):
+        env = gym.make("skitter/XjusTurn-v0")
+        policy = load_policy("buehler", env)
+        errors = []
+        for seed in seeds:
+            obs, _ = env.reset(seed=seed, options={"yaw_rate": command})
+            for _ in range(EPISODE):
+                obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
+                if terminated or truncated:
+                    break
+            errors.append(env.unwrapped.task.episode_metrics(info)["yaw_rate_error"])
+        tracking.append({"command": command, "yaw_rate_error": errors})
+    return {"open_loop": open_loop, "tracking": tracking}
+
+
 def stability(seconds_episodes: int, threads: int) -> list[dict]:
     rows = []
     low, high = (scale * C.SPINE_DESIGN_STIFFNESS for scale in C.SPINE_STIFFNESS_RANGE)
@@ -206,6 +237,7 @@ def main() -> None:
     flat = [flat_ground(p, seeds, 2) for p in (0.5, 0.75, 1.0)]
     flat += [flat_ground(p, seeds, 2, current_limit=C.MOTOR_CONTINUOUS_CURRENT) for p in (0.5, 1.0)]
     stable = stability(4 if args.quick else 8, 2)
+    turn = turning(seeds[:3], 2)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core from here on
     rtf = [real_time_factor(WALK, rtf_episodes), real_time_factor(ROUGH, rtf_episodes, roughness=0.04)]
@@ -235,6 +267,14 @@ def main() -> None:
         [[r["spine"], "" if r["stiffness"] is None else round(r["stiffness"], 1), r["episodes"], r["unstable"],
           r["falls"]] for r in stable],
     )  # fmt: skip
+    turn_table = md_table(
+        ["right minus left sweep", "yaw rate, rad/s (mean over seeds)", "per seed"],
+        [[f"{r['difference_deg']:+.0f} deg", round(float(np.mean(r["yaw_rate"])), 3),
+          ", ".join(f"{v:.3f}" for v in r["yaw_rate"])] for r in turn["open_loop"]],
+    ) + "\n" + md_table(
+        ["commanded yaw rate, rad/s", "turn routine's error, abs(mean rate - command), rad/s, per seed"],
+        [[r["command"], ", ".join(f"{v:.3f}" for v in r["yaw_rate_error"])] for r in turn["tracking"]],
+    )  # fmt: skip
     text = (
         "# xJüs speed: env against raw, real time, flat-ground speed and cost of transport\n\n"
         f"Machine: {os.cpu_count()} cores, shared. Gait mode, control at 125 Hz (8 ms, 4 physics steps of 2 ms).\n\n"
@@ -246,12 +286,14 @@ def main() -> None:
         "Cost of transport = battery energy / (m g distance). The seed's motor constants cap the motor's efficiency "
         "at eta N Kt / Ks = 0.37: every cost of transport here is at least 2.7 times the mechanical one.\n\n"
         + flat_table
+        + "\n## Turning by a different sweep per side (T = 0.5 s, sweeps centred on 60 deg)\n\n"
+        + turn_table
         + "\n## Stability at the 2 ms physics step\n\n"
         + stable_table
         + f"\nWall time of this benchmark: {time.perf_counter() - started:.0f} s.\n"
     )
     save("xjus_speed", {"goal_ratio": GOAL_RATIO, "goal_rtf": GOAL_RTF, "ratios": ratios, "rtf": rtf,
-                        "flat": flat, "stability": stable, "quick": args.quick}, text)  # fmt: skip
+                        "flat": flat, "stability": stable, "turning": turn, "quick": args.quick}, text)  # fmt: skip
 
 
 if __name__ == "__main__":
