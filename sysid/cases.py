@@ -45,7 +45,7 @@ class Case:
             "first_in_alias_group": self.first_in_alias_group, "recovered": self.recovered, "covered": self.covered,
             "values": {k: list(v) for k, v in self.values.items()}, "error_before": self.result.before.error,
             "error_after": self.result.after.error, "excess_ratio": self.excess_ratio, "halved": self.halved,
-            "unexplained": self.result.unexplained, "seconds": self.seconds,
+            "unexplained": self.result.unexplained, "threshold": self.result.threshold, "seconds": self.seconds,
         }  # fmt: skip
 
 

@@ -52,6 +52,14 @@ class Effect:
     target: str = ""
     catalogued: bool = True
     meta: Mapping[str, object] = field(default_factory=dict)
+    # why this robot's channels barely see the effect ("" if they do): even at the far end of its range, under the
+    # synthetic excitation, the nominal model's error stays under three noise levels. Still offered to selection (a
+    # livelier log may show it); the matrix reports it apart, and a test holds the declaration to the data.
+    weak: str = ""
+
+    @property
+    def observable(self) -> bool:
+        return not self.weak
 
     @property
     def smooth(self) -> bool:
@@ -69,6 +77,8 @@ class Effect:
             "name": self.name,
             "alias_group": self.alias,
             "catalogued": self.catalogued,
+            "observable": self.observable,
+            "weak": self.weak,
             "target": self.target,
             "description": self.description,
             "signature": self.signature,
@@ -243,10 +253,10 @@ TEMPLATES: dict[str, Effect] = {
 }
 
 
-def make(name: str, target: str = "", alias: str | None = None, **bounds: tuple[float, ...]) -> Effect:
+def make(name: str, target: str = "", alias: str | None = None, weak: str = "", **bounds: tuple[float, ...]) -> Effect:
     """A robot's instance of a catalog effect: ``bounds`` gives (nominal, low, high) per parameter, or (nominal,
     low, high, step) with the finest step that matters (a delay's physics step); the name gets the target as a
-    suffix (``coulomb_friction_left``)."""
+    suffix (``coulomb_friction_left``); ``weak`` says why the robot's channels barely see it (``Effect.weak``)."""
     template = TEMPLATES[name]
     params = []
     for p in template.params:
@@ -255,7 +265,8 @@ def make(name: str, target: str = "", alias: str | None = None, **bounds: tuple[
             p = replace(p, nominal=nominal, low=low, high=high, step=step[0] if step else p.step)
         params.append(p)
     full = f"{name}_{target}" if target else name
-    return replace(template, name=full, params=tuple(params), target=target, alias=alias or template.alias)
+    return replace(template, name=full, params=tuple(params), target=target, alias=alias or template.alias,
+                   weak=weak)  # fmt: skip
 
 
 def base_name(effect: Effect) -> str:

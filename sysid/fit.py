@@ -62,22 +62,48 @@ def fit(
     segments: Sequence[int] | None = None,
     start: Mapping[str, float] | None = None,
     max_iter: int = 25,
+    local: bool = False,
+    intervals: bool = True,
 ) -> FitResult:
     """Fit ``params`` (flat name -> Param) from ``base``: smooth ones by least squares, then non-smooth ones by grid
-    and CMA-ES with the smooth ones refitted at the best grid point."""
+    and CMA-ES with the smooth ones refitted at the best grid point.
+
+    ``local``: ``start`` is near the optimum (a refit on part of the data): non-smooth and derivative-free searches
+    stay near it. ``intervals=False`` skips the 95% intervals (``ci95`` is then empty)."""
     start = dict(start or {})
     smooth = {k: p for k, p in params.items() if p.smooth}
     rough = {k: p for k, p in params.items() if not p.smooth}
     setting = {**base, **{k: start.get(k, base.get(k, p.nominal)) for k, p in params.items()}}
     if problem.adapter.rough_cost:
-        return _derivative_free(problem, setting, dict(params), segments)
-    if rough:
-        setting = _grid_search(problem, setting, rough, smooth, segments)
-    if smooth:
-        return _least_squares(problem, setting, smooth, segments, max_iter, rough)
-    result = evaluate(problem, setting, segments)
-    result.ci95 = _profile_intervals(problem, setting, rough, segments, result)
+        result = _derivative_free(problem, setting, dict(params), segments, local)
+    else:
+        if rough:
+            setting = _grid_search(problem, setting, rough, smooth, segments, local)
+        if smooth:
+            result = _least_squares(problem, setting, smooth, segments, max_iter)
+        else:
+            result = evaluate(problem, setting, segments)
+    if intervals:
+        result.ci95 = fit_intervals(problem, result, params, segments)
     return result
+
+
+def fit_intervals(
+    problem: Problem, result: FitResult, params: Mapping[str, Param], segments: Sequence[int] | None = None
+) -> dict[str, float]:
+    """95% half-widths of a fit's parameters ``params`` at its values: where the cost is rough (contacts), from a
+    parabola over the profile (:func:`_smoothed_profile`); else, smooth parameters from the Jacobian at the optimum
+    or the profile likelihood, whichever is wider (:func:`_jacobian_intervals`), non-smooth ones from the profile
+    (:func:`_profile_intervals`)."""
+    best = result.values
+    if problem.adapter.rough_cost:
+        return _smoothed_profile(problem, best, params, segments, result)
+    smooth = {k: p for k, p in params.items() if p.smooth}
+    rough = {k: p for k, p in params.items() if not p.smooth}
+    out = _jacobian_intervals(problem, result, smooth, segments) if smooth else {}
+    if rough:
+        out.update(_profile_intervals(problem, best, rough, segments, result))
+    return out
 
 
 def _to_unit(p: Param, x: float) -> float:
@@ -94,7 +120,6 @@ def _least_squares(
     params: Mapping[str, Param],
     segments: Sequence[int] | None,
     max_iter: int,
-    rough: Mapping[str, Param],
 ) -> FitResult:
     from mujoco import sysid
 
@@ -131,17 +156,32 @@ def _least_squares(
         u = optimize(np.clip(u, 2e-3, 1 - 2e-3), best, max(3, max_iter // 3))
         best = settings_of(u)[0]
         result = evaluate(problem, best, segments)
-    # the Jacobian at the optimum (normalized coordinates), one batched rollout for all its columns
+    return result
+
+
+def _jacobian_intervals(
+    problem: Problem, result: FitResult, params: Mapping[str, Param], segments: Sequence[int] | None
+) -> dict[str, float]:
+    """95% half-widths of smooth parameters from the Jacobian at the optimum (normalized coordinates, one batched
+    rollout for all its columns), or from the profile likelihood where that is wider."""
+    names = list(params)
+    best = result.values
+    fd = max(FD_STEP, problem.adapter.fd_step)
+    u = np.array([_to_unit(params[k], best[k]) for k in names])
     steps = np.where(u > 0.5, -fd, fd)
     probe = u[:, None] + np.diag(steps)
-    columns = problem.residuals(settings_of(probe), segments, anchor=best)
+    settings = [{**best, **{k: _from_unit(params[k], float(probe[i, j])) for i, k in enumerate(names)}}
+                for j in range(len(names))]  # fmt: skip
+    columns = problem.residuals(settings, segments, anchor=best)
     r0 = flatten(result.residuals)
     jac = np.column_stack([(flatten(c) - r0) / steps[i] for i, c in enumerate(columns)])
     half = _intervals(r0, jac, result.n_eff)
-    result.ci95 = {k: float(half[i] * params[k].span) for i, k in enumerate(names)}
-    if rough:
-        result.ci95.update(_profile_intervals(problem, best, rough, segments, result))
-    return result
+    out = {k: float(half[i] * params[k].span) for i, k in enumerate(names)}
+    # the Jacobian's interval is a quadratic reading of the cost; where the effect is far from linear in its
+    # parameter (a servo's gain, a friction near zero) the profile likelihood is wider on one side: take the larger
+    # (the profile holds the other parameters, so it is the narrower of the two where parameters correlate)
+    profile = _profile_intervals(problem, best, params, segments, result)
+    return {k: max(v, profile[k]) if np.isfinite(v) else v for k, v in out.items()}
 
 
 def _intervals(r: np.ndarray, jac: np.ndarray, n_eff: float) -> np.ndarray:
@@ -160,7 +200,18 @@ def _intervals(r: np.ndarray, jac: np.ndarray, n_eff: float) -> np.ndarray:
     dof_eff = max(n_eff - p, 1.0)
     t_raw = stats.t.ppf(0.975, dof_raw)
     t_eff = stats.t.ppf(0.975, dof_eff)
-    return np.asarray(half) * math.sqrt(n / max(n_eff, 1.0)) * (t_eff / t_raw)
+    # calculate_intervals reads the noise off the residual (r r / (n - p)); a residual quieter than the noise level
+    # it is normalized by (a servo holding still reports the same count) must not narrow the interval: variance 1
+    s2 = float(r @ r) / dof_raw
+    floor = math.sqrt(1.0 / s2) if 0 < s2 < 1 else 1.0
+    return np.asarray(half) * math.sqrt(n / max(n_eff, 1.0)) * (t_eff / t_raw) * floor
+
+
+def _residual_variance(result: FitResult, p: int) -> float:
+    """The residual variance per effective sample for intervals: the fit's own (cost / (n - p)), at least the
+    noise level's 1 (a residual quieter than the noise in its still stretches says nothing of the noise in the
+    moves that carry the information), times n / n_eff for the residual's autocorrelation."""
+    return max(result.cost / max(result.n - p, 1), 1.0) * (result.n / max(result.n_eff, 1.0))
 
 
 def _grid_search(
@@ -169,11 +220,16 @@ def _grid_search(
     rough: Mapping[str, Param],
     smooth: Mapping[str, Param],
     segments: Sequence[int] | None,
+    local: bool = False,
 ) -> dict[str, float]:
     """The best grid point of the non-smooth parameters (all grid points in one batched rollout), refined by
-    CMA-ES when there are several."""
+    CMA-ES when there are several; ``local``: a grid over a quarter of each range around the start."""
     names = list(rough)
-    grids = [np.linspace(rough[k].low, rough[k].high, GRID_POINTS) for k in names]
+    if local:
+        grids = [np.unique(np.clip(setting[k] + rough[k].span * np.linspace(-0.125, 0.125, GRID_POINTS),
+                                   rough[k].low, rough[k].high)) for k in names]  # fmt: skip
+    else:
+        grids = [np.linspace(rough[k].low, rough[k].high, GRID_POINTS) for k in names]
     points = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(names), -1).T
     candidates = [{**setting, **dict(zip(names, map(float, pt), strict=True))} for pt in points]
     cost = costs(problem, candidates, segments, anchor=setting)
@@ -193,7 +249,7 @@ def _grid_search(
         # refine a single parameter around the best grid point, down to its resolution
         (k,) = names
         p = rough[k]
-        step = p.span / (GRID_POINTS - 1)
+        step = p.span / (GRID_POINTS - 1) / (4 if local else 1)
         while step > p.resolution:
             fine = np.unique(np.clip(best[k] + np.linspace(-step, step, 9), p.low, p.high))
             trial = [{**best, k: float(v)} for v in fine]
@@ -203,12 +259,16 @@ def _grid_search(
 
 
 def _derivative_free(
-    problem: Problem, setting: dict[str, float], params: Mapping[str, Param], segments: Sequence[int] | None
+    problem: Problem,
+    setting: dict[str, float],
+    params: Mapping[str, Param],
+    segments: Sequence[int] | None,
+    local: bool = False,
 ) -> FitResult:
     """For robots whose cost is rough at small scales (contacts; ``Adapter.rough_cost``), where finite-difference
     Jacobians mislead a least-squares step: one parameter by a batched grid shrinking around its best point, several
     by CMA-ES (``cma``) in normalized coordinates, each generation one batched rollout; the start's correction is
-    re-anchored at the best point once; 95% intervals from a parabola over the profile (:func:`_smoothed_profile`)."""
+    re-anchored at the best point once (intervals: :func:`fit_intervals`)."""
     names = list(params)
     best = dict(setting)
     for anchor_pass in range(2):
@@ -219,20 +279,27 @@ def _derivative_free(
             return {**_best, **{k: _from_unit(params[k], float(u[i])) for i, k in enumerate(names)}}
 
         found, found_cost = u0, costs(problem, [best], segments, anchor=anchor)[0]
-        if len(names) == 1:  # the whole range, then windows a quarter as wide around the best point each round
-            widths = [0.0, 0.25, 1 / 16, 1 / 64] if anchor_pass == 0 else [1 / 16, 1 / 64]  # (0: the whole range)
+        if len(names) == 1:  # the whole range, then windows a quarter as wide around the best point each round,
+            # then the vertex of a parabola over the last window (the cost's smoothed minimum, between grid points)
+            widths = [0.0, 0.25, 1 / 16] if anchor_pass == 0 and not local else [1 / 4, 1 / 16]
+            widths = widths if anchor_pass == 0 else [1 / 16]  # (0: the whole range)
             for width in widths:
                 grid = np.linspace(-0.5, 0.5, GRID_POINTS)
                 us = np.linspace(0.0, 1.0, GRID_POINTS) if width == 0 else np.clip(found[0] + width * grid, 0, 1)
                 cs = costs(problem, [trial([u]) for u in us], segments, anchor=anchor)
                 if min(cs) < found_cost:
                     found, found_cost = np.array([us[int(np.argmin(cs))]]), min(cs)
+            vertex = _parabola_vertex(us, np.asarray(cs))
+            if vertex is not None and abs(vertex - found[0]) > 1e-9:
+                (c,) = costs(problem, [trial([vertex])], segments, anchor=anchor)
+                if c < found_cost:
+                    found, found_cost = np.array([vertex]), c
         else:
             import cma
 
             options = {"bounds": [0, 1], "maxfevals": CMA_EVALS // (anchor_pass + 1), "verbose": -9, "seed": 1,
                        "tolx": 1e-3, "popsize": max(6, 4 + int(3 * math.log(len(names))))}  # fmt: skip
-            es = cma.CMAEvolutionStrategy(list(u0), 0.15 / (anchor_pass + 1), options)
+            es = cma.CMAEvolutionStrategy(list(u0), 0.15 / (anchor_pass + 1) / (3 if local else 1), options)
             while not es.stop():
                 us = es.ask()
                 es.tell(us, costs(problem, [trial(u) for u in us], segments, anchor=anchor))
@@ -242,8 +309,18 @@ def _derivative_free(
         result = evaluate(problem, best, segments)  # anchored at itself
         if abs(result.cost - found_cost) <= 0.01 * found_cost:
             break
-    result.ci95 = _smoothed_profile(problem, best, params, segments, result)
     return result
+
+
+def _parabola_vertex(us: np.ndarray, cs: np.ndarray) -> float | None:
+    """The vertex of a least-squares parabola through (us, cs), if it opens upward and lies within the points."""
+    if len(np.unique(us)) < 3:
+        return None
+    a, b, _c = np.polyfit(us, cs, 2)
+    if a <= 0:
+        return None
+    vertex = -b / (2 * a)
+    return float(vertex) if us.min() <= vertex <= us.max() else None
 
 
 def _smoothed_profile(
@@ -254,7 +331,7 @@ def _smoothed_profile(
     likelihood's (the chi^2(1) quantile times the residual variance, scaled by n / n_eff), plus the distance from
     the best point to the parabola's vertex (where the smoothed cost puts the optimum). The window widens until it
     holds the interval; a parameter whose window reaches its whole range without curvature gets the whole range."""
-    s2 = result.cost / max(result.n - len(params), 1) * (result.n / max(result.n_eff, 1.0))
+    s2 = _residual_variance(result, len(params))
     rise = stats.chi2.ppf(0.95, 1) * s2
     out = {}
     for k, p in params.items():
@@ -282,7 +359,7 @@ def _profile_intervals(
     held) before the cost rises by the chi^2(1) quantile times the residual variance, scaled by n / n_eff for
     the residual's autocorrelation. Bracketed outward in doubling steps from the parameter's resolution, then
     refined between the last point inside and the first outside; a side that never leaves reaches its bound."""
-    s2 = result.cost / max(result.n - len(rough), 1) * (result.n / max(result.n_eff, 1.0))
+    s2 = _residual_variance(result, len(rough))
     threshold = result.cost + stats.chi2.ppf(0.95, 1) * s2
     out = {}
     for k, p in rough.items():

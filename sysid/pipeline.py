@@ -3,6 +3,7 @@ nominal model and of each effect kept, on test logs the fit never saw (``calibra
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -15,8 +16,16 @@ from sysid.problem import Adapter, Problem, Residual
 from sysid.select import Outcome, calibrate, fit_chosen
 
 # A held-out error above this many noise levels is "unexplained": with the test logs' thousands of samples, the error
-# of the true model sits within a few percent of 1 (tests/test_calibration.py checks the null case).
+# of the true model sits within a few percent of 1 (tests/test_calibration.py checks the null case). Where the noise
+# level holds a replay floor (sysid/problem.py), itself estimated from a few segments, the threshold widens by that
+# estimate's uncertainty (``explained_below``).
 UNEXPLAINED_ABOVE = 1.1
+
+
+def explained_below(problem: Problem) -> float:
+    """The held-out error below which a model explains a problem's logs: 1.1, or 1 plus twice the relative standard
+    error of the noise level (as a variance) where that is larger (a replay floor measured on few segments)."""
+    return max(UNEXPLAINED_ABOVE, math.sqrt(1.0 + 2.0 * problem.floor_uncertainty))
 
 
 @dataclass
@@ -41,8 +50,13 @@ class Result:
     train_problem: Problem = field(repr=False)
 
     @property
+    def threshold(self) -> float:
+        """The held-out error above which the residual is unexplained (:func:`explained_below`)."""
+        return explained_below(self.test_problem)
+
+    @property
     def unexplained(self) -> bool:
-        return bool(self.after.error > UNEXPLAINED_ABOVE)
+        return bool(self.after.error > self.threshold)
 
     def where(self) -> str:
         """A sentence saying where the remaining residual lies."""

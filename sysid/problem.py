@@ -315,7 +315,7 @@ class Problem:
         for seg in self.segments:
             seg.n_steps = self.n_steps
         self._sensitivity: dict[tuple, list[np.ndarray]] = {}
-        self._carry: dict[tuple, dict[int, np.ndarray | None]] = {}
+        self._carry: dict[tuple, tuple[dict, dict, dict]] = {}  # a setting's run over every segment
         self._datas: dict[tuple, list[mujoco.MjData]] = {}
         by_log: dict[str, list[int]] = {}
         for i, seg in enumerate(self.segments):
@@ -347,6 +347,7 @@ class Problem:
         self._sigma = np.ones(len(adapter.channels))
         squares = np.zeros(len(adapter.channels))
         count = 0
+        per_segment = []  # each segment's mean square difference per channel
         real = self.segments
         try:
             for log in self.logs:
@@ -367,13 +368,27 @@ class Problem:
                     d = clean[real[i].samples] - p
                     squares += np.sum(d * d, axis=0)
                     count += len(d)
+                    per_segment.append(np.mean(d * d, axis=0))
                 self._sensitivity.clear()
                 self._carry.clear()
         finally:
             self.segments = real
             self._sensitivity.clear()
             self._carry.clear()
+        self._floor_segments = np.array(per_segment)
         return {c: float(np.sqrt(squares[j] / max(count, 1))) for j, c in enumerate(adapter.channels)}
+
+    @property
+    def floor_uncertainty(self) -> float:
+        """The relative standard error of the noise variance the errors are measured against, averaged over the
+        channels: zero for sensor noise alone (thousands of samples pin it down), the segment-to-segment spread of
+        the replay floor otherwise (a legged robot's replay diverges in some segments and not in others, so one
+        log's floor is an uncertain estimate). The error of a right model lies within about twice this of 1."""
+        per = getattr(self, "_floor_segments", None)
+        if per is None or len(per) < 2:
+            return 0.0
+        se = np.std(per, axis=0, ddof=1) / math.sqrt(len(per))
+        return float(np.mean(se / self._sigma**2))
 
     def _index(self, segments: Sequence[int] | None) -> list[int]:
         return list(range(len(self.segments))) if segments is None else list(segments)
@@ -388,8 +403,8 @@ class Problem:
         differs from the anchor's, and calls without an anchor, run the segments of each log in order."""
         index = self._index(segments)
         if anchor is None or not self.adapter.carry_over:
-            predictions, _ = self._chain(settings, index)
-            return [[predictions[(k, i)] for i in index] for k in range(len(settings))]
+            predictions, _, _ = self._runs(settings)
+            return [[predictions[k][i] for i in index] for k in range(len(settings))]
         key = self.adapter.structure(anchor)
         same = [k for k, s in enumerate(settings) if self.adapter.structure(s) == key]
         other = [k for k in range(len(settings)) if self.adapter.structure(settings[k]) != key]
@@ -409,13 +424,26 @@ class Problem:
 
     def _carried(self, anchor: Setting) -> dict[int, np.ndarray | None]:
         """The state each segment carries over from the one before, in the anchor's run over every segment."""
-        key = tuple(sorted(anchor.items()))
-        if key not in self._carry:
-            _, _, carry = self._chain([anchor], self._index(None), with_carry=True)
-            if len(self._carry) > 16:
+        return self._runs([anchor])[2][0]
+
+    def _runs(self, settings: Sequence[Setting]) -> tuple[list[dict], list[dict], list[dict]]:
+        """Each setting's run over every segment in order (:meth:`_chain`): its predictions, start states and
+        carried states per segment. Runs are cached per setting: a setting is evaluated, its start's sensitivity
+        measured and its carried states used as a fit's anchor from one run."""
+        keys = [tuple(sorted(s.items())) for s in settings]
+        missing = list(dict.fromkeys(k for k in keys if k not in self._carry))
+        if missing:
+            first = {key: keys.index(key) for key in missing}
+            run = [settings[first[key]] for key in missing]
+            predictions, starts, carried = self._chain(run, self._index(None), with_carry=True)
+            if len(self._carry) + len(missing) > 64:
                 self._carry.clear()
-            self._carry[key] = {i: v for (_, i), v in carry.items()}
-        return self._carry[key]
+            for j, key in enumerate(missing):
+                index = [i for (k, i) in predictions if k == j]
+                self._carry[key] = ({i: predictions[(j, i)] for i in index}, {i: starts[(j, i)] for i in index},
+                                    {i: carried[(j, i)] for i in index})  # fmt: skip
+        runs = [self._carry[key] for key in keys]
+        return [r[0] for r in runs], [r[1] for r in runs], [r[2] for r in runs]
 
     def _chain(self, settings: Sequence[Setting], index: Sequence[int], with_carry: bool = False):
         """Roll out every setting over the segments of ``index``: the predictions and start states per (setting,
@@ -528,7 +556,11 @@ class Problem:
             return self._sensitivity[key]
         model = self.adapter.model_for(anchor)
         coords = {i: self.adapter.initial_uncertainty(model, self.segments[i], anchor) for i in index}
-        base, starts = self._chain([anchor], index) if any(coords.values()) else ({}, {})
+        if any(coords.values()):
+            runs = self._runs([anchor])
+            base, starts = {(0, i): runs[0][0][i] for i in index}, {(0, i): runs[1][0][i] for i in index}
+        else:
+            base, starts = {}, {}
         rows = []
         for i in index:
             rows.extend((0, i, ("perturb", starts[(0, i)], [c])) for c in coords[i])
@@ -583,19 +615,37 @@ class Problem:
         return np.array([r.cost / max(r.data.size, 1) for r in residuals])
 
     def effective_samples(self, residuals: Sequence[Residual]) -> float:
-        """The residual's samples, discounted for their autocorrelation: n (1 - rho) / (1 + rho) per segment and
-        channel, with rho the lag-1 autocorrelation (residuals at 1 kHz are far from independent)."""
+        """The residual's samples, discounted for their autocorrelation (residuals at 1 kHz are far from
+        independent): n / tau per segment and channel, tau the integrated autocorrelation time
+        (:func:`_autocorrelation_time`)."""
         total = 0.0
         for res in residuals:
             r = res.data
             for c in range(r.shape[1]):
-                x = r[:, c] - r[:, c].mean()
-                n = len(x)
-                denom = float(x @ x)
-                rho = float(x[:-1] @ x[1:]) / denom if denom > 0 and n > 2 else 0.0
-                rho = min(max(rho, 0.0), 0.99)
-                total += n * (1 - rho) / (1 + rho)
+                total += len(r) / _autocorrelation_time(r[:, c])
         return max(total, 1.0)
+
+
+def _autocorrelation_time(x: np.ndarray) -> float:
+    """The integrated autocorrelation time of a series, tau = 1 + 2 sum_k rho_k, by Geyer's initial monotone sequence
+    (the sums of adjacent pairs of autocorrelations, taken while positive and made non-increasing), as effective
+    sample sizes of MCMC chains are estimated: it counts correlation beyond the first lag, which an AR(1) reading
+    (n (1 - rho) / (1 + rho)) misses when residuals wander smoothly. At least 1, at most n."""
+    n = len(x)
+    x = x - x.mean()
+    denom = float(x @ x)
+    if n < 4 or denom <= 0:
+        return 1.0
+    size = 1 << (2 * n - 1).bit_length()
+    f = np.fft.rfft(x, size)
+    rho = np.fft.irfft(f * np.conj(f), size)[:n] / denom
+    pairs = rho[: 2 * (n // 2)].reshape(-1, 2).sum(axis=1)  # Gamma_m = rho_2m + rho_2m+1
+    positive = np.flatnonzero(pairs <= 0)
+    pairs = pairs[: positive[0]] if len(positive) else pairs
+    if not len(pairs):
+        return 1.0
+    pairs = np.minimum.accumulate(pairs)
+    return float(min(max(-1.0 + 2.0 * pairs.sum(), 1.0), n))
 
 
 def simulate(

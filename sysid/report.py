@@ -10,7 +10,7 @@ from typing import Any
 from envs.common.calibration import calibration_record
 from sysid import diagnostics
 from sysid.effects import Effect
-from sysid.pipeline import UNEXPLAINED_ABOVE, Result
+from sysid.pipeline import Result
 
 
 def _round(x: float, digits: int = 6) -> float:
@@ -66,7 +66,7 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         "unexplained": result.unexplained,
         "unexplained_reason": result.where(),
         "noise": {
-            "threshold_unexplained": UNEXPLAINED_ABOVE,
+            "threshold_unexplained": result.threshold,
             "sigma": result.test_problem.sigma,
             "units": dict(adapter.channels),
         },

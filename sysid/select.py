@@ -30,7 +30,7 @@ from scipy import stats
 
 from sysid import diagnostics
 from sysid.effects import Effect, Param
-from sysid.fit import FD_STEP, FitResult, evaluate, fit
+from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals
 from sysid.problem import Problem, Setting, flatten
 
 MAX_EFFECTS = 4
@@ -43,7 +43,6 @@ CHAIN_WIDTH = 2  # with this many candidates tried at the second step (then the 
 CHAIN_DEPTH = 3  # up to this many effects
 CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
 FOLDS = 3  # folds of the held-out test
-SINGLE_FOLD_FROM = 9  # segments from which one held-out fold suffices (fewer: every fold held out in turn)
 MAX_DECISION_SEGMENTS = 12  # segments the loop decides on; kept effects are refitted on all
 
 
@@ -92,13 +91,11 @@ def _by_excitation(problem: Problem, index) -> list[int]:
 def split(problem: Problem, index: Sequence[int]) -> list[list[int]]:
     """Held-out folds of the segments ``index``, stratified by excitation: sorted by how much their measured
     channels move, the segments are dealt out in turn to FOLDS folds, so every fold holds quiet and lively ones.
-    With fewer than SINGLE_FOLD_FROM segments every fold is held out once (cross-validation); with more, the first
-    fold alone (one refit per candidate)."""
+    Every fold is held out in turn (cross-validation), so every segment's gain is measured once."""
     order = _by_excitation(problem, list(index))
     n = len(order)
     folds = [sorted(order[k] for k in range(start, n, FOLDS)) for start in (1, 2, 0)]
-    folds = [f for f in folds if f]
-    return folds if n < SINGLE_FOLD_FROM else folds[:1]
+    return [f for f in folds if f]
 
 
 def nominal_setting(effects: Mapping[str, Effect], start: Mapping[str, float] | None = None) -> dict[str, float]:
@@ -161,30 +158,49 @@ def calibrate(
 
         def attempt(group_effects: list[Effect], start_values: Mapping[str, float], current=current, before=before,
                     failed=failed):  # fmt: skip
-            verdict, trial, bic = _try(problem, current, group_effects, nuisance, fitting, folds, before,
-                                       start_values)  # fmt: skip
+            """Fit and test effects together: (verdict, fit, BIC change); the verdict is None if they earn their
+            place."""
+            verdict, trial, bic = _fit_candidate(problem, current, group_effects, nuisance, fitting, before,
+                                                 start_values)  # fmt: skip
+            if verdict is None:
+                verdict = _identified(problem, group_effects, nuisance, fitting, trial) or _held_out_test(
+                    problem, current, group_effects, nuisance, fitting, folds, trial
+                )
+            _record(group_effects, verdict)
+            return verdict, trial, bic
+
+        def _record(group_effects: list[Effect], verdict: str | None, failed=failed) -> None:
             label = " + ".join(e.name for e in group_effects)
             if verdict is not None:
                 failed.setdefault(label, verdict)
                 say(f"rejected {label}: {verdict}")
-            return verdict, trial, bic
 
         chosen_group = None
-        for stage_number, stage in enumerate((first, later)):
-            accepted = []
+        for stage in (first, later):
+            # every candidate of the stage is fitted; those that pass the fit's own tests (range, identifiability,
+            # information criterion) face the held-out test in order of their BIC, until one passes
+            passing = []
             for entry in stage:
                 effect = candidates[entry["effect"]]
-                verdict, trial, bic = attempt([effect], entry["start"])
+                verdict, trial, bic = _fit_candidate(problem, current, [effect], nuisance, fitting, before,
+                                                     entry["start"])  # fmt: skip
                 singles.append((trial.cost, effect, entry, trial))
                 if verdict is None:
-                    accepted.append((bic, [effect], [entry], trial))
-                    if stage_number == 1:
-                        break
-            if accepted:
-                chosen_group = min(accepted, key=lambda x: x[0])
-                for _, others, _, _ in accepted:
-                    if others is not chosen_group[1]:
-                        say(f"{others[0].name} also fits, less well than {chosen_group[1][0].name} by BIC")
+                    passing.append((bic, [effect], [entry], trial))
+                else:
+                    _record([effect], verdict)
+            passing.sort(key=lambda x: x[0])
+            for k, (bic, group_effects, entries, trial) in enumerate(passing):
+                verdict = _identified(problem, group_effects, nuisance, fitting, trial) or _held_out_test(
+                    problem, current, group_effects, nuisance, fitting, folds, trial
+                )
+                if verdict is None:
+                    chosen_group = (bic, group_effects, entries, trial)
+                    for _, others, _, _ in passing[k + 1 :]:
+                        say(f"{others[0].name} also fits, less well than {group_effects[0].name} by BIC")
+                    break
+                _record(group_effects, verdict)
+            if chosen_group is not None:
                 break
         if chosen_group is None and singles:
             chosen_group = _chains(problem, current, candidates, singles, fitting, used_groups, attempt, say)
@@ -192,9 +208,12 @@ def calibrate(
             _, group_effects, entries, trial = chosen_group
             label = " + ".join(e.name for e in group_effects)
             params = {k: p for e in group_effects for k, p in _params(e).items()}
-            refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values)
+            if len(fitting) == len(problem.segments):  # the fit already saw every segment
+                refit = trial
+            else:
+                refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values, local=True)
             current = refit.values
-            before = evaluate(problem, current, fitting)
+            before = trial if len(fitting) == len(problem.segments) else evaluate(problem, current, fitting)
             outcome.training_errors.append(refit.error)
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
@@ -350,33 +369,25 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
     return None
 
 
-def _try(
+def _fit_candidate(
     problem: Problem,
     current: Setting,
     effects: Sequence[Effect],
     nuisance: Mapping[str, Param],
     fitting,
-    folds: Sequence[Sequence[int]],
     before: FitResult,
     start: Mapping[str, float],
 ) -> tuple[str | None, FitResult, float]:
-    """Fit effects together on the fitting segments: (None if they earn their place else the reason, the fit, the
-    BIC change). The held-out gain is cross-validated: each fold's segments are predicted by a fit on the others,
-    and the paired gains of every segment are bootstrapped."""
+    """Fit effects together on the fitting segments, without intervals yet: (None if the fit passes its first
+    tests, else the reason; the fit; the BIC change). The tests: no parameter at the end of its range, and a lower
+    information criterion (BIC on the effective samples)."""
     params = {k: p for e in effects for k, p in _params(e).items()}
-    trial = fit(problem, current, {**params, **nuisance}, fitting, start=start)
+    trial = fit(problem, current, {**params, **nuisance}, fitting, start=start, intervals=False)
     for k, p in params.items():
         value = trial.values[k]
         if p.span > 0 and min(value - p.low, p.high - value) < 0.01 * p.span and not np.isclose(value, p.nominal):
             return (
                 f"{k} pushes against the end of its range ({value:.3g} {p.unit}): something else is at work",
-                trial,
-                0.0,
-            )
-        half = trial.ci95.get(k, float("inf"))
-        if not np.isfinite(half) or half > 0.5 * p.span:
-            return (
-                f"the data cannot identify {k}: 95% interval +-{half:.3g} {p.unit} over a range of {p.span:.3g}",
                 trial,
                 0.0,
             )
@@ -388,10 +399,44 @@ def _try(
             trial,
             bic,
         )
+    return None, trial, bic
+
+
+def _identified(
+    problem: Problem, effects: Sequence[Effect], nuisance: Mapping[str, Param], fitting, trial: FitResult
+) -> str | None:
+    """The fit's 95% intervals (computed now, for the candidate about to be tested), and whether the data identify
+    every parameter: an interval narrower than half the parameter's range. None if so, else the reason."""
+    params = {k: p for e in effects for k, p in _params(e).items()}
+    trial.ci95 = fit_intervals(problem, trial, {**params, **nuisance}, fitting)
+    for k, p in params.items():
+        half = trial.ci95.get(k, float("inf"))
+        if not np.isfinite(half) or half > 0.5 * p.span:
+            return f"the data cannot identify {k}: 95% interval +-{half:.3g} {p.unit} over a range of {p.span:.3g}"
+    return None
+
+
+def _held_out_test(
+    problem: Problem,
+    current: Setting,
+    effects: Sequence[Effect],
+    nuisance: Mapping[str, Param],
+    fitting,
+    folds: Sequence[Sequence[int]],
+    trial: FitResult,
+) -> str | None:
+    """The held-out gain, cross-validated: each fold's segments are predicted by a fit on the others (started at
+    the full fit, searched locally, no intervals), and the paired gains of every segment are bootstrapped. None if
+    the interval's lower end is above zero, else the reason."""
+    params = {k: p for e in effects for k, p in _params(e).items()}
     gains = []
     for fold in folds:
         rest = [i for i in (fitting if fitting is not None else range(len(problem.segments))) if i not in fold]
-        fitted = fit(problem, current, {**params, **nuisance}, rest, start=trial.values) if rest else trial
+        fitted = (
+            fit(problem, current, {**params, **nuisance}, rest, start=trial.values, local=True, intervals=False)
+            if rest
+            else trial
+        )
         old = problem.segment_costs(problem.residuals([current], fold)[0])
         new = problem.segment_costs(problem.residuals([fitted.values], fold)[0])
         gains.append(old - new)
@@ -406,9 +451,6 @@ def _try(
         ok = low > 0
     if not ok:
         return (
-            f"no held-out gain: the paired bootstrap interval of its cross-validated gain per segment reaches "
-            f"{low:.3g}",
-            trial,
-            bic,
+            f"no held-out gain: the paired bootstrap interval of its cross-validated gain per segment reaches {low:.3g}"
         )
-    return None, trial, bic
+    return None

@@ -31,6 +31,9 @@ from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
 
 MIN_NOMINAL_ERROR = 3.0
+# a drawn value goes at most this far from nominal toward a bound: a catalog range holds the plausible values, and a
+# truth on its very bound cannot be told from one beyond it (calibration rejects fits that end on a bound)
+MAX_REACH = 0.9
 
 
 def synthesize(
@@ -64,7 +67,7 @@ def synthesize(
             break
         for name in drawn:  # push the drawn values further from nominal
             effect = catalog[name]
-            truth[name] = _values(effect, None, rng, push=min(1.0, 0.5 + 0.1 * (attempt + 1)))
+            truth[name] = _values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
             setting.update({effect.key(k): v for k, v in truth[name].items()})
     else:
         raise ValueError(
@@ -82,7 +85,7 @@ def _values(
     effect: Effect, value: float | Mapping[str, float] | None, rng: np.random.Generator, push: float = 0.0
 ) -> dict[str, float]:
     """Values of an effect's parameters: given (a number for the first parameter, the rest nominal; or a value per
-    parameter), else drawn away from nominal: between 35% and 100% of the way from nominal to a bound (the farther
+    parameter), else drawn away from nominal: between 35% and 90% of the way from nominal to a bound (the farther
     bound, three times in four), at least ``push`` of the way."""
     if value is not None:
         given = dict(value) if isinstance(value, Mapping) else {effect.params[0].name: float(value)}
@@ -102,7 +105,7 @@ def _values(
         up, down = p.high - p.nominal, p.nominal - p.low
         direction = 1.0 if (up >= down if rng.random() < 0.75 else up < down) and up > 0 else -1.0
         reach = up if direction > 0 else down
-        fraction = max(push, rng.uniform(0.35, 1.0)) if push else rng.uniform(0.35, 1.0)
+        fraction = max(push, rng.uniform(0.35, MAX_REACH)) if push else rng.uniform(0.35, MAX_REACH)
         out[p.name] = float(p.nominal + direction * fraction * reach)
     return out
 
@@ -133,13 +136,14 @@ def listing() -> str:
     """Every effect the generator can inject, per robot: parameters and ranges, alias group, and whether the
     calibration catalog holds it."""
     lines = [
-        "effect | robot | parameters (unit, nominal, range) | alias group | in the catalog",
-        "---|---|---|---|---",
+        "effect | robot | parameters (unit, nominal, range) | alias group | in the catalog | channels see it",
+        "---|---|---|---|---|---",
     ]
     for robot in sorted(adapters()):
         for name, e in make_adapter(robot).effects().items():
             params = "; ".join(f"{p.name} ({p.unit}, {p.nominal:g}, [{p.low:g}, {p.high:g}])" for p in e.params)
-            lines.append(f"{name} | {robot} | {params} | {e.alias} | {'yes' if e.catalogued else 'no'}")
+            seen = "yes" if e.observable else f"barely: {e.weak}"
+            lines.append(f"{name} | {robot} | {params} | {e.alias} | {'yes' if e.catalogued else 'no'} | {seen}")
     return "\n".join(lines)
 
 

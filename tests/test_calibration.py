@@ -116,11 +116,13 @@ def test_out_of_catalog_disturbance_is_unexplained():
 def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys):
     assert synth.main(["--list"]) == 0
     listing = capsys.readouterr().out
-    for robot in ("motor", "servo"):
+    for robot in ("motor", "servo", "roach"):
         for name, effect in make_adapter(robot).effects().items():
             row = next(line for line in listing.splitlines() if line.startswith(f"{name} | {robot} |"))
-            assert effect.alias in row
-            assert row.endswith("| yes") == effect.catalogued
+            cells = row.split(" | ")
+            assert cells[3] == effect.alias
+            assert (cells[4] == "yes") == effect.catalogued
+            assert cells[5] == "yes" if effect.observable else cells[5].startswith("barely: ")
     assert "disturbance" in listing and "| no" in listing
     out = tmp_path / "log.parquet"
     assert synth.main(["--robot", "motor", "--effect", "armature", "--seed", "3", "--out", str(out)]) == 0

@@ -109,22 +109,31 @@ def roach_effects(dt: float) -> dict[str, Effect]:
     times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to 4 times the lab script's 1.41 mN m/A (the
     real logs' back-EMF is two to three times the model's, issue 7); the back-EMF reading's offset +-0.3 V (the board
     subtracts an offset measured at start-up)."""
+    # what the leg channels barely see (Effect.weak): at each range's far end the nominal model's error is mostly
+    # under 3 noise levels (1-2.6 on the median synthetic log; the matrix benchmark measures it), where the others
+    # reach 4 to 20
+    rotor = ("the rotor's inertia torque at the logged strides stays under the duty's noise and the replay floor "
+             "(it grows with the stride frequency squared: a log above 12 Hz shows more)")  # fmt: skip
+    body = ("acts on the body, which the log does not hold: the legs feel it only through stance loads, under the "
+            "replay floor that the body's unknown state sets")  # fmt: skip
+    supply = ("the firmware's PID closes the loop around the logged battery voltage: a supply 20% off changes only "
+              "the duty, by a fifth of its small mean")  # fmt: skip
     out: list[Effect] = [E.make("delay", seconds=(0.0, 0.0, 0.02, dt))]
     for side in SIDES:
         out += [
             E.make("coulomb_friction", side, torque=(0.0, 0.0, 15e-3)),
             E.make("viscous_friction", side, damping=(0.0, 0.0, 1e-4)),
-            E.make("armature", side, inertia=(0.0, 0.0, 1e-7)),
+            E.make("armature", side, inertia=(0.0, 0.0, 1e-7), weak=rotor),
             E.make("torque_constant", side, scale=(1.0, 0.3, 4.0)),
             E.make("sensor_bias", f"bemf_{side}", offset=(0.0, -0.3, 0.3)),
         ]
     out += [
-        E.make("supply_voltage", scale=(1.0, 0.8, 1.2)),
-        E.make("foot_friction", mu=(0.4, 0.05, 1.5)),
-        E.make("ground_contact", timeconst=(0.002, 0.001, 0.02), dampratio=(1.0, 0.2, 2.0)),
-        E.make("leg_stiffness", scale=(1.0, 0.3, 3.0)),
-        E.make("mass", scale=(1.0, 0.5, 2.0)),
-        E.make("com_offset", x=(0.0, -0.02, 0.02)),
+        E.make("supply_voltage", scale=(1.0, 0.8, 1.2), weak=supply),
+        E.make("foot_friction", mu=(0.4, 0.05, 1.5), weak=body),
+        E.make("ground_contact", timeconst=(0.002, 0.001, 0.02), dampratio=(1.0, 0.2, 2.0), weak=body),
+        E.make("leg_stiffness", scale=(1.0, 0.3, 3.0), weak=body),
+        E.make("mass", scale=(1.0, 0.5, 2.0), weak=body),
+        E.make("com_offset", x=(0.0, -0.02, 0.02), weak=body),
         E.make("terrain_bump", height=(0.0, 0.0, 0.01)),
         E.make("disturbance", torque=(0.0, 0.0, 2e-3), frequency=(3.0, 0.5, 10.0)),
     ]
@@ -490,6 +499,7 @@ class RoachAdapter(Adapter):
     # --- synthetic logs ---------------------------------------------------------------------------------------------
     SYNTH_GAINS = (1800, 100, 200, 0, 200)  # the 2 Hz real log's, per side
     SYNTH_CLIP = 3800 / PWM_PERIOD
+    SYNTH_MAX_HZ = 12.0
 
     def synth_meta(self) -> dict:
         return {"motor_gains": [*self.SYNTH_GAINS, *self.SYNTH_GAINS], "duty_clip": self.SYNTH_CLIP,
@@ -511,7 +521,7 @@ class RoachAdapter(Adapter):
         while start < seconds:
             hold = rng.uniform(0.5, 2.0)
             here = (t >= start) & (t < start + hold)
-            freq[here] = 0.0 if rng.random() < 0.15 else rng.uniform(0.5, 12.0)
+            freq[here] = 0.0 if rng.random() < 0.15 else rng.uniform(0.5, self.SYNTH_MAX_HZ)
             offset[here] = rng.uniform(-0.6, 0.6)
             start += hold
         phase = 2 * np.pi * np.concatenate([[0.0], np.cumsum(freq[:-1] * np.diff(t))])
