@@ -47,6 +47,8 @@ bench: setup
 	$(BIN)/python -m benchmarks.model_scan
 	$(BIN)/python -m benchmarks.calibrate_speed
 	$(BIN)/python -m benchmarks.calibration_matrix
+	$(BIN)/python -m benchmarks.xjus_speed
+	$(BIN)/python -m benchmarks.spine_study
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

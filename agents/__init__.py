@@ -46,6 +46,19 @@ def scripted_policies() -> dict[str, list[ScriptedPolicy]]:
     return found
 
 
+def reference_policy(robot: str) -> str:
+    """The name of a robot's reference gait: its agents folder's ``REFERENCE`` (the gait the shared tools and tests
+    run on every env of that robot)."""
+    for module in pkgutil.iter_modules(__path__):
+        if module.ispkg:
+            package = importlib.import_module(f"{__name__}.{module.name}")
+            entries = getattr(package, "POLICIES", {})
+            name = getattr(package, "REFERENCE", None)
+            if name is not None and any(robot in e.robots for e in [entries[name]]):
+                return name
+    raise ValueError(f"no reference gait for the {robot}: its agents/<robot>/__init__.py names none (REFERENCE)")
+
+
 def describe_policies() -> str:
     """One line per scripted policy, for --help texts."""
     return "; ".join(

@@ -7,8 +7,11 @@ import sys
 import zipfile
 from pathlib import Path
 
+import gymnasium as gym
 import pytest
 
+import envs  # noqa: F401  (registers the envs)
+from agents import reference_policy
 from tests.conftest import ENV_IDS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,14 +76,15 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
 def test_runs_on_every_registered_env(env_id, tmp_path):
     """No robot-specific code: the reference gait, metrics, plots and telemetry on every env."""
     steps = "40" if "Duty" not in env_id else "300"
-    done = run("--env", env_id, "--policy", "tripod", "--episodes", "2", "--out", str(tmp_path / "r"),
+    gait = reference_policy(gym.make(env_id).unwrapped.robot.name)
+    done = run("--env", env_id, "--policy", gait, "--episodes", "2", "--out", str(tmp_path / "r"),
                "--max-episode-steps", steps, "--telemetry")  # fmt: skip
     assert done.returncode == 0, done.stderr
     results = json.loads((tmp_path / "r" / "results.json").read_text())
-    summary = results["policies"]["tripod"]["summary"]
+    summary = results["policies"][gait]["summary"]
     assert set(results["metrics"]) <= set(summary)
     assert summary["speed"]["mean"] > 0
-    assert (tmp_path / "r" / "plots" / "tripod.png").stat().st_size > 10_000
+    assert (tmp_path / "r" / "plots" / f"{gait}.png").stat().st_size > 10_000
 
 
 def test_turn_reports_the_yaw_rate_error(tmp_path):

@@ -18,12 +18,12 @@ import json, sys
 import gymnasium as gym
 import numpy as np
 import envs, agents, assets
-from agents import load_policy
+from agents import load_policy, reference_policy
 out = {"envs": envs.__file__, "assets": str(assets.ROOT), "made": []}
 for env_id in sorted(k for k in gym.registry if k.startswith("skitter/")):
     env = gym.make(env_id)
     obs, _ = env.reset(seed=0)
-    policy = load_policy("tripod", env)
+    policy = load_policy(reference_policy(env.unwrapped.robot.name), env)
     obs, reward, *_ = env.step(policy.predict(obs)[0])
     assert np.isfinite(obs).all() and np.isfinite(reward)
     out["made"].append(env_id)

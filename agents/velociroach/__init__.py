@@ -9,6 +9,7 @@ def _tripod(env, arg: str):
     return tripod_for(env, arg)
 
 
+REFERENCE = "tripod"  # the gait the shared tools and tests run on every VelociRoACH env
 POLICIES = {
     "tripod": ScriptedPolicy(
         ("velociroach",),

@@ -14,8 +14,7 @@ _DESCRIPTION = (
     "sweep per side on a turning task; buehler:stand, buehler:walk, buehler:turn, buehler:T (walk at period T s)"
 )
 
+REFERENCE = "buehler"  # the gait the shared tools and tests run on every xJüs env
 POLICIES = {
     "buehler": ScriptedPolicy(("xjus",), _DESCRIPTION, _buehler),
-    # the shared tools and tests run "tripod" on every robot: xJüs's tripod is its Buehler-clock tripod
-    "tripod": ScriptedPolicy(("xjus",), "the same as buehler (xJüs's alternating tripod)", _buehler),
 }
