@@ -98,6 +98,9 @@ class Adapter(ABC):
     replay_floor: bool = False  # add what replay cannot match on the model's own data to the noise (see Problem)
     fd_step: float = 1e-3  # finite-difference step, a fraction of each parameter's range (larger for chaotic models)
     rough_cost: bool = False  # the cost is rough at small scales (contacts): fit derivative-free (sysid/fit.py)
+    # the breadth of the search for effects that help only together (sysid/select.py: seeds, width, beam); a robot
+    # whose every fit costs seconds of rollouts narrows it
+    chain_search: tuple[int, int, int] = (3, 3, 2)
 
     def __init__(self) -> None:
         self._models: dict[tuple, mujoco.MjModel] = {}

@@ -38,9 +38,8 @@ TRIES_PER_ROUND = 3
 NOISE_FLOOR = 1.05  # stop when the validation error is this close to the noise floor
 SCORE_GRID = 5  # grid points across the range of a non-smooth effect in the ranking
 SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian)
-CHAIN_SEEDS = 1  # effects that help only together: chains grown from the singles that fitted best,
-CHAIN_WIDTH = 2  # with this many candidates tried at the second step (then the best chain grows by one),
-CHAIN_DEPTH = 3  # up to this many effects
+CHAIN_DEPTH = 3  # effects that help only together: chains of up to this many effects (the breadth of the search is
+# the adapter's ``chain_search``: seeds, width, beam)
 CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
 FOLDS = 3  # folds of the held-out test
 MAX_DECISION_SEGMENTS = 12  # segments the loop decides on; kept effects are refitted on all
@@ -341,14 +340,16 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
 
 
 def _chains(problem: Problem, current: Setting, candidates, singles, fitting, used_groups, attempt, say):
-    """Effects that help only together: when no single effect earns its place, grow chains from the singles that
-    fitted best (CHAIN_SEEDS of them). Each step adds one of the candidates the score statistic ranks highest at the
-    chain's fitted values (what the residual still points to once the chain is in; CHAIN_WIDTH of them at the
-    second step, the best one after), fits the chain jointly and tests it by the same rules as a single effect.
-    The first chain that earns its place is returned as (BIC change, effects, ranking entries, fit)."""
-    for _, seed, seed_entry, seed_trial in sorted(singles, key=lambda x: x[0])[:CHAIN_SEEDS]:
+    """Effects that help only together: when no single effect earns its place, a beam search over chains, from the
+    singles that fitted best (``seeds`` of them, the adapter's ``chain_search``). Each chain grows by each of the
+    ``width`` candidates the score statistic ranks highest at its fitted values (what the residual still points to
+    once the chain is in); each grown chain is fitted jointly and tested by the same rules as a single effect; the
+    ``beam`` best of each length (by training cost) grow on, up to CHAIN_DEPTH effects. The first chain that earns
+    its place is returned as (BIC change, effects, ranking entries, fit)."""
+    seeds, width, beam = problem.adapter.chain_search
+    for _, seed, seed_entry, seed_trial in sorted(singles, key=lambda x: x[0])[:seeds]:
         frontier = [([seed], [seed_entry], seed_trial)]
-        for depth in range(2, CHAIN_DEPTH + 1):
+        for _length in range(2, CHAIN_DEPTH + 1):
             grown = []
             for chain, entries, trial in frontier:
                 groups = {e.alias for e in chain} | used_groups
@@ -356,14 +357,14 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
                 if not rest:
                     continue
                 ranking = [e for e in score(problem, trial.values, rest, fitting) if e["p_value"] <= 0.05]
-                for entry in ranking[: CHAIN_WIDTH if depth == 2 else 1]:
+                for entry in ranking[:width]:
                     effects = [*chain, candidates[entry["effect"]]]
                     say(f"trying together: {' + '.join(e.name for e in effects)}")
                     verdict, fitted, bic = attempt(effects, {**trial.values, **entry["start"]})
                     if verdict is None:
                         return bic, effects, [*entries, entry], fitted
                     grown.append((effects, [*entries, entry], fitted))
-            frontier = sorted(grown, key=lambda x: x[2].cost)[:1]
+            frontier = sorted(grown, key=lambda x: x[2].cost)[:beam]
             if not frontier:
                 break
     return None
