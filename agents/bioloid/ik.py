@@ -1,0 +1,173 @@
+"""The seed's inverse-kinematics gait library for the Bioloid quadruped (seed 002 VI.A).
+
+Each foot follows the seed's ellipse (eqs. 7-8, with its rules of thumb and the knee-limit correction of the y
+radius) under its hip; the hip and knee servos come from the leg's inverse kinematics (eqs. 3-6), the knee never
+bent past 90 deg (envs/bioloid/kinematics.py). The four legs run the same ellipse with the phase offsets of a gait
+(``GAITS``): trot, walk, gallop, canter, pace, bound and pronk, at any stride frequency. The lower half of the
+ellipse is the stance (the foot moves backward), so every gait's commanded duty factor is 0.5; docs/bioloid.md
+sets the phases and duty factors beside the gait literature's.
+
+Steering: each side's stride (the ellipse's x radius) is scaled by a factor in [-1, 1]; a shorter stride on the left
+turns the robot left (the seed's Webots model turned this way: its controller's "turn amount" added to one side's
+stride factor and took from the other's). On a turning task the factor follows the commanded yaw rate (a
+feed-forward) plus a proportional correction on the observed heading error.
+
+Names in the policy registry (agents/bioloid/__init__.py): ``ik-<gait>`` (at 1.5 Hz, the trot's reference) and
+``ik-<gait>:<Hz>``. Every policy follows Stable-Baselines3's ``predict(observation, state, episode_start,
+deterministic) -> (action, state)``, batched or not; its state is its own clock (seconds since the episode began).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs.bioloid import constants as C
+from envs.bioloid.kinematics import Ellipse, LegGeometry
+from envs.common.robot import ActionMode
+from envs.common.task import ObservationLayout
+
+
+@dataclass(frozen=True)
+class Gait:
+    """A gait: each leg's phase offset (fraction of a cycle, legs in ``LEGS`` order F_L, F_R, B_L, B_R) and the duty
+    factor the gait literature gives for animals (docs/bioloid.md cites it; ours is 0.5 by the ellipse)."""
+
+    name: str
+    phases: tuple[float, float, float, float]
+    literature_duty: str
+
+
+# Phase offsets: the seed's Figure 29 (after Alexander [30]) as its author's Webots controller tabulates them
+# (gait_phase_shift, legs FL, FR, BR, BL), here reordered to F_L, F_R, B_L, B_R.
+GAITS: dict[str, Gait] = {
+    g.name: g
+    for g in (
+        Gait("trot", (0.0, 0.5, 0.5, 0.0), "0.5 (0.3-0.5 running trot, 0.5-0.6 walking trot)"),
+        Gait("walk", (0.0, 0.5, 0.75, 0.25), "> 0.5 (0.6-0.75)"),
+        Gait("gallop", (0.0, 0.1, 0.5, 0.6), "< 0.5 (0.2-0.4)"),
+        Gait("canter", (0.0, 0.3, 0.7, 0.0), "< 0.5 (0.3-0.45)"),
+        Gait("pace", (0.0, 0.5, 0.0, 0.5), "0.5 (0.4-0.6)"),
+        Gait("bound", (0.0, 0.0, 0.5, 0.5), "< 0.5 (0.3-0.45)"),
+        Gait("pronk", (0.0, 0.0, 0.0, 0.0), "< 0.5 (0.2-0.4)"),
+    )
+}
+DEFAULT_FREQUENCY = 1.5  # Hz: the issue's reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
+FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
+TURN_GAIN = 0.5  # rad/s of yaw rate per unit of stride difference (measured at 1.5 Hz, docs/bioloid.md)
+HEADING_GAIN = 1.0  # stride difference per rad of heading error
+SIDE = np.array([0.0 if C.LEG_SIDE[leg] == "left" else 1.0 for leg in C.LEGS])  # 0 left, 1 right
+
+
+def touchdown_fraction(gait: Gait) -> np.ndarray:
+    """When in the cycle each leg's foot comes down (fraction of a cycle from the clock's zero), LEGS order: the
+    ellipse's phase pi (front of the stance)."""
+    return np.mod(0.5 - np.asarray(gait.phases), 1.0)
+
+
+def stance(gait: Gait, t: np.ndarray, frequency: float) -> np.ndarray:
+    """Whether each leg is commanded in stance at times ``t`` (s): (len(t), 4) bool."""
+    phase = 2.0 * np.pi * (frequency * np.asarray(t)[:, None] + np.asarray(gait.phases)[None, :])
+    return np.sin(phase) < 0.0
+
+
+class IKGait:
+    """One gait of the seed's IK library at one frequency, for a Bioloid env.
+
+    Args:
+        layout: the env's observation layout (a turning task's ``yaw_rate_command`` and ``heading_error``).
+        mode: the env's action mode (goal positions in counts, normalized).
+        control_dt: the control step, s.
+        gait: one of ``GAITS``.
+        frequency: stride frequency, Hz.
+        wedge: the robot's knee wedge, rad (0 for the seed's design).
+        steer: follow a turning task's yaw-rate command (default: when the env commands one).
+    """
+
+    def __init__(self, layout: ObservationLayout, mode: ActionMode, control_dt: float, gait: str = "trot",
+                 frequency: float = DEFAULT_FREQUENCY, wedge: float = 0.0, steer: bool | None = None):  # fmt: skip
+        if gait not in GAITS:
+            raise ValueError(f"gait must be one of {sorted(GAITS)}, got {gait!r}")
+        low, high = FREQUENCY_RANGE
+        if not (isinstance(frequency, int | float) and low <= frequency <= high):
+            raise ValueError(f"frequency must be in [{low}, {high}] Hz, got {frequency!r}")
+        self.layout, self.mode, self.control_dt = layout, mode, control_dt
+        self.gait, self.frequency = GAITS[gait], float(frequency)
+        self.steer = "yaw_rate_command" in layout if steer is None else bool(steer)
+        if self.steer and "yaw_rate_command" not in layout:
+            raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn-v0)")
+        self.geometry = [LegGeometry.of(leg, wedge) for leg in C.LEGS]
+        self.ellipses = [Ellipse.seed_rules(g) for g in self.geometry]
+        stand = np.array([C.STAND_ANGLES[s] for s in C.SERVOS])
+        self.stand_counts = C.CENTER + stand / C.RAD_PER_COUNT
+        self._hips = np.array([C.SERVO_INDEX[C.HIP[leg]] for leg in C.LEGS])
+        self._knees = np.array([C.SERVO_INDEX[C.KNEE[leg]] for leg in C.LEGS])
+        self._phases = np.asarray(self.gait.phases)
+
+    def __repr__(self) -> str:
+        return f"IKGait({self.gait.name}, {self.frequency:g} Hz{', steering' if self.steer else ''})"
+
+    def strides(self, obs: np.ndarray) -> np.ndarray:
+        """Stride factor per leg (n, 4): 1 walking straight; on a turning task the side toward which the robot should
+        turn shortens its stride."""
+        n = len(obs)
+        if not self.steer:
+            return np.ones((n, 4))
+        command = self.layout.get(obs, "yaw_rate_command")[:, 0]
+        s, c = self.layout.get(obs, "heading_error").T
+        difference = np.clip(command / TURN_GAIN - HEADING_GAIN * np.arctan2(s, c), -2.0, 2.0)  # right minus left
+        left = np.clip(1.0 - np.maximum(difference, 0.0), -1.0, 1.0)
+        right = np.clip(1.0 + np.minimum(difference, 0.0), -1.0, 1.0)
+        return np.where(SIDE[None, :] == 0.0, left[:, None], right[:, None])
+
+    def lead_in(self, t: np.ndarray) -> np.ndarray:
+        """Stride scale over the first cycle, from 0 to 1: the gait starts from the ready posture (every sole at the
+        ellipse's centre) instead of jumping to its phases (as the roach firmware leads in its strides)."""
+        return np.minimum(1.0, self.frequency * t)
+
+    def counts(self, t: np.ndarray, strides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Goal counts (n, 16) at clock times ``t`` (n,) with stride factors (n, 4), and where the knee limit held a
+        leg back (n, 4)."""
+        phase = 2.0 * np.pi * (self.frequency * t[:, None] + self._phases[None, :])
+        goal = np.tile(self.stand_counts, (len(t), 1))
+        limited = np.zeros((len(t), 4), dtype=bool)
+        for i, (geometry, ellipse) in enumerate(zip(self.geometry, self.ellipses, strict=True)):
+            x, z = ellipse.point(phase[:, i], strides[:, i])
+            hip, knee, limited[:, i] = geometry.inverse(x, z)
+            goal[:, self._hips[i]] = C.CENTER + hip / C.RAD_PER_COUNT
+            goal[:, self._knees[i]] = C.CENTER + knee / C.RAD_PER_COUNT
+        return goal, limited
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: np.ndarray | None = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
+        single = np.asarray(observation).ndim == 1
+        n = len(obs)
+        t = np.zeros(n) if state is None else np.array(np.atleast_1d(state), dtype=np.float64).reshape(n)
+        if episode_start is not None:
+            t[np.atleast_1d(np.asarray(episode_start, dtype=bool))] = 0.0
+        goal, _ = self.counts(t, self.strides(obs) * self.lead_in(t)[:, None])
+        action = self.mode.to_action(goal).astype(np.float32)
+        t = t + self.control_dt
+        return (action[0], t[:1].copy()) if single else (action, t)
+
+
+def ik_for(env, gait: str, arg: str = "") -> IKGait:
+    """``ik-<gait>`` (1.5 Hz) or ``ik-<gait>:<Hz>`` for a Bioloid env; steers on a turning task."""
+    base = env.unwrapped
+    robot = base.robot
+    if robot.name != "bioloid":
+        raise ValueError(f"the IK gait library drives a Bioloid, not a {robot.name}")
+    frequency = DEFAULT_FREQUENCY
+    if arg:
+        try:
+            frequency = float(arg)
+        except ValueError:
+            raise ValueError(f"policy 'ik-{gait}:{arg}': give the stride frequency in Hz after the colon") from None
+    return IKGait(base.task.layout, robot.mode, robot.control_dt, gait, frequency, robot.wedge)

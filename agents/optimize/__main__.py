@@ -1,0 +1,91 @@
+"""Tune a controller's parameters by particle swarm or CMA-ES: ``python -m agents.optimize``.
+
+Examples::
+
+    python -m agents.optimize --config agents/bioloid/optimize/experiment5.json --optimizer pso \\
+        --iterations 240 --particles 50                       # the seed's experiment 5 at its scale, this machine
+    python -m agents.optimize --config ... --backend ray --address HEAD:6379 --workers 50   # split over a cluster
+
+The run folder (``--out``, default ``runs/optimize/<config>__<optimizer>__<seed>``) holds the checkpoint, the best
+parameters as a policy file (``best.json``: ``evaluate.py --policy cpg:<run>/best.json``) and the history. Running
+the same command again resumes an interrupted run from its last checkpoint (a finished run just reports).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from agents.optimize.optimizers import OPTIMIZERS
+from agents.optimize.problem import ConfigError, read_config
+from agents.optimize.run import CHECKPOINT, RunError, Settings, run
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="python -m agents.optimize", description=__doc__.splitlines()[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)  # fmt: skip
+    p.add_argument("--config", required=True, help="a run configuration (JSON; agents/optimize/problem.py)")
+    p.add_argument("--optimizer", choices=sorted(OPTIMIZERS), default="pso")
+    p.add_argument("--iterations", type=int, default=240, help="iterations (the seed's PSO: 240)")
+    p.add_argument("--particles", type=int, default=50, help="swarm or population size (the seed: 50)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local: the batch's threads (default: the machine's cores); ray: the batches the swarm is "
+                        "split into, one actor each (default: 2)")  # fmt: skip
+    p.add_argument("--backend", choices=("local", "ray"), default="local")
+    p.add_argument("--address", default=None, help="ray: the cluster's address (default: start a local instance)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, default=None, help="run folder (default runs/optimize/<config>__<opt>__<seed>)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p.parse_args(argv)
+
+
+def check(args: argparse.Namespace) -> None:
+    """One-line errors for settings that cannot run, before anything is created."""
+    if args.iterations < 1:
+        raise RunError(f"--iterations must be at least 1, got {args.iterations}")
+    if args.particles < 2:
+        raise RunError(f"--particles must be at least 2, got {args.particles}")
+    if args.workers is not None and not 1 <= args.workers <= (args.particles if args.backend == "ray" else 1024):
+        raise RunError(f"--workers must be in [1, {args.particles}] for the ray backend (at least 1 locally), "
+                       f"got {args.workers}")  # fmt: skip
+    if args.address is not None and args.backend != "ray":
+        raise RunError("--address is for --backend ray")
+    if args.out.exists() and not (args.out / CHECKPOINT).exists() and any(args.out.iterdir()):
+        raise RunError(f"--out {args.out} holds files but no checkpoint; choose another folder")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        config = read_config(args.config)
+        if args.out is None:
+            args.out = ROOT / "runs" / "optimize" / f"{Path(args.config).stem}__{args.optimizer}__{args.seed}"
+        check(args)
+        settings = Settings(config.to_dict(), args.optimizer, args.iterations, args.particles, args.seed)
+
+        def backend():
+            from agents.optimize.run import LocalBackend, RayBackend
+
+            if args.backend == "ray":
+                return RayBackend(config, args.particles, args.workers or 2, args.address)
+            return LocalBackend(config, args.particles, args.workers)
+
+        command = "python -m agents.optimize " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+        result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command)
+    except (ConfigError, RunError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    best = result["best"]
+    m = best["metrics"]
+    print(f"best {config.objective} = {best['score']:.4f} (iteration {best['iteration']}): eq17 {m['eq17']:.3f}, "
+          f"+x progress {m['progress_x']:.3f} m, fallen {int(m['fallen'])}; {result['wall_seconds']:.1f} s of "
+          f"evaluation; policy {args.out / 'best.json'}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,236 @@
+"""An optimization run: iterations of ask, evaluate the whole swarm, tell; a checkpoint after every iteration; the
+best parameters so far as a policy file.
+
+Files in the run folder (each written atomically, a temporary file renamed over the last):
+
+- ``checkpoint.pkl``: the settings, the optimizer (its whole state, random generators included), the best so far and
+  the history; a run started again with the same settings resumes from it and gives what an uninterrupted run gives;
+- ``best.json``: the best parameters as a policy file (the robot folder's policy loads it: ``cpg:<path>``);
+- ``history.json``: per iteration, the best score so far and the iteration's scores (objective, eq. 17, +x
+  progress, falls).
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.optimize.optimizers import OPTIMIZERS
+from agents.optimize.problem import Evaluator, RunConfig
+from envs.common.io import atomic_write, write_json
+
+CHECKPOINT, BEST, HISTORY = "checkpoint.pkl", "best.json", "history.json"
+VERSION = 1
+
+
+class RunError(ValueError):
+    """A run that cannot start or resume; the message names the file and the setting."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What identifies a run: a checkpoint resumes only under the same settings."""
+
+    config: dict[str, Any]
+    optimizer: str
+    iterations: int
+    particles: int
+    seed: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"config": self.config, "optimizer": self.optimizer, "iterations": self.iterations,
+                "particles": self.particles, "seed": self.seed}  # fmt: skip
+
+
+class LocalBackend:
+    """The whole swarm as one batch on this machine (``threads`` threads)."""
+
+    def __init__(self, config: RunConfig, particles: int, threads: int | None = None):
+        self.evaluator = Evaluator(config, particles, threads)
+        self.controller = self.evaluator.controller
+
+    @property
+    def dimension(self) -> int:
+        return self.evaluator.dimension
+
+    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
+        return self.evaluator.evaluate(parameters)
+
+    def close(self) -> None:
+        pass
+
+
+class RayBackend:
+    """The swarm split into ``workers`` batches, each on a Ray actor (one CPU, one thread) of a cluster.
+
+    Args:
+        address: a running cluster's address (``ray start --head`` prints it), or None: join the Ray instance this
+            process already runs, or start a local one.
+    """
+
+    def __init__(self, config: RunConfig, particles: int, workers: int, address: str | None = None):
+        import ray
+
+        if not ray.is_initialized():
+            ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
+        sizes = [len(part) for part in np.array_split(np.arange(particles), workers)]
+        remote = ray.remote(num_cpus=1)(_Worker)
+        self._ray = ray
+        self._bounds = np.cumsum([0, *sizes])
+        self._workers = [remote.remote(config, size) for size in sizes]
+        self.dimension = ray.get(self._workers[0].dimension.remote())
+        self.controller = Evaluator(config, 1, nthread=1).controller  # writes the policy files here
+
+    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
+        b = self._bounds
+        futures = [w.evaluate.remote(parameters[b[i] : b[i + 1]]) for i, w in enumerate(self._workers)]
+        parts = self._ray.get(futures)
+        return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+
+    def close(self) -> None:
+        for worker in self._workers:
+            self._ray.kill(worker)
+
+
+class _Worker:
+    """A Ray actor: an evaluator of its share of the swarm (one thread)."""
+
+    def __init__(self, config: RunConfig, num_sims: int):
+        self.evaluator = Evaluator(config, num_sims, nthread=1)
+
+    def dimension(self) -> int:
+        return self.evaluator.dimension
+
+    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
+        return self.evaluator.evaluate(parameters)
+
+
+def load_checkpoint(out: Path) -> dict[str, Any] | None:
+    path = out / CHECKPOINT
+    if not path.exists():
+        return None
+    try:
+        with path.open("rb") as f:
+            state = pickle.load(f)
+    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
+        raise RunError(f"{path}: not a readable checkpoint ({error})") from None
+    if not isinstance(state, dict) or state.get("version") != VERSION:
+        raise RunError(f"{path}: not a checkpoint of this version of agents.optimize")
+    return state
+
+
+def check_resumable(state: dict[str, Any], settings: Settings, path: Path) -> None:
+    """The checkpoint's settings equal these, or a one-line error naming the first that differs."""
+    old, new = state["settings"], settings.as_dict()
+    for key in new:
+        if key == "config":
+            for field in sorted(set(old[key]) | set(new[key])):
+                if old[key].get(field) != new[key].get(field):
+                    was, now = old[key].get(field), new[key].get(field)
+                    raise RunError(
+                        f"{path}: the checkpoint's run has config field {field!r} = {was!r}, not {now!r}; "
+                        "use another --out"
+                    )
+        elif old[key] != new[key]:
+            raise RunError(
+                f"{path}: the checkpoint's run has {key} = {old[key]!r}, not {new[key]!r}; use another --out"
+            )
+
+
+def run(
+    config: RunConfig,
+    settings: Settings,
+    out: Path,
+    backend_factory: Callable[[], Any],
+    progress: bool = True,
+    command: str = "",
+) -> dict[str, Any]:
+    """Run (or resume) the optimization; returns the final record (best score, parameters, history)."""
+    out = Path(out)
+    state = load_checkpoint(out)
+    if state is not None:
+        check_resumable(state, settings, out / CHECKPOINT)
+    backend = backend_factory()
+    try:
+        if state is None:
+            optimizer = OPTIMIZERS[settings.optimizer](backend.dimension, settings.particles, settings.iterations,
+                                                       settings.seed)  # fmt: skip
+            state = {"version": VERSION, "settings": settings.as_dict(), "optimizer": optimizer, "best": None,
+                     "history": [], "wall_seconds": 0.0, "command": command}  # fmt: skip
+        optimizer = state["optimizer"]
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=settings.iterations, initial=optimizer.iteration, desc=f"{settings.optimizer}",
+                       unit="it", dynamic_ncols=True)  # fmt: skip
+            if state["best"] is not None:
+                bar.set_postfix(best=f"{state['best']['score']:.3f}")
+        while optimizer.iteration < settings.iterations:
+            started = time.perf_counter()
+            parameters = optimizer.ask()
+            scores = backend.evaluate(parameters)
+            optimizer.tell(scores["score"])
+            i = int(np.argmax(scores["score"]))
+            if state["best"] is None or scores["score"][i] > state["best"]["score"]:
+                state["best"] = {"score": float(scores["score"][i]), "parameters": parameters[i].tolist(),
+                                 "iteration": optimizer.iteration - 1,
+                                 "metrics": {k: float(v[i]) for k, v in scores.items()}}  # fmt: skip
+            state["history"].append(_history_row(optimizer.iteration - 1, scores, state["best"]["score"]))
+            state["wall_seconds"] += time.perf_counter() - started
+            _save(out, state, config, backend)
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(best=f"{state['best']['score']:.3f}")
+        if bar is not None:
+            bar.close()
+    finally:
+        backend.close()
+    return {"best": state["best"], "history": state["history"], "wall_seconds": state["wall_seconds"]}
+
+
+def _history_row(iteration: int, scores: dict[str, np.ndarray], best: float) -> dict[str, Any]:
+    i = int(np.argmax(scores["score"]))
+    return {
+        "iteration": iteration,
+        "best_so_far": best,
+        "max": float(scores["score"][i]),
+        "mean": float(np.mean(scores["score"])),
+        "at_max": {k: float(v[i]) for k, v in scores.items()},
+        "falls": int(np.sum(scores["fallen"])),
+    }
+
+
+def _save(out: Path, state: dict[str, Any], config: RunConfig, backend) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / CHECKPOINT, lambda p: p.write_bytes(pickle.dumps(state)))
+    best = state["best"]
+    record = backend.controller.policy_record(np.asarray(best["parameters"]))
+    record.update({
+        "score": best["score"],
+        "objective": config.objective,
+        "metrics": best["metrics"],
+        "iteration": best["iteration"],
+        "run": {**state["settings"], "command": state.get("command", "")},
+    })  # fmt: skip
+    write_json(out / BEST, _finite(record))
+    write_json(out / HISTORY, _finite({"settings": state["settings"], "history": state["history"],
+                                       "wall_seconds": state["wall_seconds"]}))  # fmt: skip
+
+
+def _finite(obj: Any) -> Any:
+    """JSON has no infinities: they become None."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_finite(v) for v in obj]
+    return obj

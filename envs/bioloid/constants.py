@@ -1,0 +1,93 @@
+"""Bioloid quadruped names, source facts and servo settings.
+
+The physical model constants (masses, anchors, axes, shapes) live in ``assets/bioloid/bioloid.xml``, each with its
+source. This module holds what the code needs beside them: the servo names the seed uses (seed 002, Figure 41 and
+Table 3), the postures in servo counts, each servo's allowed range, and the facts the model is checked against.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+import assets
+
+SCENE_XML = assets.path("bioloid", "scene.xml")
+
+# --- names (seed 002 Table 3 and Figure 41; robots.md section 3) ---------------------------------------------------
+LEGS = ("F_L", "F_R", "B_L", "B_R")  # front/back, left/right
+SIDES = ("left", "right")
+LEG_SIDE = {"F_L": "left", "F_R": "right", "B_L": "left", "B_R": "right"}
+SERVOS = (
+    "PELVIS",
+    "F_L_1", "F_L_2", "F_L_3",
+    "F_R_1", "F_R_2", "F_R_3",
+    "B_L_1", "B_L_2", "B_L_3",
+    "B_R_1", "B_R_2", "B_R_3",
+    "N_1", "N_2", "HEAD",
+)  # fmt: skip
+SERVO_INDEX = {name: i for i, name in enumerate(SERVOS)}
+HIP = {leg: f"{leg}_1" for leg in LEGS}  # pitch at the hip
+ABDUCTION = {leg: f"{leg}_2" for leg in LEGS}  # swings the leg out to the side
+KNEE = {leg: f"{leg}_3" for leg in LEGS}
+ROOT_BODY = "BODY"
+ROOT_JOINT = "root"
+FLOOR_GEOM = "floor"
+FOOT_GEOM = {leg: f"{leg}_foot" for leg in LEGS}
+CRUTCH_GEOM = {leg: f"{leg}_crutch" for leg in LEGS}
+SOLE_SITE = {leg: f"{leg}_sole" for leg in LEGS}
+SENSOR_TOUCH = {leg: f"{leg}_touch" for leg in LEGS}
+SENSOR_GYRO, SENSOR_ACCEL = "gyro", "accel"
+SENSOR_BODY_POS, SENSOR_BODY_QUAT, SENSOR_BODY_VEL = "body_pos", "body_quat", "body_vel"
+
+# --- facts from the sources (what the model is checked against) ---------------------------------------------------
+MASS = 1.76  # kg, seed 002 Table 3 (the sum of its parts: 1.760 kg)
+MASS_TOLERANCE = 0.02  # the issue's +-2%
+PARTS_G = {  # g, seed 002 Table 3
+    "BODY": 692, "PELVIS": 146, "N_1": 10, "N_2": 118, "HEAD": 110,
+    **{f"{leg}_1": 12 for leg in LEGS}, **{f"{leg}_2": 126 for leg in LEGS},
+    "F_L_3": 32, "F_R_3": 32, "B_L_3": 34, "B_R_3": 34,
+}  # fmt: skip
+HIP_ANCHOR_FRONT = (0.0565, 0.086, 0.0135)  # m, front-left hip in the body frame (Webots model; robots.md)
+L1_SEED, L2_SEED = 0.09, 0.085  # m, the leg segments the seed's IK used (robots.md section 3)
+ABDUCTION_DROP = 0.0145  # m, hip pitch axis to abduction axis (Webots model)
+THIGH = 0.083  # m, abduction axis to knee, "0.083 m joint-to-joint" (Webots model; robots.md)
+SHANK = 0.085  # m, knee to sole, L2 (robots.md)
+BACK_CRUTCH_OFFSET = 0.0145  # m, the back crutches sit behind their knee line (Webots model)
+KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg (seed 002 VI.A.2, Figure 27)
+KNEE_WEDGE = math.radians(18.0)  # the "aibo style" wedge at each knee (seed 002 IV.A, Figure 11)
+LENGTH = 0.25  # m, body length: CM-5, pelvis and neck servo boxes, nose of the neck to the pelvis' back (measured
+# from the model in tests/test_bioloid_model.py, within 1 cm)
+BATTERY_VOLTAGE = 10.0  # V: the servos' supply; AX-12 rated figures at 10 V (seed 002 Table 2); the CM-5's pack is
+# 9.6 V (seed 002 II.A)
+
+# --- servo counts (AX-12: 0..1023 over 300 deg, 512 = 0 rad; robots.md section 3) ---------------------------------
+COUNTS = 1024
+CENTER = 512.0
+RAD_PER_COUNT = math.radians(300.0) / (COUNTS - 1)
+
+
+def counts(angle: float) -> float:
+    return CENTER + angle / RAD_PER_COUNT
+
+
+# The standing posture: legs down (servo 2 at +-90 deg, the Webots model's standing routine), neck up and head
+# forward (N_1 at -90 deg), everything else at the centre; the gaits move servos 1 and 3 from here.
+STAND_ANGLES = {name: 0.0 for name in SERVOS}
+STAND_ANGLES.update({"F_L_2": math.pi / 2, "B_L_2": math.pi / 2, "F_R_2": -math.pi / 2, "B_R_2": -math.pi / 2})
+STAND_ANGLES["N_1"] = -math.pi / 2
+
+# Each servo's allowed range in counts: the AX-12's full 0..1023 (its angle limits' factory settings, ROBOTIS), except
+# the knees: bent at most 90 deg (seed 002 VI.A.2) and stretched at most 90 deg the other way (assumed symmetric: the
+# bracket's stop is not given). An action of -1..1 spans this range.
+SERVO_RANGE = {name: (0.0, float(COUNTS - 1)) for name in SERVOS}
+for _leg in LEGS:
+    SERVO_RANGE[KNEE[_leg]] = (counts(-KNEE_LIMIT), counts(KNEE_LIMIT))
+RANGE_LOW = np.array([SERVO_RANGE[s][0] for s in SERVOS])
+RANGE_HIGH = np.array([SERVO_RANGE[s][1] for s in SERVOS])
+JOINT_STOP = math.radians(150.0)  # the AX-12's 300 deg span; the knees stop at +-90 deg (the joint limits)
+
+CONTROL_FREQ = 50.0  # Hz: a goal-position packet to all 16 servos every 20 ms (the Webots model's controller ran at
+# 16 ms; the CM-5's bus at 1 Mbps carries a 16-servo sync write in well under 1 ms)
+EPISODE_SECONDS = 10.0

@@ -1,0 +1,397 @@
+"""The Bioloid quadruped of seed 002: 16 AX-12 servos on goal positions, an IMU and telemetry, on the robot contract;
+it knows no task."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import ClassVar
+
+import mujoco
+import numpy as np
+
+from envs.actuators.dcmotor import GAIN_KP
+from envs.actuators.servo import Servo, ServoConstants
+from envs.bioloid import constants as C
+from envs.bioloid.kinematics import Ellipse, LegGeometry
+from envs.common.calibration import Calibration
+from envs.common.imu import Imu, ImuNoise
+from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
+from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+
+GOAL = "goal"
+LOAD_FULL_SCALE = 1023.0  # an AX-12 reports its load as 0..1023 of its maximum torque, with a direction bit
+
+
+def _telemetry_channels() -> dict[str, str]:
+    cols = {"time": "s"}
+    for channel, unit in (
+        ("goal", "count"),
+        ("present_position", "count"),
+        ("angle", "rad"),
+        ("speed", "rad/s"),
+        ("torque", "N m"),
+        ("load", "count"),
+        ("servo_power", "W"),
+    ):
+        cols.update({f"{channel}_{servo}": unit for servo in C.SERVOS})
+    cols.update({f"touch_{leg}": "N" for leg in C.LEGS})
+    cols["vbatt"] = "V"
+    cols.update({f"gyro_{a}": "rad/s" for a in "xyz"})
+    cols.update({f"accel_{a}": "m/s^2" for a in "xyz"})
+    cols.update({f"pos_{a}": "m" for a in "xyz"})
+    cols.update({f"quat_{a}": "1" for a in "wxyz"})
+    cols["power"] = "W"
+    return cols
+
+
+TELEMETRY_COLUMNS: dict[str, str] = _telemetry_channels()
+
+
+def ready_angles(wedge: float = 0.0) -> dict[str, float]:
+    """The gaits' ready posture, servo -> rad: the standing posture with every sole at the centre of the seed's
+    ellipse under its hip (knees bent by the IK)."""
+    angles = dict(C.STAND_ANGLES)
+    for leg in C.LEGS:
+        geometry = LegGeometry.of(leg, wedge)
+        ellipse = Ellipse.seed_rules(geometry)
+        hip, knee, _ = geometry.inverse(ellipse.h, ellipse.k)
+        angles[C.HIP[leg]], angles[C.KNEE[leg]] = float(hip), float(knee)
+    return angles
+
+
+def knee_wedge_edit(angle: float = C.KNEE_WEDGE) -> SpecEdit:
+    """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, seed 002 IV.A)."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        half = angle / 2.0
+        for leg in C.LEGS:
+            body = spec.body(C.KNEE[leg])
+            # the knee axis is the shank body's own z; turning the body's frame turns the shank and its crutch
+            body.quat = [math.cos(half), 0.0, 0.0, math.sin(half)]
+
+    return edit
+
+
+class Bioloid(Robot):
+    """A Bioloid quadruped (seed 002) in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints the
+    seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
+
+    One action mode, ``goal``: the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), each
+    within its allowed range (``constants.SERVO_RANGE``: the full span, the knees +-90 deg), held over the control
+    step as the servos hold a goal packet; 50 Hz by default. Each servo's own position controller (compliance slope,
+    torque and speed limits from its motor and supply) acts at every physics step, natively.
+
+    Args:
+        action_mode: ``"goal"``.
+        control_freq: control steps per second (default 50).
+        knee_wedge: add the 18 deg wedge at each knee (seed 002 IV.A; False: the design the seed validated).
+        servo: the servos' constants and control-table settings (default: AX-12 at 10 V, factory compliance).
+        battery_voltage: the servos' supply, V (default: ``servo``'s, 10 V); a shorthand for ``servo``'s.
+        imu_noise: the IMU's error model (the seed's robot has no IMU; one on the CM-5 is assumed so that heading
+            tasks can run); None for a perfect IMU.
+        spec_edits, num_sims, nthread, batched, calibration: as for every robot (the calibration adapter is to come).
+    """
+
+    name = "bioloid"
+    root_body = C.ROOT_BODY
+    action_modes: ClassVar[dict[str, ActionMode]] = {
+        GOAL: ActionMode(
+            GOAL,
+            C.SERVOS,
+            ("count",) * len(C.SERVOS),
+            tuple(C.RANGE_LOW.tolist()),
+            tuple(C.RANGE_HIGH.tolist()),
+            C.CONTROL_FREQ,
+            "goal position of each servo, counts (512 = 0 rad, 0.293 deg per count)",
+        ),
+    }
+
+    def __init__(
+        self,
+        action_mode: str = GOAL,
+        control_freq: float | None = None,
+        knee_wedge: bool = False,
+        servo: ServoConstants | None = None,
+        battery_voltage: float | None = None,
+        imu_noise: ImuNoise | None = ImuNoise(),  # noqa: B008 (frozen dataclass)
+        spec_edits: Sequence[SpecEdit] = (),
+        num_sims: int | None = None,
+        nthread: int | None = None,
+        batched: bool | None = None,
+        calibration: str | Path | Calibration | None = None,
+    ):
+        if not isinstance(knee_wedge, bool):
+            raise ValueError(f"knee_wedge must be True or False, got {knee_wedge!r}")
+        if servo is not None and not isinstance(servo, ServoConstants):
+            raise ValueError(f"servo must be a ServoConstants, got {servo!r}")
+        constants = servo or ServoConstants(supply_voltage=C.BATTERY_VOLTAGE)
+        if battery_voltage is not None:
+            supply = check_number("battery_voltage", battery_voltage, 0, strict=True)
+            constants = replace(constants, supply_voltage=supply)
+        self.knee_wedge = knee_wedge
+        self.wedge = C.KNEE_WEDGE if knee_wedge else 0.0
+        self.servo = Servo(C.SERVOS, constants)
+        self.nominal_battery = constants.supply_voltage
+        self.imu_noise = imu_noise
+        super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched, calibration)
+
+    @classmethod
+    def xml_path(cls) -> Path:
+        return C.SCENE_XML
+
+    # --- building -----------------------------------------------------------------------------------------------
+    def configure(self, spec: mujoco.MjSpec) -> None:
+        for name in C.SERVOS:
+            joint = spec.joint(name)
+            stop = C.KNEE_LIMIT if name in C.KNEE.values() else C.JOINT_STOP
+            joint.range = [-stop, stop]
+            joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        if self.knee_wedge:
+            knee_wedge_edit(self.wedge)(spec)
+        self.servo.configure(spec)
+
+    def setup(self) -> None:
+        m, n = self.model, self.num_sims
+        self.servo.bind(m, n)
+
+        def idx(*names: str) -> np.ndarray:
+            return np.concatenate([np.arange(self.sensors[k].start, self.sensors[k].stop) for k in names])
+
+        s = self.servo
+        self._i_pos, self._i_torque, self._i_speed = s.pos_adr, s.torque_adr, s.speed_adr
+        self._i_gyro, self._i_accel = idx(C.SENSOR_GYRO), idx(C.SENSOR_ACCEL)
+        self._i_body = idx(C.SENSOR_BODY_POS, C.SENSOR_BODY_QUAT, C.SENSOR_BODY_VEL)
+        self._i_touch = idx(*(C.SENSOR_TOUCH[leg] for leg in C.LEGS))
+        self._i_gyro_z = int(self._i_gyro[2])
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
+        self._root_qpos = int(m.jnt_qposadr[root]) if root >= 0 else None
+        self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None
+        self._servo_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in C.SERVOS])
+        self._servo_dofs = np.array([m.jnt_dofadr[m.joint(j).id] for j in C.SERVOS])
+        joints = np.array([m.joint(j).id for j in C.SERVOS])
+        self._joint_low, self._joint_high = m.jnt_range[joints, 0].copy(), m.jnt_range[joints, 1].copy()
+        self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
+        self.ready = ready_angles(self.wedge)
+        self.ready_counts = np.array([self.servo.constants.counts_of(self.ready[s]) for s in C.SERVOS])
+        self.goal = np.tile(self.ready_counts, (n, 1))
+        self.battery = np.full(n, self.nominal_battery)
+        self.imu = Imu(n, self.imu_noise, self.control_dt, float(m.opt.timestep))
+        self._imu = np.zeros((n, 6))
+        self._servo_power = np.zeros((n, len(C.SERVOS)))
+        self._senses = np.zeros((n, sum(self.sense_structure.values())))
+
+    def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
+        """The Bioloid's physical parameters, each with the model fields it sets (docs/bioloid.md)."""
+        c = self.servo.constants
+        actuators = self.servo.motors.ids
+        robot_geoms = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] != 0])
+        feet = np.array([model.geom(C.FOOT_GEOM[leg]).id for leg in C.LEGS]
+                        + [model.geom(C.CRUTCH_GEOM[leg]).id for leg in C.LEGS])  # fmt: skip
+        body = model.body(C.ROOT_BODY).id
+        dofs = self._servo_dofs
+        p = ParameterMap()
+        p.add(Parameter("battery_voltage", "V", c.supply_voltage, 6.0, 12.6,
+                        "the servos' supply (AX-12: 7-10 V; the CM-5's 9.6 V pack; AX-12A up to 12 V)",
+                        self.servo.supply_fields(), attribute="battery"))  # fmt: skip
+        p.add(Parameter("compliance_slope", "count", c.compliance_slope, 8.0, 128.0,
+                        "every servo's compliance slope: counts of error from the margin to full duty",
+                        (FieldRef("actuator_gainprm", (actuators, GAIN_KP), "inverse"),)))  # fmt: skip
+        p.add(Parameter("servo_armature", "kg m^2", c.rotor_inertia, 0.25 * c.rotor_inertia, 4.0 * c.rotor_inertia,
+                        "rotor inertia at the motor of every servo (x 254^2 at the joint)",
+                        (FieldRef("actuator_armature", (actuators,)),), setconst=True))  # fmt: skip
+        p.add(Parameter("joint_friction", "N m", 0.0, 0.0, 0.2, "Coulomb friction at every servo's output",
+                        (FieldRef("dof_frictionloss", (dofs,)),)))  # fmt: skip
+        p.add(Parameter("joint_damping", "N m s/rad", 0.0, 0.0, 0.1,
+                        "viscous friction at every servo's output (beside the motor's back-EMF)",
+                        (FieldRef("dof_damping", (dofs,)),)))  # fmt: skip
+        p.add(Parameter("foot_friction", "1", float(model.geom_friction[feet[0], 0]), 0.2, 1.5,
+                        "sliding friction of the crutches on the ground (their contact parameters take priority)",
+                        (FieldRef("geom_friction", (feet, 0)),)))  # fmt: skip
+        p.add(Parameter("body_friction", "1", float(model.geom_friction[robot_geoms[0], 0]), 0.2, 1.5,
+                        "sliding friction of the brackets and cases on the ground",
+                        (FieldRef("geom_friction", (np.setdiff1d(robot_geoms, feet), 0)),)))  # fmt: skip
+        p.add(Parameter("body_mass", "kg", float(model.body_mass[body]), 0.55, 0.85,
+                        "BODY: the CM-5 with its battery (Table 3: 0.692 kg), inertia scaled with it",
+                        (FieldRef("body_mass", (body,), "scale"), FieldRef("body_inertia", (body,), "scale")),
+                        setconst=True))  # fmt: skip
+        for axis, i in (("x", 0), ("y", 1), ("z", 2)):
+            p.add(Parameter(f"body_com_{axis}", "m", float(model.body_ipos[body, i]),
+                            float(model.body_ipos[body, i]) - 0.02, float(model.body_ipos[body, i]) + 0.02,
+                            f"BODY's centre of mass along {axis} (the seed suspects the CM-5's is off, seed 002 V.B)",
+                            (FieldRef("body_ipos", (body, i)),), setconst=True))  # fmt: skip
+        return p
+
+    def parameters_changed(self, ids: np.ndarray) -> None:
+        self.servo.motors.refresh(ids, self.field("actuator_gainprm"))
+
+    # --- the contract -------------------------------------------------------------------------------------------
+    @property
+    def facts(self) -> Facts:
+        return Facts(
+            mass=self._mass,
+            length=C.LENGTH,
+            legs=C.LEGS,
+            extra={
+                "servos": C.SERVOS,
+                "knee_wedge": self.knee_wedge,
+                "supply_voltage": self.nominal_battery,
+                "stall_torque": self.servo.constants.stall_torque,
+            },
+        )
+
+    @property
+    def sense_structure(self) -> dict[str, int]:
+        n = len(C.SERVOS)
+        return {"leg_cos": n, "leg_sin": n, "servo_speed": n, "servo_load": n, "gyro": 3, "accel": 3, "battery": 1}
+
+    @property
+    def telemetry_channels(self) -> dict[str, str]:
+        return TELEMETRY_COLUMNS
+
+    @property
+    def plot_groups(self) -> tuple[PlotGroup, ...]:
+        front_left = tuple(f"present_position_{s}" for s in ("F_L_1", "F_L_3"))
+        return (
+            PlotGroup(
+                "front-left hip and knee, present minus goal",
+                "count",
+                front_left,
+                1.0,
+                tuple(f"goal_{s}" for s in ("F_L_1", "F_L_3")),
+            ),
+            PlotGroup("hip torques", "N m", tuple(f"torque_{C.HIP[leg]}" for leg in C.LEGS)),
+            PlotGroup("foot contact force", "N", tuple(f"touch_{leg}" for leg in C.LEGS)),
+            PlotGroup("battery power", "W", ("power",)),
+        )
+
+    def stand_height(self, angles: np.ndarray) -> float:
+        """Height of the body's origin (m) at which the lowest sole of a level robot in posture ``angles`` (rad, in
+        ``SERVOS`` order) touches the ground."""
+        m = self.model
+        data = mujoco.MjData(m)
+        data.qpos[:] = m.qpos0
+        data.qpos[self._servo_qpos] = angles
+        if self._root_qpos is not None:
+            data.qpos[self._root_qpos : self._root_qpos + 7] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+        mujoco.mj_kinematics(m, data)
+        lowest = min(data.site(C.SOLE_SITE[leg]).xpos[2] for leg in C.LEGS)
+        return float(-lowest)
+
+    def reset(
+        self, ids: np.ndarray, rngs: Sequence[np.random.Generator], noise: float = 0.0, options: Mapping | None = None
+    ) -> None:
+        """The gaits' ready posture (legs down, soles at the centre of the seed's ellipse), level, its lowest sole on
+        the ground; servo angles perturbed by U(-noise, noise) x 0.2 rad, body angular velocity by N(0, noise / 2)
+        rad/s and linear velocity by N(0, noise / 20) m/s. The goals hold the perturbed posture. ``options`` may give
+        ``counts`` (16 servo positions, counts) or ``angles`` (16, rad) exactly, and ``height`` (m) of the body's
+        origin (default: the lowest sole on the ground)."""
+        options = options or {}
+        m = self.model
+        k = len(ids)
+        qpos, qvel = np.tile(m.qpos0, (k, 1)), np.zeros((k, m.nv))
+        base = np.array([self.ready[s] for s in C.SERVOS])
+        if "counts" in options or "angles" in options:
+            base = self._option_posture(options)
+        fixed_height = None if "height" not in options else check_number("options['height']", options["height"], 0)
+        heights: dict[bytes, float] = {}
+        for j, rng in enumerate(rngs):
+            angles = base + 0.2 * rng.uniform(-noise, noise, len(C.SERVOS))
+            lin, ang = rng.normal(0.0, noise / 20.0, 3), rng.normal(0.0, noise / 2.0, 3)
+            angles = np.clip(angles, self._joint_low, self._joint_high)
+            qpos[j, self._servo_qpos] = angles
+            if self._root_qpos is not None:
+                key = angles.tobytes()
+                if key not in heights:
+                    heights[key] = self.stand_height(angles) + 1e-4 if fixed_height is None else fixed_height
+                qpos[j, self._root_qpos : self._root_qpos + 7] = [0.0, 0.0, heights[key], 1.0, 0.0, 0.0, 0.0]
+                qvel[j, self._root_qvel : self._root_qvel + 6] = np.concatenate([lin, ang])
+            self.goal[ids[j]] = self.servo.constants.counts_of(angles)
+        self.sim.reset(ids, {"qpos": qpos, "qvel": qvel, "act": np.zeros((k, m.na)), "ctrl": np.zeros((k, m.nu))})
+        self.imu.reset(ids, rngs)
+        self._servo_power[ids] = 0.0
+        self.command(self.goal)
+
+    @staticmethod
+    def _option_posture(options: Mapping) -> np.ndarray:
+        key = "counts" if "counts" in options else "angles"
+        values = np.asarray(options[key], dtype=np.float64)
+        if values.shape != (len(C.SERVOS),) or not np.isfinite(values).all():
+            raise ValueError(f"options[{key!r}] must be {len(C.SERVOS)} finite numbers in SERVOS order, got {values!r}")
+        return (values - C.CENTER) * C.RAD_PER_COUNT if key == "counts" else values
+
+    def command(self, command: np.ndarray) -> None:
+        """Goal positions (n, 16) in counts, clipped to each servo's allowed range, held over the control block."""
+        self.goal[:] = np.minimum(np.maximum(command, C.RANGE_LOW), C.RANGE_HIGH)
+        self.servo.set_goal(self.sim.ctrl, self.goal)
+
+    def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
+        sd = self.sim.sensordata
+        sub = self.sim.substep_sensordata
+        if stepped is False:
+            self._servo_power[:] = 0.0
+        else:
+            self._servo_power = self.servo.battery_power(sub).mean(axis=1)
+            if stepped is not True:
+                self._servo_power[~np.asarray(stepped)] = 0.0
+        self._imu = self.imu.update(np.concatenate([sd[:, self._i_gyro], sd[:, self._i_accel]], axis=1),
+                                    sub[:, :, self._i_gyro_z], rngs, stepped)  # fmt: skip
+        angle = self.servo.constants.angle(self.servo.present_position(sd))  # as the servo reports it, a whole count
+        n = len(C.SERVOS)
+        senses = self._senses
+        senses[:, 0:n] = np.cos(angle)
+        senses[:, n : 2 * n] = np.sin(angle)
+        senses[:, 2 * n : 3 * n] = sd[:, self._i_speed] / self.servo.motors.gear
+        senses[:, 3 * n : 4 * n] = self.load(sd)
+        senses[:, 4 * n : 4 * n + 6] = self._imu
+        senses[:, 4 * n + 6] = self.battery
+        body = sd[:, self._i_body]
+        return {
+            "time": self.sim.time,
+            "position": body[:, 0:3],
+            "quaternion": body[:, 3:7],
+            "velocity": body[:, 7:10],
+            "power": self._servo_power.sum(axis=1),
+            "heading": self.imu.heading.copy(),
+            "senses": senses,  # the robot's buffer: valid until the next read
+        }
+
+    def load(self, sensordata: np.ndarray) -> np.ndarray:
+        """Each servo's load as it reports it: output torque over its stall torque at the present supply, signed, in
+        counts of 1023 (ROBOTIS "present load"), rounded to a whole count."""
+        stall = self.servo.constants.stall_torque * (self.battery / self.nominal_battery)
+        return np.rint(np.clip(self.servo.output_torque(sensordata) / stall[:, None], -1.0, 1.0) * LOAD_FULL_SCALE)
+
+    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        sd = self.sim.sensordata
+        s = self.servo
+        present = s.present_position(sd)
+        columns = [
+            readings["time"][:, None],
+            self.goal,
+            present,
+            s.position(sd),
+            sd[:, self._i_speed] / s.motors.gear,
+            s.output_torque(sd),
+            self.load(sd),
+            self._servo_power,
+            sd[:, self._i_touch],
+            self.battery[:, None],
+            self._imu,
+            readings["position"],
+            readings["quaternion"],
+            readings["power"][:, None],
+        ]
+        return np.concatenate(columns, axis=1)
+
+    # --- helpers for policies, tests and benchmarks -----------------------------------------------------------
+    def servo_angles(self) -> np.ndarray:
+        """Servo angles, rad: (num_sims, 16) in ``SERVOS`` order."""
+        return self.servo.position(self.sim.sensordata)
+
+    def foot_forces(self, sensordata: np.ndarray | None = None) -> np.ndarray:
+        """Normal force on each foot, N: (num_sims, 4) in ``LEGS`` order (or per physics step with substep data)."""
+        sd = self.sim.sensordata if sensordata is None else sensordata
+        return sd[..., self._i_touch]

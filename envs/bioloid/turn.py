@@ -1,0 +1,94 @@
+"""BioloidTurn: follow a commanded yaw rate."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+from envs.actuators.servo import ServoConstants
+from envs.bioloid.robot import GOAL, Bioloid
+from envs.bioloid.walk import ENERGY_COST_WEIGHT
+from envs.common.env import SkitterEnv
+from envs.common.imu import ImuNoise
+from envs.common.locomotion import TurnTask
+from envs.common.vector import vector_entry_point
+
+YAW_RATE_RANGE = 0.3  # rad/s: commands from U(-0.3, 0.3), within the stride-scaling trot's reach (docs/bioloid.md)
+
+
+class BioloidTurnEnv(SkitterEnv):
+    """Make a Bioloid quadruped turn at a commanded yaw rate while it walks.
+
+    Robot, actions, starting state, episode end, info and the shared observations are those of
+    :class:`envs.bioloid.walk.BioloidWalkEnv`; this docstring lists what differs.
+
+    ## Command
+    A yaw rate ``r`` (rad/s, positive counter-clockwise seen from above), drawn per episode from
+    ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.3 rad/s), or set with ``reset(options={"yaw_rate": r})``. The
+    commanded heading turns at ``r`` from the heading at reset. The reference gait turns by scaling the stride of each
+    side (``ik-trot`` on this env; agents/bioloid/ik.py).
+
+    ## Observation Space
+    As BioloidWalk, ``heading_error`` taken against the turning commanded heading, and the commanded yaw rate
+    (``yaw_rate_command``, rad/s) after it: size 74, 7 more with ``privileged_obs``.
+
+    ## Rewards
+    ``reward = tracking + speed + energy``, each in ``info["reward_<term>"]``:
+
+    - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the yaw rate over the step;
+    - ``speed``: ``speed_reward_weight * v / 0.25 m``, v the speed along the body's heading in body lengths/s;
+    - ``energy``: ``-energy_cost_weight * P`` as in BioloidWalk.
+
+    ## Arguments
+    As BioloidWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range``
+    (0.3 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
+
+    ## Version History
+    - v0: first release.
+    """
+
+    def __init__(
+        self,
+        action_mode: str = GOAL,
+        control_freq: float | None = None,
+        privileged_obs: bool = False,
+        yaw_rate_range: float = YAW_RATE_RANGE,
+        tracking_reward_weight: float = 1.0,
+        tracking_sigma: float = 0.2,
+        speed_reward_weight: float = 0.1,
+        energy_cost_weight: float = ENERGY_COST_WEIGHT,
+        max_tilt: float = 1.0,
+        reset_noise_scale: float = 0.1,
+        knee_wedge: bool = False,
+        servo: ServoConstants | None = None,
+        battery_voltage: float | None = None,
+        sensor_noise: bool = True,
+        randomize: Mapping[str, Sequence[float]] | None = None,
+        calibration: str | None = None,
+        telemetry: bool = False,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+    ):
+        robot = Bioloid(
+            action_mode,
+            control_freq,
+            knee_wedge,
+            servo,
+            battery_voltage,
+            ImuNoise() if sensor_noise else None,
+            calibration=calibration,
+        )
+        task = TurnTask(
+            robot,
+            privileged_obs,
+            yaw_rate_range,
+            tracking_reward_weight,
+            tracking_sigma,
+            speed_reward_weight,
+            energy_cost_weight,
+            max_tilt,
+        )
+        super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
+
+
+make_batched = vector_entry_point(BioloidTurnEnv)
