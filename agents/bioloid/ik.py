@@ -7,10 +7,11 @@ bent past 90 deg (envs/bioloid/kinematics.py). The four legs run the same ellips
 ellipse is the stance (the foot moves backward), so every gait's commanded duty factor is 0.5; docs/bioloid.md
 sets the phases and duty factors beside the gait literature's.
 
-Steering: each side's stride (the ellipse's x radius) is scaled by a factor in [-1, 1]; a shorter stride on the left
-turns the robot left (the seed's Webots model turned this way: its controller's "turn amount" added to one side's
-stride factor and took from the other's). On a turning task the factor follows the commanded yaw rate (a
-feed-forward) plus a proportional correction on the observed heading error.
+Steering: each side's stride (the ellipse's x radius) is scaled by a factor in [0, 1], as the seed's Webots model
+steered (its controller's "turn amount" added to one side's stride factor and took from the other's). Measured on
+this model, the trot turns toward the side with the longer stride: a right stride of 0 turns it left at 0.13-0.28
+rad/s at 1.5 Hz (docs/bioloid.md; negative strides tipped it over). On a turning task the factor follows the
+commanded yaw rate (a feed-forward) plus a proportional correction on the observed heading error.
 
 Names in the policy registry (agents/bioloid/__init__.py): ``ik-<gait>`` (at 1.5 Hz, the trot's reference) and
 ``ik-<gait>:<Hz>``. Every policy follows Stable-Baselines3's ``predict(observation, state, episode_start,
@@ -55,8 +56,8 @@ GAITS: dict[str, Gait] = {
 }
 DEFAULT_FREQUENCY = 1.5  # Hz: the issue's reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
-TURN_GAIN = 0.5  # rad/s of yaw rate per unit of stride difference (measured at 1.5 Hz, docs/bioloid.md)
-HEADING_GAIN = 1.0  # stride difference per rad of heading error
+TURN_GAIN = 0.2  # rad/s of yaw rate with one side's stride at 0 (measured at 1.5 Hz: 0.13-0.28, docs/bioloid.md)
+HEADING_GAIN = 1.0  # stride reduction per rad of heading error
 SIDE = np.array([0.0 if C.LEG_SIDE[leg] == "left" else 1.0 for leg in C.LEGS])  # 0 left, 1 right
 
 
@@ -109,16 +110,16 @@ class IKGait:
         return f"IKGait({self.gait.name}, {self.frequency:g} Hz{', steering' if self.steer else ''})"
 
     def strides(self, obs: np.ndarray) -> np.ndarray:
-        """Stride factor per leg (n, 4): 1 walking straight; on a turning task the side toward which the robot should
-        turn shortens its stride."""
+        """Stride factor per leg (n, 4): 1 walking straight; on a turning task one side's stride shortens, down to 0
+        (the trot turns toward the side of the longer stride: measured, docs/bioloid.md)."""
         n = len(obs)
         if not self.steer:
             return np.ones((n, 4))
         command = self.layout.get(obs, "yaw_rate_command")[:, 0]
         s, c = self.layout.get(obs, "heading_error").T
-        difference = np.clip(command / TURN_GAIN - HEADING_GAIN * np.arctan2(s, c), -2.0, 2.0)  # right minus left
-        left = np.clip(1.0 - np.maximum(difference, 0.0), -1.0, 1.0)
-        right = np.clip(1.0 + np.minimum(difference, 0.0), -1.0, 1.0)
+        turn = command / TURN_GAIN - HEADING_GAIN * np.arctan2(s, c)  # > 0: turn left
+        right = 1.0 - np.clip(turn, 0.0, 1.0)
+        left = 1.0 - np.clip(-turn, 0.0, 1.0)
         return np.where(SIDE[None, :] == 0.0, left[:, None], right[:, None])
 
     def lead_in(self, t: np.ndarray) -> np.ndarray:

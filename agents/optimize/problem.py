@@ -45,6 +45,15 @@ OBJECTIVES = ("forward", "eq17")
 GENERIC_FIELDS = {"env", "env_kwargs", "controller", "seconds", "objective", "sample_interval", "max_tilt"}
 
 
+def eq17(positions: np.ndarray, alpha: float = 1.0, beta: float = 1.0) -> np.ndarray:
+    """The seed's performance (eq. 17) of trajectories sampled at fixed intervals, (n, N, 2) ground positions:
+    ``alpha |p_N - p_1| + beta sum_i |p_(i+1) - p_i|`` (the seed: alpha = beta = 1)."""
+    p = np.asarray(positions, dtype=np.float64)
+    straight = np.linalg.norm(p[:, -1] - p[:, 0], axis=1)
+    integrated = np.linalg.norm(np.diff(p, axis=1), axis=2).sum(axis=1)
+    return alpha * straight + beta * integrated
+
+
 class ConfigError(ValueError):
     """A run configuration that cannot be used; the message names the file, the field and the value."""
 
@@ -230,10 +239,9 @@ class Evaluator:
                 samples.append(readings["position"][:, :2].copy())
         p = np.stack(samples, axis=1)  # (n, N, 2)
         x_end = p[:, -1, 0]
-        eq17 = np.linalg.norm(p[:, -1] - p[:, 0], axis=1) + np.linalg.norm(np.diff(p, axis=1), axis=2).sum(axis=1)
         forward = np.where(fallen, fall_x, x_end) - x0
         scores = {
-            "eq17": eq17,
+            "eq17": eq17(p),
             "forward": forward,
             "progress_x": x_end - x0,
             "fallen": fallen.astype(np.float64),

@@ -57,8 +57,8 @@ SHANK = 0.085  # m, knee to sole, L2 (robots.md)
 BACK_CRUTCH_OFFSET = 0.0145  # m, the back crutches sit behind their knee line (Webots model)
 KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg (seed 002 VI.A.2, Figure 27)
 KNEE_WEDGE = math.radians(18.0)  # the "aibo style" wedge at each knee (seed 002 IV.A, Figure 11)
-LENGTH = 0.25  # m, body length: CM-5, pelvis and neck servo boxes, nose of the neck to the pelvis' back (measured
-# from the model in tests/test_bioloid_model.py, within 1 cm)
+LENGTH = 0.30  # m, body length at the standing posture, the head's front to the pelvis' back (measured on the model
+# in tests/test_bioloid_model.py, within 1 cm); hip to hip 0.165 m
 BATTERY_VOLTAGE = 10.0  # V: the servos' supply; AX-12 rated figures at 10 V (seed 002 Table 2); the CM-5's pack is
 # 9.6 V (seed 002 II.A)
 

@@ -69,7 +69,7 @@ class LegGeometry:
         cos_bend = np.clip((r2 - l1 * l1 - ls * ls) / (2.0 * l1 * ls), -1.0, 1.0)
         bend = np.arccos(cos_bend)  # >= 0: the foot behind the thigh's line, as the seed's Figure 27 bends it
         knee = bend - self.wedge - self.shank_angle
-        limited = knee > C.KNEE_LIMIT
+        limited = knee > C.KNEE_LIMIT + 1e-9  # the ellipse's top reaches the limit exactly
         knee = np.clip(knee, -C.KNEE_LIMIT, C.KNEE_LIMIT)
         bend = knee + self.wedge + self.shank_angle
         hip = np.arctan2(-x, -z) - np.arctan2(ls * np.sin(bend), l1 + ls * np.cos(bend))

@@ -12,7 +12,7 @@ from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
 from envs.common.vector import vector_entry_point
 
-YAW_RATE_RANGE = 0.3  # rad/s: commands from U(-0.3, 0.3), within the stride-scaling trot's reach (docs/bioloid.md)
+YAW_RATE_RANGE = 0.2  # rad/s: commands from U(-0.2, 0.2), within the stride-scaling trot's reach (docs/bioloid.md)
 
 
 class BioloidTurnEnv(SkitterEnv):
@@ -23,7 +23,7 @@ class BioloidTurnEnv(SkitterEnv):
 
     ## Command
     A yaw rate ``r`` (rad/s, positive counter-clockwise seen from above), drawn per episode from
-    ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.3 rad/s), or set with ``reset(options={"yaw_rate": r})``. The
+    ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.2 rad/s), or set with ``reset(options={"yaw_rate": r})``. The
     commanded heading turns at ``r`` from the heading at reset. The reference gait turns by scaling the stride of each
     side (``ik-trot`` on this env; agents/bioloid/ik.py).
 
@@ -35,12 +35,12 @@ class BioloidTurnEnv(SkitterEnv):
     ``reward = tracking + speed + energy``, each in ``info["reward_<term>"]``:
 
     - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the yaw rate over the step;
-    - ``speed``: ``speed_reward_weight * v / 0.25 m``, v the speed along the body's heading in body lengths/s;
+    - ``speed``: ``speed_reward_weight * v / 0.30 m``, v the speed along the body's heading in body lengths/s;
     - ``energy``: ``-energy_cost_weight * P`` as in BioloidWalk.
 
     ## Arguments
     As BioloidWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range``
-    (0.3 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
+    (0.2 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
 
     ## Version History
     - v0: first release.

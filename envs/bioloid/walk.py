@@ -50,7 +50,7 @@ class BioloidWalkEnv(SkitterEnv):
     ## Rewards
     ``reward = forward + energy + upright``, each weighted, each in ``info["reward_<term>"]``:
 
-    - ``forward``: ``forward_reward_weight * v_x / 0.25 m``, world-x speed over the step in body lengths per second;
+    - ``forward``: ``forward_reward_weight * v_x / 0.30 m``, world-x speed over the step in body lengths per second;
     - ``energy``: ``-energy_cost_weight * P``, P the servos' battery power (W, mean over the step);
     - ``upright``: ``upright_reward_weight * u``, u the world-z component of the body's z axis.
 

@@ -1,0 +1,198 @@
+"""The Bioloid quadruped's model against its sources: masses, geometry, the knee wedge, the AX-12 servos in the robot
+(holding a pose within their compliance, saturating at their torque limit), telemetry and argument checks."""
+
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+import envs  # noqa: F401
+from envs.actuators.servo import KGF_CM, ServoConstants
+from envs.bioloid import constants as C
+from envs.bioloid.kinematics import LegGeometry
+from envs.bioloid.robot import Bioloid
+
+RNG = [np.random.default_rng(0)]
+ONE = np.array([0])
+
+
+def test_total_mass_is_the_seeds_within_two_percent_and_every_part_is_table_3():
+    robot = Bioloid(imu_noise=None)
+    m = robot.model
+    assert robot.facts.mass == pytest.approx(C.MASS, rel=C.MASS_TOLERANCE)
+    for part, grams in C.PARTS_G.items():
+        assert m.body(part).mass[0] == pytest.approx(grams / 1000.0), part
+    assert sum(C.PARTS_G.values()) == 1760
+
+
+def test_hip_anchor_segments_and_servo_names_follow_the_sources():
+    robot = Bioloid(imu_noise=None)
+    m = robot.model
+    assert [m.actuator(i).name for i in range(m.nu)] == [f"{s}_servo" for s in C.SERVOS]
+    np.testing.assert_allclose(m.body("F_L_1").pos, C.HIP_ANCHOR_FRONT)
+    np.testing.assert_allclose(m.body("F_R_1").pos, np.array(C.HIP_ANCHOR_FRONT) * [1, -1, 1])
+    assert m.body("F_L_3").pos[1] == pytest.approx(C.THIGH)
+    assert m.site("F_L_sole").pos[1] == pytest.approx(C.SHANK)
+
+
+def test_standing_posture_puts_the_legs_down_and_forward_kinematics_matches_the_model():
+    for wedge in (False, True):
+        robot = Bioloid(knee_wedge=wedge, imu_noise=None)
+        m, d = robot.model, mujoco.MjData(robot.model)
+        rng = np.random.default_rng(1)
+        angles = np.array([C.STAND_ANGLES[s] for s in C.SERVOS])
+        for leg in C.LEGS:
+            angles[C.SERVO_INDEX[C.HIP[leg]]] = rng.uniform(-0.5, 0.5)
+            angles[C.SERVO_INDEX[C.KNEE[leg]]] = rng.uniform(0.0, 1.2)
+        d.qpos[robot._servo_qpos] = angles
+        d.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
+        mujoco.mj_kinematics(m, d)
+        for leg in C.LEGS:
+            hip = d.body(C.HIP[leg]).xpos
+            sole = d.site(C.SOLE_SITE[leg]).xpos
+            x, z = LegGeometry.of(leg, robot.wedge).forward(
+                angles[C.SERVO_INDEX[C.HIP[leg]]], angles[C.SERVO_INDEX[C.KNEE[leg]]]
+            )
+            assert sole[0] - hip[0] == pytest.approx(x, abs=1e-9), (wedge, leg)
+            assert sole[2] - hip[2] == pytest.approx(z, abs=1e-9), (wedge, leg)
+            assert abs(sole[1] - hip[1]) < 0.01, "the leg points down, not sideways"
+
+
+def test_knee_wedge_turns_every_shank_by_18_degrees_and_changes_nothing_else():
+    plain, wedged = Bioloid(imu_noise=None), Bioloid(knee_wedge=True, imu_noise=None)
+    assert wedged.facts.mass == pytest.approx(plain.facts.mass)
+    for leg in C.LEGS:
+        q = wedged.model.body(C.KNEE[leg]).quat
+        assert 2 * math.degrees(math.atan2(q[3], q[0])) == pytest.approx(18.0)
+        np.testing.assert_array_equal(plain.model.body(C.KNEE[leg]).quat, [1, 0, 0, 0])
+    assert wedged.model_hash != plain.model_hash
+
+
+def test_body_length_constant_matches_the_model_within_a_centimetre():
+    robot = Bioloid(imu_noise=None)
+    robot.reset(ONE, RNG)
+    m, d = robot.model, robot.data
+    xs = []
+    for name in ("cm5", "head", "pelvis", "PELVIS_case"):
+        g = m.geom(name).id
+        half = np.abs(d.geom_xmat[g].reshape(3, 3)[0]) @ m.geom_size[g]  # half-extent along world x
+        xs += [d.geom_xpos[g, 0] - half, d.geom_xpos[g, 0] + half]
+    assert max(xs) - min(xs) == pytest.approx(C.LENGTH, abs=0.01)
+
+
+def settle(robot: Bioloid, seconds: float) -> None:
+    for _ in range(round(seconds / robot.control_dt)):
+        robot.command(robot.goal.copy())
+        robot.step()
+
+
+def test_servos_hold_the_standing_pose_under_gravity_within_their_compliance():
+    """Standing at the ready posture, every servo holds its goal: the error stays below the compliance slope (the
+    servo is not saturated) and equals torque / stiffness, the proportional law; the body holds its height."""
+    robot = Bioloid(imu_noise=None)
+    robot.reset(ONE, RNG)
+    settle(robot, 1.0)
+    z0 = robot.data.qpos[2]
+    settle(robot, 2.0)
+    assert abs(robot.data.qpos[2] - z0) < 0.002, "the pose holds"
+    c = robot.servo.constants
+    stiffness = c.stall_torque / c.compliance_slope  # N m per count of error
+    error = robot.servo.constants.counts_of(robot.servo_angles()[0]) - robot.goal[0]
+    torque = robot.servo.output_torque(robot.sim.sensordata)[0]
+    assert np.abs(error).max() < c.compliance_slope, "within compliance, not saturated"
+    assert np.abs(error).max() > 1.0, "the knees carry the robot: they sag a little"
+    loaded = np.abs(torque) > 0.05
+    np.testing.assert_allclose(-torque[loaded] / stiffness, error[loaded], atol=0.5)  # 0.5 count: velocity, noise
+
+
+def clamped_knee(supply: float, torque_limit: float = 1023.0) -> Bioloid:
+    """The body fixed in the air and the front-left knee blocked at 0 rad by its joint limits."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        spec.delete(spec.joint(C.ROOT_JOINT))
+        spec.body(C.ROOT_BODY).pos = [0.0, 0.0, 0.5]
+
+    robot = Bioloid(servo=ServoConstants(supply_voltage=supply, torque_limit=torque_limit), imu_noise=None,
+                    spec_edits=[edit])  # fmt: skip
+    i = robot.model.joint("F_L_3").id
+    robot.model.jnt_range[i] = [-1e-4, 1e-4]
+    return robot
+
+
+@pytest.mark.parametrize(("supply", "kgf_cm"), [(7.0, 12.0), (10.0, 16.5)])
+def test_a_blocked_servo_saturates_at_its_holding_torque(supply, kgf_cm):
+    robot = clamped_knee(supply)
+    robot.reset(ONE, RNG, options={"angles": [C.STAND_ANGLES[s] for s in C.SERVOS]})
+    knee = C.SERVO_INDEX["F_L_3"]
+    for goal in (C.CENTER + 200, C.CENTER - 200):  # 59 deg away from where the stop holds it, both ways
+        robot.goal[0, knee] = goal
+        settle(robot, 0.3)
+        torque = robot.servo.output_torque(robot.sim.sensordata)[0, knee]
+        assert abs(torque) == pytest.approx(kgf_cm * KGF_CM, rel=0.03), goal  # datasheet, seed 002 Table 2
+        assert np.sign(torque) == np.sign(goal - C.CENTER)
+        readings = robot.read(RNG)
+        row = dict(zip(robot.telemetry_channels, robot.telemetry(readings)[0], strict=True))
+        assert abs(row["load_F_L_3"]) == 1023, "the servo reports full load"
+
+
+def test_the_torque_limit_register_caps_the_torque():
+    robot = clamped_knee(10.0, torque_limit=512)
+    robot.reset(ONE, RNG, options={"angles": [C.STAND_ANGLES[s] for s in C.SERVOS]})
+    knee = C.SERVO_INDEX["F_L_3"]
+    robot.goal[0, knee] = C.CENTER + 200
+    settle(robot, 0.3)
+    torque = robot.servo.output_torque(robot.sim.sensordata)[0, knee]
+    assert torque == pytest.approx(16.5 * KGF_CM * 512 / 1023, rel=0.03)
+
+
+def test_action_spans_each_servos_allowed_range_and_knees_stop_at_90_degrees():
+    env = gym.make("skitter/BioloidWalk-v0")
+    mode = env.unwrapped.robot.mode
+    low, high = mode.to_command(-np.ones(16)), mode.to_command(np.ones(16))
+    for name, (lo, hi) in C.SERVO_RANGE.items():
+        i = C.SERVO_INDEX[name]
+        assert (low[i], high[i]) == (lo, hi), name
+    assert high[C.SERVO_INDEX["F_L_3"]] == pytest.approx(C.CENTER + math.radians(90) / C.RAD_PER_COUNT)
+    assert (low[0], high[0]) == (0.0, 1023.0)
+
+
+def test_telemetry_has_goal_present_position_load_and_battery_per_servo():
+    env = gym.make("skitter/BioloidWalk-v0", telemetry=True)
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(env.action_space.sample())
+    frame = env.unwrapped.recorder.frame()
+    for servo in C.SERVOS:
+        for channel in ("goal", "present_position", "torque", "load"):
+            assert f"{channel}_{servo}" in frame.columns
+    assert (frame["vbatt"] == 10.0).all()
+    assert ((frame["present_position_F_L_1"] % 1) == 0).all(), "positions reported in whole counts"
+
+
+def test_parameters_reach_the_model():
+    robot = Bioloid(imu_noise=None)
+    body = robot.model.body("BODY").id
+    robot.set_parameters(ONE, {"body_com_x": 0.01, "battery_voltage": 7.0, "compliance_slope": 64.0})
+    assert robot.model.body_ipos[body, 0] == 0.01
+    assert robot.battery[0] == 7.0
+    assert sorted(robot.parameters.names()) == sorted([
+        "battery_voltage", "compliance_slope", "servo_armature", "joint_friction", "joint_damping",
+        "foot_friction", "body_friction", "body_mass", "body_com_x", "body_com_y", "body_com_z",
+    ])  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"knee_wedge": "yes"}, "knee_wedge"),
+        ({"battery_voltage": 0.0}, "battery_voltage"),
+        ({"servo": 10.0}, "servo"),
+        ({"control_freq": 333.0}, "control_freq"),
+        ({"max_tilt": -1.0}, "max_tilt"),
+    ],
+)
+def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("skitter/BioloidWalk-v0", **kwargs)
