@@ -1,0 +1,147 @@
+"""agents.optimize: the seed's PSO and CMA-ES improve on a tiny budget, a killed run resumes to what an uninterrupted
+run gives, the Ray backend equals the local batch, eq. 17, and the command line's one-line errors."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.optimize.optimizers import PSO
+from agents.optimize.problem import Evaluator, eq17, parse_config
+from agents.optimize.run import LocalBackend, RayBackend, RunError, Settings, run
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = {"env": "skitter/BioloidWalk-v0", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
+        "objective": "forward", "sample_interval": 1.0}  # fmt: skip
+
+
+def write_config(tmp_path: Path, **change) -> Path:
+    path = tmp_path / "tiny.json"
+    path.write_text(json.dumps({**TINY, **change}))
+    return path
+
+
+def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "agents.optimize", "--no-progress", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)  # fmt: skip
+
+
+def test_eq17_is_the_straight_plus_the_integrated_distance():
+    square = np.array([[[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]]], dtype=float)  # back where it started
+    assert eq17(square)[0] == pytest.approx(4.0)
+    line = np.array([[[0, 0], [0.5, 0], [1.0, 0]]])
+    assert eq17(line)[0] == pytest.approx(2.0)
+    backward = -line
+    assert eq17(backward)[0] == eq17(line)[0], "eq. 17 rewards walking backward as much"
+
+
+def test_pso_inertia_decreases_and_the_social_term_follows_the_best_of_the_nearest():
+    pso = PSO(dimension=2, particles=6, iterations=5, seed=0, neighbours=3)
+    assert pso.inertia() == pytest.approx(0.9)
+    x = pso.ask()
+    scores = -np.linalg.norm(x - 0.5, axis=1)
+    pso.tell(scores)
+    assert pso.inertia() == pytest.approx(0.9 - 0.5 / 4)
+    for _ in range(3):
+        pso.tell(-np.linalg.norm(pso.ask() - 0.5, axis=1))
+    assert pso.inertia() == pytest.approx(0.4)
+    assert ((pso.x >= 0) & (pso.x <= 1)).all()
+
+
+@pytest.mark.parametrize("optimizer", ["pso", "cmaes"])
+def test_optimizers_improve_the_objective_on_a_tiny_budget(tmp_path, optimizer):
+    """10 particles x 5 iterations x 8 s: the best forward progress at the end beats the first iteration's best."""
+    config = parse_config({**TINY})
+    settings = Settings(config.to_dict(), optimizer, 5, 10, 1)
+    result = run(config, settings, tmp_path / optimizer, lambda: LocalBackend(config, 10, 2), progress=False)
+    best = [row["best_so_far"] for row in result["history"]]
+    assert len(best) == 5 and best == sorted(best)
+    assert best[-1] > best[0], best
+    policy = json.loads((tmp_path / optimizer / "best.json").read_text())
+    assert policy["policy"] == "cpg" and len(policy["parameters"]) == 16
+    assert policy["score"] == pytest.approx(best[-1])
+    # the policy file replays its score through the evaluator: same parameters, same rollout
+    again = Evaluator(config, 1, nthread=1).evaluate(np.array([policy["parameters"]]))
+    assert again["score"][0] == pytest.approx(policy["score"], abs=1e-12)
+
+
+def test_a_killed_run_resumes_from_its_checkpoint_to_the_uninterrupted_result(tmp_path):
+    config = write_config(tmp_path, seconds=4.0)
+    args = ["--config", str(config), "--optimizer", "pso", "--iterations", "8", "--particles", "6", "--seed", "3",
+            "--workers", "1"]  # fmt: skip
+    straight = cli(*args, "--out", str(tmp_path / "straight"))
+    assert straight.returncode == 0, straight.stderr
+    killed = tmp_path / "killed"
+    process = subprocess.Popen([sys.executable, "-m", "agents.optimize", "--no-progress", *args, "--out", str(killed)],
+                               cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    deadline = time.monotonic() + 120
+    while not (killed / "history.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.kill(process.pid, signal.SIGKILL)  # as soon as the first checkpoint is in: the run is far from done
+    process.wait()
+    done_before = len(json.loads((killed / "history.json").read_text())["history"])
+    assert 1 <= done_before < 8, "the run was killed part of the way"
+    resumed = cli(*args, "--out", str(killed))
+    assert resumed.returncode == 0, resumed.stderr
+    a = json.loads((tmp_path / "straight" / "history.json").read_text())
+    b = json.loads((killed / "history.json").read_text())
+    assert a["history"] == b["history"]
+    best_a = json.loads((tmp_path / "straight" / "best.json").read_text())
+    best_b = json.loads((killed / "best.json").read_text())
+    assert best_a["parameters"] == best_b["parameters"] and best_a["score"] == best_b["score"]
+
+
+def test_the_ray_backend_gives_the_local_batchs_result():
+    ray = pytest.importorskip("ray")
+    config = parse_config({**TINY, "seconds": 3.0})
+    settings = Settings(config.to_dict(), "pso", 2, 6, 5)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
+            local = run(config, settings, Path(a), lambda: LocalBackend(config, 6, 1), progress=False)
+            spread = run(config, settings, Path(b), lambda: RayBackend(config, 6, workers=2), progress=False)
+    finally:
+        ray.shutdown()
+    assert local["history"] == spread["history"]
+    assert local["best"] == spread["best"]
+
+
+def test_a_checkpoint_resumes_only_under_its_own_settings(tmp_path):
+    config = parse_config({**TINY, "seconds": 1.0})
+    out = tmp_path / "run"
+    run(config, Settings(config.to_dict(), "pso", 1, 4, 0), out, lambda: LocalBackend(config, 4, 1), progress=False)
+    with pytest.raises(RunError, match="particles = 4, not 5"):
+        run(config, Settings(config.to_dict(), "pso", 1, 5, 0), out, lambda: LocalBackend(config, 5, 1))
+    other = parse_config({**TINY, "seconds": 2.0})
+    with pytest.raises(RunError, match="'seconds'"):
+        run(other, Settings(other.to_dict(), "pso", 1, 4, 0), out, lambda: LocalBackend(other, 4, 1))
+
+
+@pytest.mark.parametrize(
+    ("change", "args", "message"),
+    [
+        ({"objective": "distance"}, [], "field 'objective'"),
+        ({"env": "skitter/NoSuchRobot-v0"}, [], "field 'env'"),
+        ({"controller": "buehler"}, [], "field 'controller'"),
+        ({"coupling": "no_such_coupling"}, [], "no_such_coupling"),
+        ({"seconds": -4}, [], "field 'seconds'"),
+        ({}, ["--particles", "1"], "--particles"),
+        ({}, ["--iterations", "0"], "--iterations"),
+        ({}, ["--address", "10.0.0.1:6379"], "--address"),
+    ],
+)
+def test_bad_configs_and_flags_are_one_line_errors_before_anything_is_made(tmp_path, change, args, message):
+    config = write_config(tmp_path, **change)
+    out = tmp_path / "out"
+    done = cli("--config", str(config), "--iterations", "1", "--particles", "4", *args, "--out", str(out))
+    assert done.returncode == 2, done.stderr
+    assert message in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not out.exists()
