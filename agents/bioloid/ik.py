@@ -172,3 +172,32 @@ def ik_for(env, gait: str, arg: str = "") -> IKGait:
         except ValueError:
             raise ValueError(f"policy 'ik-{gait}:{arg}': give the stride frequency in Hz after the colon") from None
     return IKGait(base.task.layout, robot.mode, robot.control_dt, gait, frequency, robot.wedge)
+
+
+class IKRollouts:
+    """The gait library as a controller of agents.optimize's evaluator: row i runs ``gaits[i]`` at
+    ``frequencies[i]`` Hz from its own clock (as ``IKGait.predict``, lead-in included); no free parameters."""
+
+    dimension = 0
+
+    def __init__(self, robot, gaits: list[str], frequencies: list[float]):
+        if len(gaits) != len(frequencies):
+            raise ValueError("one frequency per gait")
+        self.rows = [IKGait(ObservationLayout({}), robot.mode, robot.control_dt, g, f, robot.wedge, steer=False)
+                     for g, f in zip(gaits, frequencies, strict=True)]  # fmt: skip
+        self.control_dt = robot.control_dt
+        self.t = np.zeros(len(self.rows))
+
+    def start(self, parameters: np.ndarray) -> None:
+        self.t = np.zeros(len(self.rows))
+
+    def commands(self) -> np.ndarray:
+        goals = np.empty((len(self.rows), len(C.SERVOS)))
+        for i, gait in enumerate(self.rows):
+            t = self.t[i : i + 1]
+            goals[i] = gait.counts(t, np.ones((1, 4)) * gait.lead_in(t)[:, None])[0][0]
+        self.t = self.t + self.control_dt
+        return goals
+
+    def policy_record(self, parameters: np.ndarray) -> dict:
+        return {}

@@ -39,6 +39,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--address", default=None, help="ray: the cluster's address (default: start a local instance)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="run folder (default runs/optimize/<config>__<opt>__<seed>)")
+    p.add_argument("--stop-after", type=int, default=None,
+                   help="run at most this many iterations now, then stop (the same command resumes)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p.parse_args(argv)
 
@@ -52,6 +54,8 @@ def check(args: argparse.Namespace) -> None:
     if args.workers is not None and not 1 <= args.workers <= (args.particles if args.backend == "ray" else 1024):
         raise RunError(f"--workers must be in [1, {args.particles}] for the ray backend (at least 1 locally), "
                        f"got {args.workers}")  # fmt: skip
+    if args.stop_after is not None and args.stop_after < 1:
+        raise RunError(f"--stop-after must be at least 1, got {args.stop_after}")
     if args.address is not None and args.backend != "ray":
         raise RunError("--address is for --backend ray")
     if args.out.exists() and not (args.out / CHECKPOINT).exists() and any(args.out.iterdir()):
@@ -75,15 +79,20 @@ def main(argv: list[str] | None = None) -> int:
             return LocalBackend(config, args.particles, args.workers)
 
         command = "python -m agents.optimize " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-        result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command)
+        result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command,
+                     stop_after=args.stop_after)  # fmt: skip
     except (ConfigError, RunError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     best = result["best"]
+    if best is None:
+        print("no iteration run")
+        return 0
     m = best["metrics"]
+    status = "" if result["finished"] else f"; stopped at iteration {len(result['history'])}: run again to resume"
     print(f"best {config.objective} = {best['score']:.4f} (iteration {best['iteration']}): eq17 {m['eq17']:.3f}, "
           f"+x progress {m['progress_x']:.3f} m, fallen {int(m['fallen'])}; {result['wall_seconds']:.1f} s of "
-          f"evaluation; policy {args.out / 'best.json'}")  # fmt: skip
+          f"evaluation; policy {args.out / 'best.json'}{status}")  # fmt: skip
     return 0
 
 

@@ -182,9 +182,11 @@ class Evaluator:
         config: the run configuration.
         num_sims: simulations per batch (an optimizer's swarm or population, or a worker's share of it).
         nthread: the batch's threads (default: the machine's cores).
+        controller: a controller to use instead of the configuration's (benchmarks of scripted gaits), built for
+            ``num_sims`` rows; called with the robot.
     """
 
-    def __init__(self, config: RunConfig, num_sims: int, nthread: int | None = None):
+    def __init__(self, config: RunConfig, num_sims: int, nthread: int | None = None, controller=None):
         import envs  # noqa: F401
 
         self.config = config
@@ -196,7 +198,7 @@ class Evaluator:
             raise ConfigError(f"{config.path}: field 'env_kwargs': {error}") from None
         self.robot = venv.unwrapped.robot
         self.num_sims = num_sims
-        self.controller = build_controller(config, self.robot)
+        self.controller = build_controller(config, self.robot) if controller is None else controller(self.robot)
         self.steps = max(1, round(config.seconds / self.robot.control_dt))
         self.sample_every = max(1, round(config.sample_interval / self.robot.control_dt))
         self._ids = np.arange(num_sims)

@@ -151,8 +151,10 @@ def run(
     backend_factory: Callable[[], Any],
     progress: bool = True,
     command: str = "",
+    stop_after: int | None = None,
 ) -> dict[str, Any]:
-    """Run (or resume) the optimization; returns the final record (best score, parameters, history)."""
+    """Run (or resume) the optimization; returns the record so far (best score, parameters, history).
+    ``stop_after``: run at most this many iterations in this call, then stop (the checkpoint resumes it)."""
     out = Path(out)
     state = load_checkpoint(out)
     if state is not None:
@@ -173,7 +175,9 @@ def run(
                        unit="it", dynamic_ncols=True)  # fmt: skip
             if state["best"] is not None:
                 bar.set_postfix(best=f"{state['best']['score']:.3f}")
-        while optimizer.iteration < settings.iterations:
+        budget = settings.iterations if stop_after is None else min(settings.iterations,
+                                                                      optimizer.iteration + stop_after)  # fmt: skip
+        while optimizer.iteration < budget:
             started = time.perf_counter()
             parameters = optimizer.ask()
             scores = backend.evaluate(parameters)
@@ -193,7 +197,8 @@ def run(
             bar.close()
     finally:
         backend.close()
-    return {"best": state["best"], "history": state["history"], "wall_seconds": state["wall_seconds"]}
+    return {"best": state["best"], "history": state["history"], "wall_seconds": state["wall_seconds"],
+            "finished": optimizer.iteration >= settings.iterations}  # fmt: skip
 
 
 def _history_row(iteration: int, scores: dict[str, np.ndarray], best: float) -> dict[str, Any]:
