@@ -33,7 +33,7 @@ from envs.common.task import ObservationLayout
 @dataclass(frozen=True)
 class Gait:
     """A gait: each leg's phase offset (fraction of a cycle, legs in ``LEGS`` order F_L, F_R, B_L, B_R) and the duty
-    factor the gait literature gives for animals (docs/bioloid.md cites it; ours is 0.5 by the ellipse)."""
+    factor animals use for it (Hildebrand 1965; Alexander 1984; docs/bioloid.md); ours is 0.5 by the ellipse."""
 
     name: str
     phases: tuple[float, float, float, float]
@@ -45,13 +45,13 @@ class Gait:
 GAITS: dict[str, Gait] = {
     g.name: g
     for g in (
-        Gait("trot", (0.0, 0.5, 0.5, 0.0), "0.5 (0.3-0.5 running trot, 0.5-0.6 walking trot)"),
-        Gait("walk", (0.0, 0.5, 0.75, 0.25), "> 0.5 (0.6-0.75)"),
-        Gait("gallop", (0.0, 0.1, 0.5, 0.6), "< 0.5 (0.2-0.4)"),
-        Gait("canter", (0.0, 0.3, 0.7, 0.0), "< 0.5 (0.3-0.45)"),
-        Gait("pace", (0.0, 0.5, 0.0, 0.5), "0.5 (0.4-0.6)"),
-        Gait("bound", (0.0, 0.0, 0.5, 0.5), "< 0.5 (0.3-0.45)"),
-        Gait("pronk", (0.0, 0.0, 0.0, 0.0), "< 0.5 (0.2-0.4)"),
+        Gait("trot", (0.0, 0.5, 0.5, 0.0), "about 0.5"),
+        Gait("walk", (0.0, 0.5, 0.75, 0.25), "above 0.5"),
+        Gait("gallop", (0.0, 0.1, 0.5, 0.6), "below 0.5"),
+        Gait("canter", (0.0, 0.3, 0.7, 0.0), "below 0.5"),
+        Gait("pace", (0.0, 0.5, 0.0, 0.5), "about 0.5"),
+        Gait("bound", (0.0, 0.0, 0.5, 0.5), "below 0.5"),
+        Gait("pronk", (0.0, 0.0, 0.0, 0.0), "below 0.5"),
     )
 }
 DEFAULT_FREQUENCY = 1.5  # Hz: the issue's reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
