@@ -145,3 +145,13 @@ def test_bad_configs_and_flags_are_one_line_errors_before_anything_is_made(tmp_p
     assert done.returncode == 2, done.stderr
     assert message in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not out.exists()
+
+
+def test_stop_after_pauses_a_run_that_the_same_call_resumes(tmp_path):
+    config = parse_config({**TINY, "seconds": 1.0})
+    settings = Settings(config.to_dict(), "cmaes", 3, 4, 2)
+    paused = run(config, settings, tmp_path / "a", lambda: LocalBackend(config, 4, 1), progress=False, stop_after=1)
+    assert not paused["finished"] and len(paused["history"]) == 1
+    resumed = run(config, settings, tmp_path / "a", lambda: LocalBackend(config, 4, 1), progress=False)
+    straight = run(config, settings, tmp_path / "b", lambda: LocalBackend(config, 4, 1), progress=False)
+    assert resumed["finished"] and resumed["history"] == straight["history"]

@@ -22,8 +22,8 @@ resumes exactly (pyswarms, the best known, was last released in 2021, runs its o
 and keeps its random state global), so it is written here, in numpy, on its own random generator.
 
 **CMA-ES**: the ``cma`` package (Hansen's reference implementation), bounded to the box, initial step 0.25 of the box
-(assumed), population = ``particles``. ``cma`` samples from numpy's global random state, which the checkpoint saves
-and restores with it.
+(assumed), population = ``particles``. ``cma`` samples from numpy's global random state: the optimizer sets it to the
+run's own state around every ask and tell and keeps it, so the checkpoint saves and restores it.
 """
 
 from __future__ import annotations
@@ -117,7 +117,13 @@ class CMAES:
             self.es = cma.CMAEvolutionStrategy(
                 [0.5] * dimension,
                 CMA_SIGMA0,
-                {"popsize": particles, "bounds": [0.0, 1.0], "seed": seed, "verbose": -9, "maxiter": math.inf},
+                {
+                    "popsize": particles,
+                    "bounds": [0.0, 1.0],
+                    "verbose": -9,
+                    "maxiter": math.inf,
+                    "randn": _GlobalRandn(),
+                },
             )
         self._asked: list[np.ndarray] | None = None
         self.iteration = 0
@@ -146,6 +152,15 @@ class CMAES:
 
     def state(self) -> dict[str, Any]:
         return {"mean": np.asarray(self.es.mean), "sigma": float(self.es.sigma)}
+
+
+class _GlobalRandn:
+    """numpy's global ``randn``, looked up at every call: ``cma``'s default is the bound method ``np.random.randn``,
+    which a pickle (a checkpoint) turns into a private copy of the global generator, so that a resumed run would draw
+    other numbers than an uninterrupted one."""
+
+    def __call__(self, *shape: int) -> np.ndarray:
+        return np.random.randn(*shape)  # noqa: NPY002
 
 
 OPTIMIZERS = {"pso": PSO, "cmaes": CMAES}
