@@ -30,10 +30,12 @@ from benchmarks.common import md_table, save
 from sysid import synth
 from sysid.cases import Case, run_case
 from sysid.robots import adapter as make_adapter
+from sysid.robots import adapters
 
 COVERAGE = {"motor": ["viscous_friction", "delay"], "servo": ["delay", "servo_gain"],
-            "roach": ["viscous_friction_left"]}  # fmt: skip
-OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"]}
+            "roach": ["viscous_friction_left"], "xjus": ["viscous_friction_left"]}  # fmt: skip
+OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"],
+                  "xjus": ["disturbance", "terrain_bump"]}  # fmt: skip
 
 
 def _safe_case(robot: str, effects: Mapping, seed: int) -> tuple[Case | None, str]:
@@ -45,7 +47,7 @@ def _safe_case(robot: str, effects: Mapping, seed: int) -> tuple[Case | None, st
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--robots", nargs="+", default=["motor", "servo", "roach"])
+    p.add_argument("--robots", nargs="+", default=sorted(adapters()), help="default: every robot with an adapter")
     p.add_argument("--seeds", type=int, default=20, help="seeds of the coverage runs")
     p.add_argument("--minutes", type=float, default=45.0, help="no case starts after this budget")
     p.add_argument("--kinds", nargs="+", default=["effect", "weak", "null", "ooc", "coverage"],

@@ -205,6 +205,13 @@ TEMPLATES: dict[str, Effect] = {
             "the legs' stiffness, scaled",
         ),
         Effect(
+            "spine_stiffness",
+            (Param("scale", "1", 1.0, 0.1, 10.0),),
+            "spine stiffness",
+            "residual at the body's pitch and roll modes; legs' loads shift between segments",
+            "a segmented body's spine stiffness (every joint and axis), scaled",
+        ),
+        Effect(
             "mass",
             (Param("scale", "1", 1.0, 0.5, 2.0),),
             GROUP_DRIVE,

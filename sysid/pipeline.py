@@ -101,11 +101,14 @@ def run(
     """Calibrate ``adapter``'s robot on ``train`` and measure the held-out error on ``test``; with ``effects``,
     fit those effects without selection."""
     train_problem = Problem(adapter, train, nthread)
-    test_problem = Problem(adapter, test, nthread)
     if effects:
         outcome = fit_chosen(train_problem, effects, start, say=say)
     else:
         outcome = calibrate(train_problem, start, say=say)
+    # the held-out logs' noise levels hold the replay floor of the calibrated model (Problem.set_floor): the best
+    # description of the robot says how closely a right model can replay these logs; before and after are both
+    # measured against it
+    test_problem = Problem(adapter, test, nthread, floor_setting=outcome.setting)
     steps = [held_out(test_problem, s) for s in outcome.history]
     say(
         "held-out error: "

@@ -42,6 +42,7 @@ MODEL_CACHE = 2048  # compiled models kept per adapter (settings x segment keys)
 CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
 LEAD_SECONDS = 0.25  # s of the log kept before each segment: the commands a delayed actuator still acts on
 TIME_TOLERANCE = 1e-9  # s: sample and physics times that differ by rounding alone are the same time
+UNSTABLE_RESIDUAL = 1e3  # noise levels: the residual of a sample a numerically unstable rollout did not reach
 
 
 @dataclass
@@ -66,6 +67,7 @@ class Segment:
     lead: dict[str, np.ndarray] = field(default_factory=dict)  # the log's rows just before t0 (for delays)
     carry_steps: int = 0  # physics steps to the next segment's start, if it follows on directly
     n_steps: int = 0  # physics steps rolled out (the same for every segment of a problem)
+    cache: dict = field(default_factory=dict, repr=False)  # what an adapter derives once per segment
 
     def command_at(self, column: str, physics_times: np.ndarray, delay: float = 0.0) -> np.ndarray:
         """The log's ``column`` held (zero-order) from each sample to the next, at physics times (s from t0),
@@ -101,6 +103,11 @@ class Adapter(ABC):
     # the breadth of the search for effects that help only together (sysid/select.py: seeds, width, beam); a robot
     # whose every fit costs seconds of rollouts narrows it
     chain_search: tuple[int, int, int] = (3, 3, 2)
+    # a controller that closes the loop at its own rate (a PD run by the robot's code once per control step): the
+    # physics steps between its updates (0: none, every control is known before the rollout; see :meth:`feedback`)
+    feedback_steps: int = 0
+    # physics steps by which a log's reading is older than its time stamp (see :meth:`sample_steps`)
+    sample_lag: int = 0
 
     def __init__(self) -> None:
         self._models: dict[tuple, mujoco.MjModel] = {}
@@ -193,6 +200,22 @@ class Adapter(ABC):
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
         """Predicted channels at the segment's samples from the sensor data at their physics steps."""
 
+    def feedback(
+        self, ctrl: np.ndarray, sensordata: np.ndarray, rows: Sequence[tuple[Setting, Segment]], step: int
+    ) -> None:
+        """With ``feedback_steps``: the controller's update for the next ``feedback_steps`` physics steps of every
+        row, written into ``ctrl`` (rows, steps, nu; it holds :meth:`controls`' values) from ``sensordata`` (rows,
+        nsensordata), the sensors as the robot reads them at the update (computed at the physics step before it),
+        ``step`` the update's physics step from the segment's start. Vectorized over the rows: Python runs once per
+        control step of all the rollouts together, never per physics step."""
+        raise NotImplementedError(f"{self.name} closes no loop in Python (feedback_steps = 0)")
+
+    def sample_steps(self, steps: np.ndarray, n_steps: int) -> np.ndarray:
+        """The physics step whose sensor data a sample reports, for samples at ``steps`` from a rollout's start: the
+        step itself (its sensors, computed at its start, are the state at the sample's time), or ``sample_lag``
+        steps before it for a robot whose telemetry stamps a reading taken that much earlier."""
+        return np.clip(steps - self.sample_lag, 0, n_steps - 1)
+
     def initial_uncertainty(
         self, model: mujoco.MjModel, segment: Segment, setting: Setting
     ) -> list[tuple[str, int, float]]:
@@ -261,6 +284,52 @@ class Adapter(ABC):
         return out
 
 
+def run_rollout(
+    runner: rollout.Rollout,
+    adapter: Adapter,
+    models: Sequence[mujoco.MjModel],
+    datas: Sequence[mujoco.MjData],
+    state: np.ndarray,
+    control: np.ndarray,
+    rows: Sequence[tuple[Setting, Segment]],
+    start_sensordata: np.ndarray,
+    keep_states: bool = False,
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """Roll out rows (each a model, a start state, the controls of every physics step) natively: in one call when
+    every control is known beforehand, or, for an adapter whose controller closes the loop at its own rate
+    (``feedback_steps``), in chunks of that many physics steps, the controller's update between them computed for
+    every row at once (:meth:`Adapter.feedback`) from the sensors the chunk before left. Returns the states after
+    every physics step (``keep_states``) and the sensor data of every physics step, (rows, steps, ...)."""
+    n, steps = control.shape[:2]
+    m0 = models[0]
+    # NaN where a rollout went numerically unstable: MuJoCo warns, resets and stops that row, leaving the rest unset
+    sensordata = np.full((n, steps, m0.nsensordata), np.nan)
+    states = np.full((n, steps, state.shape[1]), np.nan) if keep_states or adapter.feedback_steps else None
+    if not adapter.feedback_steps:
+        runner.rollout(models, datas, state, control, control_spec=CTRL_SPEC, initial_warmstart=np.zeros((n, m0.nv)),
+                       sensordata=sensordata, state=states)  # fmt: skip
+        return states, sensordata
+    k = adapter.feedback_steps
+    models = list(models)
+    current = np.ascontiguousarray(state, dtype=np.float64)
+    sensors = start_sensordata
+    warmstart = np.zeros((n, m0.nv))
+    for begin in range(0, steps, k):
+        end = min(begin + k, steps)
+        width = end - begin
+        chunk = np.ascontiguousarray(control[:, begin:end])
+        adapter.feedback(chunk, sensors, rows, begin)
+        control[:, begin:end] = chunk
+        # contiguous outputs of the chunk's own (rollout would copy strided views); checks skipped: shapes are ours
+        out_states = np.full((n, width, state.shape[1]), np.nan)
+        out_sensors = np.full((n, width, m0.nsensordata), np.nan)
+        runner.rollout(models, datas, current, chunk, control_spec=CTRL_SPEC, skip_checks=True, nstep=width,
+                       initial_warmstart=warmstart, state=out_states, sensordata=out_sensors)  # fmt: skip
+        states[:, begin:end], sensordata[:, begin:end] = out_states, out_sensors
+        current, sensors = np.ascontiguousarray(out_states[:, -1]), out_sensors[:, -1]
+    return states, sensordata
+
+
 @dataclass
 class Residual:
     """One segment's residual under one setting: ``data`` (samples, channels) is measured minus predicted over the
@@ -327,11 +396,20 @@ class Problem:
         self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
         noise = [adapter.noise(log) for log in self.logs]
         self.sensor_sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
-        self.replay_sigma = self._replay_floor(floor_setting) if adapter.replay_floor else {}
+        self.set_floor(floor_setting)
+
+    def set_floor(self, setting: Mapping[str, float] | None = None) -> None:
+        """Measure the replay floor at ``setting`` (default nominal; adapters with ``replay_floor``) and make the
+        noise levels the hypotenuse of it and the sensor noise. How far a legged robot's replay diverges depends on
+        its dynamics, so the floor is measured at the model whose error is measured: the nominal model to start,
+        each calibrated one after (sysid/select.py, sysid/pipeline.py)."""
+        adapter = self.adapter
+        self.replay_sigma = self._replay_floor(setting) if adapter.replay_floor else {}
         self.sigma = {c: float(np.hypot(s, self.replay_sigma.get(c, 0.0))) for c, s in self.sensor_sigma.items()}
         self._sigma = np.array([self.sigma[c] for c in adapter.channels])
         for seg in self.segments:
             seg.sigma = dict(self.sigma)
+        self._sensitivity.clear()  # in units of the noise levels
 
     @property
     def channels(self) -> list[str]:
@@ -339,11 +417,13 @@ class Problem:
 
     def _replay_floor(self, setting: Mapping[str, float] | None) -> dict[str, float]:
         """What replay cannot match even with the right model, per channel: the log's commands run through the
-        model without a break (``simulate``), giving a twin of the log whose channels the model itself made; the
-        twin replayed in segments as the real log is (each segment from the twin's own measured state); the RMS of
-        the difference. It comes from what the log does not hold (a legged robot's body state, which its contacts
-        make sensitive), and is added to the sensor noise as the floor errors are measured against. The twin, not
-        the log, is replayed, so that what the model lacks stays in the residual and out of the floor."""
+        model without a break (``simulate``), giving a twin of the log whose channels the model itself made,
+        measured with the log's sensor noise; the twin replayed in segments as the real log is (each segment from
+        the twin's own noisy measured state); the RMS of the difference from the twin's clean channels. It comes
+        from what the log does not hold (a legged robot's body state, which its contacts make sensitive) and from
+        the noise of the measured starts, and is added to the sensor noise as the floor errors are measured
+        against. The twin, not the log, is replayed, so that what the model lacks stays in the residual and out of
+        the floor."""
         adapter = self.adapter
         nominal = {k: v for e in adapter.effects().values() if e.catalogued for k, v in e.nominal().items()}
         setting = {**nominal, **(setting or {})}
@@ -356,8 +436,9 @@ class Problem:
             for log in self.logs:
                 clean = simulate(adapter, setting, log.df, log.meta)
                 twin = log.df.copy()
+                noise = np.random.default_rng(0)  # the twin is measured as the log is: with its sensors' noise
                 for j, c in enumerate(adapter.channels):
-                    twin[c] = clean[:, j]
+                    twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, self.sensor_sigma[c], len(clean)))
                 twin_segments = adapter.segments(Log(log.path, twin, log.meta))
                 index = [i for i, seg in enumerate(real) if seg.log == log.path]
                 if len(twin_segments) != len(index):
@@ -507,6 +588,7 @@ class Problem:
         n = len(rows)
         state = np.empty((n, nstate))
         control = np.empty((n, self.n_steps, m0.nu))
+        start_sensordata = np.empty((n, m0.nsensordata))
         data = mujoco.MjData(m0)
         controls: dict[tuple[int, int], np.ndarray] = {}
         row_models = []
@@ -515,6 +597,8 @@ class Problem:
             model = adapter.model_for(setting, seg)
             row_models.append(model)
             mujoco.mj_resetData(model, data)
+            if how is not None and not np.isfinite(how[1]).all():  # the segment before went unstable: start afresh
+                how = None
             if how is not None and how[0] == "perturb":
                 mujoco.mj_setState(model, data, how[1], STATE_SPEC)
                 for kind, address, delta in how[2]:
@@ -526,24 +610,23 @@ class Problem:
                 adapter.initial_state(model, data, seg, setting, carried=how is not None)
             mujoco.mj_forward(model, data)
             mujoco.mj_getState(model, data, state[row], STATE_SPEC)
+            start_sensordata[row] = data.sensordata
             if (k, i) not in controls:
                 controls[(k, i)] = adapter.controls(model, seg, setting)
             control[row] = controls[(k, i)]
-        sensordata = np.empty((n, self.n_steps, m0.nsensordata))
-        trajectory = np.empty((n, self.n_steps, nstate)) if keep_end else None
         size = (m0.nq, m0.nv, m0.na, m0.nu, m0.nsensordata, m0.nbody, m0.njnt, m0.neq)
         if size not in self._datas:
             self._datas[size] = [mujoco.MjData(m0) for _ in range(self.nthread)]
         datas = self._datas[size]
-        self._runner.rollout(row_models, datas, state, control, control_spec=CTRL_SPEC,
-                             initial_warmstart=np.zeros((n, m0.nv)), sensordata=sensordata,
-                             state=trajectory)  # fmt: skip
+        contexts = [(settings[k], self.segments[i]) for k, i, _ in rows]
+        trajectory, sensordata = run_rollout(self._runner, adapter, row_models, datas, state, control, contexts,
+                                             start_sensordata, keep_states=keep_end)  # fmt: skip
         self.rollouts += n
         for row, (k, i, how) in enumerate(rows):
             seg = self.segments[i]
             key = (k, i) if how is None or how[0] != "perturb" else (k, i, id(how))
             # a sample at step k is the state after k physics steps: the sensors computed at the start of step k
-            predictions[key] = adapter.observe(sensordata[row, np.minimum(seg.steps, self.n_steps - 1)], seg,
+            predictions[key] = adapter.observe(sensordata[row, adapter.sample_steps(seg.steps, self.n_steps)], seg,
                                                settings[k])  # fmt: skip
             starts[key] = state[row].copy()
             if keep_end and seg.carry_steps:
@@ -594,6 +677,9 @@ class Problem:
             row = []
             for i, p, a in zip(index, per, sens, strict=True):
                 r = (self.segments[i].measured - p) / self._sigma
+                # a setting whose rollout went unstable predicts nothing: a large, finite residual (optimizers
+                # steer away from it; least squares stays defined)
+                r = np.where(np.isfinite(r), r, UNSTABLE_RESIDUAL)
                 if a.shape[1]:
                     delta = np.linalg.solve(a.T @ a + np.eye(a.shape[1]), a.T @ r.ravel())
                     r = r - (a @ delta).reshape(r.shape)
@@ -671,6 +757,7 @@ def simulate(
     observe = observe or adapter.observe
     out = None
     state = None
+    runner = rollout.Rollout(nthread=0)
     for k, segment in enumerate(segments):
         following = segments[k + 1] if k + 1 < len(segments) else None
         end = following.t0 if following is not None else float(commands["time"].iloc[-1]) + h
@@ -683,10 +770,12 @@ def simulate(
             state = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
             mujoco.mj_getState(model, d, state, STATE_SPEC)
         state[0] = 0.0  # time from the segment's start
+        mujoco.mj_setState(model, d, state, STATE_SPEC)
+        mujoco.mj_forward(model, d)
         control = adapter.controls(model, segment, setting)
-        states, sensordata = rollout.rollout(model, d, state[None], control[None], control_spec=CTRL_SPEC,
-                                             initial_warmstart=np.zeros((1, model.nv)))  # fmt: skip
-        columns = observe(sensordata[0, np.minimum(segment.steps, len(control) - 1)], segment, setting)
+        states, sensordata = run_rollout(runner, adapter, [model], [d], state[None].copy(), control[None],
+                                         [(setting, segment)], d.sensordata[None].copy(), keep_states=True)  # fmt: skip
+        columns = observe(sensordata[0, adapter.sample_steps(segment.steps, len(control))], segment, setting)
         if out is None:
             out = np.zeros((len(commands), columns.shape[1]))
         out[segment.samples] = columns

@@ -214,6 +214,10 @@ def calibrate(
             current = refit.values
             before = trial if len(fitting) == len(problem.segments) else evaluate(problem, current, fitting)
             outcome.training_errors.append(refit.error)
+            if adapter.replay_floor:  # the floor of the model the loop goes on from (Problem.set_floor)
+                problem.set_floor(current)
+                before = evaluate(problem, current, fitting)
+                outcome.training_errors[-1] = evaluate(problem, current).error
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)},

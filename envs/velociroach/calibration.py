@@ -209,7 +209,9 @@ def add_bump(height: float, x: float = 0.15):
 
 def add_disturbance(spec: mujoco.MjSpec) -> None:
     """Spec edit (synthetic data only): a yaw torque on the body from outside the model."""
-    a = spec.add_actuator(name="disturbance", target=C.ROOT_BODY, trntype=mujoco.mjtTrn.mjTRN_BODY)
+    # a torque at the IMU's site, in its frame (a body transmission would act through the body's contacts, as an
+    # adhesion actuator does)
+    a = spec.add_actuator(name="disturbance", target="imu", trntype=mujoco.mjtTrn.mjTRN_SITE)
     a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
     a.gear = [0, 0, 0, 0, 0, 1]
 

@@ -96,7 +96,8 @@ class Xjus(Robot):
         imu_noise: the IMU's error model (default the MPU-6000's, as on the VelociRoACH; the seed names no IMU); None
             for a perfect IMU.
         starts: where an episode may start, (x, y) on level ground; each reset draws one (default: the origin).
-        spec_edits, num_sims, nthread, batched, calibration: as for every robot (no calibration adapter yet).
+        spec_edits, num_sims, nthread, batched, calibration: as for every robot (``calibration``: a file written by
+            ``calibrate.py --robot xjus``, envs/xjus/calibration.py).
     """
 
     name = "xjus"
@@ -209,6 +210,27 @@ class Xjus(Robot):
                 j = spec.joint(C.HIP_JOINTS[leg])
                 j.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 j.actfrcrange = [-limit, limit]
+
+    # --- calibration (calibrate.py --robot xjus; envs/xjus/calibration.py) ------------------------------------------
+    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
+        from envs.xjus.calibration import xjus_effects
+
+        dt = float(mujoco.MjSpec.from_file(str(self.xml_path())).option.timestep)
+        return {name: {p.name: (p.low, p.high) for p in e.params}
+                for name, e in xjus_effects(dt).items() if e.catalogued}  # fmt: skip
+
+    def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
+        """The calibration's model effects as spec edits (envs/xjus/calibration.py): the hips' friction and inertia,
+        the motor numerics (which the motor arrays are read from), contacts, stiffnesses, masses, the gearboxes'
+        play and the motors' delay. The driver's deadband is applied to every duty the robot holds; sensor effects
+        (an angle offset, a current gain) describe the logging robot's sensors and change nothing here."""
+        from envs.xjus.calibration import add_backlash, delay_edit, effects_edit
+
+        setting = calibration.setting
+        self._deadband = setting.get("deadband.duty", 0.0)
+        gap, delay = setting.get("backlash.gap", 0.0), setting.get("delay.seconds", 0.0)
+        return [effects_edit(setting), *([add_backlash(gap)] if gap > 1e-6 else []),
+                *([delay_edit(delay)] if delay > 0 else [])]  # fmt: skip
 
     def setup(self) -> None:
         m, n = self.model, self.num_sims
@@ -448,6 +470,9 @@ class Xjus(Robot):
 
     def hold_duty(self, duty: np.ndarray) -> None:
         """Hold duty (n, legs) in [-1, 1] over the control block: the motor's two native actuators per hip."""
+        band = getattr(self, "_deadband", 0.0)  # a calibrated driver's deadband (calibration_edits)
+        if band > 0:
+            duty = np.sign(duty) * np.maximum(np.abs(duty) - band, 0.0)
         self.last_duty[:] = duty
         a, b = self.motors.coefficients(duty)
         ctrl = self.sim.ctrl

@@ -1,0 +1,522 @@
+"""Calibration of the xJüs against its telemetry (``calibrate.py --robot xjus``), and the calibrated model
+(``gym.make("skitter/XjusWalk-v0", calibration=PATH)``).
+
+**Replay.** An xJüs log holds the duty ``d`` of each leg's motor (the seed's simulation input, and what the PD of gait
+mode puts out), the battery voltage, and per leg the hip angle, its speed and the motor current; in gait mode also
+the Buehler clock (its phase, period and sweep angles). Where the log holds the clock, the replay runs the robot's
+own controller (seed 001, sections 2.4-2.5; envs/xjus/controller.py) once per control step, as the robot does: the
+clock's target, the PD with the firmware's gains and the inverse of the *nominal* motor model (what the firmware
+knows), computed for every rollout at once between native chunks of physics (``Adapter.feedback``). Replaying the
+PD's logged duty open loop instead would let a stalled leg stay stalled where the PD pushed it over, and the replay
+diverges by whole turns. Where the log has no clock (duty mode), the logged duty is replayed held between samples.
+Either way the duty acts through the seed's motor formula (envs/actuators/motor.py) at every physics step,
+natively, through ``ctrl``, with the setting's motor constants. A row of the robot's telemetry holds the duty (and
+the clock's period and sweeps) of the control step that *ended* at its time (``envs/common/env.py`` records after
+stepping), and the clock's phase at its time, so the replay takes a step's commands from the row after its start.
+Multiple shooting over one-second segments: each starts from the measured hip angles and speeds; the body (its
+pose and motion, the spine) is not logged and is carried over from the previous segment, as the VelociRoACH's is
+(envs/velociroach/calibration.py), with the same replay floor and derivative-free fits (contacts make the cost
+rough).
+
+**Channels** compared: per leg the hip angle, hip speed and motor current (``current = torque / (eta N Kt)``).
+
+**Effects** (sysid/effects.py): delay of the duty; per side (three legs each) Coulomb and viscous friction and rotor
+inertia at the hips; backlash between each motor and its leg (a hinge of limited play, a structural spec edit); the
+driver's deadband; the motors' torque constant (an ideal motor's: Kt and Ks together), back-EMF constant, supply (a
+scale on the logged battery voltage) and supply sag (the battery's resistance, in the formula's ``d^2`` term); foot
+friction and ground contact (the legs' contact parameters, which take priority over the ground's); leg and spine
+stiffness; body mass and centre of mass; the current sensors' gain and each side's angle offset. The motor constants
+apply to all six motors (one set of numerics), the friction and inertia per side.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+import pandas as pd
+
+from envs.xjus import constants as C
+from sysid import effects as E
+from sysid.effects import Effect
+from sysid.logs import Log, LogError
+from sysid.problem import Adapter, Segment, Setting
+
+SIDES = C.SIDES
+LEGS_OF = {"left": C.LEFT_LEGS, "right": tuple(leg for leg in C.LEGS if leg not in C.LEFT_LEGS)}
+PLAY = "play"  # the backlash joint of each leg: <leg>_play
+
+
+def xjus_effects(dt: float) -> dict[str, Effect]:
+    """The xJüs's catalog effects and their bounds (nominal values are the model's, docs/xjus.md). Ranges: hip
+    friction up to a quarter of the stall torque (2.17 N m) dry and up to the motor's own back-EMF damping
+    (eta N Kt Ks / Ra = 0.089 N m s/rad) viscous; rotor inertia up to five times the assumed 8.5e-4 kg m^2 (the seed
+    gives none); the centre of mass up to 0.1 m along the body (a payload at one end); a current sensor's gain from
+    half to double (an uncalibrated shunt); a gearbox's play up to 0.1 rad (6 deg: a worn planetary gearhead and its
+    coupling); motor
+    constants from half to twice the seed's Table 1 (its Kt and Ks were chosen to fit a stall torque and a no-load
+    speed, not measured); the supply 20% either way of the logged battery; a sag up to 1 ohm (a 6-cell LiPo's
+    internal resistance is tens of milliohms; a worn pack or long leads reach an ohm)."""
+    out: list[Effect] = [
+        E.make("delay", seconds=(0.0, 0.0, 0.05, dt)),
+        E.make("backlash", gap=(0.0, 0.0, 0.1)),
+        E.make("deadband", duty=(0.0, 0.0, 0.2)),
+    ]
+    for side in SIDES:
+        out += [
+            E.make("coulomb_friction", side, torque=(0.0, 0.0, 0.5)),
+            E.make("viscous_friction", side, damping=(0.0, 0.0, 0.1)),
+            E.make("armature", side, inertia=(0.0, 0.0, 4e-3)),
+            E.make("sensor_bias", f"angle_{side}", offset=(0.0, -0.2, 0.2)),
+        ]
+    out += [
+        E.make("torque_constant", scale=(1.0, 0.5, 2.0)),
+        E.make("back_emf_constant", scale=(1.0, 0.5, 2.0)),
+        E.make("supply_voltage", scale=(1.0, 0.8, 1.2)),
+        E.make("supply_sag", resistance=(0.0, 0.0, 1.0)),
+        E.make("foot_friction", mu=(0.8, 0.2, 1.5)),
+        E.make("ground_contact", timeconst=(0.004, 0.004, 0.03), dampratio=(1.0, 0.3, 2.0)),
+        E.make("leg_stiffness", scale=(1.0, 0.3, 3.0)),
+        E.make("spine_stiffness", scale=(1.0, 0.1, 10.0)),
+        E.make("mass", scale=(1.0, 0.7, 1.5)),
+        E.make("com_offset", x=(0.0, -0.1, 0.1)),
+        E.make("sensor_gain", "current", scale=(1.0, 0.5, 2.0)),
+        E.make("terrain_bump", height=(0.0, 0.0, 0.05)),
+        E.make("disturbance", torque=(0.0, 0.0, 40.0), frequency=(3.0, 0.5, 10.0)),
+    ]
+    return {e.name: e for e in out}
+
+
+def effects_edit(setting: Setting):
+    """Spec edit of a setting's model effects (calibration and the calibrated envs alike): per side the hips'
+    Coulomb and viscous friction and rotor inertia; the motor numerics (torque and back-EMF constants, supply sag as
+    amplifier resistance; the supply scale, which the calibrated robot applies to its battery); the legs' friction
+    and contact; leg and spine stiffness; the segments' mass and the middle segment's centre of mass."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        for side in SIDES:
+            for leg in LEGS_OF[side]:
+                hip = spec.joint(C.HIP_JOINTS[leg])
+                hip.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
+                hip.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
+                hip.armature += setting.get(f"armature_{side}.inertia", 0.0)
+        k = setting.get("torque_constant.scale", 1.0)
+        numerics = {
+            "torque_constant": k,  # an ideal motor's Kt and Ks scale together
+            "speed_constant": k * setting.get("back_emf_constant.scale", 1.0),
+            "battery_voltage": setting.get("supply_voltage.scale", 1.0),
+        }
+        for name, scale in numerics.items():
+            if scale != 1.0:
+                spec.numeric(name).data = [spec.numeric(name).data[0] * scale]
+        sag = setting.get("supply_sag.resistance", 0.0)
+        if sag:
+            spec.numeric("amplifier_resistance").data = [spec.numeric("amplifier_resistance").data[0] + sag]
+        legs = [g for g in spec.geoms if g.parent is not None and g.parent.name.endswith("_leg")]
+        for geom in legs:
+            if "foot_friction.mu" in setting:
+                geom.friction[0] = setting["foot_friction.mu"]
+            if "ground_contact.timeconst" in setting:
+                geom.solref = [setting["ground_contact.timeconst"], setting.get("ground_contact.dampratio", 1.0)]
+        stiffness = setting.get("leg_stiffness.scale", 1.0)
+        for leg in C.LEGS:
+            spec.joint(C.SPRING_JOINTS[leg]).stiffness[0] *= stiffness
+        spine = setting.get("spine_stiffness.scale", 1.0)
+        for name in C.SPINE_JOINTS:
+            joint = spec.joint(name)
+            if joint is not None:
+                joint.stiffness[0] *= spine
+        scale, shift = setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0)
+        if scale != 1.0 or shift != 0.0:
+            nominal = spec.compile()
+            for name in C.SEGMENTS:
+                i = nominal.body(name).id
+                body = spec.body(name)
+                body.explicitinertial = True
+                body.mass = float(nominal.body_mass[i]) * scale
+                body.inertia = nominal.body_inertia[i] * scale
+                body.ipos = nominal.body_ipos[i] + ([shift, 0.0, 0.0] if name == C.ROOT_BODY else 0.0)
+                body.iquat = nominal.body_iquat[i]
+
+    return edit
+
+
+def add_backlash(gap: float):
+    """Spec edit: between each hip and its leg, a hinge about the hip's axis free within +-gap/2 (the gearbox's
+    play); the encoder reads the motor side (the hip joint), the leg hangs on the play."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        for leg in C.LEGS:
+            body = spec.body(f"{leg}_leg")
+            # the play turns the leg about the hip's axis before the leg's radial spring slides along its chord:
+            # MuJoCo applies a body's joints in order, so the spring is taken out and put back after the play
+            spring = spec.joint(C.SPRING_JOINTS[leg])
+            kept = {k: getattr(spring, k) for k in ("type", "axis", "pos", "stiffness", "damping", "range",
+                                                   "limited", "armature", "springref")}  # fmt: skip
+            kept = {k: (v.copy() if hasattr(v, "copy") else v) for k, v in kept.items()}
+            spec.delete(spring)
+            play = body.add_joint(name=f"{leg}_{PLAY}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
+            play.range = [-gap / 2, gap / 2]
+            play.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            play.armature = 1e-5  # the leg's own inertia carries it; a little keeps the free play well posed
+            again = body.add_joint(name=C.SPRING_JOINTS[leg])
+            for k, v in kept.items():
+                setattr(again, k, v)
+
+    return edit
+
+
+def delay_edit(seconds: float):
+    """Spec edit of the calibrated envs: every motor's two actuators delayed by ``seconds`` (MuJoCo's actuator
+    delay: a history of the inputs, held between samples), as the replay shifts the logged duty."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        steps = math.ceil(seconds / spec.option.timestep - 1e-9)
+        for a in spec.actuators:
+            if a.name.endswith("_drive") or a.name.endswith("_emf"):
+                a.delay, a.nsample, a.interp = float(seconds), steps + 2, 0
+
+    return edit
+
+
+def add_bump(height: float, x: float = 0.6):
+    """Spec edit (synthetic data only): a bump across the robot's path, ``x`` ahead of the start."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        g = spec.worldbody.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, 2.0, 0],
+                                    pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
+        g.rgba = [0.6, 0.5, 0.4, 1]
+
+    return edit
+
+
+def add_disturbance(spec: mujoco.MjSpec) -> None:
+    """Spec edit (synthetic data only): a pitching torque on the middle segment from outside the model (a payload
+    swinging, a tether): it shifts the stance load between the front and rear legs."""
+    # a torque at the IMU's site, in its frame (a body transmission would act through the body's contacts, as an
+    # adhesion actuator does)
+    a = spec.add_actuator(name="disturbance", target="imu", trntype=mujoco.mjtTrn.mjTRN_SITE)
+    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    a.gear = [0, 0, 0, 0, 1, 0]
+
+
+def _deepest_contact(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """The most negative contact distance (the deepest penetration, m; 0 without contacts) at the data's qpos."""
+    mujoco.mj_fwdPosition(model, data)
+    return float(min(data.contact.dist[: data.ncon], default=0.0)) if data.ncon else 0.0
+
+
+class XjusAdapter(Adapter):
+    """The xJüs replayed from its logged duty through the seed's motor formula."""
+
+    name = "xjus"
+    channels = {  # noqa: RUF012
+        **{f"leg_angle_{leg}": "rad" for leg in C.LEGS},
+        **{f"leg_speed_{leg}": "rad/s" for leg in C.LEGS},
+        **{f"current_{leg}": "A" for leg in C.LEGS},
+    }
+    commands = (*(f"duty_{leg}" for leg in C.LEGS), "vbatt")
+    segment_seconds = 1.0
+    # each leg's channels against that leg's speed, duty, current and angle (cos > 0: the leg points down, stance)
+    context = {
+        key: {f"{channel}_{leg}": f"{column}_{leg}" for leg in C.LEGS for channel in ("leg_angle", "leg_speed",
+                                                                                       "current")}
+        for key, column in (("velocity", "leg_speed"), ("command", "duty"), ("load", "current"),
+                            ("phase", "leg_angle"))
+    } | {"supply": "vbatt"}  # fmt: skip
+    replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
+    fd_step = 0.02
+    rough_cost = True
+    chain_search = (1, 2, 1)
+    # the robot's telemetry (envs/common/env.py) stamps a row with the time after its control step and reads the
+    # sensors MuJoCo computed at the start of the step's last physics step: a physics step older
+    sample_lag = 1
+
+    def __init__(self) -> None:
+        super().__init__()
+        from envs.xjus.robot import Xjus
+
+        self._robot_class = Xjus
+        robot = self._make_robot(())
+        m = robot.model
+        self._h = float(m.opt.timestep)
+        self._constants = robot.constants
+        self._stand = robot.stand_height
+        self._drive = {leg: int(m.actuator_ctrladr[m.actuator(f"{C.HIP_JOINTS[leg]}_drive").id]) for leg in C.LEGS}
+        self._emf = {leg: int(m.actuator_ctrladr[m.actuator(f"{C.HIP_JOINTS[leg]}_emf").id]) for leg in C.LEGS}
+        self._sensors = {name: int(m.sensor(name).adr[0]) for leg in C.LEGS
+                         for name in (C.SENSOR_ANGLE[leg], C.SENSOR_SPEED[leg], C.SENSOR_TORQUE[leg])}  # fmt: skip
+        self._gait = robot.gait
+        self._hip_inertia = robot.hip_inertia.copy()  # the controller's plant inertia, from the nominal model
+        self.feedback_steps = 0  # set from the logs (segments): the control step, where a log holds the clock
+
+    def _make_robot(self, edits):
+        return self._robot_class(action_mode="duty", imu_noise=None, spec_edits=list(edits))
+
+    @property
+    def physics_dt(self) -> float:
+        return self._h
+
+    def effects(self) -> dict[str, Effect]:
+        return xjus_effects(self._h)
+
+    # --- logs -------------------------------------------------------------------------------------------------------
+    def check_logs(self, logs: Sequence[Log]) -> None:
+        for log in logs:
+            vbatt = log.df["vbatt"].to_numpy(dtype=float)
+            bad = np.flatnonzero(~(vbatt > 0))
+            if len(bad):
+                raise LogError(f"{log.path}: row {int(bad[0])}, column 'vbatt': {vbatt[bad[0]]!r} is not a positive "
+                               "battery voltage")  # fmt: skip
+
+    CLOCK = ("clock_phase", "period", "sweep_left", "sweep_right")  # gait mode's telemetry of the Buehler clock
+
+    def segments(self, log: Log) -> list[Segment]:
+        """Segments, each with what acts from each sample on: a telemetry row holds the duty, period and sweeps of
+        the control step that ended at its time, so what acts from row k on is row k + 1's (the last row's is held);
+        the clock's phase is row k's own. With a clock, the controller runs once per sample interval (the control
+        step), which every log must share."""
+        out = super().segments(log)
+        t = log.time
+
+        def ahead(values: np.ndarray) -> np.ndarray:
+            return np.append(values[1:], values[-1:]) if len(values) > 1 else values
+
+        acting = {f"acting_{leg}": ahead(log.df[f"duty_{leg}"].to_numpy(dtype=float)) for leg in C.LEGS}
+        clocked = all(c in log.df.columns for c in self.CLOCK) and bool(np.isfinite(log.df["period"]).any())
+        if clocked:
+            acting["clock_phase"] = log.df["clock_phase"].to_numpy(dtype=float)
+            for c in self.CLOCK[1:]:
+                acting[f"acting_{c}"] = ahead(log.df[c].to_numpy(dtype=float))
+            steps = max(1, round(float(np.median(np.diff(t))) / self._h))
+            if self.feedback_steps and self.feedback_steps != steps:
+                raise LogError(
+                    f"{log.path}: column 'time': a control step of {steps} physics steps, where the other logs have "
+                    f"{self.feedback_steps}: calibrate logs of one control rate together"
+                )
+            self.feedback_steps = steps
+        for seg in out:
+            lead = np.searchsorted(t, seg.lead.get("time", np.zeros(0)))
+            for column, values in acting.items():
+                seg.data[column] = values[seg.samples]
+                seg.lead[column] = values[lead]
+        return out
+
+    # --- replay -----------------------------------------------------------------------------------------------------
+    def structure(self, setting: Setting) -> tuple:
+        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
+        return (gap if gap > 1e-6 else 0.0, round(float(setting.get("terrain_bump.height", 0.0)), 6),
+                setting.get("disturbance.torque", 0.0) > 0)  # fmt: skip
+
+    def spec_edits(self, setting: Setting) -> list:
+        gap, bump, disturbed = self.structure(setting)
+        return [effects_edit(setting), *([add_backlash(gap)] if gap else []), *([add_bump(bump)] if bump else []),
+                *([add_disturbance] if disturbed else [])]  # fmt: skip
+
+    def build(self, edits) -> mujoco.MjModel:
+        return self._make_robot(edits).model
+
+    def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
+        """The measured hip angles and speeds; the body carried over, or standing level at rest on the first
+        segment with its hips at the measured angles."""
+        hip_qpos, hip_dof, root = self._addresses(model)  # an effect may add joints (backlash): by name
+        if not carried:
+            data.qpos[:] = model.qpos0
+            data.qvel[:] = 0.0
+            data.qpos[root : root + 7] = [0.0, 0.0, self._stand, 1.0, 0.0, 0.0, 0.0]
+        before = _deepest_contact(model, data)
+        lag = self.sample_lag * self._h  # the reading is this much older than its row: carried forward by its speed
+        for side in SIDES:
+            offset = setting.get(f"sensor_bias_angle_{side}.offset", 0.0)
+            for leg in LEGS_OF[side]:
+                speed = float(segment.data[f"leg_speed_{leg}"][0])
+                data.qpos[hip_qpos[leg]] = float(segment.data[f"leg_angle_{leg}"][0]) - offset + speed * lag
+                data.qvel[hip_dof[leg]] = speed
+        # a leg turned to its measured angle must not start inside the ground (the carried body need not match
+        # the log): the body is lifted by however much deeper than before any contact now reaches
+        after = _deepest_contact(model, data)
+        if after < min(before, 0.0):
+            data.qpos[root + 2] += min(before, 0.0) - after
+
+    def _addresses(self, model: mujoco.MjModel) -> tuple[dict[str, int], dict[str, int], int]:
+        """The hips' qpos and dof addresses and the root's qpos address in ``model``."""
+        hips = {leg: model.joint(C.HIP_JOINTS[leg]) for leg in C.LEGS}
+        return ({leg: int(j.qposadr[0]) for leg, j in hips.items()}, {leg: int(j.dofadr[0]) for leg, j in hips.items()},
+                int(model.joint(C.ROOT_JOINT).qposadr[0]))  # fmt: skip
+
+    def _motor(self, setting: Setting) -> dict[str, float]:
+        c = self._constants
+        k = setting.get("torque_constant.scale", 1.0)
+        return {"tpa": c.torque_per_amp * k, "ks": c.speed_constant * k * setting.get("back_emf_constant.scale", 1.0),
+                "ra": c.motor_resistance, "ramp": c.amplifier_resistance + setting.get("supply_sag.resistance", 0.0),
+                "supply": setting.get("supply_voltage.scale", 1.0)}  # fmt: skip
+
+    def controls(self, model, segment: Segment, setting: Setting) -> np.ndarray:
+        t = self.physics_times(segment)
+        delay = setting.get("delay.seconds", 0.0)
+        mo = self._motor(setting)
+        vs = segment.command_at("vbatt", t, delay) * mo["supply"]
+        band = setting.get("deadband.duty", 0.0)
+        ctrl = np.zeros((len(t), model.nu))
+        for leg in C.LEGS:
+            d = np.clip(segment.command_at(f"acting_{leg}", t, delay), -1.0, 1.0)
+            if band > 0:
+                d = np.sign(d) * np.maximum(np.abs(d) - band, 0.0)
+            r = mo["ra"] + d * d * mo["ramp"]
+            ctrl[:, self._drive[leg]] = mo["tpa"] * d * vs / r
+            ctrl[:, self._emf[leg]] = mo["tpa"] * mo["ks"] / r
+        if setting.get("disturbance.torque", 0.0) > 0:
+            f = setting.get("disturbance.frequency", 3.0)
+            ctrl[:, model.actuator("disturbance").id] = setting["disturbance.torque"] * np.sin(
+                2 * math.pi * f * (segment.t0 + t)
+            )
+        return ctrl
+
+    def feedback(self, ctrl: np.ndarray, sensordata: np.ndarray, rows, step: int) -> None:
+        """The robot's controller at a control step, for every row at once: the logged clock's targets, the PD with
+        the firmware's gains on the simulated hip angles and speeds, the duty from the nominal motor model inverted
+        (what the firmware knows), the driver's deadband, then the setting's motor formula; a delay shifts the
+        duty by whole physics steps (before the segment: the logged duty, already in ``ctrl``). Where the clock does
+        not run (a pause, a duty-mode log) the logged duty is what the driver is told."""
+        from envs.xjus.controller import pd_torque, wrap_angle
+
+        k = self.feedback_steps
+        u = step // k
+        if step == 0:
+            self._batch = self._feedback_batch(rows, k)
+        b = self._batch
+        clock = b["clock"][:, u]
+        live = np.isfinite(clock).all(axis=1)
+        history = b["history"]
+        history[:, u] = b["acting"][:, u]
+        if live.any():
+            angle = sensordata[:, b["angle"]]
+            speed = sensordata[:, b["speed"]]
+            phase = np.where(live, clock[:, 0], 0.0)
+            period = np.where(live, clock[:, 1], 1.0)
+            sweep = np.where(live[:, None], clock[:, 2:4], 0.0)
+            target, rate, accel = self._gait.targets(phase, period, sweep)
+            torque = pd_torque(wrap_angle(target - angle), rate - speed, accel, self._hip_inertia, C.PD_KP, C.PD_KD)
+            duty = self._firmware(b["vbatt"][:, u]).duty_for_torque(torque, speed)
+            history[live, u] = duty[live]
+        source = (step + np.arange(ctrl.shape[1])[None, :] - b["delay"][:, None]) // k  # (rows, steps)
+        held = source >= 0
+        d = history[np.arange(len(rows))[:, None], np.maximum(source, 0)]  # (rows, steps, legs)
+        band = b["band"][:, None, None]
+        d = np.where(band > 0, np.sign(d) * np.maximum(np.abs(d) - band, 0.0), d)
+        resistance = b["ra"][:, None, None] + d * d * b["ramp"][:, None, None]
+        vs = (b["vbatt"][:, u] * b["supply"])[:, None, None]
+        drive = b["tpa"][:, None, None] * d * vs / resistance
+        emf = np.broadcast_to((b["tpa"] * b["ks"])[:, None, None] / resistance, drive.shape)
+        mask = held[:, :, None]
+        ctrl[:, :, b["drive"]] = np.where(mask, drive, ctrl[:, :, b["drive"]])
+        ctrl[:, :, b["emf"]] = np.where(mask, emf, ctrl[:, :, b["emf"]])
+
+    def _feedback_batch(self, rows, k: int) -> dict:
+        """What the controller needs of every row for a whole rollout, gathered once: the logged clock, duty and
+        battery at each update, the setting's delay, deadband and motor constants, and the duty history."""
+        steps = max(seg.n_steps for _, seg in rows)
+        updates = -(-steps // k)
+        tau = np.arange(updates) * k * self._h
+        tables = []
+        for _, seg in rows:
+            key = ("xjus feedback", k, updates)
+            if key not in seg.cache:
+                clock = np.column_stack([seg.command_at(c, tau) if c in seg.data else np.full(updates, np.nan)
+                                         for c in ("clock_phase", "acting_period", "acting_sweep_left",
+                                                   "acting_sweep_right")])  # fmt: skip
+                acting = np.column_stack([seg.command_at(f"acting_{leg}", tau) for leg in C.LEGS])
+                seg.cache[key] = (clock, acting, seg.command_at("vbatt", tau))
+            tables.append(seg.cache[key])
+        motors = [self._motor(setting) for setting, _ in rows]
+        s = self._sensors
+        return {
+            "clock": np.stack([t[0] for t in tables]),
+            "acting": np.stack([t[1] for t in tables]),
+            "vbatt": np.stack([t[2] for t in tables]),
+            "history": np.zeros((len(rows), updates, len(C.LEGS))),
+            "delay": np.array([round(setting.get("delay.seconds", 0.0) / self._h) for setting, _ in rows]),
+            "band": np.array([setting.get("deadband.duty", 0.0) for setting, _ in rows]),
+            **{name: np.array([m[name] for m in motors]) for name in ("tpa", "ks", "ra", "ramp", "supply")},
+            "angle": [s[C.SENSOR_ANGLE[leg]] for leg in C.LEGS],
+            "speed": [s[C.SENSOR_SPEED[leg]] for leg in C.LEGS],
+            "drive": [self._drive[leg] for leg in C.LEGS],
+            "emf": [self._emf[leg] for leg in C.LEGS],
+        }
+
+    def _firmware(self, vbatt: np.ndarray):
+        """The firmware's motor model (Table 1, nominal) at the logged battery voltage, per row."""
+        from envs.xjus.controller import MotorArrays
+
+        c = self._constants
+        n = len(vbatt)
+        return MotorArrays(vbatt, np.full(n, c.motor_resistance), np.full(n, c.amplifier_resistance),
+                           np.full(n, c.torque_per_amp), np.full(n, c.speed_constant))  # fmt: skip
+
+    def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
+        mo = self._motor(setting)
+        gain = setting.get("sensor_gain_current.scale", 1.0)
+        s = self._sensors
+        angles, speeds, currents = [], [], []
+        for leg in C.LEGS:
+            side = "left" if leg in C.LEFT_LEGS else "right"
+            angles.append(sensordata[:, s[C.SENSOR_ANGLE[leg]]] + setting.get(f"sensor_bias_angle_{side}.offset", 0.0))
+            speeds.append(sensordata[:, s[C.SENSOR_SPEED[leg]]])
+            currents.append(gain * sensordata[:, s[C.SENSOR_TORQUE[leg]]] / mo["tpa"])
+        return np.column_stack([*angles, *speeds, *currents])
+
+    # --- synthetic logs ---------------------------------------------------------------------------------------------
+    def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
+        """The robot's own Buehler clock and PD on the nominal model, its period redrawn in 0.5 to 1.5 s and its
+        sweep per side in 40 to 80 deg every 1 to 3 s (turning when they differ), with a pause (all duties zero)
+        now and then: the duty it puts out at every 8 ms control step, as telemetry records it, and the battery
+        sagging slowly from 23.5 V."""
+        from envs.xjus.robot import GAIT
+
+        robot = self._robot_class(action_mode=GAIT, imu_noise=None)
+        robot.reset(np.arange(1), [rng], 0.0)
+        start_angles = robot.leg_angles()[0].copy()
+        dt = robot.control_dt
+        steps = round(seconds / dt)
+        rows = np.zeros((steps + 1, len(C.LEGS)))
+        start = 0.0
+        plan: list[tuple[float, float, float, float, bool]] = []
+        while start < seconds:
+            hold = rng.uniform(1.0, 3.0)
+            pause = rng.random() < 0.15
+            plan.append((start, rng.uniform(0.5, 1.5), *np.radians(rng.uniform(40.0, 80.0, 2)), pause))
+            start += hold
+        clock = np.full((steps + 1, 4), np.nan)  # phase, period, sweeps, as telemetry records them
+        clock[0, 0] = robot.phase[0]
+        k_plan = 0
+        for k in range(steps):
+            time = k * dt
+            while k_plan + 1 < len(plan) and plan[k_plan + 1][0] <= time:
+                k_plan += 1
+            _, period, left, right, pause = plan[k_plan]
+            if pause:  # the driver told nothing: the legs go limp, the clock stands still and is not logged
+                robot.hold_duty(np.zeros((1, len(C.LEGS))))
+            else:
+                robot.command(np.array([[period, left, right]]))
+                clock[k + 1] = [robot.phase[0], period, left, right]
+            robot.step()
+            rows[k + 1] = robot.last_duty[0]
+            if pause:
+                clock[k + 1, 0] = robot.phase[0]
+        t = np.arange(steps + 1) * dt
+        battery = 23.5 - 0.5 * t / max(seconds, 1e-9) + rng.normal(0.0, 0.02, len(t))
+        table = {"time": t, **{f"duty_{leg}": rows[:, i] for i, leg in enumerate(C.LEGS)}, "vbatt": battery,
+                 **dict(zip(self.CLOCK, clock.T, strict=True))}  # fmt: skip
+        for channel in self.channels:
+            table[channel] = 0.0
+        for i, leg in enumerate(C.LEGS):  # the start the replay begins from: the robot's reset pose
+            table[f"leg_angle_{leg}"] = float(start_angles[i])
+        return pd.DataFrame(table)
+
+    def synth_noise(self) -> dict[str, float]:
+        # the hip encoders (a 500-count encoder behind the gearbox: 1e-3 rad), a speed from its differences, the
+        # EPOS2's current reading (20 mA)
+        return {**{f"leg_angle_{leg}": 1e-3 for leg in C.LEGS}, **{f"leg_speed_{leg}": 0.05 for leg in C.LEGS},
+                **{f"current_{leg}": 0.02 for leg in C.LEGS}}  # fmt: skip
