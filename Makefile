@@ -14,7 +14,7 @@ DEMO_STEPS ?= 500000
 DEMO_EPISODES ?= 10
 DEMO_ID := demo-$(shell date +%Y%m%d-%H%M%S)
 
-.PHONY: setup test lint demo bench clean
+.PHONY: setup test test-slow lint demo bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -29,8 +29,12 @@ lint: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 
+# slow cases (marked) are covered by the calibration matrix benchmark; `make test-slow` runs them too
 test: lint
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 -q -m "not slow"
+
+test-slow: setup
+	$(BIN)/python -m pytest -n 2 -q -m slow
 
 demo: setup
 	$(BIN)/python train.py --env skitter/RoachWalk-v1 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)

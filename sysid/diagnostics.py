@@ -32,7 +32,7 @@ def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[s
     named ``..._left`` and ``..._right`` are also compared with each other.
     """
     out: dict[str, dict] = {}
-    segs = problem.segments
+    segs = [problem.segments[i] for i in problem.scored]  # the segments whose residuals are given
     times = np.concatenate([s.data["time"] for s in segs])
     dt = np.gradient(times) if len(times) > 1 else np.ones_like(times)
     dt[dt <= 0] = np.median(dt[dt > 0]) if (dt > 0).any() else 1.0

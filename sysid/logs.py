@@ -76,6 +76,9 @@ class Log:
     path: str
     df: pd.DataFrame
     meta: dict[str, Any] = field(default_factory=dict)
+    # a window's earlier rows of the same file (``between``): what came before it, for a twin simulated from the
+    # file's start (sysid/problem.py: the replay floor of a window that starts mid-run)
+    history: pd.DataFrame | None = field(default=None, repr=False)
 
     @property
     def time(self) -> np.ndarray:
@@ -87,9 +90,12 @@ class Log:
         return float(t[-1] - t[0]) if len(t) else 0.0
 
     def between(self, start: float, end: float) -> Log:
-        """The samples with ``start <= time < end``."""
+        """The samples with ``start <= time < end``; the earlier ones become its ``history``."""
         t = self.time
-        return Log(self.path, self.df[(t >= start) & (t < end)].reset_index(drop=True), dict(self.meta))
+        before = self.df[t < start]
+        history = pd.concat([self.history, before], ignore_index=True) if self.history is not None else before
+        return Log(self.path, self.df[(t >= start) & (t < end)].reset_index(drop=True), dict(self.meta),
+                   history.reset_index(drop=True) if len(history) else None)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -221,7 +227,7 @@ def _drop_time_glitches(log: Log) -> Log:
     meta = dict(log.meta)
     if meta.get("file_rows") is not None:
         meta["file_rows"] = [meta["file_rows"][k] for k in keep]
-    return Log(log.path, log.df.iloc[keep].reset_index(drop=True), meta)
+    return Log(log.path, log.df.iloc[keep].reset_index(drop=True), meta, log.history)
 
 
 def _row_label(log: Log, index: int) -> str:

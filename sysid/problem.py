@@ -43,6 +43,7 @@ CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
 LEAD_SECONDS = 0.25  # s of the log kept before each segment: the commands a delayed actuator still acts on
 TIME_TOLERANCE = 1e-9  # s: sample and physics times that differ by rounding alone are the same time
 UNSTABLE_RESIDUAL = 1e3  # noise levels: the residual of a sample a numerically unstable rollout did not reach
+FLOOR_TWINS = 3  # noisy readings of the model's twin of a log whose replay measures the replay floor
 
 
 @dataclass
@@ -108,6 +109,9 @@ class Adapter(ABC):
     feedback_steps: int = 0
     # physics steps by which a log's reading is older than its time stamp (see :meth:`sample_steps`)
     sample_lag: int = 0
+    # the first segment of a log (or of a window of one) starts from a guessed body state, since the log does not
+    # hold it: with ``burn_in`` it is replayed only to carry its end over, and its residual is not counted
+    burn_in: bool = False
 
     def __init__(self) -> None:
         self._models: dict[tuple, mujoco.MjModel] = {}
@@ -379,7 +383,12 @@ class Problem:
         self.adapter = adapter
         self.logs = list(logs)
         self.segments: list[Segment] = [s for log in self.logs for s in adapter.segments(log)]
-        if not self.segments:
+        # the segments whose residuals count: all, or, where the body's state is carried over and a log's first
+        # segment must guess it (``burn_in``), all but the first of each run of consecutive segments
+        self.scored = [i for i, seg in enumerate(self.segments)
+                       if not adapter.burn_in or (i and seg.index == self.segments[i - 1].index + 1
+                                                  and seg.log == self.segments[i - 1].log)]  # fmt: skip
+        if not self.scored:
             raise ValueError("no segment to replay: the logs are too short")
         self.nthread = nthread or default_threads()
         self._runner = rollout.Rollout(nthread=self.nthread)
@@ -418,8 +427,9 @@ class Problem:
     def _replay_floor(self, setting: Mapping[str, float] | None) -> dict[str, float]:
         """What replay cannot match even with the right model, per channel: the log's commands run through the
         model without a break (``simulate``), giving a twin of the log whose channels the model itself made,
-        measured with the log's sensor noise; the twin replayed in segments as the real log is (each segment from
-        the twin's own noisy measured state); the RMS of the difference from the twin's clean channels. It comes
+        read FLOOR_TWINS times with the log's sensor noise; each reading replayed in segments as the real log is
+        (each segment from its own noisy measured state); the RMS of the difference from the twin's clean channels
+        over all of them. It comes
         from what the log does not hold (a legged robot's body state, which its contacts make sensitive) and from
         the noise of the measured starts, and is added to the sensor noise as the floor errors are measured
         against. The twin, not the log, is replayed, so that what the model lacks stays in the residual and out of
@@ -434,25 +444,34 @@ class Problem:
         real = self.segments
         try:
             for log in self.logs:
-                clean = simulate(adapter, setting, log.df, log.meta)
-                twin = log.df.copy()
-                noise = np.random.default_rng(0)  # the twin is measured as the log is: with its sensors' noise
-                for j, c in enumerate(adapter.channels):
-                    twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, self.sensor_sigma[c], len(clean)))
-                twin_segments = adapter.segments(Log(log.path, twin, log.meta))
+                if log.history is not None:  # a window of a file: its twin runs from the file's start, as it did
+                    full = pd.concat([log.history, log.df], ignore_index=True)
+                    clean = simulate(adapter, setting, full, log.meta)[len(log.history) :]
+                else:
+                    clean = simulate(adapter, setting, log.df, log.meta)
                 index = [i for i, seg in enumerate(real) if seg.log == log.path]
-                if len(twin_segments) != len(index):
-                    raise RuntimeError(f"{log.path}: the twin log cut into other segments than the log")
-                self.segments = list(real)
-                for i, seg in zip(index, twin_segments, strict=True):
-                    seg.n_steps = self.n_steps
-                    self.segments[i] = seg
-                predictions = self.predict([setting], index)[0]
-                for i, p in zip(index, predictions, strict=True):
-                    d = clean[real[i].samples] - p
-                    squares += np.sum(d * d, axis=0)
-                    count += len(d)
-                    per_segment.append(np.mean(d * d, axis=0))
+                scored = [i for i in index if i in self.scored]
+                for seed in range(FLOOR_TWINS):  # several readings of the twin: one log's divergences are few
+                    twin = log.df.copy()
+                    noise = np.random.default_rng(seed)  # the twin is measured as the log is, with its sensors' noise
+                    for j, c in enumerate(adapter.channels):
+                        twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, self.sensor_sigma[c], len(clean)))
+                    twin_segments = adapter.segments(Log(log.path, twin, log.meta))
+                    if len(twin_segments) != len(index):
+                        raise RuntimeError(f"{log.path}: the twin log cut into other segments than the log")
+                    self.segments = list(real)
+                    for i, seg in zip(index, twin_segments, strict=True):
+                        seg.n_steps = self.n_steps
+                        self.segments[i] = seg
+                    self._carry.clear()
+                    predictions, _ = self._chain([setting], scored)
+                    for i in scored:
+                        d = clean[real[i].samples] - predictions[(0, i)]
+                        d = d[np.isfinite(d).all(axis=1)]  # a replay gone unstable measures nothing
+                        squares += np.sum(d * d, axis=0)
+                        count += len(d)
+                        if len(d):
+                            per_segment.append(np.mean(d * d, axis=0))
                 self._sensitivity.clear()
                 self._carry.clear()
         finally:
@@ -475,7 +494,7 @@ class Problem:
         return float(np.mean(se / self._sigma**2))
 
     def _index(self, segments: Sequence[int] | None) -> list[int]:
-        return list(range(len(self.segments))) if segments is None else list(segments)
+        return list(self.scored) if segments is None else list(segments)
 
     def predict(
         self, settings: Sequence[Setting], segments: Sequence[int] | None = None, anchor: Setting | None = None

@@ -86,8 +86,8 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         },
         "extra": adapter.report_extra(result),
         "segments": {
-            "train": len(result.train_problem.segments),
-            "test": len(result.test_problem.segments),
+            "train": len(result.train_problem.scored),
+            "test": len(result.test_problem.scored),
             "seconds_each": adapter.segment_seconds,
         },
         "rollouts": result.train_problem.rollouts + result.test_problem.rollouts,
@@ -173,7 +173,7 @@ def plot_residuals(result: Result, path: Path, which: str) -> None:
     channels = problem.channels
     fig, axes = plt.subplots(len(channels), 1, figsize=(10, 2.2 * len(channels) + 0.6), sharex=True, squeeze=False)
     for c, ax in enumerate(axes[:, 0]):
-        for seg, res in zip(problem.segments, held.residuals, strict=True):
+        for seg, res in zip([problem.segments[i] for i in problem.scored], held.residuals, strict=True):
             t = seg.data["time"]
             ax.plot(t, res.data[:, c], lw=0.6, color="C0" if which == "before" else "C2")
         ax.axhline(1, color="0.6", lw=0.5, ls="--")

@@ -74,10 +74,11 @@ def decision_segments(problem: Problem) -> list[int]:
     """The segments the loop decides on (ranking, fits, held-out tests): all of them up to MAX_DECISION_SEGMENTS,
     else that many spread evenly over the segments sorted by excitation (variance of the measured channels over
     the noise), so quiet and lively stretches are both represented. Kept effects are refitted on every segment."""
-    n = len(problem.segments)
+    scored = problem.scored
+    n = len(scored)
     if n <= MAX_DECISION_SEGMENTS:
-        return list(range(n))
-    order = _by_excitation(problem, range(n))
+        return list(scored)
+    order = _by_excitation(problem, scored)
     picks = np.unique(np.round(np.linspace(0, n - 1, MAX_DECISION_SEGMENTS)).astype(int))
     return sorted(order[k] for k in picks)
 
@@ -129,7 +130,7 @@ def calibrate(
     outcome.history.append(dict(current))
     everything = evaluate(problem, current)
     # the loop decides on ``fitting``: the same residuals when that is every segment
-    before = everything if len(fitting) == len(problem.segments) else evaluate(problem, current, fitting)
+    before = everything if len(fitting) == len(problem.scored) else evaluate(problem, current, fitting)
     outcome.diagnostics_before = diagnostics.diagnose(problem, everything.residuals, adapter.context)
     outcome.training_errors.append(everything.error)
     say(f"nominal model: error {everything.error:.2f} on the training logs")
@@ -207,12 +208,12 @@ def calibrate(
             _, group_effects, entries, trial = chosen_group
             label = " + ".join(e.name for e in group_effects)
             params = {k: p for e in group_effects for k, p in _params(e).items()}
-            if len(fitting) == len(problem.segments):  # the fit already saw every segment
+            if len(fitting) == len(problem.scored):  # the fit already saw every segment
                 refit = trial
             else:
                 refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values, local=True)
             current = refit.values
-            before = trial if len(fitting) == len(problem.segments) else evaluate(problem, current, fitting)
+            before = trial if len(fitting) == len(problem.scored) else evaluate(problem, current, fitting)
             outcome.training_errors.append(refit.error)
             if adapter.replay_floor:  # the floor of the model the loop goes on from (Problem.set_floor)
                 problem.set_floor(current)
@@ -436,7 +437,7 @@ def _held_out_test(
     params = {k: p for e in effects for k, p in _params(e).items()}
     gains = []
     for fold in folds:
-        rest = [i for i in (fitting if fitting is not None else range(len(problem.segments))) if i not in fold]
+        rest = [i for i in (fitting if fitting is not None else problem.scored) if i not in fold]
         fitted = (
             fit(problem, current, {**params, **nuisance}, rest, start=trial.values, local=True, intervals=False)
             if rest

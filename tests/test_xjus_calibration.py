@@ -96,6 +96,7 @@ def test_xjus_recovers_a_drawn_viscous_friction():
     assert case.halved, (case.result.before.error, case.result.after.error)
 
 
+@pytest.mark.slow  # 3 to 6 minutes on 2 cores; the matrix benchmark runs the same cases
 def test_xjus_null_and_out_of_catalog():
     adapter = make_adapter("xjus")
     train, truth = synth.synthesize("xjus", {}, 21)
@@ -112,7 +113,7 @@ def test_xjus_null_and_out_of_catalog():
 
 def test_calibrate_runs_on_the_xjus_own_telemetry(tmp_path):
     """The env's telemetry (gait mode: the clock, the duty, the hips, the currents) goes through calibrate.py: the
-    model replays itself, so nothing is chosen and the held-out error stays at the floor."""
+    model replays itself, so nothing is chosen and the held-out residual is explained (within the floor)."""
     env = gym.make("skitter/XjusWalk-v0", telemetry=True, max_episode_steps=1000)
     env.reset(seed=0)
     action = env.unwrapped.robot.mode.to_action(np.array([[0.8, 1.0, 1.0]]))[0]
@@ -128,4 +129,5 @@ def test_calibrate_runs_on_the_xjus_own_telemetry(tmp_path):
     assert calibrate.main(argv) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["robot"] == "xjus" and report["chosen"] == [], report["chosen"]
-    assert report["error_after"] < 1.5, report["error_after"]
+    # within what a right model's replay of these few segments may miss (the replay floor's own uncertainty)
+    assert not report["unexplained"], (report["error_after"], report["noise"]["threshold_unexplained"])

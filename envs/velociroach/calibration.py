@@ -233,6 +233,7 @@ class RoachAdapter(Adapter):
                             ("phase", "leg_angle"))
     } | {"supply": "vbatt"}  # fmt: skip
     replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
+    burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
     fd_step = 0.02  # contacts make the cost rough at small scales: difference over 2% of each range,
     rough_cost = True  # and fit without derivatives
     chain_search = (1, 2, 1)  # each fit rolls out thousands of segments: the narrowest search for effects together

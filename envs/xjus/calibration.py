@@ -227,6 +227,7 @@ class XjusAdapter(Adapter):
                             ("phase", "leg_angle"))
     } | {"supply": "vbatt"}  # fmt: skip
     replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
+    burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
     fd_step = 0.02
     rough_cost = True
     chain_search = (1, 2, 1)
