@@ -94,9 +94,23 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{tag} first {case.first} before {case.result.before.error:.2f} after {case.result.after.error:.2f}"
               f" ({case.seconds:.0f} s)", flush=True)  # fmt: skip
         {"effect": rows, "null": null_rows, "ooc": ooc_rows, "coverage": coverage_rows}[kind].append(row)
+        # the results so far, after every case: a run cut short keeps what it measured (marked partial)
+        report(args, (time.perf_counter() - start) / 60, rows, null_rows, ooc_rows, coverage_rows, weak_rows,
+               [f"{k} {r} {n or ''} seed {s}" for k, r, n, s in plan[plan.index((kind, robot, name, seed)) + 1 :]],
+               partial=True)  # fmt: skip
 
-    minutes = (time.perf_counter() - start) / 60
-    md = [f"# Calibration matrix\n\n{minutes:.1f} min on this machine; budget {args.minutes:g} min.\n"]
+    report(args, (time.perf_counter() - start) / 60, rows, null_rows, ooc_rows, coverage_rows, weak_rows, not_run)
+    return 0
+
+
+WEAK_SEEDS = (0, 1, 2)
+
+
+def report(args, minutes: float, rows, null_rows, ooc_rows, coverage_rows, weak_rows, not_run, partial=False) -> None:
+    """Write the matrix's results (benchmarks/results/<name>.md and .json): every case run so far, and the cases not
+    run (``partial``: still to come, in a run under way or cut short)."""
+    state = "**partial: the run was still going or was cut short**; " if partial else ""
+    md = [f"# Calibration matrix\n\n{state}{minutes:.1f} min on this machine; budget {args.minutes:g} min.\n"]
     ok = [r for r in rows if "error" not in r]
     md.append("\n## Each catalogued effect, drawn by the generator (effect k of a robot's catalog: seed k + 1)\n\n")
     md.append(md_table(
@@ -147,16 +161,13 @@ def main(argv: list[str] | None = None) -> int:
                         "goal"], cov_table))  # fmt: skip
     md.append("\n(coverage counts a case whose first pick was another effect as not covered)\n")
     if not_run:
-        md.append(f"\n## Not run within the budget ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
+        title = "Not run yet" if partial else "Not run within the budget"
+        md.append(f"\n## {title} ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
         md.append("\n")
     save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "effects": rows,
                                 "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
-                                "weak": weak_rows,
-                                "not_run": not_run}, "".join(md))  # fmt: skip
-    return 0
-
-
-WEAK_SEEDS = (0, 1, 2)
+                                "weak": weak_rows, "partial": partial,
+                                "not_run": not_run}, "".join(md), echo=not partial)  # fmt: skip
 
 
 def _weak(robot: str, name: str) -> dict:

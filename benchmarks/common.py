@@ -23,11 +23,12 @@ def machine() -> dict[str, Any]:
     }
 
 
-def save(name: str, result: dict[str, Any], markdown: str) -> None:
-    """Write ``results/<name>.json`` and ``results/<name>.md`` atomically and print the markdown."""
+def save(name: str, result: dict[str, Any], markdown: str, echo: bool = True) -> None:
+    """Write ``results/<name>.json`` and ``results/<name>.md`` atomically and (``echo``) print the markdown."""
     write_json(RESULTS / f"{name}.json", {**result, "machine": machine()})
     write_text(RESULTS / f"{name}.md", markdown)
-    print(markdown)
+    if echo:
+        print(markdown)
 
 
 def md_table(header: list[str], rows: list[list[Any]]) -> str:
