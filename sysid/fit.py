@@ -62,14 +62,15 @@ def fit(
     segments: Sequence[int] | None = None,
     start: Mapping[str, float] | None = None,
     max_iter: int = 25,
-    local: bool = False,
+    local: bool | str = False,
     intervals: bool = True,
 ) -> FitResult:
     """Fit ``params`` (flat name -> Param) from ``base``: smooth ones by least squares, then non-smooth ones by grid
     and CMA-ES with the smooth ones refitted at the best grid point.
 
     ``local``: ``start`` is near the optimum (a refit on part of the data): non-smooth and derivative-free searches
-    stay near it. ``intervals=False`` skips the 95% intervals (``ci95`` is then empty)."""
+    stay near it; ``"fine"``: very near (a refit on all the data of a fit on part of it), a window of a sixteenth
+    of the range. ``intervals=False`` skips the 95% intervals (``ci95`` is then empty)."""
     start = dict(start or {})
     smooth = {k: p for k, p in params.items() if p.smooth}
     rough = {k: p for k, p in params.items() if not p.smooth}
@@ -263,7 +264,7 @@ def _derivative_free(
     setting: dict[str, float],
     params: Mapping[str, Param],
     segments: Sequence[int] | None,
-    local: bool = False,
+    local: bool | str = False,
 ) -> FitResult:
     """For robots whose cost is rough at small scales (contacts; ``Adapter.rough_cost``), where finite-difference
     Jacobians mislead a least-squares step: one parameter by a batched grid shrinking around its best point, several
@@ -281,7 +282,7 @@ def _derivative_free(
         found, found_cost = u0, costs(problem, [best], segments, anchor=anchor)[0]
         if len(names) == 1:  # the whole range, then windows a quarter as wide around the best point each round,
             # then the vertex of a parabola over the last window (the cost's smoothed minimum, between grid points)
-            widths = [0.0, 0.25, 1 / 16] if anchor_pass == 0 and not local else [1 / 4, 1 / 16]
+            widths = [0.0, 0.25, 1 / 16] if not local else [1 / 16] if local == "fine" else [1 / 4, 1 / 16]
             widths = widths if anchor_pass == 0 else [1 / 16]  # (0: the whole range)
             for width in widths:
                 grid = np.linspace(-0.5, 0.5, GRID_POINTS)

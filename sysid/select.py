@@ -211,11 +211,11 @@ def calibrate(
             if len(fitting) == len(problem.scored):  # the fit already saw every segment
                 refit = trial
             else:
-                refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values, local=True)
+                refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values, local="fine")
             current = refit.values
             before = trial if len(fitting) == len(problem.scored) else evaluate(problem, current, fitting)
             outcome.training_errors.append(refit.error)
-            if adapter.replay_floor:  # the floor of the model the loop goes on from (Problem.set_floor)
+            if adapter.replay_floor and refit.error > NOISE_FLOOR:  # the loop goes on: from this model's floor
                 problem.set_floor(current)
                 before = evaluate(problem, current, fitting)
                 outcome.training_errors[-1] = evaluate(problem, current).error
