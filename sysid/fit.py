@@ -290,11 +290,19 @@ def _derivative_free(
                 cs = costs(problem, [trial([u]) for u in us], segments, anchor=anchor)
                 if min(cs) < found_cost:
                     found, found_cost = np.array([us[int(np.argmin(cs))]]), min(cs)
-            vertex = _parabola_vertex(us, np.asarray(cs))
-            if vertex is not None and abs(vertex - found[0]) > 1e-9:
-                (c,) = costs(problem, [trial([vertex])], segments, anchor=anchor)
-                if c < found_cost:
-                    found, found_cost = np.array([vertex]), c
+            # over the whole last window, and over the five points around its best (where a cost asymmetric
+            # about its minimum, as one in 1 / gain is, biases a wide parabola less)
+            cs = np.asarray(cs)
+            centre = int(np.clip(np.argmin(cs), 2, len(us) - 3))
+            vertices = {
+                _parabola_vertex(us, cs),
+                _parabola_vertex(us[centre - 2 : centre + 3], cs[centre - 2 : centre + 3]),
+            }
+            vertices = [v for v in vertices if v is not None and abs(v - found[0]) > 1e-9]
+            if vertices:
+                tried = costs(problem, [trial([v]) for v in vertices], segments, anchor=anchor)
+                if min(tried) < found_cost:
+                    found, found_cost = np.array([vertices[int(np.argmin(tried))]]), min(tried)
         else:
             import cma
 

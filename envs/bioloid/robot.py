@@ -100,7 +100,8 @@ class Bioloid(Robot):
         battery_voltage: the servos' supply, V (default: ``servo``'s, 10 V); a shorthand for ``servo``'s.
         imu_noise: the IMU's error model (the seed's robot has no IMU; one on the CM-5 is assumed so that heading
             tasks can run); None for a perfect IMU.
-        spec_edits, num_sims, nthread, batched, calibration: as for every robot (the calibration adapter is to come).
+        spec_edits, num_sims, nthread, batched, calibration: as for every robot (``calibration``: a file written by
+            ``calibrate.py --robot bioloid``, envs/bioloid/calibration.py).
     """
 
     name = "bioloid"
@@ -160,6 +161,24 @@ class Bioloid(Robot):
         if self.knee_wedge:
             knee_wedge_edit(self.wedge)(spec)
         self.servo.configure(spec)
+
+    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
+        from envs.bioloid.calibration import bioloid_effects
+
+        dt = float(mujoco.MjSpec.from_file(str(self.xml_path())).option.timestep)
+        return {name: {p.name: (p.low, p.high) for p in e.params}
+                for name, e in bioloid_effects(dt).items() if e.catalogued}  # fmt: skip
+
+    def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
+        """The calibration's model effects as spec edits (envs/bioloid/calibration.py): joint friction and inertia,
+        the servos' gain and supply, the crutches' contact, BODY's mass and centre of mass, the gear trains' play and
+        the goals' delay. A position offset describes the logging robot's sensors and changes nothing here."""
+        from envs.bioloid.calibration import add_backlash, delay_edit, effects_edit
+
+        setting = calibration.setting
+        gap, delay = setting.get("backlash.gap", 0.0), setting.get("delay.seconds", 0.0)
+        return [effects_edit(setting), *([add_backlash(gap)] if gap > 1e-6 else []),
+                *([delay_edit(delay)] if delay > 0 else [])]  # fmt: skip
 
     def setup(self) -> None:
         m, n = self.model, self.num_sims

@@ -1,0 +1,405 @@
+"""Calibration of the Bioloid quadruped against its servo logs (``calibrate.py --robot bioloid``), and the calibrated
+model (``gym.make("skitter/BioloidWalk-v0", calibration=PATH)``).
+
+**Replay.** A Bioloid log holds, per servo, the goal position it was sent and the position it reports (counts), and
+optionally the servos' supply (``vbatt``). The goals are replayed natively: every servo is the shared AX-12 model
+(envs/actuators/servo.py), whose position controller (compliance slope, duty bound, motor and supply) runs inside
+MuJoCo's dcmotor at every physics step, so a whole rollout is one ``mujoco.rollout`` call with no Python per step.
+A row of the robot's telemetry holds the goal of the control step that *ended* at its time (envs/common/env.py
+records after stepping), so the replay takes a step's goals from the row after its start; goals are held between
+samples. A log's supply sets each segment's servo gains (the amplifier's duty times the supply; a segment's median
+voltage, to 0.05 V); without ``vbatt`` the nominal 10 V is assumed.
+
+Multiple shooting over one-second segments: each starts from the 16 measured servo angles; their speeds (not logged
+by the seed's robot) and the body (pose, motion, contacts) are carried over from the previous segment, as the
+VelociRoACH's and the xJüs's are, with the body lifted if a leg turned to its measured angle would start inside the
+ground. A log's first segment starts the body level at rest on its lowest sole and is only replayed to carry its end
+over (``burn_in``). The replay floor is measured on the model's own twin of the log (sysid/problem.py).
+
+**Channels** compared: the 16 reported positions (counts). The AX-12's "present load" is not compared: it reports
+the amplifier's duty, not a torque (ROBOTIS e-manual), and it is the coarsest of its readings.
+
+**Effects** (sysid/effects.py): delay of the goals; the servos' gain (compliance slope) and supply; per side (the
+six servos of a side's two legs) Coulomb and viscous friction at the joints; the servos' rotor inertia; backlash
+between each servo's horn and the bracket it drives (a hinge of limited play, a structural spec edit); the crutches'
+friction and contact; the body's (BODY: the CM-5 and battery, Table 3) mass and centre of mass; an offset on each
+side's reported positions. Not offered: the compliance margin (a deadband the native servo cannot run,
+envs/actuators/servo.py; on positions it aliases Coulomb friction), motor constants apart from the supply (the servo
+model's torque and speed both scale with it: ``supply_voltage`` is that group), leg or spine stiffness (the robot's
+brackets are rigid).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+import pandas as pd
+
+from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
+from envs.bioloid import constants as C
+from sysid import effects as E
+from sysid.effects import Effect
+from sysid.logs import Log, LogError
+from sysid.problem import Adapter, Segment, Setting
+
+PLAY = "play"  # the backlash joint of each servo: <servo>_play
+SERVO_TOP_SPEED = "servo top speed: viscous friction / supply voltage"
+SIDE_SERVOS = {side: tuple(s for leg in C.LEGS if C.LEG_SIDE[leg] == side for s in (C.HIP[leg], C.ABDUCTION[leg],
+                                                                                     C.KNEE[leg]))
+               for side in C.SIDES}  # fmt: skip
+SUPPLY_STEP = 0.05  # V: segments whose median supply rounds alike share a model
+NOMINAL_SUPPLY = C.BATTERY_VOLTAGE
+
+
+def bioloid_effects(dt: float) -> dict[str, Effect]:
+    """The Bioloid's catalog effects and their bounds. Ranges: dry friction up to an eighth of the AX-12's 1.62 N m
+    stall torque at 10 V and viscous friction up to a third of its own back-EMF damping (stall torque over no-load
+    speed: 1.62 / 5.3 = 0.30 N m s/rad) per joint; rotor inertia up to three times the assumed 1.5e-8 kg m^2 x 254^2
+    = 9.7e-4 kg m^2 at the joint; the compliance slope from a quarter to four times the factory 32 counts (the
+    control table's 2..128 range, ROBOTIS); the supply 20% either way (a 9.6 V pack from full to flat); a worn
+    gear train's play up to 0.05 rad (3 deg); the CM-5's mass +-20% (a different battery; the robot's own parameter
+    range, envs/bioloid/robot.py) and its centre of mass 2 cm either way (the seed suspects it is off, seed 002
+    V.B); a position offset up to 20 counts (a horn mounted a spline off)."""
+    out: list[Effect] = [
+        E.make("delay", seconds=(0.0, 0.0, 0.05, dt)),
+        E.make("backlash", gap=(0.0, 0.0, 0.05)),
+        E.make("servo_gain", scale=(1.0, 0.25, 4.0)),
+        E.make("supply_voltage", scale=(1.0, 0.8, 1.2), alias=SERVO_TOP_SPEED),
+        E.make("armature", inertia=(0.0, 0.0, 2e-3)),
+    ]
+    for side in C.SIDES:
+        out += [
+            E.make("coulomb_friction", side, torque=(0.0, 0.0, 0.2)),
+            E.make("viscous_friction", side, alias=SERVO_TOP_SPEED, damping=(0.0, 0.0, 0.1)),
+            E.make("sensor_bias", f"position_{side}", offset=(0.0, -20.0, 20.0)),
+        ]
+    out += [
+        E.make("foot_friction", mu=(0.8, 0.2, 1.5)),
+        E.make("ground_contact", timeconst=(0.004, 0.004, 0.03), dampratio=(1.0, 0.3, 2.0)),
+        E.make("mass", scale=(1.0, 0.8, 1.2)),
+        E.make("com_offset", x=(0.0, -0.02, 0.02)),
+        E.make("terrain_bump", height=(0.0, 0.0, 0.02)),
+        E.make("disturbance", torque=(0.0, 0.0, 0.5), frequency=(3.0, 0.5, 10.0)),
+    ]
+    return {e.name: e for e in out}
+
+
+def effects_edit(setting: Setting):
+    """Spec edit of a setting's model effects (calibration and the calibrated envs alike), after the servos are
+    configured: per side the joints' Coulomb and viscous friction; every servo's rotor inertia, gain and supply
+    (the amplifier's torque-space gains and bound scale with the supply, envs/actuators/dcmotor.py); the crutches'
+    friction and contact; BODY's mass and centre of mass."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        for side in C.SIDES:
+            for servo in SIDE_SERVOS[side]:
+                joint = spec.joint(servo)
+                joint.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
+                joint.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
+        inertia = setting.get("armature.inertia", 0.0)
+        gain, supply = setting.get("servo_gain.scale", 1.0), setting.get("supply_voltage.scale", 1.0)
+        for servo in C.SERVOS:
+            spec.joint(servo).armature += inertia
+            a = spec.actuator(f"{servo}_servo")
+            a.gainprm[GAIN_KP] *= gain * supply
+            a.gainprm[GAIN_VMAX] *= supply
+        feet = {C.FOOT_GEOM[leg] for leg in C.LEGS} | {C.CRUTCH_GEOM[leg] for leg in C.LEGS}
+        for geom in spec.geoms:
+            if geom.name in feet:
+                if "foot_friction.mu" in setting:
+                    geom.friction[0] = setting["foot_friction.mu"]
+                if "ground_contact.timeconst" in setting:
+                    geom.solref = [setting["ground_contact.timeconst"], setting.get("ground_contact.dampratio", 1.0)]
+        scale, shift = setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0)
+        if scale != 1.0 or shift != 0.0:
+            nominal = spec.compile()
+            i = nominal.body(C.ROOT_BODY).id
+            body = spec.body(C.ROOT_BODY)
+            body.explicitinertial = True
+            body.mass = float(nominal.body_mass[i]) * scale
+            body.inertia = nominal.body_inertia[i] * scale
+            body.ipos = nominal.body_ipos[i] + [shift, 0.0, 0.0]
+            body.iquat = nominal.body_iquat[i]
+
+    return edit
+
+
+def supply_edit(volts: float):
+    """Spec edit: the servos' gains at a logged supply of ``volts`` instead of the nominal 10 V."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        ratio = volts / NOMINAL_SUPPLY
+        for servo in C.SERVOS:
+            a = spec.actuator(f"{servo}_servo")
+            a.gainprm[GAIN_KP] *= ratio
+            a.gainprm[GAIN_VMAX] *= ratio
+
+    return edit
+
+
+def add_backlash(gap: float):
+    """Spec edit: on each servo's bracket, a second hinge on the servo's axis free within +-gap/2 (the gear train's
+    play); the servo's potentiometer reads the output shaft (the servo joint), the bracket hangs on the play."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        for servo in C.SERVOS:
+            axis = np.array(spec.joint(servo).axis, dtype=float)
+            play = spec.body(servo).add_joint(name=f"{servo}_{PLAY}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis)
+            play.range = [-gap / 2, gap / 2]
+            play.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            play.armature = 1e-6  # the bracket's own inertia carries it; a little keeps the free play well posed
+
+    return edit
+
+
+def delay_edit(seconds: float):
+    """Spec edit of the calibrated envs: every servo's goal delayed by ``seconds`` (MuJoCo's actuator delay: a
+    history of the inputs, held between samples), as the replay shifts the logged goals."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        steps = math.ceil(seconds / spec.option.timestep - 1e-9)
+        for servo in C.SERVOS:
+            a = spec.actuator(f"{servo}_servo")
+            a.delay, a.nsample, a.interp = float(seconds), steps + 2, 0
+
+    return edit
+
+
+def add_bump(height: float, x: float = 0.15):
+    """Spec edit (synthetic data only): a bump across the robot's path, ``x`` ahead of the start."""
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        g = spec.worldbody.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, 2.0, 0],
+                                    pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
+        g.rgba = [0.6, 0.5, 0.4, 1]
+
+    return edit
+
+
+def add_disturbance(spec: mujoco.MjSpec) -> None:
+    """Spec edit (synthetic data only): a rolling torque on the body from outside the model (a tether, a cable)."""
+    a = spec.add_actuator(name="disturbance", target="imu", trntype=mujoco.mjtTrn.mjTRN_SITE)
+    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    a.gear = [0, 0, 0, 1, 0, 0]
+
+
+def _deepest_contact(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """The most negative contact distance (m; 0 without contacts) at the data's qpos."""
+    mujoco.mj_fwdPosition(model, data)
+    return float(min(data.contact.dist[: data.ncon], default=0.0)) if data.ncon else 0.0
+
+
+def _side(servo: str) -> str | None:
+    for side, servos in SIDE_SERVOS.items():
+        if servo in servos:
+            return side
+    return None
+
+
+class BioloidAdapter(Adapter):
+    """The Bioloid replayed from its servos' logged goals through the AX-12 model."""
+
+    name = "bioloid"
+    channels = {f"present_position_{s}": "count" for s in C.SERVOS}  # noqa: RUF012
+    commands = tuple(f"goal_{s}" for s in C.SERVOS)
+    segment_seconds = 1.0
+    context = {
+        key: {f"present_position_{s}": f"{column}_{s}" for s in C.SERVOS}
+        for key, column in (("velocity", "speed"), ("command", "goal"), ("load", "load"))
+    } | {"supply": "vbatt"}
+    replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
+    burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
+    fd_step = 0.02
+    rough_cost = True
+    chain_search = (1, 2, 1)
+    sample_lag = 1  # telemetry reads the sensors of its control step's last physics step (as the xJüs's)
+
+    def __init__(self) -> None:
+        super().__init__()
+        from envs.bioloid.robot import Bioloid
+
+        self._robot_class = Bioloid
+        robot = self._make_robot(())
+        m = robot.model
+        self._h = float(m.opt.timestep)
+        self._servo = robot.servo.constants
+        self._stand = robot.stand_height
+        self._ctrl = {s: int(m.actuator_ctrladr[m.actuator(f"{s}_servo").id]) for s in C.SERVOS}
+        self._gear = {s: float(m.actuator_gear[m.actuator(f"{s}_servo").id, 0]) for s in C.SERVOS}
+        self._pos = np.array([int(m.sensor(f"{s}_pos").adr[0]) for s in C.SERVOS])
+        self._ready = robot.ready_counts.copy()
+        self._mode, self._control_dt = robot.mode, robot.control_dt
+
+    def _make_robot(self, edits):
+        return self._robot_class(imu_noise=None, spec_edits=list(edits))
+
+    @property
+    def physics_dt(self) -> float:
+        return self._h
+
+    def effects(self) -> dict[str, Effect]:
+        return bioloid_effects(self._h)
+
+    # --- logs -------------------------------------------------------------------------------------------------------
+    def check_logs(self, logs: Sequence[Log]) -> None:
+        for log in logs:
+            for column in (*self.commands, *self.channels):
+                x = log.df[column].to_numpy(dtype=float)
+                bad = np.flatnonzero(~((x >= 0) & (x <= self._servo.counts - 1)))
+                if len(bad):
+                    raise LogError(f"{log.path}: row {int(bad[0])}, column {column!r}: {x[bad[0]]!r} is not a servo "
+                                   f"position in counts (0..{self._servo.counts - 1})")  # fmt: skip
+            if "vbatt" in log.df.columns:
+                v = log.df["vbatt"].to_numpy(dtype=float)
+                bad = np.flatnonzero(~((v > 3.0) & (v < 20.0)))
+                if len(bad):
+                    raise LogError(f"{log.path}: row {int(bad[0])}, column 'vbatt': {v[bad[0]]!r} is not a servo "
+                                   "supply voltage (V)")  # fmt: skip
+
+    def segments(self, log: Log) -> list[Segment]:
+        """Segments with the goals that act from each sample on: a telemetry row holds the goals of the control
+        step that ended at its time, so what acts from row k on is row k + 1's (the last row's is held)."""
+        out = super().segments(log)
+        t = log.time
+        acting = {}
+        for s in C.SERVOS:
+            g = log.df[f"goal_{s}"].to_numpy(dtype=float)
+            acting[f"acting_{s}"] = np.append(g[1:], g[-1:]) if len(g) > 1 else g
+        for seg in out:
+            lead = np.searchsorted(t, seg.lead.get("time", np.zeros(0)))
+            for column, values in acting.items():
+                seg.data[column] = values[seg.samples]
+                seg.lead[column] = values[lead]
+        return out
+
+    # --- replay -----------------------------------------------------------------------------------------------------
+    def structure(self, setting: Setting) -> tuple:
+        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
+        return (gap if gap > 1e-6 else 0.0, round(float(setting.get("terrain_bump.height", 0.0)), 6),
+                setting.get("disturbance.torque", 0.0) > 0)  # fmt: skip
+
+    def spec_edits(self, setting: Setting) -> list:
+        gap, bump, disturbed = self.structure(setting)
+        return [effects_edit(setting), *([add_backlash(gap)] if gap else []), *([add_bump(bump)] if bump else []),
+                *([add_disturbance] if disturbed else [])]  # fmt: skip
+
+    def segment_edits(self, segment: Segment, setting: Setting) -> tuple[tuple, list]:
+        """The servos' gains at the segment's logged supply (its median, to 0.05 V); none without ``vbatt``."""
+        if "vbatt" not in segment.data:
+            return (), []
+        volts = round(float(np.median(segment.data["vbatt"])) / SUPPLY_STEP) * SUPPLY_STEP
+        if abs(volts - NOMINAL_SUPPLY) < 1e-9:
+            return (), []
+        return (volts,), [supply_edit(volts)]
+
+    def build(self, edits) -> mujoco.MjModel:
+        return self._make_robot(edits).model
+
+    def _addresses(self, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, int]:
+        """The servos' qpos and dof addresses and the root's qpos address in ``model`` (an effect may add joints)."""
+        joints = [model.joint(s) for s in C.SERVOS]
+        return (np.array([int(j.qposadr[0]) for j in joints]), np.array([int(j.dofadr[0]) for j in joints]),
+                int(model.joint(C.ROOT_JOINT).qposadr[0]))  # fmt: skip
+
+    def _measured_angles(self, segment: Segment, setting: Setting) -> np.ndarray:
+        counts = np.array([float(segment.data[f"present_position_{s}"][0]) for s in C.SERVOS])
+        bias = np.array([setting.get(f"sensor_bias_position_{side}.offset", 0.0) if side else 0.0
+                         for side in map(_side, C.SERVOS)])  # fmt: skip
+        return self._servo.angle(counts - bias)
+
+    def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
+        """The measured servo angles; their speeds and the body carried over, or, fresh, at rest with the body level
+        on its lowest sole."""
+        qpos, _, root = self._addresses(model)
+        angles = self._measured_angles(segment, setting)
+        if not carried:
+            data.qpos[:] = model.qpos0
+            data.qvel[:] = 0.0
+            data.qpos[qpos] = angles
+            mujoco.mj_kinematics(model, data)
+            lowest = min(data.site(C.SOLE_SITE[leg]).xpos[2] for leg in C.LEGS)
+            data.qpos[root : root + 7] = [0.0, 0.0, float(0.2 - lowest) + 1e-4, 1.0, 0.0, 0.0, 0.0]
+            return
+        before = _deepest_contact(model, data)
+        data.qpos[qpos] = angles
+        after = _deepest_contact(model, data)
+        if after < min(before, 0.0):
+            data.qpos[root + 2] += min(before, 0.0) - after
+
+    def controls(self, model, segment: Segment, setting: Setting) -> np.ndarray:
+        t = self.physics_times(segment)
+        delay = setting.get("delay.seconds", 0.0)
+        ctrl = np.zeros((len(t), model.nu))
+        top = self._servo.counts - 1
+        for s in C.SERVOS:
+            goal = np.clip(segment.command_at(f"acting_{s}", t, delay), 0.0, top)
+            ctrl[:, self._ctrl[s]] = self._gear[s] * self._servo.angle(goal)
+        if setting.get("disturbance.torque", 0.0) > 0:
+            f = setting.get("disturbance.frequency", 3.0)
+            ctrl[:, model.actuator("disturbance").id] = setting["disturbance.torque"] * np.sin(
+                2 * math.pi * f * (segment.t0 + t)
+            )
+        return ctrl
+
+    def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
+        counts = self._servo.counts_of(sensordata[:, self._pos])
+        for i, side in enumerate(map(_side, C.SERVOS)):
+            if side:
+                counts[:, i] += setting.get(f"sensor_bias_position_{side}.offset", 0.0)
+        return counts
+
+    # --- synthetic logs ---------------------------------------------------------------------------------------------
+    def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
+        """Goals at the robot's 50 Hz: the seed's IK gaits (trot, walk, pace; 0.5 to 2.5 Hz; each side's stride
+        drawn in 0.3 to 1, so that it turns) for 1.5 to 3 s each, now and then a pause in a posture of its own,
+        while the pelvis, neck and head servos wander slowly (they carry no leg, and a gait never moves them); the
+        supply at 10 V sagging slowly. The first row is the ready posture, as the robot resets."""
+        from agents.bioloid.ik import IKGait
+        from envs.common.task import ObservationLayout
+
+        dt, mode = self._control_dt, self._mode
+        steps = round(seconds / dt)
+        goals = np.tile(self._ready, (steps + 1, 1))
+        k = 1
+        while k <= steps:
+            span = int(rng.uniform(1.5, 3.0) / dt)
+            stop = min(steps + 1, k + span)
+            local = np.arange(stop - k) * dt
+            if rng.random() < 0.2:  # a pause: hips and knees moved to a posture of their own, held
+                posture = self._ready + rng.uniform(-40.0, 40.0, 16)
+                goals[k:stop] = posture
+            else:
+                gait = IKGait(ObservationLayout({}), mode, dt, str(rng.choice(["trot", "walk", "pace"])),
+                              float(rng.uniform(0.5, 2.5)), steer=False)  # fmt: skip
+                strides = np.repeat(rng.uniform(0.3, 1.0, 2)[None, :], len(local), axis=0)[:, [0, 1, 0, 1]]
+                strides = strides * gait.lead_in(local)[:, None]
+                goals[k:stop] = gait.counts(local, strides)[0]
+            k = stop
+        wander = {"PELVIS": 25.0, "N_1": 60.0, "N_2": 60.0, "HEAD": 60.0}  # counts: slow random walks, bounded
+        for servo, reach in wander.items():
+            i = C.SERVO_INDEX[servo]
+            walk = np.cumsum(rng.normal(0.0, reach * 0.05, steps + 1))
+            walk = reach * np.tanh(walk / reach)
+            walk[0] = 0.0
+            goals[:, i] = self._ready[i] + walk
+        goals = np.clip(np.rint(goals), C.RANGE_LOW, C.RANGE_HIGH)
+        t = np.arange(steps + 1) * dt
+        table = {"time": t, **{f"goal_{s}": goals[:, i] for i, s in enumerate(C.SERVOS)},
+                 "vbatt": 10.0 - 0.3 * t / max(seconds, 1e-9)}  # fmt: skip
+        for i, s in enumerate(C.SERVOS):  # the start the replay begins from: the ready posture
+            table[f"present_position_{s}"] = float(self._ready[i])
+        return pd.DataFrame(table).iloc[:steps]  # samples before ``seconds``: each in a segment
+
+    def synth_noise(self) -> dict[str, float]:
+        # the AX-12's potentiometer reading: noise of a third of a count before the servo rounds it (as the bench
+        # rig's, envs/bench/calibration.py)
+        return {c: 0.3 for c in self.channels}
+
+    def measure(self, channel: str, values: np.ndarray) -> np.ndarray:
+        return np.rint(values)  # the servo reports whole counts
+
+    def recorded_noise(self, noise: dict[str, float]) -> dict[str, float]:
+        return {c: float(np.sqrt(s * s + 1.0 / 12.0)) for c, s in noise.items()}
