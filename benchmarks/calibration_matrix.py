@@ -33,7 +33,8 @@ from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
 
 COVERAGE = {"motor": ["viscous_friction", "delay"], "servo": ["delay", "servo_gain"],
-            "roach": ["viscous_friction_left"], "xjus": ["viscous_friction_left"], "bioloid": ["servo_gain"]}  # fmt: skip
+            "roach": ["viscous_friction_left"], "xjus": ["viscous_friction_left"],
+            "bioloid": ["servo_gain"]}  # fmt: skip
 OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"],
                   "xjus": ["disturbance", "terrain_bump"], "bioloid": ["disturbance", "terrain_bump"]}  # fmt: skip
 
