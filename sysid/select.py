@@ -412,13 +412,22 @@ def _identified(
     problem: Problem, effects: Sequence[Effect], nuisance: Mapping[str, Param], fitting, trial: FitResult
 ) -> str | None:
     """The fit's 95% intervals (computed now, for the candidate about to be tested), and whether the data identify
-    every parameter: an interval narrower than half the parameter's range. None if so, else the reason."""
+    every parameter: an interval narrower than half the parameter's range; and whether each effect is there at
+    all: at least one of its parameters differs from its nominal value by more than its 95% half-width (a Wald test
+    at 5%; an estimate the interval cannot tell from nominal is no evidence of the effect). None if so, else the
+    reason."""
     params = {k: p for e in effects for k, p in _params(e).items()}
     trial.ci95 = fit_intervals(problem, trial, {**params, **nuisance}, fitting)
     for k, p in params.items():
         half = trial.ci95.get(k, float("inf"))
         if not np.isfinite(half) or half > 0.5 * p.span:
             return f"the data cannot identify {k}: 95% interval +-{half:.3g} {p.unit} over a range of {p.span:.3g}"
+    for e in effects:
+        own = _params(e)
+        if not any(abs(trial.values[k] - p.nominal) > trial.ci95.get(k, float("inf")) for k, p in own.items()):
+            shown = ", ".join(f"{k} {trial.values[k]:.3g} +- {trial.ci95.get(k, float('inf')):.2g} (nominal "
+                              f"{p.nominal:.3g})" for k, p in own.items())  # fmt: skip
+            return f"not told from nominal: {shown}"
     return None
 
 
