@@ -40,7 +40,9 @@ import pandas as pd
 
 from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
 from envs.bioloid import constants as C
+from sysid import edits
 from sysid import effects as E
+from sysid.edits import delay_actuators
 from sysid.effects import Effect
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting
@@ -121,16 +123,7 @@ def effects_edit(setting: Setting):
                     geom.friction[0] = setting["foot_friction.mu"]
                 if "ground_contact.timeconst" in setting:
                     geom.solref = [setting["ground_contact.timeconst"], setting.get("ground_contact.dampratio", 1.0)]
-        scale, shift = setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0)
-        if scale != 1.0 or shift != 0.0:
-            nominal = spec.compile()
-            i = nominal.body(C.ROOT_BODY).id
-            body = spec.body(C.ROOT_BODY)
-            body.explicitinertial = True
-            body.mass = float(nominal.body_mass[i]) * scale
-            body.inertia = nominal.body_inertia[i] * scale
-            body.ipos = nominal.body_ipos[i] + [shift, 0.0, 0.0]
-            body.iquat = nominal.body_iquat[i]
+        edits.scale_mass(spec, [C.ROOT_BODY], setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0))
 
     return edit
 
@@ -164,42 +157,20 @@ def add_backlash(gap: float):
 
 
 def delay_edit(seconds: float):
-    """Spec edit of the calibrated envs: every servo's goal delayed by ``seconds`` (MuJoCo's actuator delay: a
-    history of the inputs, held between samples), as the replay shifts the logged goals."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        steps = math.ceil(seconds / spec.option.timestep - 1e-9)
-        for servo in C.SERVOS:
-            a = spec.actuator(f"{servo}_servo")
-            a.delay, a.nsample, a.interp = float(seconds), steps + 2, 0
-
-    return edit
+    """Spec edit of the calibrated envs: every servo's goal delayed by ``seconds``, as the replay shifts the logged
+    goals."""
+    return delay_actuators(seconds, [f"{servo}_servo" for servo in C.SERVOS])
 
 
-def add_bump(height: float, x: float = 0.15):
-    """Spec edit (synthetic data only): a bump across the robot's path, ``x`` ahead of the start."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        g = spec.worldbody.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, 2.0, 0],
-                                    pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
-        g.rgba = [0.6, 0.5, 0.4, 1]
-
-    return edit
+def add_bump(height: float):
+    """Spec edit (synthetic data only): a bump across the robot's path, 0.15 m ahead of the start."""
+    return edits.add_bump(height, x=0.15, width=2.0)
 
 
-def add_disturbance(spec: mujoco.MjSpec) -> None:
-    """Spec edit (synthetic data only): a rolling torque on the body from outside the model (a tether, a cable); up
-    to 3 N m, since the servos' stiff loops hide a smaller one from their positions (at 0.5 N m the nominal model's
-    error on synthetic logs stays under 1)."""
-    a = spec.add_actuator(name="disturbance", target="imu", trntype=mujoco.mjtTrn.mjTRN_SITE)
-    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-    a.gear = [0, 0, 0, 1, 0, 0]
-
-
-def _deepest_contact(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """The most negative contact distance (m; 0 without contacts) at the data's qpos."""
-    mujoco.mj_fwdPosition(model, data)
-    return float(min(data.contact.dist[: data.ncon], default=0.0)) if data.ncon else 0.0
+# Spec edit (synthetic data only): a rolling torque on the body from outside the model (a tether, a cable); up to
+# 3 N m, since the servos' stiff loops hide a smaller one from their positions (at 0.5 N m the nominal model's error
+# on synthetic logs stays under 1)
+add_disturbance = edits.add_site_disturbance("imu", axis=0)
 
 
 def _side(servo: str) -> str | None:
@@ -333,9 +304,9 @@ class BioloidAdapter(Adapter):
             lowest = min(data.site(C.SOLE_SITE[leg]).xpos[2] for leg in C.LEGS)
             data.qpos[root : root + 7] = [0.0, 0.0, float(0.2 - lowest) + 1e-4, 1.0, 0.0, 0.0, 0.0]
             return
-        before = _deepest_contact(model, data)
+        before = edits.deepest_contact(model, data)
         data.qpos[qpos] = angles
-        after = _deepest_contact(model, data)
+        after = edits.deepest_contact(model, data)
         if after < min(before, 0.0):
             data.qpos[root + 2] += min(before, 0.0) - after
 

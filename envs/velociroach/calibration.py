@@ -47,7 +47,9 @@ from envs.actuators.dcmotor import (
     INPUT_VEL,
 )
 from envs.velociroach import constants as C
+from sysid import edits
 from sysid import effects as E
+from sysid.edits import delay_actuators
 from sysid.effects import Effect, Param
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
@@ -168,52 +170,24 @@ def effects_edit(setting: Setting):
         for joint in spec.joints:
             if joint.name.endswith("_spring"):
                 joint.stiffness[0] *= stiffness
-        scale, shift = setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0)
-        if scale != 1.0 or shift != 0.0:
-            nominal = spec.compile()
-            i = nominal.body(C.ROOT_BODY).id
-            body = spec.body(C.ROOT_BODY)
-            body.explicitinertial = True
-            body.mass = float(nominal.body_mass[i]) * scale
-            body.inertia = nominal.body_inertia[i] * scale
-            body.ipos = nominal.body_ipos[i] + [shift, 0.0, 0.0]
-            body.iquat = nominal.body_iquat[i]
+        edits.scale_mass(spec, [C.ROOT_BODY], setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0))
 
     return edit
 
 
 def delay_edit(seconds: float):
-    """Spec edit of the calibrated envs: both motors' inputs delayed by ``seconds`` through MuJoCo's actuator delay
-    (a history of the inputs, held between samples), as the replay shifts the logged commands."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        steps = math.ceil(seconds / spec.option.timestep - 1e-9)
-        for side in SIDES:
-            a = spec.actuator(C.MOTORS[side])
-            a.delay, a.nsample, a.interp = float(seconds), steps + 2, 0
-
-    return edit
+    """Spec edit of the calibrated envs: both motors' inputs delayed by ``seconds``, as the replay shifts the logged
+    commands."""
+    return delay_actuators(seconds, [C.MOTORS[side] for side in SIDES])
 
 
-def add_bump(height: float, x: float = 0.15):
-    """Spec edit (synthetic data only): a bump of the floor across the robot's path, ``x`` ahead of the start."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        body = spec.worldbody
-        g = body.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, 0.5, 0],
-                          pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
-        g.rgba = [0.6, 0.5, 0.4, 1]
-
-    return edit
+def add_bump(height: float):
+    """Spec edit (synthetic data only): a bump of the floor across the robot's path, 0.15 m ahead of the start."""
+    return edits.add_bump(height, x=0.15, width=0.5)
 
 
-def add_disturbance(spec: mujoco.MjSpec) -> None:
-    """Spec edit (synthetic data only): a yaw torque on the body from outside the model."""
-    # a torque at the IMU's site, in its frame (a body transmission would act through the body's contacts, as an
-    # adhesion actuator does)
-    a = spec.add_actuator(name="disturbance", target="imu", trntype=mujoco.mjtTrn.mjTRN_SITE)
-    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-    a.gear = [0, 0, 0, 0, 0, 1]
+# Spec edit (synthetic data only): a yaw torque on the body from outside the model
+add_disturbance = edits.add_site_disturbance("imu", axis=2)
 
 
 class RoachAdapter(Adapter):

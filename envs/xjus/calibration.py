@@ -39,7 +39,9 @@ import numpy as np
 import pandas as pd
 
 from envs.xjus import constants as C
+from sysid import edits
 from sysid import effects as E
+from sysid.edits import delay_actuators
 from sysid.effects import Effect
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting
@@ -128,17 +130,9 @@ def effects_edit(setting: Setting):
             joint = spec.joint(name)
             if joint is not None:
                 joint.stiffness[0] *= spine
-        scale, shift = setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0)
-        if scale != 1.0 or shift != 0.0:
-            nominal = spec.compile()
-            for name in C.SEGMENTS:
-                i = nominal.body(name).id
-                body = spec.body(name)
-                body.explicitinertial = True
-                body.mass = float(nominal.body_mass[i]) * scale
-                body.inertia = nominal.body_inertia[i] * scale
-                body.ipos = nominal.body_ipos[i] + ([shift, 0.0, 0.0] if name == C.ROOT_BODY else 0.0)
-                body.iquat = nominal.body_iquat[i]
+        edits.scale_mass(
+            spec, C.SEGMENTS, setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0), shifted=C.ROOT_BODY
+        )
 
     return edit
 
@@ -169,43 +163,19 @@ def add_backlash(gap: float):
 
 
 def delay_edit(seconds: float):
-    """Spec edit of the calibrated envs: every motor's two actuators delayed by ``seconds`` (MuJoCo's actuator
-    delay: a history of the inputs, held between samples), as the replay shifts the logged duty."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        steps = math.ceil(seconds / spec.option.timestep - 1e-9)
-        for a in spec.actuators:
-            if a.name.endswith("_drive") or a.name.endswith("_emf"):
-                a.delay, a.nsample, a.interp = float(seconds), steps + 2, 0
-
-    return edit
+    """Spec edit of the calibrated envs: every motor's two actuators delayed by ``seconds``, as the replay shifts the
+    logged duty."""
+    return delay_actuators(seconds, [f"{C.HIP_JOINTS[leg]}_{kind}" for leg in C.LEGS for kind in ("drive", "emf")])
 
 
-def add_bump(height: float, x: float = 0.6):
-    """Spec edit (synthetic data only): a bump across the robot's path, ``x`` ahead of the start."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        g = spec.worldbody.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, 2.0, 0],
-                                    pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
-        g.rgba = [0.6, 0.5, 0.4, 1]
-
-    return edit
+def add_bump(height: float):
+    """Spec edit (synthetic data only): a bump across the robot's path, 0.6 m ahead of the start."""
+    return edits.add_bump(height, x=0.6, width=2.0)
 
 
-def add_disturbance(spec: mujoco.MjSpec) -> None:
-    """Spec edit (synthetic data only): a pitching torque on the middle segment from outside the model (a payload
-    swinging, a tether): it shifts the stance load between the front and rear legs."""
-    # a torque at the IMU's site, in its frame (a body transmission would act through the body's contacts, as an
-    # adhesion actuator does)
-    a = spec.add_actuator(name="disturbance", target="imu", trntype=mujoco.mjtTrn.mjTRN_SITE)
-    a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-    a.gear = [0, 0, 0, 0, 1, 0]
-
-
-def _deepest_contact(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """The most negative contact distance (the deepest penetration, m; 0 without contacts) at the data's qpos."""
-    mujoco.mj_fwdPosition(model, data)
-    return float(min(data.contact.dist[: data.ncon], default=0.0)) if data.ncon else 0.0
+# Spec edit (synthetic data only): a pitching torque on the middle segment from outside the model (a payload
+# swinging, a tether): it shifts the stance load between the front and rear legs
+add_disturbance = edits.add_site_disturbance("imu", axis=1)
 
 
 class XjusAdapter(Adapter):
@@ -327,7 +297,7 @@ class XjusAdapter(Adapter):
             data.qpos[:] = model.qpos0
             data.qvel[:] = 0.0
             data.qpos[root : root + 7] = [0.0, 0.0, self._stand, 1.0, 0.0, 0.0, 0.0]
-        before = _deepest_contact(model, data)
+        before = edits.deepest_contact(model, data)
         lag = self.sample_lag * self._h  # the reading is this much older than its row: carried forward by its speed
         for side in SIDES:
             offset = setting.get(f"sensor_bias_angle_{side}.offset", 0.0)
@@ -337,7 +307,7 @@ class XjusAdapter(Adapter):
                 data.qvel[hip_dof[leg]] = speed
         # a leg turned to its measured angle must not start inside the ground (the carried body need not match
         # the log): the body is lifted by however much deeper than before any contact now reaches
-        after = _deepest_contact(model, data)
+        after = edits.deepest_contact(model, data)
         if after < min(before, 0.0):
             data.qpos[root + 2] += min(before, 0.0) - after
 
