@@ -170,6 +170,23 @@ class Adapter(ABC):
             seg.n_steps = max(int(seg.steps[-1]) + 1, seg.carry_steps)
         return out
 
+    @staticmethod
+    def acting(values: np.ndarray) -> np.ndarray:
+        """A logged command as it acts from each sample on, for telemetry that stamps a row with the command of the
+        control step that *ended* at its time (envs/common/env.py records after stepping): row k + 1's, the last
+        row's held."""
+        return np.append(values[1:], values[-1:]) if len(values) > 1 else values
+
+    @staticmethod
+    def attach(log: Log, segments: Sequence[Segment], columns: Mapping[str, np.ndarray]) -> None:
+        """Add per-sample arrays of a log (one value per row) to its segments' data and to their lead-in samples."""
+        t = log.time
+        for seg in segments:
+            lead = np.searchsorted(t, seg.lead.get("time", np.zeros(0)))
+            for column, values in columns.items():
+                seg.data[column] = values[seg.samples]
+                seg.lead[column] = values[lead]
+
     def physics_times(self, segment: Segment) -> np.ndarray:
         """The time of every physics step of a segment's rollout, s from its start."""
         return np.arange(segment.n_steps) * self.physics_dt

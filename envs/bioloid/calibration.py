@@ -244,16 +244,8 @@ class BioloidAdapter(Adapter):
         """Segments with the goals that act from each sample on: a telemetry row holds the goals of the control
         step that ended at its time, so what acts from row k on is row k + 1's (the last row's is held)."""
         out = super().segments(log)
-        t = log.time
-        acting = {}
-        for s in C.SERVOS:
-            g = log.df[f"goal_{s}"].to_numpy(dtype=float)
-            acting[f"acting_{s}"] = np.append(g[1:], g[-1:]) if len(g) > 1 else g
-        for seg in out:
-            lead = np.searchsorted(t, seg.lead.get("time", np.zeros(0)))
-            for column, values in acting.items():
-                seg.data[column] = values[seg.samples]
-                seg.lead[column] = values[lead]
+        self.attach(log, out, {f"acting_{s}": self.acting(log.df[f"goal_{s}"].to_numpy(dtype=float))
+                               for s in C.SERVOS})  # fmt: skip
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------

@@ -251,16 +251,12 @@ class XjusAdapter(Adapter):
         step), which every log must share."""
         out = super().segments(log)
         t = log.time
-
-        def ahead(values: np.ndarray) -> np.ndarray:
-            return np.append(values[1:], values[-1:]) if len(values) > 1 else values
-
-        acting = {f"acting_{leg}": ahead(log.df[f"duty_{leg}"].to_numpy(dtype=float)) for leg in C.LEGS}
+        acting = {f"acting_{leg}": self.acting(log.df[f"duty_{leg}"].to_numpy(dtype=float)) for leg in C.LEGS}
         clocked = all(c in log.df.columns for c in self.CLOCK) and bool(np.isfinite(log.df["period"]).any())
         if clocked:
             acting["clock_phase"] = log.df["clock_phase"].to_numpy(dtype=float)
             for c in self.CLOCK[1:]:
-                acting[f"acting_{c}"] = ahead(log.df[c].to_numpy(dtype=float))
+                acting[f"acting_{c}"] = self.acting(log.df[c].to_numpy(dtype=float))
             steps = max(1, round(float(np.median(np.diff(t))) / self._h))
             if self.feedback_steps and self.feedback_steps != steps:
                 raise LogError(
@@ -268,11 +264,7 @@ class XjusAdapter(Adapter):
                     f"{self.feedback_steps}: calibrate logs of one control rate together"
                 )
             self.feedback_steps = steps
-        for seg in out:
-            lead = np.searchsorted(t, seg.lead.get("time", np.zeros(0)))
-            for column, values in acting.items():
-                seg.data[column] = values[seg.samples]
-                seg.lead[column] = values[lead]
+        self.attach(log, out, acting)
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------
