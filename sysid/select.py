@@ -412,16 +412,23 @@ def _identified(
     problem: Problem, effects: Sequence[Effect], nuisance: Mapping[str, Param], fitting, trial: FitResult
 ) -> str | None:
     """The fit's 95% intervals (computed now, for the candidate about to be tested), and whether the data identify
-    every parameter: an interval narrower than half the parameter's range; and whether each effect is there at
-    all: at least one of its parameters differs from its nominal value by more than its 95% half-width (a Wald test
-    at 5%; an estimate the interval cannot tell from nominal is no evidence of the effect). None if so, else the
-    reason."""
+    every parameter: an interval narrower than half the parameter's range and not reaching past an end of the range
+    other than nominal (where the data would take it further: the fit's end-of-range test, read through the
+    interval); and whether each effect is there at all: at least one of its parameters differs from its nominal
+    value by more than its 95% half-width (a Wald test at 5%; an estimate the interval cannot tell from nominal is
+    no evidence of the effect). None if so, else the reason."""
     params = {k: p for e in effects for k, p in _params(e).items()}
     trial.ci95 = fit_intervals(problem, trial, {**params, **nuisance}, fitting)
     for k, p in params.items():
         half = trial.ci95.get(k, float("inf"))
         if not np.isfinite(half) or half > 0.5 * p.span:
             return f"the data cannot identify {k}: 95% interval +-{half:.3g} {p.unit} over a range of {p.span:.3g}"
+    for k, p in params.items():  # the fit's own end-of-range test, read through the interval
+        value, half = trial.values[k], trial.ci95.get(k, float("inf"))
+        for bound in (p.low, p.high):
+            if not np.isclose(bound, p.nominal) and abs(value - bound) < half:
+                return (f"{k} {value:.3g} +- {half:.2g} {p.unit}: its interval reaches past the end of its range "
+                        f"({bound:g}): something else is at work")  # fmt: skip
     for e in effects:
         own = _params(e)
         if not any(abs(trial.values[k] - p.nominal) > trial.ci95.get(k, float("inf")) for k, p in own.items()):
