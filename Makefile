@@ -14,7 +14,7 @@ DEMO_STEPS ?= 500000
 DEMO_EPISODES ?= 10
 DEMO_ID := demo-$(shell date +%Y%m%d-%H%M%S)
 
-.PHONY: setup test test-slow lint demo bench clean
+.PHONY: setup test test-slow lint demo bench cpg-experiments clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -53,6 +53,20 @@ bench: setup
 	$(BIN)/python -m benchmarks.calibration_matrix
 	$(BIN)/python -m benchmarks.xjus_speed
 	$(BIN)/python -m benchmarks.spine_study
+	$(BIN)/python -m benchmarks.bioloid_speed
+	$(BIN)/python -m benchmarks.bioloid_figure30
+	$(BIN)/python -m benchmarks.bioloid_figure30 --knee-wedge
+	$(BIN)/python -m benchmarks.bioloid_static
+	$(BIN)/python -m benchmarks.bioloid_cpg_experiments
+
+# the seed's CPG experiments 5 and 6 with its PSO at its scale (about 50 minutes each on 2 cores; each resumes from
+# its checkpoint when run again), then their summary (make bench summarizes what the run folders hold)
+cpg-experiments: setup
+	$(BIN)/python -m agents.optimize --config agents/bioloid/optimize/experiment5.json --optimizer pso \
+		--iterations 240 --particles 50 --seed 0 --out runs/optimize/experiment5__pso__0
+	$(BIN)/python -m agents.optimize --config agents/bioloid/optimize/experiment6.json --optimizer pso \
+		--iterations 240 --particles 50 --seed 0 --out runs/optimize/experiment6__pso__0
+	$(BIN)/python -m benchmarks.bioloid_cpg_experiments
 
 clean:
 	rm -rf $(VENV) *.egg-info .pytest_cache .ruff_cache

@@ -1,23 +1,42 @@
 """Seed 002's CPG experiments 5 and 6 with its PSO at its scale (50 particles x 240 iterations x 32 s): the runs'
-results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments).
+results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments), and the checks
+of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
+
+Each best policy is then compared with the reference trot (``ik-trot`` at 1.5 Hz) by ``evaluate.py`` (its
+episodes: BioloidWalk-v0, 10 s, reset noise 0.1, seeds 1000 on; mean and 95% bootstrap CI, paired differences),
+written to ``results/bioloid_cpg_vs_trot.{md,json}``.
 
 The runs themselves are ``python -m agents.optimize`` (the commands below; each resumes from its checkpoint when run
-again); this script summarizes what they have so far: iterations done, the best eq. 17 score and, for that policy,
-its signed +x progress and whether it fell, the evaluation's wall time, and the best score per iteration.
+again, about 50 minutes each on this machine); this script summarizes what they have: iterations done, the best eq. 17
+score and, for that policy, its signed +x progress and whether it fell, the swarm's falls, the evaluation's wall time,
+the best parameters (as the optimizer's [0, 1] vector and as oscillator parameters) and the best score per iteration.
+It copies each best policy to ``results/bioloid_cpg_experiment<e>_best.json`` (``evaluate.py --policy cpg:<file>``).
 
-Run: ``python -m benchmarks.bioloid_cpg_experiments`` (seconds; the PSO runs take about half an hour each on this
-machine, benchmarks/results/bioloid_speed.md).
+Run: ``python -m benchmarks.bioloid_cpg_experiments`` (about two minutes; ``--no-check`` for the summary alone).
 """
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import json
+import math
+import shutil
+import tempfile
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from agents.bioloid.cpg import AMPLITUDE_SCALE, CPG, parse_coupling
+from benchmarks.bioloid_cpg_check import check, drop_rebound, markdown
 from benchmarks.common import RESULTS, md_table, save
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = (5, 6)
+WALK = "skitter/BioloidWalk-v0"
+REFERENCE = "ik-trot:1.5"
+SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments (seed 002 VI.B.4; robots.md)
 
 
 def command(e: int) -> str:
@@ -25,53 +44,148 @@ def command(e: int) -> str:
             f"--iterations 240 --particles 50 --seed 0 --out runs/optimize/experiment{e}__pso__0")  # fmt: skip
 
 
-def summary(e: int) -> dict:
+def oscillator_parameters(policy: dict[str, Any]) -> list[dict[str, Any]]:
+    """Each oscillator's parameters in a policy file: offset x0 and amplitude sqrt(E) as angles, and the weights a, b
+    it takes from its input's x and v (bidir: its input also takes -a, -b from it), by the seed's mapping
+    (agents/bioloid/cpg.py)."""
+    coupling = parse_coupling(policy["coupling"], "policy")
+    p = np.asarray(policy["parameters"], dtype=np.float64)
+    cpg = CPG(coupling, p[None])
+    w = coupling.ranges["coupling"]
+    rows = []
+    for i, name in enumerate(coupling.oscillators):
+        group = p[4 * coupling.groups[i] : 4 * coupling.groups[i] + 4]
+        rows.append({
+            "servo": name,
+            "input": coupling.oscillators[coupling.inputs[i]],
+            "bidir": coupling.bidir[i],
+            "group": coupling.groups[i],
+            "offset_deg": math.degrees(cpg.offset[0, i]),
+            "amplitude_deg": math.degrees(cpg.amplitude[0, i] * AMPLITUDE_SCALE),
+            "a": (2.0 * group[2] - 1.0) * w,
+            "b": (2.0 * group[3] - 1.0) * w,
+            "frequency_hz": float(cpg.rate[0, i] / (2.0 * math.pi)),
+        })  # fmt: skip
+    return rows
+
+
+def summary(e: int) -> dict[str, Any]:
     out = ROOT / "runs" / "optimize" / f"experiment{e}__pso__0"
-    row: dict = {"experiment": e, "command": command(e), "run_folder": str(out.relative_to(ROOT))}
+    row: dict[str, Any] = {"experiment": e, "command": command(e), "run_folder": str(out.relative_to(ROOT))}
     if not (out / "history.json").exists():
         return {**row, "iterations_done": 0}
     history = json.loads((out / "history.json").read_text())
     best = json.loads((out / "best.json").read_text())
-    curve = [h["best_so_far"] for h in history["history"]]
+    rows = history["history"]
+    curve = [h["best_so_far"] for h in rows]
+    metrics = best["metrics"]
     row.update({
         "iterations_done": len(curve),
-        "best_eq17": best["score"],
+        "best_eq17": metrics["eq17"],
         "best_iteration": best["iteration"],
-        "best_progress_x": best["metrics"]["progress_x"],
-        "best_forward": best["metrics"]["forward"],
-        "best_fallen": bool(best["metrics"]["fallen"]),
+        "best_progress_x": metrics["progress_x"],
+        "best_forward": metrics["forward"],
+        "best_fallen": bool(metrics["fallen"]),
+        "best_fall_time": metrics["fall_time"],
+        "swarm_falls_last_iteration": rows[-1]["falls"],
+        "swarm_mean_last_iteration": rows[-1]["mean"],
         "wall_seconds": history["wall_seconds"],
+        "seconds_per_iteration": history["wall_seconds"] / len(curve),
         "best_so_far": curve,
         "parameters": best["parameters"],
+        "oscillators": oscillator_parameters(best),
     })  # fmt: skip
     (RESULTS / f"bioloid_cpg_experiment{e}_best.json").write_text(json.dumps(best, indent=2) + "\n")
     return row
 
 
-def main() -> None:
-    rows = [summary(e) for e in EXPERIMENTS]
-    table = md_table(
-        ["experiment", "iterations done", "best eq. 17", "at iteration", "its +x progress (m)", "fell",
-         "evaluation wall time"],
-        [[r["experiment"], f"{r['iterations_done']} of 240", round(r.get("best_eq17", float("nan")), 2),
-          r.get("best_iteration", "-"), round(r.get("best_progress_x", float("nan")), 2),
-          r.get("best_fallen", "-"), f"{r.get('wall_seconds', 0) / 60:.0f} min"] for r in rows],
+def _parameter_table(r: dict[str, Any]) -> str:
+    return md_table(
+        ["servo", "input", "bidir", "offset x0 (deg)", "amplitude (deg)", "a", "b"],
+        [[o["servo"], o["input"], "yes" if o["bidir"] else "", f"{o['offset_deg']:+.1f}", f"{o['amplitude_deg']:.1f}",
+          f"{o['a']:+.2f}", f"{o['b']:+.2f}"] for o in r["oscillators"]],
     )  # fmt: skip
+
+
+def compare_with_trot(done: list[dict[str, Any]], episodes: int) -> str:
+    """``evaluate.py`` on the reference trot and each best policy; its results.md and results.json copied to
+    ``results/bioloid_cpg_vs_trot.*``. Returns the command it ran."""
+    import evaluate
+
+    policies = [RESULTS / f"bioloid_cpg_experiment{r['experiment']}_best.json" for r in done]
+    specs = [REFERENCE] + [f"cpg:{p.relative_to(ROOT)}" for p in policies]
+    argv = ["--env", WALK, *[a for s in specs for a in ("--policy", s)], "--episodes", str(episodes), "--seed", "1000"]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "evaluation"
+        with contextlib.chdir(ROOT):  # the policy paths are relative to the repository
+            if evaluate.main([*argv, "--out", str(out)]) != 0:
+                raise RuntimeError("evaluate.py failed on the best policies")
+        for suffix in ("md", "json"):
+            shutil.copyfile(out / f"results.{suffix}", RESULTS / f"bioloid_cpg_vs_trot.{suffix}")
+    return "python evaluate.py " + " ".join(argv) + " --out <folder>"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--no-check", action="store_true", help="skip the physical checks and the evaluation")
+    parser.add_argument("--episodes", type=int, default=20, help="evaluate.py episodes per policy")
+    args = parser.parse_args()
+    rows = [summary(e) for e in EXPERIMENTS]
+    done = [r for r in rows if r["iterations_done"]]
+    table = md_table(
+        ["experiment", "parameters", "iterations done", "best eq. 17 (seed: 7-17)", "at iteration",
+         "its +x progress in 32 s", "fell", "swarm falls, last iteration", "evaluation wall time"],
+        [[r["experiment"], len(r["parameters"]), f"{r['iterations_done']} of 240", f"{r['best_eq17']:.2f}",
+          r["best_iteration"], f"{r['best_progress_x']:+.2f} m ({r['best_progress_x'] / 32:.2f} m/s)",
+          "yes" if r["best_fallen"] else "no", f"{r['swarm_falls_last_iteration']} of 50",
+          f"{r['wall_seconds']:.0f} s ({r['wall_seconds'] / 60:.1f} min, {r['seconds_per_iteration']:.1f} s per "
+          "iteration)"] for r in done],
+    )  # fmt: skip
+    missing = "".join(f"- experiment {r['experiment']}: not run yet\n" for r in rows if not r["iterations_done"])
     curves = "\n".join(
         f"- experiment {r['experiment']}: best so far every 20 iterations: "
-        + ", ".join(f"{v:.2f}" for v in r.get("best_so_far", [])[::20])
-        for r in rows
+        + ", ".join(f"{v:.2f}" for v in r["best_so_far"][::20])
+        + f", final {r['best_so_far'][-1]:.2f}"
+        for r in done
     )
+    parameters = "\n".join(
+        f"Experiment {r['experiment']}, best parameters (the optimizer's [0, 1] vector: "
+        + ", ".join(f"{p:.3f}" for p in r["parameters"])
+        + "), as oscillators (1 Hz; a, b: the weights it takes from its input's x and v):\n\n"
+        + _parameter_table(r)
+        for r in done
+    )
+    checks, evaluation = [], ""
+    drop: dict[str, float] | None = None
+    if not args.no_check and done:
+        ran = compare_with_trot(done, args.episodes)
+        evaluation = (
+            "\n## Against the reference trot (`evaluate.py`, `results/bioloid_cpg_vs_trot.md`)\n\n"
+            f"    {ran}\n\n" + (RESULTS / "bioloid_cpg_vs_trot.md").read_text().split("\n", 1)[1]
+        )
+        for r in done:
+            policy = RESULTS / f"bioloid_cpg_experiment{r['experiment']}_best.json"
+            frames = RESULTS / f"bioloid_cpg_experiment{r['experiment']}_frames.png"
+            result = check(policy, frames)
+            r["check"] = result
+            checks.append(markdown(result, f"Experiment {r['experiment']}'s best policy"))
+        drop = drop_rebound()
+        checks.insert(0, f"The contacts are not elastic: the robot dropped {drop['height'] * 100:.0f} cm in its ready "
+                         f"posture sinks {drop['sink_below_rest'] * 1000:.1f} mm below where it comes to rest and "
+                         f"rebounds {drop['rebound_above_rest'] * 1000:.1f} mm above it.\n")  # fmt: skip
     md = (
         "# Seed 002 CPG experiments 5 and 6, PSO at the seed's scale\n\n"
         "50 particles x 240 iterations x 32 s each (107 h simulated per run), the seed's PSO (decreasing inertia, "
-        "geometric neighbourhood), eq. 17 maximized as the seed did; the seed's best scores over its six "
-        "experiments: 7-17.\n\n" + table + "\n" + curves + "\n\nCommands (each resumes its run when run again):\n\n"
-        + "\n".join(f"    {r['command']}" for r in rows) + "\n\nThe best policies: "
-        + ", ".join(f"`evaluate.py --policy cpg:benchmarks/results/bioloid_cpg_experiment{e}_best.json`"
-                    for e in EXPERIMENTS) + ".\n"
+        "geometric neighbourhood), eq. 17 maximized as the seed did, on both cores of this machine (the swarm as one "
+        "batch); the seed's best scores over its six experiments: 7-17.\n\n" + table + missing + "\n" + curves
+        + "\n\nCommands (each resumes its run when run again):\n\n" + "\n".join(f"    {r['command']}" for r in rows)
+        + "\n\nThe best policies: "
+        + ", ".join(f"`evaluate.py --policy cpg:benchmarks/results/bioloid_cpg_experiment{r['experiment']}_best.json`"
+                    for r in done) + ".\n\n" + parameters
+        + evaluation
+        + ("\n## Is the gait physical? (`benchmarks/bioloid_cpg_check.py`)\n\n" + "\n".join(checks) if checks else "")
     )  # fmt: skip
-    save("bioloid_cpg_experiments", {"rows": rows}, md)
+    save("bioloid_cpg_experiments", {"rows": rows, "drop": drop if checks else None}, md)
 
 
 if __name__ == "__main__":

@@ -142,3 +142,26 @@ def test_the_cpg_policy_runs_an_episode_and_replays_the_same():
             obs, *_, info = env.step(action)
         xs.append(info["x_position"])
     assert xs[0] == xs[1] and math.isfinite(xs[0])
+
+
+def test_the_gait_check_replays_the_scored_rollout_and_its_variants_change_only_the_model(tmp_path):
+    """benchmarks/bioloid_cpg_check.py (the verdict on the optimized gaits): its step-by-step replay ends where the
+    optimizer's scored rollout ended (it raises otherwise), and its nominal variant gives the scored progress."""
+    from agents.optimize.problem import Evaluator, parse_config
+    from benchmarks.bioloid_cpg_check import gait_statistics, record_controls, replay
+
+    coupling = read_coupling("experiment5")
+    params = np.linspace(0.2, 0.8, coupling.dimension)
+    config = {"env": "skitter/BioloidWalk-v0", "controller": "cpg", "seconds": 2.0, "objective": "eq17",
+              "sample_interval": 1.0, "max_tilt": 1.0, "coupling": "experiment5"}  # fmt: skip
+    policy = tmp_path / "best.json"
+    policy.write_text(json.dumps({"policy": "cpg", "robot": "bioloid", "coupling": coupling.to_dict(),
+                                  "parameters": params.tolist(), "run": {"config": config}}))  # fmt: skip
+    scored = Evaluator(parse_config(config), 1, nthread=1).evaluate(params[None])
+    rollout = record_controls(policy)
+    stats = gait_statistics(rollout)
+    assert stats["progress_x"] == pytest.approx(scored["progress_x"][0], abs=1e-9)
+    assert sum(stats["ground_force_share"].values()) == pytest.approx(1.0)
+    assert stats["max_driving_torque_over_the_line"] <= 1e-9  # the servo model's torque-speed line holds
+    assert replay(rollout)["progress_x"] == pytest.approx(scored["progress_x"][0], abs=1e-9)
+    assert rollout["model"].opt.timestep == 0.002  # the variants edit copies
