@@ -193,8 +193,24 @@ class Adapter(ABC):
 
     def structure(self, setting: Setting) -> tuple:
         """The part of a setting that changes the model's sizes (a joint or actuator added): rows of one batched
-        rollout share it. () when no effect adds anything."""
-        return ()
+        rollout share it. The catalog's structural effects: backlash's play (its gap, 0 when absent), a terrain
+        bump (its height) and a disturbance actuator (present or not)."""
+        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
+        return (gap if gap > 1e-6 else 0.0, round(float(setting.get("terrain_bump.height", 0.0)), 6),
+                setting.get("disturbance.torque", 0.0) > 0)  # fmt: skip
+
+    def structural_edits(
+        self,
+        setting: Setting,
+        backlash: Callable[[float], Callable[[mujoco.MjSpec], None]] | None = None,
+        bump: Callable[[float], Callable[[mujoco.MjSpec], None]] | None = None,
+        disturbance: Callable[[mujoco.MjSpec], None] | None = None,
+    ) -> list[Callable[[mujoco.MjSpec], None]]:
+        """The spec edits of a setting's structural effects (:meth:`structure`), from the robot's own makers of
+        each: ``backlash(gap)``, ``bump(height)`` and the ``disturbance`` edit."""
+        gap, height, disturbed = self.structure(setting)
+        return [*([backlash(gap)] if gap and backlash else []), *([bump(height)] if height and bump else []),
+                *([disturbance] if disturbed and disturbance else [])]  # fmt: skip
 
     @abstractmethod
     def spec_edits(self, setting: Setting) -> list[Callable[[mujoco.MjSpec], None]]:
@@ -221,15 +237,15 @@ class Adapter(ABC):
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
         """Predicted channels at the segment's samples from the sensor data at their physics steps."""
 
-    def feedback(
+    def feedback(  # noqa: B027 (optional hook: no update by default)
         self, ctrl: np.ndarray, sensordata: np.ndarray, rows: Sequence[tuple[Setting, Segment]], step: int
     ) -> None:
         """With ``feedback_steps``: the controller's update for the next ``feedback_steps`` physics steps of every
         row, written into ``ctrl`` (rows, steps, nu; it holds :meth:`controls`' values) from ``sensordata`` (rows,
         nsensordata), the sensors as the robot reads them at the update (computed at the physics step before it),
         ``step`` the update's physics step from the segment's start. Vectorized over the rows: Python runs once per
-        control step of all the rollouts together, never per physics step."""
-        raise NotImplementedError(f"{self.name} closes no loop in Python (feedback_steps = 0)")
+        control step of all the rollouts together, never per physics step. Default: no update (the controls
+        computed before the rollout stand), as for an adapter with ``feedback_steps = 0``, which is never asked."""
 
     def sample_steps(self, steps: np.ndarray, n_steps: int) -> np.ndarray:
         """The physics step whose sensor data a sample reports, for samples at ``steps`` from a rollout's start: the

@@ -118,18 +118,13 @@ class RigAdapter(Adapter):
     def out_of_catalog(self) -> list[Effect]:
         return [E.make("disturbance", torque=(0.0, 0.0, 0.5), frequency=(3.0, 0.5, 10.0))]
 
-    def structure(self, setting: Setting) -> tuple:
-        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
-        return (gap if gap > 1e-6 else 0.0, setting.get("disturbance.torque", 0.0) > 0)
-
     def spec_edits(self, setting: Setting) -> list:
-        gap, disturbed = self.structure(setting)
-        edits = [shaft_edit(setting)]
-        if gap:
-            edits.append(add_backlash(gap, 0.01 * self._load_inertia))
-        if disturbed:
-            edits.append(add_disturbance)
-        return edits
+        return [
+            shaft_edit(setting),
+            *self.structural_edits(
+                setting, lambda gap: add_backlash(gap, 0.01 * self._load_inertia), disturbance=add_disturbance
+            ),
+        ]
 
     def build(self, edits) -> mujoco.MjModel:
         return self._rig(edits).model

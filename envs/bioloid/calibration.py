@@ -249,15 +249,8 @@ class BioloidAdapter(Adapter):
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------
-    def structure(self, setting: Setting) -> tuple:
-        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
-        return (gap if gap > 1e-6 else 0.0, round(float(setting.get("terrain_bump.height", 0.0)), 6),
-                setting.get("disturbance.torque", 0.0) > 0)  # fmt: skip
-
     def spec_edits(self, setting: Setting) -> list:
-        gap, bump, disturbed = self.structure(setting)
-        return [effects_edit(setting), *([add_backlash(gap)] if gap else []), *([add_bump(bump)] if bump else []),
-                *([add_disturbance] if disturbed else [])]  # fmt: skip
+        return [effects_edit(setting), *self.structural_edits(setting, add_backlash, add_bump, add_disturbance)]
 
     def segment_edits(self, segment: Segment, setting: Setting) -> tuple[tuple, list]:
         """The servos' gains at the segment's logged supply (its median, to 0.05 V); none without ``vbatt``."""

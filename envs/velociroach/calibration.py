@@ -275,13 +275,8 @@ class RoachAdapter(Adapter):
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------
-    def structure(self, setting: Setting) -> tuple:
-        return (round(float(setting.get("terrain_bump.height", 0.0)), 6), setting.get("disturbance.torque", 0) > 0)
-
     def spec_edits(self, setting: Setting) -> list:
-        bump, disturbed = self.structure(setting)
-        return [effects_edit(setting), *([add_bump(bump)] if bump > 0 else []),
-                *([add_disturbance] if disturbed else [])]  # fmt: skip
+        return [effects_edit(setting), *self.structural_edits(setting, bump=add_bump, disturbance=add_disturbance)]
 
     def build(self, edits) -> mujoco.MjModel:
         return self._make_robot(edits).model

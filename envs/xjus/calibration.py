@@ -273,15 +273,8 @@ class XjusAdapter(Adapter):
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------
-    def structure(self, setting: Setting) -> tuple:
-        gap = round(float(setting.get("backlash.gap", 0.0)), 6)
-        return (gap if gap > 1e-6 else 0.0, round(float(setting.get("terrain_bump.height", 0.0)), 6),
-                setting.get("disturbance.torque", 0.0) > 0)  # fmt: skip
-
     def spec_edits(self, setting: Setting) -> list:
-        gap, bump, disturbed = self.structure(setting)
-        return [effects_edit(setting), *([add_backlash(gap)] if gap else []), *([add_bump(bump)] if bump else []),
-                *([add_disturbance] if disturbed else [])]  # fmt: skip
+        return [effects_edit(setting), *self.structural_edits(setting, add_backlash, add_bump, add_disturbance)]
 
     def build(self, edits) -> mujoco.MjModel:
         return self._make_robot(edits).model
