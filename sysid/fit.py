@@ -335,11 +335,18 @@ def _parabola_vertex(us: np.ndarray, cs: np.ndarray) -> float | None:
 def _smoothed_profile(
     problem: Problem, best: Mapping[str, float], params: Mapping[str, Param], segments, result: FitResult
 ) -> dict[str, float]:
-    """95% half-widths where the cost is rough (contacts): a parabola fitted by least squares to the cost at
-    GRID_POINTS values across a window around the best point (the others held), its curvature read as the profile
-    likelihood's (the chi^2(1) quantile times the residual variance, scaled by n / n_eff), plus the distance from
-    the best point to the parabola's vertex (where the smoothed cost puts the optimum). The window widens until it
-    holds the interval; a parameter whose window reaches its whole range without curvature gets the whole range."""
+    """95% half-widths where the cost is rough (contacts), the larger of two readings of the cost at GRID_POINTS
+    values across a window around the best point (the others held; one batched rollout):
+
+    - a parabola fitted by least squares to the total cost, its curvature read as the profile likelihood's (the
+      chi^2(1) quantile times the residual variance, scaled by n / n_eff), plus the distance from the best point to
+      the parabola's vertex (where the smoothed cost puts the optimum);
+    - a bootstrap over segments (:func:`_segment_bootstrap`): the spread of the smoothed optimum when the segments
+      are resampled. Where the cost is rough, its local curvature overstates what the data pin down; how far the
+      optimum moves from one draw of segments to another does not.
+
+    The window widens until it holds the interval; a parameter whose window reaches its whole range without
+    curvature gets the whole range."""
     s2 = _residual_variance(result, len(params))
     rise = stats.chi2.ppf(0.95, 1) * s2
     out = {}
@@ -347,18 +354,46 @@ def _smoothed_profile(
         x0, width, half = best[k], 0.1 * p.span, p.span
         for _ in range(4):
             xs = np.unique(np.clip(x0 + width * np.linspace(-1.0, 1.0, GRID_POINTS), p.low, p.high))
-            cs = np.array(costs(problem, [{**best, k: float(x)} for x in xs], segments, anchor=best))
+            rollouts = problem.residuals([{**best, k: float(x)} for x in xs], segments, anchor=best)
+            per_segment = np.array([[r.cost for r in rs] for rs in rollouts])
+            cs = per_segment.sum(axis=1)
             a, b, _c = np.polyfit((xs - x0) / p.span, cs, 2)
             if a <= 0:
                 half = p.span
             else:
                 vertex = -b / (2 * a) * p.span
                 half = math.sqrt(rise / a) * p.span + min(abs(vertex), p.span)
+                half = max(half, _segment_bootstrap(xs, per_segment, x0))
             if half <= width or width >= p.span:
                 break
             width = min(2.0 * half, p.span)
         out[k] = float(min(max(half, p.resolution), p.span))
     return out
+
+
+BOOTSTRAP_DRAWS = 400
+
+
+def _segment_bootstrap(xs: np.ndarray, per_segment: np.ndarray, x0: float) -> float:
+    """The 95% half-width of a rough 1-D fit by a bootstrap over segments: ``per_segment`` holds each segment's
+    cost (columns) at each value ``xs`` (rows); each draw resamples the segments with replacement, sums their
+    costs and takes the minimum of the parabola through the lowest point and its neighbours (the grid's lowest
+    point where the parabola does not open upward); the half-width is the larger distance from ``x0`` to the
+    draws' 2.5 and 97.5 percentiles. The segments' costs are computed once: the draws cost no rollouts."""
+    n_seg = per_segment.shape[1]
+    if n_seg < 2 or len(xs) < 3:
+        return 0.0
+    rng = np.random.default_rng(0)
+    draws = rng.integers(0, n_seg, size=(BOOTSTRAP_DRAWS, n_seg))
+    totals = np.stack([per_segment[:, d].sum(axis=1) for d in draws])  # (draws, values)
+    optima = np.empty(BOOTSTRAP_DRAWS)
+    for i, c in enumerate(totals):
+        j = int(np.clip(np.argmin(c), 1, len(xs) - 2))
+        a, b, _c = np.polyfit(xs[j - 1 : j + 2], c[j - 1 : j + 2], 2)
+        vertex = -b / (2 * a) if a > 0 else xs[int(np.argmin(c))]
+        optima[i] = float(np.clip(vertex, xs[0], xs[-1]))
+    low, high = np.percentile(optima, [2.5, 97.5])
+    return float(max(abs(high - x0), abs(x0 - low)))
 
 
 def _profile_intervals(

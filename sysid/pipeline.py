@@ -3,7 +3,6 @@ nominal model and of each effect kept, on test logs the fit never saw (``calibra
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -13,19 +12,7 @@ from sysid import diagnostics
 from sysid.fit import evaluate, fit
 from sysid.logs import Log
 from sysid.problem import Adapter, Problem, Residual
-from sysid.select import Outcome, calibrate, fit_chosen
-
-# A held-out error above this many noise levels is "unexplained": with the test logs' thousands of samples, the error
-# of the true model sits within a few percent of 1 (tests/test_calibration.py checks the null case). Where the noise
-# level holds a replay floor (sysid/problem.py), itself estimated from a few segments, the threshold widens by that
-# estimate's uncertainty (``explained_below``).
-UNEXPLAINED_ABOVE = 1.1
-
-
-def explained_below(problem: Problem) -> float:
-    """The held-out error below which a model explains a problem's logs: 1.1, or 1 plus twice the relative standard
-    error of the noise level (as a variance) where that is larger (a replay floor measured on few segments)."""
-    return max(UNEXPLAINED_ABOVE, math.sqrt(1.0 + 2.0 * problem.floor_uncertainty))
+from sysid.select import Outcome, calibrate, explained_below, fit_chosen
 
 
 @dataclass

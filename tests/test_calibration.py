@@ -20,9 +20,9 @@ from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.cases import Case, run_case
 from sysid.effects import base_name
-from sysid.pipeline import UNEXPLAINED_ABOVE, relative_excess, run
+from sysid.pipeline import relative_excess, run
 from sysid.robots import adapter as make_adapter
-from sysid.select import nominal_setting
+from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
 
 
 def _pair(robot: str, effects: dict, seed: int):
