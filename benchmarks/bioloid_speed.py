@@ -36,7 +36,7 @@ from benchmarks.batch_speed import time_raw as time_raw_batch
 from benchmarks.common import md_table, save
 from benchmarks.env_speed import time_raw
 
-WALK = "skitter/BioloidWalk-v0"
+WALK = "skitter/BioloidWalk-v1"
 EPISODE = 500  # control steps: 10 s at 50 Hz
 GOAL_RATIO, GOAL_RTF, GOAL_PSO_HOURS = 0.9, 50.0, 1.0
 SEED_SCALE = {"particles": 50, "iterations": 240, "seconds": 32.0}

@@ -40,8 +40,8 @@ def _write(path, effects=EFFECTS):
 
 def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json")
-    m0 = gym.make("skitter/BioloidWalk-v0").unwrapped.robot.model
-    m = gym.make("skitter/BioloidWalk-v0", calibration=str(path)).unwrapped.robot.model
+    m0 = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model
+    m = gym.make("skitter/BioloidWalk-v1", calibration=str(path)).unwrapped.robot.model
     for servo in C.SERVOS:
         dof0, dof = (x.joint(servo).dofadr[0] for x in (m0, m))
         left = any(servo == f"{leg}_{k}" for leg in C.LEGS if C.LEG_SIDE[leg] == "left" for k in (1, 2, 3))
@@ -57,7 +57,7 @@ def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_pa
     body = m0.body(C.ROOT_BODY).id
     assert m.body_subtreemass[0] == pytest.approx(m0.body_subtreemass[0] + 0.1 * m0.body_mass[body], rel=1e-9)
     assert m.geom_friction[m.geom(C.FOOT_GEOM["F_L"]).id, 0] == pytest.approx(0.5)
-    again = gym.make("skitter/BioloidWalk-v0").unwrapped.robot.model  # the nominal model stays nominal
+    again = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model  # the nominal model stays nominal
     assert again.nq == m0.nq and again.dof_frictionloss.sum() == m0.dof_frictionloss.sum()
 
 
@@ -71,10 +71,10 @@ def test_calibrated_bioloid_single_and_batched_agree(tmp_path):
             *_, info = env.step(action)
         return info
 
-    single = run_env(gym.make("skitter/BioloidWalk-v0", calibration=str(path)))
-    batched = run_env(gym.make_vec("skitter/BioloidWalk-v0", num_envs=1, vectorization_mode="vector_entry_point",
+    single = run_env(gym.make("skitter/BioloidWalk-v1", calibration=str(path)))
+    batched = run_env(gym.make_vec("skitter/BioloidWalk-v1", num_envs=1, vectorization_mode="vector_entry_point",
                                    calibration=str(path)))  # fmt: skip
-    plain = run_env(gym.make("skitter/BioloidWalk-v0"))
+    plain = run_env(gym.make("skitter/BioloidWalk-v1"))
     assert batched["z_position"][0] == pytest.approx(single["z_position"], abs=1e-9)
     assert abs(single["z_position"] - plain["z_position"]) > 1e-4  # a softer servo under a heavier body sags
 
@@ -82,7 +82,7 @@ def test_calibrated_bioloid_single_and_batched_agree(tmp_path):
 def test_a_bad_bioloid_calibration_file_is_refused(tmp_path):
     path = _write(tmp_path / "bad.json", {"servo_gain": {"scale": 9.0}})
     with pytest.raises(ValueError, match=r"servo_gain\.scale.*outside its range"):
-        gym.make("skitter/BioloidWalk-v0", calibration=str(path))
+        gym.make("skitter/BioloidWalk-v1", calibration=str(path))
 
 
 def test_bioloid_recovers_a_drawn_servo_gain():
@@ -113,7 +113,7 @@ def test_calibrate_runs_on_the_bioloid_own_telemetry(tmp_path):
     itself, so nothing is chosen and the held-out residual is explained (within the floor)."""
     from agents.bioloid.ik import ik_for
 
-    env = gym.make("skitter/BioloidWalk-v0", telemetry=True, max_episode_steps=1000)
+    env = gym.make("skitter/BioloidWalk-v1", telemetry=True, max_episode_steps=1000)
     obs, _ = env.reset(seed=0)
     policy = ik_for(env, "trot", "1.5")
     state = None

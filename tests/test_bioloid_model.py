@@ -107,8 +107,8 @@ def test_servos_hold_the_standing_pose_under_gravity_within_their_compliance():
     np.testing.assert_allclose(-torque[loaded] / stiffness, error[loaded], atol=0.5)  # 0.5 count: velocity, noise
 
 
-def clamped_knee(supply: float, torque_limit: float = 1023.0) -> Bioloid:
-    """The body fixed in the air and the front-left knee blocked at 0 rad by its joint limits."""
+def clamped_servo(supply: float, torque_limit: float = 1023.0, servo: str = "F_L_3") -> Bioloid:
+    """The body fixed in the air and one servo (the front-left knee) blocked at 0 rad by its joint limits."""
 
     def edit(spec: mujoco.MjSpec) -> None:
         spec.delete(spec.joint(C.ROOT_JOINT))
@@ -116,29 +116,30 @@ def clamped_knee(supply: float, torque_limit: float = 1023.0) -> Bioloid:
 
     robot = Bioloid(servo=ServoConstants(supply_voltage=supply, torque_limit=torque_limit), imu_noise=None,
                     spec_edits=[edit])  # fmt: skip
-    i = robot.model.joint("F_L_3").id
+    i = robot.model.joint(servo).id
     robot.model.jnt_range[i] = [-1e-4, 1e-4]
     return robot
 
 
 @pytest.mark.parametrize(("supply", "kgf_cm"), [(7.0, 12.0), (10.0, 16.5)])
 def test_a_blocked_servo_saturates_at_its_holding_torque(supply, kgf_cm):
-    robot = clamped_knee(supply)
+    # a hip pitch servo (the knee's allowed range is one-sided: straight to bent 90 deg)
+    robot = clamped_servo(supply, servo="F_L_1")
     robot.reset(ONE, RNG, options={"angles": [C.STAND_ANGLES[s] for s in C.SERVOS]})
-    knee = C.SERVO_INDEX["F_L_3"]
+    servo = C.SERVO_INDEX["F_L_1"]
     for goal in (C.CENTER + 200, C.CENTER - 200):  # 59 deg away from where the stop holds it, both ways
-        robot.goal[0, knee] = goal
+        robot.goal[0, servo] = goal
         settle(robot, 0.3)
-        torque = robot.servo.output_torque(robot.sim.sensordata)[0, knee]
+        torque = robot.servo.output_torque(robot.sim.sensordata)[0, servo]
         assert abs(torque) == pytest.approx(kgf_cm * KGF_CM, rel=0.03), goal  # datasheet, seed 002 Table 2
         assert np.sign(torque) == np.sign(goal - C.CENTER)
         readings = robot.read(RNG)
         row = dict(zip(robot.telemetry_channels, robot.telemetry(readings)[0], strict=True))
-        assert abs(row["load_F_L_3"]) == 1023, "the servo reports full load"
+        assert abs(row["load_F_L_1"]) == 1023, "the servo reports full load"
 
 
 def test_the_torque_limit_register_caps_the_torque():
-    robot = clamped_knee(10.0, torque_limit=512)
+    robot = clamped_servo(10.0, torque_limit=512)
     robot.reset(ONE, RNG, options={"angles": [C.STAND_ANGLES[s] for s in C.SERVOS]})
     knee = C.SERVO_INDEX["F_L_3"]
     robot.goal[0, knee] = C.CENTER + 200
@@ -147,19 +148,22 @@ def test_the_torque_limit_register_caps_the_torque():
     assert torque == pytest.approx(16.5 * KGF_CM * 512 / 1023, rel=0.03)
 
 
-def test_action_spans_each_servos_allowed_range_and_knees_stop_at_90_degrees():
-    env = gym.make("skitter/BioloidWalk-v0")
-    mode = env.unwrapped.robot.mode
-    low, high = mode.to_command(-np.ones(16)), mode.to_command(np.ones(16))
+def test_action_spans_each_servos_allowed_range_and_knees_go_from_straight_to_bent_90_degrees():
+    env = gym.make("skitter/BioloidWalk-v1")
+    robot = env.unwrapped.robot
+    low, high = robot.mode.to_command(-np.ones(16)), robot.mode.to_command(np.ones(16))
     for name, (lo, hi) in C.SERVO_RANGE.items():
         i = C.SERVO_INDEX[name]
         assert (low[i], high[i]) == (lo, hi), name
-    assert high[C.SERVO_INDEX["F_L_3"]] == pytest.approx(C.CENTER + math.radians(90) / C.RAD_PER_COUNT)
+    for leg in C.LEGS:  # seed 002 VI.A.2 (bent at most 90 deg) and Table 4 (straight knees); no backward bend
+        i = C.SERVO_INDEX[C.KNEE[leg]]
+        assert (low[i], high[i]) == pytest.approx((C.CENTER, C.CENTER + math.radians(90) / C.RAD_PER_COUNT))
+        assert robot.model.joint(C.KNEE[leg]).range == pytest.approx([0.0, math.radians(90)])
     assert (low[0], high[0]) == (0.0, 1023.0)
 
 
 def test_telemetry_has_goal_present_position_load_and_battery_per_servo():
-    env = gym.make("skitter/BioloidWalk-v0", telemetry=True)
+    env = gym.make("skitter/BioloidWalk-v1", telemetry=True)
     env.reset(seed=0)
     for _ in range(5):
         env.step(env.action_space.sample())
@@ -195,4 +199,4 @@ def test_parameters_reach_the_model():
 )
 def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        gym.make("skitter/BioloidWalk-v0", **kwargs)
+        gym.make("skitter/BioloidWalk-v1", **kwargs)

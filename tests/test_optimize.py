@@ -17,7 +17,7 @@ from agents.optimize.problem import Evaluator, eq17, parse_config
 from agents.optimize.run import LocalBackend, RayBackend, RunError, Settings, run
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY = {"env": "skitter/BioloidWalk-v0", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
+TINY = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
         "objective": "forward", "sample_interval": 1.0}  # fmt: skip
 
 

@@ -7,7 +7,7 @@ CALIBRATION = {"bioloid": "envs.bioloid.calibration:BioloidAdapter"}
 
 ENVS = [
     {
-        "id": f"skitter/Bioloid{task}-v0",
+        "id": f"skitter/Bioloid{task}-v1",
         "entry_point": f"envs.bioloid.{task.lower()}:Bioloid{task}Env",
         "vector_entry_point": f"envs.bioloid.{task.lower()}:make_batched",
         "max_episode_steps": round(EPISODE_SECONDS * CONTROL_FREQ),

@@ -56,6 +56,13 @@ THIGH = 0.083  # m, abduction axis to knee, "0.083 m joint-to-joint" (Webots mod
 SHANK = 0.085  # m, knee to sole, L2 (robots.md)
 BACK_CRUTCH_OFFSET = 0.0145  # m, the back crutches sit behind their knee line (Webots model)
 KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg (seed 002 VI.A.2, Figure 27)
+# ... nor stretch past straight: the seed's postures hold every knee straight (513, Table 4) and its IK bends it one
+# way only (eq. 3's arccos); the seed's own Webots controller keeps the knee between 50 and 90 deg of bend
+# (cyberbotics/webots, projects/robots/robotis/bioloid/controllers/bioloid_dog/Robot.cpp, computeWalkingPosition)
+# and other public Bioloid models limit their knees to one side (dxydas/ros-bioloid bioloid.xacro: -pi..0;
+# verlab/bioloid_common typea.xacro). No source gives a backward stop; v0 assumed 90 deg, which the CPG search
+# exploited (benchmarks/bioloid_cpg_check.py: the best gait of experiment 5 landed on its back knee servos).
+KNEE_EXTENSION = 0.0
 KNEE_WEDGE = math.radians(18.0)  # the "aibo style" wedge at each knee (seed 002 IV.A, Figure 11)
 LENGTH = 0.30  # m, body length at the standing posture, the head's front to the pelvis' back (measured on the model
 # in tests/test_bioloid_model.py, within 1 cm); hip to hip 0.165 m
@@ -79,14 +86,13 @@ STAND_ANGLES.update({"F_L_2": math.pi / 2, "B_L_2": math.pi / 2, "F_R_2": -math.
 STAND_ANGLES["N_1"] = -math.pi / 2
 
 # Each servo's allowed range in counts: the AX-12's full 0..1023 (its angle limits' factory settings, ROBOTIS), except
-# the knees: bent at most 90 deg (seed 002 VI.A.2) and stretched at most 90 deg the other way (assumed symmetric: the
-# bracket's stop is not given). An action of -1..1 spans this range.
+# the knees: from straight (KNEE_EXTENSION) to bent 90 deg (seed 002 VI.A.2). An action of -1..1 spans this range.
 SERVO_RANGE = {name: (0.0, float(COUNTS - 1)) for name in SERVOS}
 for _leg in LEGS:
-    SERVO_RANGE[KNEE[_leg]] = (counts(-KNEE_LIMIT), counts(KNEE_LIMIT))
+    SERVO_RANGE[KNEE[_leg]] = (counts(-KNEE_EXTENSION), counts(KNEE_LIMIT))
 RANGE_LOW = np.array([SERVO_RANGE[s][0] for s in SERVOS])
 RANGE_HIGH = np.array([SERVO_RANGE[s][1] for s in SERVOS])
-JOINT_STOP = math.radians(150.0)  # the AX-12's 300 deg span; the knees stop at +-90 deg (the joint limits)
+JOINT_STOP = math.radians(150.0)  # the AX-12's 300 deg span; the knees stop at -KNEE_EXTENSION and KNEE_LIMIT
 
 CONTROL_FREQ = 50.0  # Hz: a goal-position packet to all 16 servos every 20 ms (the Webots model's controller ran at
 # 16 ms; the CM-5's bus at 1 Mbps carries a 16-servo sync write in well under 1 ms)

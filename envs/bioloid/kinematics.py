@@ -62,7 +62,7 @@ class LegGeometry:
         """Servo angles (hip, knee), rad, that put the sole at (x, z), and where the knee limit held it back.
 
         Eq. 3 (law of cosines) gives the bend between thigh and shank, eq. 4 the hip angle; a target out of reach is
-        approached along its direction; the knee servo is clipped to [-KNEE_LIMIT, KNEE_LIMIT]."""
+        approached along its direction; the knee servo is clipped to [-KNEE_EXTENSION, KNEE_LIMIT]."""
         l1, ls = self.thigh, self.shank_length
         x, z = np.asarray(x, dtype=np.float64), np.asarray(z, dtype=np.float64)
         r2 = x * x + z * z
@@ -70,7 +70,7 @@ class LegGeometry:
         bend = np.arccos(cos_bend)  # >= 0: the foot behind the thigh's line, as the seed's Figure 27 bends it
         knee = bend - self.wedge - self.shank_angle
         limited = knee > C.KNEE_LIMIT + 1e-9  # the ellipse's top reaches the limit exactly
-        knee = np.clip(knee, -C.KNEE_LIMIT, C.KNEE_LIMIT)
+        knee = np.clip(knee, -C.KNEE_EXTENSION, C.KNEE_LIMIT)
         bend = knee + self.wedge + self.shank_angle
         hip = np.arctan2(-x, -z) - np.arctan2(ls * np.sin(bend), l1 + ls * np.cos(bend))
         return hip, knee, limited

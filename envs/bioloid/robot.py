@@ -88,9 +88,10 @@ class Bioloid(Robot):
     seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
 
     One action mode, ``goal``: the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), each
-    within its allowed range (``constants.SERVO_RANGE``: the full span, the knees +-90 deg), held over the control
-    step as the servos hold a goal packet; 50 Hz by default. Each servo's own position controller (compliance slope,
-    torque and speed limits from its motor and supply) acts at every physics step, natively.
+    within its allowed range (``constants.SERVO_RANGE``: the full span, the knees from straight to bent 90 deg),
+    held over the control step as the servos hold a goal packet; 50 Hz by default. Each servo's own position
+    controller (compliance slope, torque and speed limits from its motor and supply) acts at every physics step,
+    natively.
 
     Args:
         action_mode: ``"goal"``.
@@ -155,8 +156,8 @@ class Bioloid(Robot):
     def configure(self, spec: mujoco.MjSpec) -> None:
         for name in C.SERVOS:
             joint = spec.joint(name)
-            stop = C.KNEE_LIMIT if name in C.KNEE.values() else C.JOINT_STOP
-            joint.range = [-stop, stop]
+            knee = name in C.KNEE.values()
+            joint.range = [-C.KNEE_EXTENSION, C.KNEE_LIMIT] if knee else [-C.JOINT_STOP, C.JOINT_STOP]
             joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         if self.knee_wedge:
             knee_wedge_edit(self.wedge)(spec)

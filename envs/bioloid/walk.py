@@ -74,7 +74,7 @@ class BioloidWalkEnv(SkitterEnv):
     ``elapsed``, ``yaw_travel``, ``yaw_travel_warmup``.
 
     ## Arguments
-    ``gymnasium.make("skitter/BioloidWalk-v0", **kwargs)``: ``action_mode`` (``"goal"``), ``control_freq`` (Hz,
+    ``gymnasium.make("skitter/BioloidWalk-v1", **kwargs)``: ``action_mode`` (``"goal"``), ``control_freq`` (Hz,
     default 50), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.01 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.0 rad), ``reset_noise_scale`` (0.1), ``knee_wedge`` (False:
     the 18 deg "aibo style" wedges of seed 002 IV.A when True), ``servo`` (an ``envs.actuators.servo.ServoConstants``:
