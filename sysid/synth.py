@@ -7,9 +7,11 @@ and sensor noise, to test calibration.
     python -m sysid.synth --list
 
 An effect given without a value is drawn from its range with the seed, far enough from its nominal value that the
-nominal model's error on the data is at least 3 (three times the noise floor). The log holds the commands, the
-measured channels (with noise) and the noise levels; the truth goes to a separate ``<out>.truth.json`` that
-calibration never reads. Out-of-catalog effects (a terrain bump, a periodic disturbance) can be injected too.
+nominal model's error on the data is at least 3 (three times the noise floor): pushed up to 90% of the way to a
+bound, and where even that does not show, under other commands drawn from the same seed (up to three draws). The
+log holds the commands, the measured channels (with noise) and the noise levels; the truth goes to a separate
+``<out>.truth.json`` that calibration never reads. Out-of-catalog effects (a terrain bump, a periodic disturbance)
+can be injected too.
 """
 
 from __future__ import annotations
@@ -34,6 +36,10 @@ MIN_NOMINAL_ERROR = 3.0
 # a drawn value goes at most this far from nominal toward a bound: a catalog range holds the plausible values, and a
 # truth on its very bound cannot be told from one beyond it (calibration rejects fits that end on a bound)
 MAX_REACH = 0.9
+PUSHES = 4  # pushes of a drawn value toward MAX_REACH (60, 70, 80, 90% of the way) before the commands are redrawn
+# draws of the commands (the first from the seed's generator, as the value; the others from (seed, 2, k)): how
+# visible an effect is depends on what the commands excite, and the generator's job is commands that show it
+EXCITATIONS = 3
 
 
 def synthesize(
@@ -59,20 +65,27 @@ def synthesize(
         setting.update({effect.key(k): v for k, v in values.items()})
         truth[name] = values
     drawn = [n for n, v in injected.items() if v is None]
-    for attempt in range(12):
-        clean = simulate(adapter, setting, commands)
-        log = _log(adapter, commands, clean, noise, rng_noise(seed), robot)
-        error = nominal_error(adapter, log)
+    first_draw = (dict(setting), {k: dict(v) for k, v in truth.items()})
+    for excitation in range(EXCITATIONS):
+        if excitation:  # the commands did not show the drawn effects: other commands, from the same seed
+            commands = adapter.excite(seconds, np.random.default_rng([seed, 2, excitation]))
+            setting, truth = dict(first_draw[0]), {k: dict(v) for k, v in first_draw[1].items()}
+        for attempt in range(PUSHES + 1):
+            clean = simulate(adapter, setting, commands)
+            log = _log(adapter, commands, clean, noise, rng_noise(seed), robot)
+            error = nominal_error(adapter, log)
+            if error >= MIN_NOMINAL_ERROR or not drawn or attempt == PUSHES:
+                break
+            for name in drawn:  # push the drawn values further from nominal
+                effect = catalog[name]
+                truth[name] = _values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
+                setting.update({effect.key(k): v for k, v in truth[name].items()})
         if error >= MIN_NOMINAL_ERROR or not drawn:
             break
-        for name in drawn:  # push the drawn values further from nominal
-            effect = catalog[name]
-            truth[name] = _values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
-            setting.update({effect.key(k): v for k, v in truth[name].items()})
     else:
         raise ValueError(
-            f"{', '.join(drawn)}: even far from nominal the nominal model's error is {error:.2f} < "
-            f"{MIN_NOMINAL_ERROR}: these channels barely see it"
+            f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
+            f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR}: these channels barely see it"
         )
     return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
 
