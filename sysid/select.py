@@ -34,6 +34,7 @@ from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals
 from sysid.problem import Problem, Setting, flatten
 
 MAX_EFFECTS = 4
+Z95 = 1.96  # a 95% half-width in standard errors
 TRIES_PER_ROUND = 3
 NOISE_FLOOR = 1.05  # stop when the training error is this close to the noise floor (or within explained_below)
 # A held-out error above this many noise levels is "unexplained": with the test logs' thousands of samples, the error
@@ -432,11 +433,13 @@ def _identified(
     problem: Problem, effects: Sequence[Effect], nuisance: Mapping[str, Param], fitting, trial: FitResult
 ) -> str | None:
     """The fit's 95% intervals (computed now, for the candidate about to be tested), and whether the data identify
-    every parameter: an interval narrower than half the parameter's range and not reaching past an end of the range
-    other than nominal (where the data would take it further: the fit's end-of-range test, read through the
-    interval); and whether each effect is there at all: at least one of its parameters differs from its nominal
-    value by more than its 95% half-width (a Wald test at 5%; an estimate the interval cannot tell from nominal is
-    no evidence of the effect). None if so, else the reason."""
+    every parameter: an interval narrower than half the parameter's range, and the estimate more than one standard
+    error (the 95% half-width over 1.96) from an end of the range other than nominal (closer, the end lies inside
+    the 68% interval: the data would as soon take it there or further; the fit's end-of-range test, read through
+    the interval, which the roach's 2 Hz log needs: an armature at 98% of its range, a foot friction at 99%); and
+    whether each effect is there at all: at least one of its parameters differs from its nominal value by more than
+    its 95% half-width (a Wald test at 5%; an estimate the interval cannot tell from nominal is no evidence of the
+    effect). None if so, else the reason."""
     params = {k: p for e in effects for k, p in _params(e).items()}
     trial.ci95 = fit_intervals(problem, trial, {**params, **nuisance}, fitting)
     for k, p in params.items():
@@ -446,9 +449,9 @@ def _identified(
     for k, p in params.items():  # the fit's own end-of-range test, read through the interval
         value, half = trial.values[k], trial.ci95.get(k, float("inf"))
         for bound in (p.low, p.high):
-            if not np.isclose(bound, p.nominal) and abs(value - bound) < half:
-                return (f"{k} {value:.3g} +- {half:.2g} {p.unit}: its interval reaches past the end of its range "
-                        f"({bound:g}): something else is at work")  # fmt: skip
+            if not np.isclose(bound, p.nominal) and abs(value - bound) < half / Z95:
+                return (f"{k} {value:.3g} +- {half:.2g} {p.unit}: within one standard error of the end of its range "
+                        f"({bound:g}), the data would take it further: something else is at work")  # fmt: skip
     for e in effects:
         own = _params(e)
         if not any(abs(trial.values[k] - p.nominal) > trial.ci95.get(k, float("inf")) for k, p in own.items()):
