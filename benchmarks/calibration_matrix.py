@@ -88,8 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         tag = f"{robot:6s} {kind:8s} {name or '-':28s} seed {seed:3d}"
         if case is None:
             print(f"{tag} could not be generated: {error}", flush=True)
-            (rows if kind == "effect" else coverage_rows).append({"robot": robot, "effect": name, "seed": seed,
-                                                                   "error": error})  # fmt: skip
+            {"effect": rows, "ooc": ooc_rows}.get(kind, coverage_rows).append(
+                {"robot": robot, "effect": name, "seed": seed, "error": error}
+            )
             continue
         row = {"kind": kind, "effect": name, **case.row()}
         print(f"{tag} first {case.first} before {case.result.before.error:.2f} after {case.result.after.error:.2f}"
@@ -146,7 +147,10 @@ def report(args, minutes: float, rows, null_rows, ooc_rows, coverage_rows, weak_
         [[r["robot"], "null", ", ".join(r["chosen"]) or "none", r["error_before"], r["error_after"],
           _yn(r["unexplained"]), _yn(not r["chosen"] and r["error_after"] < r["threshold"])] for r in null_rows]
         + [[r["robot"], r["effect"], ", ".join(r["chosen"]) or "none", r["error_before"], r["error_after"],
-            _yn(r["unexplained"]), _yn(r["unexplained"] and r["excess_ratio"] > 0.5)] for r in ooc_rows],
+            _yn(r["unexplained"]), _yn(r["unexplained"] and r["excess_ratio"] > 0.5)] for r in ooc_rows
+           if "error" not in r]
+        + [[r["robot"], r["effect"], f"not generated at seed {r['seed']}: {r['error']}", "", "", "", "not run"]
+           for r in ooc_rows if "error" in r],
     ))  # fmt: skip
     md.append(f"\n## Coverage of the 95% intervals over {args.seeds} seeds (goal >= 80%)\n\n")
     cov_table = []
