@@ -70,6 +70,13 @@ def synthesize(
         if excitation:  # the commands did not show the drawn effects: other commands, from the same seed
             commands = adapter.excite(seconds, np.random.default_rng([seed, 2, excitation]))
             setting, truth = dict(first_draw[0]), {k: dict(v) for k, v in first_draw[1].items()}
+            # commands the nominal model cannot replay on its own data (a legged robot's body diverging) would pass
+            # the test on that alone: redrawn commands are kept only if, without the effects, the nominal model's
+            # error stays under the threshold
+            plain = _log(adapter, commands, simulate(adapter, {}, commands), noise, rng_noise(seed), robot)
+            if nominal_error(adapter, plain) >= MIN_NOMINAL_ERROR:
+                error = float("nan")
+                continue
         for attempt in range(PUSHES + 1):
             clean = simulate(adapter, setting, commands)
             log = _log(adapter, commands, clean, noise, rng_noise(seed), robot)
@@ -117,6 +124,8 @@ def _values(
     for p in effect.params:
         up, down = p.high - p.nominal, p.nominal - p.low
         direction = 1.0 if (up >= down if rng.random() < 0.75 else up < down) and up > 0 else -1.0
+        if (down if direction < 0 else up) <= 0:  # no room that way (nominal on a bound): the other way
+            direction = -direction
         reach = up if direction > 0 else down
         fraction = max(push, rng.uniform(0.35, MAX_REACH)) if push else rng.uniform(0.35, MAX_REACH)
         out[p.name] = float(p.nominal + direction * fraction * reach)
