@@ -76,10 +76,16 @@ class Outcome:
     diagnostics_after: dict = field(default_factory=dict)
 
 
+def _floor_band(problem: Problem) -> float:
+    """The error within which a right model lies when the noise level holds a replay floor measured on few
+    segments: 1 plus twice the relative standard error of the noise level (as a variance); 1 for sensor noise."""
+    return math.sqrt(1.0 + 2.0 * problem.floor_uncertainty)
+
+
 def explained_below(problem: Problem) -> float:
-    """The held-out error below which a model explains a problem's logs: 1.1, or 1 plus twice the relative standard
-    error of the noise level (as a variance) where that is larger (a replay floor measured on few segments)."""
-    return max(UNEXPLAINED_ABOVE, math.sqrt(1.0 + 2.0 * problem.floor_uncertainty))
+    """The held-out error below which a model explains a problem's logs: 1.1, or the replay floor's band
+    (:func:`_floor_band`) where that is larger."""
+    return max(UNEXPLAINED_ABOVE, _floor_band(problem))
 
 
 def at_floor(problem: Problem, error: float) -> bool:
@@ -88,7 +94,7 @@ def at_floor(problem: Problem, error: float) -> bool:
     lies, as :func:`explained_below` says on held-out logs). Inside that band a fit has nothing left to explain
     and can only lower the floor itself: on noise-only logs of a legged robot, an effect that damps the body's
     carried motion replays a few percent closer."""
-    return error <= max(NOISE_FLOOR, math.sqrt(1.0 + 2.0 * problem.floor_uncertainty))
+    return error <= max(NOISE_FLOOR, _floor_band(problem))
 
 
 def decision_segments(problem: Problem) -> list[int]:
