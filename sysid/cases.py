@@ -59,7 +59,8 @@ def run_case(
     start = time.perf_counter()
     adapter = make_adapter(robot)
     train, truth = synth.synthesize(robot, effects, seed)
-    test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET)
+    # the held-out log: the same truth under other commands, chosen to show it as the training log's were
+    test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET, show=True)
     result = run(adapter, [train], [test], say=say)
     chosen = result.outcome.chosen
     first = chosen[0] if chosen else None

@@ -44,14 +44,20 @@ def delay_actuators(seconds: float, names: Sequence[str]) -> SpecEdit:
     return edit
 
 
-def add_bump(height: float, x: float, width: float) -> SpecEdit:
-    """Spec edit (synthetic data only): a bump of the floor across the robot's path, ``x`` ahead of the start: a
-    capsule of radius ``height`` and half-length ``width`` lying along y."""
+def add_bump(height: float, x: float, width: float, count: int = 1, centre: float = 0.0) -> SpecEdit:
+    """Spec edit (synthetic data only): bumps of the floor across the robot's path, each a capsule of radius
+    ``height`` and half-length ``width`` lying along y. With ``count`` 1, one at ``x`` ahead of the start; with
+    more, ``count`` on each side of ``centre`` (the start, or the middle of the robot's feet), ``x`` apart, so that
+    a robot walking either way for the length of a log keeps crossing them (one bump is crossed once, within a
+    second or two of a 10 s log, and its transient averages away)."""
 
     def edit(spec: mujoco.MjSpec) -> None:
-        g = spec.worldbody.add_geom(name="bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[height, width, 0],
-                                    pos=[x, 0, 0], quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
-        g.rgba = [0.6, 0.5, 0.4, 1]
+        where = [x] if count == 1 else [centre + sign * k * x for k in range(1, count + 1) for sign in (1, -1)]
+        for i, at in enumerate(where):
+            g = spec.worldbody.add_geom(name=f"bump{i}" if i else "bump", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                                        size=[height, width, 0], pos=[at, 0, 0],
+                                        quat=[0.7071068, 0.7071068, 0, 0])  # fmt: skip
+            g.rgba = [0.6, 0.5, 0.4, 1]
 
     return edit
 

@@ -30,6 +30,9 @@ class Param:
     high: float
     smooth: bool = True  # False: fitted by a grid and CMA-ES (a delay in whole steps, a deadband)
     step: float = 0.0  # the finest difference that matters (non-smooth ones); 0: a two-thousandth of the range
+    # a shape, not a strength (a disturbance's frequency): at its nominal value the effect is not absent, so the
+    # generator draws it anywhere in its range rather than pushing it away from nominal to make the effect show
+    shape: bool = False
 
     @property
     def span(self) -> float:
@@ -250,7 +253,7 @@ TEMPLATES: dict[str, Effect] = {
         ),
         Effect(
             "disturbance",
-            (Param("torque", "N m", 0.0, 0.0, 1.0), Param("frequency", "Hz", 3.0, 0.5, 10.0)),
+            (Param("torque", "N m", 0.0, 0.0, 1.0), Param("frequency", "Hz", 3.0, 0.5, 10.0, shape=True)),
             "out of catalog",
             "a spectral peak at the disturbance's frequency, unrelated to the command",
             "a periodic torque on the body or load, from outside the model",

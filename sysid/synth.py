@@ -8,7 +8,9 @@ and sensor noise, to test calibration.
 
 An effect given without a value is drawn from its range with the seed, far enough from its nominal value that the
 nominal model's error on the data is at least 3 (three times the noise floor): pushed up to 90% of the way to a
-bound, and where even that does not show, under other commands drawn from the same seed (up to three draws). The
+bound, and where even that does not show, under other commands drawn from the same seed (up to three draws). Given
+values are not moved; a case's held-out log of them (``synthesize(..., show=True)``, sysid/cases.py) is, where the
+first commands do not show them, the one of three draws of the commands that shows them best. The
 log holds the commands, the measured channels (with noise) and the noise levels; the truth goes to a separate
 ``<out>.truth.json`` that calibration never reads. Out-of-catalog effects (a terrain bump, a periodic disturbance)
 can be injected too.
@@ -47,9 +49,12 @@ def synthesize(
     injected: Mapping[str, float | Mapping[str, float] | None],
     seed: int,
     seconds: float = 10.0,
+    show: bool = False,
 ) -> tuple[Log, dict]:
     """A synthetic log of ``robot`` with effects ``name -> value`` (a number for the first parameter, a dict per
-    parameter, or None: drawn). Returns the log and the truth."""
+    parameter, or None: drawn). Returns the log and the truth. With ``show``, given values that the first commands
+    do not show (error under 3) get the log of up to three draws of the commands that shows them best: a case's
+    held-out log, whose commands should show its truth as the training log's do."""
     adapter = make_adapter(robot)
     catalog = adapter.effects()
     rng = np.random.default_rng(seed)
@@ -65,6 +70,7 @@ def synthesize(
         setting.update({effect.key(k): v for k, v in values.items()})
         truth[name] = values
     drawn = [n for n, v in injected.items() if v is None]
+    best: tuple[float, Log | None] = (float("-inf"), None)  # given values: the log that shows them best so far
     first_draw = (dict(setting), {k: dict(v) for k, v in truth.items()})
     for excitation in range(EXCITATIONS):
         if excitation:  # the commands did not show the drawn effects: other commands, from the same seed
@@ -87,9 +93,14 @@ def synthesize(
                 effect = catalog[name]
                 truth[name] = _values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
                 setting.update({effect.key(k): v for k, v in truth[name].items()})
-        if error >= MIN_NOMINAL_ERROR or not drawn:
+        if not drawn and error > best[0]:
+            best = (error, log)
+        if error >= MIN_NOMINAL_ERROR or not injected or (not drawn and not show):
             break
     else:
+        if not drawn:  # given values (a test log of a case's truth): the commands that showed them best
+            error, log = best
+            return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
         raise ValueError(
             f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
             f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR}: these channels barely see it"
@@ -106,7 +117,8 @@ def _values(
 ) -> dict[str, float]:
     """Values of an effect's parameters: given (a number for the first parameter, the rest nominal; or a value per
     parameter), else drawn away from nominal: between 35% and 90% of the way from nominal to a bound (the farther
-    bound, three times in four), at least ``push`` of the way."""
+    bound, three times in four), at least ``push`` of the way; a shape parameter (``Param.shape``) anywhere in its
+    range."""
     if value is not None:
         given = dict(value) if isinstance(value, Mapping) else {effect.params[0].name: float(value)}
         names = [p.name for p in effect.params]
@@ -122,6 +134,9 @@ def _values(
         return out
     out = {}
     for p in effect.params:
+        if p.shape:  # how the effect looks, not how strong it is: anywhere in its range, redrawn with each push
+            out[p.name] = float(rng.uniform(p.low, p.high))
+            continue
         up, down = p.high - p.nominal, p.nominal - p.low
         direction = 1.0 if (up >= down if rng.random() < 0.75 else up < down) and up > 0 else -1.0
         if (down if direction < 0 else up) <= 0:  # no room that way (nominal on a bound): the other way

@@ -28,7 +28,7 @@ from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
 def _pair(robot: str, effects: dict, seed: int):
     """A training log with hidden effects (drawn when None), and a test log of the same truth under other commands."""
     train, truth = synth.synthesize(robot, effects, seed)
-    test, test_truth = synth.synthesize(robot, truth["effects"], seed + 1000)
+    test, test_truth = synth.synthesize(robot, truth["effects"], seed + 1000, show=True)
     assert test_truth["effects"] == truth["effects"]
     return train, test, truth
 

@@ -104,7 +104,7 @@ def test_xjus_null_and_out_of_catalog():
     null = run(adapter, [train], [test], say=lambda s: None)
     assert null.outcome.chosen == [] and not null.unexplained, null.after.error
     train, truth = synth.synthesize("xjus", {"disturbance": None}, 22)
-    test, _ = synth.synthesize("xjus", truth["effects"], 1022)
+    test, _ = synth.synthesize("xjus", truth["effects"], 1022, show=True)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     ooc = run(adapter, [train], [test], say=lambda s: None)
     assert ooc.unexplained and "above the noise floor" in ooc.where()

@@ -163,8 +163,10 @@ def delay_edit(seconds: float):
 
 
 def add_bump(height: float):
-    """Spec edit (synthetic data only): a bump across the robot's path, 0.15 m ahead of the start."""
-    return edits.add_bump(height, x=0.15, width=2.0)
+    """Spec edit (synthetic data only): bumps across the robot's path every 0.14 m, three each way from the middle
+    of its feet at the start (x = -0.02 m; the feet stand from -0.11 to 0.07 m), so that a step either way meets
+    one: the synthetic excitation walks the robot no more than 0.2 m."""
+    return edits.add_bump(height, x=0.14, width=2.0, count=3, centre=-0.02)
 
 
 # Spec edit (synthetic data only): a rolling torque on the body from outside the model (a tether, a cable); up to

@@ -182,8 +182,9 @@ def delay_edit(seconds: float):
 
 
 def add_bump(height: float):
-    """Spec edit (synthetic data only): a bump of the floor across the robot's path, 0.15 m ahead of the start."""
-    return edits.add_bump(height, x=0.15, width=0.5)
+    """Spec edit (synthetic data only): bumps of the floor across the robot's path every 0.25 m, sixteen each way from
+    the start: the synthetic excitation runs it 2 to 4 m and up to 1.9 m sideways."""
+    return edits.add_bump(height, x=0.25, width=2.5, count=16)
 
 
 # Spec edit (synthetic data only): a yaw torque on the body from outside the model

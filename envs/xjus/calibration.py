@@ -174,8 +174,9 @@ def delay_edit(seconds: float):
 
 
 def add_bump(height: float):
-    """Spec edit (synthetic data only): a bump across the robot's path, 0.6 m ahead of the start."""
-    return edits.add_bump(height, x=0.6, width=2.0)
+    """Spec edit (synthetic data only): bumps across the robot's path every 0.6 m (a body length and its legs'
+    reach), nine each way from the start: the synthetic excitation walks it 3.5 to 5.5 m and up to 1.2 m sideways."""
+    return edits.add_bump(height, x=0.6, width=3.0, count=9)
 
 
 # Spec edit (synthetic data only): a pitching torque on the middle segment from outside the model (a payload
