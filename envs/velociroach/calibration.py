@@ -131,10 +131,12 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         ]
     out += [
         E.make("supply_voltage", scale=(1.0, 0.8, 1.2), weak=supply),
-        E.make("foot_friction", mu=(0.4, 0.05, 1.5), weak=body),
+        # foot friction and mass act on the body too, but at their ranges' far ends the leg channels do see them
+        # (median nominal error 3.7 and 3.2 on three seeds, the matrix's weak check): offered as visible effects
+        E.make("foot_friction", mu=(0.4, 0.05, 1.5)),
         E.make("ground_contact", timeconst=(0.002, 0.001, 0.02), dampratio=(1.0, 0.2, 2.0), weak=body),
         E.make("leg_stiffness", scale=(1.0, 0.3, 3.0), weak=body),
-        E.make("mass", scale=(1.0, 0.5, 2.0), weak=body),
+        E.make("mass", scale=(1.0, 0.5, 2.0)),
         E.make("com_offset", x=(0.0, -0.02, 0.02), weak=body),
         E.make("terrain_bump", height=(0.0, 0.0, 0.01)),
         E.make("disturbance", torque=(0.0, 0.0, 2e-3), frequency=(3.0, 0.5, 10.0)),
