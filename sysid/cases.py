@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from sysid import synth
+from sysid.logs import Log
 from sysid.pipeline import Result, relative_excess, run
 from sysid.robots import adapter as make_adapter
 
@@ -49,6 +50,15 @@ class Case:
         }  # fmt: skip
 
 
+def pair(robot: str, effects: Mapping[str, float | Mapping[str, float] | None], seed: int) -> tuple[Log, Log, dict]:
+    """A case's logs: the training log with hidden effects (drawn when None) and the held-out log of the same truth
+    under other commands (seed + TEST_SEED_OFFSET), chosen to show it as the training log's were. Returns both and
+    the truth."""
+    train, truth = synth.synthesize(robot, effects, seed)
+    test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET, show=True)
+    return train, test, truth
+
+
 def run_case(
     robot: str,
     effects: Mapping[str, float | Mapping[str, float] | None],
@@ -58,9 +68,7 @@ def run_case(
     """Synthesize the pair of logs, calibrate, and judge the result."""
     start = time.perf_counter()
     adapter = make_adapter(robot)
-    train, truth = synth.synthesize(robot, effects, seed)
-    # the held-out log: the same truth under other commands, chosen to show it as the training log's were
-    test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET, show=True)
+    train, test, truth = pair(robot, effects, seed)
     result = run(adapter, [train], [test], say=say)
     chosen = result.outcome.chosen
     first = chosen[0] if chosen else None

@@ -98,13 +98,12 @@ def synthesize(
         if error >= MIN_NOMINAL_ERROR or not injected or (not drawn and not show):
             break
     else:
-        if not drawn:  # given values (a test log of a case's truth): the commands that showed them best
-            error, log = best
-            return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
-        raise ValueError(
-            f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
-            f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR}: these channels barely see it"
-        )
+        if drawn:
+            raise ValueError(
+                f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
+                f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR}: these channels barely see it"
+            )
+        error, log = best  # given values (a case's held-out log): the commands that showed them best
     return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
 
 

@@ -16,7 +16,7 @@ from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
 from envs.bioloid import constants as C
 from envs.common.telemetry import read_telemetry, write_telemetry
 from sysid import synth
-from sysid.cases import run_case
+from sysid.cases import pair, run_case
 from sysid.pipeline import relative_excess, run
 from sysid.robots import adapter as make_adapter
 
@@ -96,12 +96,10 @@ def test_bioloid_recovers_a_drawn_servo_gain():
 @pytest.mark.slow  # about 5 minutes on 2 cores; the matrix benchmark runs the same cases
 def test_bioloid_null_and_out_of_catalog():
     adapter = make_adapter("bioloid")
-    train, _ = synth.synthesize("bioloid", {}, 21)
-    test, _ = synth.synthesize("bioloid", {}, 1021)
+    train, test, _ = pair("bioloid", {}, 21)
     null = run(adapter, [train], [test], say=lambda s: None)
     assert null.outcome.chosen == [] and not null.unexplained, null.after.error
-    train, truth = synth.synthesize("bioloid", {"disturbance": None}, 22)
-    test, _ = synth.synthesize("bioloid", truth["effects"], 1022, show=True)
+    train, test, truth = pair("bioloid", {"disturbance": None}, 22)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     ooc = run(adapter, [train], [test], say=lambda s: None)
     assert ooc.unexplained and "above the noise floor" in ooc.where()

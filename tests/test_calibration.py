@@ -18,7 +18,7 @@ import evaluate
 from envs.common.calibration import read_calibration
 from envs.common.telemetry import write_telemetry
 from sysid import synth
-from sysid.cases import Case, run_case
+from sysid.cases import Case, pair, run_case
 from sysid.effects import base_name
 from sysid.pipeline import relative_excess, run
 from sysid.robots import adapter as make_adapter
@@ -27,10 +27,14 @@ from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
 
 def _pair(robot: str, effects: dict, seed: int):
     """A training log with hidden effects (drawn when None), and a test log of the same truth under other commands."""
-    train, truth = synth.synthesize(robot, effects, seed)
-    test, test_truth = synth.synthesize(robot, truth["effects"], seed + 1000, show=True)
-    assert test_truth["effects"] == truth["effects"]
-    return train, test, truth
+    return pair(robot, effects, seed)
+
+
+def test_given_values_come_back_unchanged():
+    """A case's held-out log is made from the training truth as given values: the generator must not move them."""
+    _, truth = synth.synthesize("motor", {"viscous_friction": None}, 3, seconds=4.0)
+    _, again = synth.synthesize("motor", truth["effects"], 1003, seconds=4.0, show=True)
+    assert again["effects"] == truth["effects"]
 
 
 def _check_recovery(robot: str, effect: str, seed: int) -> Case:

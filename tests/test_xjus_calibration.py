@@ -15,7 +15,7 @@ import envs  # noqa: F401 (registers the ids)
 from envs.common.telemetry import read_telemetry
 from envs.xjus import constants as C
 from sysid import synth
-from sysid.cases import run_case
+from sysid.cases import pair, run_case
 from sysid.pipeline import relative_excess, run
 from sysid.robots import adapter as make_adapter
 
@@ -99,12 +99,10 @@ def test_xjus_recovers_a_drawn_viscous_friction():
 @pytest.mark.slow  # 3 to 6 minutes on 2 cores; the matrix benchmark runs the same cases
 def test_xjus_null_and_out_of_catalog():
     adapter = make_adapter("xjus")
-    train, truth = synth.synthesize("xjus", {}, 21)
-    test, _ = synth.synthesize("xjus", {}, 1021)
+    train, test, _ = pair("xjus", {}, 21)
     null = run(adapter, [train], [test], say=lambda s: None)
     assert null.outcome.chosen == [] and not null.unexplained, null.after.error
-    train, truth = synth.synthesize("xjus", {"disturbance": None}, 22)
-    test, _ = synth.synthesize("xjus", truth["effects"], 1022, show=True)
+    train, test, truth = pair("xjus", {"disturbance": None}, 22)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     ooc = run(adapter, [train], [test], say=lambda s: None)
     assert ooc.unexplained and "above the noise floor" in ooc.where()
