@@ -18,7 +18,15 @@ import numpy as np
 from scipy import stats
 
 from sysid.effects import Param
-from sysid.problem import Problem, Residual, Setting, data_size, flatten, total_cost
+from sysid.problem import (
+    Problem,
+    Residual,
+    Setting,
+    data_size,
+    flatten_objective,
+    total_cost,
+    total_objective,
+)
 
 FD_STEP = 1e-3  # finite-difference step in normalized coordinates (an adapter may ask for more: ``fd_step``)
 GRID_POINTS = 9
@@ -42,6 +50,11 @@ class FitResult:
     def error(self) -> float:
         return math.sqrt(self.cost / max(self.n, 1))
 
+    @property
+    def objective(self) -> float:
+        """What the fit minimized (the cost, or its robust loss: ``Residual.objective``)."""
+        return total_objective(self.residuals) if self.residuals else self.cost
+
 
 def evaluate(problem: Problem, setting: Setting, segments: Sequence[int] | None = None) -> FitResult:
     """The cost of one setting (no fitting), the start's correction anchored at the setting itself."""
@@ -51,8 +64,9 @@ def evaluate(problem: Problem, setting: Setting, segments: Sequence[int] | None 
 
 
 def costs(problem: Problem, settings: Sequence[Setting], segments, anchor: Setting) -> list[float]:
-    """The cost of each setting, the start's correction anchored at ``anchor`` (one batched rollout)."""
-    return [total_cost(r) for r in problem.residuals(settings, segments, anchor=anchor)]
+    """The objective of each setting (its cost, or the robust loss of ``Adapter.loss_scale``), the start's
+    correction anchored at ``anchor`` (one batched rollout)."""
+    return [total_objective(r) for r in problem.residuals(settings, segments, anchor=anchor)]
 
 
 def fit(
@@ -136,7 +150,7 @@ def _least_squares(
     def optimize(u_start: np.ndarray, anchor: Setting, iterations: int) -> np.ndarray:
         def residual_fn(x: np.ndarray, _params=None):
             columns = problem.residuals(settings_of(np.asarray(x, dtype=float)), segments, anchor=anchor)
-            flat = np.column_stack([flatten(c) for c in columns])
+            flat = np.column_stack([flatten_objective(c) for c in columns])
             return [flat if np.ndim(x) == 2 else flat[:, 0]], None, None
 
         pdict = sysid.ParameterDict({k: sysid.Parameter(k, u_start[i], 0.0, 1.0) for i, k in enumerate(names)})
@@ -152,8 +166,8 @@ def _least_squares(
     u = optimize(u0, start, max_iter)
     best = settings_of(u)[0]
     result = evaluate(problem, best, segments)
-    anchored = total_cost(problem.residuals([best], segments, anchor=start)[0])
-    if abs(anchored - result.cost) > 0.01 * result.cost:
+    anchored = total_objective(problem.residuals([best], segments, anchor=start)[0])
+    if abs(anchored - result.objective) > 0.01 * result.objective:
         u = optimize(np.clip(u, 2e-3, 1 - 2e-3), best, max(3, max_iter // 3))
         best = settings_of(u)[0]
         result = evaluate(problem, best, segments)
@@ -174,8 +188,8 @@ def _jacobian_intervals(
     settings = [{**best, **{k: _from_unit(params[k], float(probe[i, j])) for i, k in enumerate(names)}}
                 for j in range(len(names))]  # fmt: skip
     columns = problem.residuals(settings, segments, anchor=best)
-    r0 = flatten(result.residuals)
-    jac = np.column_stack([(flatten(c) - r0) / steps[i] for i, c in enumerate(columns)])
+    r0 = flatten_objective(result.residuals)
+    jac = np.column_stack([(flatten_objective(c) - r0) / steps[i] for i, c in enumerate(columns)])
     half = _intervals(r0, jac, result.n_eff)
     out = {k: float(half[i] * params[k].span) for i, k in enumerate(names)}
     # the Jacobian's interval is a quadratic reading of the cost; where the effect is far from linear in its
@@ -212,7 +226,7 @@ def _residual_variance(result: FitResult, p: int) -> float:
     """The residual variance per effective sample for intervals: the fit's own (cost / (n - p)), at least the
     noise level's 1 (a residual quieter than the noise in its still stretches says nothing of the noise in the
     moves that carry the information), times n / n_eff for the residual's autocorrelation."""
-    return max(result.cost / max(result.n - p, 1), 1.0) * (result.n / max(result.n_eff, 1.0))
+    return max(result.objective / max(result.n - p, 1), 1.0) * (result.n / max(result.n_eff, 1.0))
 
 
 def _grid_search(
@@ -316,7 +330,7 @@ def _derivative_free(
                 found, found_cost = np.asarray(es.result.xbest), float(es.result.fbest)
         best = trial(found)
         result = evaluate(problem, best, segments)  # anchored at itself
-        if abs(result.cost - found_cost) <= 0.01 * found_cost:
+        if abs(result.objective - found_cost) <= 0.01 * found_cost:
             break
     return result
 
@@ -355,7 +369,7 @@ def _smoothed_profile(
         for _ in range(4):
             xs = np.unique(np.clip(x0 + width * np.linspace(-1.0, 1.0, GRID_POINTS), p.low, p.high))
             rollouts = problem.residuals([{**best, k: float(x)} for x in xs], segments, anchor=best)
-            per_segment = np.array([[r.cost for r in rs] for rs in rollouts])
+            per_segment = np.array([[r.objective for r in rs] for rs in rollouts])
             cs = per_segment.sum(axis=1)
             a, b, _c = np.polyfit((xs - x0) / p.span, cs, 2)
             if a <= 0:
@@ -404,7 +418,7 @@ def _profile_intervals(
     the residual's autocorrelation. Bracketed outward in doubling steps from the parameter's resolution, then
     refined between the last point inside and the first outside; a side that never leaves reaches its bound."""
     s2 = _residual_variance(result, len(rough))
-    threshold = result.cost + stats.chi2.ppf(0.95, 1) * s2
+    threshold = result.objective + stats.chi2.ppf(0.95, 1) * s2
     out = {}
     for k, p in rough.items():
         x0 = best[k]

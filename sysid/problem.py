@@ -101,6 +101,10 @@ class Adapter(ABC):
     replay_floor: bool = False  # add what replay cannot match on the model's own data to the noise (see Problem)
     fd_step: float = 1e-3  # finite-difference step, a fraction of each parameter's range (larger for chaotic models)
     rough_cost: bool = False  # the cost is rough at small scales (contacts): fit derivative-free (sysid/fit.py)
+    # the fits' objective: least squares (None) or, where a segment's replay can part from the log for good (a leg
+    # that stalls in one and runs on in the other: contacts), the soft-L1 loss with this scale in noise levels, so
+    # that such a segment weighs as a few samples far out rather than as its squared error (see Residual.objective)
+    loss_scale: float | None = None
     # the breadth of the search for effects that help only together (sysid/select.py: seeds, width, beam); a robot
     # whose every fit costs seconds of rollouts narrows it
     chain_search: tuple[int, int, int] = (3, 3, 2)
@@ -374,21 +378,51 @@ class Residual:
 
     data: np.ndarray
     prior: np.ndarray
+    loss_scale: float | None = None  # the adapter's (see Adapter.loss_scale)
 
     def flat(self) -> np.ndarray:
         return np.concatenate([self.data.ravel(), self.prior])
 
+    def flat_objective(self) -> np.ndarray:
+        """Residuals whose sum of squares is :attr:`objective` (each sample's sign times the root of its loss), for
+        least-squares solvers: :meth:`flat` without a loss scale."""
+        if self.loss_scale is None:
+            return self.flat()
+        c = self.loss_scale
+        root = np.sqrt(2.0 * c * c * (np.sqrt(1.0 + (self.data / c) ** 2) - 1.0))
+        return np.concatenate([(np.sign(self.data) * root).ravel(), self.prior])
+
     @cached_property
     def cost(self) -> float:
+        """Sum of squares: what the errors (RMS over the noise) are computed from."""
         return float(np.sum(self.data * self.data) + self.prior @ self.prior)
+
+    @cached_property
+    def objective(self) -> float:
+        """What a fit minimizes: the cost, or, with a loss scale c, the soft-L1 loss 2 c^2 (sqrt(1 + (r/c)^2) - 1)
+        summed over the samples (scipy's ``soft_l1``: r^2 within the noise, 2 c |r| far out; convex, so it keeps
+        least squares' optimum where the model is right and the residual is noise), plus the prior's squares."""
+        if self.loss_scale is None:
+            return self.cost
+        c = self.loss_scale
+        rho = 2.0 * c * c * (np.sqrt(1.0 + (self.data / c) ** 2) - 1.0)
+        return float(np.sum(rho) + self.prior @ self.prior)
 
 
 def flatten(residuals: Sequence[Residual]) -> np.ndarray:
     return np.concatenate([r.flat() for r in residuals])
 
 
+def flatten_objective(residuals: Sequence[Residual]) -> np.ndarray:
+    return np.concatenate([r.flat_objective() for r in residuals])
+
+
 def total_cost(residuals: Sequence[Residual]) -> float:
     return float(sum(r.cost for r in residuals))
+
+
+def total_objective(residuals: Sequence[Residual]) -> float:
+    return float(sum(r.objective for r in residuals))
 
 
 def data_size(residuals: Sequence[Residual]) -> int:
@@ -737,7 +771,7 @@ class Problem:
                     r = r - (a @ delta).reshape(r.shape)
                 else:
                     delta = np.zeros(0)
-                row.append(Residual(r, delta))
+                row.append(Residual(r, delta, self.adapter.loss_scale))
             out.append(row)
         return out
 

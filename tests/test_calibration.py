@@ -21,6 +21,7 @@ from sysid import synth
 from sysid.cases import Case, pair, run_case
 from sysid.effects import base_name
 from sysid.pipeline import relative_excess, run
+from sysid.problem import Residual
 from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
 
@@ -28,6 +29,25 @@ from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
 def _pair(robot: str, effects: dict, seed: int):
     """A training log with hidden effects (drawn when None), and a test log of the same truth under other commands."""
     return pair(robot, effects, seed)
+
+
+def test_robust_objective_is_least_squares_in_the_noise_and_linear_far_out():
+    """An adapter's loss scale turns a fit's objective into the soft-L1 loss: within the noise it is the sum of
+    squares, and a segment whose replay parted from the log (residuals of 100 noise levels) weighs linearly."""
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0.0, 1.0, (1000, 3))
+    prior = np.array([0.5])
+    plain, robust = Residual(noise, prior), Residual(noise, prior, loss_scale=3.0)
+    assert plain.objective == plain.cost
+    assert robust.objective == pytest.approx(robust.cost, rel=0.1)  # Gaussian noise, c = 3: 7% less
+    assert robust.objective < robust.cost
+    parted = Residual(np.full((10, 1), 100.0), np.zeros(0), loss_scale=3.0)
+    assert parted.cost == pytest.approx(1e5)
+    assert parted.objective == pytest.approx(10 * 2 * 9 * (math.sqrt(1 + (100 / 3) ** 2) - 1))  # about 2 c |r|
+    for r in (plain, robust, parted):  # what a least-squares solver sees: its squares sum to the objective, signs kept
+        flat = r.flat_objective()
+        assert float(flat @ flat) == pytest.approx(r.objective)
+        assert np.array_equal(np.sign(flat[: r.data.size]), np.sign(r.data.ravel()))
 
 
 def test_given_values_come_back_unchanged():

@@ -42,6 +42,14 @@ def wrap_angle(x: np.ndarray) -> np.ndarray:
     return np.arctan2(np.sin(x), np.cos(x))
 
 
+def _series(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The clock's Fourier sums at ``s`` (cycles): ``F(s) = sum W (1 - cos)``, ``F'(s)`` and ``F''(s)`` per cycle."""
+    frac = s - np.floor(s)
+    harmonics = np.exp(1j * (frac[..., None] * _TWO_PI_K))  # cos and sin of every odd harmonic at once
+    cos, sin = harmonics.real, harmonics.imag
+    return _W_SUM - cos @ _W, sin @ _W_RATE, cos @ _W_ACCEL
+
+
 def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The seed's target angle over a cycle and its first two derivatives per cycle.
 
@@ -54,14 +62,12 @@ def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndar
         by T and T^2 for time derivatives.
     """
     s = np.asarray(s, dtype=np.float64)
-    frac = s - np.floor(s)
-    harmonics = np.exp(1j * (frac[..., None] * _TWO_PI_K))  # cos and sin of every odd harmonic at once
-    cos, sin = harmonics.real, harmonics.imag
-    amplitude = np.asarray(sweep, dtype=np.float64) - np.pi
-    angle = 2.0 * np.pi * s + amplitude * (_W_SUM - cos @ _W)
-    rate = 2.0 * np.pi + amplitude * (sin @ _W_RATE)
-    accel = amplitude * (cos @ _W_ACCEL)
-    return angle, rate, accel
+    return _clock(s, np.asarray(sweep, dtype=np.float64) - np.pi, *_series(s))
+
+
+def _clock(s, amplitude, f, rate, accel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """theta_d = 2 pi s + (theta_g - pi) F(s) and its derivatives, from the sums of :func:`_series`."""
+    return 2.0 * np.pi * s + amplitude * f, 2.0 * np.pi + amplitude * rate, amplitude * accel
 
 
 @dataclass
@@ -75,6 +81,10 @@ class Gait:
 
     offsets: np.ndarray
     side: np.ndarray
+
+    def __post_init__(self) -> None:
+        # legs that share an offset share their clock: its series is computed once per offset (the tripod's two)
+        self._offsets, self._group = np.unique(self.offsets, return_inverse=True)
 
     @classmethod
     def tripod(cls) -> Gait:
@@ -94,7 +104,8 @@ class Gait:
         """
         s = phase[:, None] + self.offsets
         leg_sweep = sweep[:, self.side]
-        angle, rate, accel = buehler_clock(s, leg_sweep)
+        sums = _series(phase[:, None] + self._offsets)  # per offset; the same numbers as per leg
+        angle, rate, accel = _clock(s, leg_sweep - np.pi, *(x[:, self._group] for x in sums))
         inv_t = 1.0 / period[:, None]
         return angle - 0.5 * leg_sweep, rate * inv_t, accel * np.square(inv_t)
 
