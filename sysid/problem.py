@@ -388,9 +388,7 @@ class Residual:
         least-squares solvers: :meth:`flat` without a loss scale."""
         if self.loss_scale is None:
             return self.flat()
-        c = self.loss_scale
-        root = np.sqrt(2.0 * c * c * (np.sqrt(1.0 + (self.data / c) ** 2) - 1.0))
-        return np.concatenate([(np.sign(self.data) * root).ravel(), self.prior])
+        return np.concatenate([(np.sign(self.data) * np.sqrt(self._loss)).ravel(), self.prior])
 
     @cached_property
     def cost(self) -> float:
@@ -404,9 +402,13 @@ class Residual:
         least squares' optimum where the model is right and the residual is noise), plus the prior's squares."""
         if self.loss_scale is None:
             return self.cost
+        return float(np.sum(self._loss) + self.prior @ self.prior)
+
+    @cached_property
+    def _loss(self) -> np.ndarray:
+        """Each sample's soft-L1 loss (written out: scipy keeps its losses private to ``least_squares``)."""
         c = self.loss_scale
-        rho = 2.0 * c * c * (np.sqrt(1.0 + (self.data / c) ** 2) - 1.0)
-        return float(np.sum(rho) + self.prior @ self.prior)
+        return 2.0 * c * c * (np.sqrt(1.0 + (self.data / c) ** 2) - 1.0)
 
 
 def flatten(residuals: Sequence[Residual]) -> np.ndarray:

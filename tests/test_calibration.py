@@ -26,11 +26,6 @@ from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
 
 
-def _pair(robot: str, effects: dict, seed: int):
-    """A training log with hidden effects (drawn when None), and a test log of the same truth under other commands."""
-    return pair(robot, effects, seed)
-
-
 def test_robust_objective_is_least_squares_in_the_noise_and_linear_far_out():
     """An adapter's loss scale turns a fit's objective into the soft-L1 loss: within the noise it is the sum of
     squares, and a segment whose replay parted from the log (residuals of 100 noise levels) weighs linearly."""
@@ -91,7 +86,7 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
     generator) go through calibrate.py; the calibrated model, run by evaluate.py, walks the tripod gait closer to the
     'measured' robot (the model with the true effect) in speed and heading drift than the nominal model does."""
     effect, seed = "viscous_friction_left", 1
-    train, test, truth = _pair("roach", {effect: None}, seed)
+    train, test, truth = pair("roach", {effect: None}, seed)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     paths = []
     for name, log in (("train", train), ("test", test)):
@@ -121,14 +116,14 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
 
 
 def test_null_noise_only_chooses_nothing():
-    train, test, _ = _pair("motor", {}, seed=13)
+    train, test, _ = pair("motor", {}, seed=13)
     result = run(make_adapter("motor"), [train], [test], say=lambda s: None)
     assert result.outcome.chosen == []
     assert result.after.error < UNEXPLAINED_ABOVE and not result.unexplained
 
 
 def test_out_of_catalog_disturbance_is_unexplained():
-    train, test, truth = _pair("motor", {"disturbance": None}, seed=14)
+    train, test, truth = pair("motor", {"disturbance": None}, seed=14)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     result = run(make_adapter("motor"), [train], [test], say=lambda s: None)
     assert result.unexplained and result.after.error > UNEXPLAINED_ABOVE
@@ -163,7 +158,7 @@ def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys)
 
 
 def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
-    train, test, _ = _pair("motor", {"coulomb_friction": 0.2}, seed=15)
+    train, test, _ = pair("motor", {"coulomb_friction": 0.2}, seed=15)
     paths = []
     for name, log in (("train", train), ("test", test)):
         path = tmp_path / f"{name}.parquet"

@@ -102,10 +102,9 @@ class Gait:
             period: (n,) the cycle period T, s.
             sweep: (n, 2) the ground sweep angle of the left and right legs, rad.
         """
-        s = phase[:, None] + self.offsets
+        s = phase[:, None] + self._offsets  # per offset; gathered to the legs, the same numbers as per leg
         leg_sweep = sweep[:, self.side]
-        sums = _series(phase[:, None] + self._offsets)  # per offset; the same numbers as per leg
-        angle, rate, accel = _clock(s, leg_sweep - np.pi, *(x[:, self._group] for x in sums))
+        angle, rate, accel = _clock(s[:, self._group], leg_sweep - np.pi, *(x[:, self._group] for x in _series(s)))
         inv_t = 1.0 / period[:, None]
         return angle - 0.5 * leg_sweep, rate * inv_t, accel * np.square(inv_t)
 
