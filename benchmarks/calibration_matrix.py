@@ -194,7 +194,10 @@ def _yn(x: bool) -> str:
 def _values(row: dict, which: int) -> str:
     parts = []
     for name, (true, got, half) in row["values"].items():
-        parts.append(f"{name} {true:.3g}" if which == 0 else f"{got:.3g} +- {half:.2g}")
+        low, high = row.get("intervals", {}).get(name, (got - half, got + half))
+        symmetric = math.isclose(got - low, high - got, rel_tol=0.05)
+        shown = f"{got:.3g} +- {half:.2g}" if symmetric else f"{got:.3g} [{low:.3g}, {high:.3g}]"
+        parts.append(f"{name} {true:.3g}" if which == 0 else shown)
     if which == 0 and not parts:
         parts = [f"{k} {v:.3g}" for e in row["injected"].values() for k, v in e.items()]
     return "; ".join(parts) or "-"

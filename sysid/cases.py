@@ -32,7 +32,8 @@ class Case:
     first_in_alias_group: bool  # the first pick is in the (single) injected effect's alias group
     recovered: bool  # each parameter within max(2 x half-width, 5% of its range) (same effect picked)
     covered: dict[str, bool]  # per parameter: the 95% interval holds the truth (same effect picked)
-    values: dict[str, tuple[float, float, float]]  # parameter -> (truth, estimate, half-width)
+    values: dict[str, tuple[float, float, float]]  # parameter -> (truth, estimate, half-width: the larger side)
+    intervals: dict[str, tuple[float, float]]  # parameter -> the 95% interval (low, high)
     excess_ratio: float  # held-out excess over the noise floor, after / before
 
     @property
@@ -44,7 +45,8 @@ class Case:
             "robot": self.robot, "injected": self.injected, "seed": self.seed, "nominal_error": self.nominal_error,
             "chosen": [c.effect.name for c in self.result.outcome.chosen], "first": self.first,
             "first_in_alias_group": self.first_in_alias_group, "recovered": self.recovered, "covered": self.covered,
-            "values": {k: list(v) for k, v in self.values.items()}, "error_before": self.result.before.error,
+            "values": {k: list(v) for k, v in self.values.items()},
+            "intervals": {k: list(v) for k, v in self.intervals.items()}, "error_before": self.result.before.error,
             "error_after": self.result.after.error, "excess_ratio": self.excess_ratio, "halved": self.halved,
             "unexplained": self.result.unexplained, "threshold": self.result.threshold, "seconds": self.seconds,
         }  # fmt: skip
@@ -73,7 +75,7 @@ def run_case(
     chosen = result.outcome.chosen
     first = chosen[0] if chosen else None
     catalog = adapter.effects()
-    in_group, recovered, covered, values = False, False, {}, {}
+    in_group, recovered, covered, values, intervals = False, False, {}, {}, {}
     if len(truth["effects"]) == 1 and first is not None:
         (name, true_values), = truth["effects"].items()  # fmt: skip
         injected = catalog[name]
@@ -83,9 +85,10 @@ def run_case(
             for p in injected.params:
                 key = injected.key(p.name)
                 true, got, half = true_values[p.name], first.values[key], first.ci95[key]
-                values[p.name] = (true, got, half)
-                covered[p.name] = abs(got - true) <= half
+                low, high = first.bounds95.get(key, (got - half, got + half))
+                values[p.name], intervals[p.name] = (true, got, half), (low, high)
+                covered[p.name] = low <= true <= high
                 recovered &= abs(got - true) <= max(2 * half, 0.05 * p.span)
     return Case(robot, truth["effects"], seed, truth["nominal_error"], result, time.perf_counter() - start,
-                first.effect.name if first else None, in_group, recovered, covered, values,
+                first.effect.name if first else None, in_group, recovered, covered, values, intervals,
                 relative_excess(result.before.error, result.after.error))  # fmt: skip

@@ -37,7 +37,11 @@ MU_FACTOR = 10**0.5  # the regularizer's growth after a failed step (mujoco.mini
 
 @dataclass
 class FitResult:
-    """Fitted values (every parameter of the fit, nuisance included), their 95% half-widths, and the cost."""
+    """Fitted values (every parameter of the fit, nuisance included), their 95% intervals, and the cost.
+
+    ``bounds95`` holds each interval as (low, high): a profile likelihood can be one-sided (a friction above which
+    the leg stalls anyway is "at least" a value); ``ci95`` is its half-width, the larger side
+    (:func:`half_widths`)."""
 
     values: dict[str, float]
     ci95: dict[str, float]
@@ -45,6 +49,7 @@ class FitResult:
     n: int  # data samples x channels
     n_eff: float
     residuals: list[Residual] = field(repr=False, default_factory=list)
+    bounds95: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def error(self) -> float:
@@ -99,16 +104,32 @@ def fit(
         else:
             result = evaluate(problem, setting, segments)
     if intervals:
-        result.ci95 = fit_intervals(problem, result, params, segments)
+        set_intervals(result, fit_intervals(problem, result, params, segments))
     return result
+
+
+def half_widths(values: Mapping[str, float], bounds: Mapping[str, tuple[float, float]]) -> dict[str, float]:
+    """The half-width of each interval: the larger distance from the value to an end."""
+    return {k: max(values[k] - low, high - values[k]) for k, (low, high) in bounds.items()}
+
+
+def set_intervals(result: FitResult, bounds: Mapping[str, tuple[float, float]]) -> None:
+    """Store 95% intervals (low, high) on a fit, and their half-widths as ``ci95``."""
+    result.bounds95 = {k: (float(low), float(high)) for k, (low, high) in bounds.items()}
+    result.ci95 = {k: float(h) for k, h in half_widths(result.values, result.bounds95).items()}
+
+
+def _symmetric(best: Mapping[str, float], half: Mapping[str, float]) -> dict[str, tuple[float, float]]:
+    return {k: (best[k] - h, best[k] + h) for k, h in half.items()}
 
 
 def fit_intervals(
     problem: Problem, result: FitResult, params: Mapping[str, Param], segments: Sequence[int] | None = None
-) -> dict[str, float]:
-    """95% half-widths of a fit's parameters ``params`` at its values: where the cost is rough (contacts), from a
-    parabola over the profile (:func:`_smoothed_profile`); else, smooth parameters from the Jacobian at the optimum
-    or the profile likelihood, whichever is wider (:func:`_jacobian_intervals`), non-smooth ones from the profile
+) -> dict[str, tuple[float, float]]:
+    """95% intervals (low, high) of a fit's parameters ``params`` at its values: where the cost is rough
+    (contacts), from a parabola over the profile, widened on a side where the cost stays within the threshold
+    further out (:func:`_smoothed_profile`); else, smooth parameters from the Jacobian at the optimum or the profile
+    likelihood, whichever is wider on each side (:func:`_jacobian_intervals`), non-smooth ones from the profile
     (:func:`_profile_intervals`)."""
     best = result.values
     if problem.adapter.rough_cost:
@@ -176,9 +197,9 @@ def _least_squares(
 
 def _jacobian_intervals(
     problem: Problem, result: FitResult, params: Mapping[str, Param], segments: Sequence[int] | None
-) -> dict[str, float]:
-    """95% half-widths of smooth parameters from the Jacobian at the optimum (normalized coordinates, one batched
-    rollout for all its columns), or from the profile likelihood where that is wider."""
+) -> dict[str, tuple[float, float]]:
+    """95% intervals of smooth parameters from the Jacobian at the optimum (normalized coordinates, one batched
+    rollout for all its columns), or from the profile likelihood on a side where that is wider."""
     names = list(params)
     best = result.values
     fd = max(FD_STEP, problem.adapter.fd_step)
@@ -196,7 +217,10 @@ def _jacobian_intervals(
     # parameter (a servo's gain, a friction near zero) the profile likelihood is wider on one side: take the larger
     # (the profile holds the other parameters, so it is the narrower of the two where parameters correlate)
     profile = _profile_intervals(problem, best, params, segments, result)
-    return {k: max(v, profile[k]) if np.isfinite(v) else v for k, v in out.items()}
+    return {
+        k: (min(best[k] - v, profile[k][0]), max(best[k] + v, profile[k][1])) if np.isfinite(v) else (-v, v)
+        for k, v in out.items()
+    }
 
 
 def _intervals(r: np.ndarray, jac: np.ndarray, n_eff: float) -> np.ndarray:
@@ -348,9 +372,9 @@ def _parabola_vertex(us: np.ndarray, cs: np.ndarray) -> float | None:
 
 def _smoothed_profile(
     problem: Problem, best: Mapping[str, float], params: Mapping[str, Param], segments, result: FitResult
-) -> dict[str, float]:
-    """95% half-widths where the cost is rough (contacts), the larger of two readings of the cost at GRID_POINTS
-    values across a window around the best point (the others held; one batched rollout):
+) -> dict[str, tuple[float, float]]:
+    """95% intervals where the cost is rough (contacts): a half-width, the larger of two readings of the cost at
+    GRID_POINTS values across a window around the best point (the others held; one batched rollout):
 
     - a parabola fitted by least squares to the total cost, its curvature read as the profile likelihood's (the
       chi^2(1) quantile times the residual variance, scaled by n / n_eff), plus the distance from the best point to
@@ -360,7 +384,9 @@ def _smoothed_profile(
       optimum moves from one draw of segments to another does not.
 
     The window widens until it holds the interval; a parameter whose window reaches its whole range without
-    curvature gets the whole range."""
+    curvature gets the whole range. Both readings are local; a side on which the cost stays within the threshold
+    further out (a plateau: a friction above which the leg stalls anyway) is widened to where it leaves
+    (:func:`_plateau_reach`), so the interval can be one-sided."""
     s2 = _residual_variance(result, len(params))
     rise = stats.chi2.ppf(0.95, 1) * s2
     out = {}
@@ -381,8 +407,41 @@ def _smoothed_profile(
             if half <= width or width >= p.span:
                 break
             width = min(2.0 * half, p.span)
-        out[k] = float(min(max(half, p.resolution), p.span))
+        half = float(min(max(half, p.resolution), p.span))
+        out[k] = _plateau_reach(problem, best, k, p, half, rise, segments)
     return out
+
+
+PLATEAU_PROBES = 6  # per side: values from twice the half-width out to the range's end, geometrically spaced
+
+
+def _plateau_reach(
+    problem: Problem, best: Mapping[str, float], k: str, p: Param, half: float, rise: float, segments
+) -> tuple[float, float]:
+    """The interval (low, high) of ``k`` from a local half-width, each side pushed out to the last of
+    PLATEAU_PROBES values (from twice the half-width to the range's end) before the first whose cost rises above the
+    best point's by ``rise``: a profile likelihood read directly, where it is flat rather than curved. One batched
+    rollout (the best point's cost among it, anchored alike)."""
+    x0 = best[k]
+    probes: list[tuple[float, float]] = []  # (side, distance)
+    for side, room in ((-1.0, x0 - p.low), (1.0, p.high - x0)):
+        if room > 2.0 * half:
+            probes += [(side, d) for d in np.geomspace(2.0 * half, room, PLATEAU_PROBES)]
+    reach = {-1.0: half, 1.0: half}
+    if probes:
+        values = [x0] + [x0 + side * d for side, d in probes]
+        cost = costs(problem, [{**best, k: float(v)} for v in values], segments, anchor=best)
+        threshold = cost[0] + rise
+        blocked = set()
+        for (side, d), c in zip(probes, cost[1:], strict=True):
+            if side in blocked:
+                continue
+            if c > threshold:
+                blocked.add(side)
+            else:
+                reach[side] = d
+    return (max(x0 - reach[-1.0], p.low) if reach[-1.0] > half else x0 - half,
+            min(x0 + reach[1.0], p.high) if reach[1.0] > half else x0 + half)  # fmt: skip
 
 
 BOOTSTRAP_DRAWS = 400
@@ -412,8 +471,9 @@ def _segment_bootstrap(xs: np.ndarray, per_segment: np.ndarray, x0: float) -> fl
 
 def _profile_intervals(
     problem: Problem, best: Mapping[str, float], rough: Mapping[str, Param], segments, result: FitResult
-) -> dict[str, float]:
-    """95% half-widths of non-smooth parameters by profile likelihood: how far the value can move (the others
+) -> dict[str, tuple[float, float]]:
+    """95% intervals (low, high) of non-smooth parameters by profile likelihood, each side on its own: how far the
+    value can move (the others
     held) before the cost rises by the chi^2(1) quantile times the residual variance, scaled by n / n_eff for
     the residual's autocorrelation. Bracketed outward in doubling steps from the parameter's resolution, then
     refined between the last point inside and the first outside; a side that never leaves reaches its bound."""
@@ -439,13 +499,13 @@ def _profile_intervals(
             inside = float(abs(values[first - 1] - x0)) if first else 0.0
             reach[side] = (inside, float(abs(values[first] - x0)))
         # refine each side's crossing between its last point inside and first outside
-        half = p.resolution  # values within one step of each other are not told apart
+        sides = {}
         for side, (inside, outside) in reach.items():
             if outside > inside:
                 grid = np.linspace(inside, outside, 8)[1:-1]
                 values = x0 + side * grid
                 cost = np.array(costs(problem, [{**best, k: float(v)} for v in values], segments, anchor=best))
                 inside = max([inside, *grid[cost <= threshold]])
-            half = max(half, inside)
-        out[k] = float(half)
+            sides[side] = max(inside, p.resolution)  # values within one step of each other are not told apart
+        out[k] = (x0 - sides[-1.0], x0 + sides[1.0])
     return out

@@ -17,11 +17,20 @@ def _round(x: float, digits: int = 6) -> float:
     return float(f"{x:.{digits}g}") if math.isfinite(x) else x
 
 
-def _params(effect: Effect, values: Mapping[str, float], ci95: Mapping[str, float]) -> dict[str, dict[str, Any]]:
+def _params(
+    effect: Effect,
+    values: Mapping[str, float],
+    ci95: Mapping[str, float],
+    bounds95: Mapping[str, tuple[float, float]],
+) -> dict[str, dict[str, Any]]:
+    """Each parameter's value, its 95% interval as a half-width (``ci95``, the larger side) and as (low, high)
+    (``interval95``: one-sided where the data bound the value on one side only), unit, nominal value and range."""
+    nan = (math.nan, math.nan)
     return {
         p.name: {
             "value": _round(values[effect.key(p.name)]),
             "ci95": _round(ci95.get(effect.key(p.name), math.nan)),
+            "interval95": [_round(x) for x in bounds95.get(effect.key(p.name), nan)],
             "unit": p.unit,
             "nominal": p.nominal,
             "range": [p.low, p.high],
@@ -40,7 +49,7 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
             {
                 "name": choice.effect.name,
                 "alias_group": choice.effect.alias,
-                "params": _params(choice.effect, choice.values, choice.ci95),
+                "params": _params(choice.effect, choice.values, choice.ci95, choice.bounds95),
                 "error_after": _round(step.error, 4),
                 "per_channel_after": {k: _round(v, 4) for k, v in step.per_channel.items()},
                 "training_error_after": _round(choice.training_error, 4),
@@ -104,6 +113,15 @@ def calibration_dict(result: Result, report: Mapping[str, Any], base: Mapping[st
     return calibration_record(result.adapter.robot, effects, provenance)
 
 
+def _interval(p: Mapping[str, Any]) -> str:
+    """A parameter's 95% interval for the report: +- the half-width where it is symmetric, else [low, high]."""
+    low, high = p.get("interval95", (math.nan, math.nan))
+    value, half = p["value"], p["ci95"]
+    if math.isfinite(low) and math.isfinite(high) and not math.isclose(value - low, high - value, rel_tol=0.05):
+        return f"[{low:.3g}, {high:.3g}]"
+    return f"+-{half:.2g}"
+
+
 def report_markdown(report: Mapping[str, Any]) -> str:
     r = report
     lines = [
@@ -133,7 +151,7 @@ def report_markdown(report: Mapping[str, Any]) -> str:
             for name, p in c["params"].items():
                 lines.append(
                     f"| {c['name']} | {c['alias_group']} | {name} | {p['value']:.4g} {p['unit']} | "
-                    f"+-{p['ci95']:.2g} | {c['error_after']:.3g} |"
+                    f"{_interval(p)} | {c['error_after']:.3g} |"
                 )
     else:
         lines.append("None: no catalog effect earned its place.")

@@ -30,7 +30,7 @@ from scipy import stats
 
 from sysid import diagnostics
 from sysid.effects import Effect, Param
-from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals
+from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, set_intervals
 from sysid.problem import Problem, Setting, flatten
 
 MAX_EFFECTS = 4
@@ -55,10 +55,11 @@ MAX_DECISION_SEGMENTS = 12  # segments the loop decides on; kept effects are ref
 class Choice:
     effect: Effect
     values: dict[str, float]
-    ci95: dict[str, float]
+    ci95: dict[str, float]  # half-widths (the larger side)
     score: float
     training_error: float
     together: list[str] = field(default_factory=list)  # effects kept in the same step (a pair)
+    bounds95: dict[str, tuple[float, float]] = field(default_factory=dict)  # the intervals, (low, high)
 
 
 @dataclass
@@ -250,7 +251,8 @@ def calibrate(
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)},
                            {k: refit.ci95.get(k, float("nan")) for k in _params(effect)}, entry["score"],
-                           outcome.training_errors[-1], together=[e.name for e in group_effects if e is not effect])
+                           outcome.training_errors[-1], together=[e.name for e in group_effects if e is not effect],
+                           bounds95={k: refit.bounds95[k] for k in _params(effect) if k in refit.bounds95})
                 )  # fmt: skip
                 outcome.history.append(dict(current))
                 used_groups.add(effect.alias)
@@ -302,9 +304,11 @@ def fit_chosen(
     outcome.training_errors.append(result.error)
     for n in names:
         e = effects[n]
+        own = _params(e)
         outcome.chosen.append(Choice(e, {k: current[k] for k in _params(e)},
                                      {k: result.ci95.get(k, float("nan")) for k in _params(e)}, float("nan"),
-                                     result.error, together=[m for m in names if m != n]))  # fmt: skip
+                                     result.error, together=[m for m in names if m != n],
+                                     bounds95={k: b for k, b in result.bounds95.items() if k in own}))  # fmt: skip
         outcome.history.append(dict(current))
     say(f"fitted {', '.join(names)}: error {before.error:.2f} -> {result.error:.2f} on the training logs")
     outcome.setting = current
@@ -438,30 +442,38 @@ def _fit_candidate(
 def _identified(
     problem: Problem, effects: Sequence[Effect], nuisance: Mapping[str, Param], fitting, trial: FitResult
 ) -> str | None:
-    """The fit's 95% intervals (computed now, for the candidate about to be tested), and whether the data identify
-    every parameter: an interval narrower than half the parameter's range, and the estimate more than one standard
-    error (the 95% half-width over 1.96) from an end of the range other than nominal (closer, the end lies inside
-    the 68% interval: the data would as soon take it there or further; the fit's end-of-range test, read through
-    the interval, which the roach's 2 Hz log needs: an armature at 98% of its range, a foot friction at 99%); and
-    whether each effect is there at all: at least one of its parameters differs from its nominal value by more than
-    its 95% half-width (a Wald test at 5%; an estimate the interval cannot tell from nominal is no evidence of the
-    effect). None if so, else the reason."""
+    """The fit's 95% intervals (computed now, for the candidate about to be tested; (low, high), one-sided where the
+    cost is flat on one side), and whether the data identify every parameter: an interval no wider than the
+    parameter's range, and the estimate more than one standard error from an end of the range other than nominal,
+    the standard error read on the interval's other side (1.96 of them from the estimate to that side's end): how
+    tightly the data hold the estimate from within. Closer, the estimate sits at the end: the data would take it
+    further, something else is at work (the fit's end-of-range test, which the roach's 2 Hz log needs: an armature
+    at 98% of its range, a foot friction at 99%). A cost flat from the estimate out to the end (a friction above
+    which the leg stalls anyway) is no such push: the estimate is a lower bound and the interval says so. And
+    whether each effect is there at all: at least one of its parameters' intervals leaves out the nominal value (a
+    Wald test at 5%, read on the side toward nominal; an estimate the interval cannot tell from nominal is no
+    evidence of the effect). None if so, else the reason."""
     params = {k: p for e in effects for k, p in _params(e).items()}
-    trial.ci95 = fit_intervals(problem, trial, {**params, **nuisance}, fitting)
+    set_intervals(trial, fit_intervals(problem, trial, {**params, **nuisance}, fitting))
+    nowhere = (-math.inf, math.inf)
     for k, p in params.items():
-        half = trial.ci95.get(k, float("inf"))
-        if not np.isfinite(half) or half > 0.5 * p.span:
-            return f"the data cannot identify {k}: 95% interval +-{half:.3g} {p.unit} over a range of {p.span:.3g}"
+        low, high = trial.bounds95.get(k, nowhere)
+        if not (np.isfinite(low) and np.isfinite(high)) or high - low > p.span:
+            return (f"the data cannot identify {k}: 95% interval [{low:.3g}, {high:.3g}] {p.unit} over a range of "
+                    f"{p.span:.3g}")  # fmt: skip
     for k, p in params.items():  # the fit's own end-of-range test, read through the interval
-        value, half = trial.values[k], trial.ci95.get(k, float("inf"))
-        for bound in (p.low, p.high):
-            if not np.isclose(bound, p.nominal) and abs(value - bound) < half / Z95:
-                return (f"{k} {value:.3g} +- {half:.2g} {p.unit}: within one standard error of the end of its range "
-                        f"({bound:g}), the data would take it further: something else is at work")  # fmt: skip
+        value, (low, high) = trial.values[k], trial.bounds95.get(k, nowhere)
+        for bound, inner in ((p.low, high - value), (p.high, value - low)):
+            if not np.isclose(bound, p.nominal) and abs(value - bound) < inner / Z95:
+                return (
+                    f"{k} {value:.3g} [{low:.3g}, {high:.3g}] {p.unit}: within one standard error of the "
+                    f"end of its range ({bound:g}), the data would take it further: something else is at work"
+                )
     for e in effects:
         own = _params(e)
-        if not any(abs(trial.values[k] - p.nominal) > trial.ci95.get(k, float("inf")) for k, p in own.items()):
-            shown = ", ".join(f"{k} {trial.values[k]:.3g} +- {trial.ci95.get(k, float('inf')):.2g} (nominal "
+        bounds = {k: trial.bounds95.get(k, nowhere) for k in own}
+        if all(low <= p.nominal <= high for k, p in own.items() for low, high in [bounds[k]]):
+            shown = ", ".join(f"{k} {trial.values[k]:.3g} [{bounds[k][0]:.3g}, {bounds[k][1]:.3g}] (nominal "
                               f"{p.nominal:.3g})" for k, p in own.items())  # fmt: skip
             return f"not told from nominal: {shown}"
     return None

@@ -19,7 +19,8 @@ from envs.common.calibration import read_calibration
 from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.cases import Case, pair, run_case
-from sysid.effects import base_name
+from sysid.effects import Param, base_name
+from sysid.fit import _plateau_reach, set_intervals
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Residual
 from sysid.robots import adapter as make_adapter
@@ -43,6 +44,32 @@ def test_robust_objective_is_least_squares_in_the_noise_and_linear_far_out():
         flat = r.flat_objective()
         assert float(flat @ flat) == pytest.approx(r.objective)
         assert np.array_equal(np.sign(flat[: r.data.size]), np.sign(r.data.ravel()))
+
+
+class _CurveProblem:
+    """A stand-in for a Problem whose cost, at any anchor, is a function of one parameter ``k``."""
+
+    def __init__(self, cost):
+        self.cost = cost
+
+    def residuals(self, settings, segments, anchor):
+        return [[SimpleNamespace(objective=float(self.cost(s["k"])))] for s in settings]
+
+
+def test_an_interval_is_one_sided_where_the_cost_is_flat_out_to_the_end():
+    """A friction above which the leg stalls anyway: the cost rises steeply below the estimate and is flat above
+    it to the range's end. The interval keeps its steep side and reaches the end on the flat one; a cost that rises
+    on both sides keeps the local half-width."""
+    p = Param("k", "N m", 0.0, 0.0, 0.015)
+    rise = 10.0
+    stall = _CurveProblem(lambda x: 1e6 * max(0.007 - x, 0.0) ** 2 / 1e-6 + 0.5 * rise * (x > 0.009))
+    low, high = _plateau_reach(stall, {"k": 0.007}, "k", p, 0.0015, rise, None)
+    assert low == pytest.approx(0.0055) and high == pytest.approx(0.015)
+    bowl = _CurveProblem(lambda x: 1e8 * (x - 0.007) ** 2)  # 10 units of cost 0.32e-3 from the optimum
+    assert _plateau_reach(bowl, {"k": 0.007}, "k", p, 0.0015, rise, None) == pytest.approx((0.0055, 0.0085))
+    result = SimpleNamespace(values={"k": 0.007}, bounds95={}, ci95={})
+    set_intervals(result, {"k": (0.0055, 0.015)})
+    assert result.ci95["k"] == pytest.approx(0.008)  # the half-width is the larger side
 
 
 def test_given_values_come_back_unchanged():
