@@ -119,10 +119,6 @@ def set_intervals(result: FitResult, bounds: Mapping[str, tuple[float, float]]) 
     result.ci95 = {k: float(h) for k, h in half_widths(result.values, result.bounds95).items()}
 
 
-def _symmetric(best: Mapping[str, float], half: Mapping[str, float]) -> dict[str, tuple[float, float]]:
-    return {k: (best[k] - h, best[k] + h) for k, h in half.items()}
-
-
 def fit_intervals(
     problem: Problem, result: FitResult, params: Mapping[str, Param], segments: Sequence[int] | None = None
 ) -> dict[str, tuple[float, float]]:
