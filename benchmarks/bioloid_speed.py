@@ -184,7 +184,7 @@ def main() -> None:
     args = parser.parse_args()
     rounds, episodes = (3, 2) if args.quick else (7, 3)
     pso_iterations = args.pso_iterations or (2 if args.quick else 4)
-    ratios = [single_ratio(rounds), batched_ratio(50, 2, rounds)]
+    ratios = [single_ratio(rounds), batched_ratio(50, 2, rounds), batched_ratio(100, 2, rounds)]
     for r in ratios:
         print(r)
     pso = pso_fraction(pso_iterations, 2)
