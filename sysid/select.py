@@ -305,8 +305,8 @@ def fit_chosen(
     for n in names:
         e = effects[n]
         own = _params(e)
-        outcome.chosen.append(Choice(e, {k: current[k] for k in _params(e)},
-                                     {k: result.ci95.get(k, float("nan")) for k in _params(e)}, float("nan"),
+        outcome.chosen.append(Choice(e, {k: current[k] for k in own},
+                                     {k: result.ci95.get(k, float("nan")) for k in own}, float("nan"),
                                      result.error, together=[m for m in names if m != n],
                                      bounds95={k: b for k, b in result.bounds95.items() if k in own}))  # fmt: skip
         outcome.history.append(dict(current))
