@@ -29,6 +29,7 @@ import numpy as np
 from benchmarks.common import md_table, save
 from sysid import synth
 from sysid.cases import Case, run_case
+from sysid.report import format_interval
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
 
@@ -194,10 +195,8 @@ def _yn(x: bool) -> str:
 def _values(row: dict, which: int) -> str:
     parts = []
     for name, (true, got, half) in row["values"].items():
-        low, high = row.get("intervals", {}).get(name, (got - half, got + half))
-        symmetric = math.isclose(got - low, high - got, rel_tol=0.05)
-        shown = f"{got:.3g} +- {half:.2g}" if symmetric else f"{got:.3g} [{low:.3g}, {high:.3g}]"
-        parts.append(f"{name} {true:.3g}" if which == 0 else shown)
+        low, high = row.get("intervals", {}).get(name, (got - half, got + half))  # rows of earlier stops: symmetric
+        parts.append(f"{name} {true:.3g}" if which == 0 else f"{got:.3g} {format_interval(got, low, high)}")
     if which == 0 and not parts:
         parts = [f"{k} {v:.3g}" for e in row["injected"].values() for k, v in e.items()]
     return "; ".join(parts) or "-"

@@ -40,16 +40,19 @@ class FitResult:
     """Fitted values (every parameter of the fit, nuisance included), their 95% intervals, and the cost.
 
     ``bounds95`` holds each interval as (low, high): a profile likelihood can be one-sided (a friction above which
-    the leg stalls anyway is "at least" a value); ``ci95`` is its half-width, the larger side
+    the leg stalls anyway is "at least" a value); ``ci95`` is their half-widths, the larger side
     (:func:`half_widths`)."""
 
     values: dict[str, float]
-    ci95: dict[str, float]
     cost: float  # sum of squared normalized residuals (the start's corrections included)
     n: int  # data samples x channels
     n_eff: float
     residuals: list[Residual] = field(repr=False, default_factory=list)
     bounds95: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def ci95(self) -> dict[str, float]:
+        return half_widths(self.values, self.bounds95)
 
     @property
     def error(self) -> float:
@@ -64,7 +67,7 @@ class FitResult:
 def evaluate(problem: Problem, setting: Setting, segments: Sequence[int] | None = None) -> FitResult:
     """The cost of one setting (no fitting), the start's correction anchored at the setting itself."""
     residuals = problem.residuals([setting], segments)[0]
-    return FitResult(dict(setting), {}, total_cost(residuals), data_size(residuals),
+    return FitResult(dict(setting), total_cost(residuals), data_size(residuals),
                      problem.effective_samples(residuals), residuals)  # fmt: skip
 
 
@@ -110,13 +113,12 @@ def fit(
 
 def half_widths(values: Mapping[str, float], bounds: Mapping[str, tuple[float, float]]) -> dict[str, float]:
     """The half-width of each interval: the larger distance from the value to an end."""
-    return {k: max(values[k] - low, high - values[k]) for k, (low, high) in bounds.items()}
+    return {k: float(max(values[k] - low, high - values[k])) for k, (low, high) in bounds.items()}
 
 
 def set_intervals(result: FitResult, bounds: Mapping[str, tuple[float, float]]) -> None:
-    """Store 95% intervals (low, high) on a fit, and their half-widths as ``ci95``."""
+    """Store 95% intervals (low, high) on a fit (``ci95``, the half-widths, follow from them)."""
     result.bounds95 = {k: (float(low), float(high)) for k, (low, high) in bounds.items()}
-    result.ci95 = {k: float(h) for k, h in half_widths(result.values, result.bounds95).items()}
 
 
 def fit_intervals(
@@ -469,10 +471,10 @@ def _profile_intervals(
     problem: Problem, best: Mapping[str, float], rough: Mapping[str, Param], segments, result: FitResult
 ) -> dict[str, tuple[float, float]]:
     """95% intervals (low, high) of non-smooth parameters by profile likelihood, each side on its own: how far the
-    value can move (the others
-    held) before the cost rises by the chi^2(1) quantile times the residual variance, scaled by n / n_eff for
-    the residual's autocorrelation. Bracketed outward in doubling steps from the parameter's resolution, then
-    refined between the last point inside and the first outside; a side that never leaves reaches its bound."""
+    value can move (the others held) before the cost rises by the chi^2(1) quantile times the residual variance,
+    scaled by n / n_eff for the residual's autocorrelation. Bracketed outward in doubling steps from the
+    parameter's resolution, then refined between the last point inside and the first outside; a side that never
+    leaves reaches its bound."""
     s2 = _residual_variance(result, len(rough))
     threshold = result.objective + stats.chi2.ppf(0.95, 1) * s2
     out = {}

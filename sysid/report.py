@@ -113,13 +113,11 @@ def calibration_dict(result: Result, report: Mapping[str, Any], base: Mapping[st
     return calibration_record(result.adapter.robot, effects, provenance)
 
 
-def _interval(p: Mapping[str, Any]) -> str:
-    """A parameter's 95% interval for the report: +- the half-width where it is symmetric, else [low, high]."""
-    low, high = p.get("interval95", (math.nan, math.nan))
-    value, half = p["value"], p["ci95"]
+def format_interval(value: float, low: float, high: float) -> str:
+    """A 95% interval for reading: +- the half-width where it is symmetric (within 5%), else [low, high]."""
     if math.isfinite(low) and math.isfinite(high) and not math.isclose(value - low, high - value, rel_tol=0.05):
         return f"[{low:.3g}, {high:.3g}]"
-    return f"+-{half:.2g}"
+    return f"+-{max(value - low, high - value):.2g}"
 
 
 def report_markdown(report: Mapping[str, Any]) -> str:
@@ -151,7 +149,7 @@ def report_markdown(report: Mapping[str, Any]) -> str:
             for name, p in c["params"].items():
                 lines.append(
                     f"| {c['name']} | {c['alias_group']} | {name} | {p['value']:.4g} {p['unit']} | "
-                    f"{_interval(p)} | {c['error_after']:.3g} |"
+                    f"{format_interval(p['value'], *p['interval95'])} | {c['error_after']:.3g} |"
                 )
     else:
         lines.append("None: no catalog effect earned its place.")

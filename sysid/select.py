@@ -30,7 +30,7 @@ from scipy import stats
 
 from sysid import diagnostics
 from sysid.effects import Effect, Param
-from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, set_intervals
+from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, half_widths, set_intervals
 from sysid.problem import Problem, Setting, flatten
 
 MAX_EFFECTS = 4
@@ -55,11 +55,15 @@ MAX_DECISION_SEGMENTS = 12  # segments the loop decides on; kept effects are ref
 class Choice:
     effect: Effect
     values: dict[str, float]
-    ci95: dict[str, float]  # half-widths (the larger side)
+    bounds95: dict[str, tuple[float, float]]  # the 95% intervals, (low, high)
     score: float
     training_error: float
     together: list[str] = field(default_factory=list)  # effects kept in the same step (a pair)
-    bounds95: dict[str, tuple[float, float]] = field(default_factory=dict)  # the intervals, (low, high)
+
+    @property
+    def ci95(self) -> dict[str, float]:
+        """The intervals' half-widths (the larger side)."""
+        return half_widths(self.values, self.bounds95)
 
 
 @dataclass
@@ -136,6 +140,11 @@ def nominal_setting(effects: Mapping[str, Effect], start: Mapping[str, float] | 
 
 def _params(effect: Effect) -> dict[str, Param]:
     return {effect.key(p.name): p for p in effect.params}
+
+
+def _bounds(result: FitResult, effect: Effect) -> dict[str, tuple[float, float]]:
+    """An effect's 95% intervals from a fit (NaN where the fit has none)."""
+    return {k: result.bounds95.get(k, (math.nan, math.nan)) for k in _params(effect)}
 
 
 def calibrate(
@@ -249,10 +258,8 @@ def calibrate(
                 outcome.training_errors[-1] = evaluate(problem, current).error
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
-                    Choice(effect, {k: current[k] for k in _params(effect)},
-                           {k: refit.ci95.get(k, float("nan")) for k in _params(effect)}, entry["score"],
-                           outcome.training_errors[-1], together=[e.name for e in group_effects if e is not effect],
-                           bounds95={k: refit.bounds95[k] for k in _params(effect) if k in refit.bounds95})
+                    Choice(effect, {k: current[k] for k in _params(effect)}, _bounds(refit, effect), entry["score"],
+                           outcome.training_errors[-1], together=[e.name for e in group_effects if e is not effect])
                 )  # fmt: skip
                 outcome.history.append(dict(current))
                 used_groups.add(effect.alias)
@@ -304,11 +311,8 @@ def fit_chosen(
     outcome.training_errors.append(result.error)
     for n in names:
         e = effects[n]
-        own = _params(e)
-        outcome.chosen.append(Choice(e, {k: current[k] for k in own},
-                                     {k: result.ci95.get(k, float("nan")) for k in own}, float("nan"),
-                                     result.error, together=[m for m in names if m != n],
-                                     bounds95={k: b for k, b in result.bounds95.items() if k in own}))  # fmt: skip
+        outcome.chosen.append(Choice(e, {k: current[k] for k in _params(e)}, _bounds(result, e), float("nan"),
+                                     result.error, together=[m for m in names if m != n]))  # fmt: skip
         outcome.history.append(dict(current))
     say(f"fitted {', '.join(names)}: error {before.error:.2f} -> {result.error:.2f} on the training logs")
     outcome.setting = current

@@ -20,7 +20,7 @@ from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.cases import Case, pair, run_case
 from sysid.effects import Param, base_name
-from sysid.fit import _plateau_reach, set_intervals
+from sysid.fit import _plateau_reach, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Residual
 from sysid.robots import adapter as make_adapter
@@ -67,9 +67,7 @@ def test_an_interval_is_one_sided_where_the_cost_is_flat_out_to_the_end():
     assert low == pytest.approx(0.0055) and high == pytest.approx(0.015)
     bowl = _CurveProblem(lambda x: 1e8 * (x - 0.007) ** 2)  # 10 units of cost 0.32e-3 from the optimum
     assert _plateau_reach(bowl, {"k": 0.007}, "k", p, 0.0015, rise, None) == pytest.approx((0.0055, 0.0085))
-    result = SimpleNamespace(values={"k": 0.007}, bounds95={}, ci95={})
-    set_intervals(result, {"k": (0.0055, 0.015)})
-    assert result.ci95["k"] == pytest.approx(0.008)  # the half-width is the larger side
+    assert half_widths({"k": 0.007}, {"k": (0.0055, 0.015)})["k"] == pytest.approx(0.008)  # the larger side
 
 
 def test_given_values_come_back_unchanged():
