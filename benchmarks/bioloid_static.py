@@ -10,8 +10,12 @@ model's.
   far the centre of mass may go. Mirrored setups (5 and 6) tipping the same way (261 and 274, both below 513) also
   fit a pitch servo, not a roll servo. The seed does not give the direction either: both are run, and the one on
   the side of the real robot's value is compared (its sign is the one fact taken from the answer).
-- **Protocol**: the robot is put down on its lowest point (2 mm up), its servos holding the posture, and left 3 s to
-  settle ("fell during setup" if its body tilts 30 deg or more from the posture meanwhile: the seed's X); then N_1's
+- **Protocol**: the robot is put down level on its lowest point (2 mm up), its servos holding the posture, and left
+  3 s to settle into the attitude it rests in (a posture with legs spread fore and aft rests tilted on them, as the
+  real robot "disposed in a stable position" would). "Fell during setup" (the seed's X) if it finds no rest: its body
+  still turning more than 1 deg over the last second of settling, or turned over (tilt past 90 deg). Until stop 18 a
+  tilt of 30 deg from level counted as a fall, which split steady rests of 26 and 31 deg (experiments 4 and 5) for
+  no physical reason. Then N_1's
   goal moves one count every 0.1 s (slow against the servo: no inertia, as the seed wanted) until the body's tilt
   departs 15 deg from where it settled (assumed threshold: the seed gives none) or N_1 reaches 0 or 1023 ("did not
   fall", the seed's circle).
@@ -55,7 +59,8 @@ MOVED = "N_1"
 SETTLE = 3.0  # s
 DWELL = 0.1  # s per count
 TIP = np.radians(15.0)
-SETUP_FALL = np.radians(30.0)
+REST_WINDOW = 1.0  # s: the last part of settling, over which a body at rest turns less than REST_TURN
+REST_TURN = np.radians(1.0)
 
 
 def posture(experiment: int) -> np.ndarray:
@@ -107,11 +112,16 @@ def run(experiments: list[int]) -> list[dict]:
         robot.reset(np.array([2 * k, 2 * k + 1]), rngs[:2], 0.0, {"counts": counts, "height": height})
     start = body_axes(robot.read(rngs, stepped=False)["quaternion"])
     goal = robot.goal.copy()
-    for _ in range(round(SETTLE / robot.control_dt)):
+    settle_steps, window_steps = round(SETTLE / robot.control_dt), round(REST_WINDOW / robot.control_dt)
+    for k in range(settle_steps):
         robot.command(goal)
         robot.step()
+        if k == settle_steps - window_steps - 1:
+            before = body_axes(robot.read(rngs)["quaternion"])
     settled = body_axes(robot.read(rngs)["quaternion"])
-    setup_fall = np.arccos(np.clip((start * settled).sum(axis=1), -1, 1)) >= SETUP_FALL
+    turning = np.arccos(np.clip((before * settled).sum(axis=1), -1, 1)) > REST_TURN
+    turned_over = (start * settled).sum(axis=1) < 0.0
+    setup_fall = turning | turned_over
     direction = np.tile([1.0, -1.0], len(experiments))
     column = C.SERVO_INDEX[MOVED]
     tipped_at = np.full(n, np.nan)
@@ -143,6 +153,7 @@ def run(experiments: list[int]) -> list[dict]:
             "ours": value if isinstance(value, str) else int(value),
             "ours_up": _value(setup_fall[up], tipped_at[up]),
             "ours_down": _value(setup_fall[down], tipped_at[down]),
+            "rest_tilt_deg": float(np.degrees(np.arccos(np.clip(start[toward] @ settled[toward], -1, 1)))),
             "settled_tilt_deg": float(np.degrees(tilt(robot.read(rngs)["quaternion"])[toward])),
         })  # fmt: skip
     return rows
@@ -163,14 +174,17 @@ def main() -> None:
     diffs = [abs(r["ours"] - r["real"]) for r in rows if isinstance(r["ours"], int)]
     webots = [abs(w - r) for w, r in zip(WEBOTS, REAL, strict=True) if isinstance(w, int)]
     table = md_table(
-        ["experiment", "real", "seed's Webots", "ours (toward real)", "ours up", "ours down", "|ours - real|"],
+        ["experiment", "real", "seed's Webots", "ours (toward real)", "ours up", "ours down", "|ours - real|",
+         "ours: rest tilt from level, deg"],
         [[r["experiment"], r["real"], r["webots"], r["ours"], r["ours_up"], r["ours_down"],
-          abs(r["ours"] - r["real"]) if isinstance(r["ours"], int) else "-"] for r in rows],
+          abs(r["ours"] - r["real"]) if isinstance(r["ours"], int) else "-", round(r["rest_tilt_deg"], 1)]
+         for r in rows],
     )  # fmt: skip
     md = (
         "# Seed 002 static validation (Tables 4-5) on the MuJoCo Bioloid\n\n"
         f"Servo moved: {MOVED} (neck pitch), one count per {DWELL:g} s after {SETTLE:g} s of settling; tipped = body "
-        f"tilt {np.degrees(TIP):.0f} deg from where it settled. Values in counts.\n\n"
+        f"tilt {np.degrees(TIP):.0f} deg from where it settled; fell during setup = no rest found (still turning over "
+        f"the last {REST_WINDOW:g} s of settling, or turned over). Values in counts.\n\n"
         + table
         + f"\nOurs: {len(diffs)} of 9 comparable, mean |diff| {np.mean(diffs) if diffs else float('nan'):.0f} counts, "
         f"max {max(diffs) if diffs else float('nan')}; the seed's Webots: {len(webots)} of 9, mean "
