@@ -16,9 +16,12 @@ model's.
   still turning more than 1 deg over the last second of settling, or turned over (tilt past 90 deg). Until stop 18 a
   tilt of 30 deg from level counted as a fall, which split steady rests of 26 and 31 deg (experiments 4 and 5) for
   no physical reason. Then N_1's
-  goal moves one count every 0.1 s (slow against the servo: no inertia, as the seed wanted) until the body's tilt
-  departs 15 deg from where it settled (assumed threshold: the seed gives none) or N_1 reaches 0 or 1023 ("did not
-  fall", the seed's circle).
+  goal moves one count every 0.1 s (slow against the servo: no inertia, as the seed wanted) until the robot tips:
+  its body turns more than 5 deg within one count's 0.1 s, a free rotation about the edge of its support (assumed
+  threshold: the seed gives none), or N_1 reaches 0 or 1023 ("did not fall", the seed's circle). Until stop 19 a
+  tilt of 15 deg from the rest counted as tipping; but where the robot rests on its head (experiments 1, 3, 7, 8,
+  9), moving N_1 pushes the body up on it smoothly, about 0.1 deg per count, and the 15 deg threshold was crossed
+  by that push, never by a fall. That reading is still reported beside the tip, as "tilted 15 deg from rest".
 
 Run: ``python -m benchmarks.bioloid_static`` (about half a minute).
 """
@@ -58,7 +61,9 @@ WEBOTS = (531, "fell", 0, "fell", 363, 375, 466, 527, 531)  # seed 002 Table 5 (
 MOVED = "N_1"
 SETTLE = 3.0  # s
 DWELL = 0.1  # s per count
-TIP = np.radians(15.0)
+TIP_STEP = np.radians(5.0)  # a fall: the body turns this much within one count's dwell (50 deg/s; a quasi-static
+# push on the head turns it about 0.1 deg per count, 1 deg/s, so a free rotation about the support is 50 times that)
+PUSHED = np.radians(15.0)  # the earlier reading (until stop 19): tilt this far from the rest, fall or not
 REST_WINDOW = 1.0  # s: the last part of settling, over which a body at rest turns less than REST_TURN
 REST_TURN = np.radians(1.0)
 
@@ -124,9 +129,10 @@ def run(experiments: list[int]) -> list[dict]:
     setup_fall = turning | turned_over
     direction = np.tile([1.0, -1.0], len(experiments))
     column = C.SERVO_INDEX[MOVED]
-    tipped_at = np.full(n, np.nan)
+    tipped_at, pushed_at = np.full(n, np.nan), np.full(n, np.nan)
     active = ~setup_fall
     per_count = round(DWELL / robot.control_dt)
+    last = settled
     while active.any():
         goal[active, column] += direction[active]
         at_end = (goal[:, column] <= 0) | (goal[:, column] >= C.COUNTS - 1)
@@ -135,7 +141,11 @@ def run(experiments: list[int]) -> list[dict]:
             robot.step()
         axes = body_axes(robot.read(rngs)["quaternion"])
         moved = np.arccos(np.clip((axes * settled).sum(axis=1), -1, 1))
-        tipped = active & (moved > TIP)
+        step = np.arccos(np.clip((axes * last).sum(axis=1), -1, 1))
+        last = axes
+        pushed = active & (moved > PUSHED) & np.isnan(pushed_at)
+        pushed_at[pushed] = goal[pushed, column]
+        tipped = active & (step > TIP_STEP)
         tipped_at[tipped] = goal[tipped, column]
         active &= ~tipped & ~at_end
     rows = []
@@ -153,6 +163,8 @@ def run(experiments: list[int]) -> list[dict]:
             "ours": value if isinstance(value, str) else int(value),
             "ours_up": _value(setup_fall[up], tipped_at[up]),
             "ours_down": _value(setup_fall[down], tipped_at[down]),
+            "pushed_15_up": _value(setup_fall[up], pushed_at[up]),
+            "pushed_15_down": _value(setup_fall[down], pushed_at[down]),
             "rest_tilt_deg": float(np.degrees(np.arccos(np.clip(start[toward] @ settled[toward], -1, 1)))),
             "settled_tilt_deg": float(np.degrees(tilt(robot.read(rngs)["quaternion"])[toward])),
         })  # fmt: skip
@@ -175,23 +187,25 @@ def main() -> None:
     webots = [abs(w - r) for w, r in zip(WEBOTS, REAL, strict=True) if isinstance(w, int)]
     table = md_table(
         ["experiment", "real", "seed's Webots", "ours (toward real)", "ours up", "ours down", "|ours - real|",
-         "ours: rest tilt from level, deg"],
+         "ours: rest tilt from level, deg", "ours: tilted 15 deg from rest, up / down"],
         [[r["experiment"], r["real"], r["webots"], r["ours"], r["ours_up"], r["ours_down"],
-          abs(r["ours"] - r["real"]) if isinstance(r["ours"], int) else "-", round(r["rest_tilt_deg"], 1)]
-         for r in rows],
+          abs(r["ours"] - r["real"]) if isinstance(r["ours"], int) else "-", round(r["rest_tilt_deg"], 1),
+          f"{r['pushed_15_up']} / {r['pushed_15_down']}"] for r in rows],
     )  # fmt: skip
     md = (
         "# Seed 002 static validation (Tables 4-5) on the MuJoCo Bioloid\n\n"
-        f"Servo moved: {MOVED} (neck pitch), one count per {DWELL:g} s after {SETTLE:g} s of settling; tipped = body "
-        f"tilt {np.degrees(TIP):.0f} deg from where it settled; fell during setup = no rest found (still turning over "
-        f"the last {REST_WINDOW:g} s of settling, or turned over). Values in counts.\n\n"
+        f"Servo moved: {MOVED} (neck pitch), one count per {DWELL:g} s after {SETTLE:g} s of settling; tipped = the "
+        f"body turns more than {np.degrees(TIP_STEP):.0f} deg within one count's {DWELL:g} s (a fall, not a push); "
+        f"fell during setup = no rest found (still turning over the last {REST_WINDOW:g} s of settling, or turned "
+        f"over). The last column is the earlier reading (until stop 19): where the tilt first departs "
+        f"{np.degrees(PUSHED):.0f} deg from the rest, fall or quasi-static push. Values in counts.\n\n"
         + table
         + f"\nOurs: {len(diffs)} of 9 comparable, mean |diff| {np.mean(diffs) if diffs else float('nan'):.0f} counts, "
         f"max {max(diffs) if diffs else float('nan')}; the seed's Webots: {len(webots)} of 9, mean "
         f"{np.mean(webots):.0f}, max {max(webots)} (it fell twice during setup).\n"
         f"\nWall time {wall:.0f} s.\n"
     )
-    save("bioloid_static", {"rows": rows, "moved": MOVED, "dwell_s": DWELL, "tip_deg": float(np.degrees(TIP)),
+    save("bioloid_static", {"rows": rows, "moved": MOVED, "dwell_s": DWELL, "tip_step_deg": float(np.degrees(TIP_STEP)),
                             "wall_seconds": wall}, md)  # fmt: skip
 
 
