@@ -33,6 +33,7 @@ class Param:
     # a shape, not a strength (a disturbance's frequency): at its nominal value the effect is not absent, so the
     # generator draws it anywhere in its range rather than pushing it away from nominal to make the effect show
     shape: bool = False
+    carried: bool = False  # its effect's (Effect.carried): fits measure it with its own carried state
 
     @property
     def span(self) -> float:
@@ -59,6 +60,11 @@ class Effect:
     # synthetic excitation, the nominal model's error stays under three noise levels. Still offered to selection (a
     # livelier log may show it); the matrix reports it apart, and a test holds the declaration to the data.
     weak: str = ""
+    # the effect reaches the logged channels mostly through state the log does not hold and a replay carries from
+    # segment to segment (a legged robot's body: its mass, its feet on the ground). With the carried state held at
+    # the anchor's, as a fit's local steps hold it, such an effect barely moves the residual, so the ranking also
+    # measures its grid points with their own carried state (select.score)
+    carried: bool = False
 
     @property
     def observable(self) -> bool:
@@ -82,6 +88,7 @@ class Effect:
             "catalogued": self.catalogued,
             "observable": self.observable,
             "weak": self.weak,
+            "carried": self.carried,
             "target": self.target,
             "description": self.description,
             "signature": self.signature,
@@ -263,20 +270,28 @@ TEMPLATES: dict[str, Effect] = {
 }
 
 
-def make(name: str, target: str = "", alias: str | None = None, weak: str = "", **bounds: tuple[float, ...]) -> Effect:
+def make(
+    name: str,
+    target: str = "",
+    alias: str | None = None,
+    weak: str = "",
+    carried: bool = False,
+    **bounds: tuple[float, ...],
+) -> Effect:
     """A robot's instance of a catalog effect: ``bounds`` gives (nominal, low, high) per parameter, or (nominal,
     low, high, step) with the finest step that matters (a delay's physics step); the name gets the target as a
-    suffix (``coulomb_friction_left``); ``weak`` says why the robot's channels barely see it (``Effect.weak``)."""
+    suffix (``coulomb_friction_left``); ``weak`` says why the robot's channels barely see it (``Effect.weak``);
+    ``carried`` that it acts through the state a replay carries over (``Effect.carried``)."""
     template = TEMPLATES[name]
     params = []
     for p in template.params:
         if p.name in bounds:
             nominal, low, high, *step = bounds[p.name]
             p = replace(p, nominal=nominal, low=low, high=high, step=step[0] if step else p.step)
-        params.append(p)
+        params.append(replace(p, carried=carried))
     full = f"{name}_{target}" if target else name
     return replace(template, name=full, params=tuple(params), target=target, alias=alias or template.alias,
-                   weak=weak)  # fmt: skip
+                   weak=weak, carried=carried)  # fmt: skip
 
 
 def base_name(effect: Effect) -> str:

@@ -71,9 +71,10 @@ def evaluate(problem: Problem, setting: Setting, segments: Sequence[int] | None 
                      problem.effective_samples(residuals), residuals)  # fmt: skip
 
 
-def costs(problem: Problem, settings: Sequence[Setting], segments, anchor: Setting) -> list[float]:
+def costs(problem: Problem, settings: Sequence[Setting], segments, anchor: Setting | None) -> list[float]:
     """The objective of each setting (its cost, or the robust loss of ``Adapter.loss_scale``), the start's
-    correction anchored at ``anchor`` (one batched rollout)."""
+    correction and the carried state anchored at ``anchor`` (one batched rollout), or, None, each at its own
+    (each log's segments in order)."""
     return [total_objective(r) for r in problem.residuals(settings, segments, anchor=anchor)]
 
 
@@ -305,11 +306,14 @@ def _derivative_free(
     """For robots whose cost is rough at small scales (contacts; ``Adapter.rough_cost``), where finite-difference
     Jacobians mislead a least-squares step: one parameter by a batched grid shrinking around its best point, several
     by CMA-ES (``cma``) in normalized coordinates, each generation one batched rollout; the start's correction is
-    re-anchored at the best point once (intervals: :func:`fit_intervals`)."""
+    re-anchored at the best point once (intervals: :func:`fit_intervals`). Parameters of a ``carried`` effect (one
+    that acts through the state carried between segments, which an anchor would hold fixed) are searched with each
+    trial's own carried state instead, in one pass."""
     names = list(params)
     best = dict(setting)
-    for anchor_pass in range(2):
-        anchor = dict(best)
+    own = any(params[k].carried for k in names)
+    for anchor_pass in range(1 if own else 2):
+        anchor = None if own else dict(best)
         u0 = np.clip([_to_unit(params[k], best[k]) for k in names], 0.0, 1.0)
 
         def trial(u, _best=best):

@@ -350,7 +350,16 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
                 continue
             probes.append({**current, **point})
             owners.append((name, "grid", point))
-    columns = problem.residuals(probes, segments, anchor=current) if probes else []
+    # a carried effect's grid points run with their own carried state (Effect.carried): its action through the
+    # body shows only so; the rest, anchored at ``current``, in one batched rollout
+    own = [k for k, (name, kind, _) in enumerate(owners) if kind == "grid" and candidates[name].carried]
+    anchored = [k for k in range(len(owners)) if k not in set(own)]
+    columns: list = [None] * len(owners)
+    for rows, anchor in ((anchored, current), (own, None)):
+        if rows:
+            ran = problem.residuals([probes[k] for k in rows], segments, anchor=anchor)
+            for k, col in zip(rows, ran, strict=True):
+                columns[k] = col
     by_effect: dict[str, dict] = {n: {"jac": [], "grid": []} for n in candidates}
     for (name, kind, arg), col in zip(owners, columns, strict=True):
         r = flatten(col)

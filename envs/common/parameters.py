@@ -51,6 +51,10 @@ class Parameter:
     setconst: bool = False  # the fields feed mj_setConst (masses, inertias)
 
     def __post_init__(self) -> None:
+        # a value on a bound that arithmetic moved by a rounding error (0.2 / 0.8 * 0.8) is on the bound
+        tol = 1e-9 * max(abs(self.low), abs(self.high), 1e-300)
+        if self.low - tol <= self.nominal < self.low or self.high < self.nominal <= self.high + tol:
+            object.__setattr__(self, "nominal", min(max(self.nominal, self.low), self.high))
         if not (self.low <= self.nominal <= self.high):
             raise ValueError(f"parameter {self.name}: nominal {self.nominal} outside [{self.low}, {self.high}]")
 

@@ -60,7 +60,9 @@ def xjus_effects(dt: float) -> dict[str, Effect]:
     coupling); motor
     constants from half to twice the seed's Table 1 (its Kt and Ks were chosen to fit a stall torque and a no-load
     speed, not measured); the supply 20% either way of the logged battery; a sag up to 1 ohm (a 6-cell LiPo's
-    internal resistance is tens of milliohms; a worn pack or long leads reach an ohm)."""
+    internal resistance is tens of milliohms; a worn pack or long leads reach an ohm). The feet's contact, the mass
+    and the centre of mass reach the legs' channels through the body, which no log holds and the replay carries from
+    segment to segment: they are declared ``carried`` (the ranking runs their grid with their own carried body)."""
     out: list[Effect] = [
         E.make("delay", seconds=(0.0, 0.0, 0.05, dt)),
         E.make("backlash", gap=(0.0, 0.0, 0.1)),
@@ -83,12 +85,12 @@ def xjus_effects(dt: float) -> dict[str, Effect]:
             weak="the gait's PD pushes through a sagging supply, and even at 1 ohm the sag (d^2 R) is a few percent "
             "of the drive: nominal error 2.8 at the range's far end (median of three seeds)",
         ),
-        E.make("foot_friction", mu=(0.8, 0.2, 1.5)),
-        E.make("ground_contact", timeconst=(0.004, 0.004, 0.03), dampratio=(1.0, 0.3, 2.0)),
+        E.make("foot_friction", mu=(0.8, 0.2, 1.5), carried=True),
+        E.make("ground_contact", timeconst=(0.004, 0.004, 0.03), dampratio=(1.0, 0.3, 2.0), carried=True),
         E.make("leg_stiffness", scale=(1.0, 0.3, 3.0)),
         E.make("spine_stiffness", scale=(1.0, 0.1, 10.0)),
-        E.make("mass", scale=(1.0, 0.7, 1.5)),
-        E.make("com_offset", x=(0.0, -0.1, 0.1)),
+        E.make("mass", scale=(1.0, 0.7, 1.5), carried=True),
+        E.make("com_offset", x=(0.0, -0.1, 0.1), carried=True),
         E.make("sensor_gain", "current", scale=(1.0, 0.5, 2.0)),
         E.make("terrain_bump", height=(0.0, 0.0, 0.05)),
         E.make("disturbance", torque=(0.0, 0.0, 40.0), frequency=(3.0, 0.5, 10.0)),
