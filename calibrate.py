@@ -101,7 +101,8 @@ def read_logs(specs: list[Path], required: tuple[str, ...], column_map: ColumnMa
 
 
 def check_disjoint(train: list[Path], test: list[Path]) -> None:
-    """No test data may be training data: the same file only in windows that do not overlap."""
+    """No test data may be training data: the same file only in windows that do not overlap (of a file that does not
+    exist, that it does not exist)."""
     for a in train:
         pa, sa, ea = split_spec(a)
         for b in test:
@@ -110,6 +111,8 @@ def check_disjoint(train: list[Path], test: list[Path]) -> None:
                 continue
             lo = max(-math.inf if sa is None else sa, -math.inf if sb is None else sb)
             hi = min(math.inf if ea is None else ea, math.inf if eb is None else eb)
+            if lo < hi and not pa.is_file():
+                raise LogError(f"{pa}: no such file")
             if lo < hi:
                 raise LogError(f"{b} overlaps the training log {a}: the test logs must be data the fit does not see")
 

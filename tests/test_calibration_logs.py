@@ -164,6 +164,9 @@ def test_test_data_may_not_overlap_training_data(capsys, tmp_path):
     assert code == 2 and "overlaps the training log" in err
     code, err = _run(capsys, tmp_path, "motor", GEARMOTOR, GEARMOTOR)
     assert code == 2 and "overlaps" in err
+    missing = tmp_path / "missing.csv"  # the same missing file twice: named as missing, not as overlapping
+    code, err = _run(capsys, tmp_path, "motor", missing, missing)
+    assert code == 2 and f"{missing}: no such file" in err and "overlaps" not in err
 
 
 def test_windows_of_one_log(tmp_path):
