@@ -6,7 +6,8 @@ Formats, recognized by their content:
 - the VelociRoACH's text telemetry (``%`` header lines, or the lab's older double-quoted ones; envs/velociroach/
   roach_csv.py);
 - DYNAMIXEL Wizard exports (a ``DYNAMIXEL Graph`` header, then ``Time[ms]`` and the plotted items, e.g.
-  ``Present Position`` in counts);
+  ``Present Position`` in counts; ``Goal Position`` is the goal; also without the header, from ``Time[ms],
+  Present Position``);
 - the RHex-style gearmotor log (``time,pos,speed,power``: ms, encoder clicks, clicks/s, PWM of 255);
 - any other CSV or JSON with a column map (:class:`ColumnMap`): our channel -> the file's column, its unit and,
   for counts, how many counts make one unit.
@@ -137,7 +138,7 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
         log = _read_parquet(path)
     else:
         head = _head(path)
-        if head.startswith("DYNAMIXEL"):
+        if head.startswith("DYNAMIXEL") or head.replace(" ", "").lower().startswith("time[ms],present"):
             log = _read_dynamixel(path)
         elif (reader := _robot_reader(head)) is not None:
             log = reader.read(path)
@@ -200,28 +201,47 @@ def check_log(log: Log, required: Sequence[str]) -> Log:
     return log
 
 
+MAX_REPEATED_ROWS = 16  # a stretch of rows that goes back in time and rejoins within this many is a glitch
+
+
 def _drop_time_glitches(log: Log) -> Log:
-    """Drop single rows whose time is out of order with both neighbours (a corrupted field, as in the AX-12A file's
-    ``71`` between 4239 and 4288 ms) as malformed rows, with a warning; a log whose time itself goes back (every
-    row after a point earlier than the rows before it) is left for the caller to refuse."""
+    """Drop as malformed rows, with a warning: single rows whose time is out of order with both neighbours (a
+    corrupted field, as in the AX-12A file's ``71`` between 4239 and 4288 ms), and a short stretch that goes back in
+    time and rejoins the log within :data:`MAX_REPEATED_ROWS` rows (an exporter that sent a few samples again after
+    a broken row, as DYNAMIXEL Wizard exports do: ``2496, 5, 2480, 2496, 2512`` ms). A log whose time itself goes
+    back (the rows after a point stay earlier than the rows before it) is left for the caller to refuse."""
     t = log.time
     bad: list[int] = []
+    reasons: dict[int, str] = {}
     i = 1
+    last = 0  # the last row kept
     while i < len(t):
-        if t[i] > t[i - 1]:
+        if t[i] > t[last]:
+            last = i
             i += 1
             continue
-        if i + 1 >= len(t) or t[i + 1] > t[i - 1]:  # row i is the odd one: t[i-1] < t[i+1]
+        if (i + 1 >= len(t) or t[i + 1] > t[last]) and last == i - 1:  # row i is the odd one: t[i-1] < t[i+1]
             bad.append(i)
             i += 2
-        elif i >= 2 and t[i] > t[i - 2] and t[i + 1] > t[i]:  # row i-1 jumped ahead
-            bad.append(i - 1)
+            if i - 1 < len(t):
+                last = i - 1
+        elif last == i - 1 and i >= 2 and t[i] > t[i - 2] and i + 1 < len(t) and t[i + 1] > t[i]:
+            bad.append(i - 1)  # row i-1 jumped ahead
+            last = i
             i += 1
         else:
-            break  # the log's time itself runs backwards
+            rejoin = next((j for j in range(i + 1, min(i + 1 + MAX_REPEATED_ROWS, len(t))) if t[j] > t[last]), None)
+            if rejoin is None:
+                break  # the log's time itself runs backwards
+            for k in range(i, rejoin):
+                bad.append(k)
+                reasons[k] = f"time {t[k]:.6g} s goes back from {t[last]:.6g} s (a repeated or broken sample)"
+            last = rejoin
+            i = rejoin + 1
     if not bad:
         return log
-    lines = [(int(_row_label(log, k)), f"time {t[k]:.6g} s out of order with its neighbours") for k in bad]
+    lines = [(int(_row_label(log, k)), reasons.get(k, f"time {t[k]:.6g} s out of order with its neighbours"))
+             for k in bad]  # fmt: skip
     drop_bad_rows(Path(log.path), lines, len(t))
     keep = np.setdiff1d(np.arange(len(t)), bad)
     meta = dict(log.meta)
@@ -273,6 +293,18 @@ def _read_parquet(path: Path) -> Log:
     return Log(str(path), df, {**meta, "format": "skitter telemetry"})
 
 
+# a plotted item's column -> our channel, where the adapters expect another name than the item's own
+DYNAMIXEL_ITEMS = {"goal_position": "goal"}
+
+
+def _fields(line: str, expected: int) -> list[str]:
+    """A CSV line's fields, stripped; one trailing empty field (a trailing comma) is not a field."""
+    fields = [f.strip() for f in line.split(",")]
+    if len(fields) == expected + 1 and fields[-1] == "":
+        fields = fields[:-1]
+    return fields
+
+
 def _read_dynamixel(path: Path) -> Log:
     """A DYNAMIXEL Wizard graph export: header lines until one starting ``Time``, then ``time, item, ...`` rows."""
     lines = path.read_text(errors="replace").splitlines()
@@ -285,10 +317,12 @@ def _read_dynamixel(path: Path) -> Log:
     for number, line in enumerate(lines[header_at + 1 :], start=header_at + 2):
         if not line.strip():
             continue
-        fields = [f.strip() for f in line.split(",")]
+        fields = _fields(line, len(names))
         try:
-            if len(fields) != len(names) or any(f == "" for f in fields):
+            if len(fields) != len(names):
                 raise ValueError(f"{len(fields)} fields, expected {len(names)}")
+            if empty := [names[k] for k, f in enumerate(fields) if f == ""]:
+                raise ValueError(f"field {empty[0]!r} is empty")
             rows.append([float(f) for f in fields])
             file_rows.append(number)
         except ValueError as exc:
@@ -298,8 +332,10 @@ def _read_dynamixel(path: Path) -> Log:
     df = pd.DataFrame({"time": data[:, 0] * UNITS[time_unit]})
     for i, name in enumerate(names[1:], start=1):
         key = name.lower().replace(" ", "_")
+        key = DYNAMIXEL_ITEMS.get(key, key)
         df[key] = data[:, i]  # counts, as the servo reports them
-    meta = {"format": "DYNAMIXEL Wizard export", "model": lines[1].split(",")[0] if len(lines) > 1 else None,
+    model = lines[1].split(",")[0].strip() if header_at > 1 and lines[0].startswith("DYNAMIXEL") else None
+    meta = {"format": "DYNAMIXEL Wizard export", "model": model,
             "columns": names, "file_rows": file_rows, "units": {"present_position": "count"}}  # fmt: skip
     return Log(str(path), df, meta)
 
@@ -314,7 +350,7 @@ def _read_gearmotor(path: Path) -> Log:
     for number, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
-        fields = line.split(",")
+        fields = _fields(line, 4)
         try:
             if len(fields) != 4:
                 raise ValueError(f"{len(fields)} fields, expected 4")

@@ -15,6 +15,7 @@ import pytest
 import calibrate
 from envs.common.telemetry import write_telemetry
 from sysid.logs import ColumnMap, LogError, read_log
+from sysid.robots import adapter as make_adapter
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 GEARMOTOR = REAL / "rhex3_motor_speedRamp.csv"
@@ -214,3 +215,111 @@ def test_parquet_telemetry_is_a_log(tmp_path):
     write_telemetry(path, df, {"robot": "motor"})
     log = read_log(path, ("duty", "angle", "speed"))
     assert len(log.df) == 200 and log.meta["format"] == "skitter telemetry"
+
+
+# --- real logs the readers were not written against (tests/data/logs/README.md) -------------------------------------
+UNSEEN = Path(__file__).parent / "data" / "logs"
+
+
+def test_the_labs_older_quoted_dialect_reads_with_its_header_and_drops_impossible_rows():
+    path = UNSEEN / "bmltools_example_imudata_quoted_tail.txt"
+    with pytest.warns(UserWarning) as caught:
+        log = read_log(path, ("leg_angle_left", "duty_right"))
+    messages = [str(w.message) for w in caught]
+    # the first line, '"Data file recorded 2014/2/3  17:54:20"', has no '%'; the frequency is given per side
+    assert log.meta["date_iso"] == "2014-02-03T17:54:20"
+    assert log.meta["stride_frequency_hz"] == [5, 5]
+    assert log.meta["phase_counts"] == 16384  # 'Phase (Fractional) = 16384.0'
+    assert log.meta["motor_gains"] == [1800, 20, 100, 0, 0, 1800, 20, 100, 0, 0]  # no closing quote on its line
+    # the hand-added rows' legs jump 48 revolutions in 2.6 ms (line 496) and up to 0.4 s later: dropped, each named
+    # (a jump after a longer gap is within the 100 rev/s a leg could turn: kept)
+    jumps = [m for m in messages if "jumps" in m and "faster than 100 rev/s" in m]
+    assert any("dropped malformed line 496: 0 counts jumps -47.9 revolutions from line 495 in 2.57 ms" in m
+               for m in jumps)  # fmt: skip
+    assert all("dropped malformed line" in m for m in jumps)
+    assert any("DCR/DCL reach 4000 counts, beyond the duty full scale of 3900" in m for m in messages)
+    assert np.all(np.diff(log.time) > 0)
+    # the first data row, by hand: 10957 us, left leg 3080372 counts of 65536 per revolution
+    assert log.time[0] == pytest.approx(0.010957)
+    assert log.df["leg_angle_left"].iloc[0] == pytest.approx(3080372 * 2 * np.pi / 65536)
+
+
+def test_a_wizard_export_that_sends_samples_again_after_a_broken_row_keeps_the_rest():
+    path = UNSEEN / "meiosis_AX12A_LOAD2_1.csv"
+    with pytest.warns(UserWarning) as caught:
+        log = read_log(path, ("present_position",))
+    dropped = sorted(
+        int(m.group(1)) for w in caught if (m := re.search(r"dropped malformed line (\d+)", str(w.message)))
+    )
+    # line 113 '5,499' (a broken time), 114-115 (2480 and 2496 ms again, after 2496), 145 '6,498' (a broken time)
+    assert dropped == [113, 114, 115, 145]
+    assert np.all(np.diff(log.time) > 0)
+    assert log.time[-1] == pytest.approx(5.648)  # the last line, 5648 ms
+
+
+def test_time_that_goes_back_for_good_is_still_refused(tmp_path):
+    lines = AX12A.read_text().splitlines()
+    header, rows = lines[:5], lines[5:]
+    kept = [r.split(",") for r in rows[100:] if len(r.split(",")) == 2 and r.split(",")[0].isdigit()]
+    restarted = [f"{int(t) - 3000},{x}" for t, x in kept]  # the clock restarted: every later row is earlier
+    path = tmp_path / "restarted.csv"
+    path.write_text("\n".join(header + rows[:100] + restarted) + "\n")
+    with pytest.raises(LogError, match=r"restarted\.csv: row \d+, column 'time'.*time runs backwards"):
+        read_log(path, ("present_position",))
+
+
+def test_a_wizard_export_without_its_preamble_and_rows_with_a_trailing_comma_read(tmp_path):
+    bare = read_log(UNSEEN / "meiosis_512_noheader.csv", ("present_position",))
+    assert bare.meta["format"] == "DYNAMIXEL Wizard export" and bare.meta["model"] is None
+    assert bare.df["present_position"].iloc[-1] == pytest.approx(512, abs=5)
+    lines = (UNSEEN / "meiosis_AX18A_NOLOAD_1.csv").read_text().splitlines()
+    trailing = tmp_path / "trailing.csv"
+    trailing.write_text("\n".join(lines[:5] + [line + "," for line in lines[5:]]) + "\n")
+    a = read_log(UNSEEN / "meiosis_AX18A_NOLOAD_1.csv", ("present_position",))
+    b = read_log(trailing, ("present_position",))
+    pd.testing.assert_frame_equal(a.df, b.df)
+
+
+def test_a_logged_goal_position_is_the_servos_goal_and_another_servo_is_named(tmp_path):
+    lines = (UNSEEN / "meiosis_AX18A_NOLOAD_1.csv").read_text().splitlines()
+    rows = [f"{r},512" for r in lines[5:]]
+    path = tmp_path / "with_goal.csv"
+    path.write_text("\n".join([*lines[:4], "Time[ms],Present Position,Goal Position", *rows]) + "\n")
+    log = read_log(path, ("present_position",))
+    assert "goal" in log.df.columns and np.all(log.df["goal"] == 512)
+    with pytest.warns(UserWarning, match=r"with_goal\.csv: the export is of an AX-18A servo; the model is an AX-12A"):
+        make_adapter("servo").check_logs([log])
+
+
+def test_a_roach_log_whose_commanded_legs_never_move_is_refused(tmp_path):
+    text = ROACH_2HZ.read_text().splitlines()
+    out = []
+    for line in text[:3000]:
+        fields = line.split(",")
+        if not line.startswith("%") and len(fields) >= 16:
+            fields[3], fields[4] = "1000", "2000"  # Commanded Right/Left Leg Pos held
+        out.append(",".join(fields))
+    path = tmp_path / "open_loop.txt"
+    path.write_text("\n".join(out) + "\n")
+    log = read_log(path, ("leg_angle_left",))
+    with pytest.raises(LogError, match=r"open_loop\.txt: columns 'Commanded Right Leg Pos' and 'Commanded Left Leg"):
+        make_adapter("roach").check_logs([log])
+
+
+def test_a_stuck_imu_column_is_warned_of_and_a_file_of_bad_rows_names_the_first(tmp_path):
+    text = ROACH_2HZ.read_text().splitlines()
+    stuck = []
+    for line in text[:3000]:
+        fields = line.split(",")
+        if not line.startswith("%") and len(fields) >= 16:
+            fields[12] = "-32768"  # AZ
+        stuck.append(",".join(fields))
+    path = tmp_path / "stuck.txt"
+    path.write_text("\n".join(stuck) + "\n")
+    with pytest.warns(UserWarning, match=r"stuck\.txt: column AZ reads -32768 .* on every row"):
+        read_log(path, ("leg_angle_left",))
+    bad = [line if line.startswith("%") else line.replace(",", ";") for line in text[:3000]]
+    path = tmp_path / "semicolons.txt"
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(LogError, match=r"no valid data rows \(\d+ malformed rows skipped; the first: .*line \d+: 1 "):
+        read_log(path, ("leg_angle_left",))

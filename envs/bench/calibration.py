@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import replace
 
@@ -270,6 +271,18 @@ class ServoAdapter(RigAdapter):
             *self.out_of_catalog(),
         ]
         return {e.name: e for e in out}
+
+    def check_logs(self, logs: Sequence[Log]) -> None:
+        """The model is an AX-12: a log of another servo (a Wizard export names its model) is calibrated as one,
+        with a warning, since what differs (gearing, motor) is what the fit's effects would have to absorb."""
+        for log in logs:
+            model = log.meta.get("model")
+            if model and not str(model).upper().replace("-", "").startswith("AX12"):
+                warnings.warn(
+                    f"{log.path}: the export is of an {model} servo; the model is an AX-12A (its gearing and motor "
+                    "differ: the fitted effects absorb the difference)",
+                    stacklevel=2,
+                )
 
     # --- the goal: logged, or a nuisance -----------------------------------------------------------------------------
     def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:

@@ -256,6 +256,13 @@ class RoachAdapter(Adapter):
                 )
             if float(log.meta.get("duty_clip") or 0) <= 0:
                 raise LogError(f"{log.path}: no duty clip level in the log's record")
+            still = [c for c in ("leg_angle_cmd_right", "leg_angle_cmd_left") if np.ptp(log.df[c].to_numpy()) == 0]
+            if len(still) == 2:
+                raise LogError(
+                    f"{log.path}: columns 'Commanded Right Leg Pos' and 'Commanded Left Leg Pos' never change: not a "
+                    "gait-mode run (an open-loop duty test?); the replay runs the firmware's PID after the commanded "
+                    "legs"
+                )
 
     def segments(self, log: Log) -> list[Segment]:
         out = super().segments(log)

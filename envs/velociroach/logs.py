@@ -10,17 +10,22 @@ from sysid.logs import Log, LogError, LogReader, drop_bad_rows
 
 
 def _matches(head: str) -> bool:
-    # ``%`` header lines, or the lab's older dialect with each header line in double quotes
-    return head.startswith("%") or head.startswith('"%')
+    # ``%`` header lines, or the lab's older dialect with each header line in double quotes, the first one
+    # ``"Data file recorded ..."`` without its ``%``
+    unquoted = head.lstrip('"').lstrip()
+    return unquoted.startswith("%") or unquoted.lower().startswith("data file recorded")
 
 
 def _read(path: Path) -> Log:
-    with warnings.catch_warnings(record=True):
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             df, meta = read_roach_csv(path, skip_bad_rows=True)
         except ValueError as exc:
             raise LogError(str(exc)) from None
+    for w in caught:  # the skipped rows are reported below, one by one; anything else is passed on
+        if "malformed rows" not in str(w.message):
+            warnings.warn(str(w.message), stacklevel=3)
     skipped = meta.get("skipped_rows", [])
     drop_bad_rows(path, [(s["line"], s["reason"].split(": ", 1)[-1]) for s in skipped], len(df) + len(skipped))
     return Log(str(path), df, meta)

@@ -111,7 +111,14 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
     ``time`` comes from the file's time column. Columns after the 16 standard ones (e.g. the shell sensors S1..S8)
     are kept raw, as integers, under their own names.
 
-    Header lines start with ``%``, or (the lab's older scripts) are wrapped in double quotes, ``"% ... "``.
+    Header lines start with ``%``, or (the lab's older scripts) are wrapped in double quotes: ``"% ... "``, the
+    first one ``"Data file recorded ..."`` without the ``%``, the closing quote sometimes missing. That dialect gives
+    the stride frequency per side (``Right Stride Frequency = 6.0``, ``Left ...``; read as ``[right, left]``) and the
+    phase as ``Phase (Fractional) = 32768.0``. A data row may end in one empty field (a trailing comma).
+
+    A measured leg position that jumps more than half a revolution between two rows (faster than
+    :data:`MAX_LEG_REV_PER_S`) is a glitch, not a leg: the row is malformed. A column of the IMU stuck at a limit of
+    its 16-bit range on every row (a saturated or unplugged sensor) and a duty beyond the full scale are warned of.
 
     A malformed file raises ``ValueError`` naming the file, the line and the offending field or value. A malformed
     data row (a field that is not an integer, the wrong number of fields, time not increasing) raises as well, unless
@@ -130,8 +137,11 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
         stripped = line.strip()
         if not stripped:
             continue
-        if stripped.startswith('"%'):  # the dialect of the lab's older scripts: header lines in double quotes
+        if stripped.startswith('"'):  # the dialect of the lab's older scripts: header lines in double quotes
             stripped = stripped[1:-1] if stripped.endswith('"') and len(stripped) > 2 else stripped[1:]
+            stripped = stripped.strip()
+            if not stripped.startswith("%"):  # its first line, "Data file recorded ...", has no '%'
+                stripped = "%" + stripped
         if stripped.startswith("%"):
             header.append((number, stripped[1:].strip(), line.rstrip("\r\n")))
         else:
@@ -143,32 +153,32 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
     n_fields = len(columns)
     rows: list[list[int]] = []
     skipped: list[dict[str, Any]] = []
-    previous_time: tuple[int, int] | None = None  # (time, line number)
+    previous: tuple[list[int], int] | None = None  # (the last kept row, its line number)
     for number, line in data:
         if number < columns_line:
             problem = f"{path}, line {number}: data row before the columns line (line {columns_line})"
         else:
             values, problem = _parse_row(path, number, line, columns)
-            if values is not None and previous_time is not None and values[0] <= previous_time[0]:
-                problem = (
-                    f"{path}, line {number}, field 1 (time): {values[0]} us does not increase "
-                    f"(previous row, line {previous_time[1]}: {previous_time[0]} us)"
-                )
+            if values is not None and previous is not None:
+                problem = _out_of_sequence(path, number, columns, values, *previous)
         if problem is not None:
             if not skip_bad_rows:
                 raise ValueError(problem)
             skipped.append({"line": number, "reason": problem})
             continue
         rows.append(values)
-        previous_time = (values[0], number)
+        previous = (values, number)
     if skipped:
         warnings.warn(f"{path}: skipped {len(skipped)} malformed rows (see the record's 'skipped_rows')", stacklevel=2)
     if not rows:
-        raise ValueError(f"{path}: no valid data rows ({len(skipped)} malformed rows skipped)")
+        raise ValueError(
+            f"{path}: no valid data rows ({len(skipped)} malformed rows skipped; the first: {skipped[0]['reason']})"
+        )
 
     raw = np.asarray(rows, dtype=np.int64).reshape(len(rows), n_fields)
     df = _to_table(raw, columns)
     meta.update(_data_summary(raw))
+    _warn_implausible(path, raw, meta)
     meta["skipped_rows"] = skipped
     meta["source"] = str(path)
     meta["units"] = {c: _unit(c) for c in df.columns if c != "episode"}
@@ -210,6 +220,7 @@ def _parse_header(
     other: list[str] = []
     columns: list[str] | None = None
     columns_line = 0
+    per_side: dict[str, float] = {}
     for number, text, raw_line in header:
         key_value = _KEY_VALUE.match(text)
         key = _norm(key_value["key"]) if key_value else ""
@@ -219,12 +230,20 @@ def _parse_header(
             meta["date_iso"] = _iso_date(date["date"])
         elif key == "stride frequency":
             meta["stride_frequency_hz"] = _number_list(path, number, "Stride Frequency", value, float) or None
-        elif key == "phase":
+        elif key in ("right stride frequency", "left stride frequency"):  # the older dialect: one per side
             if value:
-                if not _INT.match(value):
+                try:
+                    per_side[key.split()[0]] = float(value)
+                except ValueError:
+                    raise ValueError(f"{path}, line {number}: {text.split('=')[0].strip()} {value!r} is not a "
+                                     "number") from None  # fmt: skip
+        elif key in ("phase", "phase (fractional)"):
+            if value:
+                counts = _integral(value)
+                if counts is None:
                     raise ValueError(f"{path}, line {number}: Phase {value!r} is not an integer (counts of 65536)")
-                meta["phase_counts"] = int(value)
-                meta["phase_rad"] = 2.0 * math.pi * int(value) / COUNTS_PER_REV
+                meta["phase_counts"] = counts
+                meta["phase_rad"] = 2.0 * math.pi * counts / COUNTS_PER_REV
         elif key == "motor gains":
             meta["motor_gains"] = _number_list(path, number, "Motor Gains", value, int) or None
         elif key == _norm(ZERO_FILLED_KEY):
@@ -243,6 +262,10 @@ def _parse_header(
             other.append(raw_line)
             if _norm(text).endswith(".py"):
                 meta["controller"] = f"gait mode (firmware leg clock and PID, {text.strip()})"
+    if per_side and meta["stride_frequency_hz"] is None:
+        meta["stride_frequency_hz"] = [
+            int(f) if f.is_integer() else f for f in (per_side.get("right"), per_side.get("left")) if f is not None
+        ]
     if columns is None:
         raise ValueError(
             f"{path}, line {first_data_line}: data begins but the header has no columns line "
@@ -277,6 +300,17 @@ def _iso_date(text: str) -> str | None:
         return datetime.datetime(*(int(g) for g in m.groups())).isoformat()
     except ValueError:
         return None
+
+
+def _integral(value: str) -> int | None:
+    """``32768`` or ``32768.0`` as an int; None if not a whole number."""
+    if _INT.match(value):
+        return int(value)
+    try:
+        number = float(value)
+    except ValueError:
+        return None
+    return int(number) if math.isfinite(number) and number.is_integer() else None
 
 
 def _number_list(path: Path, number: int, what: str, value: str, kind: type) -> list[Any]:
@@ -320,8 +354,55 @@ def _check_columns(path: Path, number: int, columns: list[str]) -> None:
         seen.add(name)
 
 
+MAX_LEG_REV_PER_S = 100.0  # a leg turning faster is a glitch: over twice the real robot's fastest strides (45 Hz)
+_LEG_COLUMNS = (1, 2)  # the measured leg positions' fields (Right Leg Pos, Left Leg Pos)
+_IMU_COLUMNS = range(7, 13)  # GyroX .. AZ: signed 16-bit readings
+
+
+def _out_of_sequence(
+    path: Path, number: int, columns: list[str], values: list[int], last: list[int], last_line: int
+) -> str | None:
+    """Why a row cannot follow the last kept one (time not increasing, a leg that jumps), or None."""
+    if values[0] <= last[0]:
+        return (
+            f"{path}, line {number}, field 1 (time): {values[0]} us does not increase "
+            f"(previous row, line {last_line}: {last[0]} us)"
+        )
+    limit = COUNTS_PER_REV * max(0.5, MAX_LEG_REV_PER_S * (values[0] - last[0]) * TIME_SECONDS_PER_LSB)
+    for i in _LEG_COLUMNS:
+        if abs(values[i] - last[i]) > limit:
+            return (
+                f"{path}, line {number}, field {i + 1} ({columns[i]}): {values[i]} counts jumps "
+                f"{(values[i] - last[i]) / COUNTS_PER_REV:+.3g} revolutions from line {last_line} in "
+                f"{(values[0] - last[0]) * TIME_SECONDS_PER_LSB * 1e3:.3g} ms (faster than {MAX_LEG_REV_PER_S:g} rev/s)"
+            )
+    return None
+
+
+def _warn_implausible(path: Path, raw: np.ndarray, meta: dict[str, Any]) -> None:
+    """Warn of what reads but cannot be right: an IMU column stuck at a limit of its range on every row, a duty
+    beyond the full scale (:data:`DUTY_FULL_SCALE`)."""
+    for i in _IMU_COLUMNS:
+        column = raw[:, i]
+        if len(column) > 1 and column.min() == column.max() and int(column[0]) in (-32768, 32767):
+            warnings.warn(
+                f"{path}: column {REAL_COLUMNS[i].label} reads {int(column[0])} (a limit of its 16-bit range) on "
+                "every row: the sensor is saturated or not connected",
+                stacklevel=3,
+            )
+    level = meta.get("duty_clip_counts") or int(np.abs(raw[:, [5, 6]]).max(initial=0))
+    if level > DUTY_FULL_SCALE:
+        warnings.warn(
+            f"{path}: columns DCR/DCL reach {level} counts, beyond the duty full scale of {DUTY_FULL_SCALE} counts "
+            "this reader assumes (the lab's scaling script): duty above 1 cannot be replayed faithfully",
+            stacklevel=3,
+        )
+
+
 def _parse_row(path: Path, number: int, line: str, columns: list[str]) -> tuple[list[int] | None, str | None]:
     fields = line.split(",")
+    if len(fields) == len(columns) + 1 and not fields[-1].strip():  # a trailing comma
+        fields = fields[:-1]
     if len(fields) != len(columns):
         return None, (
             f"{path}, line {number}: {len(fields)} fields, expected {len(columns)} (one per column of the header)"
