@@ -122,8 +122,18 @@ class ColumnMap:
             if not isinstance(entry, dict) or "column" not in entry:
                 raise LogError(f"{path}: entry {name!r} needs a 'column' (and a 'unit')")
             unit = entry.get("unit", "1")
-            if unit not in UNITS:
+            if not isinstance(unit, str) or unit not in UNITS:
                 raise LogError(f"{path}: entry {name!r}: unknown unit {unit!r} (known: {', '.join(UNITS)})")
+            if not isinstance(entry["column"], str):
+                raise LogError(f"{path}: entry {name!r}: 'column' {entry['column']!r} is not a column name")
+            counts = entry.get("counts_per_unit", 1.0)
+            if (
+                isinstance(counts, bool)
+                or not isinstance(counts, int | float)
+                or not math.isfinite(counts)
+                or counts <= 0
+            ):
+                raise LogError(f"{path}: entry {name!r}: 'counts_per_unit' {counts!r} is not a positive number")
         return cls(data)
 
 

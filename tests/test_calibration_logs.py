@@ -323,3 +323,19 @@ def test_a_stuck_imu_column_is_warned_of_and_a_file_of_bad_rows_names_the_first(
     path.write_text("\n".join(bad) + "\n")
     with pytest.raises(LogError, match=r"no valid data rows \(\d+ malformed rows skipped; the first: .*line \d+: 1 "):
         read_log(path, ("leg_angle_left",))
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ({"column": "enc", "unit": "rev", "counts_per_unit": 0}, r"'counts_per_unit' 0 is not a positive number"),
+        ({"column": "enc", "unit": "rev", "counts_per_unit": "abc"}, r"'counts_per_unit' 'abc' is not a positive"),
+        ({"column": "enc", "unit": ["rev"]}, r"unknown unit \['rev'\]"),
+        ({"column": 3, "unit": "rev"}, r"'column' 3 is not a column name"),
+    ],
+)
+def test_a_column_map_with_a_bad_entry_is_refused_naming_it(tmp_path, entry, message):
+    mapping = tmp_path / "map.json"
+    mapping.write_text(json.dumps({"time": {"column": "t_ms", "unit": "ms"}, "angle": entry}))
+    with pytest.raises(LogError, match=r"map\.json: entry 'angle': " + message):
+        ColumnMap.load(mapping)
