@@ -223,35 +223,32 @@ def _drop_time_glitches(log: Log) -> Log:
     t = log.time
     bad: list[int] = []
     reasons: dict[int, str] = {}
-    i = 1
-    last = 0  # the last row kept
+    i, last = 1, 0  # the row under test, the last row kept
     while i < len(t):
         if t[i] > t[last]:
-            last = i
-            i += 1
+            last, i = i, i + 1
             continue
-        if (i + 1 >= len(t) or t[i + 1] > t[last]) and last == i - 1:  # row i is the odd one: t[i-1] < t[i+1]
-            bad.append(i)
-            i += 2
-            if i - 1 < len(t):
-                last = i - 1
-        elif last == i - 1 and i >= 2 and t[i] > t[i - 2] and i + 1 < len(t) and t[i + 1] > t[i]:
-            bad.append(i - 1)  # row i-1 jumped ahead
-            last = i
-            i += 1
-        else:
-            rejoin = next((j for j in range(i + 1, min(i + 1 + MAX_REPEATED_ROWS, len(t))) if t[j] > t[last]), None)
-            if rejoin is None:
+        rejoin = next((j for j in range(i + 1, min(i + 1 + MAX_REPEATED_ROWS, len(t))) if t[j] > t[last]), None)
+        if rejoin != i + 1 and last == i - 1 and i >= 2 and i + 1 < len(t) and t[i - 2] < t[i] < t[i + 1]:
+            bad.append(i - 1)  # not row i but row i-1 is the odd one: it jumped ahead
+            reasons[i - 1] = f"time {t[i - 1]:.6g} s out of order with its neighbours"
+            last, i = i, i + 1
+            continue
+        if rejoin is None:
+            if i + 1 < len(t):
                 break  # the log's time itself runs backwards
-            for k in range(i, rejoin):
-                bad.append(k)
-                reasons[k] = f"time {t[k]:.6g} s goes back from {t[last]:.6g} s (a repeated or broken sample)"
-            last = rejoin
-            i = rejoin + 1
+            rejoin = len(t)  # the last row is the odd one
+        for k in range(i, rejoin):
+            bad.append(k)
+            reasons[k] = (
+                f"time {t[k]:.6g} s out of order with its neighbours"
+                if rejoin == i + 1
+                else f"time {t[k]:.6g} s goes back from {t[last]:.6g} s (a repeated or broken sample)"
+            )
+        last, i = rejoin, rejoin + 1
     if not bad:
         return log
-    lines = [(int(_row_label(log, k)), reasons.get(k, f"time {t[k]:.6g} s out of order with its neighbours"))
-             for k in bad]  # fmt: skip
+    lines = [(int(_row_label(log, k)), reasons[k]) for k in bad]
     drop_bad_rows(Path(log.path), lines, len(t))
     keep = np.setdiff1d(np.arange(len(t)), bad)
     meta = dict(log.meta)

@@ -291,16 +291,22 @@ def test_a_logged_goal_position_is_the_servos_goal_and_another_servo_is_named(tm
         make_adapter("servo").check_logs([log])
 
 
-def test_a_roach_log_whose_commanded_legs_never_move_is_refused(tmp_path):
-    text = ROACH_2HZ.read_text().splitlines()
+def _roach_2hz_with(tmp_path: Path, name: str, fields: dict[int, str]) -> Path:
+    """The 2 Hz log's first 3000 lines with the given fields of every data row replaced, written as ``name``."""
     out = []
-    for line in text[:3000]:
-        fields = line.split(",")
-        if not line.startswith("%") and len(fields) >= 16:
-            fields[3], fields[4] = "1000", "2000"  # Commanded Right/Left Leg Pos held
-        out.append(",".join(fields))
-    path = tmp_path / "open_loop.txt"
+    for line in ROACH_2HZ.read_text().splitlines()[:3000]:
+        row = line.split(",")
+        if not line.startswith("%") and len(row) >= 16:
+            for k, value in fields.items():
+                row[k] = value
+        out.append(",".join(row))
+    path = tmp_path / name
     path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def test_a_roach_log_whose_commanded_legs_never_move_is_refused(tmp_path):
+    path = _roach_2hz_with(tmp_path, "open_loop.txt", {3: "1000", 4: "2000"})  # Commanded Right/Left Leg Pos held
     log = read_log(path, ("leg_angle_left",))
     with pytest.raises(LogError, match=r"open_loop\.txt: columns 'Commanded Right Leg Pos' and 'Commanded Left Leg"):
         make_adapter("roach").check_logs([log])
@@ -308,14 +314,7 @@ def test_a_roach_log_whose_commanded_legs_never_move_is_refused(tmp_path):
 
 def test_a_stuck_imu_column_is_warned_of_and_a_file_of_bad_rows_names_the_first(tmp_path):
     text = ROACH_2HZ.read_text().splitlines()
-    stuck = []
-    for line in text[:3000]:
-        fields = line.split(",")
-        if not line.startswith("%") and len(fields) >= 16:
-            fields[12] = "-32768"  # AZ
-        stuck.append(",".join(fields))
-    path = tmp_path / "stuck.txt"
-    path.write_text("\n".join(stuck) + "\n")
+    path = _roach_2hz_with(tmp_path, "stuck.txt", {12: "-32768"})  # AZ
     with pytest.warns(UserWarning, match=r"stuck\.txt: column AZ reads -32768 .* on every row"):
         read_log(path, ("leg_angle_left",))
     bad = [line if line.startswith("%") else line.replace(",", ";") for line in text[:3000]]

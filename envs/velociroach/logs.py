@@ -17,15 +17,12 @@ def _matches(head: str) -> bool:
 
 
 def _read(path: Path) -> Log:
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with warnings.catch_warnings():  # the skipped rows are reported below, one by one, not as a count
+        warnings.filterwarnings("ignore", message=r".*: skipped \d+ malformed rows")
         try:
             df, meta = read_roach_csv(path, skip_bad_rows=True)
         except ValueError as exc:
             raise LogError(str(exc)) from None
-    for w in caught:  # the skipped rows are reported below, one by one; anything else is passed on
-        if "malformed rows" not in str(w.message):
-            warnings.warn(str(w.message), stacklevel=3)
     skipped = meta.get("skipped_rows", [])
     drop_bad_rows(path, [(s["line"], s["reason"].split(": ", 1)[-1]) for s in skipped], len(df) + len(skipped))
     return Log(str(path), df, meta)

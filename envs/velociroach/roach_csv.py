@@ -178,7 +178,7 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
     raw = np.asarray(rows, dtype=np.int64).reshape(len(rows), n_fields)
     df = _to_table(raw, columns)
     meta.update(_data_summary(raw))
-    _warn_implausible(path, raw, meta)
+    _warn_implausible(path, raw)
     meta["skipped_rows"] = skipped
     meta["source"] = str(path)
     meta["units"] = {c: _unit(c) for c in df.columns if c != "episode"}
@@ -379,7 +379,7 @@ def _out_of_sequence(
     return None
 
 
-def _warn_implausible(path: Path, raw: np.ndarray, meta: dict[str, Any]) -> None:
+def _warn_implausible(path: Path, raw: np.ndarray) -> None:
     """Warn of what reads but cannot be right: an IMU column stuck at a limit of its range on every row, a duty
     beyond the full scale (:data:`DUTY_FULL_SCALE`)."""
     for i in _IMU_COLUMNS:
@@ -390,7 +390,7 @@ def _warn_implausible(path: Path, raw: np.ndarray, meta: dict[str, Any]) -> None
                 "every row: the sensor is saturated or not connected",
                 stacklevel=3,
             )
-    level = meta.get("duty_clip_counts") or int(np.abs(raw[:, [5, 6]]).max(initial=0))
+    level = int(np.abs(raw[:, [5, 6]]).max(initial=0))
     if level > DUTY_FULL_SCALE:
         warnings.warn(
             f"{path}: columns DCR/DCL reach {level} counts, beyond the duty full scale of {DUTY_FULL_SCALE} counts "
