@@ -27,7 +27,7 @@ import warnings
 from pathlib import Path
 
 from envs.common.calibration import CalibrationError, read_calibration
-from envs.common.io import publish_folder, write_json, write_text
+from envs.common.io import foreign_unless, publish_folder, results_folder_problem, write_json, write_text
 from sysid.logs import ColumnMap, Log, LogError, check_log, read_log
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
@@ -48,16 +48,22 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--columns", type=Path, help="JSON column map for logs of a format skitter has no reader for")
     p.add_argument("--fit", nargs="+", metavar="EFFECT", help="fit these catalog effects, without selecting")
     p.add_argument("--threads", type=int, help="rollout threads (default: the machine's cores)")
-    p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the results of an earlier run in --out (a folder holding other files is refused)",
+    )
     p.add_argument("--quiet", action="store_true", help="print only the result")
     args = p.parse_args(argv)
     if args.threads is not None and args.threads < 1:
         p.error(f"--threads must be at least 1, got {args.threads}")
-    if args.out.exists() and not args.out.is_dir():
-        p.error(f"--out {args.out} exists and is not a directory")
-    if args.out.is_dir() and any(args.out.iterdir()) and not args.overwrite:
-        p.error(f"--out {args.out} already holds files; choose another directory or pass --overwrite")
+    problem = results_folder_problem(args.out, args.overwrite, "calibrate.py", foreign_unless(RESULTS))
+    if problem:
+        p.error(problem)
     return args
+
+
+RESULTS = ("calibration.json", "report.json", "report.md", "residual_after.png", "residual_before.png")
 
 
 _WARNED: set[str] = set()

@@ -30,7 +30,7 @@ import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
 from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
 from envs.common.calibration import CalibrationError, read_calibration
-from envs.common.io import atomic_write, publish_folder, write_json, write_text
+from envs.common.io import atomic_write, publish_folder, results_folder_problem, write_json, write_text
 from envs.common.telemetry import read_telemetry, write_telemetry
 
 
@@ -51,7 +51,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--video", action="store_true", help="write an mp4 of the first episode of each policy")
     p.add_argument("--telemetry", action="store_true", help="write the telemetry of every episode as Parquet")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
-    p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the results of an earlier run in --out (a folder holding other files is refused)",
+    )
     p.add_argument("--max-episode-steps", type=int, help="cut episodes short (default: the env's time limit)")
     p.add_argument(
         "--calibration",
@@ -79,11 +83,25 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     repeated = sorted({s for s in args.policy if args.policy.count(s) > 1})
     if repeated:
         p.error(f"--policy {repeated[0]!r} is given twice")
-    if args.out.exists() and not args.out.is_dir():
-        p.error(f"--out {args.out} exists and is not a directory")
-    if args.out.is_dir() and any(args.out.iterdir()) and not args.overwrite:
-        p.error(f"--out {args.out} already holds files (results.json...); choose another directory or pass --overwrite")
+    problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign)
+    if problem:
+        p.error(problem)
     return args
+
+
+# what evaluate.py writes into --out: these files, and these folders of files of one kind
+RESULT_FILES = ("results.json", "results.md")
+RESULT_FOLDERS = {"plots": ".png", "videos": ".mp4", "telemetry": ".parquet"}
+
+
+def _foreign(entry: Path) -> list[str]:
+    """What in ``entry`` of --out evaluate.py does not write (as paths within --out)."""
+    if entry.name in RESULT_FILES and entry.is_file():
+        return []
+    suffix = RESULT_FOLDERS.get(entry.name)
+    if suffix is None or not entry.is_dir():
+        return [entry.name + "/" * entry.is_dir()]
+    return [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == suffix)]
 
 
 def slugs(specs: list[str]) -> dict[str, str]:

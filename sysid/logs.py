@@ -10,16 +10,18 @@ Formats, recognized by their content:
   Present Position``);
 - the RHex-style gearmotor log (``time,pos,speed,power``: ms, encoder clicks, clicks/s, PWM of 255);
 - any other CSV or JSON with a column map (:class:`ColumnMap`): our channel -> the file's column, its unit and,
-  for counts, how many counts make one unit.
+  for counts, how many counts make one unit. The map is for files in none of the formats above: one given with
+  logs of those formats leaves them to their own readers. A mapped CSV may hold blank lines and ``#`` comments.
 
-Sampling need not be regular: every channel keeps the file's time column. A malformed row is dropped with a warning
-naming the file and row; the log is refused (``LogError``: one line naming the file, row and column) for a missing
-required column, time that does not increase, an unknown unit, a log too short to calibrate on, or more than 5%
-bad rows.
+Sampling need not be regular: every channel keeps the file's time column. A malformed row (a repeated timestamp
+among them) is dropped with a warning naming the file and its line; the log is refused (``LogError``: one line
+naming the file, row and column) for a missing required column, time that does not increase, an unknown unit, a
+log too short to calibrate on, or more than 5% bad rows.
 """
 
 from __future__ import annotations
 
+import csv
 import importlib
 import json
 import math
@@ -138,25 +140,33 @@ class ColumnMap:
 
 
 def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnMap | None = None) -> Log:
-    """Read one log in any known format (or with ``column_map``), check it, and drop malformed rows with a warning."""
+    """Read one log in any known format (or, if it is in none, with ``column_map``), check it, and drop malformed
+    rows with a warning."""
     path = Path(path)
     if not path.is_file():
         raise LogError(f"{path}: no such file")
-    if column_map is not None:
+    native = _native_reader(path)
+    if native is not None:
+        log = native(path)
+    elif column_map is not None:
         log = _read_mapped(path, column_map)
-    elif path.suffix == ".parquet":
-        log = _read_parquet(path)
     else:
-        head = _head(path)
-        if head.startswith("DYNAMIXEL") or head.replace(" ", "").lower().startswith("time[ms],present"):
-            log = _read_dynamixel(path)
-        elif (reader := _robot_reader(head)) is not None:
-            log = reader.read(path)
-        elif head.replace(" ", "").lower().startswith("time,pos,speed,power"):
-            log = _read_gearmotor(path)
-        else:
-            raise LogError(f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns)")
+        raise LogError(f"{path}: unknown log format (first line {_head(path)[:60]!r}); give a column map (--columns)")
     return check_log(log, required)
+
+
+def _native_reader(path: Path) -> Callable[[Path], Log] | None:
+    """The reader of a format skitter knows, recognized by the file's content (a column map is for the others)."""
+    if path.suffix == ".parquet":
+        return _read_parquet
+    head = _head(path)
+    if head.startswith("DYNAMIXEL") or head.replace(" ", "").lower().startswith("time[ms],present"):
+        return _read_dynamixel
+    if (reader := _robot_reader(head)) is not None:
+        return reader.read
+    if head.replace(" ", "").lower().startswith("time,pos,speed,power"):
+        return _read_gearmotor
+    return None
 
 
 @dataclass(frozen=True)
@@ -194,10 +204,10 @@ def check_log(log: Log, required: Sequence[str]) -> Log:
     backwards = np.flatnonzero(np.diff(t) <= 0)
     if len(backwards):
         row = int(backwards[0]) + 1
-        raise LogError(
-            f"{log.path}: row {_row_label(log, row)}, column 'time': {t[row]:.6g} s does not increase "
-            f"(previous {t[row - 1]:.6g} s): time runs backwards"
-        )
+        where = f"{log.path}: row {_row_label(log, row)}, column 'time': {t[row]:.6g} s"
+        if t[row] == t[row - 1]:
+            raise LogError(f"{where}, the same as row {_row_label(log, row - 1)}: a repeated timestamp")
+        raise LogError(f"{where} does not increase (previous {t[row - 1]:.6g} s): time runs backwards")
     if len(t) < MIN_ROWS or log.duration < MIN_DURATION:
         raise LogError(
             f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s "
@@ -240,11 +250,12 @@ def _drop_time_glitches(log: Log) -> Log:
             rejoin = len(t)  # the last row is the odd one
         for k in range(i, rejoin):
             bad.append(k)
-            reasons[k] = (
-                f"time {t[k]:.6g} s out of order with its neighbours"
-                if rejoin == i + 1
-                else f"time {t[k]:.6g} s goes back from {t[last]:.6g} s (a repeated or broken sample)"
-            )
+            if t[k] == t[last]:
+                reasons[k] = f"time {t[k]:.6g} s, the same as line {_row_label(log, last)} (a repeated timestamp)"
+            elif rejoin == i + 1:
+                reasons[k] = f"time {t[k]:.6g} s out of order with its neighbours"
+            else:
+                reasons[k] = f"time {t[k]:.6g} s goes back from {t[last]:.6g} s (a repeated or broken sample)"
         last, i = rejoin, rejoin + 1
     if not bad:
         return log
@@ -382,30 +393,72 @@ def _read_gearmotor(path: Path) -> Log:
 
 
 def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
-    try:
-        if path.suffix.lower() == ".json":
-            raw = pd.read_json(path)
-        else:
-            raw = pd.read_csv(path, comment="#", skipinitialspace=True)
-    except (ValueError, OSError) as exc:
-        raise LogError(
-            f"{path}: not readable as {'JSON' if path.suffix.lower() == '.json' else 'CSV'} ({exc})"
-        ) from None
-    df = pd.DataFrame()
-    bad_rows: set[int] = set()
+    """A CSV or JSON log through a column map; a row whose mapped fields are not all finite numbers is malformed."""
+    names, rows, bad = _json_rows(path) if path.suffix.lower() == ".json" else _csv_rows(path)
+    columns: dict[str, int] = {}
     for name, entry in column_map.columns.items():
         column = entry["column"]
-        if column not in raw.columns:
-            raise LogError(f"{path}: column {column!r} (for {name!r}) is missing; the file has {list(raw.columns)}")
-        values = pd.to_numeric(raw[column], errors="coerce").to_numpy(dtype=float)
-        bad_rows |= set(np.flatnonzero(~np.isfinite(values)).tolist())
-        scale = UNITS[entry.get("unit", "1")] / float(entry.get("counts_per_unit", 1.0))
-        df[name] = values * scale
-    header_lines = 1 if path.suffix.lower() != ".json" else 0
-    bad = sorted(bad_rows)
-    drop_bad_rows(path, [(i + 1 + header_lines, "not a number in a mapped column") for i in bad], len(raw))
-    keep = np.setdiff1d(np.arange(len(df)), bad)
-    df = df.iloc[keep].reset_index(drop=True)
+        if column not in names:
+            raise LogError(
+                f"{path}: the column map's column {column!r} (for {name!r}) is missing; the file has {names}"
+            )
+        columns[name] = names.index(column)
+    total = len(rows) + len(bad)
+    values, file_rows = [], []
+    for number, fields in rows:
+        try:
+            values.append([_number(fields[k], names[k]) for k in columns.values()])
+            file_rows.append(number)
+        except ValueError as exc:
+            bad.append((number, str(exc)))
+    drop_bad_rows(path, sorted(bad), total)
+    data = np.asarray(values, dtype=float).reshape(-1, len(columns))
+    scales = [UNITS[e.get("unit", "1")] / float(e.get("counts_per_unit", 1.0)) for e in column_map.columns.values()]
+    df = pd.DataFrame(data * np.asarray(scales), columns=list(columns))
     meta = {"format": "mapped " + path.suffix.lstrip("."), "column_map": dict(column_map.columns),
-            "file_rows": (keep + 1 + header_lines).tolist()}  # fmt: skip
+            "file_rows": file_rows}  # fmt: skip
     return Log(str(path), df, meta)
+
+
+def _number(value: Any, column: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if not math.isfinite(number):
+        raise ValueError(f"column {column!r}: {value!r} is not a finite number")
+    return number
+
+
+def _csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]], list[tuple[int, str]]]:
+    """A CSV's column names (its first line that is not blank or a comment), its data rows with their line numbers
+    in the file, and its malformed rows (a field too many or too few); blank lines and ``#`` comments are skipped."""
+    try:
+        with path.open(newline="", errors="replace") as fh:
+            reader = csv.reader((line.partition("#")[0] for line in fh), skipinitialspace=True)
+            lines = [
+                (reader.line_num, [f.strip() for f in row]) for row in reader if len(row) > 1 or "".join(row).strip()
+            ]
+    except (OSError, csv.Error) as exc:
+        raise LogError(f"{path}: not readable as CSV ({exc})") from None
+    if not lines:
+        raise LogError(f"{path}: no column line (a CSV read with a column map starts with its column names)")
+    names = lines[0][1]
+    rows, bad = [], []
+    for number, fields in lines[1:]:
+        if len(fields) == len(names) + 1 and fields[-1] == "":  # a trailing comma
+            fields = fields[:-1]
+        if len(fields) == len(names):
+            rows.append((number, fields))
+        else:
+            bad.append((number, f"{len(fields)} fields, expected {len(names)}"))
+    return names, rows, bad
+
+
+def _json_rows(path: Path) -> tuple[list[Any], list[tuple[int, list[Any]]], list[tuple[int, str]]]:
+    """A JSON table's column names and its records, numbered from 1 (no record is malformed as a whole)."""
+    try:
+        raw = pd.read_json(path)
+    except (ValueError, OSError) as exc:
+        raise LogError(f"{path}: not readable as JSON ({exc})") from None
+    return list(raw.columns), [(i + 1, list(row)) for i, row in enumerate(raw.itertuples(index=False))], []

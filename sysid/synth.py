@@ -19,14 +19,17 @@ can be injected too.
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from envs.common.io import refuse_overwrite, write_json
+from envs.common.io import parent_problem, write_json
 from envs.common.telemetry import write_telemetry
 from sysid.effects import Effect
 from sysid.logs import Log
@@ -196,37 +199,81 @@ def _parse_effect(text: str) -> tuple[str, float | dict[str, float] | None]:
         raise argparse.ArgumentTypeError(f"--effect {text!r}: {value!r} is not a number or param:number,...") from None
 
 
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, without argparse's usage block
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument(
         "--effect", action="append", default=[], type=_parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--out", type=Path)
-    parser.add_argument("--overwrite", action="store_true")
+    parser.add_argument("--out", type=Path, help="the log, FILE.parquet; the truth goes to FILE.parquet.truth.json")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier log and its truth at --out")
     parser.add_argument("--list", action="store_true", help="list every effect that can be injected")
     args = parser.parse_args(argv)
     if args.list:
-        print(listing())
+        try:
+            print(listing(), flush=True)
+        except BrokenPipeError:  # the reader stopped early (``--list | head -1``)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nor fail again on the exit's flush
+            return 1
         return 0
     if args.robot is None or args.out is None:
         parser.error("--robot and --out are required (or --list)")
+    names = [name for name, _ in args.effect]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        parser.error(f"--effect {twice[0]!r} is given twice")
+    if args.seed < 0:
+        parser.error(f"--seed must be >= 0 (numpy seeds are non-negative), got {args.seed}")
+    adapter = make_adapter(args.robot)
+    shortest = adapter.segment_seconds * (2 if adapter.burn_in else 1)  # one segment to replay, after the burn-in
+    if not shortest <= args.seconds < math.inf:
+        parser.error(
+            f"--seconds must be a finite number of at least {shortest:g} for {args.robot}, got {args.seconds:g}"
+        )
+    out: Path = args.out
+    truth_path = out.with_name(out.name + ".truth.json")
     try:
-        if not args.overwrite:
-            refuse_overwrite(args.out, "synthetic log")
+        _check_out(out, truth_path, args.overwrite)
         log, truth = synthesize(args.robot, dict(args.effect), args.seed, args.seconds)
     except (ValueError, FileExistsError) as exc:
         print(f"sysid.synth: error: {exc}", file=sys.stderr)
         return 2
-    write_telemetry(args.out, log.df, log.meta, overwrite=args.overwrite)
-    write_json(args.out.with_name(args.out.name + ".truth.json"), truth)
-    print(
-        f"{args.out}: {len(log.df)} samples over {log.duration:.1f} s;"
-        f" nominal model's error {truth['nominal_error']:.2f}"
-    )
+    # the log and its truth as one unit: both written in full beside them, then renamed into place
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f".{out.name}.", dir=out.parent) as tmp:
+        staged = Path(tmp)
+        write_telemetry(staged / out.name, log.df, log.meta)
+        write_json(staged / truth_path.name, truth)
+        os.replace(staged / truth_path.name, truth_path)
+        os.replace(staged / out.name, out)
+    print(f"{out}: {len(log.df)} samples over {log.duration:.1f} s; nominal model's error {truth['nominal_error']:.2f}")
     return 0
+
+
+def _check_out(out: Path, truth: Path, overwrite: bool) -> None:
+    """Refuse (``ValueError``, ``FileExistsError``) an --out the log and its truth cannot be written to, before
+    anything is synthesized."""
+    for path in (out, truth):
+        if path.is_dir():
+            raise ValueError(f"--out {out}: {path} is a directory")
+    if out.suffix != ".parquet":
+        raise ValueError(f"--out {out}: the log is written as Parquet; give a path ending in .parquet")
+    problem = parent_problem(out)
+    if problem:
+        raise ValueError(f"--out {out}: {problem}")
+    existing = [str(path) for path in (out, truth) if path.exists()]
+    if existing and not overwrite:
+        raise FileExistsError(
+            f"--out {out}: {' and '.join(existing)} already exist{'s' * (len(existing) == 1)}; choose another path "
+            "or pass --overwrite"
+        )
 
 
 if __name__ == "__main__":

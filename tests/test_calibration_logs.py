@@ -338,3 +338,79 @@ def test_a_column_map_with_a_bad_entry_is_refused_naming_it(tmp_path, entry, mes
     mapping.write_text(json.dumps({"time": {"column": "t_ms", "unit": "ms"}, "angle": entry}))
     with pytest.raises(LogError, match=r"map\.json: entry 'angle': " + message):
         ColumnMap.load(mapping)
+
+
+# --- column-mapped logs: real line numbers, repeated timestamps, a map given with native logs -----------------------
+MAP = {"time": {"column": "t_ms", "unit": "ms"}, "angle": {"column": "enc", "unit": "rev", "counts_per_unit": 1000}}
+
+
+def _mapped(tmp_path: Path, rows: list[str], name: str = "mapped.csv") -> tuple[Path, ColumnMap]:
+    """A column-mapped CSV whose data begins at line 6, after comments and blank lines, and its map."""
+    mapping = _write(tmp_path, "map.json", [json.dumps(MAP)])
+    path = _write(tmp_path, name, ["# bench log, 2024-05-01", "", "t_ms,enc  # ms, counts", "# motor on", "", *rows])
+    return path, ColumnMap.load(mapping)
+
+
+def _mapped_rows(n: int = 300) -> list[str]:
+    return [f"{5 * i},{3 * i}" for i in range(n)]
+
+
+def test_a_mapped_csv_names_the_real_line_after_blank_and_comment_lines(tmp_path):
+    rows = _mapped_rows()
+    rows[10] = "50,abc"  # line 16
+    rows[20] = ""  # line 26: blank, skipped
+    rows[30] = "150,90,7"  # line 36: a field too many
+    path, mapping = _mapped(tmp_path, rows)
+    with pytest.warns(UserWarning) as caught:
+        log = read_log(path, ("angle",), mapping)
+    messages = [str(w.message) for w in caught]
+    assert messages == [
+        f"{path}: dropped malformed line 16: column 'enc': 'abc' is not a finite number",
+        f"{path}: dropped malformed line 36: 3 fields, expected 2",
+    ]
+    assert log.meta["file_rows"][:3] == [6, 7, 8] and len(log.df) == 297
+    restarted = _mapped_rows(150) + [f"{5 * i},{3 * i}" for i in range(150)]  # the clock restarts at line 156
+    path, mapping = _mapped(tmp_path, restarted, "restarted.csv")
+    with pytest.raises(LogError, match=r"restarted\.csv: row 156, column 'time': 0 s does not increase"):
+        read_log(path, ("angle",), mapping)
+
+
+def test_a_repeated_timestamp_is_named_as_such_and_dropped_like_any_malformed_row(tmp_path):
+    rows = _gearmotor_rows()
+    one = _write(tmp_path, "one.csv", ["time,pos,speed,power", *rows[:100], rows[99], *rows[100:]])
+    with pytest.warns(UserWarning, match=r"one\.csv: dropped malformed line 102: time 1 s, the same as line 101 "
+                      r"\(a repeated timestamp\)"):  # fmt: skip
+        log = read_log(one, ("duty",))
+    assert len(log.df) == 300 and np.all(np.diff(log.time) > 0)
+    doubled = _write(tmp_path, "doubled.csv", ["time,pos,speed,power", *[r for r in rows[:150] for _ in (0, 1)]])
+    with pytest.raises(LogError, match=r"150 of 300 rows are malformed.*line 3: time 0\.01 s, the same as line 2 "
+                       r"\(a repeated timestamp\)"):  # fmt: skip
+        read_log(doubled, ("duty",))
+    stalled = _write(tmp_path, "stalled.csv", ["time,pos,speed,power", *rows[:100], *[rows[99]] * 20, *rows[100:]])
+    with pytest.raises(LogError) as refused:
+        read_log(stalled, ("duty",))
+    assert str(refused.value) == f"{stalled}: row 102, column 'time': 1 s, the same as row 101: a repeated timestamp"
+
+
+def test_a_column_map_applies_only_to_the_logs_of_no_native_format(tmp_path):
+    t = np.arange(0, 2, 0.01)
+    telemetry = tmp_path / "t.parquet"
+    write_telemetry(telemetry, pd.DataFrame({"time": t, "duty": 0.5, "angle": t, "speed": 1.0}), {"robot": "motor"})
+    mapped, mapping = _mapped(tmp_path, _mapped_rows())
+    logs = calibrate.read_logs([mapped, GEARMOTOR, AX12A, ROACH_2HZ, telemetry], (), mapping)
+    formats = [log.meta["format"] for log in logs]
+    assert formats[0] == "mapped csv" and formats[2:] == [
+        "DYNAMIXEL Wizard export",
+        "ImageProc 2.5 VelociRoACH telemetry text (Experiment.py)",
+        "skitter telemetry",
+    ]
+    assert formats[1].startswith("gearmotor CSV") and len(logs[1].df) == 1047
+
+
+def test_a_log_without_the_column_maps_columns_is_named(capsys, tmp_path):
+    """The native training log reads past the map; the test log of no known format lacks the map's columns."""
+    mapping = _write(tmp_path, "map.json", [json.dumps(MAP)])
+    other = _write(tmp_path, "other.csv", ["stamp,enc", *_mapped_rows()])
+    code, err = _run(capsys, tmp_path, "motor", GEARMOTOR, other, "--columns", str(mapping))
+    assert code == 2 and len(err.splitlines()) == 1
+    assert f"{other}: the column map's column 't_ms' (for 'time') is missing; the file has ['stamp', 'enc']" in err

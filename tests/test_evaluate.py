@@ -172,3 +172,46 @@ def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path):
     )
     assert done.returncode == 2 and "already holds" in done.stderr and "Traceback" not in done.stderr
     assert (out / "telemetry" / "tripod.parquet").read_bytes() == b"a user's file"
+
+
+def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path):
+    (tmp_path / "somefile.txt").write_text("a user's file")
+    for out, message in [
+        (tmp_path / "somefile.txt" / "out", f"{tmp_path / 'somefile.txt'} is a file, not a directory"),
+        (tmp_path / "somefile.txt", "exists and is not a directory"),
+    ]:
+        done = run("--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "1", "--out", str(out))
+        assert done.returncode == 2 and f"--out {out}" in done.stderr and message in done.stderr
+        assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["somefile.txt"]
+    assert (tmp_path / "somefile.txt").read_text() == "a user's file"
+
+
+def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path):
+    out = tmp_path / "out"
+    (out / "plots").mkdir(parents=True)
+    (out / "results.md").write_text("an earlier run")
+    (out / "plots" / "old.png").write_bytes(b"an earlier plot")
+    args = ("--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "1", "--max-episode-steps", "10")
+    # without --overwrite: only what is there is named
+    done = run(*args, "--out", str(out))
+    assert done.returncode == 2 and "already holds plots/, results.md of an earlier run" in done.stderr
+    assert "results.json" not in done.stderr and "Traceback" not in done.stderr
+    # files evaluate.py does not write are never deleted, not even with --overwrite
+    (out / "notes.txt").write_text("the user's notes")
+    (out / "plots" / "sketch.svg").write_text("the user's sketch")
+    done = run(*args, "--out", str(out), "--overwrite")
+    assert done.returncode == 2 and "notes.txt, plots/sketch.svg" in done.stderr and "--overwrite" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
+        "notes.txt", "plots", "plots/old.png", "plots/sketch.svg", "results.md"
+    ]  # fmt: skip
+    # a folder of its own results is replaced
+    (out / "notes.txt").unlink()
+    (out / "plots" / "sketch.svg").unlink()
+    done = run(*args, "--out", str(out), "--overwrite")
+    assert done.returncode == 0, done.stderr
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
+        "plots", "plots/tripod.png", "results.json", "results.md"
+    ]  # fmt: skip
+    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v1")

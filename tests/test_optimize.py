@@ -3,6 +3,7 @@ run gives, the Ray backend equals the local batch, eq. 17, and the command line'
 
 import json
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -136,6 +137,11 @@ def test_a_checkpoint_resumes_only_under_its_own_settings(tmp_path):
         ({}, ["--particles", "1"], "--particles"),
         ({}, ["--iterations", "0"], "--iterations"),
         ({}, ["--address", "10.0.0.1:6379"], "--address"),
+        ({}, ["--seed", "-1"], "--seed must be in [0, 4294967295], got -1"),
+        ({}, ["--seed", str(2**32)], "--seed"),
+        ({}, ["--particles", "0"], "--particles"),
+        ({}, ["--workers", "0"], "--workers"),
+        ({}, ["--stop-after", "0"], "--stop-after"),
     ],
 )
 def test_bad_configs_and_flags_are_one_line_errors_before_anything_is_made(tmp_path, change, args, message):
@@ -155,3 +161,74 @@ def test_stop_after_pauses_a_run_that_the_same_call_resumes(tmp_path):
     resumed = run(config, settings, tmp_path / "a", lambda: LocalBackend(config, 4, 1), progress=False)
     straight = run(config, settings, tmp_path / "b", lambda: LocalBackend(config, 4, 1), progress=False)
     assert resumed["finished"] and resumed["history"] == straight["history"]
+
+
+@pytest.mark.parametrize(
+    ("env_kwargs", "args", "message"),
+    [
+        ({"knee_wedge": "yes"}, [], "knee_wedge must be True or False, got 'yes'"),
+        ({"knee_wedge": "yes"}, ["--backend", "ray"], "knee_wedge must be True or False, got 'yes'"),
+        ({"calibration": "no_such_calibration.json"}, [], "no such calibration file"),
+        ({"calibration": "not_a_calibration.json"}, [], "field 'format'"),
+        ({"legs": 8}, [], "unexpected keyword argument 'legs'"),
+    ],
+)
+def test_bad_env_kwargs_are_one_line_errors_naming_the_config_and_field(tmp_path, env_kwargs, args, message):
+    (tmp_path / "not_a_calibration.json").write_text('{"robot": "bioloid"}')
+    if "calibration" in env_kwargs:
+        env_kwargs = {"calibration": str(tmp_path / env_kwargs["calibration"])}
+    config = write_config(tmp_path, env_kwargs=env_kwargs)
+    out = tmp_path / "out"
+    done = cli("--config", str(config), "--iterations", "1", "--particles", "4", *args, "--out", str(out))
+    assert done.returncode == 2, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"{config}: field 'env_kwargs' = {env_kwargs!r}: " in done.stderr and message in done.stderr
+    assert not out.exists()
+
+
+def test_an_out_that_is_a_file_is_refused_and_left_alone(tmp_path):
+    config = write_config(tmp_path)
+    mine = tmp_path / "notes.txt"
+    mine.write_text("keep")
+    for out in (mine, mine / "run"):
+        done = cli("--config", str(config), "--iterations", "1", "--particles", "4", "--out", str(out))
+        assert done.returncode == 2, done.stderr
+        assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+        assert f"--out {out}: {mine} is a file, not a directory" in done.stderr
+    assert mine.read_text() == "keep"
+
+
+def _checkpoint(**change) -> bytes:
+    settings = Settings(parse_config({**TINY}).to_dict(), "pso", 1, 4, 0).as_dict()
+    state = {"version": 1, "settings": settings, "optimizer": PSO(16, 4, 1, 0), "best": None, "history": [],
+             "wall_seconds": 0.0, **change}  # fmt: skip
+    return pickle.dumps(state)
+
+
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        pytest.param(b"\x80\x04garbage", "not a readable checkpoint (UnpicklingError", id="garbage"),
+        pytest.param(_checkpoint()[:40], "not a readable checkpoint", id="truncated"),
+        pytest.param(b"", "not a readable checkpoint (EOFError", id="empty"),
+        pytest.param(pickle.dumps([1, 2]), "not a checkpoint of this version of agents.optimize", id="a list"),
+        pytest.param(pickle.dumps({"version": 1}), "it has no 'settings', 'optimizer', 'best', 'history', "
+                     "'wall_seconds'", id="missing keys"),
+        pytest.param(_checkpoint(settings={"seed": 0}), "its 'settings' are not a dict of config, iterations",
+                     id="settings"),
+        pytest.param(_checkpoint(optimizer="pso"), "its 'optimizer' is a str, not the 'pso' of its settings",
+                     id="optimizer"),
+        pytest.param(_checkpoint(best={"score": 1.0}), "its 'best' is not None nor a dict", id="best"),
+        pytest.param(_checkpoint(history={}), "its 'history' is a dict, not a list", id="history"),
+    ],
+)  # fmt: skip
+def test_a_damaged_checkpoint_is_refused_naming_it_and_left_alone(tmp_path, content, reason):
+    config = write_config(tmp_path)
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "checkpoint.pkl").write_bytes(content)
+    done = cli("--config", str(config), "--iterations", "1", "--particles", "4", "--out", str(out))
+    assert done.returncode == 2, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"cannot resume from {out / 'checkpoint.pkl'}: {reason}" in done.stderr
+    assert os.listdir(out) == ["checkpoint.pkl"] and (out / "checkpoint.pkl").read_bytes() == content

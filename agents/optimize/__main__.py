@@ -19,8 +19,9 @@ import sys
 from pathlib import Path
 
 from agents.optimize.optimizers import OPTIMIZERS
-from agents.optimize.problem import ConfigError, read_config
+from agents.optimize.problem import ConfigError, Evaluator, read_config
 from agents.optimize.run import CHECKPOINT, RunError, Settings, run
+from envs.common.io import parent_problem
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -45,8 +46,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+MAX_SEED = 2**32 - 1  # CMA-ES seeds numpy's RandomState, which takes [0, 2**32)
+
+
 def check(args: argparse.Namespace) -> None:
     """One-line errors for settings that cannot run, before anything is created."""
+    if not 0 <= args.seed <= MAX_SEED:
+        raise RunError(f"--seed must be in [0, {MAX_SEED}], got {args.seed}")
     if args.iterations < 1:
         raise RunError(f"--iterations must be at least 1, got {args.iterations}")
     if args.particles < 2:
@@ -58,6 +64,11 @@ def check(args: argparse.Namespace) -> None:
         raise RunError(f"--stop-after must be at least 1, got {args.stop_after}")
     if args.address is not None and args.backend != "ray":
         raise RunError("--address is for --backend ray")
+    problem = parent_problem(args.out) if not args.out.exists() else None
+    if args.out.exists() and not args.out.is_dir():
+        problem = f"{args.out} is a file, not a directory"
+    if problem:
+        raise RunError(f"--out {args.out}: {problem}; choose another folder")
     if args.out.exists() and not (args.out / CHECKPOINT).exists() and any(args.out.iterdir()):
         raise RunError(f"--out {args.out} holds files but no checkpoint; choose another folder")
 
@@ -69,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.out is None:
             args.out = ROOT / "runs" / "optimize" / f"{Path(args.config).stem}__{args.optimizer}__{args.seed}"
         check(args)
+        Evaluator(config, 1, nthread=1)  # makes the env and the controller once: a bad field fails here, not later
         settings = Settings(config.to_dict(), args.optimizer, args.iterations, args.particles, args.seed)
 
         def backend():

@@ -194,8 +194,8 @@ class Evaluator:
         try:
             venv = gym.make_vec(config.env, num_envs=num_sims, vectorization_mode="vector_entry_point",
                                 nthread=nthread, **kwargs)  # fmt: skip
-        except TypeError as error:
-            raise ConfigError(f"{config.path}: field 'env_kwargs': {error}") from None
+        except (TypeError, ValueError) as error:  # the env's own checks (values, calibration files, names)
+            raise ConfigError(f"{config.path}: field 'env_kwargs' = {dict(config.env_kwargs)!r}: {error}") from None
         self.robot = venv.unwrapped.robot
         self.num_sims = num_sims
         self.controller = build_controller(config, self.robot) if controller is None else controller(self.robot)

@@ -16,7 +16,7 @@ import math
 import pickle
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -113,17 +113,49 @@ class _Worker:
 
 
 def load_checkpoint(out: Path) -> dict[str, Any] | None:
+    """The run folder's checkpoint, None if it has none, or a one-line :class:`RunError` naming the file and why it
+    cannot be resumed from."""
     path = out / CHECKPOINT
     if not path.exists():
         return None
     try:
         with path.open("rb") as f:
             state = pickle.load(f)
-    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as error:
-        raise RunError(f"{path}: not a readable checkpoint ({error})") from None
-    if not isinstance(state, dict) or state.get("version") != VERSION:
-        raise RunError(f"{path}: not a checkpoint of this version of agents.optimize")
+    except Exception as error:  # unpickling damaged bytes can raise almost anything (OSError for a folder, too)
+        raise RunError(
+            f"cannot resume from {path}: not a readable checkpoint ({type(error).__name__}: {error})"
+        ) from None
+    problem = _checkpoint_problem(state)
+    if problem is not None:
+        raise RunError(f"cannot resume from {path}: {problem}")
     return state
+
+
+def _checkpoint_problem(state: Any) -> str | None:
+    """What makes an unpickled checkpoint unusable (the fields :func:`run` and :func:`check_resumable` read), or
+    None."""
+    if not isinstance(state, dict) or state.get("version") != VERSION:
+        return "not a checkpoint of this version of agents.optimize"
+    missing = [key for key in ("settings", "optimizer", "best", "history", "wall_seconds") if key not in state]
+    if missing:
+        return f"it has no {', '.join(map(repr, missing))}"
+    settings, keys = state["settings"], {f.name for f in fields(Settings)}
+    if not isinstance(settings, dict) or set(settings) != keys or not isinstance(settings["config"], dict):
+        return f"its 'settings' are not a dict of {', '.join(sorted(keys))} with a dict 'config'"
+    optimizer = state["optimizer"]
+    if not any(settings["optimizer"] == name and isinstance(optimizer, cls) for name, cls in OPTIMIZERS.items()):
+        return f"its 'optimizer' is a {type(optimizer).__name__}, not the {settings['optimizer']!r} of its settings"
+    best = state["best"]
+    if best is not None and not (
+        isinstance(best, dict) and set(best) >= {"score", "parameters", "iteration", "metrics"}
+    ):
+        return "its 'best' is not None nor a dict of score, parameters, iteration and metrics"
+    if not isinstance(state["history"], list):
+        return f"its 'history' is a {type(state['history']).__name__}, not a list"
+    wall = state["wall_seconds"]
+    if isinstance(wall, bool) or not isinstance(wall, int | float):
+        return f"its 'wall_seconds' is {wall!r}, not a number"
+    return None
 
 
 def check_resumable(state: dict[str, Any], settings: Settings, path: Path) -> None:

@@ -76,3 +76,44 @@ def refuse_overwrite(path: str | Path, what: str = "file") -> Path:
     if path.exists():
         raise FileExistsError(f"{what} {path} already exists; choose another path or remove it first")
     return path
+
+
+def parent_problem(path: str | Path) -> str | None:
+    """Why nothing can be created at ``path`` (its nearest existing ancestor a file, or not writable), or None."""
+    parent = Path(path).parent
+    while not parent.exists():  # ends at "." or "/"
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"{parent} is a file, not a directory"
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"no permission to write in {parent}"
+    return None
+
+
+def results_folder_problem(
+    out: str | Path, overwrite: bool, tool: str, foreign: Callable[[Path], list[str]], flag: str = "--out"
+) -> str | None:
+    """Why a tool's results (a folder it replaces whole, :func:`publish_folder`) cannot go to ``out``, or None.
+    ``foreign(entry)`` names what in an entry of ``out`` the tool does not write: a folder holding any such file is
+    refused even with ``overwrite`` (replacing it would delete the user's files); one holding an earlier run's
+    results only with ``overwrite``. Checked before anything is computed."""
+    out = Path(out)
+    if out.is_dir():
+        held = sorted(out.iterdir())
+        others = [name for entry in held for name in foreign(entry)]
+        if others:
+            shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
+            return (f"{flag} {out} holds files {tool} does not write ({shown}); it replaces the whole folder, so this "
+                    "is refused even with --overwrite: choose another directory or move them")  # fmt: skip
+        if held and not overwrite:
+            names = ", ".join(entry.name + "/" * entry.is_dir() for entry in held)
+            return f"{flag} {out} already holds {names} of an earlier run; choose another directory or pass --overwrite"
+    elif out.exists():
+        return f"{flag} {out} exists and is not a directory"
+    problem = parent_problem(out)
+    return f"{flag} {out}: {problem}" if problem else None
+
+
+def foreign_unless(names: tuple[str, ...]) -> Callable[[Path], list[str]]:
+    """For :func:`results_folder_problem`: every entry but the files ``names`` is foreign."""
+    return lambda entry: [] if entry.name in names and entry.is_file() else [entry.name + "/" * entry.is_dir()]

@@ -1,0 +1,152 @@
+"""Bad --out paths and flags of calibrate.py and ``python -m sysid.synth``: one line naming the flag and value, exit
+code 2, no traceback, and nothing created, replaced or deleted."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import calibrate
+from sysid import synth
+
+ROOT = Path(__file__).resolve().parents[1]
+GEARMOTOR = ROOT / "data" / "real" / "rhex3_motor_speedRamp.csv"
+
+
+def files(root: Path) -> dict[str, bytes | None]:
+    """Every path under ``root`` with its content (None for a folder)."""
+    return {str(p.relative_to(root)): None if p.is_dir() else p.read_bytes() for p in sorted(root.rglob("*"))}
+
+
+def call(main, capsys, *args: str) -> tuple[int, str]:
+    """Exit code and stderr of a CLI's ``main``, whether it returns or exits."""
+    try:
+        code = main(list(args))
+    except SystemExit as exit_info:
+        code = exit_info.code
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    return code, err
+
+
+# --- calibrate.py: --out is checked before any log is read or fitted ---------------------------------------------
+def calibrate_with(capsys, out: Path, *extra: str) -> tuple[int, str]:
+    logs = ["--train", f"{GEARMOTOR}@0:5", "--test", f"{GEARMOTOR}@5:"]  # good logs: the run would fit for minutes
+    return call(calibrate.main, capsys, "--robot", "motor", *logs, "--out", str(out), "--quiet", *extra)
+
+
+def test_calibrate_out_under_a_file_is_refused_before_fitting(capsys, tmp_path):
+    (tmp_path / "somefile.txt").write_text("a user's file")
+    before = files(tmp_path)
+    code, err = calibrate_with(capsys, tmp_path / "somefile.txt" / "out")
+    assert code == 2 and f"--out {tmp_path / 'somefile.txt' / 'out'}" in err and "is a file, not a directory" in err
+    code, err = calibrate_with(capsys, tmp_path / "somefile.txt" / "deeper" / "out")
+    assert code == 2 and f"{tmp_path / 'somefile.txt'} is a file" in err
+    code, err = calibrate_with(capsys, tmp_path / "somefile.txt")
+    assert code == 2 and "exists and is not a directory" in err
+    assert files(tmp_path) == before
+
+
+def test_calibrate_overwrite_refuses_a_folder_with_files_it_did_not_write(capsys, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.json").write_text("{}")
+    (out / "notes.txt").write_text("the user's notes")
+    before = files(tmp_path)
+    code, err = calibrate_with(capsys, out, "--overwrite")
+    assert code == 2 and "notes.txt" in err and "--overwrite" in err and "report.json" not in err
+    assert files(tmp_path) == before
+
+
+def test_calibrate_refusal_names_only_the_results_that_exist(capsys, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "report.md").write_text("an earlier run")
+    code, err = calibrate_with(capsys, out)
+    assert code == 2 and "already holds report.md of an earlier run" in err and "--overwrite" in err
+    assert "report.json" not in err and "calibration.json" not in err
+    assert (out / "report.md").read_text() == "an earlier run"
+    # with --overwrite, a folder of calibrate.py's own results may be replaced
+    for name in calibrate.RESULTS:
+        (out / name).write_text("an earlier run")
+    assert calibrate.parse_args(
+        ["--robot", "motor", "--train", "a.csv", "--test", "b.csv", "--out", str(out), "--overwrite"]
+    ).overwrite
+
+
+# --- python -m sysid.synth --------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--seconds", "0"], "--seconds must be a finite number of at least 1 for motor, got 0"),
+        (["--seconds", "-3"], "got -3"),
+        (["--seconds", "nan"], "got nan"),
+        (["--seconds", "inf"], "got inf"),
+        (["--seed", "-1"], "--seed must be >= 0"),
+        (["--effect", "viscous_friction=0.1", "--effect", "viscous_friction"], "--effect 'viscous_friction' is given"),
+    ],
+)
+def test_synth_bad_flags_are_one_line_errors(capsys, tmp_path, args, needle):
+    code, err = call(synth.main, capsys, "--robot", "motor", "--out", str(tmp_path / "log.parquet"), *args)
+    assert code == 2 and needle in err
+    assert files(tmp_path) == {}
+
+
+def test_synth_burn_in_robots_need_two_segments(capsys, tmp_path):
+    code, err = call(synth.main, capsys, "--robot", "roach", "--seconds", "1.5", "--out", str(tmp_path / "r.parquet"))
+    assert code == 2 and "at least 2 for roach, got 1.5" in err
+
+
+@pytest.mark.parametrize(
+    ("name", "needle"),
+    [
+        ("log.csv", "give a path ending in .parquet"),
+        ("folder.parquet", "folder.parquet is a directory"),
+        ("somefile.txt/log.parquet", "somefile.txt is a file, not a directory"),
+        ("log.parquet", "log.parquet.truth.json is a directory"),
+    ],
+)
+def test_synth_bad_out_paths_are_refused_even_with_overwrite(capsys, tmp_path, name, needle):
+    (tmp_path / "folder.parquet").mkdir()
+    (tmp_path / "log.parquet.truth.json").mkdir()
+    (tmp_path / "somefile.txt").write_text("a user's file")
+    before = files(tmp_path)
+    code, err = call(synth.main, capsys, "--robot", "motor", "--seconds", "1", "--out", str(tmp_path / name),
+                     "--overwrite")  # fmt: skip
+    assert code == 2 and f"--out {tmp_path / name}" in err and needle in err
+    assert files(tmp_path) == before
+
+
+def test_synth_writes_the_log_and_its_truth_as_a_pair(capsys, tmp_path):
+    out = tmp_path / "log.parquet"
+    truth = tmp_path / "log.parquet.truth.json"
+    truth.write_text("the truth of another log")
+    code, err = call(synth.main, capsys, "--robot", "motor", "--seconds", "1", "--out", str(out))
+    assert code == 2 and f"{truth} already exists" in err and "--overwrite" in err
+    assert files(tmp_path) == {"log.parquet.truth.json": b"the truth of another log"}
+    truth.unlink()
+    assert synth.main(["--robot", "motor", "--seconds", "1", "--out", str(out)]) == 0
+    assert sorted(files(tmp_path)) == ["log.parquet", "log.parquet.truth.json"], "no temporary file left"
+    capsys.readouterr()
+    before = files(tmp_path)
+    code, err = call(synth.main, capsys, "--robot", "motor", "--seconds", "1", "--seed", "1", "--out", str(out))
+    assert code == 2 and f"{out} and {truth} already exist" in err
+    assert files(tmp_path) == before
+    assert synth.main(["--robot", "motor", "--seconds", "1", "--seed", "1", "--out", str(out), "--overwrite"]) == 0
+    assert json.loads(truth.read_text())["seed"] == 1 and files(tmp_path)["log.parquet"] != before["log.parquet"]
+    assert math.isfinite(json.loads(truth.read_text())["nominal_error"])
+
+
+def test_synth_list_into_a_closed_pipe_is_no_traceback():
+    """``--list | head -1``: the reader stops before the listing is written."""
+    proc = subprocess.Popen([sys.executable, "-m", "sysid.synth", "--list"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=60) == 1
+    assert err == ""
