@@ -14,19 +14,25 @@ Every case that ran is reported; a budget (``--minutes``, default 45) stops new 
 left out are listed as not run, never counted as passes.
 
 Run: ``python -m benchmarks.calibration_matrix [--robots motor servo roach] [--seeds 20] [--minutes 45]``; a part
-of it: ``--kinds null ooc --robots roach --name calibration_matrix_roach``.
+of it: ``--kinds null ooc --robots roach --name calibration_matrix_roach``. The cases are independent: ``--workers K``
+runs K at a time as Ray tasks, each with its share of the machine's cores (a local Ray instance), or, with
+``--address HEAD:PORT``, on a running Ray cluster whose nodes hold this checkout at the same path (one core per case
+there unless ``--threads`` says more). Same seeds, same cases: a case's result does not depend on where it ran.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from pathlib import Path
 
 import numpy as np
 
 from benchmarks.common import md_table, save
+from envs.common.batch import THREADS_VARIABLE, default_threads
 from sysid import synth
 from sysid.cases import Case, run_case
 from sysid.report import format_interval
@@ -47,6 +53,73 @@ def _safe_case(robot: str, effects: Mapping, seed: int) -> tuple[Case | None, st
         return None, str(exc)
 
 
+Job = tuple[str, str, str | None, int]  # (kind, robot, effect, seed)
+
+
+def run_job(job: Job) -> tuple[dict, str]:
+    """One case of the matrix: its result row and the line printed for it."""
+    kind, robot, name, seed = job
+    if kind == "weak":  # the declaration that the channels barely see it, held to the data
+        row = _weak(robot, name)
+        return row, (f"{robot:6s} weak     {name:28s} nominal error at the range's far end "
+                     f"{row['nominal_error']:.2f}")  # fmt: skip
+    case, error = _safe_case(robot, {} if kind == "null" else {name: None}, seed)
+    tag = f"{robot:6s} {kind:8s} {name or '-':28s} seed {seed:3d}"
+    if case is None:
+        return {"robot": robot, "effect": name, "seed": seed, "error": error}, f"{tag} could not be generated: {error}"
+    return {"kind": kind, "effect": name, **case.row()}, (
+        f"{tag} first {case.first} before {case.result.before.error:.2f} after {case.result.after.error:.2f}"
+        f" ({case.seconds:.0f} s)"
+    )
+
+
+def _run_in(job: Job, threads: int) -> tuple[dict, str]:
+    """``run_job`` in a process that shares the machine: its rollouts on ``threads`` threads."""
+    os.environ[THREADS_VARIABLE] = str(threads)
+    return run_job(job)
+
+
+def _serial(plan: list[Job], left) -> Iterator[tuple[Job, dict | None, str]]:
+    for job in plan:
+        if not left():
+            yield job, None, ""
+            continue
+        row, line = run_job(job)
+        yield job, row, line
+
+
+def _on_ray(plan: list[Job], left, workers: int, threads: int, address: str | None):
+    """The plan as Ray tasks, at most ``workers`` at a time; no task is submitted after the budget. Yields each job
+    with its row as it finishes (None: not run)."""
+    import ray
+
+    root = str(Path(__file__).resolve().parent.parent)
+    if not ray.is_initialized():
+        ray.init(address=address, num_cpus=None if address else workers * threads, include_dashboard=False,
+                 log_to_driver=False, configure_logging=False,
+                 runtime_env={"env_vars": {"PYTHONPATH": root}})  # fmt: skip
+    task = ray.remote(num_cpus=threads)(_run_in)
+    queue, running = list(plan), {}
+    try:
+        while queue or running:
+            while queue and len(running) < workers and left():
+                job = queue.pop(0)
+                running[task.remote(job, threads)] = job
+            if not running:  # the budget is spent: the rest is not run
+                for job in queue:
+                    yield job, None, ""
+                return
+            done, _ = ray.wait(list(running), num_returns=1)
+            job = running.pop(done[0])
+            row, line = ray.get(done[0])
+            yield job, row, line
+    finally:
+        for ref in running:
+            ray.cancel(ref, force=True)
+        if address is None:
+            ray.shutdown()
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--robots", nargs="+", default=sorted(adapters()), help="default: every robot with an adapter")
@@ -56,14 +129,22 @@ def main(argv: list[str] | None = None) -> int:
                    choices=["effect", "weak", "null", "ooc", "coverage"], help="which cases to run")  # fmt: skip
     p.add_argument("--effects", nargs="+", help="only these effects (default: every catalogued one)")
     p.add_argument("--name", default="calibration_matrix", help="results file name under benchmarks/results/")
+    p.add_argument("--workers", type=int, default=1, help="cases run at a time, as Ray tasks (default 1: in turn)")
+    p.add_argument("--threads", type=int, help="rollout threads per case (default: the cores shared by the workers "
+                   "locally, 1 on a cluster)")  # fmt: skip
+    p.add_argument("--address", help="a running Ray cluster (HEAD:PORT) to run the cases on")
     args = p.parse_args(argv)
+    for flag in ("workers", "threads", "seeds"):
+        value = getattr(args, flag)
+        if value is not None and value < 1:
+            p.error(f"--{flag} {value}: expected at least 1")
+    threads = args.threads or (1 if args.address else max(1, default_threads() // args.workers))
     start = time.perf_counter()
 
     def left() -> bool:
         return (time.perf_counter() - start) / 60 < args.minutes
 
-    rows, null_rows, ooc_rows, coverage_rows, weak_rows, not_run = [], [], [], [], [], []
-    plan = []
+    plan: list[Job] = []
     for robot in args.robots:
         adapter = make_adapter(robot)
         catalogued = [name for name, e in adapter.effects().items() if e.catalogued]
@@ -75,45 +156,39 @@ def main(argv: list[str] | None = None) -> int:
         plan += [("ooc", robot, name, 3) for name in OUT_OF_CATALOG.get(robot, [])]
         plan += [("coverage", robot, name, 100 + s) for name in COVERAGE.get(robot, []) for s in range(args.seeds)]
     plan = [c for c in plan if c[0] in args.kinds and (args.effects is None or c[0] == "null" or c[2] in args.effects)]
-    for kind, robot, name, seed in plan:
-        if not left():
-            not_run.append(f"{kind} {robot} {name or ''} seed {seed}")
+    parallel = args.workers > 1 or args.address
+    results = _on_ray(plan, left, args.workers, threads, args.address) if parallel else _serial(plan, left)
+    done: dict[Job, dict] = {}
+    not_run: list[Job] = []
+    for job, row, line in results:
+        if row is None:
+            not_run.append(job)
             continue
-        if kind == "weak":  # the declaration that the channels barely see it, held to the data
-            weak_rows.append(_weak(robot, name))
-            print(f"{robot:6s} weak     {name:28s} nominal error at the range's far end "
-                  f"{weak_rows[-1]['nominal_error']:.2f}", flush=True)  # fmt: skip
-            continue
-        effects = {} if kind == "null" else {name: None}
-        case, error = _safe_case(robot, effects, seed)
-        tag = f"{robot:6s} {kind:8s} {name or '-':28s} seed {seed:3d}"
-        if case is None:
-            print(f"{tag} could not be generated: {error}", flush=True)
-            {"effect": rows, "ooc": ooc_rows}.get(kind, coverage_rows).append(
-                {"robot": robot, "effect": name, "seed": seed, "error": error}
-            )
-            continue
-        row = {"kind": kind, "effect": name, **case.row()}
-        print(f"{tag} first {case.first} before {case.result.before.error:.2f} after {case.result.after.error:.2f}"
-              f" ({case.seconds:.0f} s)", flush=True)  # fmt: skip
-        {"effect": rows, "null": null_rows, "ooc": ooc_rows, "coverage": coverage_rows}[kind].append(row)
+        print(line, flush=True)
+        done[job] = row
         # the results so far, after every case: a run cut short keeps what it measured (marked partial)
-        report(args, (time.perf_counter() - start) / 60, rows, null_rows, ooc_rows, coverage_rows, weak_rows,
-               [f"{k} {r} {n or ''} seed {s}" for k, r, n, s in plan[plan.index((kind, robot, name, seed)) + 1 :]],
+        report(args, (time.perf_counter() - start) / 60, plan, done, [j for j in plan if j not in done],
                partial=True)  # fmt: skip
-
-    report(args, (time.perf_counter() - start) / 60, rows, null_rows, ooc_rows, coverage_rows, weak_rows, not_run)
+    report(args, (time.perf_counter() - start) / 60, plan, done, not_run, workers=args.workers, threads=threads)
     return 0
 
 
 WEAK_SEEDS = (0, 1, 2)
 
 
-def report(args, minutes: float, rows, null_rows, ooc_rows, coverage_rows, weak_rows, not_run, partial=False) -> None:
-    """Write the matrix's results (benchmarks/results/<name>.md and .json): every case run so far, and the cases not
-    run (``partial``: still to come, in a run under way or cut short)."""
+def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_run: list[Job], partial=False,
+           workers: int = 1, threads: int | None = None) -> None:  # fmt: skip
+    """Write the matrix's results (benchmarks/results/<name>.md and .json): every case run so far, in the plan's
+    order, and the cases not run (``partial``: still to come, in a run under way or cut short)."""
+    rows, null_rows, ooc_rows, coverage_rows, weak_rows = [], [], [], [], []
+    for job in plan:
+        if job in done:
+            {"effect": rows, "null": null_rows, "ooc": ooc_rows, "coverage": coverage_rows,
+             "weak": weak_rows}[job[0]].append(done[job])  # fmt: skip
+    not_run = [f"{k} {r} {n or ''} seed {s}" for k, r, n, s in not_run]
     state = "**partial: the run was still going or was cut short**; " if partial else ""
-    md = [f"# Calibration matrix\n\n{state}{minutes:.1f} min on this machine; budget {args.minutes:g} min.\n"]
+    how = f" ({workers} cases at a time, {threads} rollout threads each)" if workers > 1 else ""
+    md = [f"# Calibration matrix\n\n{state}{minutes:.1f} min on this machine{how}; budget {args.minutes:g} min.\n"]
     ok = [r for r in rows if "error" not in r]
     md.append("\n## Each catalogued effect, drawn by the generator (effect k of a robot's catalog: seed k + 1)\n\n")
     md.append(md_table(
@@ -146,12 +221,13 @@ def report(args, minutes: float, rows, null_rows, ooc_rows, coverage_rows, weak_
     md.append(md_table(
         ["robot", "case", "chosen", "before", "after", "unexplained", "as expected"],
         [[r["robot"], "null", ", ".join(r["chosen"]) or "none", r["error_before"], r["error_after"],
-          _yn(r["unexplained"]), _yn(not r["chosen"] and r["error_after"] < r["threshold"])] for r in null_rows]
+          _yn(r["unexplained"]), _yn(not r["chosen"] and r["error_after"] < r["threshold"])] for r in null_rows
+         if "error" not in r]
         + [[r["robot"], r["effect"], ", ".join(r["chosen"]) or "none", r["error_before"], r["error_after"],
             _yn(r["unexplained"]), _yn(r["unexplained"] and r["excess_ratio"] > 0.5)] for r in ooc_rows
            if "error" not in r]
-        + [[r["robot"], r["effect"], f"not generated at seed {r['seed']}: {r['error']}", "", "", "", "not run"]
-           for r in ooc_rows if "error" in r],
+        + [[r["robot"], r["effect"] or "null", f"not generated at seed {r['seed']}: {r['error']}", "", "", "",
+            "not run"] for r in null_rows + ooc_rows if "error" in r],
     ))  # fmt: skip
     md.append(f"\n## Coverage of the 95% intervals over {args.seeds} seeds (goal >= 80%)\n\n")
     cov_table = []
@@ -170,10 +246,10 @@ def report(args, minutes: float, rows, null_rows, ooc_rows, coverage_rows, weak_
         title = "Not run yet" if partial else "Not run within the budget"
         md.append(f"\n## {title} ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
         md.append("\n")
-    save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "effects": rows,
-                                "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
-                                "weak": weak_rows, "partial": partial,
-                                "not_run": not_run}, "".join(md), echo=not partial)  # fmt: skip
+    save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "workers": workers, "threads": threads,
+                     "effects": rows, "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
+                     "weak": weak_rows, "partial": partial, "not_run": not_run},
+         "".join(md), echo=not partial)  # fmt: skip
 
 
 def _weak(robot: str, name: str) -> dict:

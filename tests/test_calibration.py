@@ -289,3 +289,28 @@ def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
     assert seen["explained_fraction"] > 0.5 and unseen["explained_fraction"] < 1e-6
     result = fit(problem, nominal, _params(carried), start=seen["start"], intervals=False)
     assert abs(result.values["mass.scale"] - problem.truth) < 0.02
+
+
+def test_the_matrix_gives_the_same_cases_on_ray_as_in_turn():
+    """benchmarks/calibration_matrix.py --workers K runs its cases as Ray tasks, each on its share of the cores: same
+    seeds, same results as one after another (the wall time of a case aside)."""
+    pytest.importorskip("ray")
+    from benchmarks.calibration_matrix import _on_ray, run_job
+
+    plan = [("null", "motor", None, 2), ("effect", "servo", "delay", 1)]
+    spread = {job: row for job, row, _ in _on_ray(plan, lambda: True, workers=2, threads=1, address=None)}
+    for job in plan:
+        here, there = run_job(job)[0], spread[job]
+        here.pop("seconds"), there.pop("seconds")
+        assert json.dumps(here, sort_keys=True) == json.dumps(there, sort_keys=True)
+
+
+@pytest.mark.parametrize("value", ["0", "two", "-1"])
+def test_a_bad_thread_cap_is_named(monkeypatch, value):
+    from envs.common.batch import THREADS_VARIABLE, default_threads
+
+    monkeypatch.setenv(THREADS_VARIABLE, value)
+    with pytest.raises(ValueError, match=f"{THREADS_VARIABLE}='{value}'"):
+        default_threads()
+    monkeypatch.setenv(THREADS_VARIABLE, "1")
+    assert default_threads() == 1

@@ -18,10 +18,19 @@ from mujoco import batch
 
 from envs.common.simulation import CTRL_SPEC
 
+THREADS_VARIABLE = "SKITTER_THREADS"  # caps the threads of every batch and calibration rollout of this process
+
 
 def default_threads() -> int:
-    """The machine's cores (those this process may use)."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    """The machine's cores (those this process may use), or fewer where ``$SKITTER_THREADS`` says so (processes
+    that share the machine, such as the calibration matrix's parallel cases, take their share of it)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    cap = os.environ.get(THREADS_VARIABLE, "").strip()
+    if not cap:
+        return cores
+    if not cap.isdigit() or int(cap) < 1:
+        raise ValueError(f"environment variable {THREADS_VARIABLE}={cap!r}: expected a whole number of at least 1")
+    return min(int(cap), cores)
 
 
 class BatchSimulation:
