@@ -26,10 +26,13 @@ one unit: SB3's archive with the observation-normalization statistics and a mani
 written atomically, so a kill during the save leaves the previous file or none, never a model without its statistics.
 A checkpoint is one folder, written under a temporary name and renamed into place: ``model.zip``, for SAC and TD3 the
 replay buffer (kept only in the newest checkpoint), and ``checkpoint.json``. ``--resume`` continues from the newest
-checkpoint that loads, and says which ones it skipped and why. Ctrl-C saves a checkpoint first.
+checkpoint that loads, says which ones it skipped and why, and removes the temporary folders and files a killed run
+left. Ctrl-C and SIGTERM save a checkpoint first.
 
-Every input is checked before anything is created: the command line, the hyperparameter file (each field against the
-algorithm's constructor), and ``env_kwargs`` (by making the env once).
+Every input is checked before anything is created: the command line (``--runs-dir`` by making and removing a probe
+folder), the hyperparameter file (each field against the algorithm's constructor; numbers must be finite),
+``env_kwargs`` (by making the env once) and the model (built before the run folder; if SB3 or torch cannot build it,
+the error names the field to blame).
 """
 
 from __future__ import annotations
@@ -39,9 +42,11 @@ import ast
 import difflib
 import inspect
 import json
+import math
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -49,6 +54,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 import gymnasium as gym
@@ -71,7 +77,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 import envs  # noqa: F401  (registers the skitter envs)
 from agents.evaluation import episode_metrics
-from agents.sb3 import ALGOS, ModelFileError, read_model_file, save_model
+from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
 from agents.vec_env import make_batched_vec_env
 from envs.common.io import refuse_overwrite, write_json, write_text
 
@@ -141,6 +147,14 @@ TORCH_MODULES = {
 
 class ConfigError(Exception):
     """A problem with the command line, a hyperparameter file or a run folder: reported in one line, no traceback."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a job scheduler's time limit), handled like Ctrl-C: train() saves a checkpoint first."""
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
 
 
 # --- hyperparameters --------------------------------------------------------------------------------------------
@@ -282,6 +296,8 @@ def _number(key: str, value: Any, kind: type) -> int | float:
             raise ValueError("expected a number") from None
     if isinstance(value, bool) or not isinstance(value, int if kind is int else int | float):
         raise ValueError("expected an integer" if kind is int else "expected a number")
+    if not math.isfinite(value):
+        raise ValueError("must be a finite number")
     low, high = LIMITS.get(key, (None, None))
     if (low is not None and value < low) or (high is not None and value > high):
         bounds = f"between {low} and {high}" if high is not None else f"at least {low}"
@@ -347,7 +363,19 @@ def parse_policy_kwargs(value: Any) -> dict[str, Any]:
     for key in ("activation_fn", "optimizer_class"):
         if isinstance(value.get(key), str):
             value[key] = parse_expression(value[key])
+    _check_finite(value)
     return value
+
+
+def _check_finite(value: Any) -> None:
+    """ValueError if a float anywhere in ``value`` (nested lists and mappings) is NaN or infinite."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{value} is not a finite number")
+    if isinstance(value, dict):
+        value = list(value.values())
+    if isinstance(value, list | tuple):
+        for item in value:
+            _check_finite(item)
 
 
 def parse_expression(text: str) -> Any:
@@ -392,11 +420,11 @@ def check_env_kwargs(env_id: str, hp: Hyperparams) -> None:
         raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
 
 
-def make_env(env_id: str, hp: Hyperparams, seed: int, stats: VecNormalize | None = None) -> VecEnv:
+def make_env(env_id: str, hp: Hyperparams, seed: int, checkpoint: Checkpoint | None = None) -> VecEnv:
     """``hp.n_envs`` copies of ``env_id`` seeded ``seed``, ``seed + 1``, ..., normalised as ``hp`` says: by default
     the batched env (all of them in one ``mujoco.batch`` on ``hp.nthread`` threads), or SB3's ``DummyVecEnv``.
 
-    ``stats``: VecNormalize statistics to continue from (when resuming).
+    ``checkpoint``: when resuming, the checkpoint the envs must fit, whose VecNormalize statistics continue.
     """
     try:
         if hp.vec_env == "batched" and gym.spec(env_id).vector_entry_point is not None:
@@ -405,12 +433,14 @@ def make_env(env_id: str, hp: Hyperparams, seed: int, stats: VecNormalize | None
             venv = make_vec_env(env_id, hp.n_envs, seed=seed, env_kwargs=hp.env_kwargs, vec_env_cls=DummyVecEnv)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
+    if checkpoint is not None:
+        check_fits(checkpoint, venv, env_id)
     if hp.normalize is None:
         return venv
-    if stats is not None:
-        stats.set_venv(venv)
-        stats.training = True
-        return stats
+    if checkpoint is not None and checkpoint.stats is not None:
+        checkpoint.stats.set_venv(venv)
+        checkpoint.stats.training = True
+        return checkpoint.stats
     return VecNormalize(venv, **hp.normalize)
 
 
@@ -424,15 +454,29 @@ def make_action_noise(hp: Hyperparams, venv: VecEnv) -> ActionNoise | None:
 
 
 def build_model(algo: str, hp: Hyperparams, venv: VecEnv, seed: int) -> BaseAlgorithm:
-    """A new ``algo`` model on ``venv`` from ``hp``."""
-    kwargs = {"device": "cpu", **hp.model_kwargs}
-    if hp.noise is not None:
-        kwargs["action_noise"] = make_action_noise(hp, venv)
-    try:
+    """A new ``algo`` model on ``venv`` from ``hp``.
+
+    Whatever SB3 or torch raise while building it (a bad ``device``, a negative layer size in ``policy_kwargs``, ...)
+    is a ConfigError naming the field without which the model builds, found by building it again without each field.
+    """
+
+    def build(model_kwargs: dict[str, Any]) -> BaseAlgorithm:
+        kwargs = {"device": "cpu", **model_kwargs}
+        if hp.noise is not None:
+            kwargs["action_noise"] = make_action_noise(hp, venv)
         return ALGOS[algo](env=venv, seed=seed, verbose=0, **kwargs)
-    except (ValueError, TypeError, AssertionError, KeyError) as exc:
-        message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"{hp.where}: cannot build the {algo.upper()} model: {message}") from None
+
+    try:
+        return build(hp.model_kwargs)
+    except Exception as exc:  # SB3 and torch raise anything: RuntimeError, ValueError, AssertionError, ...
+        message = f"cannot build the {algo.upper()} model: {error_reason(exc)}"
+    for key in hp.model_kwargs:
+        try:
+            build({k: v for k, v in hp.model_kwargs.items() if k != key})
+        except Exception:
+            continue
+        raise ConfigError(f"{hp.where}: field {key!r} = {hp.raw[key]!r}: {message}")
+    raise ConfigError(f"{hp.where}: {message}")
 
 
 # --- run folders, checkpoints, saving ---------------------------------------------------------------------------
@@ -441,6 +485,22 @@ def build_model(algo: str, hp: Hyperparams, venv: VecEnv, seed: int) -> BaseAlgo
 def run_name(env_id: str, algo: str, seed: int) -> str:
     stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
     return f"{env_id.replace('/', '_')}__{algo}__{seed}__{stamp}"
+
+
+def check_runs_dir(runs_dir: Path) -> None:
+    """Refuse a ``--runs-dir`` where no run folder can be made (a file, under a file, not writable), creating nothing:
+    a probe folder made in its nearest existing ancestor is removed at once."""
+    existing = runs_dir
+    while not os.path.exists(existing):  # ends at "." or "/"
+        existing = existing.parent
+    if existing == runs_dir and not existing.is_dir():
+        raise ConfigError(f"--runs-dir {runs_dir} exists and is not a directory")
+    if not existing.is_dir():
+        raise ConfigError(f"--runs-dir {runs_dir}: {existing} is a file, not a directory")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".train-probe-", dir=existing))
+    except OSError as exc:
+        raise ConfigError(f"--runs-dir {runs_dir}: cannot create folders in {existing} ({exc.strerror})") from None
 
 
 def make_run_dir(runs_dir: Path, name: str) -> Path:
@@ -452,6 +512,8 @@ def make_run_dir(runs_dir: Path, name: str) -> Path:
         run_dir.mkdir()
     except FileExistsError:
         raise ConfigError(f"run folder {run_dir} already exists; runs are never overwritten") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot create the run folder {run_dir}: {exc.strerror}") from None
     return run_dir
 
 
@@ -522,6 +584,7 @@ def _umask() -> int:
 class Checkpoint:
     folder: Path
     num_timesteps: int
+    model: BaseAlgorithm  # loaded without an env
     stats: VecNormalize | None
 
 
@@ -529,8 +592,8 @@ def checkpoints_newest_first(run_dir: Path) -> list[Path]:
     return sorted((run_dir / "checkpoints").glob("step_*"), key=lambda p: p.name, reverse=True)
 
 
-def load_checkpoint(folder: Path) -> Checkpoint:
-    """Check one checkpoint folder: its marker, its model file (and statistics if it needs them); ConfigError if not."""
+def load_checkpoint(folder: Path, algo: str, device: str) -> Checkpoint:
+    """Load one checkpoint folder: its marker, its model (and statistics if it needs them); ConfigError if it fails."""
     try:
         record = json.loads((folder / "checkpoint.json").read_text())
         steps = int(record["num_timesteps"])
@@ -538,17 +601,18 @@ def load_checkpoint(folder: Path) -> Checkpoint:
         raise ConfigError(f"{folder.name}: bad or missing checkpoint.json ({exc})") from None
     try:
         _, stats = read_model_file(folder / "model.zip")
+        model = load_model(folder / "model.zip", [ALGOS[algo]], device)
     except ModelFileError as exc:
         raise ConfigError(str(exc)) from None
-    return Checkpoint(folder, steps, stats)
+    return Checkpoint(folder, steps, model, stats)
 
 
-def latest_checkpoint(run_dir: Path) -> Checkpoint:
-    """The newest checkpoint of ``run_dir`` that is whole; the broken ones newer than it are reported on stderr."""
+def latest_checkpoint(run_dir: Path, algo: str, device: str) -> Checkpoint:
+    """The newest checkpoint of ``run_dir`` that loads; the broken ones newer than it are reported on stderr."""
     skipped = []
     for folder in checkpoints_newest_first(run_dir):
         try:
-            checkpoint = load_checkpoint(folder)
+            checkpoint = load_checkpoint(folder, algo, device)
         except ConfigError as exc:
             skipped.append(str(exc))
             continue
@@ -557,6 +621,36 @@ def latest_checkpoint(run_dir: Path) -> Checkpoint:
         return checkpoint
     detail = f" ({'; '.join(skipped)})" if skipped else ""
     raise ConfigError(f"{run_dir}: no checkpoint to resume from (expected {run_dir / 'checkpoints'}/step_*/){detail}")
+
+
+def check_fits(checkpoint: Checkpoint, venv: VecEnv, env_id: str) -> None:
+    """ConfigError if the checkpoint's model was trained on envs unlike ``venv``."""
+    model = checkpoint.model
+    for what, have, want in (
+        ("observation space", model.observation_space, venv.observation_space),
+        ("action space", model.action_space, venv.action_space),
+        ("number of envs", model.n_envs, venv.num_envs),
+    ):
+        if have != want:
+            venv.close()
+            raise ConfigError(
+                f"checkpoint {checkpoint.folder / 'model.zip'} does not fit the run's env {env_id}: its {what} is "
+                f"{have}, the env's is {want} (trained on another env or version?)"
+            )
+
+
+def remove_unfinished_saves(run_dir: Path) -> None:
+    """Delete what a killed run left half-written: checkpoint folders under their temporary names
+    (``checkpoints/.step_*``) and the temporary files of atomic writes (``.*.tmp*``). Resuming never reads them."""
+    leftovers = sorted([*(run_dir / "checkpoints").glob(".step_*"), *run_dir.glob(".*.tmp*")])
+    for path in leftovers:
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+    if leftovers:
+        names = ", ".join(str(path.relative_to(run_dir)) for path in leftovers)
+        print(f"train.py: removed what a killed run left half-written: {names}", file=sys.stderr)
 
 
 def _now() -> str:
@@ -667,6 +761,7 @@ def start_run(args: argparse.Namespace) -> Path:
     for flag, value in (("--env", args.env), ("--algo", args.algo), ("--timesteps", args.timesteps)):
         if value is None:
             raise ConfigError(f"{flag} is required (unless you --resume a run)")
+    check_runs_dir(Path(args.runs_dir))
     check_env_id(args.env)
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
@@ -711,7 +806,7 @@ def resume_run(args: argparse.Namespace) -> Path:
     check_resume_flags(args, config)
     check_env_id(env_id)
     hp = resolve_hyperparams(hyperparams, algo, where=str(config_path))
-    checkpoint = latest_checkpoint(run_dir)
+    checkpoint = latest_checkpoint(run_dir, algo, hp.model_kwargs.get("device", "cpu"))
     done = checkpoint.num_timesteps
     timesteps = args.timesteps or config["timesteps"]
     if timesteps <= done:
@@ -719,17 +814,25 @@ def resume_run(args: argparse.Namespace) -> Path:
     if hp.normalize is not None and checkpoint.stats is None:
         raise ConfigError(f"{checkpoint.folder}: the run normalizes observations but the checkpoint has no statistics")
     set_random_seed(seed + done)  # not the first run's seeds: the resumed episodes should differ from its first ones
-    venv = make_env(env_id, hp, seed + done, checkpoint.stats)
-    model = ALGOS[algo].load(checkpoint.folder / "model.zip", env=venv, device=hp.model_kwargs.get("device", "cpu"))
+    venv = make_env(env_id, hp, seed + done, checkpoint)
+    model = checkpoint.model
+    model.set_env(venv)
     replay_buffer = checkpoint.folder / "replay_buffer.pkl"
     if isinstance(model, OffPolicyAlgorithm):
         if replay_buffer.is_file():
-            model.load_replay_buffer(replay_buffer)
+            try:
+                model.load_replay_buffer(replay_buffer)
+            except Exception as exc:  # unpickling a damaged file raises anything
+                raise ConfigError(
+                    f"cannot read checkpoint {replay_buffer}: {error_reason(exc)}; delete it to continue with an "
+                    "empty replay buffer"
+                ) from None
         else:
             print(
                 f"train.py: {checkpoint.folder.name} has no replay buffer; continuing with an empty one",
                 file=sys.stderr,
             )
+    remove_unfinished_saves(run_dir)
     config["timesteps"] = timesteps
     config["checkpoint_freq"] = args.checkpoint_freq or config.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)
     config.setdefault("resumed", []).append({"from_timesteps": done, "timesteps": timesteps, "time": _now()})
@@ -817,13 +920,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         model_path = resume_run(args) if args.resume else start_run(args)
     except ConfigError as exc:
         print(f"train.py: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated:
+        return 128 + signal.SIGTERM  # the shell's code for a process ended by SIGTERM
     except KeyboardInterrupt:
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     print(f"model: {model_path}")
     print(f"tensorboard: tensorboard --logdir {model_path.parent / 'tb'}")
     return 0

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import pickle
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -87,6 +88,29 @@ def read_model_file(path: str | Path) -> tuple[dict[str, Any] | None, VecNormali
     return manifest, stats
 
 
+def load_model(path: str | Path, algos: Sequence[type[BaseAlgorithm]], device: str = "cpu") -> BaseAlgorithm:
+    """The model in ``path``, loaded by the first of ``algos`` that can (a model from elsewhere names none).
+
+    Raises ModelFileError "cannot read checkpoint PATH: reason" if none can, e.g. for weights damaged inside a whole
+    zip (which :func:`read_model_file` cannot see).
+    """
+    reasons = []
+    for cls in algos:
+        try:
+            return cls.load(path, device=device)
+        except Exception as exc:  # a damaged file raises anything: UnpicklingError, BadZipFile, RuntimeError, ...
+            reasons.append(f"as {cls.__name__}: {error_reason(exc)}" if len(algos) > 1 else error_reason(exc))
+    raise ModelFileError(f"cannot read checkpoint {path}: {'; '.join(reasons)}")
+
+
+def error_reason(exc: Exception) -> str:
+    """One line saying why a file did not load. Torch's unpickling errors span lines and advise unsafe loading."""
+    if isinstance(exc, pickle.UnpicklingError):
+        return "corrupt contents (UnpicklingError)"
+    lines = str(exc).strip().splitlines()
+    return f"{lines[0]} ({type(exc).__name__})" if lines else type(exc).__name__
+
+
 class SB3Policy:
     """A trained model with the observation normalization it was trained with.
 
@@ -103,8 +127,10 @@ class SB3Policy:
         if manifest is None and stats is None:
             beside = path.parent / STATS
             if beside.is_file():
-                with beside.open("rb") as fh:
-                    stats = pickle.load(fh)
+                try:
+                    stats = pickle.loads(beside.read_bytes())
+                except Exception as exc:  # unpickling garbage raises anything
+                    raise ModelFileError(f"cannot read {beside}: {error_reason(exc)}") from None
             elif not allow_unnormalized:
                 raise ModelFileError(
                     f"{path}: a model not written by train.py, with no {STATS} in it or beside it; if it was trained "
@@ -113,16 +139,7 @@ class SB3Policy:
         self.manifest = manifest or {}
         self.normalizer = stats
         algo = self.manifest.get("algo")
-        candidates = [ALGOS[algo]] if algo in ALGOS else list(ALGOS.values())
-        errors = []
-        for cls in candidates:
-            try:
-                self.model = cls.load(path, device=device)
-                break
-            except (ValueError, KeyError, RuntimeError, TypeError, zipfile.BadZipFile, EOFError) as exc:
-                errors.append(f"{cls.__name__}: {exc}")
-        else:
-            raise ModelFileError(f"{path}: not a loadable PPO, SAC or TD3 model ({'; '.join(errors)})")
+        self.model = load_model(path, [ALGOS[algo]] if algo in ALGOS else list(ALGOS.values()), device)
         if env is not None:
             space = getattr(env, "single_observation_space", env.observation_space)  # a batched env's, per simulation
             want, have = space.shape, self.model.observation_space.shape

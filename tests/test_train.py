@@ -17,7 +17,7 @@ import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import envs  # noqa: F401  (registers the skitter envs)
-from agents.sb3 import SB3Policy, read_model_file
+from agents.sb3 import ModelFileError, SB3Policy, read_model_file
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = "skitter/RoachWalk-v1"
@@ -32,6 +32,8 @@ skitter/RoachWalk-v1:
   noise_std: 0.1
   policy_kwargs: "dict(net_arch=[32, 32])"
 """
+# PPO on a budget: one env, an update every 64 steps
+TINY_PPO = f"{WALK}:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  n_epochs: 1\n  normalize: true\n"
 
 
 def run_train(*args: object) -> subprocess.CompletedProcess:
@@ -176,18 +178,27 @@ def break_marker(folder: Path) -> None:
     (folder / "checkpoint.json").write_text("{not json")
 
 
-def break_statistics(folder: Path) -> None:
-    """Rewrite the model file with a truncated statistics pickle inside."""
-    model = folder / "model.zip"
+def rewrite_entry(model: Path, name: str, damage) -> None:
+    """Rewrite the model file with its entry ``name`` damaged by ``damage(bytes)``; the zip's checksums stay right."""
     with zipfile.ZipFile(model) as src:
         entries = {item.filename: src.read(item) for item in src.infolist()}
-    entries["vecnormalize.pkl"] = entries["vecnormalize.pkl"][:40]
+    entries[name] = damage(entries[name])
     with zipfile.ZipFile(model, "w") as dst:
-        for name, data in entries.items():
-            dst.writestr(name, data)
+        for entry, data in entries.items():
+            dst.writestr(entry, data)
 
 
-@pytest.mark.parametrize("breaker", [break_truncated_zip, break_marker, break_statistics])
+def break_statistics(folder: Path) -> None:
+    """A truncated statistics pickle inside the model file."""
+    rewrite_entry(folder / "model.zip", "vecnormalize.pkl", lambda data: data[:40])
+
+
+def break_weights(folder: Path) -> None:
+    """Garbage in place of the policy's weights inside the model file."""
+    rewrite_entry(folder / "model.zip", "policy.pth", lambda data: b"garbage" * 10)
+
+
+@pytest.mark.parametrize("breaker", [break_truncated_zip, break_marker, break_statistics, break_weights])
 def test_resume_falls_back_past_a_corrupt_newest_checkpoint_and_says_so(ppo_run, tmp_path, breaker):
     run_dir = shutil.copytree(ppo_run, tmp_path / ppo_run.name)
     saved = checkpoints(run_dir)
@@ -255,3 +266,171 @@ def test_batched_and_dummy_vec_envs_train_the_same_model(tmp_path):
         weights[vec_env] = SB3Policy(run_dir / "model.zip").model.policy.state_dict()
     for name, tensor in weights["batched"].items():
         assert torch.equal(tensor, weights["dummy"][name]), name
+
+
+# --- bad input, damaged checkpoints, SIGTERM ----------------------------------------------------------------------
+
+
+def files(root: Path) -> dict[str, bytes | None]:
+    """Every path under ``root`` with its content (None for a folder)."""
+    return {str(p.relative_to(root)): None if p.is_dir() else p.read_bytes() for p in sorted(root.rglob("*"))}
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess, *expected: str) -> None:
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    for text in expected:
+        assert text in result.stderr, (text, result.stderr)
+
+
+def train_with(tmp_path: Path, algo: str, body: str) -> subprocess.CompletedProcess:
+    """train.py with a hyperparameter file ``bad.yml`` whose entry for WALK is ``body``; runs go to tmp_path/runs."""
+    hyperparams = tmp_path / "bad.yml"
+    hyperparams.write_text(f"{WALK}:\n{body}\n")
+    args = ["--env", WALK, "--algo", algo, "--timesteps", 128, "--runs-dir", tmp_path / "runs"]
+    return run_train(*args, "--hyperparams", hyperparams)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    """A normalized PPO run of 128 steps with checkpoints at 64 and 128."""
+    runs = tmp_path_factory.mktemp("runs")
+    (runs / "ppo.yml").write_text(TINY_PPO)
+    args = ["--env", WALK, "--algo", "ppo", "--timesteps", 128, "--checkpoint-freq", 64, "--run-name", "tiny"]
+    result = run_train(*args, "--runs-dir", runs, "--hyperparams", runs / "ppo.yml")
+    assert result.returncode == 0, result.stderr
+    return runs / "tiny"
+
+
+@pytest.mark.parametrize(
+    ("algo", "body", "expected"),
+    [
+        ("ppo", "  gamma: .nan", ["'gamma' = nan: must be a finite number"]),
+        ("ppo", "  learning_rate: .inf", ["'learning_rate' = inf: must be a finite number"]),
+        ("ppo", "  learning_rate: lin_nan", ["'learning_rate' = 'lin_nan': must be a finite number"]),
+        ("ppo", "  policy_kwargs: {log_std_init: .nan}", ["'policy_kwargs'", "nan is not a finite number"]),
+        ("sac", "  ent_coef: .nan", ["'ent_coef' = nan: must be a finite number"]),
+        ("sac", "  tau: -.inf", ["'tau' = -inf: must be a finite number"]),
+    ],
+)
+def test_non_finite_hyperparameters_are_refused(tmp_path, algo, body, expected):
+    assert_one_line_error(train_with(tmp_path, algo, body), "bad.yml", *expected)
+    assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        ("  device: banana", ["field 'device' = 'banana': cannot build the PPO model", "device string: banana"]),
+        ("  policy_kwargs: {net_arch: [-5, 64]}", ["field 'policy_kwargs' = {'net_arch': [-5, 64]}", "dimension -5"]),
+    ],
+)
+def test_a_model_torch_cannot_build_is_a_config_error_naming_the_field(tmp_path, body, expected):
+    assert_one_line_error(train_with(tmp_path, "ppo", body), "bad.yml", *expected)
+    assert not (tmp_path / "runs").exists()
+
+
+def test_resume_refuses_a_checkpoint_of_another_env(tiny_run, tmp_path):
+    run_dir = shutil.copytree(tiny_run, tmp_path / "run")
+    config = run_dir / "config.json"
+    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v1"))  # 22 observations, not 21
+    before = files(run_dir)
+    result = run_train("--resume", run_dir, "--timesteps", 256)
+    model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"
+    assert_one_line_error(result, f"checkpoint {model}", "observation space", "(21,)", "(22,)")
+    assert files(run_dir) == before
+
+
+def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_path):
+    run_dir = shutil.copytree(tiny_run, tmp_path / "run")
+    shutil.rmtree(run_dir / "checkpoints" / "step_0000000064")
+    break_weights(run_dir / "checkpoints" / "step_0000000128")
+    model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"
+    before = files(run_dir)
+    result = run_train("--resume", run_dir, "--timesteps", 256)
+    assert_one_line_error(result, "no checkpoint to resume from", f"cannot read checkpoint {model}: corrupt contents")
+    assert files(run_dir) == before
+
+    with pytest.raises(ModelFileError, match=r"cannot read checkpoint .*model\.zip: corrupt"):
+        SB3Policy(model, gym.make(WALK))
+    foreign = tmp_path / "zoo" / "model.zip"  # RL Zoo's layout: no manifest, the statistics beside the model
+    foreign.parent.mkdir()
+    with zipfile.ZipFile(tiny_run / "model.zip") as src, zipfile.ZipFile(foreign, "w") as dst:
+        for item in src.infolist():
+            if item.filename not in ("skitter.json", "vecnormalize.pkl"):
+                dst.writestr(item, src.read(item))
+    (foreign.parent / "vecnormalize.pkl").write_bytes(b"garbage")
+    with pytest.raises(ModelFileError, match=r"cannot read .*vecnormalize\.pkl: corrupt"):
+        SB3Policy(foreign, gym.make(WALK))
+    out = tmp_path / "evaluation"
+    command = [sys.executable, str(ROOT / "evaluate.py"), "--env", WALK, "--policy", str(model), "--out", str(out)]
+    result = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert_one_line_error(result, f"cannot read checkpoint {model}: corrupt contents")
+    assert not out.exists()
+
+
+def test_resume_refuses_a_corrupt_replay_buffer(tmp_path):
+    (tmp_path / "tiny.yml").write_text(TINY_OFF_POLICY)
+    args = ["--env", WALK, "--algo", "sac", "--timesteps", 120, "--runs-dir", tmp_path / "runs", "--run-name", "sac"]
+    assert run_train(*args, "--hyperparams", tmp_path / "tiny.yml").returncode == 0
+    run_dir = tmp_path / "runs" / "sac"
+    buffer = checkpoints(run_dir)[120] / "replay_buffer.pkl"
+    buffer.write_bytes(buffer.read_bytes()[:100])
+    before = files(run_dir)
+    result = run_train("--resume", run_dir, "--timesteps", 240)
+    assert_one_line_error(result, f"cannot read checkpoint {buffer}: ", "delete it to continue with an empty")
+    assert files(run_dir) == before
+
+
+@pytest.mark.parametrize(
+    ("where", "problem"),
+    [
+        ("notes.txt", "exists and is not a directory"),
+        ("notes.txt/runs", "notes.txt is a file, not a directory"),
+        ("/proc/nope", "cannot create folders in /proc"),  # tmp_path / "/proc/nope" is /proc/nope
+    ],
+)
+def test_a_runs_dir_where_no_folder_can_be_made_is_refused_up_front(tmp_path, where, problem):
+    (tmp_path / "notes.txt").write_text("a user's file")
+    before = files(tmp_path)
+    result = run_train("--env", WALK, "--algo", "ppo", "--timesteps", 128, "--runs-dir", tmp_path / where)
+    assert_one_line_error(result, f"--runs-dir {tmp_path / where}", problem)
+    assert files(tmp_path) == before
+
+
+def test_sigterm_saves_a_checkpoint_and_exits_cleanly(tmp_path):
+    (tmp_path / "ppo.yml").write_text(TINY_PPO)
+    runs = tmp_path / "runs"
+    command = [sys.executable, str(ROOT / "train.py"), "--env", WALK, "--algo", "ppo", "--timesteps", "10000000",
+               "--checkpoint-freq", "10000000", "--runs-dir", str(runs), "--hyperparams", str(tmp_path / "ppo.yml"),
+               "--no-progress"]  # fmt: skip
+    process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60.0
+        while not any(runs.glob("*/tb/events.*")) and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(1.0)  # well into learning
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    assert "Traceback" not in stderr and "checkpoint saved" in stderr and "continue with" in stderr
+    (run_dir,) = runs.iterdir()
+    (saved,) = checkpoints(run_dir).values()
+    manifest, stats = read_model_file(saved / "model.zip")
+    assert manifest["normalized"] and stats is not None
+    assert not list((run_dir / "checkpoints").glob(".*")), "no temporary checkpoint folder left behind"
+
+
+def test_resume_removes_what_a_killed_run_left_half_written(tiny_run, tmp_path):
+    run_dir = shutil.copytree(tiny_run, tmp_path / "run")
+    stale = run_dir / "checkpoints" / ".step_0000000192.k1ll3d"
+    stale.mkdir()
+    (stale / "model.zip").write_bytes(b"half a model")
+    (run_dir / ".model.k1ll3d.tmp.zip").write_bytes(b"half a model")
+    result = run_train("--resume", run_dir, "--timesteps", 192)
+    assert result.returncode == 0, result.stderr
+    assert "removed what a killed run left half-written" in result.stderr
+    assert not stale.exists() and not list(run_dir.glob(".*"))
+    assert max(checkpoints(run_dir)) == 192
