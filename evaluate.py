@@ -83,7 +83,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     repeated = sorted({s for s in args.policy if args.policy.count(s) > 1})
     if repeated:
         p.error(f"--policy {repeated[0]!r} is given twice")
-    problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign)
+    problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign(args.out))
     if problem:
         p.error(problem)
     return args
@@ -94,14 +94,20 @@ RESULT_FILES = ("results.json", "results.md")
 RESULT_FOLDERS = {"plots": ".png", "videos": ".mp4", "telemetry": ".parquet"}
 
 
-def _foreign(entry: Path) -> list[str]:
-    """What in ``entry`` of --out evaluate.py does not write (as paths within --out)."""
-    if entry.name in RESULT_FILES and entry.is_file():
-        return []
-    suffix = RESULT_FOLDERS.get(entry.name)
-    if suffix is None or not entry.is_dir():
-        return [entry.name + "/" * entry.is_dir()]
-    return [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == suffix)]
+def _foreign(out: Path):
+    """What in an entry of ``out`` evaluate.py does not write (as paths within --out): a folder without
+    ``results.json`` holds no earlier run, so all of it is the user's."""
+    earlier = (out / "results.json").is_file()
+
+    def foreign(entry: Path) -> list[str]:
+        if earlier and entry.name in RESULT_FILES and entry.is_file():
+            return []
+        suffix = RESULT_FOLDERS.get(entry.name)
+        if not earlier or suffix is None or not entry.is_dir():
+            return [entry.name + "/" * entry.is_dir()]
+        return [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == suffix)]
+
+    return foreign
 
 
 def slugs(specs: list[str]) -> dict[str, str]:

@@ -79,6 +79,7 @@ import envs  # noqa: F401  (registers the skitter envs)
 from agents.evaluation import episode_metrics
 from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
 from agents.vec_env import make_batched_vec_env
+from envs.common.batch import default_threads
 from envs.common.io import refuse_overwrite, write_json, write_text
 
 ROOT = Path(__file__).resolve().parent
@@ -801,6 +802,10 @@ def resume_run(args: argparse.Namespace) -> Path:
         hyperparams = config["hyperparams"]
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ConfigError(f"--resume {run_dir}: cannot read {config_path} ({exc})") from None
+    for key in ("timesteps", "n_envs"):  # what the checks below read
+        value = config.get(key)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ConfigError(f"{config_path}: field {key!r} = {value!r}: expected a whole number of at least 1")
     if algo not in ALGOS:
         raise ConfigError(f"{config_path}: unknown algo {algo!r}")
     check_resume_flags(args, config)
@@ -920,6 +925,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    try:
+        default_threads()  # the environment's thread cap, before it is blamed on a hyperparameter file
+    except ValueError as exc:
+        print(f"train.py: error: {exc}", file=sys.stderr)
+        return 2
     previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         model_path = resume_run(args) if args.resume else start_run(args)

@@ -138,6 +138,13 @@ def main(argv: list[str] | None = None) -> int:
         value = getattr(args, flag)
         if value is not None and value < 1:
             p.error(f"--{flag} {value}: expected at least 1")
+    if not args.minutes > 0:
+        p.error(f"--minutes {args.minutes:g}: expected a positive budget")
+    unknown = sorted(set(args.robots) - set(adapters()))
+    if unknown:
+        p.error(f"--robots {unknown[0]!r}: no calibration adapter (known: {', '.join(sorted(adapters()))})")
+    if not args.name or Path(args.name).name != args.name or args.name.startswith("."):
+        p.error(f"--name {args.name!r}: a file name under benchmarks/results/, without folders")
     threads = args.threads or (1 if args.address else max(1, default_threads() // args.workers))
     start = time.perf_counter()
 

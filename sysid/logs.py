@@ -116,11 +116,15 @@ class ColumnMap:
         path = Path(path)
         try:
             data = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise LogError(f"{path}: not a readable JSON column map ({exc})") from None
         if not isinstance(data, dict) or "time" not in data:
             raise LogError(f"{path}: a column map is a JSON object with at least a 'time' entry")
         for name, entry in data.items():
+            unknown = sorted(set(entry) - {"column", "unit", "counts_per_unit"}) if isinstance(entry, dict) else []
+            if unknown:
+                raise LogError(f"{path}: entry {name!r}: unknown key {unknown[0]!r} (known: column, unit, "
+                               "counts_per_unit)")  # fmt: skip
             if not isinstance(entry, dict) or "column" not in entry:
                 raise LogError(f"{path}: entry {name!r} needs a 'column' (and a 'unit')")
             unit = entry.get("unit", "1")

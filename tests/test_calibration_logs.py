@@ -331,12 +331,20 @@ def test_a_stuck_imu_column_is_warned_of_and_a_file_of_bad_rows_names_the_first(
         ({"column": "enc", "unit": "rev", "counts_per_unit": "abc"}, r"'counts_per_unit' 'abc' is not a positive"),
         ({"column": "enc", "unit": ["rev"]}, r"unknown unit \['rev'\]"),
         ({"column": 3, "unit": "rev"}, r"'column' 3 is not a column name"),
+        ({"column": "enc", "unit": "rev", "count_per_unit": 1000}, r"unknown key 'count_per_unit'"),
     ],
 )
 def test_a_column_map_with_a_bad_entry_is_refused_naming_it(tmp_path, entry, message):
     mapping = tmp_path / "map.json"
     mapping.write_text(json.dumps({"time": {"column": "t_ms", "unit": "ms"}, "angle": entry}))
     with pytest.raises(LogError, match=r"map\.json: entry 'angle': " + message):
+        ColumnMap.load(mapping)
+
+
+def test_a_column_map_that_is_not_text_is_refused(tmp_path):
+    mapping = tmp_path / "map.json"
+    mapping.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(LogError, match=r"map\.json: not a readable JSON column map"):
         ColumnMap.load(mapping)
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 import calibrate
+import evaluate
 from sysid import synth
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -150,3 +151,36 @@ def test_synth_list_into_a_closed_pipe_is_no_traceback():
     err = proc.stderr.read()
     assert proc.wait(timeout=60) == 1
     assert err == ""
+
+
+# --- evaluate.py: what counts as an earlier run, and the current folder ----------------------------------------------
+
+
+def test_evaluate_overwrite_keeps_a_users_images_where_no_earlier_run_was(tmp_path, monkeypatch):
+    """plots/ of .png files without results.json is the user's folder, not an earlier run: refused even with
+    --overwrite (it would be deleted)."""
+    out = tmp_path / "out"
+    (out / "plots").mkdir(parents=True)
+    (out / "plots" / "my_figure.png").write_bytes(b"a user's figure")
+    base = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--out", str(out)]
+    for extra in ([], ["--overwrite"]):
+        with pytest.raises(SystemExit) as exit_:
+            evaluate.parse_args([*base, *extra])
+        assert exit_.value.code == 2
+    assert (out / "plots" / "my_figure.png").read_bytes() == b"a user's figure"
+    (out / "results.json").write_text("{}")  # an earlier run's results: now the plots are its own
+    assert evaluate.parse_args([*base, "--overwrite"]).overwrite
+
+
+@pytest.mark.parametrize("out", [".", ""])
+def test_the_current_folder_is_refused_as_out(tmp_path, monkeypatch, capsys, out):
+    monkeypatch.chdir(tmp_path)
+    for parse in (
+        lambda: evaluate.parse_args(["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--out", out]),
+        lambda: calibrate.parse_args(["--robot", "motor", "--train", "a.csv", "--test", "b.csv", "--out", out]),
+    ):
+        with pytest.raises(SystemExit) as exit_:
+            parse()
+        assert exit_.value.code == 2
+        assert "is the current folder or holds it" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import signal
@@ -434,3 +435,24 @@ def test_resume_removes_what_a_killed_run_left_half_written(tiny_run, tmp_path):
     assert "removed what a killed run left half-written" in result.stderr
     assert not stale.exists() and not list(run_dir.glob(".*"))
     assert max(checkpoints(run_dir)) == 192
+
+
+@pytest.mark.parametrize(("key", "value"), [("n_envs", None), ("timesteps", None), ("timesteps", "lots")])
+def test_resume_names_a_bad_field_of_config_json(ppo_run, tmp_path, key, value):
+    config = json.loads((ppo_run / "config.json").read_text())
+    if value is None:
+        config.pop(key)
+    else:
+        config[key] = value
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    result = run_train("--resume", tmp_path)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"config.json: field '{key}' = {value!r}" in result.stderr
+
+
+def test_a_bad_thread_cap_is_named_as_itself(tmp_path):
+    result = subprocess.run([sys.executable, str(ROOT / "train.py"), "--env", WALK, "--algo", "ppo", "--timesteps",
+                             "64", "--runs-dir", str(tmp_path)], capture_output=True, text=True,
+                            env={**os.environ, "SKITTER_THREADS": "abc"})  # fmt: skip
+    assert result.returncode == 2 and "SKITTER_THREADS='abc'" in result.stderr and "env_kwargs" not in result.stderr
+    assert not any(tmp_path.iterdir())

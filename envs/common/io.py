@@ -98,6 +98,8 @@ def results_folder_problem(
     refused even with ``overwrite`` (replacing it would delete the user's files); one holding an earlier run's
     results only with ``overwrite``. Checked before anything is computed."""
     out = Path(out)
+    if not out.name or out.resolve() in (Path.cwd(), *Path.cwd().parents):
+        return f"{flag} {str(out)!r} is the current folder or holds it; give the name of a folder for the results"
     if out.is_dir():
         held = sorted(out.iterdir())
         others = [name for entry in held for name in foreign(entry)]
