@@ -170,7 +170,9 @@ def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path):
     done = run(
         "--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "1", "--out", str(out), "--telemetry"
     )
-    assert done.returncode == 2 and "already holds" in done.stderr and "Traceback" not in done.stderr
+    # no results.json beside it: the user's folder, not an earlier run's
+    assert done.returncode == 2 and "holds files evaluate.py does not write (telemetry/)" in done.stderr
+    assert "Traceback" not in done.stderr
     assert (out / "telemetry" / "tripod.parquet").read_bytes() == b"a user's file"
 
 
@@ -190,13 +192,13 @@ def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path):
 def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path):
     out = tmp_path / "out"
     (out / "plots").mkdir(parents=True)
-    (out / "results.md").write_text("an earlier run")
+    (out / "results.json").write_text("{}")
     (out / "plots" / "old.png").write_bytes(b"an earlier plot")
     args = ("--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "1", "--max-episode-steps", "10")
     # without --overwrite: only what is there is named
     done = run(*args, "--out", str(out))
-    assert done.returncode == 2 and "already holds plots/, results.md of an earlier run" in done.stderr
-    assert "results.json" not in done.stderr and "Traceback" not in done.stderr
+    assert done.returncode == 2 and "already holds plots/, results.json of an earlier run" in done.stderr
+    assert "results.md" not in done.stderr and "Traceback" not in done.stderr
     # files evaluate.py does not write are never deleted, not even with --overwrite
     (out / "notes.txt").write_text("the user's notes")
     (out / "plots" / "sketch.svg").write_text("the user's sketch")
@@ -204,7 +206,7 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path):
     assert done.returncode == 2 and "notes.txt, plots/sketch.svg" in done.stderr and "--overwrite" in done.stderr
     assert "Traceback" not in done.stderr
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
-        "notes.txt", "plots", "plots/old.png", "plots/sketch.svg", "results.md"
+        "notes.txt", "plots", "plots/old.png", "plots/sketch.svg", "results.json"
     ]  # fmt: skip
     # a folder of its own results is replaced
     (out / "notes.txt").unlink()
