@@ -80,7 +80,7 @@ from agents.evaluation import episode_metrics
 from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
 from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
-from envs.common.io import refuse_overwrite, write_json, write_text
+from envs.common.io import parent_problem, refuse_overwrite, write_json, write_text
 
 ROOT = Path(__file__).resolve().parent
 HYPERPARAMS_DIR = ROOT / "hyperparams"
@@ -489,19 +489,13 @@ def run_name(env_id: str, algo: str, seed: int) -> str:
 
 
 def check_runs_dir(runs_dir: Path) -> None:
-    """Refuse a ``--runs-dir`` where no run folder can be made (a file, under a file, not writable), creating nothing:
-    a probe folder made in its nearest existing ancestor is removed at once."""
-    existing = runs_dir
-    while not os.path.exists(existing):  # ends at "." or "/"
-        existing = existing.parent
-    if existing == runs_dir and not existing.is_dir():
+    """Refuse a ``--runs-dir`` where no run folder can be made (a file, under a file, not writable), creating
+    nothing (:func:`envs.common.io.parent_problem`)."""
+    if runs_dir.exists() and not runs_dir.is_dir():
         raise ConfigError(f"--runs-dir {runs_dir} exists and is not a directory")
-    if not existing.is_dir():
-        raise ConfigError(f"--runs-dir {runs_dir}: {existing} is a file, not a directory")
-    try:
-        os.rmdir(tempfile.mkdtemp(prefix=".train-probe-", dir=existing))
-    except OSError as exc:
-        raise ConfigError(f"--runs-dir {runs_dir}: cannot create folders in {existing} ({exc.strerror})") from None
+    problem = parent_problem(runs_dir / "run")
+    if problem:
+        raise ConfigError(f"--runs-dir {runs_dir}: {problem}")
 
 
 def make_run_dir(runs_dir: Path, name: str) -> Path:

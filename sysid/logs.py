@@ -321,10 +321,11 @@ DYNAMIXEL_ITEMS = {"goal_position": "goal"}
 
 def _fields(line: str, expected: int) -> list[str]:
     """A CSV line's fields, stripped; one trailing empty field (a trailing comma) is not a field."""
-    fields = [f.strip() for f in line.split(",")]
-    if len(fields) == expected + 1 and fields[-1] == "":
-        fields = fields[:-1]
-    return fields
+    return _without_trailing_comma([f.strip() for f in line.split(",")], expected)
+
+
+def _without_trailing_comma(fields: list[str], expected: int) -> list[str]:
+    return fields[:-1] if len(fields) == expected + 1 and fields[-1] == "" else fields
 
 
 def _read_dynamixel(path: Path) -> Log:
@@ -449,9 +450,8 @@ def _csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]], list[
         raise LogError(f"{path}: no column line (a CSV read with a column map starts with its column names)")
     names = lines[0][1]
     rows, bad = [], []
-    for number, fields in lines[1:]:
-        if len(fields) == len(names) + 1 and fields[-1] == "":  # a trailing comma
-            fields = fields[:-1]
+    for number, row in lines[1:]:
+        fields = _without_trailing_comma(row, len(names))
         if len(fields) == len(names):
             rows.append((number, fields))
         else:

@@ -294,7 +294,6 @@ def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
 def test_the_matrix_gives_the_same_cases_on_ray_as_in_turn():
     """benchmarks/calibration_matrix.py --workers K runs its cases as Ray tasks, each on its share of the cores: same
     seeds, same results as one after another (the wall time of a case aside)."""
-    pytest.importorskip("ray")
     from benchmarks.calibration_matrix import _on_ray, run_job
 
     plan = [("null", "motor", None, 2), ("effect", "servo", "delay", 1)]

@@ -99,7 +99,8 @@ def test_a_killed_run_resumes_from_its_checkpoint_to_the_uninterrupted_result(tm
 
 
 def test_the_ray_backend_gives_the_local_batchs_result():
-    ray = pytest.importorskip("ray")
+    import ray  # a dependency (pyproject.toml): its test never skips
+
     config = parse_config({**TINY, "seconds": 3.0})
     settings = Settings(config.to_dict(), "pso", 2, 6, 5)
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)

@@ -79,14 +79,17 @@ def refuse_overwrite(path: str | Path, what: str = "file") -> Path:
 
 
 def parent_problem(path: str | Path) -> str | None:
-    """Why nothing can be created at ``path`` (its nearest existing ancestor a file, or not writable), or None."""
+    """Why nothing can be created at ``path`` (its nearest existing ancestor a file, or no folder can be made in it),
+    or None. Tried with a probe folder, removed at once: a permission check alone passes for root even in /proc."""
     parent = Path(path).parent
     while not parent.exists():  # ends at "." or "/"
         parent = parent.parent
     if not parent.is_dir():
         return f"{parent} is a file, not a directory"
-    if not os.access(parent, os.W_OK | os.X_OK):
-        return f"no permission to write in {parent}"
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".probe-", dir=parent))
+    except OSError as exc:
+        return f"cannot create folders in {parent} ({exc.strerror})"
     return None
 
 
