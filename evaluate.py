@@ -8,7 +8,9 @@ the summaries), DIR/results.md, a plot of one episode per policy (trajectory, bo
 groups) and, with --video, an mp4 per policy; with --telemetry, the telemetry of every episode as Parquet.
 
 Everything is checked before the first episode runs, and the results are written as one unit: into a temporary folder
-beside DIR, which then takes DIR's place.
+beside DIR, which then takes DIR's place. A trained model must fit --env: one whose record from train.py (the manifest
+in model.zip, its run's config.json) names another env id is refused, naming both, and any model whose observation
+shape or action space differs from the env's is refused (agents/sb3.py).
 """
 
 from __future__ import annotations

@@ -25,12 +25,14 @@ TensorBoard logs (``tb/``), checkpoints (``checkpoints/step_<N>/``) and, at the 
 one unit: SB3's archive with the observation-normalization statistics and a manifest inside it (agents/sb3.py),
 written atomically, so a kill during the save leaves the previous file or none, never a model without its statistics.
 A checkpoint is one folder, written under a temporary name and renamed into place: ``model.zip``, for SAC and TD3 the
-replay buffer (kept only in the newest checkpoint), and ``checkpoint.json``. ``--resume`` continues from the newest
-checkpoint that loads, says which ones it skipped and why, and removes the temporary folders and files a killed run
-left. Ctrl-C and SIGTERM save a checkpoint first.
+replay buffer (kept only in the newest checkpoint), and ``checkpoint.json``. ``--resume`` takes a run folder's path
+or a run's name (no ``/``), looked up in ``--runs-dir``; it continues from the newest checkpoint that loads, says
+which ones it skipped and why, and removes the temporary folders and files a killed run left (only the names
+train.py's own writers give them). Ctrl-C and SIGTERM save a checkpoint first.
 
 Every input is checked before anything is created: the command line (``--runs-dir`` by making and removing a probe
-folder), the hyperparameter file (each field against the algorithm's constructor; numbers must be finite),
+folder; an empty path is refused), the hyperparameter file (a key given twice in one mapping is refused; each field
+against the algorithm's constructor; numbers must be finite; a CUDA ``device`` only where CUDA is available),
 ``env_kwargs`` (by making the env once) and the model (built before the run folder; if SB3 or torch cannot build it,
 the error names the field to blame).
 """
@@ -44,6 +46,7 @@ import inspect
 import json
 import math
 import os
+import re
 import shlex
 import shutil
 import signal
@@ -80,7 +83,14 @@ from agents.evaluation import episode_metrics
 from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
 from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
-from envs.common.io import parent_problem, refuse_overwrite, write_json, write_text
+from envs.common.io import (
+    TEMP_RANDOM,
+    atomic_write_leftovers,
+    parent_problem,
+    refuse_overwrite,
+    write_json,
+    write_text,
+)
 
 ROOT = Path(__file__).resolve().parent
 HYPERPARAMS_DIR = ROOT / "hyperparams"
@@ -176,19 +186,57 @@ class Hyperparams:
     nthread: int | None = None
 
 
-def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None) -> Hyperparams:
-    """The checked hyperparameters for ``env_id`` in the YAML file ``path``, with ``overrides`` (e.g. n_envs)."""
+class DuplicateKeyError(yaml.constructor.ConstructorError):
+    """A key given twice in one mapping of a YAML file (YAML would keep the last one silently)."""
+
+
+class UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses a key given twice in one mapping. Keys merged in from an anchor (``<<:
+    *defaults``) may still be overridden: only the keys written in the mapping itself must be unique."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        if isinstance(node, yaml.MappingNode):
+            seen: dict[Any, int] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    first = seen.get(key)
+                except TypeError:  # an unhashable key: SafeLoader's own error names it
+                    continue
+                if first is not None:
+                    raise DuplicateKeyError(
+                        None, None, f"duplicate key {key!r} (first on line {first})", key_node.start_mark
+                    )
+                seen[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep=deep)
+
+
+def read_yaml(path: Path) -> Any:
+    """The YAML file ``path``, read with :class:`UniqueKeyLoader`; ConfigError naming the file (and the line, key or
+    byte) if it cannot be read, is not UTF-8, is not YAML or gives a key twice in one mapping."""
     try:
-        table = yaml.safe_load(path.read_text(encoding="utf-8"))
+        return yaml.load(path.read_text(encoding="utf-8"), Loader=UniqueKeyLoader)  # a SafeLoader: no arbitrary objects
     except OSError as exc:
         raise ConfigError(f"cannot read hyperparameter file {path}: {exc.strerror}") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})") from None
+    except DuplicateKeyError as exc:
+        raise ConfigError(
+            f"{path}: line {exc.problem_mark.line + 1}: {exc.problem}; YAML would keep the last one silently, "
+            "so give each key once"
+        ) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" line {mark.line + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise ConfigError(f"{path}:{line}: not valid YAML ({problem})") from None
+
+
+def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None) -> Hyperparams:
+    """The checked hyperparameters for ``env_id`` in the YAML file ``path``, with ``overrides`` (e.g. n_envs)."""
+    table = read_yaml(path)
     if not isinstance(table, dict):
         raise ConfigError(f"{path}: expected a mapping from env ids to hyperparameters")
     if env_id not in table:
@@ -265,6 +313,8 @@ def parse_model_value(key: str, value: Any, default: Any, algo: str) -> Any:
         return parse_policy_kwargs(value)
     if key == "train_freq":
         return _train_freq(value)
+    if key == "device":
+        return _device(value)
     if key in SCHEDULES and isinstance(value, str) and value.startswith("lin_"):
         start = _number(key, value.removeprefix("lin_"), float)
         return LinearSchedule(start, 0.0, 1.0)
@@ -320,6 +370,23 @@ def _train_freq(value: Any) -> int | tuple[int, str]:
     if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
         return value
     raise ValueError('expected a positive integer or [N, "step" | "episode"]')
+
+
+def _device(value: Any) -> Any:
+    """``device`` as given, refused if it names CUDA on a machine without it (SB3 would run on the CPU silently).
+    A string torch cannot read is left to the model's build, whose error names the field."""
+    if not isinstance(value, str):
+        raise ValueError('expected a device name such as "cpu", "cuda", "cuda:0" or "auto"')
+    try:
+        device = torch.device(value)
+    except (RuntimeError, ValueError):
+        return value
+    if device.type == "cuda":
+        if not torch.cuda.is_available():
+            raise ValueError('CUDA is not available here (torch.cuda.is_available() is False); use "cpu" or "auto"')
+        if device.index is not None and device.index >= torch.cuda.device_count():
+            raise ValueError(f"this machine has {torch.cuda.device_count()} CUDA device(s), numbered from 0")
+    return value
 
 
 def _vec_env(value: Any) -> str:
@@ -634,10 +701,24 @@ def check_fits(checkpoint: Checkpoint, venv: VecEnv, env_id: str) -> None:
             )
 
 
+# what train.py writes into a run folder with envs.common.io.atomic_write (a kill may leave its temporary file)
+RUN_FILES = ("config.json", "command.txt", "model.zip")
+# a checkpoint folder under the temporary name save_checkpoint gives it: mkdtemp(prefix=".step_<N>.")
+UNFINISHED_CHECKPOINT = re.compile(r"\.step_\d{10,}\." + TEMP_RANDOM)
+
+
 def remove_unfinished_saves(run_dir: Path) -> None:
-    """Delete what a killed run left half-written: checkpoint folders under their temporary names
-    (``checkpoints/.step_*``) and the temporary files of atomic writes (``.*.tmp*``). Resuming never reads them."""
-    leftovers = sorted([*(run_dir / "checkpoints").glob(".step_*"), *run_dir.glob(".*.tmp*")])
+    """Delete what a killed run left half-written: checkpoint folders under the temporary names save_checkpoint
+    gives them (``checkpoints/.step_<N>.<8 random characters>``) and the temporary files atomic_write leaves beside
+    config.json, command.txt and model.zip (``.model.<8 random characters>.tmp.zip``, ...). Only these exact names:
+    a user's file such as ``.notes.tmp.txt`` stays. Resuming never reads them."""
+    checkpoints_dir = run_dir / "checkpoints"
+    unfinished = [
+        path
+        for path in (checkpoints_dir.iterdir() if checkpoints_dir.is_dir() else ())
+        if path.is_dir() and not path.is_symlink() and UNFINISHED_CHECKPOINT.fullmatch(path.name)
+    ]
+    leftovers = sorted([*unfinished, *atomic_write_leftovers(run_dir, RUN_FILES)])
     for path in leftovers:
         if path.is_dir():
             shutil.rmtree(path, ignore_errors=True)
@@ -744,7 +825,7 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
     except KeyboardInterrupt:
         folder = save_checkpoint(model, checkpoints_dir, manifest)
         print(f"\ninterrupted at {model.num_timesteps} steps; checkpoint saved in {folder}", file=sys.stderr)
-        print(f"continue with: python train.py --resume {run_dir}", file=sys.stderr)
+        print(f"continue with: python train.py --resume {resume_argument(run_dir)}", file=sys.stderr)
         raise
     finally:
         model.logger.close()
@@ -786,9 +867,33 @@ def start_run(args: argparse.Namespace) -> Path:
     return train(model, run_dir, config, progress=not args.no_progress)
 
 
+def resume_folder(target: str, runs_dir: str) -> Path:
+    """The run folder ``--resume TARGET`` names: a run's name (no ``/``) is a folder of ``--runs-dir``; anything
+    else (``runs/x``, ``./x``, an absolute path) is the folder's path as given."""
+    if Path(target).name != target or target in (".", ".."):
+        path = Path(target)
+        if not path.is_dir():
+            problem = "is not a folder" if path.exists() else "does not exist"
+            raise ConfigError(f"--resume {target}: {problem}; give a run folder (one holding config.json)")
+        return path
+    run_dir = Path(runs_dir) / target
+    if not run_dir.is_dir():
+        here = f"; to resume the folder {target} here, give --resume ./{target}" if Path(target).is_dir() else ""
+        raise ConfigError(
+            f"--resume {target}: no run folder {run_dir} (a run's name is looked up in --runs-dir {runs_dir}){here}"
+        )
+    return run_dir
+
+
+def resume_argument(run_dir: Path) -> str:
+    """What to pass to ``--resume`` to continue ``run_dir`` from the same folder with the same ``--runs-dir``."""
+    return shlex.quote(str(run_dir) if Path(run_dir.name) != run_dir else f"./{run_dir}")
+
+
 def resume_run(args: argparse.Namespace) -> Path:
-    """Continue the run in ``args.resume`` from its newest whole checkpoint; returns the final model's path."""
-    run_dir = Path(args.resume)
+    """Continue the run ``args.resume`` names (:func:`resume_folder`) from its newest whole checkpoint; returns the
+    final model's path."""
+    run_dir = resume_folder(args.resume, args.runs_dir)
     config_path = run_dir / "config.json"
     try:
         config = json.loads(config_path.read_text())
@@ -900,8 +1005,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--seed", type=_seed, help="random seed, >= 0 (default 0)")
     parser.add_argument("--n-envs", type=_positive_int, help="override the hyperparameter file's n_envs")
     parser.add_argument("--hyperparams", help="hyperparameter YAML file (default hyperparams/<algo>.yml)")
-    parser.add_argument("--resume", metavar="RUN_DIR", help="continue this run from its latest checkpoint")
-    parser.add_argument("--runs-dir", default="runs", help="where run folders are created (default runs)")
+    parser.add_argument(
+        "--resume",
+        metavar="RUN",
+        help="continue this run from its latest checkpoint: a run folder's path (runs/<run>, ./<run>, /abs/<run>) or a "
+        "run's name without '/', which is looked up in --runs-dir",
+    )
+    parser.add_argument(
+        "--runs-dir",
+        default="runs",
+        help="where run folders are created, and where --resume looks up a run's name (default runs)",
+    )
     parser.add_argument("--run-name", help="run folder name (default <env>__<algo>__<seed>__<date-time>)")
     parser.add_argument(
         "--checkpoint-freq",
@@ -910,6 +1024,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    for flag, value in (("--runs-dir", args.runs_dir), ("--resume", args.resume)):
+        if value is not None and not value.strip():
+            parser.error(f"argument {flag}: expected a folder, got an empty path {value!r}")
     if args.run_name is not None and (not args.run_name or Path(args.run_name).name != args.run_name):
         parser.error(f"argument --run-name: expected a folder name without '/', got {args.run_name!r}")
     if args.checkpoint_freq is None and not args.resume:

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from stable_baselines3 import PPO, SAC, TD3
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
@@ -88,11 +89,14 @@ def read_model_file(path: str | Path) -> tuple[dict[str, Any] | None, VecNormali
     return manifest, stats
 
 
-def load_model(path: str | Path, algos: Sequence[type[BaseAlgorithm]], device: str = "cpu") -> BaseAlgorithm:
+def load_model(
+    path: str | Path, algos: Sequence[type[BaseAlgorithm]], device: str = "cpu", what: str = "checkpoint"
+) -> BaseAlgorithm:
     """The model in ``path``, loaded by the first of ``algos`` that can (a model from elsewhere names none).
 
-    Raises ModelFileError "cannot read checkpoint PATH: reason" if none can, e.g. for weights damaged inside a whole
-    zip (which :func:`read_model_file` cannot see).
+    Raises ModelFileError "cannot read WHAT PATH: reason" if none can, e.g. for weights damaged inside a whole zip
+    (which :func:`read_model_file` cannot see); ``what`` says what the file is to the caller ("checkpoint" for
+    train.py --resume, "policy file" for evaluate.py).
     """
     reasons = []
     for cls in algos:
@@ -100,7 +104,46 @@ def load_model(path: str | Path, algos: Sequence[type[BaseAlgorithm]], device: s
             return cls.load(path, device=device)
         except Exception as exc:  # a damaged file raises anything: UnpicklingError, BadZipFile, RuntimeError, ...
             reasons.append(f"as {cls.__name__}: {error_reason(exc)}" if len(algos) > 1 else error_reason(exc))
-    raise ModelFileError(f"cannot read checkpoint {path}: {'; '.join(reasons)}")
+    raise ModelFileError(f"cannot read {what} {path}: {'; '.join(reasons)}")
+
+
+def trained_on(path: str | Path, manifest: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """What train.py recorded about the env the model at ``path`` was trained on, as (source, env id) pairs: the
+    model file's manifest, and ``config.json`` of the run folder the file sits in (``<run>/model.zip`` or
+    ``<run>/checkpoints/step_<N>/model.zip``). Empty for a model from elsewhere; a ``config.json`` that is not
+    train.py's (unreadable, or without ``env_id`` and ``algo``) is not metadata."""
+    path = Path(path)
+    found = []
+    if manifest is not None and isinstance(manifest.get("env_id"), str):
+        found.append((f"its manifest {MANIFEST}", manifest["env_id"]))
+    run_dir = path.parent.parent.parent if path.parent.parent.name == "checkpoints" else path.parent
+    config_path = run_dir / "config.json"
+    try:
+        config = json.loads(config_path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        config = None
+    if isinstance(config, dict) and isinstance(config.get("env_id"), str) and isinstance(config.get("algo"), str):
+        found.append((f"its run's {config_path}", config["env_id"]))
+    return found
+
+
+def spaces_problem(model: BaseAlgorithm, env) -> str | None:
+    """Why ``model`` cannot act in ``env`` (a single or a batched env), or None: the observation shapes differ, or
+    the action spaces differ in kind, shape or bounds (SB3 scales actions to the bounds it was trained with)."""
+    observation_space = getattr(env, "single_observation_space", env.observation_space)  # a batched env's, per sim
+    action_space = getattr(env, "single_action_space", env.action_space)
+    name = env.spec.id if env.spec else "the env"
+    want, have = observation_space.shape, model.observation_space.shape
+    if want != have:
+        return f"the model observes {have} but {name} gives {want} (trained on another env or version?)"
+    want, have = action_space, model.action_space
+    if isinstance(want, spaces.Box) and isinstance(have, spaces.Box):
+        same = want.shape == have.shape and np.array_equal(want.low, have.low) and np.array_equal(want.high, have.high)
+    else:
+        same = want == have
+    if not same:
+        return f"the model acts in {have} but {name} takes {want} (trained on another env or version?)"
+    return None
 
 
 def error_reason(exc: Exception) -> str:
@@ -116,7 +159,8 @@ class SB3Policy:
 
     Args:
         path: a ``model.zip`` written by train.py (or any SB3 PPO, SAC or TD3 model).
-        env: the env it will act in; its observation size is checked against the model's.
+        env: the env it will act in: a model whose metadata (:func:`trained_on`) names another env id is refused,
+            and the env's observation shape and action space are checked against the model's.
         allow_unnormalized: accept a model from elsewhere that has no statistics, in it or beside it.
     """
 
@@ -138,16 +182,17 @@ class SB3Policy:
                 )
         self.manifest = manifest or {}
         self.normalizer = stats
+        env_id = env.spec.id if env is not None and env.spec else None
+        for source, trained in trained_on(path, manifest):
+            if env_id is not None and trained != env_id:
+                raise ModelFileError(f"{path}: the model was trained on {trained} ({source} says so), not on {env_id}")
         algo = self.manifest.get("algo")
-        self.model = load_model(path, [ALGOS[algo]] if algo in ALGOS else list(ALGOS.values()), device)
+        algos = [ALGOS[algo]] if algo in ALGOS else list(ALGOS.values())
+        self.model = load_model(path, algos, device, what="policy file")
         if env is not None:
-            space = getattr(env, "single_observation_space", env.observation_space)  # a batched env's, per simulation
-            want, have = space.shape, self.model.observation_space.shape
-            if want != have:
-                raise ModelFileError(
-                    f"{path}: the model observes {have} but {env.spec.id if env.spec else 'the env'} gives {want} "
-                    "(trained on another env or version?)"
-                )
+            problem = spaces_problem(self.model, env)
+            if problem:
+                raise ModelFileError(f"{path}: {problem}")
 
     def __repr__(self) -> str:
         return f"SB3Policy({self.path})"

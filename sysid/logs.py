@@ -15,8 +15,10 @@ Formats, recognized by their content:
 
 Sampling need not be regular: every channel keeps the file's time column. A malformed row (a repeated timestamp
 among them) is dropped with a warning naming the file and its line; the log is refused (``LogError``: one line
-naming the file, row and column) for a missing required column, time that does not increase, an unknown unit, a
-log too short to calibrate on, or more than 5% bad rows.
+naming the file, line and column) for a missing required column, time that does not increase, an unknown unit or
+one of the wrong kind for its channel, a log too short to calibrate on, or more than 5% bad rows. Every message
+names a row by its line in the file ("line 152"), the number an editor shows; in a Parquet or JSON log, which has
+no lines, the number counts its rows (records) from 1.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ MAX_BAD_FRACTION = 0.05
 MIN_DURATION = 1.0  # s: less than one segment cannot be calibrated on
 MIN_ROWS = 20
 
-# unit -> factor to SI (the channel's SI unit is implied by the channel: s, rad, rad/s, V, N m, 1)
+# unit -> factor to SI (the channel's SI unit is implied by the channel, CHANNEL_UNITS: s, rad, rad/s, V, N m, 1, ...)
 UNITS: dict[str, float] = {
     "s": 1.0,
     "ms": 1e-3,
@@ -64,12 +66,64 @@ UNITS: dict[str, float] = {
     "m/s": 1.0,
     "m/s^2": 1.0,
     "g": 9.81,
+    "N": 1.0,
+    "W": 1.0,
+    "mW": 1e-3,
+    "cycle": 1.0,
     "count": 1.0,  # a count channel keeps counts unless the map gives counts_per_unit
+}
+# unit -> the SI unit it converts to: its kind
+UNIT_KINDS: dict[str, str] = {
+    **dict.fromkeys(("s", "ms", "us", "min"), "s"),
+    **dict.fromkeys(("rad", "deg", "rev"), "rad"),
+    **dict.fromkeys(("rad/s", "deg/s", "rpm", "rev/s"), "rad/s"),
+    **dict.fromkeys(("V", "mV"), "V"),
+    **dict.fromkeys(("A", "mA"), "A"),
+    **dict.fromkeys(("N m", "mN m"), "N m"),
+    **dict.fromkeys(("1", "%"), "1"),
+    **dict.fromkeys(("m", "mm"), "m"),
+    "m/s": "m/s",
+    **dict.fromkeys(("m/s^2", "g"), "m/s^2"),
+    "N": "N",
+    **dict.fromkeys(("W", "mW"), "W"),
+    "cycle": "cycle",
+    "count": "count",
+}
+KIND_NAMES = {"s": "a time", "rad": "an angle", "rad/s": "an angular speed", "V": "a voltage", "A": "a current",
+              "N m": "a torque", "1": "a fraction", "m": "a length", "m/s": "a speed", "m/s^2": "an acceleration",
+              "N": "a force", "W": "a power", "cycle": "a phase in cycles", "count": "a count"}  # fmt: skip
+# our channels' SI units, as the robots declare them (their telemetry_channels and calibration adapters; tested to
+# agree): a channel is one of these names, or one followed by "_<joint, leg or side>" (leg_angle_left, goal_F_L_1)
+CHANNEL_UNITS: dict[str, str] = {
+    "time": "s",
+    "period": "s",
+    **dict.fromkeys(("angle", "leg_angle", "leg_angle_cmd", "sweep", "spine"), "rad"),
+    **dict.fromkeys(("speed", "leg_speed", "gyro"), "rad/s"),
+    **dict.fromkeys(("bemf", "vbatt"), "V"),
+    "current": "A",
+    "torque": "N m",
+    **dict.fromkeys(("duty", "quat"), "1"),
+    **dict.fromkeys(("pos", "deflection"), "m"),
+    "accel": "m/s^2",
+    **dict.fromkeys(("grf", "touch"), "N"),
+    **dict.fromkeys(("power", "servo_power"), "W"),
+    "clock_phase": "cycle",
+    **dict.fromkeys(("goal", "present_position", "load"), "count"),
 }
 
 
+def channel_unit(channel: str) -> str | None:
+    """The SI unit of our channel ``channel`` (:data:`CHANNEL_UNITS`, the longest name it is or starts with followed
+    by ``_``), or None for a channel skitter does not know."""
+    for n in range(channel.count("_") + 1):
+        stem = channel.rsplit("_", n)[0]
+        if stem in CHANNEL_UNITS:
+            return CHANNEL_UNITS[stem]
+    return None
+
+
 class LogError(ValueError):
-    """A log that cannot be used; the message names the file, row and column."""
+    """A log that cannot be used; the message names the file, line and column."""
 
 
 @dataclass
@@ -106,7 +160,9 @@ class ColumnMap:
     """How to read a log of unknown format: our channel -> (the file's column, its unit, counts per unit).
 
     Written as JSON: ``{"time": {"column": "t_ms", "unit": "ms"}, "angle": {"column": "enc", "unit": "rev",
-    "counts_per_unit": 3592}}``.
+    "counts_per_unit": 3592}}``. A unit must be of the channel's kind (:func:`channel_unit`): an angle in rad, deg
+    or rev, a current in A or mA, ...; a map giving ``"A"`` for ``angle`` is refused, naming the file, channel and
+    unit. Without a ``unit``, the column is in the channel's SI unit. Channels skitter does not know are not checked.
     """
 
     columns: Mapping[str, Mapping[str, Any]]
@@ -127,9 +183,17 @@ class ColumnMap:
                                "counts_per_unit)")  # fmt: skip
             if not isinstance(entry, dict) or "column" not in entry:
                 raise LogError(f"{path}: entry {name!r} needs a 'column' (and a 'unit')")
-            unit = entry.get("unit", "1")
+            si = channel_unit(name)
+            unit = entry.get("unit", si or "1")  # none given: the column is in the channel's SI unit already
             if not isinstance(unit, str) or unit not in UNITS:
                 raise LogError(f"{path}: entry {name!r}: unknown unit {unit!r} (known: {', '.join(UNITS)})")
+            if si is not None and UNIT_KINDS[unit] != si:
+                fitting = ", ".join(u for u, kind in UNIT_KINDS.items() if kind == si)
+                hint = " with counts_per_unit for a column of counts" if unit == "count" else ""
+                raise LogError(
+                    f"{path}: entry {name!r}: unit {unit!r} is {KIND_NAMES[UNIT_KINDS[unit]]}, but channel {name!r} "
+                    f"is {KIND_NAMES[si]} ({si}); give one of {fitting}{hint}"
+                )
             if not isinstance(entry["column"], str):
                 raise LogError(f"{path}: entry {name!r}: 'column' {entry['column']!r} is not a column name")
             counts = entry.get("counts_per_unit", 1.0)
@@ -208,9 +272,9 @@ def check_log(log: Log, required: Sequence[str]) -> Log:
     backwards = np.flatnonzero(np.diff(t) <= 0)
     if len(backwards):
         row = int(backwards[0]) + 1
-        where = f"{log.path}: row {_row_label(log, row)}, column 'time': {t[row]:.6g} s"
+        where = f"{log.path}: row at line {_row_label(log, row)}, column 'time': {t[row]:.6g} s"
         if t[row] == t[row - 1]:
-            raise LogError(f"{where}, the same as row {_row_label(log, row - 1)}: a repeated timestamp")
+            raise LogError(f"{where}, the same as the row at line {_row_label(log, row - 1)}: a repeated timestamp")
         raise LogError(f"{where} does not increase (previous {t[row - 1]:.6g} s): time runs backwards")
     if len(t) < MIN_ROWS or log.duration < MIN_DURATION:
         raise LogError(
@@ -221,7 +285,9 @@ def check_log(log: Log, required: Sequence[str]) -> Log:
         values = log.df[column].to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(values))
         if len(bad):
-            raise LogError(f"{log.path}: row {_row_label(log, int(bad[0]))}, column {column!r}: not a finite number")
+            raise LogError(
+                f"{log.path}: row at line {_row_label(log, int(bad[0]))}, column {column!r}: not a finite number"
+            )
     return log
 
 
@@ -255,7 +321,9 @@ def _drop_time_glitches(log: Log) -> Log:
         for k in range(i, rejoin):
             bad.append(k)
             if t[k] == t[last]:
-                reasons[k] = f"time {t[k]:.6g} s, the same as line {_row_label(log, last)} (a repeated timestamp)"
+                reasons[k] = (
+                    f"time {t[k]:.6g} s, the same as the row at line {_row_label(log, last)} (a repeated timestamp)"
+                )
             elif rejoin == i + 1:
                 reasons[k] = f"time {t[k]:.6g} s out of order with its neighbours"
             else:
@@ -294,10 +362,10 @@ def drop_bad_rows(path: Path, bad: list[tuple[int, str]], total: int) -> None:
         line, reason = bad[0]
         raise LogError(
             f"{path}: {len(bad)} of {total} rows are malformed (more than {MAX_BAD_FRACTION:.0%}); "
-            f"the first, line {line}: {reason}"
+            f"the first, at line {line}: {reason}"
         )
     for line, reason in bad:
-        warnings.warn(f"{path}: dropped malformed line {line}: {reason}", stacklevel=3)
+        warnings.warn(f"{path}: dropped malformed row at line {line}: {reason}", stacklevel=3)
 
 
 # --- the formats ----------------------------------------------------------------------------------------------------

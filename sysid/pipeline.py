@@ -60,7 +60,11 @@ class Result:
         if not self.outcome.chosen:
             text += ". No catalog effect explains it."
         else:
-            text += ". The effects kept do not explain all of it."
+            kept = ", ".join(c.effect.name for c in self.outcome.chosen)
+            text += (f". The effects kept ({kept}) take the held-out error from {self.before.error:.2f} to "
+                     f"{after.error:.2f} but do not explain it: no catalog effect brings it to the noise floor, so "
+                     "what remains lies outside the catalog or in effects these logs cannot tell apart, and what was "
+                     "kept may stand in for it")  # fmt: skip
         return text
 
 

@@ -238,12 +238,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"--seconds must be a finite number of at least {shortest:g} for {args.robot}, got {args.seconds:g}"
         )
     out: Path = args.out
+    if not out.name:  # '', '.', '/': no file name to give the log (nor its truth beside it)
+        parser.error(f"--out {str(out)!r}: give the log's file name, FILE.parquet")
     truth_path = out.with_name(out.name + ".truth.json")
     try:
         _check_out(out, truth_path, args.overwrite)
         log, truth = synthesize(args.robot, dict(args.effect), args.seed, args.seconds)
     except (ValueError, FileExistsError) as exc:
-        print(f"sysid.synth: error: {exc}", file=sys.stderr)
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)  # as the parser's own errors begin
         return 2
     # the log and its truth as one unit: both written in full beside them, then renamed into place
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -43,8 +43,8 @@ def test_dynamixel_export_drops_its_broken_row_with_a_warning():
         log = read_log(AX12A, ("present_position",))
     messages = sorted(str(w.message) for w in caught)
     # the row without a time, and one whose time lost its leading digits (71 ms between 4239 and 4288)
-    assert any(re.search(r"ax12a_step_NOLOAD_1\.csv: dropped malformed line 206: '499'", m) for m in messages)
-    assert any(re.search(r"dropped malformed line 195: time 0.071 s out of order", m) for m in messages)
+    assert any(re.search(r"ax12a_step_NOLOAD_1\.csv: dropped malformed row at line 206: '499'", m) for m in messages)
+    assert any(re.search(r"dropped malformed row at line 195: time 0.071 s out of order", m) for m in messages)
     assert len(log.df) == 205  # 207 data lines, two broken
     assert log.df["present_position"].iloc[0] == pytest.approx(1)
     assert log.df["present_position"].iloc[-1] == pytest.approx(498, abs=10)
@@ -116,7 +116,7 @@ def _bad(tmp_path: Path, kind: str) -> tuple[Path, str]:
         return path, "column 'speed' is missing"
     if kind == "time backwards":  # a second recording appended: its clock starts again
         rows = rows[:150] + [f"{10 * (i + 1)},{i * 5},500,128" for i in range(150)]
-        return _write(tmp_path, "bad.csv", [header, *rows]), "row 152, column 'time'"
+        return _write(tmp_path, "bad.csv", [header, *rows]), "row at line 152, column 'time'"
     if kind == "too short":
         return _write(tmp_path, "bad.csv", [header, *rows[:30]]), "too short to calibrate on"
     if kind == "many bad rows":
@@ -148,7 +148,7 @@ def test_a_malformed_row_is_dropped_with_a_warning_naming_file_and_line(tmp_path
     rows = _gearmotor_rows()
     rows[40] = "410,200"
     path = _write(tmp_path, "one_bad.csv", ["time,pos,speed,power", *rows])
-    with pytest.warns(UserWarning, match=r"one_bad\.csv: dropped malformed line 42"):
+    with pytest.warns(UserWarning, match=r"one_bad\.csv: dropped malformed row at line 42"):
         log = read_log(path, ("duty",))
     assert len(log.df) == 299
 
@@ -234,9 +234,9 @@ def test_the_labs_older_quoted_dialect_reads_with_its_header_and_drops_impossibl
     # the hand-added rows' legs jump 48 revolutions in 2.6 ms (line 496) and up to 0.4 s later: dropped, each named
     # (a jump after a longer gap is within the 100 rev/s a leg could turn: kept)
     jumps = [m for m in messages if "jumps" in m and "faster than 100 rev/s" in m]
-    assert any("dropped malformed line 496: 0 counts jumps -47.9 revolutions from line 495 in 2.57 ms" in m
+    assert any("dropped malformed row at line 496: 0 counts jumps -47.9 revolutions from line 495 in 2.57 ms" in m
                for m in jumps)  # fmt: skip
-    assert all("dropped malformed line" in m for m in jumps)
+    assert all("dropped malformed row at line" in m for m in jumps)
     assert any("DCR/DCL reach 4000 counts, beyond the duty full scale of 3900" in m for m in messages)
     assert np.all(np.diff(log.time) > 0)
     # the first data row, by hand: 10957 us, left leg 3080372 counts of 65536 per revolution
@@ -249,7 +249,7 @@ def test_a_wizard_export_that_sends_samples_again_after_a_broken_row_keeps_the_r
     with pytest.warns(UserWarning) as caught:
         log = read_log(path, ("present_position",))
     dropped = sorted(
-        int(m.group(1)) for w in caught if (m := re.search(r"dropped malformed line (\d+)", str(w.message)))
+        int(m.group(1)) for w in caught if (m := re.search(r"dropped malformed row at line (\d+)", str(w.message)))
     )
     # line 113 '5,499' (a broken time), 114-115 (2480 and 2496 ms again, after 2496), 145 '6,498' (a broken time)
     assert dropped == [113, 114, 115, 145]
@@ -264,7 +264,7 @@ def test_time_that_goes_back_for_good_is_still_refused(tmp_path):
     restarted = [f"{int(t) - 3000},{x}" for t, x in kept]  # the clock restarted: every later row is earlier
     path = tmp_path / "restarted.csv"
     path.write_text("\n".join(header + rows[:100] + restarted) + "\n")
-    with pytest.raises(LogError, match=r"restarted\.csv: row \d+, column 'time'.*time runs backwards"):
+    with pytest.raises(LogError, match=r"restarted\.csv: row at line \d+, column 'time'.*time runs backwards"):
         read_log(path, ("present_position",))
 
 
@@ -373,31 +373,34 @@ def test_a_mapped_csv_names_the_real_line_after_blank_and_comment_lines(tmp_path
         log = read_log(path, ("angle",), mapping)
     messages = [str(w.message) for w in caught]
     assert messages == [
-        f"{path}: dropped malformed line 16: column 'enc': 'abc' is not a finite number",
-        f"{path}: dropped malformed line 36: 3 fields, expected 2",
+        f"{path}: dropped malformed row at line 16: column 'enc': 'abc' is not a finite number",
+        f"{path}: dropped malformed row at line 36: 3 fields, expected 2",
     ]
     assert log.meta["file_rows"][:3] == [6, 7, 8] and len(log.df) == 297
     restarted = _mapped_rows(150) + [f"{5 * i},{3 * i}" for i in range(150)]  # the clock restarts at line 156
     path, mapping = _mapped(tmp_path, restarted, "restarted.csv")
-    with pytest.raises(LogError, match=r"restarted\.csv: row 156, column 'time': 0 s does not increase"):
+    with pytest.raises(LogError, match=r"restarted\.csv: row at line 156, column 'time': 0 s does not increase"):
         read_log(path, ("angle",), mapping)
 
 
 def test_a_repeated_timestamp_is_named_as_such_and_dropped_like_any_malformed_row(tmp_path):
     rows = _gearmotor_rows()
     one = _write(tmp_path, "one.csv", ["time,pos,speed,power", *rows[:100], rows[99], *rows[100:]])
-    with pytest.warns(UserWarning, match=r"one\.csv: dropped malformed line 102: time 1 s, the same as line 101 "
-                      r"\(a repeated timestamp\)"):  # fmt: skip
+    with pytest.warns(UserWarning, match=r"one\.csv: dropped malformed row at line 102: time 1 s, "
+                      r"the same as the row at line 101 \(a repeated timestamp\)"):  # fmt: skip
         log = read_log(one, ("duty",))
     assert len(log.df) == 300 and np.all(np.diff(log.time) > 0)
     doubled = _write(tmp_path, "doubled.csv", ["time,pos,speed,power", *[r for r in rows[:150] for _ in (0, 1)]])
-    with pytest.raises(LogError, match=r"150 of 300 rows are malformed.*line 3: time 0\.01 s, the same as line 2 "
-                       r"\(a repeated timestamp\)"):  # fmt: skip
+    with pytest.raises(LogError, match=r"150 of 300 rows are malformed.*line 3: time 0\.01 s, "
+                       r"the same as the row at line 2 \(a repeated timestamp\)"):  # fmt: skip
         read_log(doubled, ("duty",))
     stalled = _write(tmp_path, "stalled.csv", ["time,pos,speed,power", *rows[:100], *[rows[99]] * 20, *rows[100:]])
     with pytest.raises(LogError) as refused:
         read_log(stalled, ("duty",))
-    assert str(refused.value) == f"{stalled}: row 102, column 'time': 1 s, the same as row 101: a repeated timestamp"
+    assert (
+        str(refused.value)
+        == f"{stalled}: row at line 102, column 'time': 1 s, the same as the row at line 101: a repeated timestamp"
+    )
 
 
 def test_a_column_map_applies_only_to_the_logs_of_no_native_format(tmp_path):
@@ -422,3 +425,71 @@ def test_a_log_without_the_column_maps_columns_is_named(capsys, tmp_path):
     code, err = _run(capsys, tmp_path, "motor", GEARMOTOR, other, "--columns", str(mapping))
     assert code == 2 and len(err.splitlines()) == 1
     assert f"{other}: the column map's column 't_ms' (for 'time') is missing; the file has ['stamp', 'enc']" in err
+
+
+# --- column map units: of the channel's kind ----------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("channel", "unit", "message"),
+    [
+        ("angle", "A", "unit 'A' is a current, but channel 'angle' is an angle (rad); give one of rad, deg, rev"),
+        ("angle", "V", "unit 'V' is a voltage, but channel 'angle' is an angle (rad)"),
+        ("angle", "count", "give one of rad, deg, rev with counts_per_unit for a column of counts"),
+        ("current_FL", "deg", "unit 'deg' is an angle, but channel 'current_FL' is a current (A); give one of A, mA"),
+        ("time", "rad", "unit 'rad' is an angle, but channel 'time' is a time (s)"),
+        ("leg_angle_cmd_left", "%", "unit '%' is a fraction, but channel 'leg_angle_cmd_left' is an angle (rad)"),
+        ("duty", "V", "unit 'V' is a voltage, but channel 'duty' is a fraction (1); give one of 1, %"),
+    ],
+)
+def test_a_column_map_unit_of_the_wrong_kind_is_refused_naming_file_channel_and_unit(tmp_path, channel, unit, message):
+    entries = {"time": {"column": "t_ms", "unit": "ms"}, channel: {"column": "x", "unit": unit}}
+    mapping = _write(tmp_path, "map.json", [json.dumps(entries)])
+    with pytest.raises(LogError) as refused:
+        ColumnMap.load(mapping)
+    assert str(refused.value).startswith(f"{mapping}: entry {channel!r}: unit {unit!r} is ") and "\n" not in str(
+        refused.value
+    )
+    assert message in str(refused.value)
+
+
+def test_a_column_map_unit_of_the_wrong_kind_stops_calibrate_before_anything_is_written(capsys, tmp_path):
+    mapping = _write(tmp_path, "map.json", [json.dumps({**MAP, "angle": {"column": "enc", "unit": "mA"}})])
+    data = _write(tmp_path, "x.csv", ["t_ms,enc", *_mapped_rows()])
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code, err = _run(capsys, tmp_path, "motor", data, GEARMOTOR, "--columns", str(mapping))
+    assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert f"{mapping}: entry 'angle': unit 'mA' is a current, but channel 'angle' is an angle (rad)" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_column_map_units_of_the_right_kind_convert_and_a_missing_unit_is_the_channels_si_unit(tmp_path):
+    entries = {"time": {"column": "t_ms", "unit": "ms"}, "angle": {"column": "enc"}, "leg_angle_left": {
+        "column": "enc", "unit": "rev", "counts_per_unit": 2}, "current_FL": {"column": "enc", "unit": "mA"},
+        "mystery": {"column": "enc", "unit": "V"}}  # fmt: skip
+    mapping = _write(tmp_path, "map.json", [json.dumps(entries)])
+    data = _write(tmp_path, "x.csv", ["t_ms,enc", *_mapped_rows()])
+    log = read_log(data, (), ColumnMap.load(mapping))
+    enc = log.df["angle"].to_numpy()  # no unit: the channel's own, rad
+    assert np.allclose(log.df["leg_angle_left"], enc / 2 * 2 * math.pi) and np.allclose(log.df["current_FL"], enc / 1e3)
+    assert np.allclose(log.df["mystery"], enc), "a channel skitter does not know is read as given"
+
+
+def test_the_channel_kinds_agree_with_what_the_robots_declare():
+    """sysid/logs.py's CHANNEL_UNITS against every robot's telemetry channels and every calibration adapter's
+    channels: each declared channel has a known kind, the same as its declaration."""
+    import importlib
+
+    from envs.bench.robot import POSE_CHANNELS, MotorRig, ServoRig
+    from envs.bioloid.robot import TELEMETRY_COLUMNS as BIOLOID
+    from envs.velociroach.robot import TELEMETRY_COLUMNS as ROACH
+    from envs.xjus.robot import TELEMETRY_COLUMNS as XJUS
+    from sysid.logs import UNIT_KINDS, channel_unit
+    from sysid.robots import adapters
+
+    declared = [BIOLOID, ROACH, XJUS, MotorRig.actuator_channels, ServoRig.actuator_channels, POSE_CHANNELS]
+    for spec in adapters().values():
+        module, _, name = spec.partition(":")
+        declared.append(getattr(importlib.import_module(module), name).channels)
+    for channels in declared:
+        for channel, unit in channels.items():
+            assert channel_unit(channel) == unit, (channel, unit)
+            assert unit in set(UNIT_KINDS.values()), unit

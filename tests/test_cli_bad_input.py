@@ -184,3 +184,32 @@ def test_the_current_folder_is_refused_as_out(tmp_path, monkeypatch, capsys, out
         assert exit_.value.code == 2
         assert "is the current folder or holds it" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+# --- every tool's bad-input messages begin the same way: "<how it is run>: error: " ---------------------------------
+
+
+def test_synth_errors_begin_like_its_parsers_and_an_empty_out_is_refused(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    base = ["--robot", "motor", "--seconds", "1", "--out", str(tmp_path / "log.parquet")]
+    for extra, needle in [
+        (["--seed", "-1"], "--seed must be >= 0"),  # the parser's check
+        (["--out", str(tmp_path / "log.csv")], "give a path ending in .parquet"),  # main's check
+        (["--out", ""], "give the log's file name, FILE.parquet"),  # no traceback from Path('').with_name
+    ]:
+        code, err = call(synth.main, capsys, *base, *extra)
+        assert code == 2 and err.startswith("python -m sysid.synth: error: ") and needle in err, err
+    assert files(tmp_path) == {}
+
+
+def test_optimize_errors_begin_like_the_other_tools(capsys, tmp_path):
+    from agents.optimize.__main__ import main as optimize
+
+    out = tmp_path / "out"
+    for args, needle in [
+        (["--config", str(tmp_path / "nope.json")], "nope.json: no such run configuration"),
+        (["--config", str(tmp_path / "nope.json"), "--iterations", "x"], "argument --iterations: invalid int value"),
+    ]:
+        code, err = call(optimize, capsys, *args, "--out", str(out), "--no-progress")
+        assert code == 2 and err.startswith("python -m agents.optimize: error: ") and needle in err, err
+    assert files(tmp_path) == {}

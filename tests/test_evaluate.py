@@ -8,6 +8,7 @@ import zipfile
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the envs)
@@ -140,7 +141,8 @@ def test_a_model_of_another_env_is_refused(model_zip, tmp_path):
     done = run(
         "--env", "skitter/RoachTurn-v1", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")
     )
-    assert done.returncode == 2 and "observes" in done.stderr and "Traceback" not in done.stderr
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "trained on skitter/RoachWalk-v1" in done.stderr and "not on skitter/RoachTurn-v1" in done.stderr
 
 
 @pytest.mark.parametrize(
@@ -217,3 +219,65 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path):
         "plots", "plots/tripod.png", "results.json", "results.md"
     ]  # fmt: skip
     assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v1")
+
+
+# --- a model must fit --env: train.py's record of it, its spaces; a damaged policy file ---------------------------
+
+
+def copy_model(src: Path, dst: Path, drop: tuple[str, ...] = (), replace: dict | None = None) -> Path:
+    """``src`` rewritten to ``dst`` without the entries ``drop`` and with ``replace``'s entries (name -> bytes)."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(src) as source, zipfile.ZipFile(dst, "w") as target:
+        for item in source.infolist():
+            if item.filename not in drop:
+                target.writestr(item.filename, (replace or {}).get(item.filename, source.read(item)))
+    return dst
+
+
+def evaluate_main(capsys, model: Path, out: Path, env_id: str = "skitter/RoachWalk-v1") -> tuple[int, str]:
+    import evaluate
+
+    code = evaluate.main(["--env", env_id, "--policy", str(model), "--episodes", "1", "--out", str(out)])
+    return code, capsys.readouterr().err
+
+
+def test_a_model_trained_on_another_env_with_the_same_shapes_is_refused_naming_both(model_zip, tmp_path, capsys):
+    """RoachWalk-v0's observations and actions have v1's shapes: only train.py's record tells them apart."""
+    with zipfile.ZipFile(model_zip) as archive:
+        manifest = json.loads(archive.read("skitter.json"))
+    manifest["env_id"] = "skitter/RoachWalk-v0"
+    model = copy_model(model_zip, tmp_path / "model.zip", replace={"skitter.json": json.dumps(manifest).encode()})
+    code, err = evaluate_main(capsys, model, tmp_path / "out")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "trained on skitter/RoachWalk-v0 (its manifest skitter.json says so), not on skitter/RoachWalk-v1" in err
+    assert not (tmp_path / "out").exists()
+
+    # a model without a manifest, in a run folder whose config.json names another env
+    run_dir = tmp_path / "run"
+    model = copy_model(model_zip, run_dir / "checkpoints" / "step_0000000064" / "model.zip", drop=("skitter.json",))
+    config = json.loads((model_zip.parent / "config.json").read_text())
+    (run_dir / "config.json").write_text(json.dumps({**config, "env_id": "skitter/RoachWalk-v0"}))
+    code, err = evaluate_main(capsys, model, tmp_path / "out")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"trained on skitter/RoachWalk-v0 (its run's {run_dir / 'config.json'} says so)" in err
+    assert "not on skitter/RoachWalk-v1" in err and not (tmp_path / "out").exists()
+
+
+def test_a_model_without_metadata_must_match_the_envs_action_space(model_zip, tmp_path):
+    from gymnasium.wrappers import RescaleAction
+
+    from agents.sb3 import ModelFileError, SB3Policy
+
+    foreign = copy_model(model_zip, tmp_path / "zoo" / "model.zip", drop=("skitter.json",))  # no record of its env
+    env = gym.make("skitter/RoachWalk-v1")
+    assert SB3Policy(foreign, env).predict(env.reset(seed=0)[0])[0].shape == (3,)  # works as before
+    with pytest.raises(ModelFileError, match=r"the model acts in Box\(-1\.0, 1\.0, \(3,\), float32\) but .* takes Box"):
+        SB3Policy(foreign, RescaleAction(env, np.full(3, -2.0, np.float32), np.full(3, 2.0, np.float32)))
+
+
+def test_a_corrupt_policy_file_is_named_as_a_policy_file(model_zip, tmp_path, capsys):
+    model = copy_model(model_zip, tmp_path / "model.zip", replace={"policy.pth": b"garbage" * 10})
+    code, err = evaluate_main(capsys, model, tmp_path / "out")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"--policy '{model}': cannot read policy file {model}: corrupt contents" in err
+    assert "checkpoint" not in err and not (tmp_path / "out").exists()

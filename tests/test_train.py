@@ -352,7 +352,7 @@ def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_pat
     assert_one_line_error(result, "no checkpoint to resume from", f"cannot read checkpoint {model}: corrupt contents")
     assert files(run_dir) == before
 
-    with pytest.raises(ModelFileError, match=r"cannot read checkpoint .*model\.zip: corrupt"):
+    with pytest.raises(ModelFileError, match=r"cannot read policy file .*model\.zip: corrupt"):
         SB3Policy(model, gym.make(WALK))
     foreign = tmp_path / "zoo" / "model.zip"  # RL Zoo's layout: no manifest, the statistics beside the model
     foreign.parent.mkdir()
@@ -366,7 +366,8 @@ def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_pat
     out = tmp_path / "evaluation"
     command = [sys.executable, str(ROOT / "evaluate.py"), "--env", WALK, "--policy", str(model), "--out", str(out)]
     result = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert_one_line_error(result, f"cannot read checkpoint {model}: corrupt contents")
+    assert_one_line_error(result, f"--policy '{model}': cannot read policy file {model}: corrupt contents")
+    assert "checkpoint" not in result.stderr.replace(str(model), "MODEL"), "a policy file is not a checkpoint here"
     assert not out.exists()
 
 
@@ -426,10 +427,10 @@ def test_sigterm_saves_a_checkpoint_and_exits_cleanly(tmp_path):
 
 def test_resume_removes_what_a_killed_run_left_half_written(tiny_run, tmp_path):
     run_dir = shutil.copytree(tiny_run, tmp_path / "run")
-    stale = run_dir / "checkpoints" / ".step_0000000192.k1ll3d"
+    stale = run_dir / "checkpoints" / ".step_0000000192.k1ll3d_0"  # tempfile's 8 random characters
     stale.mkdir()
     (stale / "model.zip").write_bytes(b"half a model")
-    (run_dir / ".model.k1ll3d.tmp.zip").write_bytes(b"half a model")
+    (run_dir / ".model.k1ll3d_0.tmp.zip").write_bytes(b"half a model")
     result = run_train("--resume", run_dir, "--timesteps", 192)
     assert result.returncode == 0, result.stderr
     assert "removed what a killed run left half-written" in result.stderr
@@ -456,3 +457,137 @@ def test_a_bad_thread_cap_is_named_as_itself(tmp_path):
                             env={**os.environ, "SKITTER_THREADS": "abc"})  # fmt: skip
     assert result.returncode == 2 and "SKITTER_THREADS='abc'" in result.stderr and "env_kwargs" not in result.stderr
     assert not any(tmp_path.iterdir())
+
+
+# --- in-process checks of the command line and the hyperparameter file (nothing is trained) -----------------------
+
+
+def train_main(capsys, *args: object) -> tuple[int, str]:
+    """Exit code and stderr of ``train.main`` (in this process: fast), whether it returns or exits."""
+    import train
+
+    try:
+        code = train.main([*map(str, args), "--no-progress"])
+    except SystemExit as exit_info:
+        code = exit_info.code
+    return code, capsys.readouterr().err
+
+
+def assert_refused(code: int, err: str, *expected: str) -> None:
+    assert code == 2, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    for text in expected:
+        assert text in err, (text, err)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (
+            f"{WALK}:\n  n_steps: 64\n  gamma: 0.9\n  n_steps: 128\n",
+            "line 4: duplicate key 'n_steps' (first on line 2)",
+        ),
+        (f"{WALK}:\n  n_steps: 64\n{WALK}:\n  n_steps: 128\n", f"line 3: duplicate key '{WALK}' (first on line 1)"),
+        (f"{WALK}:\n  policy_kwargs: {{net_arch: [8], net_arch: [16]}}\n", "line 2: duplicate key 'net_arch'"),
+    ],
+)
+def test_a_key_given_twice_in_a_hyperparameter_file_is_refused(capsys, tmp_path, text, expected):
+    hyperparams = tmp_path / "twice.yml"
+    hyperparams.write_text(text)
+    args = ["--env", WALK, "--algo", "ppo", "--timesteps", 64, "--runs-dir", tmp_path / "runs"]
+    code, err = train_main(capsys, *args, "--hyperparams", hyperparams)
+    assert_refused(code, err, f"train.py: error: {hyperparams}: {expected}", "give each key once")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["twice.yml"]
+
+
+def test_keys_merged_from_an_anchor_may_still_be_overridden(tmp_path):
+    import train
+
+    hyperparams = tmp_path / "anchors.yml"
+    hyperparams.write_text(
+        f"defaults: &defaults\n  n_steps: 64\n  gamma: 0.9\n{WALK}:\n  <<: *defaults\n  gamma: 0.99\n"
+    )
+    assert train.read_yaml(hyperparams)[WALK] == {"n_steps": 64, "gamma": 0.99}
+    for shipped in sorted((ROOT / "hyperparams").glob("*.yml")):
+        assert train.read_yaml(shipped), shipped  # the shipped files give each key once
+
+
+@pytest.mark.parametrize("device", ["cuda", "cuda:0"])
+def test_a_cuda_device_without_cuda_is_refused_not_run_on_the_cpu(capsys, tmp_path, monkeypatch, device):
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    hyperparams = tmp_path / "gpu.yml"
+    hyperparams.write_text(f"{WALK}:\n  n_steps: 64\n  device: {device}\n")
+    args = ["--env", WALK, "--algo", "ppo", "--timesteps", 64, "--runs-dir", tmp_path / "runs"]
+    code, err = train_main(capsys, *args, "--hyperparams", hyperparams)
+    assert_refused(code, err, f"{hyperparams}: {WALK}: field 'device' = '{device}': CUDA is not available here")
+    assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize("flag", ["--runs-dir", "--resume"])
+def test_an_empty_runs_dir_or_resume_is_refused_not_taken_as_the_current_folder(capsys, tmp_path, monkeypatch, flag):
+    monkeypatch.chdir(tmp_path)
+    code, err = train_main(capsys, "--env", WALK, "--algo", "ppo", "--timesteps", 64, flag, "")
+    assert_refused(code, err, f"argument {flag}: expected a folder, got an empty path ''")
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_run_name_given_to_resume_is_looked_up_in_runs_dir(capsys, tmp_path, monkeypatch):
+    import train
+
+    runs = tmp_path / "elsewhere"
+    (runs / "run").mkdir(parents=True)
+    assert train.resume_folder("run", str(runs)) == runs / "run"
+    monkeypatch.chdir(tmp_path)
+    assert train.resume_folder("elsewhere/run", "runs") == Path("elsewhere/run")  # a path is taken as given
+    (tmp_path / "here").mkdir()
+    before = files(tmp_path)
+    code, err = train_main(capsys, "--resume", "here", "--runs-dir", runs)
+    assert_refused(code, err, f"--resume here: no run folder {runs / 'here'}", f"--runs-dir {runs}", "--resume ./here")
+    code, err = train_main(capsys, "--resume", "nowhere/run")
+    assert_refused(code, err, "--resume nowhere/run: does not exist")
+    assert files(tmp_path) == before
+    # what train.py prints to continue an interrupted run resolves to the same folder
+    assert train.resume_argument(Path("runs") / "x") == "runs/x" and train.resume_argument(Path("x")) == "./x"
+
+
+def test_resume_by_name_in_runs_dir_removes_only_its_own_temporary_files(tiny_run, tmp_path):
+    """A killed run's temporary files (atomic_write's ``.<stem>.<8 random>.tmp<suffix>`` beside config.json,
+    command.txt and model.zip; save_checkpoint's ``.step_<N>.<8 random>`` folders) go; a user's look-alikes stay."""
+    runs = tmp_path / "runs"
+    run_dir = shutil.copytree(tiny_run, runs / "mine")
+    ours = [run_dir / ".model.ab12_xyz.tmp.zip", run_dir / ".config.0123abcd.tmp.json",
+            run_dir / ".command.zz99zz99.tmp.txt"]  # fmt: skip
+    for path in ours:
+        path.write_bytes(b"half written")
+    (run_dir / "checkpoints" / ".step_0000000192.q1w2e3r4").mkdir()
+    users = [run_dir / ".notes.tmp.txt", run_dir / ".model.tmp.zip", run_dir / ".config.json.tmp",
+             run_dir / ".model.mine.tmp.zip", run_dir / ".results.abcd1234.tmp.csv",
+             run_dir / "checkpoints" / ".step_notes"]  # fmt: skip
+    for path in users:
+        path.write_text("the user's")
+    result = run_train("--resume", "mine", "--runs-dir", runs, "--timesteps", 192)
+    assert result.returncode == 0, result.stderr
+    assert f"resuming {run_dir} from step_0000000128" in result.stdout and max(checkpoints(run_dir)) == 192
+    assert (
+        not any(path.exists() for path in ours) and not (run_dir / "checkpoints" / ".step_0000000192.q1w2e3r4").exists()
+    )
+    assert all(path.read_text() == "the user's" for path in users)
+    assert sorted(p.name for p in runs.iterdir()) == ["mine"]
+
+
+def test_the_leftover_patterns_match_the_writers_own_temporary_names(tmp_path):
+    """What resume removes is exactly what atomic_write and save_checkpoint's mkdtemp name their temporary saves."""
+    import tempfile
+
+    import train
+    from envs.common.io import atomic_write, atomic_write_leftovers
+
+    seen = []
+    for name in train.RUN_FILES:
+        atomic_write(tmp_path / name, lambda tmp: seen.append((tmp, atomic_write_leftovers(tmp_path, train.RUN_FILES))))
+    assert [found for _, found in seen] == [[tmp] for tmp, _ in seen]
+    assert atomic_write_leftovers(tmp_path, train.RUN_FILES) == []  # written in full: nothing left over
+    folder = Path(tempfile.mkdtemp(prefix=".step_0000000064.", dir=tmp_path))  # as save_checkpoint names it
+    assert train.UNFINISHED_CHECKPOINT.fullmatch(folder.name)

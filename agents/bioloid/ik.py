@@ -105,6 +105,8 @@ class IKGait:
         self._hips = np.array([C.SERVO_INDEX[C.HIP[leg]] for leg in C.LEGS])
         self._knees = np.array([C.SERVO_INDEX[C.KNEE[leg]] for leg in C.LEGS])
         self._phases = np.asarray(self.gait.phases)
+        # every leg in one numpy call (the same arithmetic as leg by leg)
+        self._legs, self._ellipses = LegGeometry.stack(self.geometry), Ellipse.stack(self.ellipses)
 
     def __repr__(self) -> str:
         return f"IKGait({self.gait.name}, {self.frequency:g} Hz{', steering' if self.steer else ''})"
@@ -132,12 +134,10 @@ class IKGait:
         leg back (n, 4)."""
         phase = 2.0 * np.pi * (self.frequency * t[:, None] + self._phases[None, :])
         goal = np.tile(self.stand_counts, (len(t), 1))
-        limited = np.zeros((len(t), 4), dtype=bool)
-        for i, (geometry, ellipse) in enumerate(zip(self.geometry, self.ellipses, strict=True)):
-            x, z = ellipse.point(phase[:, i], strides[:, i])
-            hip, knee, limited[:, i] = geometry.inverse(x, z)
-            goal[:, self._hips[i]] = C.CENTER + hip / C.RAD_PER_COUNT
-            goal[:, self._knees[i]] = C.CENTER + knee / C.RAD_PER_COUNT
+        x, z = self._ellipses.point(phase, strides)
+        hip, knee, limited = self._legs.inverse(x, z)
+        goal[:, self._hips] = C.CENTER + hip / C.RAD_PER_COUNT
+        goal[:, self._knees] = C.CENTER + knee / C.RAD_PER_COUNT
         return goal, limited
 
     def predict(

@@ -26,9 +26,17 @@ from envs.common.io import parent_problem
 ROOT = Path(__file__).resolve().parents[2]
 
 
+PROG = "python -m agents.optimize"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, without argparse's usage block, like the other tools
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m agents.optimize", description=__doc__.splitlines()[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)  # fmt: skip
+    p = _Parser(prog=PROG, description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+                epilog=__doc__)  # fmt: skip
     p.add_argument("--config", required=True, help="a run configuration (JSON; agents/optimize/problem.py)")
     p.add_argument("--optimizer", choices=sorted(OPTIMIZERS), default="pso")
     p.add_argument("--iterations", type=int, default=240, help="iterations (the seed's PSO: 240)")
@@ -94,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command,
                      stop_after=args.stop_after)  # fmt: skip
     except (ConfigError, RunError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"{PROG}: error: {error}", file=sys.stderr)
         return 2
     best = result["best"]
     if best is None:

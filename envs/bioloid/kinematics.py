@@ -41,15 +41,21 @@ class LegGeometry:
     def of(cls, leg: str, wedge: float = 0.0) -> LegGeometry:
         return cls(offset=-C.BACK_CRUTCH_OFFSET if leg.startswith("B") else 0.0, wedge=wedge)
 
-    @property
-    def shank_length(self) -> float:
-        """Knee to sole, straight, m."""
-        return float(np.hypot(self.shank, self.offset))
+    @classmethod
+    def stack(cls, legs: list[LegGeometry]) -> LegGeometry:
+        """Several legs as one geometry of arrays (one entry per leg), whose kinematics take (..., legs) arrays: the
+        same arithmetic, one numpy call for every leg instead of one per leg."""
+        return cls(*(np.array([getattr(g, f) for g in legs]) for f in ("thigh", "shank", "offset", "wedge")))
 
     @property
-    def shank_angle(self) -> float:
+    def shank_length(self) -> float | np.ndarray:
+        """Knee to sole, straight, m."""
+        return np.hypot(self.shank, self.offset)[()]
+
+    @property
+    def shank_angle(self) -> float | np.ndarray:
         """The angle by which the offset sole sits behind the shank's axis, rad (0 for the front legs)."""
-        return float(np.arctan2(-self.offset, self.shank))
+        return np.arctan2(-self.offset, self.shank)[()]
 
     def forward(self, hip: np.ndarray, knee: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Sole position (x, z) relative to the hip pitch axis from servo angles (rad)."""
@@ -92,6 +98,11 @@ class Ellipse:
         l1, l2 = geometry.thigh, geometry.shank_length
         k = -(l1 + l2 / 2.0)
         return cls(h=0.0, k=k, a=0.95 * l1 / 2.0, b=-k - float(np.hypot(l1, l2)))
+
+    @classmethod
+    def stack(cls, ellipses: list[Ellipse]) -> Ellipse:
+        """Several legs' ellipses as one of arrays (one entry per leg): :meth:`point` then takes (..., legs)."""
+        return cls(*(np.array([getattr(e, f) for e in ellipses]) for f in ("h", "k", "a", "b")))
 
     def point(self, phase: np.ndarray, stride: np.ndarray | float = 1.0) -> tuple[np.ndarray, np.ndarray]:
         """The sole's target at ``phase`` (rad): x = h - a s cos(phase), z = k + b sin(phase), ``s`` the stride

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,26 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+# the random part of a name made by tempfile.mkstemp/mkdtemp: 8 characters of tempfile._RandomNameSequence
+TEMP_RANDOM = "[a-z0-9_]{8}"
+
+
+def atomic_write_leftovers(folder: str | Path, names: Iterable[str]) -> list[Path]:
+    """The temporary files :func:`atomic_write` left in ``folder`` when it was killed while writing one of the files
+    ``names`` (e.g. ``model.zip``: ``.model.<8 random characters>.tmp.zip``). Only these exact names: a user's
+    look-alike such as ``.notes.tmp.txt`` is not one."""
+    folder = Path(folder)
+    patterns = []
+    for name in names:
+        path = folder / name  # atomic_write's mkstemp(prefix=".<stem>.", suffix=".tmp<suffix>")
+        patterns.append(re.compile(re.escape(f".{path.stem}.") + TEMP_RANDOM + re.escape(f".tmp{path.suffix}")))
+    return sorted(
+        path
+        for path in (folder.iterdir() if folder.is_dir() else ())
+        if path.is_file() and not path.is_symlink() and any(p.fullmatch(path.name) for p in patterns)
+    )
 
 
 def _umask() -> int:
