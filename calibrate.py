@@ -27,19 +27,14 @@ import warnings
 from pathlib import Path
 
 from envs.common.calibration import CalibrationError, read_calibration
-from envs.common.io import foreign_unless, publish_folder, results_folder_problem, write_json, write_text
+from envs.common.io import ToolParser, foreign_unless, publish_folder, results_folder_problem, write_json, write_text
 from sysid.logs import ColumnMap, Log, LogError, check_log, read_log
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, without argparse's usage block
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = _Parser(prog="calibrate.py", description=__doc__.splitlines()[0])
+    p = ToolParser(prog="calibrate.py", description=__doc__.splitlines()[0])
     p.add_argument("--robot", required=True, choices=sorted(adapters()), help="the robot (or bench rig) of the logs")
     p.add_argument("--train", required=True, nargs="+", type=Path, help="logs to calibrate on (FILE or FILE@START:END)")
     p.add_argument("--test", required=True, nargs="+", type=Path, help="held-out logs the errors are measured on")

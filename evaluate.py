@@ -32,17 +32,12 @@ import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
 from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
 from envs.common.calibration import CalibrationError, read_calibration
-from envs.common.io import atomic_write, publish_folder, results_folder_problem, write_json, write_text
+from envs.common.io import ToolParser, atomic_write, publish_folder, results_folder_problem, write_json, write_text
 from envs.common.telemetry import read_telemetry, write_telemetry
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, without argparse's usage block
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = _Parser(prog="evaluate.py", description="Compare policies on the same seeds.")
+    p = ToolParser(prog="evaluate.py", description="Compare policies on the same seeds.")
     p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v1")
     p.add_argument(
         "--policy", action="append", required=True, help=f"scripted gait ({describe_policies()}) or a model.zip; repeat"

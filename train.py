@@ -85,6 +85,7 @@ from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
 from envs.common.io import (
     TEMP_RANDOM,
+    ToolParser,
     atomic_write_leftovers,
     parent_problem,
     refuse_overwrite,
@@ -480,14 +481,6 @@ def _evaluate(node: ast.expr) -> Any:
 # --- environments and models ------------------------------------------------------------------------------------
 
 
-def check_env_kwargs(env_id: str, hp: Hyperparams) -> None:
-    """Make the env once with the file's ``env_kwargs``, so a bad value fails here, before anything is created."""
-    try:
-        gym.make(env_id, **hp.env_kwargs).close()
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
-
-
 def make_env(env_id: str, hp: Hyperparams, seed: int, checkpoint: Checkpoint | None = None) -> VecEnv:
     """``hp.n_envs`` copies of ``env_id`` seeded ``seed``, ``seed + 1``, ..., normalised as ``hp`` says: by default
     the batched env (all of them in one ``mujoco.batch`` on ``hp.nthread`` threads), or SB3's ``DummyVecEnv``.
@@ -842,10 +835,9 @@ def start_run(args: argparse.Namespace) -> Path:
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
     hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
-    check_env_kwargs(args.env, hp)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
-    venv = make_env(args.env, hp, seed)
+    venv = make_env(args.env, hp, seed)  # a bad env_kwargs fails here, before the run folder is made
     model = build_model(args.algo, hp, venv, seed)
     run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(args.env, args.algo, seed))
     config = {
@@ -972,11 +964,6 @@ def check_resume_flags(args: argparse.Namespace, config: dict[str, Any]) -> None
 # --- command line -----------------------------------------------------------------------------------------------
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, without argparse's usage block
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -998,7 +985,7 @@ def _seed(text: str) -> int:
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = _Parser(prog="train.py", description="Train an SB3 agent on a skitter env (see the module docstring).")
+    parser = ToolParser(prog="train.py", description="Train an SB3 agent on a skitter env (see the module docstring).")
     parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v1")
     parser.add_argument("--algo", choices=sorted(ALGOS), help="algorithm")
     parser.add_argument("--timesteps", type=_positive_int, help="total env steps (with --resume: default the run's)")

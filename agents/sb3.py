@@ -76,17 +76,25 @@ def read_model_file(path: str | Path) -> tuple[dict[str, Any] | None, VecNormali
                     f"{path}: truncated or corrupt, or not a Stable-Baselines3 model (no 'data' entry)"
                 )
             manifest = json.loads(archive.read(MANIFEST)) if MANIFEST in names else None
-            stats = pickle.loads(archive.read(STATS)) if STATS in names else None
+            stats = _unpickle_stats(archive.read(STATS), f"{STATS} inside {path}") if STATS in names else None
     except (zipfile.BadZipFile, EOFError, OSError) as exc:
         raise ModelFileError(f"{path}: not a readable model file, truncated or corrupt ({exc})") from None
-    except (json.JSONDecodeError, pickle.UnpicklingError, AttributeError, ValueError) as exc:
-        raise ModelFileError(f"{path}: corrupt {MANIFEST} or {STATS} inside the model file ({exc})") from None
+    except (json.JSONDecodeError, ValueError) as exc:
+        raise ModelFileError(f"{path}: corrupt {MANIFEST} inside the model file ({exc})") from None
     if manifest is not None and manifest.get("normalized") and stats is None:
         raise ModelFileError(
             f"{path}: the model was trained on normalized observations but its file lacks the statistics "
             f"({STATS}); it would be scored on the wrong inputs"
         )
     return manifest, stats
+
+
+def _unpickle_stats(data: bytes, where: str) -> VecNormalize:
+    """Observation-normalization statistics from their pickled bytes; ModelFileError naming ``where`` if damaged."""
+    try:
+        return pickle.loads(data)
+    except Exception as exc:  # unpickling garbage raises anything
+        raise ModelFileError(f"cannot read {where}: {error_reason(exc)}") from None
 
 
 def load_model(
@@ -171,10 +179,7 @@ class SB3Policy:
         if manifest is None and stats is None:
             beside = path.parent / STATS
             if beside.is_file():
-                try:
-                    stats = pickle.loads(beside.read_bytes())
-                except Exception as exc:  # unpickling garbage raises anything
-                    raise ModelFileError(f"cannot read {beside}: {error_reason(exc)}") from None
+                stats = _unpickle_stats(beside.read_bytes(), str(beside))
             elif not allow_unnormalized:
                 raise ModelFileError(
                     f"{path}: a model not written by train.py, with no {STATS} in it or beside it; if it was trained "
@@ -183,8 +188,8 @@ class SB3Policy:
         self.manifest = manifest or {}
         self.normalizer = stats
         env_id = env.spec.id if env is not None and env.spec else None
-        for source, trained in trained_on(path, manifest):
-            if env_id is not None and trained != env_id:
+        for source, trained in trained_on(path, manifest) if env_id is not None else ():
+            if trained != env_id:
                 raise ModelFileError(f"{path}: the model was trained on {trained} ({source} says so), not on {env_id}")
         algo = self.manifest.get("algo")
         algos = [ALGOS[algo]] if algo in ALGOS else list(ALGOS.values())

@@ -204,6 +204,7 @@ class ColumnMap:
                 or counts <= 0
             ):
                 raise LogError(f"{path}: entry {name!r}: 'counts_per_unit' {counts!r} is not a positive number")
+            data[name] = {"column": entry["column"], "unit": unit, "counts_per_unit": float(counts)}  # defaults filled
         return cls(data)
 
 
@@ -486,7 +487,7 @@ def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
             bad.append((number, str(exc)))
     drop_bad_rows(path, sorted(bad), total)
     data = np.asarray(values, dtype=float).reshape(-1, len(columns))
-    scales = [UNITS[e.get("unit", "1")] / float(e.get("counts_per_unit", 1.0)) for e in column_map.columns.values()]
+    scales = [UNITS[e["unit"]] / e["counts_per_unit"] for e in column_map.columns.values()]  # as load filled them
     df = pd.DataFrame(data * np.asarray(scales), columns=list(columns))
     meta = {"format": "mapped " + path.suffix.lstrip("."), "column_map": dict(column_map.columns),
             "file_rows": file_rows}  # fmt: skip

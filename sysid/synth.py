@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from envs.common.io import parent_problem, write_json
+from envs.common.io import ToolParser, parent_problem, write_json
 from envs.common.telemetry import write_telemetry
 from sysid.effects import Effect
 from sysid.logs import Log
@@ -199,13 +199,8 @@ def _parse_effect(text: str) -> tuple[str, float | dict[str, float] | None]:
         raise argparse.ArgumentTypeError(f"--effect {text!r}: {value!r} is not a number or param:number,...") from None
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, without argparse's usage block
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _Parser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
+    parser = ToolParser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument(
         "--effect", action="append", default=[], type=_parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"

@@ -19,9 +19,9 @@ import sys
 from pathlib import Path
 
 from agents.optimize.optimizers import OPTIMIZERS
-from agents.optimize.problem import ConfigError, Evaluator, read_config
+from agents.optimize.problem import ConfigError, read_config
 from agents.optimize.run import CHECKPOINT, RunError, Settings, run
-from envs.common.io import parent_problem
+from envs.common.io import ToolParser, parent_problem
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -29,13 +29,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PROG = "python -m agents.optimize"
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, without argparse's usage block, like the other tools
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = _Parser(prog=PROG, description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = ToolParser(prog=PROG, description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog=__doc__)  # fmt: skip
     p.add_argument("--config", required=True, help="a run configuration (JSON; agents/optimize/problem.py)")
     p.add_argument("--optimizer", choices=sorted(OPTIMIZERS), default="pso")
@@ -72,9 +67,7 @@ def check(args: argparse.Namespace) -> None:
         raise RunError(f"--stop-after must be at least 1, got {args.stop_after}")
     if args.address is not None and args.backend != "ray":
         raise RunError("--address is for --backend ray")
-    problem = parent_problem(args.out) if not args.out.exists() else None
-    if args.out.exists() and not args.out.is_dir():
-        problem = f"{args.out} is a file, not a directory"
+    problem = parent_problem(args.out / CHECKPOINT)  # the run folder's own file: can it be made?
     if problem:
         raise RunError(f"--out {args.out}: {problem}; choose another folder")
     if args.out.exists() and not (args.out / CHECKPOINT).exists() and any(args.out.iterdir()):
@@ -87,8 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         config = read_config(args.config)
         if args.out is None:
             args.out = ROOT / "runs" / "optimize" / f"{Path(args.config).stem}__{args.optimizer}__{args.seed}"
-        check(args)
-        Evaluator(config, 1, nthread=1)  # makes the env and the controller once: a bad field fails here, not later
+        check(args)  # a bad env_kwargs or controller fails when the backend builds them, before anything is written
         settings = Settings(config.to_dict(), args.optimizer, args.iterations, args.particles, args.seed)
 
         def backend():
@@ -98,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
                 return RayBackend(config, args.particles, args.workers or 2, args.address)
             return LocalBackend(config, args.particles, args.workers)
 
-        command = "python -m agents.optimize " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
+        command = f"{PROG} " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
         result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command,
                      stop_after=args.stop_after)  # fmt: skip
     except (ConfigError, RunError) as error:

@@ -78,6 +78,8 @@ class RayBackend:
     def __init__(self, config: RunConfig, particles: int, workers: int, address: str | None = None):
         import ray
 
+        # built here first: a bad config fails in one line before Ray starts (it also writes the policy files)
+        self.controller = Evaluator(config, 1, nthread=1).controller
         if not ray.is_initialized():
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
         sizes = [len(part) for part in np.array_split(np.arange(particles), workers)]
@@ -86,7 +88,6 @@ class RayBackend:
         self._bounds = np.cumsum([0, *sizes])
         self._workers = [remote.remote(config, size) for size in sizes]
         self.dimension = ray.get(self._workers[0].dimension.remote())
-        self.controller = Evaluator(config, 1, nthread=1).controller  # writes the policy files here
 
     def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
         b = self._bounds

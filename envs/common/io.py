@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -15,8 +16,8 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp_path)`` and move the result to ``path`` in one rename, so readers never see half a file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    # the temporary file keeps the extension, for writers that choose their format by it (ffmpeg, matplotlib)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    prefix, suffix = _temp_affixes(path)
+    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
     os.close(fd)
     try:
         write(Path(tmp))
@@ -28,6 +29,12 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     return path
 
 
+def _temp_affixes(path: Path) -> tuple[str, str]:
+    """The prefix and suffix of :func:`atomic_write`'s temporary file for ``path``: hidden, and keeping the
+    extension, for writers that choose their format by it (ffmpeg, matplotlib)."""
+    return f".{path.stem}.", f".tmp{path.suffix}"
+
+
 # the random part of a name made by tempfile.mkstemp/mkdtemp: 8 characters of tempfile._RandomNameSequence
 TEMP_RANDOM = "[a-z0-9_]{8}"
 
@@ -37,10 +44,10 @@ def atomic_write_leftovers(folder: str | Path, names: Iterable[str]) -> list[Pat
     ``names`` (e.g. ``model.zip``: ``.model.<8 random characters>.tmp.zip``). Only these exact names: a user's
     look-alike such as ``.notes.tmp.txt`` is not one."""
     folder = Path(folder)
-    patterns = []
-    for name in names:
-        path = folder / name  # atomic_write's mkstemp(prefix=".<stem>.", suffix=".tmp<suffix>")
-        patterns.append(re.compile(re.escape(f".{path.stem}.") + TEMP_RANDOM + re.escape(f".tmp{path.suffix}")))
+    patterns = [
+        re.compile(re.escape(prefix) + TEMP_RANDOM + re.escape(suffix))
+        for prefix, suffix in (_temp_affixes(folder / name) for name in names)
+    ]
     return sorted(
         path
         for path in (folder.iterdir() if folder.is_dir() else ())
@@ -143,3 +150,11 @@ def results_folder_problem(
 def foreign_unless(names: tuple[str, ...]) -> Callable[[Path], list[str]]:
     """For :func:`results_folder_problem`: every entry but the files ``names`` is foreign."""
     return lambda entry: [] if entry.name in names and entry.is_file() else [entry.name + "/" * entry.is_dir()]
+
+
+class ToolParser(argparse.ArgumentParser):
+    """The command-line parser of every skitter tool: a bad argument is one line, ``PROG: error: ... (see --help)``,
+    and exit code 2, without argparse's usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
