@@ -105,6 +105,10 @@ class Adapter(ABC):
     # that stalls in one and runs on in the other: contacts), the soft-L1 loss with this scale in noise levels, so
     # that such a segment weighs as a few samples far out rather than as its squared error (see Residual.objective)
     loss_scale: float | None = None
+    # the fits' objective where segments diverge for good by different amounts: each segment's residual variance its
+    # own, at least the noise level's (a profile likelihood; see Residual.objective). Decisions (the information
+    # criterion, the held-out gain) then read the same likelihood, since it is one
+    segment_variance: bool = False
     # the breadth of the search for effects that help only together (sysid/select.py: seeds, width, beam); a robot
     # whose every fit costs seconds of rollouts narrows it
     chain_search: tuple[int, int, int] = (3, 3, 2)
@@ -379,6 +383,7 @@ class Residual:
     data: np.ndarray
     prior: np.ndarray
     loss_scale: float | None = None  # the adapter's (see Adapter.loss_scale)
+    segment_variance: bool = False  # the adapter's (see Adapter.segment_variance)
 
     def flat(self) -> np.ndarray:
         return np.concatenate([self.data.ravel(), self.prior])
@@ -386,6 +391,10 @@ class Residual:
     def flat_objective(self) -> np.ndarray:
         """Residuals whose sum of squares is :attr:`objective` (each sample's sign times the root of its loss), for
         least-squares solvers: :meth:`flat` without a loss scale."""
+        if self.segment_variance:
+            squares = float(np.sum(self.data * self.data))
+            scale = math.sqrt(self._segment_loss / squares) if squares > 0 else 1.0
+            return np.concatenate([(self.data * scale).ravel(), self.prior])
         if self.loss_scale is None:
             return self.flat()
         return np.concatenate([(np.sign(self.data) * np.sqrt(self._loss)).ravel(), self.prior])
@@ -399,10 +408,25 @@ class Residual:
     def objective(self) -> float:
         """What a fit minimizes: the cost, or, with a loss scale c, the soft-L1 loss 2 c^2 (sqrt(1 + (r/c)^2) - 1)
         summed over the samples (scipy's ``soft_l1``: r^2 within the noise, 2 c |r| far out; convex, so it keeps
-        least squares' optimum where the model is right and the residual is noise), plus the prior's squares."""
+        least squares' optimum where the model is right and the residual is noise), plus the prior's squares.
+
+        With ``segment_variance``, the segment's residual is taken as Gaussian with a variance of its own, at least
+        the noise level's (1): its -2 log-likelihood, that variance profiled out, is n c for a mean square c <= 1 (least
+        squares) and n (1 + log c) above (each sample at the variance c), plus the prior's squares. A segment whose
+        replay parted from the log for good (the body carried into a stumble the log's robot did not take) then
+        weighs by the log of its error, not the error itself: a true model's few chaotic segments no longer outweigh
+        what the others show."""
+        if self.segment_variance:
+            return float(self._segment_loss + self.prior @ self.prior)
         if self.loss_scale is None:
             return self.cost
         return float(np.sum(self._loss) + self.prior @ self.prior)
+
+    @cached_property
+    def _segment_loss(self) -> float:
+        n = self.data.size
+        c = float(np.sum(self.data * self.data)) / max(n, 1)
+        return n * c if c <= 1.0 else n * (1.0 + math.log(c))
 
     @cached_property
     def _loss(self) -> np.ndarray:
@@ -773,7 +797,7 @@ class Problem:
                     r = r - (a @ delta).reshape(r.shape)
                 else:
                     delta = np.zeros(0)
-                row.append(Residual(r, delta, self.adapter.loss_scale))
+                row.append(Residual(r, delta, self.adapter.loss_scale, self.adapter.segment_variance))
             out.append(row)
         return out
 
@@ -788,7 +812,10 @@ class Problem:
         return {c: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, c in enumerate(self.channels)}
 
     def segment_costs(self, residuals: Sequence[Residual]) -> np.ndarray:
-        """Cost per data sample of each segment (for paired bootstraps over segments)."""
+        """Cost per data sample of each segment (for paired bootstraps over segments): the sum of squares, or, with
+        ``segment_variance``, the likelihood the fits minimize (``Residual.objective``)."""
+        if self.adapter.segment_variance:
+            return np.array([r.objective / max(r.data.size, 1) for r in residuals])
         return np.array([r.cost / max(r.data.size, 1) for r in residuals])
 
     def effective_samples(self, residuals: Sequence[Residual]) -> float:

@@ -442,7 +442,12 @@ def _fit_candidate(
                 0.0,
             )
     n_eff = before.n_eff
-    bic = n_eff * math.log(max(trial.cost, 1e-300) / max(before.cost, 1e-300)) + len(params) * math.log(n_eff)
+    if problem.adapter.segment_variance:  # -2 log-likelihood itself (each segment's variance profiled out), its
+        # samples discounted to the effective ones
+        fit_term = (trial.objective - before.objective) * n_eff / max(before.n, 1)
+    else:  # one variance for all, profiled out
+        fit_term = n_eff * math.log(max(trial.cost, 1e-300) / max(before.cost, 1e-300))
+    bic = fit_term + len(params) * math.log(n_eff)
     if bic >= 0:
         return (
             f"no better by the information criterion (BIC change {bic:+.1f} on {n_eff:.0f} effective samples)",
@@ -503,9 +508,15 @@ def _held_out_test(
 ) -> str | None:
     """The held-out gain, cross-validated: each fold's segments are predicted by a fit on the others (started at
     the full fit, searched locally, no intervals), and the paired gains of every segment are bootstrapped. None if
-    the interval's lower end is above zero, else the reason."""
+    the interval's lower end is above zero and no channel is made worse, else the reason.
+
+    A channel made worse: the paired bootstrap interval of one channel's gain per segment lies wholly below zero
+    (at 95% over all the channels together, Bonferroni). An effect the model truly lacks brings each channel's
+    expected error down or leaves it (the true model minimizes every channel's); one that trades a channel for
+    another stands in for something else (a right-side friction taking up a push on the body, which the left side's
+    channels then show)."""
     params = {k: p for e in effects for k, p in _params(e).items()}
-    gains = []
+    gains, channel_gains = [], []
     for fold in folds:
         rest = [i for i in (fitting if fitting is not None else problem.scored) if i not in fold]
         fitted = (
@@ -513,20 +524,38 @@ def _held_out_test(
             if rest
             else trial
         )
-        old = problem.segment_costs(problem.residuals([current], fold)[0])
-        new = problem.segment_costs(problem.residuals([fitted.values], fold)[0])
-        gains.append(old - new)
+        old_residuals = problem.residuals([current], fold)[0]
+        new_residuals = problem.residuals([fitted.values], fold)[0]
+        gains.append(problem.segment_costs(old_residuals) - problem.segment_costs(new_residuals))
+        channel_gains += [np.mean(a.data**2, axis=0) - np.mean(b.data**2, axis=0)
+                          for a, b in zip(old_residuals, new_residuals, strict=True)]  # fmt: skip
     gain = np.concatenate(gains)
     if len(gain) < 2:
         ok = gain.sum() > 0
         low = float(gain.mean()) if len(gain) else 0.0
     else:
-        res = stats.bootstrap((gain,), np.mean, confidence_level=0.95, method="percentile",
-                              random_state=np.random.default_rng(0))  # fmt: skip
-        low = float(res.confidence_interval.low)
+        low = _bootstrap_interval(gain, 0.95)[0]
         ok = low > 0
     if not ok:
         return (
             f"no held-out gain: the paired bootstrap interval of its cross-validated gain per segment reaches {low:.3g}"
         )
+    per_channel = np.array(channel_gains)
+    if len(per_channel) >= 2:
+        level = 1.0 - 0.05 / per_channel.shape[1]
+        for j, channel in enumerate(problem.channels):
+            low_j, high_j = _bootstrap_interval(per_channel[:, j], level)
+            if high_j < 0:
+                return (
+                    f"it makes {channel} worse on held-out segments (paired bootstrap interval of that channel's "
+                    f"gain per segment [{low_j:.3g}, {high_j:.3g}] in squared noise levels, at {level:.1%}): it "
+                    "trades one channel for another, standing in for something else"
+                )
     return None
+
+
+def _bootstrap_interval(values: np.ndarray, level: float) -> tuple[float, float]:
+    """The percentile bootstrap interval of a mean at ``level`` (scipy, seeded: same data, same verdict)."""
+    res = stats.bootstrap((values,), np.mean, confidence_level=level, method="percentile",
+                          random_state=np.random.default_rng(0))  # fmt: skip
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)

@@ -46,6 +46,70 @@ def test_robust_objective_is_least_squares_in_the_noise_and_linear_far_out():
         assert np.array_equal(np.sign(flat[: r.data.size]), np.sign(r.data.ravel()))
 
 
+def test_segment_variance_is_least_squares_within_the_noise_and_logarithmic_beyond():
+    """An adapter's ``segment_variance``: each segment's residual variance its own, at least the noise level. A
+    segment within the noise is least squares; a segment whose replay parted from the log weighs by the log of its
+    mean square (n (1 + log c)), so a true model's chaotic segments do not outweigh what the others show."""
+    rng = np.random.default_rng(1)
+    quiet = Residual(rng.normal(0.0, 0.5, (400, 2)), np.array([0.3]), segment_variance=True)
+    assert quiet.objective == pytest.approx(quiet.cost)
+    parted = Residual(np.full((50, 2), 100.0), np.zeros(0), segment_variance=True)
+    assert parted.cost == pytest.approx(1e6)
+    assert parted.objective == pytest.approx(100 * (1 + math.log(1e4)))
+    # continuous at the noise level: a mean square of exactly 1 is n either way
+    assert Residual(np.ones((10, 1)), np.zeros(0), segment_variance=True).objective == pytest.approx(10.0)
+    for r in (quiet, parted):
+        flat = r.flat_objective()
+        assert float(flat @ flat) == pytest.approx(r.objective)
+        assert np.array_equal(np.sign(flat[: r.data.size]), np.sign(r.data.ravel()))
+
+
+class _TradingProblem:
+    """A stand-in for a Problem with two channels whose one effect lowers channel ``a``'s residual on every segment
+    (``mass.scale`` 2 against nominal 1) and, with ``trades``, raises channel ``b``'s: a stand-in for something else."""
+
+    def __init__(self, trades: bool) -> None:
+        self.channels = ["a", "b"]
+        self.trades = trades
+        self.adapter = SimpleNamespace(segment_variance=False)
+        self.scored = list(range(9))
+
+    def residuals(self, settings, segments, anchor=None):
+        out = []
+        for s in settings:
+            row = []
+            for i in segments:
+                noise = np.random.default_rng(i).normal(0.0, 1.0, (200, 2))
+                k = s["mass.scale"] - 1.0
+                scale = np.array([3.0 - 2.0 * k, 1.0 + (1.0 if self.trades else 0.0) * k])
+                row.append(Residual(noise * scale, np.zeros(0)))
+            out.append(row)
+        return out
+
+    def segment_costs(self, residuals):
+        return np.array([r.cost / r.data.size for r in residuals])
+
+
+@pytest.mark.parametrize("trades", [False, True])
+def test_the_held_out_test_refuses_an_effect_that_trades_one_channel_for_another(monkeypatch, trades):
+    """An effect the model lacks lowers every channel's expected error or leaves it; one that lowers the total by
+    making a channel worse (a right-side friction taking up a push on the body, the left side's channels worse)
+    stands in for something else and is refused, naming the channel."""
+    import sysid.select as select
+    from sysid.effects import make
+
+    problem = _TradingProblem(trades)
+    trial = SimpleNamespace(values={"mass.scale": 2.0})
+    monkeypatch.setattr(select, "fit", lambda *a, **k: trial)  # each fold's refit: the full fit
+    effect = make("mass", scale=(1.0, 0.5, 2.0))
+    folds = [[0, 3, 6], [1, 4, 7], [2, 5, 8]]
+    verdict = select._held_out_test(problem, {"mass.scale": 1.0}, [effect], {}, problem.scored, folds, trial)
+    if trades:
+        assert verdict is not None and "makes b worse on held-out segments" in verdict
+    else:
+        assert verdict is None
+
+
 class _CurveProblem:
     """A stand-in for a Problem whose cost, at any anchor, is a function of one parameter ``k``."""
 
