@@ -10,11 +10,13 @@ import envs  # noqa: F401  (registers the envs)
 ENV_IDS = sorted(env_id for env_id in gym.registry if env_id.startswith("skitter/"))
 
 
-@pytest.fixture(autouse=True)
-def _sb3_logs_in_tmp_path(tmp_path, monkeypatch) -> None:
+@pytest.fixture(autouse=True, scope="session")
+def _sb3_logs_in_tmp_path(tmp_path_factory):
     """SB3's default logger (a ``learn()`` without ``tensorboard_log``) makes a dated folder in the system's temp
-    directory unless ``SB3_LOGDIR`` names one: keep it in the test's own temporary folder."""
-    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3"))
+    directory unless ``SB3_LOGDIR`` names one: one folder in pytest's temporary tree for the whole session."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3")))
+        yield
 
 
 @pytest.fixture(params=ENV_IDS)
