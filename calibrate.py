@@ -102,20 +102,31 @@ def read_logs(specs: list[Path], required: tuple[str, ...], column_map: ColumnMa
 
 
 def check_disjoint(train: list[Path], test: list[Path]) -> None:
-    """No test data may be training data: the same file only in windows that do not overlap (of a file that does not
-    exist, that it does not exist)."""
+    """No test data may be training data, and no stretch of a file may be given twice to one of them (it would count
+    twice): the same file only in windows that do not overlap (of a file that does not exist, that it does not
+    exist)."""
+    for flag, specs in (("--train", train), ("--test", test)):
+        for i, a in enumerate(specs):
+            for b in specs[i + 1 :]:
+                if _overlap(a, b):
+                    raise LogError(f"{b} overlaps {a}, both given to {flag}: each stretch of a log counts once")
     for a in train:
-        pa, sa, ea = split_spec(a)
         for b in test:
-            pb, sb, eb = split_spec(b)
-            if pa.resolve() != pb.resolve():
-                continue
-            lo = max(-math.inf if sa is None else sa, -math.inf if sb is None else sb)
-            hi = min(math.inf if ea is None else ea, math.inf if eb is None else eb)
-            if lo < hi and not pa.is_file():
-                raise LogError(f"{pa}: no such file")
-            if lo < hi:
+            if _overlap(a, b):
                 raise LogError(f"{b} overlaps the training log {a}: the test logs must be data the fit does not see")
+
+
+def _overlap(a: Path, b: Path) -> bool:
+    """Whether two log specs (a file, with or without a window) share data."""
+    pa, sa, ea = split_spec(a)
+    pb, sb, eb = split_spec(b)
+    if pa.resolve() != pb.resolve():
+        return False
+    lo = max(-math.inf if sa is None else sa, -math.inf if sb is None else sb)
+    hi = min(math.inf if ea is None else ea, math.inf if eb is None else eb)
+    if lo < hi and not pa.is_file():
+        raise LogError(f"{pa}: no such file")
+    return lo < hi
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,10 +1,11 @@
-"""One synthetic calibration case, judged as issue 7 asks: a training log with hidden effects (drawn by the generator
-when no value is given) and a test log of the same truth under other commands; calibrate on the one, judge on the
-other. Shared by the tests (one fast case per robot) and ``benchmarks/calibration_matrix.py`` (every effect, coverage
-over seeds)."""
+"""One synthetic calibration case, judged as issue 7 asks: training logs with hidden effects (drawn by the generator
+when no value is given) and held-out logs of the same truth under other commands (one 10 s log each, or the robot's
+protocol of several shorter runs: ``Adapter.runs``); calibrate on the one, judge on the other. Shared by the tests
+(one fast case per robot) and ``benchmarks/calibration_matrix.py`` (every effect, coverage over seeds)."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -16,6 +17,7 @@ from sysid.pipeline import Result, relative_excess, run
 from sysid.robots import adapter as make_adapter
 
 TEST_SEED_OFFSET = 1000  # the test log's commands and noise come from seed + this
+RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of a protocol of several runs: seed + k times this
 
 
 @dataclass
@@ -52,13 +54,26 @@ class Case:
         }  # fmt: skip
 
 
-def pair(robot: str, effects: Mapping[str, float | Mapping[str, float] | None], seed: int) -> tuple[Log, Log, dict]:
-    """A case's logs: the training log with hidden effects (drawn when None) and the held-out log of the same truth
-    under other commands (seed + TEST_SEED_OFFSET), chosen to show it as the training log's were. Returns both and
-    the truth."""
-    train, truth = synth.synthesize(robot, effects, seed)
-    test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET, show=True)
-    return train, test, truth
+def pair(
+    robot: str, effects: Mapping[str, float | Mapping[str, float] | None], seed: int
+) -> tuple[list[Log], list[Log], dict]:
+    """A case's logs: the training logs with hidden effects (drawn when None) and the held-out logs of the same truth
+    under other commands (seed + TEST_SEED_OFFSET), chosen to show it as the training logs' do. The robot's
+    recording protocol (``Adapter.runs``) says how many runs of how many seconds each; the truth is drawn on the
+    generator's 10 s log of the seed in every case, so that a robot's cases keep their truths whatever its protocol.
+    Returns both lists and the truth."""
+    first, truth = synth.synthesize(robot, effects, seed)
+    runs, seconds = make_adapter(robot).runs
+    if runs == 1 and seconds == synth.SECONDS:
+        test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET, show=True)
+        return [first], [test], truth
+    given = truth["effects"]
+
+    def record(base: int, name: str) -> list[Log]:
+        return [dataclasses.replace(synth.synthesize(robot, given, base + RUN_SEED_OFFSET * k, seconds, show=True)[0],
+                                    path=f"synthetic {name} run {k + 1}") for k in range(runs)]  # fmt: skip
+
+    return record(seed, "training"), record(seed + TEST_SEED_OFFSET, "held-out"), truth
 
 
 def run_case(
@@ -71,7 +86,7 @@ def run_case(
     start = time.perf_counter()
     adapter = make_adapter(robot)
     train, test, truth = pair(robot, effects, seed)
-    result = run(adapter, [train], [test], say=say)
+    result = run(adapter, train, test, say=say)
     chosen = result.outcome.chosen
     first = chosen[0] if chosen else None
     catalog = adapter.effects()

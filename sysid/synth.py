@@ -45,13 +45,14 @@ PUSHES = 4  # pushes of a drawn value toward MAX_REACH (60, 70, 80, 90% of the w
 # draws of the commands (the first from the seed's generator, as the value; the others from (seed, 2, k)): how
 # visible an effect is depends on what the commands excite, and the generator's job is commands that show it
 EXCITATIONS = 3
+SECONDS = 10.0  # a synthetic log's length (issue 7: about 10 s keeps each case to minutes)
 
 
 def synthesize(
     robot: str,
     injected: Mapping[str, float | Mapping[str, float] | None],
     seed: int,
-    seconds: float = 10.0,
+    seconds: float = SECONDS,
     show: bool = False,
 ) -> tuple[Log, dict]:
     """A synthetic log of ``robot`` with effects ``name -> value`` (a number for the first parameter, a dict per
@@ -206,7 +207,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--effect", action="append", default=[], type=_parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"
     )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--seconds", type=float, default=SECONDS)
     parser.add_argument("--out", type=Path, help="the log, FILE.parquet; the truth goes to FILE.parquet.truth.json")
     parser.add_argument("--overwrite", action="store_true", help="replace an earlier log and its truth at --out")
     parser.add_argument("--list", action="store_true", help="list every effect that can be injected")

@@ -97,11 +97,11 @@ def test_bioloid_recovers_a_drawn_servo_gain():
 def test_bioloid_null_and_out_of_catalog():
     adapter = make_adapter("bioloid")
     train, test, _ = pair("bioloid", {}, 21)
-    null = run(adapter, [train], [test], say=lambda s: None)
+    null = run(adapter, train, test, say=lambda s: None)
     assert null.outcome.chosen == [] and not null.unexplained, null.after.error
     train, test, truth = pair("bioloid", {"disturbance": None}, 22)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
-    ooc = run(adapter, [train], [test], say=lambda s: None)
+    ooc = run(adapter, train, test, say=lambda s: None)
     assert ooc.unexplained and "above the noise floor" in ooc.where()
     assert relative_excess(ooc.before.error, ooc.after.error) > 0.5
 

@@ -183,7 +183,7 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
     generator) go through calibrate.py; the calibrated model, run by evaluate.py, walks the tripod gait closer to the
     'measured' robot (the model with the true effect) in speed and heading drift than the nominal model does."""
     effect, seed = "viscous_friction_left", 1
-    train, test, truth = pair("roach", {effect: None}, seed)
+    (train,), (test,), truth = pair("roach", {effect: None}, seed)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     paths = []
     for name, log in (("train", train), ("test", test)):
@@ -214,7 +214,7 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
 
 def test_null_noise_only_chooses_nothing():
     train, test, _ = pair("motor", {}, seed=13)
-    result = run(make_adapter("motor"), [train], [test], say=lambda s: None)
+    result = run(make_adapter("motor"), train, test, say=lambda s: None)
     assert result.outcome.chosen == []
     assert result.after.error < UNEXPLAINED_ABOVE and not result.unexplained
 
@@ -222,7 +222,7 @@ def test_null_noise_only_chooses_nothing():
 def test_out_of_catalog_disturbance_is_unexplained():
     train, test, truth = pair("motor", {"disturbance": None}, seed=14)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
-    result = run(make_adapter("motor"), [train], [test], say=lambda s: None)
+    result = run(make_adapter("motor"), train, test, say=lambda s: None)
     assert result.unexplained and result.after.error > UNEXPLAINED_ABOVE
     assert "above the noise floor" in result.where()
     # no catalog effect claims to have fixed it: whatever was kept leaves most of the excess
@@ -255,7 +255,7 @@ def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys)
 
 
 def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
-    train, test, _ = pair("motor", {"coulomb_friction": 0.2}, seed=15)
+    (train,), (test,), _ = pair("motor", {"coulomb_friction": 0.2}, seed=15)
     paths = []
     for name, log in (("train", train), ("test", test)):
         path = tmp_path / f"{name}.parquet"

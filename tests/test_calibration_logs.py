@@ -165,6 +165,13 @@ def test_test_data_may_not_overlap_training_data(capsys, tmp_path):
     assert code == 2 and "overlaps the training log" in err
     code, err = _run(capsys, tmp_path, "motor", GEARMOTOR, GEARMOTOR)
     assert code == 2 and "overlaps" in err
+    # a stretch given twice to --train would count twice (and left the replay floor's twin logs in a muddle: a
+    # traceback); windows of one file that do not overlap are two logs
+    out = tmp_path / "out"
+    for train in ([GEARMOTOR, GEARMOTOR], [f"{GEARMOTOR}@0:5", f"{GEARMOTOR}@4:8"]):
+        code = calibrate.main(["--robot", "motor", "--train", *map(str, train), "--test", "x.csv", "--out", str(out)])
+        err = capsys.readouterr().err
+        assert code == 2 and "both given to --train: each stretch of a log counts once" in err and not out.exists()
     missing = tmp_path / "missing.csv"  # the same missing file twice: named as missing, not as overlapping
     code, err = _run(capsys, tmp_path, "motor", missing, missing)
     assert code == 2 and f"{missing}: no such file" in err and "overlaps" not in err

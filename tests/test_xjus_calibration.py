@@ -88,7 +88,12 @@ def test_a_bad_xjus_calibration_file_is_refused(tmp_path):
 
 
 def test_xjus_recovers_a_drawn_viscous_friction():
+    """The xJüs records its cases as three 4 s runs from rest (``Adapter.runs``), training and held-out alike."""
     case = run_case("xjus", {"viscous_friction_left": None}, seed=3)
+    runs, seconds = make_adapter("xjus").runs
+    for logs in (case.result.train, case.result.test):
+        assert len(logs) == runs == 3 and len({log.path for log in logs}) == runs
+        assert all(log.time[-1] - log.time[0] == pytest.approx(seconds, abs=0.02) for log in logs)
     assert case.nominal_error >= synth.MIN_NOMINAL_ERROR
     assert case.first_in_alias_group, case.first
     if case.first == "viscous_friction_left":
@@ -100,11 +105,11 @@ def test_xjus_recovers_a_drawn_viscous_friction():
 def test_xjus_null_and_out_of_catalog():
     adapter = make_adapter("xjus")
     train, test, _ = pair("xjus", {}, 21)
-    null = run(adapter, [train], [test], say=lambda s: None)
+    null = run(adapter, train, test, say=lambda s: None)
     assert null.outcome.chosen == [] and not null.unexplained, null.after.error
     train, test, truth = pair("xjus", {"disturbance": None}, 22)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
-    ooc = run(adapter, [train], [test], say=lambda s: None)
+    ooc = run(adapter, train, test, say=lambda s: None)
     assert ooc.unexplained and "above the noise floor" in ooc.where()
     assert relative_excess(ooc.before.error, ooc.after.error) > 0.5
 
