@@ -637,8 +637,10 @@ class Problem:
             first = {key: keys.index(key) for key in missing}
             run = [settings[first[key]] for key in missing]
             predictions, starts, carried = self._chain(run, self._index(None), with_carry=True)
-            if len(self._carry) + len(missing) > 64:
+            if len(self._carry) + len(missing) > 64:  # keep what this call asks for (a cached anchor among them)
+                wanted = {key: self._carry[key] for key in keys if key in self._carry}
                 self._carry.clear()
+                self._carry.update(wanted)
             for j, key in enumerate(missing):
                 index = [i for (k, i) in predictions if k == j]
                 self._carry[key] = ({i: predictions[(j, i)] for i in index}, {i: starts[(j, i)] for i in index},

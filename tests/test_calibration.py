@@ -385,3 +385,20 @@ def test_a_bad_thread_cap_is_named(monkeypatch, value):
         default_threads()
     monkeypatch.setenv(THREADS_VARIABLE, "1")
     assert default_threads() == 1
+
+
+def test_the_run_cache_keeps_what_a_call_asks_for_when_it_overflows():
+    """A call that brings the cache of runs over its size must still find the settings it asked for that were cached
+    before (a carried effect's grid with its anchor among them raised a KeyError in the xJüs's foot friction case)."""
+    from sysid.problem import Problem
+
+    log, _ = synth.synthesize("motor", {}, 0, seconds=2.0)
+    problem = Problem(make_adapter("motor"), [log])
+    nominal = nominal_setting({k: e for k, e in problem.adapter.effects().items() if e.catalogued})
+    key = next(k for k in nominal if k.startswith("viscous_friction"))
+    first = [{**nominal, key: 1e-4 * k} for k in range(60)]
+    problem.residuals(first)
+    again = [first[0], *({**nominal, key: 1e-4 * k + 5e-5} for k in range(10))]
+    out = problem.residuals(again)
+    assert len(out) == len(again)
+    assert np.array_equal(out[0][0].data, problem.residuals([first[0]])[0][0].data)
