@@ -52,6 +52,7 @@ class Segment:
 
     Attributes:
         log: the log's path; index: the segment's number in it; t0: its start time in the log, s.
+        source: the log's place in its problem's logs (set by Problem; two logs may share a path).
         steps: physics step (from the segment's start) of each sample; samples: the samples' rows in the log.
         measured: the compared channels at the samples, (samples, channels).
         data: the log's columns over the segment (commands, start values), as arrays.
@@ -69,6 +70,7 @@ class Segment:
     carry_steps: int = 0  # physics steps to the next segment's start, if it follows on directly
     n_steps: int = 0  # physics steps rolled out (the same for every segment of a problem)
     cache: dict = field(default_factory=dict, repr=False)  # what an adapter derives once per segment
+    source: int = 0
 
     def command_at(self, column: str, physics_times: np.ndarray, delay: float = 0.0) -> np.ndarray:
         """The log's ``column`` held (zero-order) from each sample to the next, at physics times (s from t0),
@@ -480,12 +482,16 @@ class Problem:
     ):
         self.adapter = adapter
         self.logs = list(logs)
-        self.segments: list[Segment] = [s for log in self.logs for s in adapter.segments(log)]
+        self.segments: list[Segment] = []
+        for source, log in enumerate(self.logs):
+            for seg in adapter.segments(log):
+                seg.source = source
+                self.segments.append(seg)
         # the segments whose residuals count: all, or, where the body's state is carried over and a log's first
         # segment must guess it (``burn_in``), all but the first of each run of consecutive segments
         self.scored = [i for i, seg in enumerate(self.segments)
                        if not adapter.burn_in or (i and seg.index == self.segments[i - 1].index + 1
-                                                  and seg.log == self.segments[i - 1].log)]  # fmt: skip
+                                                  and seg.source == self.segments[i - 1].source)]  # fmt: skip
         if not self.scored:
             raise ValueError("no segment to replay: the logs are too short")
         self.nthread = nthread or default_threads()
@@ -496,9 +502,9 @@ class Problem:
         self._sensitivity: dict[tuple, list[np.ndarray]] = {}
         self._carry: dict[tuple, tuple[dict, dict, dict]] = {}  # a setting's run over every segment
         self._datas: dict[tuple, list[mujoco.MjData]] = {}
-        by_log: dict[str, list[int]] = {}
+        by_log: dict[int, list[int]] = {}
         for i, seg in enumerate(self.segments):
-            by_log.setdefault(seg.log, []).append(i)
+            by_log.setdefault(seg.source, []).append(i)
         self._by_log = list(by_log.values())
         self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
         noise = [adapter.noise(log) for log in self.logs]
@@ -541,13 +547,13 @@ class Problem:
         per_segment = []  # each segment's mean square difference per channel
         real = self.segments
         try:
-            for log in self.logs:
+            for source, log in enumerate(self.logs):
                 if log.history is not None:  # a window of a file: its twin runs from the file's start, as it did
                     full = pd.concat([log.history, log.df], ignore_index=True)
                     clean = simulate(adapter, setting, full, log.meta)[len(log.history) :]
                 else:
                     clean = simulate(adapter, setting, log.df, log.meta)
-                index = [i for i, seg in enumerate(real) if seg.log == log.path]
+                index = [i for i, seg in enumerate(real) if seg.source == source]
                 scored = [i for i in index if i in self.scored]
                 for seed in range(FLOOR_TWINS):  # several readings of the twin: one log's divergences are few
                     twin = log.df.copy()
@@ -559,7 +565,7 @@ class Problem:
                         raise RuntimeError(f"{log.path}: the twin log cut into other segments than the log")
                     self.segments = list(real)
                     for i, seg in zip(index, twin_segments, strict=True):
-                        seg.n_steps = self.n_steps
+                        seg.n_steps, seg.source = self.n_steps, source
                         self.segments[i] = seg
                     self._carry.clear()
                     predictions, _ = self._chain([setting], scored)

@@ -402,3 +402,23 @@ def test_the_run_cache_keeps_what_a_call_asks_for_when_it_overflows():
     out = problem.residuals(again)
     assert len(out) == len(again)
     assert np.array_equal(out[0][0].data, problem.residuals([first[0]])[0][0].data)
+
+
+def test_two_logs_with_one_path_are_kept_apart():
+    """A problem tells its logs apart by their place, not their path: two logs that share a path (two windows of one
+    file, two synthetic runs) are scored, carried over and given a replay floor each as if their paths differed."""
+    from sysid.problem import Problem
+
+    adapter = make_adapter("bioloid")
+    logs = [synth.synthesize("bioloid", {}, seed, seconds=3.0)[0] for seed in (0, 1)]
+    for log in logs:
+        log.path = "one.csv"
+    apart = [synth.synthesize("bioloid", {}, seed, seconds=3.0)[0] for seed in (0, 1)]
+    apart[0].path, apart[1].path = "a.csv", "b.csv"
+    same, distinct = Problem(adapter, logs, nthread=1), Problem(adapter, apart, nthread=1)
+    assert [s.source for s in same.segments] == [s.source for s in distinct.segments]
+    assert same.scored == distinct.scored and len(same.scored) == len(same.segments) - 2
+    assert same.replay_sigma == pytest.approx(distinct.replay_sigma, rel=1e-12)
+    nominal = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
+    a, b = same.residuals([nominal])[0], distinct.residuals([nominal])[0]
+    assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b, strict=True))

@@ -88,11 +88,11 @@ def test_a_bad_xjus_calibration_file_is_refused(tmp_path):
 
 
 def test_xjus_recovers_a_drawn_viscous_friction():
-    """The xJüs records its cases as three 4 s runs from rest (``Adapter.runs``), training and held-out alike."""
+    """The xJüs records its cases as six 2 s runs from rest (``Adapter.runs``), training and held-out alike."""
     case = run_case("xjus", {"viscous_friction_left": None}, seed=3)
     runs, seconds = make_adapter("xjus").runs
     for logs in (case.result.train, case.result.test):
-        assert len(logs) == runs == 3 and len({log.path for log in logs}) == runs
+        assert len(logs) == runs == 6 and len({log.path for log in logs}) == runs
         assert all(log.time[-1] - log.time[0] == pytest.approx(seconds, abs=0.02) for log in logs)
     assert case.nominal_error >= synth.MIN_NOMINAL_ERROR
     assert case.first_in_alias_group, case.first
