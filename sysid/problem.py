@@ -483,10 +483,13 @@ class Problem:
         self.adapter = adapter
         self.logs = list(logs)
         self.segments: list[Segment] = []
+        self._by_log: list[list[int]] = []  # each log's segments, as indices into ``segments``
         for source, log in enumerate(self.logs):
-            for seg in adapter.segments(log):
+            cut = adapter.segments(log)
+            for seg in cut:
                 seg.source = source
-                self.segments.append(seg)
+            self._by_log.append(list(range(len(self.segments), len(self.segments) + len(cut))))
+            self.segments += cut
         # the segments whose residuals count: all, or, where the body's state is carried over and a log's first
         # segment must guess it (``burn_in``), all but the first of each run of consecutive segments
         self.scored = [i for i, seg in enumerate(self.segments)
@@ -502,10 +505,6 @@ class Problem:
         self._sensitivity: dict[tuple, list[np.ndarray]] = {}
         self._carry: dict[tuple, tuple[dict, dict, dict]] = {}  # a setting's run over every segment
         self._datas: dict[tuple, list[mujoco.MjData]] = {}
-        by_log: dict[int, list[int]] = {}
-        for i, seg in enumerate(self.segments):
-            by_log.setdefault(seg.source, []).append(i)
-        self._by_log = list(by_log.values())
         self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
         noise = [adapter.noise(log) for log in self.logs]
         self.sensor_sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
@@ -553,7 +552,7 @@ class Problem:
                     clean = simulate(adapter, setting, full, log.meta)[len(log.history) :]
                 else:
                     clean = simulate(adapter, setting, log.df, log.meta)
-                index = [i for i, seg in enumerate(real) if seg.source == source]
+                index = self._by_log[source]
                 scored = [i for i in index if i in self.scored]
                 for seed in range(FLOOR_TWINS):  # several readings of the twin: one log's divergences are few
                     twin = log.df.copy()
