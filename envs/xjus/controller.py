@@ -35,19 +35,30 @@ _W = 4.0 / (np.square(_K) * np.pi**2)
 _W_SUM = float(_W.sum())
 _W_RATE = _W * _TWO_PI_K
 _W_ACCEL = _W * np.square(_TWO_PI_K)
+# the three weight vectors as rows, complex, to take all three sums from the harmonics in one product
+_W_ROWS = np.stack([_W, _W_RATE, _W_ACCEL]).astype(np.complex128)
+_TWO_PI = 2.0 * np.pi
 
 
 def wrap_angle(x: np.ndarray) -> np.ndarray:
-    """Wrap to [-pi, pi]."""
-    return np.arctan2(np.sin(x), np.cos(x))
+    """Wrap to [-pi, pi] (subtracting whole turns: a tenth of the cost of arctan2(sin, cos) on (128, 6))."""
+    return x - _TWO_PI * np.rint(x * (1.0 / _TWO_PI))
 
 
 def _series(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The clock's Fourier sums at ``s`` (cycles): ``F(s) = sum W (1 - cos)``, ``F'(s)`` and ``F''(s)`` per cycle."""
+    """The clock's Fourier sums at ``s`` (cycles): ``F(s) = sum W (1 - cos)``, ``F'(s)`` and ``F''(s)`` per cycle.
+
+    The odd harmonics ``exp(2 pi i (2m-1) s)`` come from one complex exponential by repeated multiplication with its
+    square (a cumulative product over the harmonics' axis, laid first so that each product is one array operation);
+    then one matrix product weighs them for all three sums. Within 1e-12 of evaluating each harmonic directly."""
     frac = s - np.floor(s)
-    harmonics = np.exp(1j * (frac[..., None] * _TWO_PI_K))  # cos and sin of every odd harmonic at once
-    cos, sin = harmonics.real, harmonics.imag
-    return _W_SUM - cos @ _W, sin @ _W_RATE, cos @ _W_ACCEL
+    z = np.exp((2j * np.pi) * frac)
+    harmonics = np.empty((C.FOURIER_TERMS, *frac.shape), dtype=np.complex128)
+    harmonics[0] = z
+    harmonics[1:] = z * z
+    np.multiply.accumulate(harmonics, axis=0, out=harmonics)
+    sums = (_W_ROWS @ harmonics.reshape(C.FOURIER_TERMS, -1)).reshape(3, *frac.shape)
+    return _W_SUM - sums[0].real, sums[1].imag, sums[2].real
 
 
 def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -476,8 +476,10 @@ class Xjus(Robot):
         self.last_duty[:] = duty
         a, b = self.motors.coefficients(duty)
         ctrl = self.sim.ctrl
-        ctrl[:, :, self.motor.drive_adr] = a[:, None, :]
-        ctrl[:, :, self.motor.emf_adr] = b[:, None, :]
+        first = ctrl[:, 0]  # a view: written once, then copied over the block's other physics steps
+        first[:, self.motor.drive_adr] = a
+        first[:, self.motor.emf_adr] = b
+        ctrl[:, 1:] = first[:, None]
 
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
         v = self.sim.sensordata[:, self._i_read]
@@ -485,7 +487,8 @@ class Xjus(Robot):
         if stepped is False:
             self._leg_power[:] = 0.0
         else:
-            self._leg_power = self._battery_power(sub[:, :, 0:6], sub[:, :, 6:12]).mean(axis=1)
+            power = self._battery_power(sub[:, :, 0:6], sub[:, :, 6:12])
+            self._leg_power = np.add.reduce(power, axis=1) * (1.0 / power.shape[1])  # the mean, without its overhead
             if stepped is not True:
                 self._leg_power[~np.asarray(stepped)] = 0.0
         power = self._leg_power.sum(axis=1)
@@ -516,12 +519,14 @@ class Xjus(Robot):
         the H-bridge returns no braking energy). Under a current limit the driver lowers its effective duty so that
         ``d Vs = i (Ra + d^2 Ramp) + Ks w`` holds at the limited current."""
         mo = self.motors
+        if self.current_limit is None:  # d Vs i = (d Vs / k) torque, the factor taken once per leg
+            volts_per_torque = self.last_duty * (mo.supply_voltage / mo.torque_per_amp)[:, None]
+            return np.maximum(torque * volts_per_torque[:, None, :], 0.0)
         vs = mo.supply_voltage[:, None, None]
         current = torque / mo.torque_per_amp[:, None, None]
         duty = np.broadcast_to(self.last_duty[:, None, :], current.shape)
-        if self.current_limit is not None:
-            limited = np.abs(current) >= self.current_limit * (1 - 1e-9)
-            duty = np.where(limited, self._limited_duty(current, speed), duty)
+        limited = np.abs(current) >= self.current_limit * (1 - 1e-9)
+        duty = np.where(limited, self._limited_duty(current, speed), duty)
         return np.maximum(duty * vs * current, 0.0)
 
     def _limited_duty(self, current: np.ndarray, speed: np.ndarray) -> np.ndarray:
