@@ -122,11 +122,12 @@ class Adapter(ABC):
     # the first segment of a log (or of a window of one) starts from a guessed body state, since the log does not
     # hold it: with ``burn_in`` it is replayed only to carry its end over, and its residual is not counted
     burn_in: bool = False
-    # how a synthetic case records its training and its held-out logs (sysid/cases.py): this many runs, each from
-    # rest, of this many seconds. One 10 s run by default. A robot whose unlogged body, carried from segment to
-    # segment, parts from the log within seconds even in the true model's replay (the xJüs: a stumble in one replay
-    # and not in the next) records several short runs, each replayed from a body at rest, as a user should log it
-    runs: tuple[int, float] = (1, 10.0)
+    # how a synthetic case records its training and its held-out logs (sysid/cases.py): None, the generator's own
+    # log of the case (one run of ``synth.SECONDS``); or (runs, seconds), this many runs, each from rest, of this many
+    # seconds. A robot whose unlogged body, carried from segment to segment, parts from the log within seconds even
+    # in the true model's replay (the xJüs: a stumble in one replay and not in the next) records several short runs,
+    # each replayed from a body at rest, as a user should log it
+    runs: tuple[int, float] | None = None
 
     def __init__(self) -> None:
         self._models: dict[tuple, mujoco.MjModel] = {}

@@ -4,6 +4,7 @@ effect (drawn by the generator), and the null and out-of-catalog cases. One fast
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -422,3 +423,49 @@ def test_two_logs_with_one_path_are_kept_apart():
     nominal = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
     a, b = same.residuals([nominal])[0], distinct.residuals([nominal])[0]
     assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b, strict=True))
+
+
+def test_two_servo_logs_with_one_path_keep_their_own_unlogged_goals():
+    """An unlogged goal is fitted as nuisance parameters per log, keyed by the log's place in its problem as well as
+    its path: two logs that share a path each keep their own goal steps (with the path alone, the second log's plan
+    overwrote the first's and both replayed its goal)."""
+    from sysid.problem import Problem
+
+    adapter = make_adapter("servo")
+    logs = [synth.synthesize("servo", {}, seed, seconds=4.0)[0] for seed in (0, 1)]
+    for log in logs:
+        log.df = log.df.drop(columns="goal")
+    positions = [log.df["present_position"].to_numpy()[:200] for log in logs]
+    assert np.abs(positions[0] - positions[1]).max() > 50  # counts: the two logs move differently
+    apart = [dataclasses.replace(log, path=name) for log, name in zip(logs, ("a.csv", "b.csv"), strict=True)]
+    for log in logs:
+        log.path = "one.csv"
+    plans = [adapter.goal_plan(log, k) for k, log in enumerate(logs)]
+    same, distinct = adapter.nuisance(logs), adapter.nuisance(apart)
+    assert len(same) == len(distinct) == sum(len(p) for p in plans)  # no log's plan lost
+    catalog = {k: e for k, e in adapter.effects().items() if e.catalogued}
+    replays = []
+    for problem_logs, nuisance in ((logs, same), (apart, distinct)):
+        setting = {**nominal_setting(catalog), **{k: p.nominal for k, p in nuisance.items()}}
+        replays.append(Problem(adapter, problem_logs, nthread=1).residuals([setting])[0])
+    # each log replays its own goal plan: the same residuals as with two paths
+    assert all(np.array_equal(x.data, y.data) for x, y in zip(*replays, strict=True))
+
+
+def test_visibility_is_the_same_against_either_floor_where_replay_has_no_floor(tmp_path, monkeypatch, capsys):
+    """benchmarks/calibration_visibility measures an effect's error against the nominal model's replay floor and the
+    truth's; a bench rig replays its whole state (no floor), so the two agree and a strong effect shows in both. A
+    bad effect is refused with a message naming it, before anything is written."""
+    from benchmarks import calibration_visibility as vis
+
+    rows = vis.measure("motor", "viscous_friction", 0.02, [0], 2)["rows"]
+    assert [(r["seed"], r["draw"]) for r in rows] == [(0, 0), (0, 1)]
+    for r in rows:
+        assert r["against_nominal_floor"] == pytest.approx(r["against_truth_floor"], rel=1e-12)
+        assert r["against_nominal_floor"] > synth.MIN_NOMINAL_ERROR
+    assert rows[0]["against_nominal_floor"] != rows[1]["against_nominal_floor"]  # the draws' commands differ
+    monkeypatch.setattr("benchmarks.common.RESULTS", tmp_path)
+    with pytest.raises(SystemExit) as exit_info:
+        vis.main(["--robot", "motor", "--effect", "no_such_effect=1"])
+    assert exit_info.value.code == 2 and not list(tmp_path.iterdir())
+    assert "no_such_effect" in capsys.readouterr().err

@@ -287,9 +287,9 @@ class ServoAdapter(RigAdapter):
     # --- the goal: logged, or a nuisance -----------------------------------------------------------------------------
     def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
         out = {}
-        for log in logs:
+        for source, log in enumerate(logs):  # the logs of a Problem, in its order (Segment.source)
             if "goal" not in log.df.columns:
-                out.update(self.goal_plan(log))
+                out.update(self.goal_plan(log, source))
         return out
 
     @staticmethod
@@ -309,12 +309,13 @@ class ServoAdapter(RigAdapter):
                 start = None
         return runs
 
-    def goal_plan(self, log: Log) -> dict[str, Param]:
+    def goal_plan(self, log: Log, source: int = 0) -> dict[str, Param]:
         """An unlogged goal as nuisance parameters: its level at the log's start, and a step (time, level) for each
         move between plateaus of the reported position, and for a move still under way when the log ends. A level
         seen on a plateau may differ from it by the servo's steady error (+-40 counts); one never seen (the log
-        starts or ends moving) gets a wide range."""
-        tag = f"goal_{_tag(log.path)}_"
+        starts or ends moving) gets a wide range. ``source``: the log's place in its problem's logs, which keys its
+        parameters with its path (two logs may share a path)."""
+        tag = _tag(source, log.path)
         t = log.time
         x = log.df["present_position"].to_numpy(dtype=float)
         runs = self.plateaus(log)
@@ -349,7 +350,7 @@ class ServoAdapter(RigAdapter):
         delay = setting.get("delay.seconds", 0.0)
         if "goal" in segment.data:
             return segment.command_at("goal", times, delay)
-        tag = f"goal_{_tag(segment.log)}_"
+        tag = _tag(segment.source, segment.log)
         steps = sorted((setting[k], k) for k in setting if k.startswith(tag) and k.endswith(".time"))
         absolute = segment.t0 + times - delay
         level = float(setting[f"{tag}start.level"])
@@ -436,5 +437,7 @@ class ServoAdapter(RigAdapter):
         return {"present_position": float(recorded.get("present_position", 1.0 / math.sqrt(12)))}
 
 
-def _tag(path: str) -> str:
-    return hashlib.sha1(str(path).encode()).hexdigest()[:6]
+def _tag(source: int, path: str) -> str:
+    """The prefix of an unlogged goal's parameters: the log's place in its problem and a hash of its path (the place
+    tells two logs with one path apart; the path keeps a training log's goal apart from a held-out one's)."""
+    return f"goal_{source}_{hashlib.sha1(str(path).encode()).hexdigest()[:6]}_"
