@@ -62,7 +62,7 @@ def synthesize(
     adapter = make_adapter(robot)
     catalog = adapter.effects()
     rng = np.random.default_rng(seed)
-    commands = adapter.excite(seconds, rng)
+    commands = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
     noise = adapter.synth_noise()
     setting: dict[str, float] = {}
     truth: dict[str, dict[str, float]] = {}
@@ -78,7 +78,7 @@ def synthesize(
     first_draw = (dict(setting), {k: dict(v) for k, v in truth.items()})
     for excitation in range(EXCITATIONS):
         if excitation:  # the commands did not show the drawn effects: other commands, from the same seed
-            commands = adapter.excite(seconds, np.random.default_rng([seed, 2, excitation]))
+            commands = excitation_commands(adapter, seconds, seed, excitation)
             setting, truth = dict(first_draw[0]), {k: dict(v) for k, v in first_draw[1].items()}
             # commands the nominal model cannot replay on its own data (a legged robot's body diverging) would pass
             # the test on that alone: redrawn commands are kept only if, without the effects, the nominal model's
@@ -109,6 +109,11 @@ def synthesize(
             )
         error, log = best  # given values (a case's held-out log): the commands that showed them best
     return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
+
+
+def excitation_commands(adapter: Adapter, seconds: float, seed: int, draw: int) -> pd.DataFrame:
+    """The commands of the generator's draw ``draw`` (0 to EXCITATIONS - 1) for ``seed``."""
+    return adapter.excite(seconds, np.random.default_rng(seed if draw == 0 else [seed, 2, draw]))
 
 
 def rng_noise(seed: int) -> np.random.Generator:
@@ -159,12 +164,14 @@ def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Map
     return Log("synthetic", df, meta)
 
 
-def nominal_error(adapter: Adapter, log: Log) -> float:
-    """The nominal model's error on a log (nuisance parameters fitted first)."""
+def nominal_error(adapter: Adapter, log: Log, floor_setting: Mapping[str, float] | None = None) -> float:
+    """The nominal model's error on a log (nuisance parameters fitted first), against the replay floor of the nominal
+    model, or of ``floor_setting`` (the held-out evaluation measures against the calibrated model's floor:
+    sysid/pipeline.py)."""
     from sysid.fit import fit
     from sysid.select import nominal_setting
 
-    problem = Problem(adapter, [log])
+    problem = Problem(adapter, [log], floor_setting=floor_setting)
     setting = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
     nuisance = adapter.nuisance([log])
     if nuisance:
