@@ -87,6 +87,7 @@ from envs.common.io import (
     TEMP_RANDOM,
     ToolParser,
     atomic_write_leftovers,
+    current_umask,
     parent_problem,
     refuse_overwrite,
     write_json,
@@ -603,12 +604,15 @@ def command_line() -> str:
     return shlex.join(sys.orig_argv)
 
 
+CHECKPOINT_PREFIX = "step_"  # a checkpoint's folder: step_<N>, N in ten digits, so that names sort by step
+
+
 def save_checkpoint(model: BaseAlgorithm, checkpoints_dir: Path, manifest: dict[str, Any]) -> Path:
     """Save ``checkpoints_dir/step_<N>/`` as one unit: written under a temporary name, then renamed into place.
 
     SAC and TD3 also save their replay buffer, kept only in the newest checkpoint (it can be hundreds of MB).
     """
-    folder = checkpoints_dir / f"step_{model.num_timesteps:010d}"
+    folder = checkpoints_dir / f"{CHECKPOINT_PREFIX}{model.num_timesteps:010d}"
     checkpoints_dir.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=checkpoints_dir))
     try:
@@ -616,23 +620,17 @@ def save_checkpoint(model: BaseAlgorithm, checkpoints_dir: Path, manifest: dict[
         if isinstance(model, OffPolicyAlgorithm):
             model.save_replay_buffer(tmp / "replay_buffer.pkl")
         write_json(tmp / "checkpoint.json", {"num_timesteps": model.num_timesteps, "saved": _now()})
-        os.chmod(tmp, 0o777 & ~_umask())
+        os.chmod(tmp, 0o777 & ~current_umask())
         if folder.exists():  # the same step saved again (Ctrl-C right after a scheduled save): keep the newer one
             shutil.rmtree(folder)
         os.replace(tmp, folder)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    for old in checkpoints_dir.glob("step_*/replay_buffer.pkl"):
+    for old in checkpoints_dir.glob(f"{CHECKPOINT_PREFIX}*/replay_buffer.pkl"):
         if old.parent != folder:
             old.unlink(missing_ok=True)
     return folder
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 @dataclass
@@ -644,7 +642,7 @@ class Checkpoint:
 
 
 def checkpoints_newest_first(run_dir: Path) -> list[Path]:
-    return sorted((run_dir / "checkpoints").glob("step_*"), key=lambda p: p.name, reverse=True)
+    return sorted((run_dir / "checkpoints").glob(f"{CHECKPOINT_PREFIX}*"), key=lambda p: p.name, reverse=True)
 
 
 def load_checkpoint(folder: Path, algo: str, device: str) -> Checkpoint:
@@ -697,7 +695,7 @@ def check_fits(checkpoint: Checkpoint, venv: VecEnv, env_id: str) -> None:
 # what train.py writes into a run folder with envs.common.io.atomic_write (a kill may leave its temporary file)
 RUN_FILES = ("config.json", "command.txt", "model.zip")
 # a checkpoint folder under the temporary name save_checkpoint gives it: mkdtemp(prefix=".step_<N>.")
-UNFINISHED_CHECKPOINT = re.compile(r"\.step_\d{10,}\." + TEMP_RANDOM)
+UNFINISHED_CHECKPOINT = re.compile(re.escape(f".{CHECKPOINT_PREFIX}") + r"\d{10,}\." + TEMP_RANDOM)
 
 
 def remove_unfinished_saves(run_dir: Path) -> None:
