@@ -14,13 +14,21 @@ error against both floors.
 
 ``--effect`` takes NAME=VALUE (the first parameter) or NAME=p:v,p:v as ``python -m sysid.synth`` does. The seed of a
 case's held-out log is its seed + ``sysid.cases.TEST_SEED_OFFSET``.
+
+``--cases FILE`` instead takes every catalogued-effect case of a calibration matrix's results (its JSON) and measures
+the first command draw of its training seed and of its held-out seed at the case's truth: where the two floors part,
+a generator that measured visibility against the truth's floor would draw other truths or logs.
+
+    python -m benchmarks.calibration_visibility --cases benchmarks/results/calibration_matrix_roach_stop26.json
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -51,14 +59,61 @@ def measure(robot: str, effect: str, value: float | dict[str, float], seeds: Seq
     return {"robot": robot, "effect": effect, "setting": truth, "rows": rows}
 
 
+def matrix_cases(path: Path) -> list[dict]:
+    """Each catalogued-effect case of a matrix's results, at its truth: the training seed's and the held-out seed's
+    first command draw, against both floors, beside the case's recorded errors."""
+    from sysid.cases import TEST_SEED_OFFSET
+
+    rows = []
+    for case in json.loads(path.read_text())["effects"]:
+        ((name, values),) = case["injected"].items()
+        seeds = [case["seed"], case["seed"] + TEST_SEED_OFFSET]
+        train, held_out = measure(case["robot"], name, values, seeds, 1)["rows"]
+        rows.append({"robot": case["robot"], "effect": name, "seed": case["seed"], "truth": values,
+                     "train": train, "held_out": held_out, "case_nominal_error": case["nominal_error"],
+                     "case_error_before": case["error_before"]})  # fmt: skip
+    return rows
+
+
+def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
+    try:
+        rows = matrix_cases(path)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        parser.error(f"--cases {path}: not a calibration matrix's results ({type(e).__name__}: {e})")
+    table = md_table(
+        ["robot", "effect", "seed", "training draw 0: nominal floor", "truth's floor", "held-out draw 0: nominal floor",
+         "truth's floor", "case: training error", "case: held-out before"],
+        [[r["robot"], r["effect"], r["seed"], round(r["train"]["against_nominal_floor"], 2),
+          round(r["train"]["against_truth_floor"], 2), round(r["held_out"]["against_nominal_floor"], 2),
+          round(r["held_out"]["against_truth_floor"], 2), round(r["case_nominal_error"], 2),
+          round(r["case_error_before"], 2)] for r in rows],
+    )  # fmt: skip
+    text = (
+        f"# Visibility of each case of `{path.name}` against both replay floors\n\n"
+        "The first command draw of each case's training seed and held-out seed, at the case's truth. The case's own "
+        "training log may come from a later draw or push (its training error, recorded by the generator against the "
+        "nominal floor, is beside); its held-out error before calibration is measured against the calibrated "
+        "model's floor.\n\n" + table
+    )
+    save(name, {"matrix": str(path), "cases": rows}, text)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", required=True, choices=sorted(adapters()))
-    parser.add_argument("--effect", required=True, type=synth._parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
+    parser.add_argument("--robot", choices=sorted(adapters()))
+    parser.add_argument("--effect", type=synth._parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--draws", type=int, default=synth.EXCITATIONS, help="command draws per seed")
+    parser.add_argument("--cases", type=Path, help="a calibration matrix's results (JSON): measure each effect case")
     parser.add_argument("--name", default="calibration_visibility", help="results file name")
     args = parser.parse_args(argv)
+    if args.cases is not None:
+        if args.robot or args.effect:
+            parser.error("--cases measures the matrix's own cases: give it without --robot and --effect")
+        _main_cases(parser, args.cases, args.name)
+        return
+    if not args.robot or not args.effect:
+        parser.error("give --robot and --effect, or --cases")
     name, value = args.effect
     if value is None:
         parser.error("--effect needs a value: NAME=VALUE or NAME=p:v,p:v")

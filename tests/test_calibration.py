@@ -464,6 +464,14 @@ def test_visibility_is_the_same_against_either_floor_where_replay_has_no_floor(t
         assert r["against_nominal_floor"] == pytest.approx(r["against_truth_floor"], rel=1e-12)
         assert r["against_nominal_floor"] > synth.MIN_NOMINAL_ERROR
     assert rows[0]["against_nominal_floor"] != rows[1]["against_nominal_floor"]  # the draws' commands differ
+    # a matrix's results: each effect case measured at its truth, on its training and held-out seeds
+    matrix = tmp_path / "matrix.json"
+    matrix.write_text(json.dumps({"effects": [{"robot": "motor", "injected": {"viscous_friction": {"damping": 0.02}},
+                                               "seed": 0, "nominal_error": 9.0, "error_before": 8.0}]}))  # fmt: skip
+    (case,) = vis.matrix_cases(matrix)
+    assert case["train"]["against_nominal_floor"] == pytest.approx(rows[0]["against_nominal_floor"], rel=1e-12)
+    assert case["held_out"]["seed"] == 1000 and case["case_error_before"] == 8.0
+    matrix.unlink()
     monkeypatch.setattr("benchmarks.common.RESULTS", tmp_path)
     with pytest.raises(SystemExit) as exit_info:
         vis.main(["--robot", "motor", "--effect", "no_such_effect=1"])
