@@ -44,15 +44,15 @@ def measure(robot: str, effect: str, value: float | dict[str, float], seeds: Seq
     catalog = adapter.effects()
     if effect not in catalog:
         raise ValueError(f"robot {robot!r} has no effect {effect!r} (see python -m sysid.synth --list)")
-    given = synth._values(catalog[effect], value, np.random.default_rng(0))  # checks names and ranges; draws nothing
+    # given values are checked against the effect's names and ranges; nothing is drawn from the generator
+    given = synth.effect_values(catalog[effect], value, np.random.default_rng(0))
     truth = {catalog[effect].key(k): v for k, v in given.items()}
     rows = []
     for seed in seeds:
         for draw in range(draws):
             start = time.perf_counter()
             commands = synth.excitation_commands(adapter, synth.SECONDS, seed, draw)
-            clean = synth.simulate(adapter, truth, commands)
-            log = synth._log(adapter, commands, clean, adapter.synth_noise(), synth.rng_noise(seed), robot)
+            log = synth.noisy_log(adapter, truth, commands, seed, robot)
             rows.append({"seed": seed, "draw": draw, "against_nominal_floor": synth.nominal_error(adapter, log),
                          "against_truth_floor": synth.nominal_error(adapter, log, floor_setting=truth),
                          "seconds": time.perf_counter() - start})  # fmt: skip
@@ -101,7 +101,7 @@ def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
-    parser.add_argument("--effect", type=synth._parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
+    parser.add_argument("--effect", type=synth.parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--draws", type=int, default=synth.EXCITATIONS, help="command draws per seed")
     parser.add_argument("--cases", type=Path, help="a calibration matrix's results (JSON): measure each effect case")

@@ -63,14 +63,13 @@ def synthesize(
     catalog = adapter.effects()
     rng = np.random.default_rng(seed)
     commands = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
-    noise = adapter.synth_noise()
     setting: dict[str, float] = {}
     truth: dict[str, dict[str, float]] = {}
     for name, value in injected.items():
         if name not in catalog:
             raise ValueError(f"robot {robot!r} has no effect {name!r} (see --list)")
         effect = catalog[name]
-        values = _values(effect, value, rng)
+        values = effect_values(effect, value, rng)
         setting.update({effect.key(k): v for k, v in values.items()})
         truth[name] = values
     drawn = [n for n, v in injected.items() if v is None]
@@ -83,19 +82,18 @@ def synthesize(
             # commands the nominal model cannot replay on its own data (a legged robot's body diverging) would pass
             # the test on that alone: redrawn commands are kept only if, without the effects, the nominal model's
             # error stays under the threshold
-            plain = _log(adapter, commands, simulate(adapter, {}, commands), noise, rng_noise(seed), robot)
+            plain = noisy_log(adapter, {}, commands, seed, robot)
             if nominal_error(adapter, plain) >= MIN_NOMINAL_ERROR:
                 error = float("nan")
                 continue
         for attempt in range(PUSHES + 1):
-            clean = simulate(adapter, setting, commands)
-            log = _log(adapter, commands, clean, noise, rng_noise(seed), robot)
+            log = noisy_log(adapter, setting, commands, seed, robot)
             error = nominal_error(adapter, log)
             if error >= MIN_NOMINAL_ERROR or not drawn or attempt == PUSHES:
                 break
             for name in drawn:  # push the drawn values further from nominal
                 effect = catalog[name]
-                truth[name] = _values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
+                truth[name] = effect_values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
                 setting.update({effect.key(k): v for k, v in truth[name].items()})
         if not drawn and error > best[0]:
             best = (error, log)
@@ -116,11 +114,17 @@ def excitation_commands(adapter: Adapter, seconds: float, seed: int, draw: int) 
     return adapter.excite(seconds, np.random.default_rng(seed if draw == 0 else [seed, 2, draw]))
 
 
+def noisy_log(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFrame, seed: int, robot: str) -> Log:
+    """The model with ``setting`` run under ``commands``, read with the adapter's sensor noise drawn from ``seed``."""
+    clean = simulate(adapter, setting, commands)
+    return _log(adapter, commands, clean, adapter.synth_noise(), rng_noise(seed), robot)
+
+
 def rng_noise(seed: int) -> np.random.Generator:
     return np.random.default_rng([seed, 1])
 
 
-def _values(
+def effect_values(
     effect: Effect, value: float | Mapping[str, float] | None, rng: np.random.Generator, push: float = 0.0
 ) -> dict[str, float]:
     """Values of an effect's parameters: given (a number for the first parameter, the rest nominal; or a value per
@@ -194,7 +198,7 @@ def listing() -> str:
     return "\n".join(lines)
 
 
-def _parse_effect(text: str) -> tuple[str, float | dict[str, float] | None]:
+def parse_effect(text: str) -> tuple[str, float | dict[str, float] | None]:
     """``NAME``, ``NAME=VALUE`` (the first parameter) or ``NAME=param:value,param:value``."""
     name, _, value = text.partition("=")
     if not value:
@@ -211,7 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = ToolParser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument(
-        "--effect", action="append", default=[], type=_parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"
+        "--effect", action="append", default=[], type=parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=SECONDS)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from envs.common.locomotion import wrap
 from envs.xjus import constants as C
 
 _K = 2.0 * np.arange(1, C.FOURIER_TERMS + 1) - 1.0  # 2m - 1
@@ -37,12 +38,7 @@ _W_RATE = _W * _TWO_PI_K
 _W_ACCEL = _W * np.square(_TWO_PI_K)
 # the three weight vectors as rows, complex, to take all three sums from the harmonics in one product
 _W_ROWS = np.stack([_W, _W_RATE, _W_ACCEL]).astype(np.complex128)
-_TWO_PI = 2.0 * np.pi
-
-
-def wrap_angle(x: np.ndarray) -> np.ndarray:
-    """Wrap to [-pi, pi] (subtracting whole turns: a tenth of the cost of arctan2(sin, cos) on (128, 6))."""
-    return x - _TWO_PI * np.rint(x * (1.0 / _TWO_PI))
+wrap_angle = wrap  # to [-pi, pi], the tasks' wrap (envs/common/locomotion.py)
 
 
 def _series(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

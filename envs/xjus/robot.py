@@ -487,8 +487,8 @@ class Xjus(Robot):
         if stepped is False:
             self._leg_power[:] = 0.0
         else:
-            power = self._battery_power(sub[:, :, 0:6], sub[:, :, 6:12])
-            self._leg_power = np.add.reduce(power, axis=1) * (1.0 / power.shape[1])  # the mean, without its overhead
+            per_step = self._battery_power(sub[:, :, 0:6], sub[:, :, 6:12])
+            self._leg_power = np.add.reduce(per_step, axis=1) * (1.0 / per_step.shape[1])  # the mean, less overhead
             if stepped is not True:
                 self._leg_power[~np.asarray(stepped)] = 0.0
         power = self._leg_power.sum(axis=1)
