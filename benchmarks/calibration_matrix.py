@@ -5,8 +5,9 @@ effect at a value the generator draws with the seed, a test log of the same trut
 the one and judge on the other: is the first pick in the injected effect's alias group, is the value recovered
 (within the larger of twice the reported half-width and 5% of the range), does the held-out error's excess over the
 noise floor at least halve. Effects a robot declares weak on its channels (``Effect.weak``) are not drawn: each is
-set at the far end of its range and the nominal model's error checked to stay under the generator's threshold of 3
-(the declaration held to the data). Then, per robot, the null case (noise only: nothing should be chosen), the
+set at the far end of its range and the nominal model's error checked to stay under the generator's threshold of 3,
+measured as the generator measures it (against the true model's replay floor, on the robot's recording protocol):
+the declaration held to the data. Then, per robot, the null case (noise only: nothing should be chosen), the
 out-of-catalog cases (a periodic disturbance torque, and for the roach a terrain bump: the report should say
 "unexplained"), and the coverage of the reported 95% intervals over SEEDS seeds for a few effects (goal: >= 80%).
 
@@ -123,7 +124,9 @@ def _on_ray(plan: list[Job], left, workers: int, threads: int, address: str | No
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--robots", nargs="+", default=sorted(adapters()), help="default: every robot with an adapter")
-    p.add_argument("--seeds", type=int, default=20, help="seeds of the coverage runs")
+    p.add_argument("--seeds", type=int, default=20, help="seeds of the coverage runs (100, 101, ...)")
+    p.add_argument("--coverage-seeds", type=int, nargs="+", metavar="SEED",
+                   help="these coverage seeds instead (to rerun a few)")  # fmt: skip
     p.add_argument("--minutes", type=float, default=45.0, help="no case starts after this budget")
     p.add_argument("--kinds", nargs="+", default=["effect", "weak", "null", "ooc", "coverage"],
                    choices=["effect", "weak", "null", "ooc", "coverage"], help="which cases to run")  # fmt: skip
@@ -138,6 +141,8 @@ def main(argv: list[str] | None = None) -> int:
         value = getattr(args, flag)
         if value is not None and value < 1:
             p.error(f"--{flag} {value}: expected at least 1")
+    if args.coverage_seeds and min(args.coverage_seeds) < 0:
+        p.error(f"--coverage-seeds {min(args.coverage_seeds)}: seeds are non-negative")
     if not args.minutes > 0:
         p.error(f"--minutes {args.minutes:g}: expected a positive budget")
     unknown = sorted(set(args.robots) - set(adapters()))
@@ -161,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
         plan += [("weak", robot, name, 0) for name in catalogued if name not in observable]
         plan += [("null", robot, None, 2)]
         plan += [("ooc", robot, name, 3) for name in OUT_OF_CATALOG.get(robot, [])]
-        plan += [("coverage", robot, name, 100 + s) for name in COVERAGE.get(robot, []) for s in range(args.seeds)]
+        seeds = args.coverage_seeds or [100 + s for s in range(args.seeds)]
+        plan += [("coverage", robot, name, s) for name in COVERAGE.get(robot, []) for s in seeds]
     plan = [c for c in plan if c[0] in args.kinds and (args.effects is None or c[0] == "null" or c[2] in args.effects)]
     parallel = args.workers > 1 or args.address
     results = _on_ray(plan, left, args.workers, threads, args.address) if parallel else _serial(plan, left)
@@ -260,11 +266,14 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
 
 
 def _weak(robot: str, name: str) -> dict:
-    """The nominal model's error on synthetic logs (seeds WEAK_SEEDS) with a weak effect at the far end of its range;
+    """The nominal model's error on synthetic logs (seeds WEAK_SEEDS; the robot's runs where it records several) with
+    a weak effect at the far end of its range, against the true model's replay floor as the generator measures it;
     the declaration holds if the median stays under the generator's threshold."""
-    effect = make_adapter(robot).effects()[name]
+    adapter = make_adapter(robot)
+    effect = adapter.effects()[name]
+    runs, seconds = adapter.runs or (1, synth.SECONDS)
     values = {p.name: p.high if p.high - p.nominal >= p.nominal - p.low else p.low for p in effect.params}
-    errors = [float(synth.synthesize(robot, {name: values}, seed=s)[1]["nominal_error"]) for s in WEAK_SEEDS]
+    errors = [float(synth.record(robot, {name: values}, s, seconds, runs)[1]["nominal_error"]) for s in WEAK_SEEDS]
     median = float(np.median(errors))
     return {"robot": robot, "effect": name, "value": "; ".join(f"{k} {v:g}" for k, v in values.items()),
             "nominal_error": median, "errors": errors, "holds": median < synth.MIN_NOMINAL_ERROR,

@@ -1,11 +1,12 @@
 """Does a hidden effect show in a robot's synthetic logs against the replay floor of the right model?
 
-The generator (sysid/synth.py) calls an effect visible when the nominal model's error on its log reaches 3 noise
-levels, with the replay floor (what replay in segments cannot match even with the right model: the unlogged body)
-measured at the nominal model. The held-out evaluation (sysid/pipeline.py) measures both errors against the floor of the
-calibrated model instead. Where the effect itself makes the body's replay diverge more (a high foot friction, say),
-the two floors differ, and a log the generator calls visible may sit at the floor of the right model: no calibration
-can then halve its excess.
+Until stop 29 the generator (sysid/synth.py) called an effect visible when the nominal model's error on its log
+reached 3 noise levels, with the replay floor (what replay in segments cannot match even with the right model: the
+unlogged body) measured at the nominal model. The held-out evaluation (sysid/pipeline.py) measures both errors
+against the floor of the calibrated model instead. Where the effect itself makes the body's replay diverge more (a
+high foot friction, say), the two floors differ, and a log the generator called visible could sit at the floor of the
+right model: no calibration could then halve its excess. The generator now measures against the truth's floor; this
+tool shows how far the two floors part.
 
 This prints, for an effect at given values, each seed and each of the generator's command draws, the nominal model's
 error against both floors.
@@ -47,12 +48,15 @@ def measure(robot: str, effect: str, value: float | dict[str, float], seeds: Seq
     # given values are checked against the effect's names and ranges; nothing is drawn from the generator
     given = synth.effect_values(catalog[effect], value, np.random.default_rng(0))
     truth = {catalog[effect].key(k): v for k, v in given.items()}
+    runs, seconds = adapter.runs or (1, synth.SECONDS)
     rows = []
     for seed in seeds:
         for draw in range(draws):
             start = time.perf_counter()
-            commands = synth.excitation_commands(adapter, synth.SECONDS, seed, draw)
-            log = synth.noisy_log(adapter, truth, commands, seed, robot)
+            # the robot's recording protocol (``Adapter.runs``), as the generator records a case: run k's commands
+            # and noise from seed + k x RUN_SEED_OFFSET
+            log = [synth.noisy_log(adapter, truth, synth.excitation_commands(adapter, seconds, s, draw), s, robot)
+                   for s in (seed + synth.RUN_SEED_OFFSET * k for k in range(runs))]  # fmt: skip
             rows.append({"seed": seed, "draw": draw, "against_nominal_floor": synth.nominal_error(adapter, log),
                          "against_truth_floor": synth.nominal_error(adapter, log, floor_setting=truth),
                          "seconds": time.perf_counter() - start})  # fmt: skip
@@ -92,8 +96,8 @@ def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
         f"# Visibility of each case of `{path.name}` against both replay floors\n\n"
         "The first command draw of each case's training seed and held-out seed, at the case's truth. The case's own "
         "training log may come from a later draw or push (its training error, recorded by the generator against the "
-        "nominal floor, is beside); its held-out error before calibration is measured against the calibrated "
-        "model's floor.\n\n" + table
+        "nominal floor until stop 29 and the truth's since, is beside); its held-out error before calibration is "
+        "measured against the calibrated model's floor.\n\n" + table
     )
     save(name, {"matrix": str(path), "cases": rows}, text)
 
@@ -133,8 +137,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     text = (
         f"# Visibility of {name} on the {args.robot}\n\n"
         f"Setting {result['setting']}. The generator calls an effect visible at an error of "
-        f"{synth.MIN_NOMINAL_ERROR:g} against the nominal model's replay floor; the held-out evaluation measures "
-        "against the calibrated model's.\n\n"
+        f"{synth.MIN_NOMINAL_ERROR:g} against the true model's replay floor (until stop 29, the nominal model's); "
+        "the held-out evaluation measures against the calibrated model's.\n\n"
         + table
         + f"\nMedian: {medians[0]:.2f} against the nominal floor, {medians[1]:.2f} against the truth's.\n"
     )

@@ -17,7 +17,6 @@ from sysid.pipeline import Result, relative_excess, run
 from sysid.robots import adapter as make_adapter
 
 TEST_SEED_OFFSET = 1000  # the test log's commands and noise come from seed + this
-RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of a protocol of several runs: seed + k times this
 
 
 @dataclass
@@ -59,22 +58,16 @@ def pair(
 ) -> tuple[list[Log], list[Log], dict]:
     """A case's logs: the training logs with hidden effects (drawn when None) and the held-out logs of the same truth
     under other commands (seed + TEST_SEED_OFFSET), chosen to show it as the training logs' do. The robot's
-    recording protocol (``Adapter.runs``) says how many runs of how many seconds each; the truth is drawn on the
-    generator's 10 s log of the seed in every case, so that a robot's cases keep their truths whatever its protocol.
-    Returns both lists and the truth."""
-    first, truth = synth.synthesize(robot, effects, seed)
-    protocol = make_adapter(robot).runs
-    if protocol is None:  # the generator's log of the case, and one of the held-out seed
-        test, _ = synth.synthesize(robot, truth["effects"], seed + TEST_SEED_OFFSET, show=True)
-        return [first], [test], truth
-    runs, seconds = protocol
-    given = truth["effects"]
-
-    def record(base: int, name: str) -> list[Log]:
-        return [dataclasses.replace(synth.synthesize(robot, given, base + RUN_SEED_OFFSET * k, seconds, show=True)[0],
-                                    path=f"synthetic {name} run {k + 1}") for k in range(runs)]  # fmt: skip
-
-    return record(seed, "training"), record(seed + TEST_SEED_OFFSET, "held-out"), truth
+    recording protocol (``Adapter.runs``) says how many runs of how many seconds each (by default one log of
+    ``synth.SECONDS``); the truth is drawn on the training runs, where calibration will look for it. Returns both
+    lists and the truth."""
+    runs, seconds = make_adapter(robot).runs or (1, synth.SECONDS)
+    train, truth = synth.record(robot, effects, seed, seconds, runs)
+    test, _ = synth.record(robot, truth["effects"], seed + TEST_SEED_OFFSET, seconds, runs, show=True)
+    if runs > 1:
+        train, test = ([dataclasses.replace(log, path=f"synthetic {name} run {k + 1}") for k, log in enumerate(logs)]
+                       for name, logs in (("training", train), ("held-out", test)))  # fmt: skip
+    return train, test, truth
 
 
 def run_case(

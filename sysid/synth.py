@@ -7,13 +7,15 @@ and sensor noise, to test calibration.
     python -m sysid.synth --list
 
 An effect given without a value is drawn from its range with the seed, far enough from its nominal value that the
-nominal model's error on the data is at least 3 (three times the noise floor): pushed up to 90% of the way to a
-bound, and where even that does not show, under other commands drawn from the same seed (up to three draws). Given
-values are not moved; a case's held-out log of them (``synthesize(..., show=True)``, sysid/cases.py) is, where the
-first commands do not show them, the one of three draws of the commands that shows them best. The
-log holds the commands, the measured channels (with noise) and the noise levels; the truth goes to a separate
-``<out>.truth.json`` that calibration never reads. Out-of-catalog effects (a terrain bump, a periodic disturbance)
-can be injected too.
+nominal model's error on the data is at least 3 (three times the noise floor), measured against the replay floor of
+the true model (its catalogued part), as the held-out evaluation measures a calibrated model: pushed up to 90% of
+the way to a bound, and where even that does not show, under other commands drawn from the same seed (up to three
+draws). Given values are not moved; a case's held-out log of them (``synthesize(..., show=True)``, sysid/cases.py)
+is, where the first commands do not show them, the one of three draws of the commands that shows them best. A robot
+that records its cases as several short runs (``Adapter.runs``) has its effects drawn and shown on those runs
+together (:func:`record`). The log holds the commands, the measured channels (with noise) and the noise levels; the
+truth goes to a separate ``<out>.truth.json`` that calibration never reads. Out-of-catalog effects (a terrain bump,
+a periodic disturbance) can be injected too.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ PUSHES = 4  # pushes of a drawn value toward MAX_REACH (60, 70, 80, 90% of the w
 # visible an effect is depends on what the commands excite, and the generator's job is commands that show it
 EXCITATIONS = 3
 SECONDS = 10.0  # a synthetic log's length (issue 7: about 10 s keeps each case to minutes)
+RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of several runs: its commands and noise from seed + k x this
 
 
 def synthesize(
@@ -58,11 +61,34 @@ def synthesize(
     """A synthetic log of ``robot`` with effects ``name -> value`` (a number for the first parameter, a dict per
     parameter, or None: drawn). Returns the log and the truth. With ``show``, given values that the first commands
     do not show (error under 3) get the log of up to three draws of the commands that shows them best: a case's
-    held-out log, whose commands should show its truth as the training log's do."""
+    held-out log, whose commands should show its truth as the training log's do. See :func:`record`."""
+    logs, truth = record(robot, injected, seed, seconds, show=show)
+    return logs[0], truth
+
+
+def record(
+    robot: str,
+    injected: Mapping[str, float | Mapping[str, float] | None],
+    seed: int,
+    seconds: float = SECONDS,
+    runs: int = 1,
+    show: bool = False,
+) -> tuple[list[Log], dict]:
+    """``runs`` synthetic logs of ``seconds`` each, every one from rest (a robot's recording protocol,
+    ``Adapter.runs``; one log by default), with effects as :func:`synthesize` takes them. How visible the effects
+    are is measured on all the runs together, as calibration will see them, and against the replay floor of the
+    true model's catalogued part: the best model a calibration can reach, whose floor the held-out evaluation
+    measures against (sysid/pipeline.py), so that an effect the right model's own replay floor would swallow is not
+    called visible (an out-of-catalog effect is measured against the nominal model's floor: no calibration can
+    reach it). Run k's commands and noise come
+    from seed + k x RUN_SEED_OFFSET (run 0's from the seed's generator, before the drawn values); redrawn commands
+    are redrawn for every run. Returns the logs and the truth."""
     adapter = make_adapter(robot)
     catalog = adapter.effects()
     rng = np.random.default_rng(seed)
-    commands = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
+    first = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
+    seeds = [seed + RUN_SEED_OFFSET * k for k in range(runs)]
+    commands = [first] + [excitation_commands(adapter, seconds, s, 0) for s in seeds[1:]]
     setting: dict[str, float] = {}
     truth: dict[str, dict[str, float]] = {}
     for name, value in injected.items():
@@ -73,22 +99,32 @@ def synthesize(
         setting.update({effect.key(k): v for k, v in values.items()})
         truth[name] = values
     drawn = [n for n, v in injected.items() if v is None]
-    best: tuple[float, Log | None] = (float("-inf"), None)  # given values: the log that shows them best so far
+    best: tuple[float, list[Log] | None] = (float("-inf"), None)  # given values: the logs that show them best so far
     first_draw = (dict(setting), {k: dict(v) for k, v in truth.items()})
+
+    def logs_of(setting: Mapping[str, float]) -> list[Log]:
+        return [noisy_log(adapter, setting, c, s, robot) for c, s in zip(commands, seeds, strict=True)]
+
+    in_catalog = {k for e in catalog.values() if e.catalogued for k in e.nominal()}
+
+    def reachable(setting: Mapping[str, float]) -> dict[str, float]:
+        """The catalog's part of a setting: the best model a calibration can reach, whose replay floor the held-out
+        evaluation measures against (an out-of-catalog effect stays in the residual, above the catalog's floor)."""
+        return {k: v for k, v in setting.items() if k in in_catalog}
+
     for excitation in range(EXCITATIONS):
         if excitation:  # the commands did not show the drawn effects: other commands, from the same seed
-            commands = excitation_commands(adapter, seconds, seed, excitation)
+            commands = [excitation_commands(adapter, seconds, s, excitation) for s in seeds]
             setting, truth = dict(first_draw[0]), {k: dict(v) for k, v in first_draw[1].items()}
             # commands the nominal model cannot replay on its own data (a legged robot's body diverging) would pass
             # the test on that alone: redrawn commands are kept only if, without the effects, the nominal model's
             # error stays under the threshold
-            plain = noisy_log(adapter, {}, commands, seed, robot)
-            if nominal_error(adapter, plain) >= MIN_NOMINAL_ERROR:
+            if nominal_error(adapter, logs_of({})) >= MIN_NOMINAL_ERROR:
                 error = float("nan")
                 continue
         for attempt in range(PUSHES + 1):
-            log = noisy_log(adapter, setting, commands, seed, robot)
-            error = nominal_error(adapter, log)
+            logs = logs_of(setting)
+            error = nominal_error(adapter, logs, floor_setting=reachable(setting))
             if error >= MIN_NOMINAL_ERROR or not drawn or attempt == PUSHES:
                 break
             for name in drawn:  # push the drawn values further from nominal
@@ -96,17 +132,18 @@ def synthesize(
                 truth[name] = effect_values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
                 setting.update({effect.key(k): v for k, v in truth[name].items()})
         if not drawn and error > best[0]:
-            best = (error, log)
+            best = (error, logs)
         if error >= MIN_NOMINAL_ERROR or not injected or (not drawn and not show):
             break
     else:
         if drawn:
             raise ValueError(
                 f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
-                f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR}: these channels barely see it"
+                f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR} against the true model's replay floor: these "
+                "channels barely see it"
             )
-        error, log = best  # given values (a case's held-out log): the commands that showed them best
-    return log, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
+        error, logs = best  # given values (a case's held-out logs): the commands that showed them best
+    return logs, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
 
 
 def excitation_commands(adapter: Adapter, seconds: float, seed: int, draw: int) -> pd.DataFrame:
@@ -168,16 +205,19 @@ def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Map
     return Log("synthetic", df, meta)
 
 
-def nominal_error(adapter: Adapter, log: Log, floor_setting: Mapping[str, float] | None = None) -> float:
-    """The nominal model's error on a log (nuisance parameters fitted first), against the replay floor of the nominal
-    model, or of ``floor_setting`` (the held-out evaluation measures against the calibrated model's floor:
-    sysid/pipeline.py)."""
+def nominal_error(
+    adapter: Adapter, log: Log | Sequence[Log], floor_setting: Mapping[str, float] | None = None
+) -> float:
+    """The nominal model's error on a log or on several together (nuisance parameters fitted first), against the
+    replay floor of the nominal model, or of ``floor_setting`` (the held-out evaluation measures against the
+    calibrated model's floor: sysid/pipeline.py)."""
     from sysid.fit import fit
     from sysid.select import nominal_setting
 
-    problem = Problem(adapter, [log], floor_setting=floor_setting)
+    logs = [log] if isinstance(log, Log) else list(log)
+    problem = Problem(adapter, logs, floor_setting=floor_setting)
     setting = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
-    nuisance = adapter.nuisance([log])
+    nuisance = adapter.nuisance(logs)
     if nuisance:
         setting = fit(problem, setting, nuisance).values
     return problem.error(problem.residuals([setting])[0])

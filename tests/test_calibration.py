@@ -150,6 +150,25 @@ def test_given_values_come_back_unchanged():
     assert again["effects"] == truth["effects"]
 
 
+def test_the_generator_measures_visibility_on_all_runs_against_the_true_models_floor(monkeypatch):
+    """How visible a drawn effect is gets measured as the held-out evaluation measures a calibrated model: on every
+    run of the recording together, against the replay floor of the model with the truth (not the nominal one, whose
+    floor a legged robot's truth can sit far above or below)."""
+    calls = []
+    measure = synth.nominal_error
+
+    def spy(adapter, logs, floor_setting=None):
+        calls.append((len(logs), dict(floor_setting or {})))
+        return measure(adapter, logs, floor_setting)
+
+    monkeypatch.setattr(synth, "nominal_error", spy)
+    logs, truth = synth.record("motor", {"viscous_friction": None}, 3, seconds=2.0, runs=3)
+    assert len(logs) == 3 and len({log.df["duty"].to_numpy().tobytes() for log in logs}) == 3  # each run its own commands
+    assert calls and all(n == 3 for n, _ in calls)
+    assert calls[-1][1] == truth["setting"] and truth["setting"]  # the last measure: the truth's floor
+    assert truth["nominal_error"] == measure(make_adapter("motor"), logs, truth["setting"]) >= synth.MIN_NOMINAL_ERROR
+
+
 def _check_recovery(robot: str, effect: str, seed: int) -> Case:
     case = run_case(robot, {effect: None}, seed)
     assert case.nominal_error >= synth.MIN_NOMINAL_ERROR
