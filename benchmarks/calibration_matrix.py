@@ -34,6 +34,7 @@ import numpy as np
 
 from benchmarks.common import md_table, save
 from envs.common.batch import THREADS_VARIABLE, default_threads
+from envs.common.cluster import init_ray
 from sysid import synth
 from sysid.cases import Case, run_case
 from sysid.report import format_interval
@@ -96,8 +97,7 @@ def _on_ray(plan: list[Job], left, workers: int, threads: int, address: str | No
 
     root = str(Path(__file__).resolve().parent.parent)
     if not ray.is_initialized():
-        ray.init(address=address, num_cpus=None if address else workers * threads, include_dashboard=False,
-                 log_to_driver=False, configure_logging=False,
+        init_ray(address, num_cpus=None if address else workers * threads,
                  runtime_env={"env_vars": {"PYTHONPATH": root}})  # fmt: skip
     task = ray.remote(num_cpus=threads)(_run_in)
     queue, running = list(plan), {}

@@ -80,9 +80,8 @@ def record(
     true model's catalogued part: the best model a calibration can reach, whose floor the held-out evaluation
     measures against (sysid/pipeline.py), so that an effect the right model's own replay floor would swallow is not
     called visible (an out-of-catalog effect is measured against the nominal model's floor: no calibration can
-    reach it). Run k's commands and noise come
-    from seed + k x RUN_SEED_OFFSET (run 0's from the seed's generator, before the drawn values); redrawn commands
-    are redrawn for every run. Returns the logs and the truth."""
+    reach it). Run k's commands and noise come from seed + k x RUN_SEED_OFFSET (run 0's from the seed's generator,
+    before the drawn values); redrawn commands are redrawn for every run. Returns the logs and the truth."""
     adapter = make_adapter(robot)
     catalog = adapter.effects()
     rng = np.random.default_rng(seed)

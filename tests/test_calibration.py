@@ -163,7 +163,7 @@ def test_the_generator_measures_visibility_on_all_runs_against_the_true_models_f
 
     monkeypatch.setattr(synth, "nominal_error", spy)
     logs, truth = synth.record("motor", {"viscous_friction": None}, 3, seconds=2.0, runs=3)
-    assert len(logs) == 3 and len({log.df["duty"].to_numpy().tobytes() for log in logs}) == 3  # each run its own commands
+    assert len(logs) == 3 and len({log.df["duty"].to_numpy().tobytes() for log in logs}) == 3  # commands per run
     assert calls and all(n == 3 for n, _ in calls)
     assert calls[-1][1] == truth["setting"] and truth["setting"]  # the last measure: the truth's floor
     assert truth["nominal_error"] == measure(make_adapter("motor"), logs, truth["setting"]) >= synth.MIN_NOMINAL_ERROR

@@ -16,6 +16,7 @@ import pytest
 from agents.optimize.optimizers import PSO
 from agents.optimize.problem import Evaluator, eq17, parse_config
 from agents.optimize.run import LocalBackend, RayBackend, RunError, Settings, run
+from envs.common.cluster import init_ray
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
@@ -103,13 +104,20 @@ def test_the_ray_backend_gives_the_local_batchs_result():
 
     config = parse_config({**TINY, "seconds": 3.0})
     settings = Settings(config.to_dict(), "pso", 2, 6, 5)
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    init_ray(num_cpus=2)
     try:
         import tempfile
 
         with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
             local = run(config, settings, Path(a), lambda: LocalBackend(config, 6, 1), progress=False)
             spread = run(config, settings, Path(b), lambda: RayBackend(config, 6, workers=2), progress=False)
+
+        # a local instance's workers run at the driver's priority (Ray's default niceness, 15, starves them beside
+        # other work: envs/common/cluster.py)
+        def niceness() -> int:  # defined here: shipped to the worker by value
+            return os.nice(0)
+
+        assert ray.get(ray.remote(num_cpus=1)(niceness).remote()) == niceness()
     finally:
         ray.shutdown()
     assert local["history"] == spread["history"]

@@ -24,6 +24,7 @@ import numpy as np
 
 from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import Evaluator, RunConfig
+from envs.common.cluster import init_ray
 from envs.common.io import atomic_write, write_json
 
 CHECKPOINT, BEST, HISTORY = "checkpoint.pkl", "best.json", "history.json"
@@ -81,7 +82,7 @@ class RayBackend:
         # built here first: a bad config fails in one line before Ray starts (it also writes the policy files)
         self.controller = Evaluator(config, 1, nthread=1).controller
         if not ray.is_initialized():
-            ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
+            init_ray(address)
         sizes = [len(part) for part in np.array_split(np.arange(particles), workers)]
         remote = ray.remote(num_cpus=1)(_Worker)
         self._ray = ray
