@@ -271,7 +271,7 @@ def _weak(robot: str, name: str) -> dict:
     the declaration holds if the median stays under the generator's threshold."""
     adapter = make_adapter(robot)
     effect = adapter.effects()[name]
-    runs, seconds = adapter.runs or (1, synth.SECONDS)
+    runs, seconds = synth.protocol(adapter)
     values = {p.name: p.high if p.high - p.nominal >= p.nominal - p.low else p.low for p in effect.params}
     errors = [float(synth.record(robot, {name: values}, s, seconds, runs)[1]["nominal_error"]) for s in WEAK_SEEDS]
     median = float(np.median(errors))

@@ -48,15 +48,14 @@ def measure(robot: str, effect: str, value: float | dict[str, float], seeds: Seq
     # given values are checked against the effect's names and ranges; nothing is drawn from the generator
     given = synth.effect_values(catalog[effect], value, np.random.default_rng(0))
     truth = {catalog[effect].key(k): v for k, v in given.items()}
-    runs, seconds = adapter.runs or (1, synth.SECONDS)
+    runs, seconds = synth.protocol(adapter)
     rows = []
     for seed in seeds:
         for draw in range(draws):
             start = time.perf_counter()
-            # the robot's recording protocol (``Adapter.runs``), as the generator records a case: run k's commands
-            # and noise from seed + k x RUN_SEED_OFFSET
+            # the robot's recording protocol, as the generator records a case
             log = [synth.noisy_log(adapter, truth, synth.excitation_commands(adapter, seconds, s, draw), s, robot)
-                   for s in (seed + synth.RUN_SEED_OFFSET * k for k in range(runs))]  # fmt: skip
+                   for s in synth.run_seeds(seed, runs)]  # fmt: skip
             rows.append({"seed": seed, "draw": draw, "against_nominal_floor": synth.nominal_error(adapter, log),
                          "against_truth_floor": synth.nominal_error(adapter, log, floor_setting=truth),
                          "seconds": time.perf_counter() - start})  # fmt: skip

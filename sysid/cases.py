@@ -61,7 +61,7 @@ def pair(
     recording protocol (``Adapter.runs``) says how many runs of how many seconds each (by default one log of
     ``synth.SECONDS``); the truth is drawn on the training runs, where calibration will look for it. Returns both
     lists and the truth."""
-    runs, seconds = make_adapter(robot).runs or (1, synth.SECONDS)
+    runs, seconds = synth.protocol(make_adapter(robot))
     train, truth = synth.record(robot, effects, seed, seconds, runs)
     test, _ = synth.record(robot, truth["effects"], seed + TEST_SEED_OFFSET, seconds, runs, show=True)
     if runs > 1:

@@ -86,7 +86,7 @@ def record(
     catalog = adapter.effects()
     rng = np.random.default_rng(seed)
     first = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
-    seeds = [seed + RUN_SEED_OFFSET * k for k in range(runs)]
+    seeds = run_seeds(seed, runs)
     commands = [first] + [excitation_commands(adapter, seconds, s, 0) for s in seeds[1:]]
     setting: dict[str, float] = {}
     truth: dict[str, dict[str, float]] = {}
@@ -143,6 +143,17 @@ def record(
             )
         error, logs = best  # given values (a case's held-out logs): the commands that showed them best
     return logs, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
+
+
+def protocol(adapter: Adapter) -> tuple[int, float]:
+    """How a robot's synthetic cases are recorded: (runs, seconds each); one log of SECONDS unless the adapter
+    declares runs from rest (``Adapter.runs``)."""
+    return adapter.runs or (1, SECONDS)
+
+
+def run_seeds(seed: int, runs: int) -> list[int]:
+    """The seeds of a recording's runs: run k's commands and noise come from seed + k x RUN_SEED_OFFSET."""
+    return [seed + RUN_SEED_OFFSET * k for k in range(runs)]
 
 
 def excitation_commands(adapter: Adapter, seconds: float, seed: int, draw: int) -> pd.DataFrame:
