@@ -24,7 +24,6 @@ from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.problem import Problem
 from sysid.robots import adapter as make_adapter
-from sysid.select import nominal_setting
 
 GOAL_MINUTES = 5.0
 
@@ -40,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     log, truth = synth.synthesize("roach", {args.effect: None}, args.seed, seconds=args.seconds)
     synth_seconds = time.perf_counter() - t0
     problem = Problem(adapter, [log])
-    setting = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
+    setting = adapter.catalog_nominal()
     problem.residuals([setting])  # models compiled, as the loop's first replay compiles them
     problem._carry.clear()  # but no run of this setting kept: a replay of the log from scratch
     problem._sensitivity.clear()

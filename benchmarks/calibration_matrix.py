@@ -6,7 +6,8 @@ the one and judge on the other: is the first pick in the injected effect's alias
 (within the larger of twice the reported half-width and 5% of the range), does the held-out error's excess over the
 noise floor at least halve. Effects a robot declares weak on its channels (``Effect.weak``) are not drawn: each is
 set at the far end of its range and the nominal model's error checked to stay under the generator's threshold of 3,
-measured as the generator measures it (against the true model's replay floor, on the robot's recording protocol):
+measured as the generator measures it (against the true and the nominal model's replay floors, on the robot's
+recording protocol):
 the declaration held to the data. Then, per robot, the null case (noise only: nothing should be chosen), the
 out-of-catalog cases (a periodic disturbance torque, and for the roach a terrain bump: the report should say
 "unexplained"), and the coverage of the reported 95% intervals over SEEDS seeds for a few effects (goal: >= 80%).
@@ -159,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     plan: list[Job] = []
     for robot in args.robots:
         adapter = make_adapter(robot)
-        catalogued = [name for name, e in adapter.effects().items() if e.catalogued]
+        catalogued = list(adapter.catalog())
         observable = [name for name in catalogued if adapter.effects()[name].observable]
         # a draw of its own each (effect k of the catalog: seed k + 1)
         plan += [("effect", robot, name, 1 + catalogued.index(name)) for name in observable]
@@ -267,7 +268,7 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
 
 def _weak(robot: str, name: str) -> dict:
     """The nominal model's error on synthetic logs (seeds WEAK_SEEDS; the robot's runs where it records several) with
-    a weak effect at the far end of its range, against the true model's replay floor as the generator measures it;
+    a weak effect at the far end of its range, against both replay floors as the generator measures it;
     the declaration holds if the median stays under the generator's threshold."""
     adapter = make_adapter(robot)
     effect = adapter.effects()[name]

@@ -5,8 +5,9 @@ reached 3 noise levels, with the replay floor (what replay in segments cannot ma
 unlogged body) measured at the nominal model. The held-out evaluation (sysid/pipeline.py) measures both errors
 against the floor of the calibrated model instead. Where the effect itself makes the body's replay diverge more (a
 high foot friction, say), the two floors differ, and a log the generator called visible could sit at the floor of the
-right model: no calibration could then halve its excess. The generator now measures against the truth's floor; this
-tool shows how far the two floors part.
+right model: no calibration could then halve its excess. Stop 29's generator measured against the truth's floor;
+since stop 30 it asks for 3 against both (the loop starts from the nominal model and sees its floor). This tool shows
+how far the two floors part.
 
 This prints, for an effect at given values, each seed and each of the generator's command draws, the nominal model's
 error against both floors.
@@ -136,7 +137,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     text = (
         f"# Visibility of {name} on the {args.robot}\n\n"
         f"Setting {result['setting']}. The generator calls an effect visible at an error of "
-        f"{synth.MIN_NOMINAL_ERROR:g} against the true model's replay floor (until stop 29, the nominal model's); "
+        f"{synth.MIN_NOMINAL_ERROR:g} against both floors (stop 29: the truth's alone; earlier, the nominal's); "
         "the held-out evaluation measures against the calibrated model's.\n\n"
         + table
         + f"\nMedian: {medians[0]:.2f} against the nominal floor, {medians[1]:.2f} against the truth's.\n"

@@ -138,6 +138,14 @@ class Adapter(ABC):
     def effects(self) -> dict[str, Effect]:
         """The catalog effects this robot can apply and its channels can observe, by name."""
 
+    def catalog(self) -> dict[str, Effect]:
+        """The effects calibration may choose (the generator's out-of-catalog ones left out), by name."""
+        return {k: e for k, e in self.effects().items() if e.catalogued}
+
+    def catalog_nominal(self) -> dict[str, float]:
+        """Every catalog parameter at its nominal value, flat (``effect.param`` -> value): the nominal model."""
+        return {k: v for e in self.catalog().values() for k, v in e.nominal().items()}
+
     def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
         """Parameters fitted with every candidate but never reported as effects (e.g. an unlogged servo goal)."""
         return {}
@@ -147,7 +155,7 @@ class Adapter(ABC):
 
     def known_effects(self) -> dict[str, dict[str, tuple[float, float]]]:
         """effect -> parameter -> (low, high), of the catalog effects (for checking calibration files)."""
-        return {n: {p.name: (p.low, p.high) for p in e.params} for n, e in self.effects().items() if e.catalogued}
+        return {n: {p.name: (p.low, p.high) for p in e.params} for n, e in self.catalog().items()}
 
     def check_logs(self, logs: Sequence[Log]) -> None:  # noqa: B027 (optional hook)
         """Robot-specific checks of logs before anything runs (raise ``LogError`` naming file, row and column)."""
@@ -539,8 +547,7 @@ class Problem:
         against. The twin, not the log, is replayed, so that what the model lacks stays in the residual and out of
         the floor."""
         adapter = self.adapter
-        nominal = {k: v for e in adapter.effects().values() if e.catalogued for k, v in e.nominal().items()}
-        setting = {**nominal, **(setting or {})}
+        setting = {**adapter.catalog_nominal(), **(setting or {})}
         self._sigma = np.ones(len(adapter.channels))
         squares = np.zeros(len(adapter.channels))
         count = 0

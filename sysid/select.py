@@ -158,7 +158,7 @@ def calibrate(
 ) -> Outcome:
     """Run the loop on a problem's segments (the training logs)."""
     adapter = problem.adapter
-    effects = {k: e for k, e in adapter.effects().items() if e.catalogued}
+    effects = adapter.catalog()
     nuisance = adapter.nuisance(problem.logs)
     fitting = decision_segments(problem)
     folds = split(problem, fitting)
@@ -295,7 +295,7 @@ def fit_chosen(
     """Fit the named effects together, without selection (``calibrate.py --fit``): for effects the user already
     chose, as ``mujoco.sysid`` does, with the same intervals and report."""
     adapter = problem.adapter
-    effects = {k: e for k, e in adapter.effects().items() if e.catalogued}
+    effects = adapter.catalog()
     unknown = [n for n in names if n not in effects]
     if unknown:
         raise ValueError(f"--fit {unknown[0]!r}: {adapter.name} has no such effect (known: {', '.join(effects)})")

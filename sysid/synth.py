@@ -8,7 +8,8 @@ and sensor noise, to test calibration.
 
 An effect given without a value is drawn from its range with the seed, far enough from its nominal value that the
 nominal model's error on the data is at least 3 (three times the noise floor), measured against the replay floor of
-the true model (its catalogued part), as the held-out evaluation measures a calibrated model: pushed up to 90% of
+the true model (its catalogued part), as the held-out evaluation measures a calibrated model, and against the nominal
+model's own, as calibration first sees the data (:func:`visibility`): pushed up to 90% of
 the way to a bound, and where even that does not show, under other commands drawn from the same seed (up to three
 draws). Given values are not moved; a case's held-out log of them (``synthesize(..., show=True)``, sysid/cases.py)
 is, where the first commands do not show them, the one of three draws of the commands that shows them best. A robot
@@ -76,10 +77,11 @@ def record(
 ) -> tuple[list[Log], dict]:
     """``runs`` synthetic logs of ``seconds`` each, every one from rest (a robot's recording protocol,
     ``Adapter.runs``; one log by default), with effects as :func:`synthesize` takes them. How visible the effects
-    are is measured on all the runs together, as calibration will see them, and against the replay floor of the
-    true model's catalogued part: the best model a calibration can reach, whose floor the held-out evaluation
-    measures against (sysid/pipeline.py), so that an effect the right model's own replay floor would swallow is not
-    called visible (an out-of-catalog effect is measured against the nominal model's floor: no calibration can
+    are is measured on all the runs together, as calibration will see them, and against two replay floors, the
+    smaller error counting (:func:`visibility`): the true model's catalogued part's, the best model a calibration
+    can reach, whose floor the held-out evaluation measures against (sysid/pipeline.py), so that an effect the
+    right model's own replay floor would swallow is not called visible; and the nominal model's, which calibration
+    starts from (an out-of-catalog effect is measured against the nominal model's floor alone: no calibration can
     reach it). Run k's commands and noise come from seed + k x RUN_SEED_OFFSET (run 0's from the seed's generator,
     before the drawn values); redrawn commands are redrawn for every run. Returns the logs and the truth."""
     adapter = make_adapter(robot)
@@ -104,7 +106,7 @@ def record(
     def logs_of(setting: Mapping[str, float]) -> list[Log]:
         return [noisy_log(adapter, setting, c, s, robot) for c, s in zip(commands, seeds, strict=True)]
 
-    in_catalog = {k for e in catalog.values() if e.catalogued for k in e.nominal()}
+    in_catalog = set(adapter.catalog_nominal())
 
     def reachable(setting: Mapping[str, float]) -> dict[str, float]:
         """The catalog's part of a setting: the best model a calibration can reach, whose replay floor the held-out
@@ -123,7 +125,7 @@ def record(
                 continue
         for attempt in range(PUSHES + 1):
             logs = logs_of(setting)
-            error = nominal_error(adapter, logs, floor_setting=reachable(setting))
+            error = visibility(adapter, logs, reachable(setting))
             if error >= MIN_NOMINAL_ERROR or not drawn or attempt == PUSHES:
                 break
             for name in drawn:  # push the drawn values further from nominal
@@ -138,8 +140,8 @@ def record(
         if drawn:
             raise ValueError(
                 f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
-                f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR} against the true model's replay floor: these "
-                "channels barely see it"
+                f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR} against the true or the nominal model's replay "
+                "floor: these channels barely see it"
             )
         error, logs = best  # given values (a case's held-out logs): the commands that showed them best
     return logs, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
@@ -215,6 +217,18 @@ def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Map
     return Log("synthetic", df, meta)
 
 
+def visibility(adapter: Adapter, logs: Sequence[Log], reachable: Mapping[str, float]) -> float:
+    """How visible a truth is on its logs: the nominal model's error against the replay floor of the true model's
+    catalogued part ``reachable`` (how the held-out evaluation will judge a calibrated model) and against the nominal
+    model's own floor (how calibration, starting from the nominal model, first sees it), the smaller of the two. An
+    effect has to show against both: one visible to the judge only is one the loop cannot find, and one visible to
+    the loop only is one no fit can halve."""
+    error = nominal_error(adapter, logs)
+    if reachable and adapter.replay_floor:  # (without a replay floor, the two are the sensor noise alike)
+        error = min(error, nominal_error(adapter, logs, floor_setting=reachable))
+    return error
+
+
 def nominal_error(
     adapter: Adapter, log: Log | Sequence[Log], floor_setting: Mapping[str, float] | None = None
 ) -> float:
@@ -222,11 +236,10 @@ def nominal_error(
     replay floor of the nominal model, or of ``floor_setting`` (the held-out evaluation measures against the
     calibrated model's floor: sysid/pipeline.py)."""
     from sysid.fit import fit
-    from sysid.select import nominal_setting
 
     logs = [log] if isinstance(log, Log) else list(log)
     problem = Problem(adapter, logs, floor_setting=floor_setting)
-    setting = nominal_setting({k: e for k, e in adapter.effects().items() if e.catalogued})
+    setting = adapter.catalog_nominal()
     nuisance = adapter.nuisance(logs)
     if nuisance:
         setting = fit(problem, setting, nuisance).values
@@ -268,8 +281,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--effect", action="append", default=[], type=parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"
     )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--seconds", type=float, default=SECONDS)
-    parser.add_argument("--out", type=Path, help="the log, FILE.parquet; the truth goes to FILE.parquet.truth.json")
+    parser.add_argument("--seconds", type=float, default=SECONDS, help="each run's length")
+    parser.add_argument("--runs", type=int, default=1, help="runs from rest, each a log of its own (a robot's "
+                        "recording protocol: the xJüs's cases record --runs 6 --seconds 2); the effects are drawn to "
+                        "show on all of them together")  # fmt: skip
+    parser.add_argument("--out", type=Path, help="the log, FILE.parquet (with --runs K: FILE.run1.parquet ... "
+                        "FILE.runK.parquet); the truth goes to FILE.parquet.truth.json")  # fmt: skip
     parser.add_argument("--overwrite", action="store_true", help="replace an earlier log and its truth at --out")
     parser.add_argument("--list", action="store_true", help="list every effect that can be injected")
     args = parser.parse_args(argv)
@@ -288,6 +305,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--effect {twice[0]!r} is given twice")
     if args.seed < 0:
         parser.error(f"--seed must be >= 0 (numpy seeds are non-negative), got {args.seed}")
+    if args.runs < 1:
+        parser.error(f"--runs must be at least 1, got {args.runs}")
     adapter = make_adapter(args.robot)
     shortest = adapter.segment_seconds * (2 if adapter.burn_in else 1)  # one segment to replay, after the burn-in
     if not shortest <= args.seconds < math.inf:
@@ -298,28 +317,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not out.name:  # '', '.', '/': no file name to give the log (nor its truth beside it)
         parser.error(f"--out {str(out)!r}: give the log's file name, FILE.parquet")
     truth_path = out.with_name(out.name + ".truth.json")
+    paths = run_paths(out, args.runs)
     try:
-        _check_out(out, truth_path, args.overwrite)
-        log, truth = synthesize(args.robot, dict(args.effect), args.seed, args.seconds)
+        _check_out(out, [*paths, truth_path], args.overwrite)
+        logs, truth = record(args.robot, dict(args.effect), args.seed, args.seconds, args.runs)
     except (ValueError, FileExistsError) as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)  # as the parser's own errors begin
         return 2
-    # the log and its truth as one unit: both written in full beside them, then renamed into place
+    # the logs and their truth as one unit: all written in full beside them, then renamed into place
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{out.name}.", dir=out.parent) as tmp:
         staged = Path(tmp)
-        write_telemetry(staged / out.name, log.df, log.meta)
+        for path, log in zip(paths, logs, strict=True):
+            write_telemetry(staged / path.name, log.df, log.meta)
         write_json(staged / truth_path.name, truth)
         os.replace(staged / truth_path.name, truth_path)
-        os.replace(staged / out.name, out)
-    print(f"{out}: {len(log.df)} samples over {log.duration:.1f} s; nominal model's error {truth['nominal_error']:.2f}")
+        for path in paths:
+            os.replace(staged / path.name, path)
+    for path, log in zip(paths, logs, strict=True):
+        print(f"{path}: {len(log.df)} samples over {log.duration:.1f} s")
+    together = f" on the {args.runs} runs together" if args.runs > 1 else ""
+    print(f"nominal model's error {truth['nominal_error']:.2f}{together}")
     return 0
 
 
-def _check_out(out: Path, truth: Path, overwrite: bool) -> None:
-    """Refuse (``ValueError``, ``FileExistsError``) an --out the log and its truth cannot be written to, before
+def run_paths(out: Path, runs: int) -> list[Path]:
+    """Where the logs go: ``out`` itself, or, for several runs, FILE.run1.parquet ... beside it."""
+    return [out] if runs == 1 else [out.with_name(f"{out.stem}.run{k + 1}{out.suffix}") for k in range(runs)]
+
+
+def _check_out(out: Path, paths: Sequence[Path], overwrite: bool) -> None:
+    """Refuse (``ValueError``, ``FileExistsError``) an --out the logs and their truth cannot be written to, before
     anything is synthesized."""
-    for path in (out, truth):
+    for path in paths:
         if path.is_dir():
             raise ValueError(f"--out {out}: {path} is a directory")
     if out.suffix != ".parquet":
@@ -327,12 +357,16 @@ def _check_out(out: Path, truth: Path, overwrite: bool) -> None:
     problem = parent_problem(out)
     if problem:
         raise ValueError(f"--out {out}: {problem}")
-    existing = [str(path) for path in (out, truth) if path.exists()]
+    existing = [str(path) for path in paths if path.exists()]
     if existing and not overwrite:
         raise FileExistsError(
-            f"--out {out}: {' and '.join(existing)} already exist{'s' * (len(existing) == 1)}; choose another path "
+            f"--out {out}: {_listed(existing)} already exist{'s' * (len(existing) == 1)}; choose another path "
             "or pass --overwrite"
         )
+
+
+def _listed(names: Sequence[str]) -> str:
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 import calibrate
@@ -89,6 +90,7 @@ def test_calibrate_refusal_names_only_the_results_that_exist(capsys, tmp_path):
         (["--seconds", "nan"], "got nan"),
         (["--seconds", "inf"], "got inf"),
         (["--seed", "-1"], "--seed must be >= 0"),
+        (["--runs", "0"], "--runs must be at least 1, got 0"),
         (["--effect", "viscous_friction=0.1", "--effect", "viscous_friction"], "--effect 'viscous_friction' is given"),
     ],
 )
@@ -141,6 +143,27 @@ def test_synth_writes_the_log_and_its_truth_as_a_pair(capsys, tmp_path):
     assert synth.main(["--robot", "motor", "--seconds", "1", "--seed", "1", "--out", str(out), "--overwrite"]) == 0
     assert json.loads(truth.read_text())["seed"] == 1 and files(tmp_path)["log.parquet"] != before["log.parquet"]
     assert math.isfinite(json.loads(truth.read_text())["nominal_error"])
+
+
+def test_synth_writes_several_runs_and_their_truth_as_one_unit(capsys, tmp_path):
+    """``--runs K``: K logs from rest beside one truth, drawn to show on all of them; a run's file already there is
+    named and nothing is written."""
+    out = tmp_path / "log.parquet"
+    (tmp_path / "log.run2.parquet").write_text("a user's file")
+    before = files(tmp_path)
+    code, err = call(synth.main, capsys, "--robot", "motor", "--seconds", "1", "--runs", "3", "--out", str(out))
+    assert code == 2 and f"{tmp_path / 'log.run2.parquet'} already exists" in err and "--overwrite" in err
+    assert files(tmp_path) == before
+    (tmp_path / "log.run2.parquet").unlink()
+    argv = ["--robot", "motor", "--effect", "viscous_friction", "--seconds", "1", "--runs", "3", "--out", str(out)]
+    assert synth.main(argv) == 0
+    names = ["log.parquet.truth.json", "log.run1.parquet", "log.run2.parquet", "log.run3.parquet"]
+    assert sorted(files(tmp_path)) == names, "no temporary file left, and no log at --out itself"
+    logs, truth = synth.record("motor", {"viscous_friction": None}, 0, 1.0, 3)
+    written = json.loads((tmp_path / names[0]).read_text())
+    assert written["effects"] == truth["effects"] and written["nominal_error"] == truth["nominal_error"] >= 3
+    for name, log in zip(names[1:], logs, strict=True):
+        assert pd.read_parquet(tmp_path / name)["duty"].to_numpy().tolist() == log.df["duty"].tolist()
 
 
 def test_synth_list_into_a_closed_pipe_is_no_traceback():
