@@ -85,7 +85,7 @@ def record(
     reach it). Run k's commands and noise come from seed + k x RUN_SEED_OFFSET (run 0's from the seed's generator,
     before the drawn values); redrawn commands are redrawn for every run. Returns the logs and the truth."""
     adapter = make_adapter(robot)
-    catalog = adapter.effects()
+    effects = adapter.effects()  # the catalog's and the out-of-catalog ones the generator alone injects
     rng = np.random.default_rng(seed)
     first = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
     seeds = run_seeds(seed, runs)
@@ -93,9 +93,9 @@ def record(
     setting: dict[str, float] = {}
     truth: dict[str, dict[str, float]] = {}
     for name, value in injected.items():
-        if name not in catalog:
+        if name not in effects:
             raise ValueError(f"robot {robot!r} has no effect {name!r} (see --list)")
-        effect = catalog[name]
+        effect = effects[name]
         values = effect_values(effect, value, rng)
         setting.update({effect.key(k): v for k, v in values.items()})
         truth[name] = values
@@ -129,7 +129,7 @@ def record(
             if error >= MIN_NOMINAL_ERROR or not drawn or attempt == PUSHES:
                 break
             for name in drawn:  # push the drawn values further from nominal
-                effect = catalog[name]
+                effect = effects[name]
                 truth[name] = effect_values(effect, None, rng, push=min(MAX_REACH, 0.5 + 0.1 * (attempt + 1)))
                 setting.update({effect.key(k): v for k, v in truth[name].items()})
         if not drawn and error > best[0]:

@@ -25,7 +25,7 @@ from sysid.fit import _plateau_reach, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Residual
 from sysid.robots import adapter as make_adapter
-from sysid.select import UNEXPLAINED_ABOVE, nominal_setting
+from sysid.select import UNEXPLAINED_ABOVE
 
 
 def test_robust_objective_is_least_squares_in_the_noise_and_linear_far_out():
@@ -472,10 +472,9 @@ def test_two_servo_logs_with_one_path_keep_their_own_unlogged_goals():
     plans = [adapter.goal_plan(log, k) for k, log in enumerate(logs)]
     same, distinct = adapter.nuisance(logs), adapter.nuisance(apart)
     assert len(same) == len(distinct) == sum(len(p) for p in plans)  # no log's plan lost
-    catalog = adapter.catalog()
     replays = []
     for problem_logs, nuisance in ((logs, same), (apart, distinct)):
-        setting = {**nominal_setting(catalog), **{k: p.nominal for k, p in nuisance.items()}}
+        setting = {**adapter.catalog_nominal(), **{k: p.nominal for k, p in nuisance.items()}}
         replays.append(Problem(adapter, problem_logs, nthread=1).residuals([setting])[0])
     # each log replays its own goal plan: the same residuals as with two paths
     assert all(np.array_equal(x.data, y.data) for x, y in zip(*replays, strict=True))
