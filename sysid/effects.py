@@ -34,6 +34,9 @@ class Param:
     # generator draws it anywhere in its range rather than pushing it away from nominal to make the effect show
     shape: bool = False
     carried: bool = False  # its effect's (Effect.carried): fits measure it with its own carried state
+    # a scale over a decade or more (a stiffness from a tenth to ten times nominal): the ranking's grid across its
+    # range is geometric, as evenly spread in the ratio as a linear grid is in the difference (select.score)
+    log: bool = False
 
     @property
     def span(self) -> float:
@@ -93,7 +96,15 @@ class Effect:
             "description": self.description,
             "signature": self.signature,
             "params": [
-                {"name": p.name, "unit": p.unit, "nominal": p.nominal, "low": p.low, "high": p.high, "smooth": p.smooth}
+                {
+                    "name": p.name,
+                    "unit": p.unit,
+                    "nominal": p.nominal,
+                    "low": p.low,
+                    "high": p.high,
+                    "smooth": p.smooth,
+                    "log": p.log,
+                }
                 for p in self.params
             ],
         }
@@ -276,19 +287,23 @@ def make(
     alias: str | None = None,
     weak: str = "",
     carried: bool = False,
+    log: bool = False,
     **bounds: tuple[float, ...],
 ) -> Effect:
     """A robot's instance of a catalog effect: ``bounds`` gives (nominal, low, high) per parameter, or (nominal,
     low, high, step) with the finest step that matters (a delay's physics step); the name gets the target as a
     suffix (``coulomb_friction_left``); ``weak`` says why the robot's channels barely see it (``Effect.weak``);
-    ``carried`` that it acts through the state a replay carries over (``Effect.carried``)."""
+    ``carried`` that it acts through the state a replay carries over (``Effect.carried``); ``log`` that its
+    parameters are scales over decades, ranked on a geometric grid (``Param.log``)."""
     template = TEMPLATES[name]
     params = []
     for p in template.params:
         if p.name in bounds:
             nominal, low, high, *step = bounds[p.name]
             p = replace(p, nominal=nominal, low=low, high=high, step=step[0] if step else p.step)
-        params.append(replace(p, carried=carried))
+        if log and not 0 < p.low < p.high:
+            raise ValueError(f"{name}.{p.name}: a log scale needs 0 < low < high, got [{p.low}, {p.high}]")
+        params.append(replace(p, carried=carried, log=log))
     full = f"{name}_{target}" if target else name
     return replace(template, name=full, params=tuple(params), target=target, alias=alias or template.alias,
                    weak=weak, carried=carried)  # fmt: skip

@@ -43,7 +43,9 @@ NOISE_FLOOR = 1.05  # stop when the training error is this close to the noise fl
 # estimate's uncertainty (``explained_below``).
 UNEXPLAINED_ABOVE = 1.1
 SCORE_GRID = 5  # grid points across the range of a non-smooth effect in the ranking
-SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian)
+SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian), unless it is a scale over decades
+# (``Param.log``), whose grid is SCORE_GRID points spread geometrically: the xJüs's spine stiffness over [0.1, 10] has
+# a basin a factor of two wide (stop 31) that the linear grid's 0.1, 5.05 and 10 all miss
 CHAIN_DEPTH = 3  # effects that help only together: chains of up to this many effects (the breadth of the search is
 # the adapter's ``chain_search``: seeds, width, beam)
 CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
@@ -325,6 +327,15 @@ def fit_chosen(
     return outcome
 
 
+def score_grid(effect: Effect) -> list[dict[str, float]]:
+    """The ranking's grid points across an effect's range (a diagonal for several parameters): SCORE_GRID of them
+    for a non-smooth effect or a scale over decades (spread geometrically: ``Param.log``), SCORE_GRID_SMOOTH for
+    another smooth one (which has its Jacobian too)."""
+    n = SCORE_GRID if not effect.smooth or any(p.log for p in effect.params) else SCORE_GRID_SMOOTH
+    return [{effect.key(p.name): float(p.low * (p.high / p.low) ** f if p.log else p.low + f * p.span)
+             for p in effect.params} for f in np.linspace(0.0, 1.0, n)]  # fmt: skip
+
+
 def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], segments) -> list[dict]:
     """Each candidate's score statistic at ``current``, highest first.
 
@@ -348,8 +359,7 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
                 step = fd if u < 0.5 else -fd
                 probes.append({**current, key: current[key] + step * p.span})
                 owners.append((name, "fd", step * p.span))
-        for f in np.linspace(0.0, 1.0, SCORE_GRID if not e.smooth else SCORE_GRID_SMOOTH):
-            point = {e.key(p.name): float(p.low + f * p.span) for p in e.params}
+        for point in score_grid(e):
             if all(np.isclose(v, current[k]) for k, v in point.items()):
                 continue
             probes.append({**current, **point})

@@ -393,6 +393,50 @@ def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
     assert abs(result.values["mass.scale"] - problem.truth) < 0.02
 
 
+class _BasinProblem:
+    """A stand-in for Problem whose one effect ``spine_stiffness.scale`` (truth 0.4) explains the residual only in a
+    basin a factor of two wide and makes it worse outside, as the xJüs's spine stiffness does (stop 31: lowest from
+    about 0.3 to 0.55, above the nominal model's cost at 0.1, 0.2 and from 2 up)."""
+
+    truth = 0.4
+
+    def __init__(self) -> None:
+        self.adapter = SimpleNamespace(fd_step=1e-3, rough_cost=True)
+        self.t = np.linspace(0.0, 1.0, 200)
+
+    def residuals(self, settings, segments=None, anchor=None):
+        wave = np.sin(2 * np.pi * 3 * self.t)[:, None]
+        out = []
+        for s in settings:
+            distance = abs(math.log(s.get("spine_stiffness.scale", 1.0) / self.truth))  # in e-folds of the ratio
+            size = 1.0 if distance > 0.9 else distance / 0.9  # flat away from the truth: no slope to linearize
+            out.append([Residual(size * wave + 0.01 * np.cos(40 * self.t)[:, None], np.zeros(0))])
+        return out
+
+    def effective_samples(self, residuals) -> float:
+        return float(sum(len(r.data) for r in residuals))
+
+
+def test_a_scale_over_decades_is_ranked_on_a_geometric_grid():
+    from sysid.effects import make
+    from sysid.select import score, score_grid
+
+    geometric = make("spine_stiffness", scale=(1.0, 0.1, 10.0), log=True)
+    linear = make("spine_stiffness", scale=(1.0, 0.1, 10.0))
+    grid = [p["spine_stiffness.scale"] for p in score_grid(geometric)]
+    assert grid == pytest.approx([0.1, 0.1 * 10**0.5, 1.0, 10**0.5, 10.0])
+    assert [p["spine_stiffness.scale"] for p in score_grid(linear)] == pytest.approx([0.1, 5.05, 10.0])
+    # the linear grid's points all lie outside the basin and its Jacobian at nominal sees no slope: nothing to rank;
+    # the geometric grid's 0.316 lies in it and explains most of the residual, and the fit starts there
+    problem, nominal = _BasinProblem(), {"spine_stiffness.scale": 1.0}
+    (seen,) = score(problem, nominal, {"spine_stiffness": geometric}, None)
+    (unseen,) = score(problem, nominal, {"spine_stiffness": linear}, None)
+    assert seen["explained_fraction"] > 0.5 and seen["start"]["spine_stiffness.scale"] == pytest.approx(0.316, 0.01)
+    assert unseen["explained_fraction"] < 1e-6
+    with pytest.raises(ValueError, match=r"spine_stiffness.scale: a log scale needs 0 < low < high"):
+        make("spine_stiffness", scale=(1.0, 0.0, 10.0), log=True)
+
+
 def test_the_matrix_gives_the_same_cases_on_ray_as_in_turn():
     """benchmarks/calibration_matrix.py --workers K runs its cases as Ray tasks, each on its share of the cores: same
     seeds, same results as one after another (the wall time of a case aside)."""
