@@ -84,31 +84,6 @@ class Effect:
     def nominal(self) -> dict[str, float]:
         return {self.key(p.name): p.nominal for p in self.params}
 
-    def describe(self) -> dict[str, object]:
-        return {
-            "name": self.name,
-            "alias_group": self.alias,
-            "catalogued": self.catalogued,
-            "observable": self.observable,
-            "weak": self.weak,
-            "carried": self.carried,
-            "target": self.target,
-            "description": self.description,
-            "signature": self.signature,
-            "params": [
-                {
-                    "name": p.name,
-                    "unit": p.unit,
-                    "nominal": p.nominal,
-                    "low": p.low,
-                    "high": p.high,
-                    "smooth": p.smooth,
-                    "log": p.log,
-                }
-                for p in self.params
-            ],
-        }
-
 
 # --- the generic declarations (bounds are the adapter's) ------------------------------------------------------------
 # alias groups: Coulomb friction, backlash and deadband look alike near zero speed; torque constant, supply voltage and
