@@ -350,16 +350,23 @@ def test_roach_report_compares_tracking_and_body_rates():
             assert 0.0 <= sum(entry[source]["bands"]) <= 1.0 + 1e-9
 
 
-class _CarriedProblem:
+class _StandIn:
+    """What sysid.select and sysid.fit ask of a Problem besides its residuals, for the stand-ins below."""
+
+    def __init__(self) -> None:
+        self.adapter = SimpleNamespace(fd_step=1e-3, rough_cost=True)
+        self.t = np.linspace(0.0, 1.0, 200)
+
+    def effective_samples(self, residuals) -> float:
+        return float(sum(len(r.data) for r in residuals))
+
+
+class _CarriedProblem(_StandIn):
     """A stand-in for sysid.problem.Problem whose one effect ``mass.scale`` (truth 1.4) reaches the residual only
     through the carried state: a prediction anchored elsewhere carries the anchor's state and so does not see the
     setting's value, as a legged robot's body carried between segments does not see its own mass."""
 
     truth = 1.4
-
-    def __init__(self) -> None:
-        self.adapter = SimpleNamespace(fd_step=1e-3, rough_cost=True)
-        self.t = np.linspace(0.0, 1.0, 200)
 
     def residuals(self, settings, segments=None, anchor=None):
         out = []
@@ -369,9 +376,6 @@ class _CarriedProblem:
             data = (self.truth - carried) * wave + 0.01 * np.cos(40 * self.t)[:, None]
             out.append([Residual(data, np.zeros(0))])
         return out
-
-    def effective_samples(self, residuals) -> float:
-        return float(sum(len(r.data) for r in residuals))
 
 
 def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
@@ -393,16 +397,12 @@ def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
     assert abs(result.values["mass.scale"] - problem.truth) < 0.02
 
 
-class _BasinProblem:
+class _BasinProblem(_StandIn):
     """A stand-in for Problem whose one effect ``spine_stiffness.scale`` (truth 0.4) explains the residual only in a
     basin a factor of two wide and makes it worse outside, as the xJüs's spine stiffness does (stop 31: lowest from
     about 0.3 to 0.55, above the nominal model's cost at 0.1, 0.2 and from 2 up)."""
 
     truth = 0.4
-
-    def __init__(self) -> None:
-        self.adapter = SimpleNamespace(fd_step=1e-3, rough_cost=True)
-        self.t = np.linspace(0.0, 1.0, 200)
 
     def residuals(self, settings, segments=None, anchor=None):
         wave = np.sin(2 * np.pi * 3 * self.t)[:, None]
@@ -412,9 +412,6 @@ class _BasinProblem:
             size = 1.0 if distance > 0.9 else distance / 0.9  # flat away from the truth: no slope to linearize
             out.append([Residual(size * wave + 0.01 * np.cos(40 * self.t)[:, None], np.zeros(0))])
         return out
-
-    def effective_samples(self, residuals) -> float:
-        return float(sum(len(r.data) for r in residuals))
 
 
 def test_a_scale_over_decades_is_ranked_on_a_geometric_grid():
