@@ -27,7 +27,16 @@ import warnings
 from pathlib import Path
 
 from envs.common.calibration import CalibrationError, read_calibration
-from envs.common.io import ToolParser, foreign_unless, publish_folder, results_folder_problem, write_json, write_text
+from envs.common.io import (
+    ToolParser,
+    foreign_unless,
+    interrupted_exit_code,
+    publish_folder,
+    results_folder_problem,
+    sigterm_as_interrupt,
+    write_json,
+    write_text,
+)
 from sysid.logs import ColumnMap, Log, LogError, check_log, read_log
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
@@ -55,6 +64,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     problem = results_folder_problem(args.out, args.overwrite, "calibrate.py", foreign_unless(RESULTS))
     if problem:
         p.error(problem)
+    args.out_existed = args.out.exists()  # publishing checks again: a folder that appeared meanwhile is not replaced
     return args
 
 
@@ -69,7 +79,12 @@ def split_spec(spec: Path) -> tuple[Path, float | None, float | None]:
     """``FILE`` or ``FILE@START:END`` (a window of the log, seconds of its own time; either end may be left out)."""
     text = str(spec)
     m = WINDOW.match(text)
-    if spec.exists() or m is None:
+    if spec.exists():
+        return spec, None, None
+    if m is None:
+        path, at, window = text.rpartition("@")
+        if at and Path(path).is_file():  # a file with a window that is not one
+            raise LogError(f"{text}: the window {'@' + window!r} is not @START:END in seconds")
         return spec, None, None
     try:
         start = float(m["start"]) if m["start"] else None
@@ -131,6 +146,15 @@ def _overlap(a: Path, b: Path) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    try:
+        with sigterm_as_interrupt():  # SIGTERM too: the staging folder is removed on the way out
+            return _run(args)
+    except KeyboardInterrupt as exc:
+        print(f"calibrate.py: interrupted; {args.out} is as it was", file=sys.stderr)
+        return interrupted_exit_code(exc)
+
+
+def _run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     say = (lambda s: None) if args.quiet else (lambda s: print(s, flush=True))
     adapter = make_adapter(args.robot)
@@ -171,12 +195,20 @@ def main(argv: list[str] | None = None) -> int:
         write_json(staging / "calibration.json", calibration_dict(result, report, _base(start)))
         plot_residuals(result, staging / "residual_before.png", "before")
         plot_residuals(result, staging / "residual_after.png", "after")
-        publish_folder(staging, out)
+        where = publish_folder(staging, out, args.out_existed, foreign_unless(RESULTS))
     chosen = ", ".join(c["name"] for c in report["chosen"]) or "nothing"
     print(
         f"{args.robot}: held-out error {report['error_before']:.3g} -> {report['error_after']:.3g} (1 is the noise "
-        f"floor); kept {chosen}; {'unexplained' if report['unexplained'] else 'explained'}. Results in {out}/"
+        f"floor); kept {chosen}; {'unexplained' if report['unexplained'] else 'explained'}. Results in {where}/"
     )
+    if report["worse_on_test"]:
+        after, before = report["error_after"], report["error_before"]
+        print(f"calibrate.py: warning: the calibrated model's held-out error ({after:.3g}) is above the nominal "
+              f"model's ({before:.3g}); see {where}/report.md", file=sys.stderr)  # fmt: skip
+    if where != out:
+        print(f"calibrate.py: error: {out} appeared or took files calibrate.py does not write during the run; it is "
+              f"left as it is, and the results are in {where}/", file=sys.stderr)  # fmt: skip
+        return 1
     return 0
 
 

@@ -32,7 +32,16 @@ import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
 from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
 from envs.common.calibration import CalibrationError, read_calibration
-from envs.common.io import ToolParser, atomic_write, publish_folder, results_folder_problem, write_json, write_text
+from envs.common.io import (
+    ToolParser,
+    atomic_write,
+    interrupted_exit_code,
+    publish_folder,
+    results_folder_problem,
+    sigterm_as_interrupt,
+    write_json,
+    write_text,
+)
 from envs.common.telemetry import read_telemetry, write_telemetry
 
 
@@ -83,6 +92,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign(args.out))
     if problem:
         p.error(problem)
+    args.out_existed = args.out.exists()  # publishing checks again: a folder that appeared meanwhile is not replaced
     return args
 
 
@@ -249,6 +259,15 @@ def report(
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    try:
+        with sigterm_as_interrupt():  # SIGTERM too: the staging folder is removed on the way out
+            return _run(args)
+    except KeyboardInterrupt as exc:
+        print(f"evaluate.py: interrupted; {args.out} is as it was", file=sys.stderr)
+        return interrupted_exit_code(exc)
+
+
+def _run(args: argparse.Namespace) -> int:
     out: Path = args.out
     names = slugs(args.policy)
     # every policy is loaded and checked against its env before any episode runs
@@ -301,10 +320,14 @@ def main(argv: list[str] | None = None) -> int:
             },
         )
         write_text(staging / "results.md", text)
-        publish_folder(staging, out)
+        where = publish_folder(staging, out, args.out_existed, _foreign(out))
     print(text)
     extra = (" videos/" if args.video else "") + (" telemetry/" if args.telemetry else "")
-    print(f"results in {out}/ (results.json, results.md, plots/{extra})")
+    print(f"results in {where}/ (results.json, results.md, plots/{extra})")
+    if where != out:
+        print(f"evaluate.py: error: {out} appeared or took files evaluate.py does not write during the run; it is "
+              f"left as it is, and the results are in {where}/", file=sys.stderr)  # fmt: skip
+        return 1
     return 0
 
 

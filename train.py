@@ -49,7 +49,6 @@ import os
 import re
 import shlex
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -57,7 +56,6 @@ from dataclasses import dataclass
 from datetime import datetime
 from importlib import metadata
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import gymnasium as gym
@@ -88,8 +86,10 @@ from envs.common.io import (
     ToolParser,
     atomic_write_leftovers,
     current_umask,
+    interrupted_exit_code,
     parent_problem,
     refuse_overwrite,
+    sigterm_as_interrupt,
     write_json,
     write_text,
 )
@@ -160,14 +160,6 @@ TORCH_MODULES = {
 
 class ConfigError(Exception):
     """A problem with the command line, a hyperparameter file or a run folder: reported in one line, no traceback."""
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (``kill``, a job scheduler's time limit), handled like Ctrl-C: train() saves a checkpoint first."""
-
-
-def _raise_terminated(signum: int, frame: FrameType | None) -> None:
-    raise Terminated
 
 
 # --- hyperparameters --------------------------------------------------------------------------------------------
@@ -1026,18 +1018,14 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"train.py: error: {exc}", file=sys.stderr)
         return 2
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
-        model_path = resume_run(args) if args.resume else start_run(args)
+        with sigterm_as_interrupt():  # SIGTERM too: train() saves a checkpoint first
+            model_path = resume_run(args) if args.resume else start_run(args)
     except ConfigError as exc:
         print(f"train.py: error: {exc}", file=sys.stderr)
         return 2
-    except Terminated:
-        return 128 + signal.SIGTERM  # the shell's code for a process ended by SIGTERM
-    except KeyboardInterrupt:
-        return 130
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    except KeyboardInterrupt as exc:
+        return interrupted_exit_code(exc)
     print(f"model: {model_path}")
     print(f"tensorboard: tensorboard --logdir {model_path.parent / 'tb'}")
     return 0

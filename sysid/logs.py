@@ -171,7 +171,7 @@ class ColumnMap:
     def load(cls, path: str | Path) -> ColumnMap:
         path = Path(path)
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(path.read_text(encoding="utf-8-sig"))
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise LogError(f"{path}: not a readable JSON column map ({exc})") from None
         if not isinstance(data, dict) or "time" not in data:
@@ -213,15 +213,33 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
     rows with a warning."""
     path = Path(path)
     if not path.is_file():
-        raise LogError(f"{path}: no such file")
+        raise LogError(f"{path}: {'a directory, not a log file' if path.is_dir() else 'no such file'}")
     native = _native_reader(path)
     if native is not None:
         log = native(path)
     elif column_map is not None:
         log = _read_mapped(path, column_map)
     else:
-        raise LogError(f"{path}: unknown log format (first line {_head(path)[:60]!r}); give a column map (--columns)")
+        head = _head(path)
+        lacking = _lacking_columns(head)
+        if lacking:
+            raise LogError(f"{path}: line 1 {lacking}")
+        raise LogError(f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns)")
     return check_log(log, required)
+
+
+GEARMOTOR_COLUMNS = ("time", "pos", "speed", "power")
+
+
+def _lacking_columns(head: str) -> str | None:
+    """What a first line that is a known format's columns line with some missing lacks (the gearmotor CSV's
+    ``time,pos,speed,power`` without its power, say), or None: a missing column, not an unknown format."""
+    names = [n.strip().lower() for n in head.split(",")]
+    if len(names) >= 2 and names[0] == "time" and set(names) < set(GEARMOTOR_COLUMNS):
+        missing = [c for c in GEARMOTOR_COLUMNS if c not in names]
+        return (f"names the gearmotor CSV's columns {', '.join(names)} but lacks column {missing[0]!r} (the format "
+                f"is {','.join(GEARMOTOR_COLUMNS)})")  # fmt: skip
+    return None
 
 
 def _native_reader(path: Path) -> Callable[[Path], Log] | None:
@@ -233,7 +251,7 @@ def _native_reader(path: Path) -> Callable[[Path], Log] | None:
         return _read_dynamixel
     if (reader := _robot_reader(head)) is not None:
         return reader.read
-    if head.replace(" ", "").lower().startswith("time,pos,speed,power"):
+    if head.replace(" ", "").lower().startswith(",".join(GEARMOTOR_COLUMNS)):
         return _read_gearmotor
     return None
 
@@ -261,13 +279,16 @@ def _robot_reader(head: str) -> LogReader | None:
 
 
 def check_log(log: Log, required: Sequence[str]) -> Log:
-    """Required columns present, time increasing, long enough."""
+    """Required columns present, time increasing, long enough; a row whose time or required value is not a finite
+    number (NaN, inf, in any reader's format) is malformed: dropped with a warning, as every reader drops a row it
+    cannot parse (more than 5% such rows refuse the log)."""
     missing = [c for c in ("time", *required) if c not in log.df.columns]
     if missing:
         raise LogError(
             f"{log.path}: column {missing[0]!r} is missing (needed: {', '.join(required)}; "
             f"the file has: {', '.join(map(str, log.df.columns))})"
         )
+    log = _drop_non_finite(log, ("time", *required))
     log = _drop_time_glitches(log)
     t = log.time
     backwards = np.flatnonzero(np.diff(t) <= 0)
@@ -282,14 +303,30 @@ def check_log(log: Log, required: Sequence[str]) -> Log:
             f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s "
             f"(at least {MIN_ROWS} rows over {MIN_DURATION:g} s)"
         )
-    for column in required:
-        values = log.df[column].to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            raise LogError(
-                f"{log.path}: row at line {_row_label(log, int(bad[0]))}, column {column!r}: not a finite number"
-            )
     return log
+
+
+def _drop_non_finite(log: Log, columns: Sequence[str]) -> Log:
+    """The log without its rows whose ``columns`` are not all finite numbers (each warned of, naming its line and
+    column; refused above 5%)."""
+    values = log.df[list(columns)].to_numpy(dtype=float)
+    finite = np.isfinite(values)
+    bad = np.flatnonzero(~finite.all(axis=1))
+    if not len(bad):
+        return log
+    lines = [(int(_row_label(log, int(k))),
+              f"column {columns[int(np.argmin(finite[k]))]!r}: {float(values[k, np.argmin(finite[k])])} is not a finite "
+              "number") for k in bad]  # fmt: skip
+    drop_bad_rows(Path(log.path), lines, len(values))
+    return _keep_rows(log, np.flatnonzero(finite.all(axis=1)))
+
+
+def _keep_rows(log: Log, keep: np.ndarray) -> Log:
+    """The log's rows ``keep`` (indices), their file line numbers with them."""
+    meta = dict(log.meta)
+    if meta.get("file_rows") is not None:
+        meta["file_rows"] = [meta["file_rows"][k] for k in keep]
+    return Log(log.path, log.df.iloc[keep].reset_index(drop=True), meta, log.history)
 
 
 MAX_REPEATED_ROWS = 16  # a stretch of rows that goes back in time and rejoins within this many is a glitch
@@ -334,11 +371,7 @@ def _drop_time_glitches(log: Log) -> Log:
         return log
     lines = [(int(_row_label(log, k)), reasons[k]) for k in bad]
     drop_bad_rows(Path(log.path), lines, len(t))
-    keep = np.setdiff1d(np.arange(len(t)), bad)
-    meta = dict(log.meta)
-    if meta.get("file_rows") is not None:
-        meta["file_rows"] = [meta["file_rows"][k] for k in keep]
-    return Log(log.path, log.df.iloc[keep].reset_index(drop=True), meta, log.history)
+    return _keep_rows(log, np.setdiff1d(np.arange(len(t)), bad))
 
 
 def _row_label(log: Log, index: int) -> str:
@@ -349,7 +382,7 @@ def _row_label(log: Log, index: int) -> str:
 def _head(path: Path) -> str:
     with path.open("rb") as fh:
         for raw in fh:
-            line = raw.decode("utf-8", errors="replace").strip()
+            line = raw.decode("utf-8-sig", errors="replace").strip()
             if line:
                 return line
     raise LogError(f"{path}: empty file")
@@ -399,7 +432,7 @@ def _without_trailing_comma(fields: list[str], expected: int) -> list[str]:
 
 def _read_dynamixel(path: Path) -> Log:
     """A DYNAMIXEL Wizard graph export: header lines until one starting ``Time``, then ``time, item, ...`` rows."""
-    lines = path.read_text(errors="replace").splitlines()
+    lines = path.read_text(encoding="utf-8-sig", errors="replace").splitlines()
     header_at = next((i for i, line in enumerate(lines) if line.strip().lower().startswith("time")), None)
     if header_at is None:
         raise LogError(f"{path}: a DYNAMIXEL export without a 'Time[ms], ...' column line")
@@ -437,7 +470,7 @@ GEARMOTOR_CLICKS_PER_REV = 3592  # shared/data/real/README.md
 
 def _read_gearmotor(path: Path) -> Log:
     """``time`` ms, ``pos`` encoder clicks (3592 per output revolution), ``speed`` clicks/s, ``power`` PWM of 255."""
-    lines = path.read_text(errors="replace").splitlines()
+    lines = path.read_text(encoding="utf-8-sig", errors="replace").splitlines()
     rows, file_rows, bad = [], [], []
     for number, line in enumerate(lines[1:], start=2):
         if not line.strip():
@@ -462,7 +495,7 @@ def _read_gearmotor(path: Path) -> Log:
         }
     )
     meta = {"format": "gearmotor CSV (time ms, pos clicks, speed clicks/s, power PWM/255)", "file_rows": file_rows,
-            "quantisation": {"angle": per_click, "duty": 1 / 255.0}}  # fmt: skip
+            "quantisation": {"angle": per_click, "speed": per_click, "duty": 1 / 255.0}}  # fmt: skip
     return Log(str(path), df, meta)
 
 
@@ -508,7 +541,7 @@ def _csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]], list[
     """A CSV's column names (its first line that is not blank or a comment), its data rows with their line numbers
     in the file, and its malformed rows (a field too many or too few); blank lines and ``#`` comments are skipped."""
     try:
-        with path.open(newline="", errors="replace") as fh:
+        with path.open(newline="", encoding="utf-8-sig", errors="replace") as fh:
             reader = csv.reader((line.partition("#")[0] for line in fh), skipinitialspace=True)
             lines = [
                 (reader.line_num, [f.strip() for f in row]) for row in reader if len(row) > 1 or "".join(row).strip()
@@ -531,7 +564,7 @@ def _csv_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]], list[
 def _json_rows(path: Path) -> tuple[list[Any], list[tuple[int, list[Any]]], list[tuple[int, str]]]:
     """A JSON table's column names and its records, numbered from 1 (no record is malformed as a whole)."""
     try:
-        raw = pd.read_json(path)
+        raw = pd.read_json(path, encoding="utf-8-sig")
     except (ValueError, OSError) as exc:
         raise LogError(f"{path}: not readable as JSON ({exc})") from None
     return list(raw.columns), [(i + 1, list(row)) for i, row in enumerate(raw.itertuples(index=False))], []

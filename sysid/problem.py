@@ -34,7 +34,7 @@ from mujoco import rollout
 
 from envs.common.batch import default_threads
 from sysid.effects import Effect, Param
-from sysid.logs import Log
+from sysid.logs import Log, LogError
 
 Setting = Mapping[str, float]
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -329,7 +329,10 @@ class Adapter(ABC):
     # --- noise ------------------------------------------------------------------------------------------------------
     def noise(self, log: Log) -> dict[str, float]:
         """Each channel's noise level: the log's own record if it has one (synthetic data), else the larger of its
-        quantisation step / sqrt(12) and a robust estimate of white noise from second differences."""
+        quantisation step / sqrt(12) and a robust estimate of white noise from second differences. A channel whose
+        second differences are mostly zero and whose step the reader does not know (a motor at rest) takes the
+        smallest step between its values as its quantisation; one that never changes has no measurable noise level
+        (its errors would be divided by nothing) and is refused, naming the log and channel."""
         recorded = log.meta.get("noise_sigma") or {}
         quantisation = log.meta.get("quantisation") or {}
         out = {}
@@ -341,7 +344,16 @@ class Adapter(ABC):
             d2 = np.diff(x, 2)
             white = float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6)) if len(d2) else 0.0
             q = float(quantisation.get(c, 0.0)) / math.sqrt(12)
-            out[c] = max(white, q, 1e-12)
+            if white <= 0.0 and q <= 0.0:
+                steps = np.abs(np.diff(x))
+                steps = steps[steps > 1e-9 * max(float(np.max(np.abs(x))), 1e-300)] if len(x) else steps
+                if not len(steps):
+                    raise LogError(
+                        f"{log.path}: channel {c!r} reads {x[0] if len(x) else float('nan'):g} throughout: its noise "
+                        "level cannot be measured, so no error on it can be; give a stretch of the log where it moves"
+                    )
+                q = float(np.min(steps)) / math.sqrt(12)
+            out[c] = max(white, q)
         return out
 
 

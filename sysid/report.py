@@ -74,6 +74,8 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         "rejected": list(out.rejected),
         "unexplained": result.unexplained,
         "unexplained_reason": result.where(),
+        # the effects kept on the training logs leave the held-out error above the nominal model's
+        "worse_on_test": bool(result.after.error > result.before.error),
         "noise": {
             "threshold_unexplained": result.threshold,
             "sigma": result.test_problem.sigma,
@@ -120,6 +122,13 @@ def format_interval(value: float, low: float, high: float) -> str:
     return f"+-{max(value - low, high - value):.2g}"
 
 
+WORSE = (
+    "**The calibrated model is worse on the held-out logs than the nominal one** ({after:.3g} against "
+    "{before:.3g}): what the training logs chose does not carry over to the test logs. calibration.json holds it "
+    "as chosen; before using it, calibrate on logs more like those it is meant for."
+)
+
+
 def report_markdown(report: Mapping[str, Any]) -> str:
     r = report
     lines = [
@@ -135,6 +144,10 @@ def report_markdown(report: Mapping[str, Any]) -> str:
         + ("Unexplained: " if r["unexplained"] else "")
         + r["unexplained_reason"],
         "",
+    ]
+    if r.get("worse_on_test"):
+        lines += [WORSE.format(after=r["error_after"], before=r["error_before"]), ""]
+    lines += [
         "| channel | before | after |",
         "|---|---|---|",
     ]

@@ -24,6 +24,7 @@ from sysid.effects import Param, base_name
 from sysid.fit import _plateau_reach, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Residual
+from sysid.report import report_markdown
 from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE
 
@@ -303,6 +304,10 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
         assert key in report
     assert report["robot"] == "motor" and report["train"] == [str(paths[0])]
     assert report["error_before"] > 3 and report["error_after"] < report["error_before"]
+    assert report["worse_on_test"] is False and "worse on the held-out logs" not in (out / "report.md").read_text()
+    # a calibration that leaves the held-out error above the nominal model's says so first thing in report.md
+    worse = {**report, "error_after": report["error_before"] * 1.1, "worse_on_test": True}
+    assert "**The calibrated model is worse on the held-out logs than the nominal one**" in report_markdown(worse)
     assert set(report["per_channel"]) == {"angle", "speed"}
     first = report["chosen"][0]
     assert base_name(make_adapter("motor").effects()[first["name"]]) in ("coulomb_friction", "backlash", "deadband")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ import pytest
 
 import calibrate
 from envs.common.telemetry import write_telemetry
-from sysid.logs import ColumnMap, LogError, read_log
+from sysid.logs import ColumnMap, Log, LogError, read_log
 from sysid.robots import adapter as make_adapter
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
@@ -500,3 +501,100 @@ def test_the_channel_kinds_agree_with_what_the_robots_declare():
         for channel, unit in channels.items():
             assert channel_unit(channel) == unit, (channel, unit)
             assert unit in set(UNIT_KINDS.values()), unit
+
+
+# --- found by a new user's review (stop 32) -------------------------------------------------------------------------
+def test_a_roach_log_whose_clock_goes_back_for_good_is_refused_naming_the_time_column(tmp_path):
+    """A few rows that go back and rejoin are a broken sample (dropped); a clock that goes back and stays (a second
+    recording appended) is time running backwards, refused like every other reader's."""
+    lines = ROACH_2HZ.read_text().splitlines()[:3000]
+    data = [k for k, line in enumerate(lines) if not line.startswith("%") and len(line.split(",")) >= 16]
+    shifted = []
+    for k, line in enumerate(lines):
+        row = line.split(",")
+        if k >= data[1500]:
+            row[0] = str(int(row[0]) - 1_000_000)  # 1 s back, from the 1500th row on
+        shifted.append(",".join(row))
+    path = tmp_path / "restarted.txt"
+    path.write_text("\n".join(shifted) + "\n")
+    with pytest.raises(
+        LogError, match=rf"restarted\.txt, line {data[1500] + 1}, field 1 \(time\): time runs backwards"
+    ):
+        read_log(path, ("leg_angle_left",))
+    glitch = list(lines)
+    row = glitch[data[1500]].split(",")
+    row[0] = str(int(row[0]) - 1_000_000)  # one broken time: dropped, the log read
+    glitch[data[1500]] = ",".join(row)
+    path = tmp_path / "glitch.txt"
+    path.write_text("\n".join(glitch) + "\n")
+    with pytest.warns(UserWarning, match=rf"glitch\.txt: dropped malformed row at line {data[1500] + 1}: "):
+        log = read_log(path, ("leg_angle_left",))
+    assert len(log.df) == len(data) - 1
+
+
+@pytest.mark.parametrize("value", ["nan", "inf"])
+def test_a_non_finite_value_is_a_malformed_row_in_every_reader(tmp_path, value):
+    rows = _gearmotor_rows()
+    rows[40] = f"410,{value},500,128"
+    path = _write(tmp_path, "nan.csv", ["time,pos,speed,power", *rows])
+    with pytest.warns(UserWarning, match=rf"nan\.csv: dropped malformed row at line 42: column 'angle': {value}"):
+        log = read_log(path, make_adapter("motor").required())
+    assert len(log.df) == 299 and np.isfinite(log.df[["time", "angle", "speed", "duty"]].to_numpy()).all()
+    lines = AX12A.read_text().splitlines()
+    broken = [*lines[:100], lines[100].split(",")[0] + f",{value}", *lines[101:]]
+    path = _write(tmp_path, "ax_nan.csv", broken)
+    with pytest.warns(UserWarning, match=r"ax_nan\.csv: dropped malformed row at line 101: column 'present_position'"):
+        read_log(path, ("present_position",))
+
+
+def test_a_gearmotor_csv_without_a_column_names_the_column(tmp_path):
+    rows = [",".join(r.split(",")[:3]) for r in _gearmotor_rows()]
+    path = _write(tmp_path, "three.csv", ["time,pos,speed", *rows])
+    with pytest.raises(LogError, match=r"three\.csv: line 1 names the gearmotor CSV's columns .* lacks column 'power'"):
+        read_log(path, ("duty",))
+
+
+def test_a_byte_order_mark_is_not_part_of_the_first_line(tmp_path):
+    """Excel's "CSV UTF-8" starts the file with a BOM: every reader, the column map and the calibration file skip it."""
+    bom = b"\xef\xbb\xbf"
+    for source, required in ((GEARMOTOR, ("duty",)), (AX12A, ("present_position",)), (ROACH_2HZ, ("leg_angle_left",))):
+        path = tmp_path / f"bom_{source.name}"
+        path.write_bytes(bom + source.read_bytes())
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the real files' own dropped rows
+            a, b = read_log(source, required), read_log(path, required)
+        pd.testing.assert_frame_equal(a.df, b.df)
+    mapped = tmp_path / "mapped.csv"
+    mapped.write_bytes(bom + b"t_ms,enc\n" + b"".join(f"{10 * i},{i}\n".encode() for i in range(400)))
+    column_map = tmp_path / "map.json"
+    column_map.write_bytes(bom + json.dumps(MAP).encode())
+    log = read_log(mapped, ("angle",), ColumnMap.load(column_map))
+    assert log.time[1] == pytest.approx(0.01)
+
+
+def test_a_channel_that_never_moves_has_no_noise_level_and_one_that_rests_takes_its_step(tmp_path):
+    """Its errors would be divided by nothing (a test window of the gearmotor at rest read 1e12 noise levels): the
+    reader's own step where it knows one, else the smallest step between the values, else refused."""
+    adapter = make_adapter("motor")
+    rest = read_log(Path(f"{GEARMOTOR}"), ("duty",)).between(9.0, 1e9)  # the motor stopped: speed reads 0
+    sigma = adapter.noise(rest)
+    clicks = rest.meta["quantisation"]["speed"]
+    assert sigma["speed"] >= clicks / np.sqrt(12) > 0
+    frozen = Log("frozen.csv", rest.df.assign(angle=1.5), {})
+    with pytest.raises(LogError, match=r"frozen\.csv: channel 'angle' reads 1\.5 throughout"):
+        adapter.noise(frozen)
+    stepped = Log("stepped.csv", rest.df.assign(angle=np.where(np.arange(len(rest.df)) < 50, 1.0, 1.25)), {})
+    assert adapter.noise(stepped)["angle"] == pytest.approx(0.25 / np.sqrt(12))
+
+
+def test_file_arguments_that_are_not_files_or_windows_say_so(capsys, tmp_path):
+    folder = tmp_path / "adir"
+    folder.mkdir()
+    code, err = _run(capsys, tmp_path, "motor", folder, GEARMOTOR)
+    assert code == 2 and f"{folder}: a directory, not a log file" in err
+    for window in ("@abc:", "@5"):
+        code, err = _run(capsys, tmp_path, "motor", Path(f"{GEARMOTOR}{window}"), AX12A)
+        assert code == 2 and f"the window {window!r} is not @START:END in seconds" in err
+    code = calibrate.main(["--robot", "motor", "--train", f"{GEARMOTOR}@0:5", "--test", f"{GEARMOTOR}@5:", "--out",
+                           str(tmp_path / "out"), "--calibration", str(folder)])  # fmt: skip
+    assert code == 2 and f"{folder}: a directory, not a calibration file" in capsys.readouterr().err

@@ -236,3 +236,48 @@ def test_optimize_errors_begin_like_the_other_tools(capsys, tmp_path):
         code, err = call(optimize, capsys, *args, "--out", str(out), "--no-progress")
         assert code == 2 and err.startswith("python -m agents.optimize: error: ") and needle in err, err
     assert files(tmp_path) == {}
+
+
+def test_a_results_folder_that_appears_during_a_run_is_not_replaced(tmp_path):
+    """--out is checked when a run begins; a folder that appears there meanwhile (or takes a user's file) is left
+    alone at the end, and the results go beside it."""
+    from envs.common.io import foreign_unless, publish_folder
+
+    def staged(name: str) -> Path:
+        folder = tmp_path / f".staging-{name}"
+        folder.mkdir()
+        (folder / "report.json").write_text(name)
+        return folder
+
+    out = tmp_path / "out"
+    assert publish_folder(staged("first"), out, existed=False) == out  # the usual case
+    assert publish_folder(staged("again"), out, True, foreign_unless(("report.json",))) == out  # --overwrite
+    assert (out / "report.json").read_text() == "again"
+    # appeared during the run: left as it is
+    appeared = tmp_path / "appeared"
+    appeared.mkdir()
+    (appeared / "notes.txt").write_text("a user's notes")
+    assert publish_folder(staged("third"), appeared, existed=False) == tmp_path / "appeared-2"
+    assert (appeared / "notes.txt").read_text() == "a user's notes" and len(list(appeared.iterdir())) == 1
+    # there when the run began, with a user's file put in it since: left as it is
+    (out / "notes.txt").write_text("put there during the run")
+    assert publish_folder(staged("fourth"), out, True, foreign_unless(("report.json",))) == tmp_path / "out-2"
+    assert (out / "report.json").read_text() == "again" and (tmp_path / "out-2" / "report.json").read_text() == "fourth"
+
+
+def test_calibrate_stopped_by_sigterm_leaves_nothing_and_says_so(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "out"
+    argv = [sys.executable, "calibrate.py", "--robot", "motor", "--train", f"{GEARMOTOR}@0:5", "--test",
+            f"{GEARMOTOR}@5:", "--out", str(out), "--quiet"]  # fmt: skip
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=Path(__file__).resolve().parents[1])  # fmt: skip
+    time.sleep(8)  # imports done, fitting (the whole run takes minutes)
+    assert proc.poll() is None
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM
+    assert err.strip() == f"calibrate.py: interrupted; {out} is as it was", err
+    assert list(tmp_path.iterdir()) == []  # no results, no staging folder

@@ -68,9 +68,10 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     """Read and check a calibration file (for ``robot`` if given)."""
     path = Path(path)
     if not path.is_file():
-        raise CalibrationError(f"{path}: no such calibration file")
+        what = "a directory, not a calibration file" if path.is_dir() else "no such calibration file"
+        raise CalibrationError(f"{path}: {what}")
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationError(f"{path}: not a readable JSON calibration file ({exc})") from None
     if not isinstance(data, dict):

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
+import signal
 import tempfile
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -85,18 +87,41 @@ def json_default(obj: Any) -> Any:
     raise TypeError(f"cannot write {type(obj).__name__} as JSON")
 
 
-def publish_folder(tmp: str | Path, out: str | Path) -> None:
-    """Put a finished folder in place of ``out`` by renames; an earlier ``out`` goes only once the new one is in."""
+def publish_folder(
+    tmp: str | Path, out: str | Path, existed: bool = True, foreign: Callable[[Path], list[str]] | None = None
+) -> Path:
+    """Put a finished folder in place of ``out`` by renames; an earlier ``out`` goes only once the new one is in.
+    Returns where the folder went.
+
+    ``out`` was checked when the run began (:func:`results_folder_problem`); ``existed`` says whether it was there
+    then. If it has appeared since, or now holds an entry ``foreign`` names (files the tool does not write, put there
+    during the run), it is left alone and the folder goes to the first free ``out-2``, ``out-3``, ...: never a
+    silent overwrite, and the run's results are not lost. The caller says so."""
     import shutil
 
     tmp, out = Path(tmp), Path(out)
     if out.exists():
+        changed = not existed or not out.is_dir()
+        if not changed and foreign is not None:
+            changed = any(foreign(entry) for entry in out.iterdir())
+        if changed:
+            for k in range(2, 10_000):
+                target = out.with_name(f"{out.name}-{k}")
+                if not target.exists():
+                    try:
+                        os.rename(tmp, target)  # onto a name that does not exist (an empty folder made meanwhile
+                        # would be taken: os.rename replaces only an empty one)
+                    except OSError:
+                        continue
+                    return target
+            raise FileExistsError(f"{out}-2 to {out}-9999 all exist; the results are in {tmp}")
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
         os.replace(out, old)
         os.replace(tmp, out)
         shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(tmp, out)
+    return out
 
 
 def refuse_overwrite(path: str | Path, what: str = "file") -> Path:
@@ -159,3 +184,28 @@ class ToolParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a job scheduler's time limit), raised like Ctrl-C's KeyboardInterrupt so that a tool's
+    ``finally`` clauses run: a temporary folder is removed, a checkpoint saved (:func:`sigterm_as_interrupt`)."""
+
+
+def _raise_terminated(signum: int, frame) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises :class:`Terminated` (the default would end the process at once, leaving
+    temporary files behind); the handler before is restored after."""
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def interrupted_exit_code(exc: KeyboardInterrupt) -> int:
+    """The shell's exit code for a process ended by SIGTERM (143) or Ctrl-C (130)."""
+    return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)

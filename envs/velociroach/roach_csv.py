@@ -154,6 +154,7 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
     rows: list[list[int]] = []
     skipped: list[dict[str, Any]] = []
     previous: tuple[list[int], int] | None = None  # (the last kept row, its line number)
+    behind: list[int] = []  # the lines since the last kept row whose time did not pass it
     for number, line in data:
         if number < columns_line:
             problem = f"{path}, line {number}: data row before the columns line (line {columns_line})"
@@ -161,13 +162,21 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
             values, problem = _parse_row(path, number, line, columns)
             if values is not None and previous is not None:
                 problem = _out_of_sequence(path, number, columns, values, *previous)
+                if values[0] <= previous[0][0]:
+                    behind.append(number)
         if problem is not None:
             if not skip_bad_rows:
                 raise ValueError(problem)
+            if len(behind) > MAX_BEHIND_ROWS:  # not a glitch the log rejoins: its clock went back
+                raise ValueError(
+                    f"{path}, line {behind[0]}, field 1 (time): time runs backwards (this row and the "
+                    f"{len(behind) - 1} after it stay at or before line {previous[1]}'s {previous[0][0]} us)"
+                )
             skipped.append({"line": number, "reason": problem})
             continue
         rows.append(values)
         previous = (values, number)
+        behind = []
     if skipped:
         warnings.warn(f"{path}: skipped {len(skipped)} malformed rows (see the record's 'skipped_rows')", stacklevel=2)
     if not rows:
@@ -194,7 +203,7 @@ def _read_lines(path: Path) -> list[str]:
     out = []
     for number, line in enumerate(lines, start=1):
         try:
-            out.append(line.decode("utf-8"))
+            out.append(line.decode("utf-8-sig" if number == 1 else "utf-8"))  # a leading BOM (Excel) is not text
         except UnicodeDecodeError as exc:
             raise ValueError(f"{path}, line {number}: not text ({exc.reason} at byte {exc.start})") from None
     return out
@@ -354,6 +363,10 @@ def _check_columns(path: Path, number: int, columns: list[str]) -> None:
         seen.add(name)
 
 
+# rows in a row whose time stays at or before the last kept row's: more, and the log's clock went back (refused);
+# fewer, a repeated or broken sample the log rejoins (dropped as malformed): the rule (and number) of sysid.logs'
+# MAX_REPEATED_ROWS for the other readers
+MAX_BEHIND_ROWS = 16
 MAX_LEG_REV_PER_S = 100.0  # a leg turning faster is a glitch: over twice the real robot's fastest strides (45 Hz)
 _LEG_COLUMNS = (1, 2)  # the measured leg positions' fields (Right Leg Pos, Left Leg Pos)
 _IMU_COLUMNS = range(7, 13)  # GyroX .. AZ: signed 16-bit readings
