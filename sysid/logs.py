@@ -147,12 +147,27 @@ class Log:
         return float(t[-1] - t[0]) if len(t) else 0.0
 
     def between(self, start: float, end: float) -> Log:
-        """The samples with ``start <= time < end``; the earlier ones become its ``history``."""
+        """The samples with ``start <= time < end``; the earlier ones become its ``history``. A measured log's
+        window keeps the whole file's white-noise estimate per channel (``file_white``): a sensor's noise is the
+        file's, and a window where a channel rests (a held speed reading, second differences all zero) cannot show
+        it."""
         t = self.time
         before = self.df[t < start]
         history = pd.concat([self.history, before], ignore_index=True) if self.history is not None else before
-        return Log(self.path, self.df[(t >= start) & (t < end)].reset_index(drop=True), dict(self.meta),
+        meta = dict(self.meta)
+        if "noise_sigma" not in meta and "file_white" not in meta:
+            numeric = [c for c in self.df.columns if c != "time" and pd.api.types.is_numeric_dtype(self.df[c])]
+            meta["file_white"] = {c: white_noise(self.df[c].to_numpy(dtype=float)) for c in numeric}
+        return Log(self.path, self.df[(t >= start) & (t < end)].reset_index(drop=True), meta,
                    history.reset_index(drop=True) if len(history) else None)  # fmt: skip
+
+
+def white_noise(x: np.ndarray) -> float:
+    """A robust estimate of white noise on a channel, from its second differences (their median absolute deviation
+    as a standard deviation, over the sqrt(6) a second difference multiplies white noise by); 0 where most second
+    differences are zero (a resting or held reading)."""
+    d2 = np.diff(x, 2)
+    return float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6)) if len(d2) else 0.0
 
 
 @dataclass(frozen=True)
@@ -314,9 +329,9 @@ def _drop_non_finite(log: Log, columns: Sequence[str]) -> Log:
     bad = np.flatnonzero(~finite.all(axis=1))
     if not len(bad):
         return log
-    lines = [(int(_row_label(log, int(k))),
-              f"column {columns[int(np.argmin(finite[k]))]!r}: {float(values[k, np.argmin(finite[k])])} is not a finite "
-              "number") for k in bad]  # fmt: skip
+    first = np.argmin(finite, axis=1)  # each row's first column that is not finite
+    lines = [(int(_row_label(log, int(k))), f"column {columns[first[k]]!r}: {float(values[k, first[k]])} is not a "
+              "finite number") for k in bad]  # fmt: skip
     drop_bad_rows(Path(log.path), lines, len(values))
     return _keep_rows(log, np.flatnonzero(finite.all(axis=1)))
 

@@ -34,7 +34,7 @@ from mujoco import rollout
 
 from envs.common.batch import default_threads
 from sysid.effects import Effect, Param
-from sysid.logs import Log, LogError
+from sysid.logs import Log, LogError, white_noise
 
 Setting = Mapping[str, float]
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -329,10 +329,11 @@ class Adapter(ABC):
     # --- noise ------------------------------------------------------------------------------------------------------
     def noise(self, log: Log) -> dict[str, float]:
         """Each channel's noise level: the log's own record if it has one (synthetic data), else the larger of its
-        quantisation step / sqrt(12) and a robust estimate of white noise from second differences. A channel whose
-        second differences are mostly zero and whose step the reader does not know (a motor at rest) takes the
-        smallest step between its values as its quantisation; one that never changes has no measurable noise level
-        (its errors would be divided by nothing) and is refused, naming the log and channel."""
+        quantisation step / sqrt(12) and a robust estimate of white noise from second differences
+        (:func:`~sysid.logs.white_noise`). Where most second differences are zero (a motor at rest, a held reading)
+        a window takes its whole file's estimate; failing that, a channel whose step the reader does not know takes
+        the smallest step between its values as its quantisation; one that never changes has no measurable noise
+        level (its errors would be divided by nothing) and is refused, naming the log and channel."""
         recorded = log.meta.get("noise_sigma") or {}
         quantisation = log.meta.get("quantisation") or {}
         out = {}
@@ -341,8 +342,9 @@ class Adapter(ABC):
                 out[c] = float(recorded[c])
                 continue
             x = log.df[c].to_numpy(dtype=float)
-            d2 = np.diff(x, 2)
-            white = float(np.median(np.abs(d2 - np.median(d2))) / 0.6745 / math.sqrt(6)) if len(d2) else 0.0
+            white = white_noise(x)
+            if white <= 0.0:  # at rest or held in this window: the whole file's, if this is a window of one
+                white = float((log.meta.get("file_white") or {}).get(c, 0.0))
             q = float(quantisation.get(c, 0.0)) / math.sqrt(12)
             if white <= 0.0 and q <= 0.0:
                 steps = np.abs(np.diff(x))

@@ -15,7 +15,7 @@ import pytest
 
 import calibrate
 from envs.common.telemetry import write_telemetry
-from sysid.logs import ColumnMap, Log, LogError, read_log
+from sysid.logs import ColumnMap, Log, LogError, read_log, white_noise
 from sysid.robots import adapter as make_adapter
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
@@ -576,11 +576,15 @@ def test_a_channel_that_never_moves_has_no_noise_level_and_one_that_rests_takes_
     """Its errors would be divided by nothing (a test window of the gearmotor at rest read 1e12 noise levels): the
     reader's own step where it knows one, else the smallest step between the values, else refused."""
     adapter = make_adapter("motor")
-    rest = read_log(Path(f"{GEARMOTOR}"), ("duty",)).between(9.0, 1e9)  # the motor stopped: speed reads 0
-    sigma = adapter.noise(rest)
-    clicks = rest.meta["quantisation"]["speed"]
-    assert sigma["speed"] >= clicks / np.sqrt(12) > 0
-    frozen = Log("frozen.csv", rest.df.assign(angle=1.5), {})
+    whole = read_log(GEARMOTOR, ("duty",))
+    rest = whole.between(9.0, 1e9)  # the motor stopped: speed reads 0
+    assert white_noise(rest.df["speed"].to_numpy()) == 0
+    # a window at rest takes its file's estimate; a log of its own, the reader's step (the speed's is one click/s)
+    file_white = white_noise(whole.df["speed"].to_numpy())
+    assert file_white > 0 and adapter.noise(rest)["speed"] == pytest.approx(file_white)
+    alone = Log(str(GEARMOTOR), rest.df, {"quantisation": whole.meta["quantisation"]})
+    assert adapter.noise(alone)["speed"] == pytest.approx(whole.meta["quantisation"]["speed"] / np.sqrt(12))
+    frozen = Log("frozen.csv", rest.df.assign(angle=1.5), {})  # no file, no step: refused
     with pytest.raises(LogError, match=r"frozen\.csv: channel 'angle' reads 1\.5 throughout"):
         adapter.noise(frozen)
     stepped = Log("stepped.csv", rest.df.assign(angle=np.where(np.arange(len(rest.df)) < 50, 1.0, 1.25)), {})
