@@ -39,6 +39,9 @@ def _params(
     }
 
 
+INTERNAL = ("start", "measured")  # a ranking entry's keys for the loop's own use: where each fit starts
+
+
 def report_dict(result: Result, seconds: float, start: str | None = None) -> dict[str, Any]:
     """The content of report.json."""
     out = result.outcome
@@ -84,7 +87,7 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         "nuisance": {k: _round(v) for k, v in out.nuisance.items()},
         "ranking": [
             [
-                {k: (_round(v, 4) if isinstance(v, float) else v) for k, v in entry.items() if k != "start"}
+                {k: (_round(v, 4) if isinstance(v, float) else v) for k, v in entry.items() if k not in INTERNAL}
                 for entry in round_
             ]
             for round_ in out.rounds

@@ -31,7 +31,7 @@ from scipy import stats
 from sysid import diagnostics
 from sysid.effects import Effect, Param
 from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, half_widths, set_intervals
-from sysid.problem import Problem, Setting, flatten
+from sysid.problem import Problem, Setting, flatten, total_objective
 
 MAX_EFFECTS = 4
 Z95 = 1.96  # a 95% half-width in standard errors
@@ -227,6 +227,14 @@ def calibrate(
                 effect = candidates[entry["effect"]]
                 verdict, trial, bic = _fit_candidate(problem, current, [effect], nuisance, fitting, before,
                                                      entry["start"])  # fmt: skip
+                if entry.get("measured") is not None and trial.objective > entry["measured"][1]:
+                    # the local fit from nominal ended above a point the ranking measured: it stalled (a cost
+                    # so curved that its steps fail, the pwm decay's); it is fitted again from that point, and the
+                    # better of the two fits stands
+                    again = {**entry, "start": entry["measured"][0]}
+                    retry = _fit_candidate(problem, current, [effect], nuisance, fitting, before, again["start"])
+                    if retry[1].objective < trial.objective:
+                        entry, (verdict, trial, bic) = again, retry
                 singles.append((trial.cost, effect, entry, trial))
                 if verdict is None:
                     passing.append((bic, [effect], [entry], trial))
@@ -380,24 +388,27 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
         if kind == "fd":
             by_effect[name]["jac"].append((r - r0) / arg)
         else:
-            by_effect[name]["grid"].append((float(r @ r), arg))
+            by_effect[name]["grid"].append((float(r @ r), arg, total_objective(col)))
     out = []
     for name, e in candidates.items():
         parts = by_effect[name]
-        explained, start = 0.0, {}
+        explained, start, measured = 0.0, {}, None
         if parts["jac"]:
             jac = np.column_stack(parts["jac"])
             coef, *_ = np.linalg.lstsq(jac, r0, rcond=None)
             fitted = jac @ coef
             explained = float(fitted @ fitted)
         if parts["grid"]:
-            cost, point = min(parts["grid"], key=lambda x: x[0])
+            cost, point, objective = min(parts["grid"], key=lambda x: x[0])
             if base.cost - cost > explained or not parts["jac"]:
                 explained, start = base.cost - cost, point
+            elif cost < base.cost:  # the fit starts at nominal (the Jacobian promises more), this point is measured
+                measured = (point, objective)
         stat = max(explained, 0.0) / max(s2, 1e-300)
         out.append({"effect": name, "alias_group": e.alias, "score": stat,
                     "p_value": float(stats.chi2.sf(stat, len(e.params))),
-                    "explained_fraction": max(explained, 0.0) / max(base.cost, 1e-300), "start": start})  # fmt: skip
+                    "explained_fraction": max(explained, 0.0) / max(base.cost, 1e-300), "start": start,
+                    "measured": measured})  # fmt: skip
     out.sort(key=lambda d: -d["score"])
     return out
 

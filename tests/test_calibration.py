@@ -21,9 +21,9 @@ from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.cases import Case, pair, run_case
 from sysid.effects import Param, base_name
-from sysid.fit import _plateau_reach, half_widths
+from sysid.fit import _plateau_reach, fit, half_widths
 from sysid.pipeline import relative_excess, run
-from sysid.problem import Residual
+from sysid.problem import Problem, Residual
 from sysid.report import report_markdown
 from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE
@@ -551,3 +551,25 @@ def test_visibility_is_the_same_against_either_floor_where_replay_has_no_floor(t
         vis.main(["--robot", "motor", "--effect", "no_such_effect=1"])
     assert exit_info.value.code == 2 and not list(tmp_path.iterdir())
     assert "no_such_effect" in capsys.readouterr().err
+
+
+def test_a_fit_that_stalls_below_a_measured_point_is_fitted_again_from_it():
+    """Stop 32's second draw: the motor's PWM decay at 0.785 (seed 1011) has a cost so curved (491 noise levels at
+    nominal, 274 at 0.5, 1.03 at the truth, 626 at 1) that least squares from nominal stalls at 0.002, where the
+    ranking's Jacobian promised more than its grid measured. The loop now refits from the grid's measured point when
+    the fit ends above it (sysid.select.calibrate), and keeps the better fit."""
+    from sysid.select import _params, calibrate, score
+
+    (train,), _, truth = pair("motor", {"pwm_decay": None}, seed=1011)
+    adapter = make_adapter("motor")
+    problem = Problem(adapter, [train])
+    nominal = adapter.catalog_nominal()
+    effect = adapter.catalog()["pwm_decay"]
+    (entry,) = score(problem, nominal, {"pwm_decay": effect}, None)
+    assert entry["start"] == {} and entry["measured"] is not None  # the fit starts at nominal; a point is measured
+    stalled = fit(problem, nominal, _params(effect), start=entry["start"], intervals=False)
+    assert stalled.values["pwm_decay.coast"] < 0.05 and stalled.objective > entry["measured"][1]
+    outcome = calibrate(problem, say=lambda s: None)
+    value = truth["setting"]["pwm_decay.coast"]
+    assert outcome.chosen[0].effect.name == "pwm_decay"
+    assert outcome.chosen[0].values["pwm_decay.coast"] == pytest.approx(value, abs=0.01)
