@@ -3,9 +3,10 @@
     python evaluate.py --env skitter/RoachWalk-v1 --policy tripod --policy runs/.../model.zip \
         --episodes 10 --seed 0 --out results/walk [--video] [--telemetry]
 
-Prints a side-by-side table (mean and 95% bootstrap CI per metric), and writes DIR/results.json (every episode and
-the summaries), DIR/results.md, a plot of one episode per policy (trajectory, body angles and the robot's own channel
-groups) and, with --video, an mp4 per policy; with --telemetry, the telemetry of every episode as Parquet.
+Prints a side-by-side table (mean and 95% CI per metric: bootstrap from 10 episodes, Student's t below), and writes
+DIR/results.json (every episode and the summaries), DIR/results.md, a plot of one episode per policy (trajectory, body
+angles and the robot's own channel groups) and, with --video, an mp4 per policy; with --telemetry, the telemetry of
+every episode as Parquet.
 
 Everything is checked before the first episode runs, and the results are written as one unit: into a temporary folder
 beside DIR, which then takes DIR's place. A trained model must fit --env: one whose record from train.py (the manifest
@@ -30,7 +31,15 @@ import pandas as pd
 
 import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
-from agents.evaluation import Episode, episode_record, metric_descriptions, paired_difference, run_episodes, summarize
+from agents.evaluation import (
+    MIN_BOOTSTRAP,
+    Episode,
+    episode_record,
+    metric_descriptions,
+    paired_difference,
+    run_episodes,
+    summarize,
+)
 from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
@@ -228,6 +237,8 @@ def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:
 def fmt(s: dict[str, float]) -> str:
     if not np.isfinite(s["mean"]):
         return "n/a"
+    if not np.isfinite(s["ci_low"]):  # one episode: no interval
+        return f"{s['mean']:.3g}"
     return f"{s['mean']:.3g} [{s['ci_low']:.3g}, {s['ci_high']:.3g}]"
 
 
@@ -239,7 +250,14 @@ def report(
     lines = [
         f"# {env_id}: {len(seeds)} episodes per policy, seeds {seeds[0]}..{seeds[-1]} (the same for every policy)",
         "",
-        "Mean [95% bootstrap CI] per episode.",
+        "Mean [95% CI] per episode: "
+        + (
+            "no interval from one episode."
+            if len(seeds) < 2
+            else f"Student's t intervals (fewer than {MIN_BOOTSTRAP} episodes: a bootstrap would be too narrow)."
+            if len(seeds) < MIN_BOOTSTRAP
+            else "bootstrap (BCa)."
+        ),
         "",
         "| metric | " + " | ".join(specs) + " |",
         "|---|" + "---|" * len(specs),

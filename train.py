@@ -1004,8 +1004,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     for flag, value in (("--runs-dir", args.runs_dir), ("--resume", args.resume)):
         if value is not None and not value.strip():
             parser.error(f"argument {flag}: expected a folder, got an empty path {value!r}")
-    if args.run_name is not None and (not args.run_name or Path(args.run_name).name != args.run_name):
-        parser.error(f"argument --run-name: expected a folder name without '/', got {args.run_name!r}")
+    if args.run_name is not None and (
+        not args.run_name or Path(args.run_name).name != args.run_name or args.run_name in (".", "..")
+    ):
+        parser.error(f"argument --run-name: expected a new folder's name (no '/', not . or ..), got {args.run_name!r}")
     if args.checkpoint_freq is None and not args.resume:
         args.checkpoint_freq = DEFAULT_CHECKPOINT_FREQ
     return args

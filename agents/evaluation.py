@@ -1,7 +1,8 @@
 """Rollouts of a policy in an env, per-episode metrics, and their statistics.
 
 Every policy is run on the same episode seeds, so two policies can be compared episode by episode (paired).
-Confidence intervals are 95% bootstrap intervals (scipy.stats.bootstrap, BCa; percentile when BCa is undefined).
+Confidence intervals are 95% bootstrap intervals (scipy.stats.bootstrap, BCa; percentile when BCa is undefined)
+from 10 episodes up, Student's t intervals below that, and none from one episode.
 
 Metrics come from the env's own metadata (the robot's mass and length, the task's metrics), never from one robot's
 constants: the generic ones below from the running sums every task reports in ``info``, the task's own from
@@ -10,6 +11,7 @@ constants: the generic ones below from the running sums every task reports in ``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -136,14 +138,22 @@ def _row(info: Mapping[str, Any], i: int) -> dict[str, Any]:
     return {k: v[i] for k, v in info.items() if not k.startswith("_") and info[f"_{k}"][i]}
 
 
+MIN_BOOTSTRAP = 10  # fewer values, and a bootstrap interval is too narrow (with 3, BCa spans their min to max)
+
+
 def bootstrap_ci(values: np.ndarray, confidence: float = 0.95, seed: int = 0) -> tuple[float, float]:
-    """95% bootstrap interval of the mean (BCa; percentile if BCa is undefined, e.g. all values equal)."""
+    """95% interval of the mean: bootstrap (BCa; percentile if BCa is undefined) from :data:`MIN_BOOTSTRAP` values;
+    below that, Student's t interval, which a bootstrap undercuts on so few; none (NaN) from one value, where no
+    interval can be had, and a point where every value is the same."""
     x = np.asarray(values, dtype=float)
     x = x[np.isfinite(x)]
-    if len(x) == 0:
+    if len(x) < 2:
         return float("nan"), float("nan")
-    if len(x) == 1 or np.ptp(x) == 0:
+    if np.ptp(x) == 0:
         return float(x.mean()), float(x.mean())
+    if len(x) < MIN_BOOTSTRAP:
+        half = stats.t.ppf(0.5 + confidence / 2, len(x) - 1) * x.std(ddof=1) / math.sqrt(len(x))
+        return float(x.mean() - half), float(x.mean() + half)
     rng = np.random.default_rng(seed)
     for method in ("BCa", "percentile"):
         res = stats.bootstrap((x,), np.mean, confidence_level=confidence, method=method, random_state=rng)

@@ -281,3 +281,20 @@ def test_a_corrupt_policy_file_is_named_as_a_policy_file(model_zip, tmp_path, ca
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert f"--policy '{model}': cannot read policy file {model}: corrupt contents" in err
     assert "checkpoint" not in err and not (tmp_path / "out").exists()
+
+
+def test_intervals_from_few_episodes_are_not_narrower_than_the_data_allow():
+    """A bootstrap from 3 values spans about their min to max (stop 32's review found [2237.6, 2438.8] from three
+    returns whose t interval is [2087, 2587]); one value has no interval at all."""
+    from scipy import stats
+
+    from agents.evaluation import MIN_BOOTSTRAP, bootstrap_ci
+
+    x = np.array([2237.6, 2338.0, 2438.8])
+    low, high = bootstrap_ci(x)
+    half = stats.t.ppf(0.975, 2) * x.std(ddof=1) / np.sqrt(3)
+    assert (low, high) == pytest.approx((x.mean() - half, x.mean() + half))
+    assert low < x.min() and high > x.max()
+    assert all(np.isnan(bootstrap_ci(np.array([810.0]))))
+    many = np.random.default_rng(0).normal(size=MIN_BOOTSTRAP)
+    assert bootstrap_ci(many) == bootstrap_ci(many, seed=0)  # the bootstrap from MIN_BOOTSTRAP on, seeded

@@ -158,6 +158,8 @@ BAD_INPUTS = {
     "wrong type": ({WALK: "  n_steps: lots"}, [], ["bad.yml", "n_steps", "lots"]),
     "unknown field": ({WALK: "  n_step: 64"}, [], ["bad.yml", "n_step", "did you mean 'n_steps'"]),
     "non-positive timesteps": ({}, ["--timesteps", "0"], ["--timesteps"]),
+    "run name ..": ({}, ["--run-name", ".."], ["--run-name", "'..'"]),  # stop 32's review: it made --runs-dir first
+    "a string for a switch": ({WALK: "  env_kwargs: {sensor_noise: 'false'}"}, [], ["bad.yml", "sensor_noise"]),
 }
 
 

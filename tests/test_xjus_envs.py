@@ -174,10 +174,12 @@ def test_rough_env_starts_on_the_lane_asked_and_reports_the_obstacle():
         (ROUGH, {"roughness": 0.5}, "roughness"),
         (ROUGH, {"obstacle": "moat"}, "obstacle"),
         (ROUGH, {"step_height": -0.1}, "step_height"),
-        (ROUGH, {"terrain_seed": -3}, "seed"),
+        (ROUGH, {"terrain_seed": -3}, "terrain_seed must be a whole number >= 0, got -3"),
+        (ROUGH, {"terrain_seed": 1.5}, "terrain_seed"),
         (WALK, {"spine": "bendy"}, "spine"),
         (WALK, {"control_freq": 50.0}, "control_freq"),
         (TURN, {"current_limit": -1.0}, "current_limit"),
+        (ROUGH, {"sensor_noise": "false"}, "sensor_noise"),
     ],
 )
 def test_bad_env_arguments_are_refused_in_one_line(env_id, kwargs, message):

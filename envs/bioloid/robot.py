@@ -19,7 +19,7 @@ from envs.bioloid.kinematics import Ellipse, LegGeometry
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
-from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_flag, check_number
 
 GOAL = "goal"
 LOAD_FULL_SCALE = 1023.0  # an AX-12 reports its load as 0..1023 of its maximum torque, with a direction bit
@@ -133,8 +133,7 @@ class Bioloid(Robot):
         batched: bool | None = None,
         calibration: str | Path | Calibration | None = None,
     ):
-        if not isinstance(knee_wedge, bool):
-            raise ValueError(f"knee_wedge must be True or False, got {knee_wedge!r}")
+        knee_wedge = check_flag("knee_wedge", knee_wedge)
         if servo is not None and not isinstance(servo, ServoConstants):
             raise ValueError(f"servo must be a ServoConstants, got {servo!r}")
         constants = servo or ServoConstants(supply_voltage=C.BATTERY_VOLTAGE)

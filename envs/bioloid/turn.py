@@ -10,6 +10,7 @@ from envs.bioloid.walk import ENERGY_COST_WEIGHT
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
+from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 
 YAW_RATE_RANGE = 0.2  # rad/s: commands from U(-0.2, 0.2), within the stride-scaling trot's reach (docs/bioloid.md)
@@ -75,7 +76,7 @@ class BioloidTurnEnv(SkitterEnv):
             knee_wedge,
             servo,
             battery_voltage,
-            ImuNoise() if sensor_noise else None,
+            ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             calibration=calibration,
         )
         task = TurnTask(

@@ -9,6 +9,7 @@ from envs.bioloid.robot import GOAL, Bioloid
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
+from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 
 ENERGY_COST_WEIGHT = 0.01  # per W: the 16 servos draw a few watts standing and walking (docs/bioloid.md)
@@ -113,7 +114,7 @@ class BioloidWalkEnv(SkitterEnv):
             knee_wedge,
             servo,
             battery_voltage,
-            ImuNoise() if sensor_noise else None,
+            ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             calibration=calibration,
         )
         task = WalkTask(

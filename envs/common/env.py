@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.common.parameters import check_randomize, sample
-from envs.common.robot import Robot, check_number
+from envs.common.robot import Robot, check_flag, check_number
 from envs.common.task import Task
 from envs.common.telemetry import TelemetryRecorder
 
@@ -57,6 +57,7 @@ class SkitterEnv(gym.Env):
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= most:
                 raise ValueError(f"{name} must be a whole number of pixels in [1, {most}], got {value!r}")
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
+        telemetry = check_flag("telemetry", telemetry)
         self.robot = robot
         self.task = task
         self.randomize = check_randomize(randomize, robot.parameters)

@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from envs.common.robot import Robot, check_number
+from envs.common.robot import Robot, check_flag, check_number
 from envs.common.task import Task
 
 GRAVITY = 9.81
@@ -52,7 +52,7 @@ class LocomotionTask(Task):
         energy_cost_weight: float = 0.1,
         max_tilt: float = 1.4,
     ):
-        self.privileged_obs = bool(privileged_obs)
+        self.privileged_obs = check_flag("privileged_obs", privileged_obs)
         self.energy_cost_weight = check_number("energy_cost_weight", energy_cost_weight, 0)
         self.max_tilt = check_number("max_tilt", max_tilt, 0, np.pi, strict=True)
         self._min_up = float(np.cos(self.max_tilt))

@@ -134,6 +134,14 @@ def check_number(name: str, value: Any, low: float | None = None, high: float | 
     return x
 
 
+def check_flag(name: str, value: Any) -> bool:
+    """``value`` as a bool: True or False (numpy's too) only; a string such as ``"false"`` would read as true, so it
+    is refused with a ValueError naming the argument and value."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    raise ValueError(f"{name} must be True or False, got {value!r}")
+
+
 class Robot(ABC):
     """Base of every robot and bench rig. Subclasses set the class attributes and fill in the abstract methods.
 

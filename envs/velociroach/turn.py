@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
+from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 from envs.velociroach.robot import GAIT, VelociRoach
 
@@ -68,7 +69,11 @@ class RoachTurnEnv(SkitterEnv):
         height: int = 360,
     ):
         robot = VelociRoach(
-            action_mode, control_freq, battery_voltage, ImuNoise() if sensor_noise else None, calibration=calibration
+            action_mode,
+            control_freq,
+            battery_voltage,
+            ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
+            calibration=calibration,
         )
         task = TurnTask(
             robot,

@@ -10,7 +10,7 @@ import numpy as np
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
-from envs.common.robot import Robot, check_number
+from envs.common.robot import Robot, check_flag, check_number
 from envs.common.terrain import Terrain
 from envs.common.vector import vector_entry_point
 from envs.xjus.robot import COMPLIANT, GAIT, SpineSetting, Xjus
@@ -119,6 +119,8 @@ class XjusRoughEnv(SkitterEnv):
         width: int = 480,
         height: int = 360,
     ):
+        if isinstance(terrain_seed, bool) or not isinstance(terrain_seed, int | np.integer) or terrain_seed < 0:
+            raise ValueError(f"terrain_seed must be a whole number >= 0, got {terrain_seed!r}")  # named as passed
         terrain = Terrain(
             roughness=check_number("roughness", roughness, 0.0, 0.1),
             obstacle=obstacle,
@@ -133,7 +135,7 @@ class XjusRoughEnv(SkitterEnv):
             spine_damping,
             battery_voltage,
             current_limit,
-            ImuNoise() if sensor_noise else None,
+            ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             starts=terrain.starts(),
             spec_edits=[terrain],
             calibration=calibration,

@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
+from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 from envs.xjus.robot import COMPLIANT, GAIT, SpineSetting, Xjus
 from envs.xjus.walk import ENERGY_COST_WEIGHT
@@ -80,7 +81,7 @@ class XjusTurnEnv(SkitterEnv):
             spine_damping,
             battery_voltage,
             current_limit,
-            ImuNoise() if sensor_noise else None,
+            ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             calibration=calibration,
         )
         task = TurnTask(

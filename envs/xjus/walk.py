@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.common.env import SkitterEnv
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
+from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 from envs.xjus.robot import COMPLIANT, GAIT, SpineSetting, Xjus
 
@@ -132,7 +133,7 @@ class XjusWalkEnv(SkitterEnv):
             spine_damping,
             battery_voltage,
             current_limit,
-            ImuNoise() if sensor_noise else None,
+            ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             calibration=calibration,
         )
         task = WalkTask(
