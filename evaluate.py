@@ -17,6 +17,7 @@ shape or action space differs from the env's is refused (agents/sb3.py).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import sys
@@ -80,7 +81,19 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument(
         "--unnormalized", action="store_true", help="accept a foreign SB3 model without normalization statistics"
     )
+    p.add_argument(
+        "--env-kwargs",
+        default="{}",
+        help="the env's keyword arguments as a JSON object, e.g. '{\"sensor_noise\": false}' (a model trained with "
+        "env_kwargs is evaluated with the same ones; others are warned of)",
+    )
     args = p.parse_args(argv)
+    try:
+        args.env_kwargs = json.loads(args.env_kwargs)
+    except ValueError as exc:
+        p.error(f"--env-kwargs {args.env_kwargs!r}: not JSON ({exc})")
+    if not isinstance(args.env_kwargs, dict):
+        p.error(f"--env-kwargs {args.env_kwargs!r}: expected a JSON object of keyword arguments")
     if args.episodes < 1:
         p.error(f"--episodes must be at least 1, got {args.episodes}")
     if args.seed < 0:
@@ -95,6 +108,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             read_calibration(args.calibration)
         except CalibrationError as exc:
             p.error(f"--calibration: {exc}")
+    if args.env_kwargs:
+        try:  # made once, so that a bad argument is one line here, before anything else
+            gym.make(args.env, **args.env_kwargs).close()
+        except (TypeError, ValueError) as exc:
+            p.error(f"--env-kwargs: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
     repeated = sorted({s for s in args.policy if args.policy.count(s) > 1})
     if repeated:
         p.error(f"--policy {repeated[0]!r} is given twice")
@@ -154,6 +172,7 @@ def make_env(args, render: bool):
         telemetry=True,
         render_mode="rgb_array" if render else None,
         **limit,
+        **args.env_kwargs,
     )
 
 
@@ -286,6 +305,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from agents.sb3 import trained_env_kwargs  # SB3 and torch, once the arguments are good
+
     out: Path = args.out
     names = slugs(args.policy)
     # every policy is loaded and checked against its env before any episode runs
@@ -299,8 +320,14 @@ def _run(args: argparse.Namespace) -> int:
         try:
             prepared[spec] = (load_policy(spec, env) if not args.unnormalized else _load_unnormalized(spec, env), env)
         except (ValueError, FileNotFoundError) as exc:
-            print(f"evaluate.py: error: --policy {spec!r}: {exc}", file=sys.stderr)
+            trained = trained_env_kwargs(spec) if spec.endswith(".zip") else None
+            hint = f" (it was trained with env_kwargs {trained}: pass them with --env-kwargs)" if trained else ""
+            print(f"evaluate.py: error: --policy {spec!r}: {exc}{hint}", file=sys.stderr)
             return 2
+        trained = trained_env_kwargs(spec) if spec.endswith(".zip") else None
+        if trained is not None and trained != args.env_kwargs:
+            print(f"evaluate.py: warning: --policy {spec!r} was trained with env_kwargs {trained}; it is evaluated "
+                  f"with {args.env_kwargs} (--env-kwargs)", file=sys.stderr)  # fmt: skip
     metrics = metric_descriptions(next(iter(prepared.values()))[1])
     out.parent.mkdir(parents=True, exist_ok=True)
     with (
@@ -326,6 +353,7 @@ def _run(args: argparse.Namespace) -> int:
             {
                 "env": args.env,
                 "calibration": None if args.calibration is None else str(args.calibration),
+                "env_kwargs": args.env_kwargs,
                 "seeds": seeds,
                 "deterministic": not args.stochastic,
                 "metrics": metrics,

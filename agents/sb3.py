@@ -120,10 +120,19 @@ def trained_on(path: str | Path, manifest: dict[str, Any] | None) -> list[tuple[
     model file's manifest, and ``config.json`` of the run folder the file sits in (``<run>/model.zip`` or
     ``<run>/checkpoints/step_<N>/model.zip``). Empty for a model from elsewhere; a ``config.json`` that is not
     train.py's (unreadable, or without ``env_id`` and ``algo``) is not metadata."""
-    path = Path(path)
     found = []
     if manifest is not None and isinstance(manifest.get("env_id"), str):
         found.append((f"its manifest {MANIFEST}", manifest["env_id"]))
+    config_path, config = _run_config(path)
+    if config is not None:
+        found.append((f"its run's {config_path}", config["env_id"]))
+    return found
+
+
+def _run_config(path: str | Path) -> tuple[Path, dict[str, Any] | None]:
+    """``config.json`` of the run folder a model file sits in (``<run>/model.zip`` or
+    ``<run>/checkpoints/step_<N>/model.zip``) and its content, None if it is not train.py's."""
+    path = Path(path)
     run_dir = path.parent.parent.parent if path.parent.parent.name == "checkpoints" else path.parent
     config_path = run_dir / "config.json"
     try:
@@ -131,8 +140,15 @@ def trained_on(path: str | Path, manifest: dict[str, Any] | None) -> list[tuple[
     except (OSError, UnicodeDecodeError, ValueError):
         config = None
     if isinstance(config, dict) and isinstance(config.get("env_id"), str) and isinstance(config.get("algo"), str):
-        found.append((f"its run's {config_path}", config["env_id"]))
-    return found
+        return config_path, config
+    return config_path, None
+
+
+def trained_env_kwargs(path: str | Path) -> dict[str, Any] | None:
+    """The ``env_kwargs`` the model at ``path`` was trained with (its run's config.json), None if unknown."""
+    _, config = _run_config(path)
+    kwargs = ((config or {}).get("hyperparams") or {}).get("env_kwargs")
+    return dict(kwargs) if isinstance(kwargs, dict) else None
 
 
 def spaces_problem(model: BaseAlgorithm, env) -> str | None:

@@ -298,3 +298,34 @@ def test_intervals_from_few_episodes_are_not_narrower_than_the_data_allow():
     assert all(np.isnan(bootstrap_ci(np.array([810.0]))))
     many = np.random.default_rng(0).normal(size=MIN_BOOTSTRAP)
     assert bootstrap_ci(many) == bootstrap_ci(many, seed=0)  # the bootstrap from MIN_BOOTSTRAP on, seeded
+
+
+def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(model_zip, tmp_path, capsys):
+    """Stop 32's review: a model trained with env_kwargs (its run's config.json) was evaluated silently on the
+    default env. --env-kwargs makes the env as it was trained; a difference is warned of, and a shape mismatch
+    names the env_kwargs it was trained with."""
+    import evaluate
+
+    run_dir = tmp_path / "run"
+    model = copy_model(model_zip, run_dir / "model.zip")
+    config = json.loads((model_zip.parent / "config.json").read_text())
+    config["hyperparams"]["env_kwargs"] = {"sensor_noise": False}
+    (run_dir / "config.json").write_text(json.dumps(config))
+    base = ["--env", "skitter/RoachWalk-v1", "--policy", str(model), "--episodes", "1", "--max-episode-steps", "5"]
+    code = evaluate.main([*base, "--out", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    assert code == 0 and "was trained with env_kwargs {'sensor_noise': False}; it is evaluated with {}" in err
+    code = evaluate.main([*base, "--out", str(tmp_path / "b"), "--env-kwargs", '{"sensor_noise": false}'])
+    err = capsys.readouterr().err
+    assert code == 0 and "warning" not in err
+    results = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert results["env_kwargs"] == {"sensor_noise": False}
+    # another observation than the model's: refused, naming what it was trained with
+    code = evaluate.main([*base, "--out", str(tmp_path / "c"), "--env-kwargs", '{"privileged_obs": true}'])
+    err = capsys.readouterr().err
+    assert code == 2 and "trained with env_kwargs {'sensor_noise': False}: pass them with --env-kwargs" in err
+    for bad, message in (('{"legs": 8}', "legs"), ("[1]", "JSON object"), ("{", "not JSON")):
+        with pytest.raises(SystemExit) as exit_info:
+            evaluate.main([*base, "--out", str(tmp_path / "d"), "--env-kwargs", bad])
+        assert exit_info.value.code == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "c").exists() and not (tmp_path / "d").exists()
