@@ -332,11 +332,14 @@ class Adapter(ABC):
         quantisation step / sqrt(12) and a robust estimate of white noise from second differences
         (:func:`~sysid.logs.white_noise`). Where most second differences are zero (a motor at rest, a held reading)
         a window takes its whole file's estimate; failing that, a channel whose step the reader does not know takes
-        the smallest step between its values as its quantisation; one that never changes has no measurable noise
-        level (its errors would be divided by nothing) and is refused, naming the log and channel."""
+        the smallest step between its values as its quantisation. A channel that never changes (a servo held
+        still) shows no noise of its own: it takes the median level of the log's other channels in its unit (the
+        same kind of sensor), and with none, it is refused, naming the log and channel (its errors would be divided
+        by nothing)."""
         recorded = log.meta.get("noise_sigma") or {}
         quantisation = log.meta.get("quantisation") or {}
-        out = {}
+        out: dict[str, float] = {}
+        still = []
         for c in self.channels:
             if c in recorded:
                 out[c] = float(recorded[c])
@@ -350,13 +353,21 @@ class Adapter(ABC):
                 steps = np.abs(np.diff(x))
                 steps = steps[steps > 1e-9 * max(float(np.max(np.abs(x))), 1e-300)] if len(x) else steps
                 if not len(steps):
-                    raise LogError(
-                        f"{log.path}: channel {c!r} reads {x[0] if len(x) else float('nan'):g} throughout: its noise "
-                        "level cannot be measured, so no error on it can be; give a stretch of the log where it moves"
-                    )
+                    still.append(c)
+                    continue
                 q = float(np.min(steps)) / math.sqrt(12)
             out[c] = max(white, q)
-        return out
+        for c in still:
+            unit = self.channels[c]
+            kin = [v for k, v in out.items() if self.channels.get(k) == unit]
+            if not kin:
+                x = log.df[c].to_numpy(dtype=float)
+                raise LogError(
+                    f"{log.path}: channel {c!r} reads {x[0] if len(x) else float('nan'):g} throughout: its noise "
+                    "level cannot be measured, so no error on it can be; give a stretch of the log where it moves"
+                )
+            out[c] = float(np.median(kin))
+        return {c: out[c] for c in self.channels}
 
 
 def run_rollout(
