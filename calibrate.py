@@ -30,10 +30,10 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     foreign_unless,
-    interrupted_exit_code,
     publish_folder,
+    published_exit_code,
     results_folder_problem,
-    sigterm_as_interrupt,
+    run_interruptibly,
     write_json,
     write_text,
 )
@@ -146,12 +146,7 @@ def _overlap(a: Path, b: Path) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    try:
-        with sigterm_as_interrupt():  # SIGTERM too: the staging folder is removed on the way out
-            return _run(args)
-    except KeyboardInterrupt as exc:
-        print(f"calibrate.py: interrupted; {args.out} is as it was", file=sys.stderr)
-        return interrupted_exit_code(exc)
+    return run_interruptibly("calibrate.py", args.out, lambda: _run(args))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -205,11 +200,7 @@ def _run(args: argparse.Namespace) -> int:
         after, before = report["error_after"], report["error_before"]
         print(f"calibrate.py: warning: the calibrated model's held-out error ({after:.3g}) is above the nominal "
               f"model's ({before:.3g}); see {where}/report.md", file=sys.stderr)  # fmt: skip
-    if where != out:
-        print(f"calibrate.py: error: {out} appeared or took files calibrate.py does not write during the run; it is "
-              f"left as it is, and the results are in {where}/", file=sys.stderr)  # fmt: skip
-        return 1
-    return 0
+    return published_exit_code("calibrate.py", out, where)
 
 
 def _base(start) -> dict | None:

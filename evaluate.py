@@ -45,10 +45,10 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     atomic_write,
-    interrupted_exit_code,
     publish_folder,
+    published_exit_code,
     results_folder_problem,
-    sigterm_as_interrupt,
+    run_interruptibly,
     write_json,
     write_text,
 )
@@ -296,12 +296,7 @@ def report(
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    try:
-        with sigterm_as_interrupt():  # SIGTERM too: the staging folder is removed on the way out
-            return _run(args)
-    except KeyboardInterrupt as exc:
-        print(f"evaluate.py: interrupted; {args.out} is as it was", file=sys.stderr)
-        return interrupted_exit_code(exc)
+    return run_interruptibly("evaluate.py", args.out, lambda: _run(args))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -370,11 +365,7 @@ def _run(args: argparse.Namespace) -> int:
     print(text)
     extra = (" videos/" if args.video else "") + (" telemetry/" if args.telemetry else "")
     print(f"results in {where}/ (results.json, results.md, plots/{extra})")
-    if where != out:
-        print(f"evaluate.py: error: {out} appeared or took files evaluate.py does not write during the run; it is "
-              f"left as it is, and the results are in {where}/", file=sys.stderr)  # fmt: skip
-        return 1
-    return 0
+    return published_exit_code("evaluate.py", out, where)
 
 
 def _load_unnormalized(spec: str, env):

@@ -8,6 +8,7 @@ import json
 import os
 import re
 import signal
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -209,3 +210,24 @@ def sigterm_as_interrupt() -> Iterator[None]:
 def interrupted_exit_code(exc: KeyboardInterrupt) -> int:
     """The shell's exit code for a process ended by SIGTERM (143) or Ctrl-C (130)."""
     return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
+
+
+def run_interruptibly(tool: str, out: Path, run: Callable[[], int]) -> int:
+    """A results tool's ``main``: ``run()`` with SIGTERM raised like Ctrl-C (its staging folder removed on the way
+    out), an interruption reported in one line with the shell's exit code (130 or 143)."""
+    try:
+        with sigterm_as_interrupt():
+            return run()
+    except KeyboardInterrupt as exc:
+        print(f"{tool}: interrupted; {out} is as it was", file=sys.stderr)
+        return interrupted_exit_code(exc)
+
+
+def published_exit_code(tool: str, out: Path, where: Path) -> int:
+    """0 when :func:`publish_folder` put the results at ``out``; else, said in one line, 1: ``out`` appeared or took
+    files the tool does not write during the run and was left as it is."""
+    if where == out:
+        return 0
+    print(f"{tool}: error: {out} appeared or took files {tool} does not write during the run; it is left as it is, "
+          f"and the results are in {where}/", file=sys.stderr)  # fmt: skip
+    return 1
