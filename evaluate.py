@@ -20,9 +20,13 @@ import argparse
 import json
 import os
 import re
+import signal
 import sys
 import tempfile
 from pathlib import Path
+
+if __name__ == "__main__":  # Ctrl-C while the libraries below load (seconds): a quiet exit 130, not a traceback
+    signal.signal(signal.SIGINT, lambda *_: sys.exit(130))
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -377,4 +381,5 @@ def _load_unnormalized(spec: str, env):
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # from here a Ctrl-C is handled by main()
     sys.exit(main())

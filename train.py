@@ -49,6 +49,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -58,6 +59,9 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+if __name__ == "__main__":  # Ctrl-C while the libraries below load (seconds): a quiet exit 130, not a traceback
+    signal.signal(signal.SIGINT, lambda *_: sys.exit(130))
+
 import gymnasium as gym
 import numpy as np
 import torch
@@ -65,7 +69,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.logger import configure
+from stable_baselines3.common.logger import Logger, TensorBoardOutputFormat
 from stable_baselines3.common.noise import (
     ActionNoise,
     NormalActionNoise,
@@ -75,6 +79,7 @@ from stable_baselines3.common.noise import (
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.utils import LinearSchedule, set_random_seed
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
+from torch.utils.tensorboard import SummaryWriter
 
 import envs  # noqa: F401  (registers the skitter envs)
 from agents.evaluation import episode_metrics
@@ -147,6 +152,8 @@ LIMITS: dict[str, tuple[float | None, float | None]] = {
     "target_noise_clip": (0, None),
     "noise_std": (0, None),
 }
+# Entries whose low bound is excluded: a zero learning rate or clip range trains nothing.
+ABOVE_LOW = frozenset({"learning_rate", "clip_range"})
 # Names a policy_kwargs expression may use for torch classes, e.g. nn.Tanh or th.optim.Adam.
 TORCH_MODULES = {
     "nn": torch.nn,
@@ -270,6 +277,7 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperpa
     n_envs = check("n_envs", lambda v: _number("n_envs", v, int))
     if isinstance(model_kwargs.get("train_freq"), tuple) and model_kwargs["train_freq"][1] == "episode" and n_envs > 1:
         raise ConfigError(f"{where}: field 'train_freq' = {raw['train_freq']!r}: needs n_envs 1, not {n_envs}")
+    _check_batch_size(model_kwargs, defaults, n_envs, algo, where)
     return Hyperparams(
         where=where,
         raw=raw,
@@ -281,6 +289,29 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperpa
         vec_env=check("vec_env", _vec_env),
         nthread=check("nthread", lambda v: None if v is None else _number("nthread", v, int)),
     )
+
+
+def _check_batch_size(
+    model_kwargs: dict[str, Any], defaults: dict[str, Any], n_envs: int, algo: str, where: str
+) -> None:
+    """A minibatch no larger than what it is drawn from: an on-policy rollout (``n_steps`` x ``n_envs``) or an
+    off-policy replay buffer. SB3 only warns (PPO) or samples with repeats (SAC, TD3), and trains on a mistake."""
+    batch_size = model_kwargs.get("batch_size", defaults.get("batch_size"))
+    if not isinstance(batch_size, int):
+        return
+    if not issubclass(ALGOS[algo], OffPolicyAlgorithm):
+        n_steps = model_kwargs.get("n_steps", defaults["n_steps"])
+        if batch_size > n_steps * n_envs:
+            raise ConfigError(
+                f"{where}: field 'batch_size' = {batch_size}: larger than a rollout, n_steps x n_envs = "
+                f"{n_steps} x {n_envs} = {n_steps * n_envs}"
+            )
+    else:
+        buffer_size = model_kwargs.get("buffer_size", defaults["buffer_size"])
+        if batch_size > buffer_size:
+            raise ConfigError(
+                f"{where}: field 'batch_size' = {batch_size}: larger than the replay buffer (buffer_size {buffer_size})"
+            )
 
 
 def algo_defaults(algo: str) -> dict[str, Any]:
@@ -344,8 +375,9 @@ def _number(key: str, value: Any, kind: type) -> int | float:
     if not math.isfinite(value):
         raise ValueError("must be a finite number")
     low, high = LIMITS.get(key, (None, None))
-    if (low is not None and value < low) or (high is not None and value > high):
-        bounds = f"between {low} and {high}" if high is not None else f"at least {low}"
+    above = key in ABOVE_LOW
+    if (low is not None and (value <= low if above else value < low)) or (high is not None and value > high):
+        bounds = f"between {low} and {high}" if high is not None else f"{'above' if above else 'at least'} {low}"
         raise ValueError(f"must be {bounds}")
     return kind(value)
 
@@ -790,11 +822,27 @@ class CheckpointCallback(BaseCallback):
 # --- training ---------------------------------------------------------------------------------------------------
 
 
+class ResumedTensorBoard(TensorBoardOutputFormat):
+    """SB3's TensorBoard output whose writer hides what earlier writers logged at ``purge_step`` or later (the
+    ``SummaryWriter``'s own ``purge_step``): a run killed after its last checkpoint logged steps the resumed run logs
+    again, and TensorBoard would draw both."""
+
+    def __init__(self, folder: str, purge_step: int):
+        # not super().__init__: it would open a second writer (and events file) without the purge
+        self.writer = SummaryWriter(log_dir=folder, purge_step=purge_step)
+        self._is_closed = False
+
+
 def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool) -> Path:
     """Train ``model`` until it has taken ``config["timesteps"]`` env steps in all, logging and checkpointing into
-    ``run_dir``. Returns the path of the final ``model.zip``. On Ctrl-C, saves a checkpoint and re-raises."""
+    ``run_dir``. Returns the path of the final ``model.zip``. On Ctrl-C, saves a checkpoint and re-raises. A resumed
+    model (``num_timesteps`` > 0) hides the TensorBoard events the run logged after its checkpoint."""
     torch.set_num_threads(TORCH_THREADS)
-    model.set_logger(configure(str(run_dir / "tb"), ["tensorboard"]))
+    folder = str(run_dir / "tb")
+    tensorboard = (
+        ResumedTensorBoard(folder, model.num_timesteps + 1) if model.num_timesteps else TensorBoardOutputFormat(folder)
+    )
+    model.set_logger(Logger(folder, [tensorboard]))
     checkpoints_dir = run_dir / "checkpoints"
     manifest = {"algo": config["algo"], "env_id": config["env_id"], "seed": config["seed"]}
     checkpointing = CheckpointCallback(checkpoints_dir, config["checkpoint_freq"], manifest)
@@ -1034,4 +1082,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # from here a Ctrl-C is handled by main()
     sys.exit(main())

@@ -22,6 +22,7 @@ a periodic disturbance) can be injected too.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -31,9 +32,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from envs.common.io import ToolParser, parent_problem, write_json
-from envs.common.telemetry import write_telemetry
+from envs.common.telemetry import METADATA_KEY, write_telemetry
 from sysid.effects import Effect
 from sysid.logs import Log
 from sysid.problem import Adapter, Problem, simulate
@@ -48,6 +51,7 @@ PUSHES = 4  # pushes of a drawn value toward MAX_REACH (60, 70, 80, 90% of the w
 # draws of the commands (the first from the seed's generator, as the value; the others from (seed, 2, k)): how
 # visible an effect is depends on what the commands excite, and the generator's job is commands that show it
 EXCITATIONS = 3
+SYNTHETIC_FORMAT = "skitter synthetic log"  # the metadata record's format: what --overwrite may replace
 SECONDS = 10.0  # a synthetic log's length (issue 7: about 10 s keeps each case to minutes)
 RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of several runs: its commands and noise from seed + k x this
 
@@ -212,7 +216,7 @@ def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Map
     df = commands.copy()
     for i, c in enumerate(adapter.channels):
         df[c] = adapter.measure(c, clean[:, i] + rng.normal(0.0, noise[c], len(df)))
-    meta = {"robot": robot, "format": "skitter synthetic log", "noise_sigma": adapter.recorded_noise(noise),
+    meta = {"robot": robot, "format": SYNTHETIC_FORMAT, "noise_sigma": adapter.recorded_noise(noise),
             "units": {"time": "s", **dict(adapter.channels)}, **adapter.synth_meta()}  # fmt: skip
     return Log("synthetic", df, meta)
 
@@ -363,6 +367,24 @@ def _check_out(out: Path, paths: Sequence[Path], overwrite: bool) -> None:
             f"--out {out}: {_listed(existing)} already exist{'s' * (len(existing) == 1)}; choose another path "
             "or pass --overwrite"
         )
+    foreign = [name for name in existing if not _written_by_synth(Path(name))]
+    if foreign:  # --overwrite replaces an earlier synthetic log and its truth, never a user's file
+        raise FileExistsError(
+            f"--out {out}: {_listed(foreign)} {'is' if len(foreign) == 1 else 'are'} not a synthetic log or truth "
+            "this tool wrote; --overwrite replaces only those: choose another path"
+        )
+
+
+def _written_by_synth(path: Path) -> bool:
+    """Whether ``path`` is a log (its Parquet metadata record says so) or a truth file this tool wrote."""
+    try:
+        if path.suffix == ".parquet":
+            record = (pq.read_schema(path).metadata or {}).get(METADATA_KEY)
+            return record is not None and json.loads(record).get("format") == SYNTHETIC_FORMAT
+        truth = json.loads(path.read_text(encoding="utf-8"))
+        return isinstance(truth, dict) and {"robot", "effects", "setting", "nominal_error"} <= set(truth)
+    except (OSError, ValueError, AttributeError, pa.ArrowException):
+        return False
 
 
 def _listed(names: Sequence[str]) -> str:

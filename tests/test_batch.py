@@ -150,9 +150,17 @@ def test_pickling_gives_a_clear_error():
         pickle.dumps(venv.unwrapped)
 
 
-@pytest.mark.parametrize("bad", [{"num_envs": 0}, {"num_envs": 2, "nthread": 0}, {"num_envs": 2, "render_sim": 5}])
-def test_bad_batch_arguments_are_refused(bad):
-    with pytest.raises(ValueError):
+@pytest.mark.parametrize(
+    ("bad", "needle"),
+    [
+        ({"num_envs": 0}, "num"),
+        ({"num_envs": 2, "nthread": 0}, "nthread"),
+        ({"num_envs": 2, "nthread": "x"}, "nthread must be a whole number of at least 1, got 'x'"),  # stop 33
+        ({"num_envs": 2, "render_sim": 5}, "render_sim"),
+    ],
+)
+def test_bad_batch_arguments_are_refused_by_name(bad, needle):
+    with pytest.raises(ValueError, match=needle):
         gym.make_vec("skitter/RoachWalk-v1", vectorization_mode="vector_entry_point", **bad)
 
 

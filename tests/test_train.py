@@ -160,6 +160,9 @@ BAD_INPUTS = {
     "non-positive timesteps": ({}, ["--timesteps", "0"], ["--timesteps"]),
     "run name ..": ({}, ["--run-name", ".."], ["--run-name", "'..'"]),  # stop 32's review: it made --runs-dir first
     "a string for a switch": ({WALK: "  env_kwargs: {sensor_noise: 'false'}"}, [], ["bad.yml", "sensor_noise"]),
+    # stop 33: a zero learning rate, and a minibatch larger than the rollout it is drawn from, trained silently
+    "zero learning rate": ({WALK: "  learning_rate: lin_0"}, [], ["bad.yml", "learning_rate", "above 0"]),
+    "batch larger than rollout": ({WALK: "  n_steps: 64\n  batch_size: 512"}, [], ["batch_size", "512", "64 x 1"]),
 }
 
 
@@ -593,3 +596,23 @@ def test_the_leftover_patterns_match_the_writers_own_temporary_names(tmp_path):
     assert atomic_write_leftovers(tmp_path, train.RUN_FILES) == []  # written in full: nothing left over
     folder = Path(tempfile.mkdtemp(prefix=".step_0000000064.", dir=tmp_path))  # as save_checkpoint names it
     assert train.UNFINISHED_CHECKPOINT.fullmatch(folder.name)
+
+
+def test_an_off_policy_minibatch_larger_than_its_replay_buffer_is_refused():
+    import train
+
+    with pytest.raises(train.ConfigError, match=r"x.yml: field 'batch_size' = 256: larger than the replay buffer"):
+        train.resolve_hyperparams({"buffer_size": 100, "batch_size": 256}, "sac", where="x.yml")
+    hp = train.resolve_hyperparams({"buffer_size": 256, "batch_size": 256}, "sac", where="x.yml")
+    assert hp.model_kwargs["batch_size"] == 256
+
+
+@pytest.mark.parametrize("tool", ["train.py", "evaluate.py", "calibrate.py"])
+def test_ctrl_c_while_a_tool_loads_its_libraries_is_a_quiet_exit(tool):
+    """Stop 33's review: a Ctrl-C in the first seconds (torch, mujoco and SB3 loading) printed a traceback."""
+    process = subprocess.Popen([sys.executable, str(ROOT / tool), "--help"], cwd=ROOT, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)  # fmt: skip
+    time.sleep(0.3)  # the libraries take seconds to load
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 130 and "Traceback" not in err and not out, (process.returncode, err)

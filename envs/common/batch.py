@@ -43,14 +43,13 @@ class BatchSimulation:
     """
 
     def __init__(self, model: mujoco.MjModel, n_substeps: int, num_sims: int, nthread: int | None = None):
-        if num_sims < 1:
-            raise ValueError(f"num_sims must be at least 1, got {num_sims}")
+        for name, value in (("num_sims", num_sims), ("nthread", 1 if nthread is None else nthread)):
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"{name} must be a whole number of at least 1, got {value!r}")
         self.model = model
-        self.num_sims = num_sims
+        self.num_sims = int(num_sims)
         self.n_substeps = n_substeps
         self.nthread = default_threads() if nthread is None else int(nthread)
-        if self.nthread < 1:
-            raise ValueError(f"nthread must be at least 1, got {nthread}")
         self.batch = batch.Batch(model, num_sims, self.nthread)
         self.ctrl = np.zeros((num_sims, n_substeps, model.nu))
         self.substep_sensordata = np.zeros((num_sims, n_substeps, model.nsensordata))
