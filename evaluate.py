@@ -248,7 +248,10 @@ def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:
                 label = channel if not group.minus else f"{channel} - {group.minus[i]}"
                 panel.plot(t, values * group.scale, lw=0.8, label=label)
         panel.set(xlabel="time (s)", ylabel=group.unit, title=group.title)
-        panel.legend(fontsize=7)
+        if panel.lines:
+            panel.legend(fontsize=7)
+        else:  # e.g. the gait clock of a robot run in duty mode: recorded as NaN
+            panel.text(0.5, 0.5, "not recorded in this run", ha="center", va="center", transform=panel.transAxes)
     for panel in ax[2 + len(groups) :]:
         panel.axis("off")
     fig.suptitle(f"{title}\n(sampled at the control rate, {meta['rate_hz']:.0f} Hz)", fontsize=10)

@@ -329,3 +329,18 @@ def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(mod
             evaluate.main([*base, "--out", str(tmp_path / "d"), "--env-kwargs", bad])
         assert exit_info.value.code == 2 and message in capsys.readouterr().err
     assert not (tmp_path / "c").exists() and not (tmp_path / "d").exists()
+
+
+def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, recwarn):
+    """Stop 33's review: the xJüs in duty mode records its clock target as NaN; matplotlib warned of an empty legend."""
+    env = gym.make("skitter/XjusWalk-v0", action_mode="duty", telemetry=True, max_episode_steps=5)
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(env.action_space.sample() * 0)
+    telemetry = tmp_path / "episode.parquet"
+    env.unwrapped.recorder.save(telemetry)
+    import evaluate
+
+    evaluate.plot_episode(env.unwrapped.robot, telemetry, tmp_path / "plot.png", "duty mode")
+    assert (tmp_path / "plot.png").stat().st_size > 0
+    assert not [w for w in recwarn if "legend" in str(w.message)]
