@@ -36,6 +36,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from envs.common.telemetry import MAX_REPEATED_ROWS
+
 MAX_BAD_FRACTION = 0.05
 MIN_DURATION = 1.0  # s: less than one segment cannot be calibrated on
 MIN_ROWS = 20
@@ -342,9 +344,6 @@ def _keep_rows(log: Log, keep: np.ndarray) -> Log:
     if meta.get("file_rows") is not None:
         meta["file_rows"] = [meta["file_rows"][k] for k in keep]
     return Log(log.path, log.df.iloc[keep].reset_index(drop=True), meta, log.history)
-
-
-MAX_REPEATED_ROWS = 16  # a stretch of rows that goes back in time and rejoins within this many is a glitch
 
 
 def _drop_time_glitches(log: Log) -> Log:

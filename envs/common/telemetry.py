@@ -20,6 +20,10 @@ from envs.common.io import atomic_write, json_default, refuse_overwrite
 
 SCHEMA_VERSION = 1
 METADATA_KEY = b"skitter"
+# A log's rows whose time stays at or before the last kept row's: up to this many, a repeated or broken stretch the
+# log rejoins (dropped as malformed rows); more, and the log's clock went back (the log is refused). Every reader's
+# rule: sysid.logs for the formats it reads, each robot's own reader (envs/velociroach/roach_csv.py)
+MAX_REPEATED_ROWS = 16
 
 
 class TelemetryRecorder:

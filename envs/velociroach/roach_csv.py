@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from envs.common.io import atomic_write, refuse_overwrite
-from envs.common.telemetry import SCHEMA_VERSION
+from envs.common.telemetry import MAX_REPEATED_ROWS, SCHEMA_VERSION
 from envs.velociroach.robot import TELEMETRY_COLUMNS
 
 # --- units of the real format (the lab's scaling script; docs/telemetry.md) ------------------------------------
@@ -167,7 +167,7 @@ def read_roach_csv(path: str | Path, skip_bad_rows: bool = False) -> tuple[pd.Da
         if problem is not None:
             if not skip_bad_rows:
                 raise ValueError(problem)
-            if len(behind) > MAX_BEHIND_ROWS:  # not a glitch the log rejoins: its clock went back
+            if len(behind) > MAX_REPEATED_ROWS:  # not a glitch the log rejoins: its clock went back
                 raise ValueError(
                     f"{path}, line {behind[0]}, field 1 (time): time runs backwards (this row and the "
                     f"{len(behind) - 1} after it stay at or before line {previous[1]}'s {previous[0][0]} us)"
@@ -363,10 +363,6 @@ def _check_columns(path: Path, number: int, columns: list[str]) -> None:
         seen.add(name)
 
 
-# rows in a row whose time stays at or before the last kept row's: more, and the log's clock went back (refused);
-# fewer, a repeated or broken sample the log rejoins (dropped as malformed): the rule (and number) of sysid.logs'
-# MAX_REPEATED_ROWS for the other readers
-MAX_BEHIND_ROWS = 16
 MAX_LEG_REV_PER_S = 100.0  # a leg turning faster is a glitch: over twice the real robot's fastest strides (45 Hz)
 _LEG_COLUMNS = (1, 2)  # the measured leg positions' fields (Right Leg Pos, Left Leg Pos)
 _IMU_COLUMNS = range(7, 13)  # GyroX .. AZ: signed 16-bit readings
