@@ -246,16 +246,20 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
 
 
 GEARMOTOR_COLUMNS = ("time", "pos", "speed", "power")
+# formats known by their first line, the names of their columns: a first line that names some of them, first column
+# first, is such a log lacking a column (named in the error), not an unknown format
+COLUMNS_LINES: dict[str, tuple[str, ...]] = {"gearmotor CSV": GEARMOTOR_COLUMNS}
 
 
 def _lacking_columns(head: str) -> str | None:
     """What a first line that is a known format's columns line with some missing lacks (the gearmotor CSV's
-    ``time,pos,speed,power`` without its power, say), or None: a missing column, not an unknown format."""
+    ``time,pos,speed,power`` without its power, say), or None."""
     names = [n.strip().lower() for n in head.split(",")]
-    if len(names) >= 2 and names[0] == "time" and set(names) < set(GEARMOTOR_COLUMNS):
-        missing = [c for c in GEARMOTOR_COLUMNS if c not in names]
-        return (f"names the gearmotor CSV's columns {', '.join(names)} but lacks column {missing[0]!r} (the format "
-                f"is {','.join(GEARMOTOR_COLUMNS)})")  # fmt: skip
+    for fmt, columns in COLUMNS_LINES.items():
+        if len(names) >= 2 and names[0] == columns[0] and set(names) < set(columns):
+            missing = [c for c in columns if c not in names]
+            return (f"names the {fmt}'s columns {', '.join(names)} but lacks column {missing[0]!r} (the format is "
+                    f"{','.join(columns)})")  # fmt: skip
     return None
 
 
