@@ -114,6 +114,9 @@ class Adapter(ABC):
     # the breadth of the search for effects that help only together (sysid/select.py: seeds, width, beam); a robot
     # whose every fit costs seconds of rollouts narrows it
     chain_search: tuple[int, int, int] = (3, 3, 2)
+    # the fewest points of the ranking's grid across an effect's range (None: sysid/select.py's SCORE_GRID and
+    # SCORE_GRID_SMOOTH); a robot whose cost has basins narrower than those grids' spacing raises it
+    score_grid: int | None = None
     # a controller that closes the loop at its own rate (a PD run by the robot's code once per control step): the
     # physics steps between its updates (0: none, every control is known before the rollout; see :meth:`feedback`)
     feedback_steps: int = 0

@@ -335,11 +335,12 @@ def fit_chosen(
     return outcome
 
 
-def score_grid(effect: Effect) -> list[dict[str, float]]:
+def score_grid(effect: Effect, points: int | None = None) -> list[dict[str, float]]:
     """The ranking's grid points across an effect's range (a diagonal for several parameters): SCORE_GRID of them
     for a non-smooth effect or a scale over decades (spread geometrically: ``Param.log``), SCORE_GRID_SMOOTH for
-    another smooth one (which has its Jacobian too)."""
+    another smooth one (which has its Jacobian too); at least ``points`` (a robot's ``Adapter.score_grid``)."""
     n = SCORE_GRID if not effect.smooth or any(p.log for p in effect.params) else SCORE_GRID_SMOOTH
+    n = max(n, points or 0)
     return [{effect.key(p.name): float(p.low * (p.high / p.low) ** f if p.log else p.low + f * p.span)
              for p in effect.params} for f in np.linspace(0.0, 1.0, n)]  # fmt: skip
 
@@ -367,7 +368,7 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
                 step = fd if u < 0.5 else -fd
                 probes.append({**current, key: current[key] + step * p.span})
                 owners.append((name, "fd", step * p.span))
-        for point in score_grid(e):
+        for point in score_grid(e, problem.adapter.score_grid):
             if all(np.isclose(v, current[k]) for k, v in point.items()):
                 continue
             probes.append({**current, **point})
