@@ -359,7 +359,7 @@ class _StandIn:
     """What sysid.select and sysid.fit ask of a Problem besides its residuals, for the stand-ins below."""
 
     def __init__(self) -> None:
-        self.adapter = SimpleNamespace(fd_step=1e-3, rough_cost=True)
+        self.adapter = SimpleNamespace(fd_step=1e-3, rough_cost=True, score_grid=None)
         self.t = np.linspace(0.0, 1.0, 200)
 
     def effective_samples(self, residuals) -> float:
