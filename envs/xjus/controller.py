@@ -73,12 +73,13 @@ def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndar
         by T and T^2 for time derivatives.
     """
     s = np.asarray(s, dtype=np.float64)
-    return _clock(s, np.asarray(sweep, dtype=np.float64) - np.pi, *_sums(s))
+    return _clock(s, _sums(s) * (np.asarray(sweep, dtype=np.float64) - np.pi))
 
 
-def _clock(s, amplitude, f, rate, accel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """theta_d = 2 pi s + (theta_g - pi) F(s) and its derivatives, from the sums of :func:`_sums`."""
-    return 2.0 * np.pi * s + amplitude * f, 2.0 * np.pi + amplitude * rate, amplitude * accel
+def _clock(s, scaled) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """theta_d = 2 pi s + (theta_g - pi) F(s) and its derivatives, from ``scaled``: :func:`_sums` times
+    (theta_g - pi), stacked (3, ...)."""
+    return 2.0 * np.pi * s + scaled[0], 2.0 * np.pi + scaled[1], scaled[2]
 
 
 @dataclass
@@ -115,10 +116,9 @@ class Gait:
         """
         s = phase[:, None] + self._offsets  # per offset; gathered to the legs, the same numbers as per leg
         leg_sweep = sweep[:, self.side]
-        scaled = _sums(s)[:, :, self._group] * (leg_sweep - np.pi)  # (theta_g - pi) F, F', F'': _clock's products
+        angle, rate, accel = _clock(s[:, self._group], _sums(s)[:, :, self._group] * (leg_sweep - np.pi))
         inv_t = 1.0 / period[:, None]
-        angle = 2.0 * np.pi * s[:, self._group] + scaled[0]
-        return angle - 0.5 * leg_sweep, (2.0 * np.pi + scaled[1]) * inv_t, scaled[2] * np.square(inv_t)
+        return angle - 0.5 * leg_sweep, rate * inv_t, accel * np.square(inv_t)
 
 
 @dataclass
