@@ -245,6 +245,17 @@ def _intervals(r: np.ndarray, jac: np.ndarray, n_eff: float) -> np.ndarray:
     return np.asarray(half) * math.sqrt(n / max(n_eff, 1.0)) * (t_eff / t_raw) * floor
 
 
+def rise_at(problem: Problem, result: FitResult, k: str, p: Param, value: float, n_params: int, segments) -> float:
+    """How far the objective with ``k`` at ``value`` (the others at the fit's values) lies above the fit's own, in
+    units of the 95% profile-likelihood threshold (the chi^2(1) quantile times the residual variance, as the
+    intervals use): above 1, the profile leaves the 95% interval before ``value``. Both points in one batched
+    rollout, anchored alike: a carried parameter (:attr:`Param.carried`) each with its own carried state, as its
+    fit measured it; others at the fit's values."""
+    anchor = None if p.carried else result.values
+    at_fit, at_value = costs(problem, [result.values, {**result.values, k: float(value)}], segments, anchor=anchor)
+    return (at_value - at_fit) / (stats.chi2.ppf(0.95, 1) * _residual_variance(result, n_params))
+
+
 def _residual_variance(result: FitResult, p: int) -> float:
     """The residual variance per effective sample for intervals: the fit's own (cost / (n - p)), at least the
     noise level's 1 (a residual quieter than the noise in its still stretches says nothing of the noise in the

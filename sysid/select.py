@@ -30,7 +30,7 @@ from scipy import stats
 
 from sysid import diagnostics
 from sysid.effects import Effect, Param
-from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, half_widths, set_intervals
+from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, half_widths, rise_at, set_intervals
 from sysid.problem import Problem, Setting, flatten, total_objective
 
 MAX_EFFECTS = 4
@@ -493,7 +493,11 @@ def _identified(
     tightly the data hold the estimate from within. Closer, the estimate sits at the end: the data would take it
     further, something else is at work (the fit's end-of-range test, which the roach's 2 Hz log needs: an armature
     at 98% of its range, a foot friction at 99%). A cost flat from the estimate out to the end (a friction above
-    which the leg stalls anyway) is no such push: the estimate is a lower bound and the interval says so. And
+    which the leg stalls anyway) is no such push: the estimate is a lower bound and the interval says so. Nor is
+    an end that the interval reaches only by its shape (a rough cost's parabola is symmetric): where the cost at
+    the end itself rises above the estimate's by more than the interval's threshold (:func:`sysid.fit.rise_at`),
+    the data hold the estimate inside, and the interval is cut at the end (the xJüs's leg stiffness 2.92 of at
+    most 3, its cost 25% higher at 3: docs/calibration.md, stop 34). And
     whether each effect is there at all: at least one of its parameters' intervals leaves out the nominal value (a
     Wald test at 5%, read on the side toward nominal; an estimate the interval cannot tell from nominal is no
     evidence of the effect). None if so, else the reason."""
@@ -509,6 +513,13 @@ def _identified(
         value, (low, high) = trial.values[k], trial.bounds95.get(k, nowhere)
         for bound, inner in ((p.low, high - value), (p.high, value - low)):
             if not np.isclose(bound, p.nominal) and abs(value - bound) < inner / Z95:
+                if rise_at(problem, trial, k, p, bound, len(params), fitting) > 1.0:
+                    # the cost at the end itself lies beyond the interval's threshold: a rough cost's parabola
+                    # (symmetric) put the end inside the interval, the profile read there does not; the data
+                    # hold the estimate inside the range, and its interval ends at the range's end
+                    low, high = max(low, p.low), min(high, p.high)
+                    trial.bounds95[k] = (low, high)
+                    continue
                 return (
                     f"{k} {value:.3g} [{low:.3g}, {high:.3g}] {p.unit}: within one standard error of the "
                     f"end of its range ({bound:g}), the data would take it further: something else is at work"

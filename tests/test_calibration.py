@@ -573,3 +573,38 @@ def test_a_fit_that_stalls_below_a_measured_point_is_fitted_again_from_it():
     value = truth["setting"]["pwm_decay.coast"]
     assert outcome.chosen[0].effect.name == "pwm_decay"
     assert outcome.chosen[0].values["pwm_decay.coast"] == pytest.approx(value, abs=0.01)
+
+
+class _EndProblem(_StandIn):
+    """A stand-in for Problem whose one carried effect ``leg_stiffness.scale`` (range 0.3 to 3) has the cost
+    ``cost`` of its value (the carried state its own: anchored elsewhere the cost would not see it)."""
+
+    def __init__(self, cost) -> None:
+        super().__init__()
+        self.cost = cost
+
+    def residuals(self, settings, segments=None, anchor=None):
+        assert anchor is None  # a carried parameter's cost is read with its own carried state
+        return [[SimpleNamespace(objective=float(self.cost(s["leg_stiffness.scale"])))] for s in settings]
+
+
+@pytest.mark.parametrize("at_end, refused", [(12790.0, False), (10250.0, True)])
+def test_an_estimate_near_the_end_is_refused_only_where_the_cost_does_not_rise_there(monkeypatch, at_end, refused):
+    """Stop 33's second draw of the xJüs's leg stiffness (truth 2.8, range to 3): the fit found 2.916, with a rough
+    cost's symmetric interval +-0.27, so the end 3 lay within one standard error; it was refused though the cost at
+    3 was 12,790 against 10,245 at the estimate. Now the cost at the end is read: far above the estimate's (by more
+    than the interval's threshold), the estimate is kept and its interval cut at 3; flat out to the end, the data
+    would take it further, and it is refused as before."""
+    from sysid import select
+    from sysid.effects import make
+    from sysid.fit import FitResult
+
+    effect = make("leg_stiffness", scale=(1.0, 0.3, 3.0), carried=True, log=True)
+    problem = _EndProblem(lambda x: 10245.0 + (at_end - 10245.0) * ((x - 2.916) / 0.084) ** 2)
+    trial = FitResult({"leg_stiffness.scale": 2.916}, 10245.0, n=100_000, n_eff=5_000)
+    monkeypatch.setattr(select, "fit_intervals", lambda *a: {"leg_stiffness.scale": (2.646, 3.186)})
+    verdict = select._identified(problem, [effect], {}, None, trial)
+    if refused:
+        assert verdict is not None and "within one standard error of the end of its range (3)" in verdict
+    else:
+        assert verdict is None and trial.bounds95["leg_stiffness.scale"] == (2.646, 3.0)
