@@ -109,9 +109,9 @@ class SkitterEnv(gym.Env):
         action = np.asarray(action, dtype=np.float64).reshape(-1)
         if action.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {action.shape}")
-        if not math.isfinite(action @ action) and not np.isfinite(action).all():  # the first test is the cheapest
+        if not math.isfinite(sum(action.tolist())) and not np.isfinite(action).all():  # the first test is the cheapest
             raise ValueError(f"action must be finite, got {action}")
-        self.robot.command(self.robot.mode.to_command(action[None]))
+        self.robot.command(self.robot.mode.to_command(action)[None])  # mapped in the action's shape: no broadcasting
         if not self.robot.step()[0]:
             # MuJoCo has reset the data; end the episode with the last good observation
             info = {"sim_unstable": True, "fallen": False, "time": float(self.data.time)}

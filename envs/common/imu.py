@@ -71,6 +71,9 @@ class Imu:
             self._scale = np.array([noise.gyro_sample_sigma] * 3 + [noise.accel_sample_sigma] * 3 + [walk])
             self._block = np.zeros((n, NOISE_BLOCK + 1, 7))  # a spare row of zeros past the end
             self._next = np.full(n, NOISE_BLOCK)
+            # steps every simulation's block surely has left: until they are taken, _draw checks no block (each
+            # step takes at most one row; a reset only adds rows)
+            self._rows_left = 0
 
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
         self.heading[ids] = 0.0
@@ -86,12 +89,17 @@ class Imu:
     def _draw(self, rngs: Sequence[np.random.Generator | None]) -> np.ndarray:
         """This step's noise (n, 7): gyro and accelerometer sample noise, and the heading's random walk. A simulation
         whose generator is None draws nothing (its row is not used)."""
-        if np.count_nonzero(self._next >= NOISE_BLOCK):
+        if self._rows_left <= 0:
             for i in np.flatnonzero(self._next >= NOISE_BLOCK):
                 if rngs[i] is not None:
                     self._block[i, :NOISE_BLOCK] = rngs[i].standard_normal((NOISE_BLOCK, 7)) * self._scale
                     self._next[i] = 0
-        draws = self._block[self._rows, self._next]  # a used-up block that draws nothing reads its row of zeros
+            self._rows_left = NOISE_BLOCK - int(self._next.max())
+        self._rows_left -= 1
+        if len(self._rows) == 1:  # one simulation: its row by basic indexing, a view at a third of a gather's cost
+            draws = self._block[:, int(self._next[0])]
+        else:
+            draws = self._block[self._rows, self._next]  # a used-up block that draws nothing reads its row of zeros
         if None in rngs:
             self._next += np.array([r is not None for r in rngs])
         else:
@@ -104,10 +112,12 @@ class Imu:
         gyro_z: np.ndarray,
         rngs: Sequence[np.random.Generator | None],
         stepped: bool | np.ndarray = True,
+        out: np.ndarray | None = None,
     ) -> np.ndarray:
         """Noisy gyro and accelerometer (n, 6) from the true ones (n, 6), after advancing the heading over a control
         step from the true z rate at every physics step (``gyro_z``, (n, substeps)); only where ``stepped`` (False,
-        or False per simulation, right after a reset)."""
+        or False per simulation, right after a reset). ``out``: where to write them (a robot's senses), else a new
+        array."""
         if self.noise is not None:
             draws = self._draw(rngs)
         if stepped is not False:
@@ -116,5 +126,10 @@ class Imu:
                 change += draws[:, 6]
             self.heading += change if stepped is True else np.where(stepped, change, 0.0)
         if self.noise is None:
-            return imu.copy()
-        return imu + self._bias + draws[:, :6]
+            if out is None:
+                return imu.copy()
+            out[...] = imu
+            return out
+        out = np.add(imu, self._bias, out=out)
+        out += draws[:, :6]
+        return out

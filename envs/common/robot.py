@@ -78,6 +78,7 @@ class ActionMode:
         if not (len(self.units) == len(self.low) == len(self.high) == n):
             raise ValueError(f"action mode {self.name}: commands, units and bounds differ in length")
         object.__setattr__(self, "_low", np.asarray(self.low, dtype=np.float64))
+        object.__setattr__(self, "_span", np.asarray(self.high) - np.asarray(self.low))
         object.__setattr__(self, "_half_span", 0.5 * (np.asarray(self.high) - self._low))
 
     @property
@@ -90,8 +91,7 @@ class ActionMode:
 
     def to_action(self, command: np.ndarray) -> np.ndarray:
         """Normalized actions from physical commands (the inverse of :meth:`to_command` inside the bounds)."""
-        low, high = np.asarray(self.low), np.asarray(self.high)
-        return (2.0 * (np.asarray(command, dtype=np.float64) - low) / (high - low) - 1.0).astype(np.float32)
+        return (2.0 * (np.asarray(command, dtype=np.float64) - self._low) / self._span - 1.0).astype(np.float32)
 
 
 @dataclass(frozen=True)

@@ -48,8 +48,11 @@ class Simulation:
     def _views(self) -> None:
         """Views of the data's buffers, looked up once (each attribute access makes a new array object)."""
         self._qfrc_applied, self._xfrc_applied = self.data.qfrc_applied, self.data.xfrc_applied
+        self._qacc_warmstart = self.data.qacc_warmstart
         self._sensordata = self.data.sensordata[None]
+        self._start0, self._warmstart0 = self._start[0], self._warmstart[0]
         self._block_time = self.n_substeps * self.model.opt.timestep
+        self._half_step = 0.5 * self.model.opt.timestep
 
     # --- views with the simulation axis -------------------------------------------------------------------------
     @property
@@ -96,8 +99,8 @@ class Simulation:
             return np.array([True])
         m, d = self.model, self.data
         end = d.time + self._block_time
-        mujoco.mj_getState(m, d, self._start[0], STATE_SPEC)
-        self._warmstart[0] = d.qacc_warmstart
+        mujoco.mj_getState(m, d, self._start0, STATE_SPEC)
+        self._warmstart0[:] = self._qacc_warmstart
         control, spec = self.ctrl, CTRL_SPEC
         if np.count_nonzero(self._qfrc_applied) or np.count_nonzero(self._xfrc_applied):  # the cheapest test
             control, spec = self._with_applied_forces(), APPLIED_SPEC
@@ -115,7 +118,7 @@ class Simulation:
             chunk_size=1,
         )
         # on a NaN, infinite or huge state MuJoCo warns, resets the data (time 0) and the rollout stops early
-        return np.array([abs(d.time - end) < 0.5 * m.opt.timestep])
+        return np.array([abs(d.time - end) < self._half_step])
 
     def _with_applied_forces(self) -> np.ndarray:
         """The control block with the data's applied forces held over it (the rollout would zero them otherwise)."""
@@ -131,7 +134,10 @@ class Simulation:
             "_rollout",
             "_qfrc_applied",
             "_xfrc_applied",
+            "_qacc_warmstart",
             "_sensordata",
+            "_start0",
+            "_warmstart0",
         ):  # a thread pool handle and views: made anew
             del state[name]
         return state

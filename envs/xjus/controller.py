@@ -18,15 +18,23 @@
 The robot runs these stages in its ``gait`` action mode once per control step (the seed's logic step), and the
 ``buehler`` policy (agents/xjus/) runs the same functions in ``duty`` mode: both hold the duty over the step while
 the motor model acts at every physics step.
+
+One simulation (the single env, a policy's single observation) runs the ``*_one`` twins of these functions: the same
+operations in the same order on Python floats, the clock's exponential, powers and weights by the same numpy calls on
+arrays of the same shape, so that it gets the same numbers to the last bit. numpy's cost per call on arrays of one row
+is that of some twenty float operations, and a control step makes some eighty calls. The twins take moderate values
+only (:func:`moderate`): NaN would take other branches, and overflows other paths.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from envs.common.locomotion import wrap
+from envs.common.locomotion import wrap, wrap_one
 from envs.xjus import constants as C
 
 _K = 2.0 * np.arange(1, C.FOURIER_TERMS + 1) - 1.0  # 2m - 1
@@ -38,7 +46,17 @@ _W_RATE = _W * _TWO_PI_K
 _W_ACCEL = _W * np.square(_TWO_PI_K)
 # the three weight vectors as rows, complex, to take all three sums from the harmonics in one product
 _W_ROWS = np.stack([_W, _W_RATE, _W_ACCEL]).astype(np.complex128)
+_TWO_PI = 2.0 * np.pi
 wrap_angle = wrap  # to [-pi, pi], the tasks' wrap (envs/common/locomotion.py)
+wrap_angle_one = wrap_one
+
+
+_MODERATE = 1e100  # no product or sum of the controller's quantities below this overflows
+
+
+def moderate(*values: float) -> bool:
+    """Whether all values are finite and of magnitude below 1e100: what the ``*_one`` functions take."""
+    return math.hypot(*values) < _MODERATE
 
 
 def _sums(s: np.ndarray) -> np.ndarray:
@@ -49,16 +67,21 @@ def _sums(s: np.ndarray) -> np.ndarray:
     square (a cumulative product over the harmonics' axis, laid first so that each product is one array operation);
     then one matrix product weighs them for all three sums. Within 1e-12 of evaluating each harmonic directly."""
     frac = s - np.floor(s)
-    z = np.exp((2j * np.pi) * frac)
-    harmonics = np.empty((C.FOURIER_TERMS, *frac.shape), dtype=np.complex128)
-    harmonics[0] = z
-    harmonics[1:] = z * z
-    np.multiply.accumulate(harmonics, axis=0, out=harmonics)
-    sums = (_W_ROWS @ harmonics.reshape(C.FOURIER_TERMS, -1)).reshape(3, *frac.shape)
+    sums = _weighted_harmonics(np.exp((2j * np.pi) * frac))
     out = sums.real  # a strided view, written in place: F = W_SUM - Re, F' = Im, F'' = Re
     out[0] = _W_SUM - out[0]
     out[1] = sums[1].imag
     return out
+
+
+def _weighted_harmonics(z: np.ndarray) -> np.ndarray:
+    """The three weighted sums of the odd powers of ``z = exp(2 pi i s)``, complex, (3, ...): the part of
+    :func:`_sums` after the exponential."""
+    harmonics = np.empty((C.FOURIER_TERMS, *z.shape), dtype=np.complex128)
+    harmonics[0] = z
+    harmonics[1:] = z * z
+    np.multiply.accumulate(harmonics, axis=0, out=harmonics)
+    return (_W_ROWS @ harmonics.reshape(C.FOURIER_TERMS, -1)).reshape(3, *z.shape)
 
 
 def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -97,6 +120,8 @@ class Gait:
     def __post_init__(self) -> None:
         # legs that share an offset share their clock: its series is computed once per offset (the tripod's two)
         self._offsets, self._group = np.unique(self.offsets, return_inverse=True)
+        self._offsets_one = self._offsets.tolist()
+        self._legs_one = list(zip(self._group.tolist(), self.side.tolist(), strict=True))  # (offset, side) per leg
 
     @classmethod
     def tripod(cls) -> Gait:
@@ -114,11 +139,43 @@ class Gait:
             period: (n,) the cycle period T, s.
             sweep: (n, 2) the ground sweep angle of the left and right legs, rad.
         """
+        if phase.shape == period.shape == (1,) and sweep.shape == (1, 2):  # one simulation: the float twin
+            p, t, sw = phase.item(), period.item(), sweep[0].tolist()
+            if moderate(p, t, *sw):
+                try:
+                    return tuple(np.array([x]) for x in self.targets_one(p, t, sw))
+                except ZeroDivisionError:  # a period of 0 (numpy: inf and NaN)
+                    pass
         s = phase[:, None] + self._offsets  # per offset; gathered to the legs, the same numbers as per leg
         leg_sweep = sweep[:, self.side]
         angle, rate, accel = _clock(s[:, self._group], _sums(s)[:, :, self._group] * (leg_sweep - np.pi))
         inv_t = 1.0 / period[:, None]
         return angle - 0.5 * leg_sweep, rate * inv_t, accel * np.square(inv_t)
+
+    def targets_one(
+        self, phase: float, period: float, sweep: Sequence[float]
+    ) -> tuple[list[float], list[float], list[float]]:
+        """:meth:`targets` of one simulation on Python floats (phase and period floats, sweep left and right; moderate
+        values): the same numbers, as lists over the legs."""
+        s = [phase + offset for offset in self._offsets_one]
+        # _sums' steps: the exponent 2 pi i (s - floor(s)) as numpy's product of 2j pi and a real forms it (a zero
+        # real part; x % 1.0 is s - floor(s), -0.0 included), the powers and weights by the same numpy calls on an
+        # array of the same shape, F, F' and F'' taken from them as _sums takes them
+        z = np.exp(np.array([[complex(0.0, _TWO_PI * (x % 1.0)) for x in s]]))
+        sums = _weighted_harmonics(z)[:, 0].tolist()
+        f = [_W_SUM - c.real for c in sums[0]]
+        f_rate = [c.imag for c in sums[1]]
+        f_accel = [c.real for c in sums[2]]
+        inv_t = 1.0 / period
+        inv_t2 = inv_t * inv_t
+        angle, rate, accel = [], [], []
+        for k, side in self._legs_one:
+            leg_sweep = sweep[side]
+            amplitude = leg_sweep - np.pi
+            angle.append(_TWO_PI * s[k] + f[k] * amplitude - 0.5 * leg_sweep)
+            rate.append((_TWO_PI + f_rate[k] * amplitude) * inv_t)
+            accel.append(f_accel[k] * amplitude * inv_t2)
+        return angle, rate, accel
 
 
 @dataclass
@@ -144,6 +201,13 @@ class MotorArrays:
         """The duty ``d = Vpd / Vs`` at which the motor gives ``torque`` (n, legs) at ``speed`` (n, legs), clipped to
         [-1, 1]: the root of ``tau (Ra + d^2 Ramp) = c (d Vs - Ks w)`` that is continuous through tau = 0; where no
         duty reaches the torque, full duty toward it."""
+        if torque.shape == speed.shape == (1, torque.shape[-1]) and len(self.supply_voltage) == 1:  # the float twin
+            t, w = torque[0].tolist(), speed[0].tolist()
+            if moderate(*t, *w):
+                try:
+                    return np.array([self.duty_for_torque_one(t, w)])
+                except ZeroDivisionError:  # a supply voltage of 0 (numpy: inf and NaN)
+                    pass
         vs = self.supply_voltage[:, None]
         c = self.torque_per_amp[:, None]
         a = torque * self.amplifier_resistance[:, None] / np.square(vs)  # in V^-1 ... x V^2
@@ -155,6 +219,39 @@ class MotorArrays:
         if not reachable.all():
             duty = np.where(reachable, duty, np.sign(torque))
         return np.minimum(np.maximum(duty, -1.0), 1.0)  # np.clip's result, at a third of its overhead
+
+    def constants_one(self) -> tuple[float, float, float, float, float]:
+        """Supply voltage, Ra, Ramp, torque per amp and Ks of a single simulation (arrays of one row), as floats."""
+        return (self.supply_voltage.item(), self.motor_resistance.item(), self.amplifier_resistance.item(),
+                self.torque_per_amp.item(), self.speed_constant.item())  # fmt: skip
+
+    def duty_for_torque_one(self, torque: Sequence[float], speed: Sequence[float]) -> list[float]:
+        """:meth:`duty_for_torque` of a single simulation on Python floats (torque and speed per leg, moderate values):
+        the same numbers."""
+        vs, ra, ramp, c, ks = self.constants_one()
+        vs2, c2, cks = vs * vs, c * c, c * ks
+        duties = []
+        for t, w in zip(torque, speed, strict=True):
+            a = t * ramp / vs2
+            b = t * ra + cks * w
+            disc = c2 - 4.0 * a * b
+            if disc >= 0.0:  # c + sqrt(max(disc, 0)): +-0 alike
+                duty = 2.0 * b / (c + math.sqrt(disc)) / vs
+                duties.append(-1.0 if duty < -1.0 else 1.0 if duty > 1.0 else duty)
+            else:  # unreachable (or NaN constants): full duty toward the torque, np.sign's
+                duties.append(1.0 if t > 0.0 else -1.0 if t < 0.0 else 0.0)
+        return duties
+
+    def coefficients_one(self, duty: Sequence[float]) -> tuple[list[float], list[float]]:
+        """:meth:`coefficients` of a single simulation on Python floats (duty per leg, moderate values): the same
+        numbers."""
+        vs, ra, ramp, c, ks = self.constants_one()
+        a, b = [], []
+        for d in duty:
+            k = c / (ra + d * d * ramp)
+            a.append(k * d * vs)
+            b.append(k * ks)
+        return a, b
 
     def current(self, duty: np.ndarray, speed: np.ndarray) -> np.ndarray:
         """Motor current, A, at a held duty and a speed (broadcast)."""

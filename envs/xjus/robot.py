@@ -16,10 +16,11 @@ from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
 from envs.xjus import constants as C
-from envs.xjus.controller import Gait, MotorArrays, pd_torque, wrap_angle
+from envs.xjus.controller import Gait, MotorArrays, moderate, pd_torque, wrap_angle, wrap_angle_one
 
 GAIT, DUTY = "gait", "duty"
 COMPLIANT, RIGID = "compliant", "rigid"
+_TWO_PI = 2.0 * np.pi
 SpineSetting = float | Mapping[str, float] | None
 
 
@@ -235,6 +236,10 @@ class Xjus(Robot):
     def setup(self) -> None:
         m, n = self.model, self.num_sims
         self.motor.bind(m)
+        # the two actuators per hip alternate in ctrl: their columns as strided slices (a view, not a gather; a list
+        # takes them too)
+        self._drive_at, self._emf_at = _as_slice(self.motor.drive_adr), _as_slice(self.motor.emf_adr)
+        self._sliced_ctrl = isinstance(self._drive_at, slice) and isinstance(self._emf_at, slice)
 
         def idx(*names: str) -> np.ndarray:
             return np.concatenate([np.arange(self.sensors[k].start, self.sensors[k].stop) for k in names])
@@ -249,14 +254,14 @@ class Xjus(Robot):
         self._i_pos, self._i_quat, self._i_vel = idx(C.SENSOR_BODY_POS), idx(C.SENSOR_BODY_QUAT), idx(C.SENSOR_BODY_VEL)
         self._i_spine = idx(*C.SENSOR_SPINE.values()) if self.spine == COMPLIANT else None
         # one gather per step: angles 0:6, speeds 6:12, gyro 12:15, accel 15:18, position 18:21, quaternion 21:25,
-        # body velocity 25:28; per physics step: speeds 0:6, torques 6:12, z gyro 12
+        # body velocity 25:28
         self._i_read = np.concatenate(
             [self._i_angle, self._i_speed, self._i_gyro, self._i_accel, self._i_pos, self._i_quat, self._i_vel]
         )
-        self._i_sub = np.concatenate([self._i_speed, self._i_torque, self._i_gyro[2:]])
         # the per-step reads of angles, speeds and torques as slices where their sensors lie side by side (a view
         # is a tenth of a gather's cost); the helpers below keep the gathers: they hand out copies
         self._at_angle, self._at_speed, self._at_torque = map(_as_slice, (self._i_angle, self._i_speed, self._i_torque))
+        self._at_gyro_z = int(self._i_gyro[2])
         self._numeric = {f: int(m.numeric_adr[m.numeric(name).id]) for f, name in C.NUMERIC_MOTOR}
         root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
         self._root_qpos = int(m.jnt_qposadr[root]) if root >= 0 else None  # a bench clamp removes the free joint
@@ -264,6 +269,10 @@ class Xjus(Robot):
         self._hip_qpos = np.array([m.jnt_qposadr[m.joint(C.HIP_JOINTS[leg]).id] for leg in legs])
         # the controller's plant inertia J: leg, hub and reflected rotor about the hip, from the nominal model
         self.hip_inertia = np.array([m.dof_M0[m.jnt_dofadr[m.joint(C.HIP_JOINTS[leg]).id]] for leg in legs])
+        self._hip_inertia_one = self.hip_inertia.tolist()
+        # the gait command's bounds, (period, sweep_left, sweep_right): one clip for all three
+        self._gait_low = np.array([C.PERIOD_RANGE[0], C.SWEEP_RANGE[0], C.SWEEP_RANGE[0]])
+        self._gait_high = np.array([C.PERIOD_RANGE[1], C.SWEEP_RANGE[1], C.SWEEP_RANGE[1]])
         self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
         self.stand_height = self._standing_height()
         self.gait = Gait.tripod()
@@ -353,6 +362,11 @@ class Xjus(Robot):
         mo.torque_per_amp[ids] = (
             values[:, adr["efficiency"]] * values[:, adr["gear_ratio"]] * values[:, adr["torque_constant"]]
         )
+        # what every read divides and multiplies by, per leg (refreshed with the motors): an operand of the arrays' own
+        # shape spares numpy the broadcasting, which costs as much as the operation
+        legs = len(C.LEGS)
+        self._torque_per_amp_legs = np.repeat(mo.torque_per_amp[:, None], legs, axis=1)
+        self._volts_per_torque_legs = np.repeat((mo.supply_voltage / mo.torque_per_amp)[:, None], legs, axis=1)
 
     @property
     def battery(self) -> np.ndarray:
@@ -457,10 +471,14 @@ class Xjus(Robot):
     def command(self, command: np.ndarray) -> None:
         """Gait mode: (n, 3) period (s) and ground sweep per side (rad); duty mode: (n, 6) duty per leg."""
         if self.action_mode == DUTY:
+            if self.num_sims == 1 and self._hold_one([_clip(d, -1.0, 1.0) for d in command[0].tolist()]):
+                return
             self.hold_duty(np.minimum(np.maximum(command, -1.0), 1.0))
             return
-        period = np.minimum(np.maximum(command[:, 0], C.PERIOD_RANGE[0]), C.PERIOD_RANGE[1])
-        sweep = np.minimum(np.maximum(command[:, 1:3], C.SWEEP_RANGE[0]), C.SWEEP_RANGE[1])
+        if self.num_sims == 1 and self._command_one(command[0].tolist()):
+            return
+        bounded = np.minimum(np.maximum(command, self._gait_low), self._gait_high)
+        period, sweep = bounded[:, 0], bounded[:, 1:3]
         self.period[:], self.sweep[:] = period, sweep
         sd = self.sim.sensordata
         angle, speed = sd[:, self._at_angle], sd[:, self._at_speed]
@@ -471,42 +489,85 @@ class Xjus(Robot):
         self.hold_duty(self.motors.duty_for_torque(torque, speed))
         self.phase = np.mod(self.phase + self.control_dt / period, 1.0)
 
+    def _command_one(self, command: list[float]) -> bool:
+        """The gait command of a single simulation on Python floats (the controller's ``*_one`` functions): the vector
+        path's numbers at under half its cost. False, having changed nothing, unless the values are moderate."""
+        period = _clip(command[0], *C.PERIOD_RANGE)
+        sweep = [_clip(command[1], *C.SWEEP_RANGE), _clip(command[2], *C.SWEEP_RANGE)]
+        sd = self.sim.sensordata[0]
+        angles, speeds = sd[self._at_angle].tolist(), sd[self._at_speed].tolist()
+        phase = self.phase.item()
+        if not moderate(period, *sweep, phase, *angles, *speeds):
+            return False
+        target, rate, accel = self.gait.targets_one(phase, period, sweep)
+        errors = [wrap_angle_one(t - a) for t, a in zip(target, angles, strict=True)]
+        torque = [
+            pd_torque(e, r - w, acc, j, C.PD_KP, C.PD_KD)
+            for e, r, w, acc, j in zip(errors, rate, speeds, accel, self._hip_inertia_one, strict=True)
+        ]
+        try:
+            duty = self.motors.duty_for_torque_one(torque, speeds)
+        except ZeroDivisionError:  # a supply voltage of 0 (numpy: inf and NaN)
+            return False
+        self.period[0], self.sweep[0] = period, sweep
+        self.target = np.array([[a + e for a, e in zip(angles, errors, strict=True)]])
+        if not self._hold_one(duty):
+            self.hold_duty(np.array([duty]))
+        self.phase = np.array([(phase + self.control_dt / period) % 1.0])  # np.mod's result
+        return True
+
     def hold_duty(self, duty: np.ndarray) -> None:
         """Hold duty (n, legs) in [-1, 1] over the control block: the motor's two native actuators per hip."""
         band = getattr(self, "_deadband", 0.0)  # a calibrated driver's deadband (calibration_edits)
         if band > 0:
             duty = np.sign(duty) * np.maximum(np.abs(duty) - band, 0.0)
+        elif self.num_sims == 1 and self._hold_one(duty[0].tolist()):
+            return
         self.last_duty[:] = duty
-        a, b = self.motors.coefficients(duty)
         ctrl = self.sim.ctrl
         first = ctrl[:, 0]  # a view: written once, then copied over the block's other physics steps
-        first[:, self.motor.drive_adr] = a
-        first[:, self.motor.emf_adr] = b
+        first[:, self._drive_at], first[:, self._emf_at] = self.motors.coefficients(duty)
         ctrl[:, 1:] = first[:, None]
 
+    def _hold_one(self, duty: list[float]) -> bool:
+        """:meth:`hold_duty` of a single simulation (duty per leg) on Python floats, the ctrl row as a list: the same
+        numbers. False, having changed nothing, for a calibrated deadband (hold_duty applies it) or values that are
+        not moderate."""
+        if getattr(self, "_deadband", 0.0) > 0 or not (self._sliced_ctrl and moderate(*duty)):
+            return False
+        ctrl = self.sim.ctrl
+        row = ctrl[0, 0].tolist()
+        try:
+            row[self._drive_at], row[self._emf_at] = self.motors.coefficients_one(duty)
+        except ZeroDivisionError:  # Ra + d^2 Ramp = 0 (numpy: inf and NaN)
+            return False
+        self.last_duty[0] = duty
+        ctrl[0] = row  # every physics step of the block
+        return True
+
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
-        v = self.sim.sensordata[:, self._i_read]
-        sub = self.sim.substep_sensordata[:, :, self._i_sub]  # per physics step: speeds, torques, z gyro
+        sd = self.sim.sensordata
+        v = sd[:, self._i_read]
+        sub = self.sim.substep_sensordata  # per physics step, read through views
         if stepped is False:
             self._leg_power[:] = 0.0
         else:
-            per_step = self._battery_power(sub[:, :, 0:6], sub[:, :, 6:12])
+            per_step = self._battery_power(sub[:, :, self._at_speed], sub[:, :, self._at_torque])
             self._leg_power = np.add.reduce(per_step, axis=1) * (1.0 / per_step.shape[1])  # the mean, less overhead
             if stepped is not True:
                 self._leg_power[~np.asarray(stepped)] = 0.0
         power = self._leg_power.sum(axis=1)
-        imu = self.imu.update(v[:, 12:18], sub[:, :, 12], rngs, stepped)
-        self._imu = imu
-        senses = self._senses
-        senses[:, 0:6] = np.cos(v[:, 0:6])
-        senses[:, 6:12] = np.sin(v[:, 0:6])
+        senses = self._senses  # written in place: the senses' own order
+        np.cos(v[:, 0:6], out=senses[:, 0:6])
+        np.sin(v[:, 0:6], out=senses[:, 6:12])
         senses[:, 12:18] = v[:, 6:12]
-        senses[:, 18:24] = imu
-        senses[:, 24:30] = self.sim.sensordata[:, self._at_torque] / self.motors.torque_per_amp[:, None]
+        self._imu = self.imu.update(v[:, 12:18], sub[:, :, self._at_gyro_z], rngs, stepped, out=senses[:, 18:24])
+        np.divide(sd[:, self._at_torque], self._torque_per_amp_legs, out=senses[:, 24:30])
         senses[:, 30] = self.motors.supply_voltage
         if self.action_mode == GAIT:
-            senses[:, 31] = np.cos(2.0 * np.pi * self.phase)
-            senses[:, 32] = np.sin(2.0 * np.pi * self.phase)
+            clock = _TWO_PI * self.phase
+            senses[:, 31] = np.cos(clock)
+            senses[:, 32] = np.sin(clock)
         return {
             "time": self.sim.time,
             "position": v[:, 18:21],
@@ -523,8 +584,9 @@ class Xjus(Robot):
         ``d Vs = i (Ra + d^2 Ramp) + Ks w`` holds at the limited current."""
         mo = self.motors
         if self.current_limit is None:  # d Vs i = (d Vs / k) torque, the factor taken once per leg
-            volts_per_torque = self.last_duty * (mo.supply_voltage / mo.torque_per_amp)[:, None]
-            return np.maximum(torque * volts_per_torque[:, None, :], 0.0)
+            volts_per_torque = self.last_duty * self._volts_per_torque_legs
+            power = torque * volts_per_torque[:, None, :]
+            return np.maximum(power, 0.0, out=power)
         vs = mo.supply_voltage[:, None, None]
         current = torque / mo.torque_per_amp[:, None, None]
         duty = np.broadcast_to(self.last_duty[:, None, :], current.shape)
@@ -601,10 +663,20 @@ class Xjus(Robot):
         return -self.sim.sensordata[:, self._i_grf].reshape(-1, len(C.LEGS), 3)
 
 
+def _clip(x: float, low: float, high: float) -> float:
+    """``np.minimum(np.maximum(x, low), high)`` of one float: a tie gives the bound, as numpy gives its second
+    operand (-0.0 against a bound of 0.0 gives 0.0); NaN stays NaN."""
+    return low if x <= low else high if x >= high else x
+
+
 def _as_slice(index: np.ndarray) -> slice | np.ndarray:
-    """``index`` as a slice if it runs in steps of one, else as it is."""
-    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
-        return slice(int(index[0]), int(index[0]) + len(index))
+    """``index`` as a slice if it runs in equal steps forward, else as it is."""
+    if len(index) == 0:
+        return index
+    start = int(index[0])
+    step = int(index[1] - index[0]) if len(index) > 1 else 1
+    if step > 0 and np.array_equal(index, start + step * np.arange(len(index))):
+        return slice(start, start + step * (len(index) - 1) + 1, step)
     return index
 
 
