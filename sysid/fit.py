@@ -253,7 +253,13 @@ def rise_at(problem: Problem, result: FitResult, k: str, p: Param, value: float,
     fit measured it; others at the fit's values."""
     anchor = None if p.carried else result.values
     at_fit, at_value = costs(problem, [result.values, {**result.values, k: float(value)}], segments, anchor=anchor)
-    return (at_value - at_fit) / (stats.chi2.ppf(0.95, 1) * _residual_variance(result, n_params))
+    return (at_value - at_fit) / _rise_95(result, n_params)
+
+
+def _rise_95(result: FitResult, p: int) -> float:
+    """The rise of the objective that bounds a 95% profile-likelihood interval: the chi^2(1) quantile times the
+    residual variance (:func:`_residual_variance`)."""
+    return float(stats.chi2.ppf(0.95, 1)) * _residual_variance(result, p)
 
 
 def _residual_variance(result: FitResult, p: int) -> float:
@@ -400,8 +406,7 @@ def _smoothed_profile(
     curvature gets the whole range. Both readings are local; a side on which the cost stays within the threshold
     further out (a plateau: a friction above which the leg stalls anyway) is widened to where it leaves
     (:func:`_plateau_reach`), so the interval can be one-sided."""
-    s2 = _residual_variance(result, len(params))
-    rise = stats.chi2.ppf(0.95, 1) * s2
+    rise = _rise_95(result, len(params))
     out = {}
     for k, p in params.items():
         x0, width, half = best[k], 0.1 * p.span, p.span
@@ -490,8 +495,7 @@ def _profile_intervals(
     scaled by n / n_eff for the residual's autocorrelation. Bracketed outward in doubling steps from the
     parameter's resolution, then refined between the last point inside and the first outside; a side that never
     leaves reaches its bound."""
-    s2 = _residual_variance(result, len(rough))
-    threshold = result.objective + stats.chi2.ppf(0.95, 1) * s2
+    threshold = result.objective + _rise_95(result, len(rough))
     out = {}
     for k, p in rough.items():
         x0 = best[k]
