@@ -62,6 +62,26 @@ def test_gait_mode_is_the_duty_mode_controller_run_by_the_robot():
     np.testing.assert_allclose(runs["gait"], runs["duty"], atol=1e-9)
 
 
+def test_the_gait_mode_walk_sends_its_one_action_as_fresh_arrays():
+    """The walk's gait-mode action is computed once (stop 35): still the period and sweep it names, one row per
+    observation, and each call's array the caller's own."""
+    env = gym.make(WALK)
+    policy = load_policy("buehler:0.8", env)
+    obs, _ = env.reset(seed=0)
+    first, state = policy.predict(obs)
+    assert state is None and first.dtype == np.float32 and first.shape == env.action_space.shape
+    command = env.unwrapped.robot.mode.to_command(first.astype(np.float64))
+    np.testing.assert_allclose(command, [0.8, C.WALK_SWEEP, C.WALK_SWEEP], rtol=1e-6)
+    first[:] = 0.0  # the caller's to change
+    again = policy.predict(obs)[0]
+    np.testing.assert_array_equal(again, policy.predict(obs)[0])
+    assert not np.array_equal(again, first)
+    rows = policy.predict(np.stack([obs, obs, obs]))[0]
+    assert rows.shape == (3, *env.action_space.shape) and (rows == again).all()
+    rows[0] = 0.0
+    np.testing.assert_array_equal(policy.predict(obs)[0], again)
+
+
 def test_a_compliant_spine_pitches_and_rolls_over_rough_ground_and_a_rigid_one_does_not():
     angles = {}
     for spine in ("compliant", "rigid"):

@@ -93,6 +93,8 @@ class BuehlerController:
         self.context, self.routine = context, routine
         self.period, self.sweep = float(period), float(sweep)
         self.gait = Gait.tripod()
+        # the gait mode's walk sends the same action at every step: computed once (float32), copied out per call
+        self._constant: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return f"BuehlerController({self.routine}, T={self.period:g} s, sweep={np.degrees(self.sweep):.0f} deg)"
@@ -116,6 +118,8 @@ class BuehlerController:
         episode_start: np.ndarray | None = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, np.ndarray | None]:
+        if self.routine == "walk" and self.context.mode.name == GAIT:
+            return self._walk_action(observation)
         obs = np.asarray(observation, dtype=np.float64)
         single = obs.ndim == 1
         obs = np.atleast_2d(obs)
@@ -127,6 +131,17 @@ class BuehlerController:
             action, new_state = self.context.mode.to_action(np.column_stack([period, sweeps])), None
         action = action.astype(np.float32)
         return (action[0], None if new_state is None else new_state[0]) if single else (action, new_state)
+
+    def _walk_action(self, observation: np.ndarray) -> tuple[np.ndarray, None]:
+        """The gait mode's walk: the clock's period and one sweep on both sides, whatever the observation (its
+        shape only: one action per observation), the same action every step."""
+        if self._constant is None:
+            command = np.array([[self.period, self.sweep, self.sweep]])
+            self._constant = self.context.mode.to_action(command)[0]
+        shape = np.shape(observation)
+        if len(shape) == 1:
+            return self._constant.copy(), None
+        return np.tile(self._constant, (shape[0] if shape else 1, 1)), None
 
     def _duty(self, obs, sweeps, state, episode_start):
         """One logic step: the clock's targets, the PD, the motor model inverted; state per env: the clock phase

@@ -473,7 +473,7 @@ class Xjus(Robot):
         if self.action_mode == DUTY:
             if self.num_sims == 1 and self._hold_one([_clip(d, -1.0, 1.0) for d in command[0].tolist()]):
                 return
-            self.hold_duty(np.minimum(np.maximum(command, -1.0), 1.0))
+            self._hold_array(np.minimum(np.maximum(command, -1.0), 1.0))  # the float path declined: not again
             return
         if self.num_sims == 1 and self._command_one(command[0].tolist()):
             return
@@ -512,17 +512,21 @@ class Xjus(Robot):
         self.period[0], self.sweep[0] = period, sweep
         self.target = np.array([[a + e for a, e in zip(angles, errors, strict=True)]])
         if not self._hold_one(duty):
-            self.hold_duty(np.array([duty]))
+            self._hold_array(np.array([duty]))
         self.phase = np.array([(phase + self.control_dt / period) % 1.0])  # np.mod's result
         return True
 
     def hold_duty(self, duty: np.ndarray) -> None:
         """Hold duty (n, legs) in [-1, 1] over the control block: the motor's two native actuators per hip."""
+        if self.num_sims == 1 and self._hold_one(duty[0].tolist()):
+            return
+        self._hold_array(duty)
+
+    def _hold_array(self, duty: np.ndarray) -> None:
+        """:meth:`hold_duty` on arrays, for any number of simulations (where :meth:`_hold_one` declines)."""
         band = getattr(self, "_deadband", 0.0)  # a calibrated driver's deadband (calibration_edits)
         if band > 0:
             duty = np.sign(duty) * np.maximum(np.abs(duty) - band, 0.0)
-        elif self.num_sims == 1 and self._hold_one(duty[0].tolist()):
-            return
         self.last_duty[:] = duty
         ctrl = self.sim.ctrl
         first = ctrl[:, 0]  # a view: written once, then copied over the block's other physics steps
