@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import re
@@ -40,6 +42,22 @@ TINY_PPO = f"{WALK}:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  n_epochs: 
 def run_train(*args: object) -> subprocess.CompletedProcess:
     command = [sys.executable, str(ROOT / "train.py"), *map(str, args), "--no-progress"]
     return subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=300)
+
+
+def train_in_process(*args: object) -> subprocess.CompletedProcess:
+    """``train.main`` in the test's process, as the command runs it, for inputs refused before training: a
+    subprocess per case spent seconds loading torch each (the command line itself is checked by the tests that
+    run it)."""
+    import train
+
+    argv = [*map(str, args), "--no-progress"]
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        try:
+            code = train.main(argv)
+        except SystemExit as exc:  # argparse's own errors
+            code = exc.code
+    return subprocess.CompletedProcess(argv, code, stdout.getvalue(), stderr.getvalue())
 
 
 def train_ok(*args: object) -> subprocess.CompletedProcess:
@@ -240,21 +258,35 @@ def test_a_killed_run_never_leaves_a_model_without_its_statistics(tmp_path):
     assert found, "checkpoints were written before the kills"
 
 
-@pytest.mark.parametrize("case", list(BAD_INPUTS))
-def test_bad_input_is_a_one_line_error(case, tmp_path):
-    entries, extra, expected = BAD_INPUTS[case]
+def _bad_input_args(case: str, tmp_path: Path) -> list:
+    entries, extra, _ = BAD_INPUTS[case]
     args = ["--env", WALK, "--algo", "ppo", "--timesteps", 100, "--runs-dir", tmp_path / "runs"]
     if entries:
         hyperparams = tmp_path / "bad.yml"
         hyperparams.write_text("".join(f"{env}:\n{body}\n" for env, body in entries.items()))
         args += ["--hyperparams", hyperparams]
-    result = run_train(*args, *extra)  # later flags win
-    assert result.returncode != 0
-    assert "Traceback" not in result.stderr
-    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
-    for text in expected:
-        assert text in result.stderr
+    return [*args, *extra]  # later flags win
+
+
+def _check_one_line_error(case: str, tmp_path: Path, code: int, stderr: str) -> None:
+    assert code != 0
+    assert "Traceback" not in stderr
+    assert len(stderr.strip().splitlines()) == 1, stderr
+    for text in BAD_INPUTS[case][2]:
+        assert text in stderr
     assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize("case", list(BAD_INPUTS))
+def test_bad_input_is_a_one_line_error(case, tmp_path):
+    result = train_in_process(*_bad_input_args(case, tmp_path))
+    _check_one_line_error(case, tmp_path, result.returncode, result.stderr)
+
+
+@pytest.mark.parametrize("case", ["unknown env", "bad env_kwargs value"])
+def test_bad_input_is_a_one_line_error_from_the_command_line(case, tmp_path):
+    result = run_train(*_bad_input_args(case, tmp_path))
+    _check_one_line_error(case, tmp_path, result.returncode, result.stderr)
 
 
 def test_batched_and_dummy_vec_envs_train_the_same_model(tmp_path):
@@ -294,7 +326,7 @@ def train_with(tmp_path: Path, algo: str, body: str) -> subprocess.CompletedProc
     hyperparams = tmp_path / "bad.yml"
     hyperparams.write_text(f"{WALK}:\n{body}\n")
     args = ["--env", WALK, "--algo", algo, "--timesteps", 128, "--runs-dir", tmp_path / "runs"]
-    return run_train(*args, "--hyperparams", hyperparams)
+    return train_in_process(*args, "--hyperparams", hyperparams)
 
 
 @pytest.fixture(scope="module")
