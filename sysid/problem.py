@@ -877,6 +877,65 @@ class Problem:
                 total += len(r) / _autocorrelation_time(r[:, c])
         return max(total, 1.0)
 
+    def decisions(self, index: Sequence[int]) -> Problem:
+        """The problem the loop decides on when it decides on the segments ``index`` only
+        (sysid/select.py ``decision_segments``): itself, or, where the body's state is carried from segment to
+        segment and a log's first segment burns it in (``burn_in``), a :class:`DecisionProblem` in which each run
+        of consecutive decision segments is burnt in by the one segment before it, as a log's first segment is.
+        Carried from the log's start instead, every decision replay would run the log up to its last decision
+        segment, in order, so that deciding on a few segments of a long log cost as much as on all of them."""
+        index = sorted(index)
+        if not (self.adapter.carry_over and self.adapter.burn_in) or index == sorted(self.scored):
+            return self
+        return DecisionProblem(self, index)
+
+
+class DecisionProblem(Problem):
+    """A problem's decision segments (:meth:`Problem.decisions`), each run of consecutive ones replayed from the
+    segment before it (replayed, carried over, not counted: the burn-in a log's first segment gets) rather than
+    from its log's start. A decision replay costs two segments per decision segment at most, however long the
+    logs, and the runs are independent, so they go out in one batch on every rollout thread. The segments, noise
+    levels and replay floor are the whole problem's (:meth:`set_floor` measures the floor there); kept effects are
+    refitted on the whole problem."""
+
+    def __init__(self, whole: Problem, index: Sequence[int]):
+        self.whole = whole
+        self.adapter, self.logs, self.segments = whole.adapter, whole.logs, whole.segments
+        self.nthread, self._runner, self._datas = whole.nthread, whole._runner, whole._datas
+        self.n_steps = whole.n_steps
+        self.scored = sorted(index)
+        self._by_log = []  # runs of consecutive decision segments, each after its burn-in segment
+        for i in self.scored:
+            run = self._by_log[-1] if self._by_log else None
+            if run is not None and run[-1] == i - 1:
+                run.append(i)
+            else:
+                self._by_log.append([i - 1, i])
+        self._sensitivity = {}
+        self._carry = {}
+        self._adopt_floor()
+
+    def _adopt_floor(self) -> None:
+        whole = self.whole
+        self.sensor_sigma, self.replay_sigma = whole.sensor_sigma, whole.replay_sigma
+        self.sigma, self._sigma = whole.sigma, whole._sigma
+        self._floor_segments = getattr(whole, "_floor_segments", None)
+        self._sensitivity.clear()
+        self._carry.clear()
+
+    def set_floor(self, setting: Mapping[str, float] | None = None) -> None:
+        """The whole problem's replay floor, measured at ``setting`` over every segment (see Problem.set_floor)."""
+        self.whole.set_floor(setting)
+        self._adopt_floor()
+
+    @property
+    def rollouts(self) -> int:  # counted with the whole problem's, for reports
+        return self.whole.rollouts
+
+    @rollouts.setter
+    def rollouts(self, value: int) -> None:
+        self.whole.rollouts = value
+
 
 def _autocorrelation_time(x: np.ndarray) -> float:
     """The integrated autocorrelation time of a series, tau = 1 + 2 sum_k rho_k, by Geyer's initial monotone sequence

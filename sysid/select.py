@@ -164,17 +164,20 @@ def calibrate(
     nuisance = adapter.nuisance(problem.logs)
     fitting = decision_segments(problem)
     folds = split(problem, fitting)
+    # the ranking, fits and held-out tests read the decision segments, replayed as Problem.decisions says; kept
+    # effects are refitted, and errors measured, on every segment
+    whole, problem = problem, problem.decisions(fitting)
     current = nominal_setting(effects, start)
     nominal = dict(current)
     if nuisance:  # what the log does not hold is fitted on every segment that shows it
-        current = fit(problem, current, nuisance).values
+        current = fit(whole, current, nuisance).values
         nominal.update({k: current[k] for k in nuisance})
     outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance})
     outcome.history.append(dict(current))
-    everything = evaluate(problem, current)
+    everything = evaluate(whole, current)
     # the loop decides on ``fitting``: the same residuals when that is every segment
-    before = everything if len(fitting) == len(problem.scored) else evaluate(problem, current, fitting)
-    outcome.diagnostics_before = diagnostics.diagnose(problem, everything.residuals, adapter.context)
+    before = everything if len(fitting) == len(whole.scored) else evaluate(problem, current, fitting)
+    outcome.diagnostics_before = diagnostics.diagnose(whole, everything.residuals, adapter.context)
     outcome.training_errors.append(everything.error)
     say(f"nominal model: error {everything.error:.2f} on the training logs")
     offered = {k: e for k, e in effects.items() if not any(key in (start or {}) for key in e.nominal())}
@@ -259,17 +262,17 @@ def calibrate(
             _, group_effects, entries, trial = chosen_group
             label = " + ".join(e.name for e in group_effects)
             params = {k: p for e in group_effects for k, p in _params(e).items()}
-            if len(fitting) == len(problem.scored):  # the fit already saw every segment
+            if len(fitting) == len(whole.scored):  # the fit already saw every segment
                 refit = trial
             else:
-                refit = fit(problem, current, {**params, **nuisance}, None, start=trial.values, local="fine")
+                refit = fit(whole, current, {**params, **nuisance}, None, start=trial.values, local="fine")
             current = refit.values
-            before = trial if len(fitting) == len(problem.scored) else evaluate(problem, current, fitting)
+            before = trial if len(fitting) == len(whole.scored) else evaluate(problem, current, fitting)
             outcome.training_errors.append(refit.error)
             if adapter.replay_floor and refit.error > NOISE_FLOOR:  # the loop goes on: from this model's floor
-                problem.set_floor(current)
+                problem.set_floor(current)  # the whole problem's, which a decision problem adopts
                 before = evaluate(problem, current, fitting)
-                outcome.training_errors[-1] = evaluate(problem, current).error
+                outcome.training_errors[-1] = evaluate(whole, current).error
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)}, _bounds(refit, effect), entry["score"],
@@ -292,7 +295,7 @@ def calibrate(
     for k in nuisance:
         outcome.nuisance[k] = current[k]
     outcome.setting = current
-    outcome.diagnostics_after = diagnostics.diagnose(problem, problem.residuals([current])[0], adapter.context)
+    outcome.diagnostics_after = diagnostics.diagnose(whole, whole.residuals([current])[0], adapter.context)
     return outcome
 
 

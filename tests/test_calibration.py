@@ -608,3 +608,44 @@ def test_an_estimate_near_the_end_is_refused_only_where_the_cost_does_not_rise_t
         assert verdict is not None and "within one standard error of the end of its range (3)" in verdict
     else:
         assert verdict is None and trial.bounds95["leg_stiffness.scale"] == (2.646, 3.0)
+
+
+def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
+    """The loop decides on a few segments of a long log (``decision_segments``). Where the body is carried from
+    segment to segment, each run of decision segments is replayed from the one segment before it (its burn-in, as
+    a log's first segment is), not from the log's start: a decision replay costs about two segments per decision
+    segment however long the log, and a segment's residual does not depend on which others are asked for (the
+    held-out test's folds). A bench rig, whose state the log holds, decides on its whole problem."""
+    import sysid.select as select
+    from sysid.problem import DecisionProblem
+
+    monkeypatch.setattr(select, "MAX_DECISION_SEGMENTS", 3)
+    log, _ = synth.synthesize("roach", {}, 0, seconds=7.0)
+    whole = Problem(make_adapter("roach"), [log])
+    fitting = select.decision_segments(whole)
+    assert len(whole.scored) == 6 and len(fitting) == 3
+    deciding = whole.decisions(fitting)
+    assert isinstance(deciding, DecisionProblem) and deciding.scored == fitting
+    for chain in deciding._by_log:  # each starts with a burn-in segment that is not scored, then consecutive ones
+        assert chain[0] not in fitting and chain[1:] == list(range(chain[0] + 1, chain[-1] + 1))
+        assert set(chain[1:]) <= set(fitting)
+    setting = make_adapter("roach").catalog_nominal()
+    before = whole.rollouts
+    deciding._runs([setting])
+    assert whole.rollouts - before == sum(len(chain) for chain in deciding._by_log) <= 2 * len(fitting)
+    together = deciding.residuals([setting])[0]
+    for k, i in enumerate(fitting):
+        alone = deciding.residuals([setting], [i])[0][0]
+        assert np.array_equal(alone.data, together[k].data)
+    # a segment right after the log's first one is burnt in by that segment either way: the same residual
+    everything = whole.residuals([setting])[0]
+    second = whole.scored[0]
+    assert fitting[0] == second  # (seeded: the spread over excitation picks the log's second segment)
+    assert np.array_equal(together[0].data, everything[0].data)
+    assert not np.array_equal(together[1].data, everything[whole.scored.index(fitting[1])].data)  # burnt in anew
+    # noise levels and replay floor are the whole problem's, and measured there
+    assert deciding.sigma == whole.sigma
+    deciding.set_floor(setting)
+    assert deciding.sigma == whole.sigma and deciding._carry == {}
+    rig = Problem(make_adapter("motor"), [synth.synthesize("motor", {}, 0, seconds=2.0)[0]])
+    assert rig.decisions(rig.scored[:2]) is rig
