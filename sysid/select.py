@@ -267,12 +267,13 @@ def calibrate(
             else:
                 refit = fit(whole, current, {**params, **nuisance}, None, start=trial.values, local="fine")
             current = refit.values
-            before = trial if len(fitting) == len(whole.scored) else evaluate(problem, current, fitting)
             outcome.training_errors.append(refit.error)
-            if adapter.replay_floor and refit.error > NOISE_FLOOR:  # the loop goes on: from this model's floor
+            floor_moved = adapter.replay_floor and refit.error > NOISE_FLOOR
+            if floor_moved:  # the loop goes on: from this model's floor
                 problem.set_floor(current)  # the whole problem's, which a decision problem adopts
-                before = evaluate(problem, current, fitting)
                 outcome.training_errors[-1] = evaluate(whole, current).error
+            refitted = floor_moved or len(fitting) != len(whole.scored)
+            before = evaluate(problem, current, fitting) if refitted else trial
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)}, _bounds(refit, effect), entry["score"],

@@ -646,6 +646,8 @@ def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
     # noise levels and replay floor are the whole problem's, and measured there
     assert deciding.sigma == whole.sigma
     deciding.set_floor(setting)
-    assert deciding.sigma == whole.sigma and deciding._carry == {}
+    assert deciding.sigma == whole.sigma and deciding._sensitivity == {}
+    with pytest.raises(ValueError, match="not scored"):
+        whole.decisions([0, *fitting])  # the log's first segment burns in: it is never decided on
     rig = Problem(make_adapter("motor"), [synth.synthesize("motor", {}, 0, seconds=2.0)[0]])
     assert rig.decisions(rig.scored[:2]) is rig
