@@ -942,6 +942,13 @@ class DecisionProblem(Problem):
         self.whole.set_floor(setting)
         self._adopt_floor()
 
+    def _index(self, segments: Sequence[int] | None) -> list[int]:
+        index = super()._index(segments)
+        outside = sorted(set(index) - set(self.scored))
+        if outside:  # their carried state would be guessed anew, or missing: not a decision problem's to replay
+            raise ValueError(f"segments {outside} are not decision segments of this problem (those: {self.scored})")
+        return index
+
     @property
     def rollouts(self) -> int:  # counted with the whole problem's, for reports
         return self.whole.rollouts

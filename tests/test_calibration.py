@@ -649,5 +649,7 @@ def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
     assert deciding.sigma == whole.sigma and deciding._sensitivity == {}
     with pytest.raises(ValueError, match="not scored"):
         whole.decisions([0, *fitting])  # the log's first segment burns in: it is never decided on
+    with pytest.raises(ValueError, match="not decision segments"):
+        deciding.residuals([setting], [whole.scored[1]])  # replayed by the whole problem only
     rig = Problem(make_adapter("motor"), [synth.synthesize("motor", {}, 0, seconds=2.0)[0]])
     assert rig.decisions(rig.scored[:2]) is rig
