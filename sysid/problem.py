@@ -899,9 +899,9 @@ class DecisionProblem(Problem):
     segment before it (replayed, carried over, not counted: the burn-in a log's first segment gets) rather than
     from its log's start. A decision replay costs two segments per decision segment at most, however long the
     logs, and the runs are independent, so they go out in one batch on every rollout thread. The segments, noise
-    levels and replay floor are the whole problem's, copied when the view is made and when its own :meth:`set_floor`
-    measures the floor there: a view serves one ``calibrate`` call, which moves the floor only through it. Kept
-    effects are refitted on the whole problem.
+    levels and replay floor are the whole problem's, read through from it; its own :meth:`set_floor` measures the
+    floor there and clears the view's sensitivities (in noise units): a view serves one ``calibrate`` call, which
+    moves the floor only through it. Kept effects are refitted on the whole problem.
 
     The burn-in costs a little: a body started mid-walk from the adapter's guess (the roach's: at home, at rest)
     settles within a segment or two, and on two synthetic roach logs with the true model the decision segments'
@@ -914,8 +914,9 @@ class DecisionProblem(Problem):
         self.nthread, self._runner, self._datas = whole.nthread, whole._runner, whole._datas
         self.n_steps = whole.n_steps
         self.scored = sorted(index)
+        self._deciding = frozenset(self.scored)
         self._by_log = []  # runs of consecutive decision segments, each after its burn-in segments
-        segs = whole.segments
+        segs = self.segments
         for i in self.scored:
             run = self._by_log[-1] if self._by_log else None
             if run is not None and i - run[-1] - 1 < DECISION_BURN_IN:  # nearer than a burn-in: carry on to it
@@ -928,23 +929,22 @@ class DecisionProblem(Problem):
             self._by_log.append(list(range(first, i + 1)))
         self._sensitivity = {}
         self._carry = {}
-        self._adopt_floor()
 
-    def _adopt_floor(self) -> None:
-        whole = self.whole
-        self.sensor_sigma, self.replay_sigma = whole.sensor_sigma, whole.replay_sigma
-        self.sigma, self._sigma = whole.sigma, whole._sigma
-        self._floor_segments = getattr(whole, "_floor_segments", None)
-        self._sensitivity.clear()  # in units of the noise levels; the runs themselves (``_carry``) do not change
+    # the whole problem's noise levels and replay floor
+    sensor_sigma = property(lambda self: self.whole.sensor_sigma)
+    replay_sigma = property(lambda self: self.whole.replay_sigma)
+    sigma = property(lambda self: self.whole.sigma)
+    _sigma = property(lambda self: self.whole._sigma)
+    _floor_segments = property(lambda self: getattr(self.whole, "_floor_segments", None))
 
     def set_floor(self, setting: Mapping[str, float] | None = None) -> None:
         """The whole problem's replay floor, measured at ``setting`` over every segment (see Problem.set_floor)."""
         self.whole.set_floor(setting)
-        self._adopt_floor()
+        self._sensitivity.clear()  # in units of the noise levels; the runs themselves (``_carry``) do not change
 
     def _index(self, segments: Sequence[int] | None) -> list[int]:
         index = super()._index(segments)
-        outside = sorted(set(index) - set(self.scored))
+        outside = sorted(set(index) - self._deciding)
         if outside:  # their carried state would be guessed anew, or missing: not a decision problem's to replay
             raise ValueError(f"segments {outside} are not decision segments of this problem (those: {self.scored})")
         return index

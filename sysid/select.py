@@ -167,6 +167,7 @@ def calibrate(
     # the ranking, fits and held-out tests read the decision segments, replayed as Problem.decisions says; kept
     # effects are refitted, and errors measured, on every segment
     whole, problem = problem, problem.decisions(fitting)
+    on_all = len(fitting) == len(whole.scored)  # the decisions see every segment: no refit, the same residuals
     current = nominal_setting(effects, start)
     nominal = dict(current)
     if nuisance:  # what the log does not hold is fitted on every segment that shows it
@@ -175,8 +176,7 @@ def calibrate(
     outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance})
     outcome.history.append(dict(current))
     everything = evaluate(whole, current)
-    # the loop decides on ``fitting``: the same residuals when that is every segment
-    before = everything if len(fitting) == len(whole.scored) else evaluate(problem, current, fitting)
+    before = everything if on_all else evaluate(problem, current, fitting)
     outcome.diagnostics_before = diagnostics.diagnose(whole, everything.residuals, adapter.context)
     outcome.training_errors.append(everything.error)
     say(f"nominal model: error {everything.error:.2f} on the training logs")
@@ -262,7 +262,7 @@ def calibrate(
             _, group_effects, entries, trial = chosen_group
             label = " + ".join(e.name for e in group_effects)
             params = {k: p for e in group_effects for k, p in _params(e).items()}
-            if len(fitting) == len(whole.scored):  # the fit already saw every segment
+            if on_all:  # the fit already saw every segment
                 refit = trial
             else:
                 refit = fit(whole, current, {**params, **nuisance}, None, start=trial.values, local="fine")
@@ -272,8 +272,7 @@ def calibrate(
             if floor_moved:  # the loop goes on: from this model's floor
                 problem.set_floor(current)  # the whole problem's, which a decision problem adopts
                 outcome.training_errors[-1] = evaluate(whole, current).error
-            refitted = floor_moved or len(fitting) != len(whole.scored)
-            before = evaluate(problem, current, fitting) if refitted else trial
+            before = trial if on_all and not floor_moved else evaluate(problem, current, fitting)
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)}, _bounds(refit, effect), entry["score"],
