@@ -426,7 +426,9 @@ def _smoothed_profile(
                 break
             width = min(2.0 * half, p.span)
         half = float(min(max(half, p.resolution), p.span))
-        out[k] = _plateau_reach(problem, best, k, p, half, rise, segments)
+        centre = np.flatnonzero(xs == x0)  # the best point itself (the window is centred on it), costed alike
+        at_best = float(sum(r.objective for r in rollouts[int(centre[0])])) if len(centre) else None
+        out[k] = _plateau_reach(problem, best, k, p, half, rise, segments, at_best)
     return out
 
 
@@ -434,30 +436,52 @@ PLATEAU_PROBES = 6  # per side: values from twice the half-width out to the rang
 
 
 def _plateau_reach(
-    problem: Problem, best: Mapping[str, float], k: str, p: Param, half: float, rise: float, segments
+    problem: Problem,
+    best: Mapping[str, float],
+    k: str,
+    p: Param,
+    half: float,
+    rise: float,
+    segments,
+    at_best: float | None = None,
 ) -> tuple[float, float]:
     """The interval (low, high) of ``k`` from a local half-width, each side pushed out to the last of
     PLATEAU_PROBES values (from twice the half-width to the range's end) before the first whose cost rises above the
-    best point's by ``rise``: a profile likelihood read directly, where it is flat rather than curved. One batched
-    rollout (the best point's cost among it, anchored alike)."""
+    best point's by ``rise``: a profile likelihood read directly, where it is flat rather than curved.
+
+    Read in two batched rollouts (each anchored at the best point, its cost among the first): the best point and
+    each side's nearest probe, then the further probes of a side only where its nearest one stayed below the
+    threshold. Only the probes up to a side's first crossing decide its reach, so this reads the same as probing
+    everything at once; where the cost is a bowl (most fits), it costs 3 settings instead of 13. ``at_best``: the
+    best point's cost, anchored alike, where the caller already has it (2 settings then)."""
     x0 = best[k]
-    probes: list[tuple[float, float]] = []  # (side, distance)
+    probes: dict[float, list[float]] = {}  # side -> distances
     for side, room in ((-1.0, x0 - p.low), (1.0, p.high - x0)):
         if room > 2.0 * half:
-            probes += [(side, d) for d in np.geomspace(2.0 * half, room, PLATEAU_PROBES)]
+            probes[side] = [float(d) for d in np.geomspace(2.0 * half, room, PLATEAU_PROBES)]
     reach = {-1.0: half, 1.0: half}
+
+    def cost_at(values: list[float]) -> list[float]:
+        return costs(problem, [{**best, k: v} for v in values], segments, anchor=best)
+
     if probes:
-        values = [x0] + [x0 + side * d for side, d in probes]
-        cost = costs(problem, [{**best, k: float(v)} for v in values], segments, anchor=best)
-        threshold = cost[0] + rise
-        blocked = set()
-        for (side, d), c in zip(probes, cost[1:], strict=True):
-            if side in blocked:
-                continue
-            if c > threshold:
-                blocked.add(side)
-            else:
-                reach[side] = d
+        nearest = [x0 + side * ds[0] for side, ds in probes.items()]
+        first = cost_at(nearest if at_best is not None else [x0, *nearest])
+        threshold = (at_best if at_best is not None else first.pop(0)) + rise
+        further = []  # sides whose nearest probe stays inside, and so are read further out
+        for (side, ds), c in zip(probes.items(), first, strict=True):
+            if c <= threshold:
+                reach[side] = ds[0]
+                further += [(side, d) for d in ds[1:]]
+        if further:
+            blocked = set()
+            for (side, d), c in zip(further, cost_at([x0 + side * d for side, d in further]), strict=True):
+                if side in blocked:
+                    continue
+                if c > threshold:
+                    blocked.add(side)
+                else:
+                    reach[side] = d
     return (max(x0 - reach[-1.0], p.low) if reach[-1.0] > half else x0 - half,
             min(x0 + reach[1.0], p.high) if reach[1.0] > half else x0 + half)  # fmt: skip
 

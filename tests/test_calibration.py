@@ -125,8 +125,10 @@ class _CurveProblem:
 
     def __init__(self, cost):
         self.cost = cost
+        self.asked: list[float] = []
 
     def residuals(self, settings, segments, anchor):
+        self.asked += [s["k"] for s in settings]
         return [[SimpleNamespace(objective=float(self.cost(s["k"])))] for s in settings]
 
 
@@ -141,6 +143,10 @@ def test_an_interval_is_one_sided_where_the_cost_is_flat_out_to_the_end():
     assert low == pytest.approx(0.0055) and high == pytest.approx(0.015)
     bowl = _CurveProblem(lambda x: 1e8 * (x - 0.007) ** 2)  # 10 units of cost 0.32e-3 from the optimum
     assert _plateau_reach(bowl, {"k": 0.007}, "k", p, 0.0015, rise, None) == pytest.approx((0.0055, 0.0085))
+    # a side is read further out only where its nearest probe stays inside: the bowl costs the best point and one
+    # probe a side; the stall's flat side is read to the end, its steep side stops at its nearest probe
+    assert bowl.asked == pytest.approx([0.007, 0.004, 0.010])
+    assert len(stall.asked) == 3 + 5 and min(stall.asked) == pytest.approx(0.004)
     assert half_widths({"k": 0.007}, {"k": (0.0055, 0.015)})["k"] == pytest.approx(0.008)  # the larger side
 
 
