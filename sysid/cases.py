@@ -50,6 +50,8 @@ class Case:
             "intervals": {k: list(v) for k, v in self.intervals.items()}, "error_before": self.result.before.error,
             "error_after": self.result.after.error, "excess_ratio": self.excess_ratio, "halved": self.halved,
             "unexplained": self.result.unexplained, "threshold": self.result.threshold, "seconds": self.seconds,
+            # why each refused effect was refused: which cases a change to a test can move, read without a rerun
+            "rejected": [dict(r) for r in self.result.outcome.rejected],
         }  # fmt: skip
 
 
