@@ -231,7 +231,7 @@ def main() -> None:
     rounds, seeds, rtf_episodes = (3, list(range(6)), 2) if args.quick else (7, list(range(12)), 3)
     started = time.perf_counter()
     ratios = [single_ratio(WALK, rounds), single_ratio(ROUGH, rounds, roughness=0.04)]
-    ratios += [batched_ratio(WALK, n, 2, rounds) for n in (16, 64, 128, 256)]
+    ratios += [batched_ratio(WALK, n, 2, rounds) for n in (16, 64, 128, 256, 512)]
     for r in ratios:
         print(r)
     flat = [flat_ground(p, seeds, 2) for p in (0.5, 0.75, 1.0)]
@@ -241,7 +241,7 @@ def main() -> None:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core from here on
     # the "on one core": the batched env with one rollout thread against raw mujoco.batch with one
-    one_core = [batched_ratio(WALK, n, 1, rounds) | {"one_core": True} for n in (16, 64, 128)]
+    one_core = [batched_ratio(WALK, n, 1, rounds) | {"one_core": True} for n in (16, 64, 128, 512)]
     for r in one_core:
         print(r)
     ratios += one_core
