@@ -427,7 +427,7 @@ def _smoothed_profile(
             width = min(2.0 * half, p.span)
         half = float(min(max(half, p.resolution), p.span))
         centre = np.flatnonzero(xs == x0)  # the best point itself (the window is centred on it), costed alike
-        at_best = float(sum(r.objective for r in rollouts[int(centre[0])])) if len(centre) else None
+        at_best = total_objective(rollouts[int(centre[0])]) if len(centre) else None
         out[k] = _plateau_reach(problem, best, k, p, half, rise, segments, at_best)
     return out
 
@@ -464,24 +464,27 @@ def _plateau_reach(
     def cost_at(values: list[float]) -> list[float]:
         return costs(problem, [{**best, k: v} for v in values], segments, anchor=best)
 
+    def walk(probed: list[tuple[float, float]], cost: list[float], threshold: float) -> set[float]:
+        """Each side's reach out to its last probe (side, distance) before its first crossing, in order; the sides
+        that crossed."""
+        crossed = set()
+        for (side, d), c in zip(probed, cost, strict=True):
+            if c > threshold:
+                crossed.add(side)
+            elif side not in crossed:
+                reach[side] = d
+        return crossed
+
     if probes:
-        nearest = [x0 + side * ds[0] for side, ds in probes.items()]
-        first = cost_at(nearest if at_best is not None else [x0, *nearest])
+        nearest = [(side, ds[0]) for side, ds in probes.items()]
+        head = [] if at_best is not None else [x0]
+        first = cost_at(head + [x0 + side * d for side, d in nearest])
         threshold = (at_best if at_best is not None else first.pop(0)) + rise
-        further = []  # sides whose nearest probe stays inside, and so are read further out
-        for (side, ds), c in zip(probes.items(), first, strict=True):
-            if c <= threshold:
-                reach[side] = ds[0]
-                further += [(side, d) for d in ds[1:]]
+        crossed = walk(nearest, first, threshold)
+        # the further probes of each side whose nearest one stayed inside
+        further = [(side, d) for side, ds in probes.items() if side not in crossed for d in ds[1:]]
         if further:
-            blocked = set()
-            for (side, d), c in zip(further, cost_at([x0 + side * d for side, d in further]), strict=True):
-                if side in blocked:
-                    continue
-                if c > threshold:
-                    blocked.add(side)
-                else:
-                    reach[side] = d
+            walk(further, cost_at([x0 + side * d for side, d in further]), threshold)
     return (max(x0 - reach[-1.0], p.low) if reach[-1.0] > half else x0 - half,
             min(x0 + reach[1.0], p.high) if reach[1.0] > half else x0 + half)  # fmt: skip
 
