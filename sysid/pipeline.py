@@ -100,6 +100,8 @@ def run(
     # description of the robot says how closely a right model can replay these logs; before and after are both
     # measured against it
     test_problem = Problem(adapter, test, nthread, floor_setting=outcome.setting)
+    if not adapter.nuisance(test):  # every setting's replay of the test logs in one batch, kept for held_out
+        test_problem.predict(outcome.history)
     steps = [held_out(test_problem, s) for s in outcome.history]
     say(
         "held-out error: "

@@ -578,46 +578,60 @@ class Problem:
         adapter = self.adapter
         setting = {**adapter.catalog_nominal(), **(setting or {})}
         self._sigma = np.ones(len(adapter.channels))
+        real, by_log = self.segments, self._by_log
+        # every reading of every log's twin is a log of its own, appended to the segments, and all of them replay
+        # in one chain, each step batched over them (one chain at a time leaves every rollout thread but one idle);
+        # the logs themselves ride along at the same setting on the threads the twins leave idle, and their run is
+        # kept as _runs keeps a setting's (the loop evaluates the nominal model first; the held-out error, the
+        # calibrated model the test logs' floor is measured at)
+        readings = []  # (clean channels, the reading's scored segments: (the log's, the twin's) indices)
+        segments, chains = list(real), list(by_log)
+        for source, log in enumerate(self.logs):
+            if log.history is not None:  # a window of a file: its twin runs from the file's start, as it did
+                full = pd.concat([log.history, log.df], ignore_index=True)
+                clean = simulate(adapter, setting, full, log.meta)[len(log.history) :]
+            else:
+                clean = simulate(adapter, setting, log.df, log.meta)
+            index = by_log[source]
+            scored = [i for i in index if i in self.scored]
+            for seed in range(FLOOR_TWINS):  # several readings of the twin: one log's divergences are few
+                twin = log.df.copy()
+                noise = np.random.default_rng(seed)  # the twin is measured as the log is, with its sensors' noise
+                for j, c in enumerate(adapter.channels):
+                    twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, self.sensor_sigma[c], len(clean)))
+                twin_segments = adapter.segments(Log(log.path, twin, log.meta))
+                if len(twin_segments) != len(index):
+                    raise RuntimeError(f"{log.path}: the twin log cut into other segments than the log")
+                at = {i: len(segments) + k for k, i in enumerate(index)}
+                for seg in twin_segments:
+                    seg.n_steps, seg.source = self.n_steps, source
+                segments += twin_segments
+                chains.append([at[i] for i in index])
+                readings.append((clean, [(i, at[i]) for i in scored]))
+        try:
+            self.segments, self._by_log = segments, chains
+            self._carry.clear()
+            twins = [t for _, pairs in readings for _, t in pairs]
+            predictions, starts, carried = self._chain([setting], self.scored + twins, with_carry=True)
+        finally:
+            self.segments, self._by_log = real, by_log
+            self._sensitivity.clear()
+            self._carry.clear()
+        own = [i for (_, i) in predictions if i < len(real)]
+        self._carry[tuple(sorted(setting.items()))] = ({i: predictions[(0, i)] for i in own},
+                                                       {i: starts[(0, i)] for i in own},
+                                                       {i: carried[(0, i)] for i in own})  # fmt: skip
         squares = np.zeros(len(adapter.channels))
         count = 0
         per_segment = []  # each segment's mean square difference per channel
-        real = self.segments
-        try:
-            for source, log in enumerate(self.logs):
-                if log.history is not None:  # a window of a file: its twin runs from the file's start, as it did
-                    full = pd.concat([log.history, log.df], ignore_index=True)
-                    clean = simulate(adapter, setting, full, log.meta)[len(log.history) :]
-                else:
-                    clean = simulate(adapter, setting, log.df, log.meta)
-                index = self._by_log[source]
-                scored = [i for i in index if i in self.scored]
-                for seed in range(FLOOR_TWINS):  # several readings of the twin: one log's divergences are few
-                    twin = log.df.copy()
-                    noise = np.random.default_rng(seed)  # the twin is measured as the log is, with its sensors' noise
-                    for j, c in enumerate(adapter.channels):
-                        twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, self.sensor_sigma[c], len(clean)))
-                    twin_segments = adapter.segments(Log(log.path, twin, log.meta))
-                    if len(twin_segments) != len(index):
-                        raise RuntimeError(f"{log.path}: the twin log cut into other segments than the log")
-                    self.segments = list(real)
-                    for i, seg in zip(index, twin_segments, strict=True):
-                        seg.n_steps, seg.source = self.n_steps, source
-                        self.segments[i] = seg
-                    self._carry.clear()
-                    predictions, _ = self._chain([setting], scored)
-                    for i in scored:
-                        d = clean[real[i].samples] - predictions[(0, i)]
-                        d = d[np.isfinite(d).all(axis=1)]  # a replay gone unstable measures nothing
-                        squares += np.sum(d * d, axis=0)
-                        count += len(d)
-                        if len(d):
-                            per_segment.append(np.mean(d * d, axis=0))
-                self._sensitivity.clear()
-                self._carry.clear()
-        finally:
-            self.segments = real
-            self._sensitivity.clear()
-            self._carry.clear()
+        for clean, pairs in readings:
+            for i, t in pairs:
+                d = clean[real[i].samples] - predictions[(0, t)]
+                d = d[np.isfinite(d).all(axis=1)]  # a replay gone unstable measures nothing
+                squares += np.sum(d * d, axis=0)
+                count += len(d)
+                if len(d):
+                    per_segment.append(np.mean(d * d, axis=0))
         self._floor_segments = np.array(per_segment)
         return {c: float(np.sqrt(squares[j] / max(count, 1))) for j, c in enumerate(adapter.channels)}
 

@@ -506,6 +506,49 @@ def test_two_logs_with_one_path_are_kept_apart():
     assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b, strict=True))
 
 
+def test_the_replay_floor_keeps_the_logs_own_run_as_a_replay_of_them_makes_it():
+    """The replay floor replays every reading of each log's twin in one chain, and the logs themselves beside them
+    at the floor's setting; that run of the logs is kept as the setting's run. It must be the run a replay of the
+    logs alone makes (predictions, starts and carried states, to the bit), and the floor the one measured twin by
+    twin, log by log, as before the twins were batched (stop 38)."""
+    from sysid import problem as P
+
+    adapter = make_adapter("bioloid")
+    logs = [synth.synthesize("bioloid", {}, seed, seconds=3.0)[0] for seed in (0, 1)]
+    problem = P.Problem(adapter, logs, nthread=2)
+    nominal = adapter.catalog_nominal()
+    kept = problem._carry[tuple(sorted(nominal.items()))]
+    problem._carry.clear()
+    fresh = problem._runs([nominal])
+    for mine, theirs in zip(kept, fresh, strict=True):
+        assert mine.keys() == theirs[0].keys() and len(mine) == len(problem.segments)
+        for i, value in mine.items():
+            assert (value is None and theirs[0][i] is None) or np.array_equal(value, theirs[0][i])
+    # the floor, twin by twin (each reading's chain alone, one log at a time), as it was measured before
+    squares, count = 0.0, 0
+    real = problem.segments
+    for source, log in enumerate(logs):
+        clean = P.simulate(adapter, nominal, log.df, log.meta)
+        index = problem._by_log[source]
+        for seed in range(P.FLOOR_TWINS):
+            noise = np.random.default_rng(seed)
+            twin = log.df.copy()
+            for j, c in enumerate(adapter.channels):
+                twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, problem.sensor_sigma[c], len(clean)))
+            problem.segments = list(real)
+            for i, seg in zip(index, adapter.segments(P.Log(log.path, twin, log.meta)), strict=True):
+                seg.n_steps, seg.source = problem.n_steps, source
+                problem.segments[i] = seg
+            problem._carry.clear()
+            scored = [i for i in index if i in problem.scored]
+            predictions, _ = problem._chain([nominal], scored)
+            for i in scored:
+                d = clean[real[i].samples] - predictions[(0, i)]
+                squares, count = squares + np.sum(d * d, axis=0), count + len(d)
+    problem.segments = real
+    assert problem.replay_sigma == dict(zip(adapter.channels, np.sqrt(squares / count).tolist(), strict=True))
+
+
 def test_two_servo_logs_with_one_path_keep_their_own_unlogged_goals():
     """An unlogged goal is fitted as nuisance parameters per log, keyed by the log's place in its problem as well as
     its path: two logs that share a path each keep their own goal steps (with the path alone, the second log's plan
