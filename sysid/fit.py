@@ -74,7 +74,10 @@ def evaluate(problem: Problem, setting: Setting, segments: Sequence[int] | None 
 def costs(problem: Problem, settings: Sequence[Setting], segments, anchor: Setting | None) -> list[float]:
     """The objective of each setting (its cost, or the robust loss of ``Adapter.loss_scale``), the start's
     correction and the carried state anchored at ``anchor`` (one batched rollout), or, None, each at its own
-    (each log's segments in order)."""
+    (each log's segments in order). Anchored, a setting measured before is not rolled out again
+    (:meth:`Problem.objectives`)."""
+    if anchor is not None:
+        return problem.objectives(settings, segments, anchor)
     return [total_objective(r) for r in problem.residuals(settings, segments, anchor=anchor)]
 
 

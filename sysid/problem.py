@@ -543,6 +543,7 @@ class Problem:
         self._sensitivity: dict[tuple, list[np.ndarray]] = {}
         self._carry: dict[tuple, tuple[dict, dict, dict]] = {}  # a setting's run over every segment
         self._datas: dict[tuple, list[mujoco.MjData]] = {}
+        self._objectives: dict[tuple, float] = {}  # anchored objectives already measured (objectives)
         self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
         noise = [adapter.noise(log) for log in self.logs]
         self.sensor_sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
@@ -864,6 +865,24 @@ class Problem:
             out.append(row)
         return out
 
+    def objectives(self, settings: Sequence[Setting], segments: Sequence[int] | None, anchor: Setting) -> list[float]:
+        """The objective of each setting (``total_objective`` of its residuals), the start's correction and the
+        carried state anchored at ``anchor``. A setting asked for again under the same anchor, segments and noise
+        levels is not rolled out again, nor is one asked for twice in a call: a grid shrinking around its best point
+        asks for that point again, and points clipped to a range's end coincide. A row's rollout does not depend on
+        the others in its batch, so the numbers are those of a rollout of every setting asked for."""
+        index = tuple(self._index(segments))
+        head = (self._sigma.tobytes(), tuple(sorted(anchor.items())), index)
+        keys = [(*head, tuple(sorted(s.items()))) for s in settings]
+        missing = list(dict.fromkeys(k for k in keys if k not in self._objectives))
+        if missing:
+            first = {key: keys.index(key) for key in missing}
+            ran = self.residuals([settings[first[key]] for key in missing], index, anchor=anchor)
+            if len(self._objectives) + len(missing) > 100_000:
+                self._objectives.clear()
+            self._objectives.update({key: total_objective(r) for key, r in zip(missing, ran, strict=True)})
+        return [self._objectives[k] for k in keys]
+
     def error(self, residuals: Sequence[Residual]) -> float:
         """RMS of the normalized residual (the start's correction counted against its prior) per data sample and
         channel: 1 is the noise floor."""
@@ -943,6 +962,7 @@ class DecisionProblem(Problem):
             self._by_log.append(list(range(first, i + 1)))
         self._sensitivity = {}
         self._carry = {}
+        self._objectives = {}
 
     # the whole problem's noise levels and replay floor
     sensor_sigma = property(lambda self: self.whole.sensor_sigma)

@@ -23,7 +23,7 @@ from sysid.cases import Case, pair, run_case
 from sysid.effects import Param, base_name
 from sysid.fit import _plateau_reach, fit, half_widths
 from sysid.pipeline import relative_excess, run
-from sysid.problem import Problem, Residual
+from sysid.problem import Problem, Residual, total_objective
 from sysid.report import report_markdown
 from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE
@@ -120,7 +120,14 @@ def test_the_held_out_test_refuses_an_effect_that_trades_one_channel_for_another
         assert 0.0 < min(loss) and max(loss) < select.CHANNEL_MARGIN
 
 
-class _CurveProblem:
+class _Objectives:
+    """``Problem.objectives`` for the stand-ins: each setting's objective, without Problem's memory of them."""
+
+    def objectives(self, settings, segments, anchor):
+        return [total_objective(r) for r in self.residuals(settings, segments, anchor)]
+
+
+class _CurveProblem(_Objectives):
     """A stand-in for a Problem whose cost, at any anchor, is a function of one parameter ``k``."""
 
     def __init__(self, cost):
@@ -361,7 +368,7 @@ def test_roach_report_compares_tracking_and_body_rates():
             assert 0.0 <= sum(entry[source]["bands"]) <= 1.0 + 1e-9
 
 
-class _StandIn:
+class _StandIn(_Objectives):
     """What sysid.select and sysid.fit ask of a Problem besides its residuals, for the stand-ins below."""
 
     def __init__(self) -> None:
@@ -504,6 +511,34 @@ def test_two_logs_with_one_path_are_kept_apart():
     nominal = adapter.catalog_nominal()
     a, b = same.residuals([nominal])[0], distinct.residuals([nominal])[0]
     assert all(np.array_equal(x.data, y.data) for x, y in zip(a, b, strict=True))
+
+
+def test_an_anchored_objective_asked_again_is_not_rolled_out_again():
+    """A fit's grid shrinking around its best point asks for that point again, and grid points clipped to a range's
+    end coincide: under the same anchor, segments and noise levels, such a setting is not rolled out again, and its
+    objective is the one a rollout gives. New noise levels (a moved replay floor) measure it anew."""
+    from sysid.fit import costs
+
+    adapter = make_adapter("bioloid")
+    problem = Problem(adapter, [synth.synthesize("bioloid", {}, 0, seconds=3.0)[0]], nthread=2)
+    nominal = adapter.catalog_nominal()
+    key = next(k for k in nominal if k.startswith("servo_gain"))
+    settings = [{**nominal, key: v} for v in (0.8, 1.2, 0.8, 1.0)]
+    costs(problem, [settings[3]], None, nominal)  # the anchor's own run and start sensitivities measured
+    before = problem.rollouts
+    first = costs(problem, settings, None, nominal)
+    assert problem.rollouts - before == 2 * len(problem.scored)  # 0.8 once, 1.2; 1.0 measured before
+    assert first[0] == first[2]
+    direct = [total_objective(r) for r in problem.residuals(settings, None, anchor=nominal)]
+    assert first == direct
+    before = problem.rollouts
+    assert costs(problem, settings[::-1], None, nominal) == first[::-1] and problem.rollouts == before
+    assert costs(problem, settings[:1], problem.scored[:1], nominal) == [total_objective(
+        problem.residuals(settings[:1], problem.scored[:1], anchor=nominal)[0])]  # other segments: measured anew
+    problem.set_floor({**nominal, key: 1.1})
+    before = problem.rollouts
+    again = costs(problem, settings[:2], None, nominal)
+    assert problem.rollouts > before and again != first[:2]
 
 
 def test_the_replay_floor_keeps_the_logs_own_run_as_a_replay_of_them_makes_it():
