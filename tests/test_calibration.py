@@ -533,8 +533,9 @@ def test_an_anchored_objective_asked_again_is_not_rolled_out_again():
     assert first == direct
     before = problem.rollouts
     assert costs(problem, settings[::-1], None, nominal) == first[::-1] and problem.rollouts == before
-    assert costs(problem, settings[:1], problem.scored[:1], nominal) == [total_objective(
-        problem.residuals(settings[:1], problem.scored[:1], anchor=nominal)[0])]  # other segments: measured anew
+    assert costs(problem, settings[:1], problem.scored[:1], nominal) == [
+        total_objective(problem.residuals(settings[:1], problem.scored[:1], anchor=nominal)[0])
+    ]  # other segments: measured anew
     problem.set_floor({**nominal, key: 1.1})
     before = problem.rollouts
     again = costs(problem, settings[:2], None, nominal)
