@@ -374,6 +374,20 @@ class Adapter(ABC):
         return {c: out[c] for c in self.channels}
 
 
+def setting_key(setting: Setting) -> tuple:
+    """A setting as a cache key: its values by name."""
+    return tuple(sorted(setting.items()))
+
+
+def _missing(keys: Sequence[tuple], settings: Sequence[Setting], cache: Mapping) -> dict[tuple, Setting]:
+    """The settings whose keys the cache lacks, each once, in the order first asked for."""
+    out: dict[tuple, Setting] = {}
+    for key, setting in zip(keys, settings, strict=True):
+        if key not in cache:
+            out.setdefault(key, setting)
+    return out
+
+
 def run_rollout(
     runner: rollout.Rollout,
     adapter: Adapter,
@@ -618,10 +632,7 @@ class Problem:
             self.segments, self._by_log = real, by_log
             self._sensitivity.clear()
             self._carry.clear()
-        own = [i for (_, i) in predictions if i < len(real)]
-        self._carry[tuple(sorted(setting.items()))] = ({i: predictions[(0, i)] for i in own},
-                                                       {i: starts[(0, i)] for i in own},
-                                                       {i: carried[(0, i)] for i in own})  # fmt: skip
+        self._keep_runs([setting_key(setting)], predictions, starts, carried, range(len(real)))
         squares = np.zeros(len(adapter.channels))
         count = 0
         per_segment = []  # each segment's mean square difference per channel
@@ -688,22 +699,26 @@ class Problem:
         """Each setting's run over every segment in order (:meth:`_chain`): its predictions, start states and
         carried states per segment. Runs are cached per setting: a setting is evaluated, its start's sensitivity
         measured and its carried states used as a fit's anchor from one run."""
-        keys = [tuple(sorted(s.items())) for s in settings]
-        missing = list(dict.fromkeys(k for k in keys if k not in self._carry))
+        keys = [setting_key(s) for s in settings]
+        missing = _missing(keys, settings, self._carry)
         if missing:
-            first = {key: keys.index(key) for key in missing}
-            run = [settings[first[key]] for key in missing]
-            predictions, starts, carried = self._chain(run, self._index(None), with_carry=True)
+            predictions, starts, carried = self._chain(list(missing.values()), self._index(None), with_carry=True)
             if len(self._carry) + len(missing) > 64:  # keep what this call asks for (a cached anchor among them)
                 wanted = {key: self._carry[key] for key in keys if key in self._carry}
                 self._carry.clear()
                 self._carry.update(wanted)
-            for j, key in enumerate(missing):
-                index = [i for (k, i) in predictions if k == j]
-                self._carry[key] = ({i: predictions[(j, i)] for i in index}, {i: starts[(j, i)] for i in index},
-                                    {i: carried[(j, i)] for i in index})  # fmt: skip
+            self._keep_runs(list(missing), predictions, starts, carried, range(len(self.segments)))
         runs = [self._carry[key] for key in keys]
         return [r[0] for r in runs], [r[1] for r in runs], [r[2] for r in runs]
+
+    def _keep_runs(self, keys: Sequence[tuple], predictions: dict, starts: dict, carried: dict, segments) -> None:
+        """Keep each setting's run (settings numbered as ``keys``, as :meth:`_chain` numbers them) over those of
+        ``segments`` it reached, for :meth:`_runs`."""
+        segments = set(segments)
+        for j, key in enumerate(keys):
+            index = [i for (k, i) in predictions if k == j and i in segments]
+            self._carry[key] = ({i: predictions[(j, i)] for i in index}, {i: starts[(j, i)] for i in index},
+                                {i: carried[(j, i)] for i in index})  # fmt: skip
 
     def _chain(self, settings: Sequence[Setting], index: Sequence[int], with_carry: bool = False):
         """Roll out every setting over the segments of ``index``: the predictions and start states per (setting,
@@ -813,7 +828,7 @@ class Problem:
         """Per segment, the change of the normalized prediction per standard deviation of each uncertain start
         coordinate, at ``anchor``: (samples x channels, k)."""
         index = self._index(segments)
-        key = (tuple(sorted(anchor.items())), tuple(index))
+        key = (setting_key(anchor), tuple(index))
         if key in self._sensitivity:
             return self._sensitivity[key]
         model = self.adapter.model_for(anchor)
@@ -872,12 +887,11 @@ class Problem:
         asks for that point again, and points clipped to a range's end coincide. A row's rollout does not depend on
         the others in its batch, so the numbers are those of a rollout of every setting asked for."""
         index = tuple(self._index(segments))
-        head = (self._sigma.tobytes(), tuple(sorted(anchor.items())), index)
-        keys = [(*head, tuple(sorted(s.items()))) for s in settings]
-        missing = list(dict.fromkeys(k for k in keys if k not in self._objectives))
+        head = (self._sigma.tobytes(), setting_key(anchor), index)
+        keys = [(*head, setting_key(s)) for s in settings]
+        missing = _missing(keys, settings, self._objectives)
         if missing:
-            first = {key: keys.index(key) for key in missing}
-            ran = self.residuals([settings[first[key]] for key in missing], index, anchor=anchor)
+            ran = self.residuals(list(missing.values()), index, anchor=anchor)
             if len(self._objectives) + len(missing) > 100_000:
                 self._objectives.clear()
             self._objectives.update({key: total_objective(r) for key, r in zip(missing, ran, strict=True)})
