@@ -738,3 +738,32 @@ def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
         deciding.residuals([setting], [whole.scored[1]])  # replayed by the whole problem only
     rig = Problem(make_adapter("motor"), [synth.synthesize("motor", {}, 0, seconds=2.0)[0]])
     assert rig.decisions(rig.scored[:2]) is rig
+
+
+@pytest.mark.parametrize("robot", ["roach", "xjus", "bioloid", "motor", "servo"])
+def test_a_settings_model_is_the_model_of_a_robot_built_with_its_edits(robot):
+    """Each adapter compiles a setting's model from a copy of its nominal robot's spec (Robot.compile_with), not by
+    building a robot: byte for byte the model a robot built with the setting's edits holds, for every catalogued
+    effect at once at a random value and for each structural effect (backlash, bump, disturbance) on its own."""
+    import mujoco
+
+    def model_bytes(model):
+        buffer = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+        mujoco.mj_saveModel(model, None, buffer)
+        return buffer.tobytes()
+
+    adapter = make_adapter(robot)
+    rng = np.random.default_rng(3)
+    every = adapter.catalog_nominal()
+    settings = [every]
+    for effect in adapter.effects().values():
+        drawn = {effect.key(p.name): float(rng.uniform(p.low, p.high)) for p in effect.params}
+        if adapter.structure(drawn) != adapter.structure({}):
+            settings.append({**adapter.catalog_nominal(), **drawn})
+        elif effect.catalogued:
+            every.update(drawn)
+    assert len(settings) >= 2  # a structural effect besides the setting of every catalogued one
+    make = adapter._make_robot if hasattr(adapter, "_make_robot") else adapter._rig
+    for setting in settings:
+        edits = adapter.spec_edits(setting)
+        assert model_bytes(adapter.build(edits)) == model_bytes(make(edits).model), setting

@@ -206,8 +206,11 @@ class Robot(ABC):
                 edit(spec)
         for edit in spec_edits:
             edit(spec)
+        # the spec as it compiles, kept uncompiled: the base of compile_with and the source of model_hash (writing
+        # the MJCF out to hash it takes longer than compiling it, so only a record that asks for the hash pays)
+        self._spec: mujoco.MjSpec | None = spec.copy()
+        self._model_hash: str | None = None
         self.model = spec.compile()
-        self.model_hash = spec_hash(spec)  # a calibration's effects are in the spec: its own hash
         self.sensors: dict[str, slice] = sensor_slices(
             self.model, [self.model.sensor(i).name for i in range(self.model.nsensor)]
         )
@@ -215,6 +218,31 @@ class Robot(ABC):
         self.setup()
         self.parameters = self.build_parameters(self.model)
         self.parameters.remember_nominal(self.model)
+
+    @property
+    def model_hash(self) -> str:
+        """A short content hash of the robot's spec as it compiled (a calibration's effects are in the spec: its own
+        hash)."""
+        if self._model_hash is None:
+            self._model_hash = spec_hash(self._spec)
+        return self._model_hash
+
+    def compile_with(self, edits: Sequence[SpecEdit]) -> mujoco.MjModel:
+        """The robot's model with ``edits`` applied after everything the robot was built with (its configuration,
+        calibration and spec edits), compiled from a copy of its spec: the model a robot built with those edits
+        added would hold, without building one. The robot itself is not changed."""
+        if self._spec is None:
+            raise RuntimeError(f"{self.name}: an unpickled robot does not keep its spec; build the robot anew")
+        spec = self._spec.copy()
+        for edit in edits:
+            edit(spec)
+        return spec.compile()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_model_hash"] = self.model_hash  # an MjSpec does not pickle: the hash travels, the spec does not
+        state["_spec"] = None
+        return state
 
     # --- building (subclasses) ------------------------------------------------------------------------------------
     @classmethod
