@@ -33,6 +33,7 @@ import pandas as pd
 from mujoco import rollout
 
 from envs.common.batch import default_threads
+from envs.common.robot import Robot
 from sysid.effects import Effect, Param
 from sysid.logs import Log, LogError, white_noise
 
@@ -132,6 +133,8 @@ class Adapter(ABC):
     # in the true model's replay (the xJüs: a stumble in one replay and not in the next) records several short runs,
     # each replayed from a body at rest, as a user should log it
     runs: tuple[int, float] | None = None
+
+    nominal_robot: Robot  # the robot as the replay runs it, with no effect (set by the adapter): build's base
 
     def __init__(self) -> None:
         self._models: dict[tuple, mujoco.MjModel] = {}
@@ -245,9 +248,11 @@ class Adapter(ABC):
         """A setting's effects as ``MjSpec`` edits, applied to the nominal spec before it compiles (nothing writes
         a compiled model: what runs is what the spec says, and ``mujoco.rollout`` replays it from ``ctrl``)."""
 
-    @abstractmethod
     def build(self, edits: Sequence[Callable[[mujoco.MjSpec], None]]) -> mujoco.MjModel:
-        """The robot's model compiled with ``edits`` after its own configuration."""
+        """The robot's model compiled with ``edits`` after its own configuration: a copy of the nominal robot's spec
+        (``nominal_robot``, which the adapter builds once) with the edits, compiled (``Robot.compile_with``), byte for
+        byte the model of a robot built with them, without building one."""
+        return self.nominal_robot.compile_with(edits)
 
     @abstractmethod
     def initial_state(

@@ -3,11 +3,20 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import gymnasium as gym
+import mujoco
+import numpy as np
 import pytest
 
 import envs  # noqa: F401  (registers the envs)
 
 ENV_IDS = sorted(env_id for env_id in gym.registry if env_id.startswith("skitter/"))
+
+
+def model_bytes(model: mujoco.MjModel) -> bytes:
+    """A compiled model as MuJoCo saves it: two models are the same model when these bytes are equal."""
+    buffer = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -27,6 +27,7 @@ from sysid.problem import Problem, Residual, total_objective
 from sysid.report import report_markdown
 from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE
+from tests.conftest import model_bytes
 
 
 def test_robust_objective_is_least_squares_in_the_noise_and_linear_far_out():
@@ -745,13 +746,6 @@ def test_a_settings_model_is_the_model_of_a_robot_built_with_its_edits(robot):
     """Each adapter compiles a setting's model from a copy of its nominal robot's spec (Robot.compile_with), not by
     building a robot: byte for byte the model a robot built with the setting's edits holds, for every catalogued
     effect at once at a random value and for each structural effect (backlash, bump, disturbance) on its own."""
-    import mujoco
-
-    def model_bytes(model):
-        buffer = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
-        mujoco.mj_saveModel(model, None, buffer)
-        return buffer.tobytes()
-
     adapter = make_adapter(robot)
     rng = np.random.default_rng(3)
     every = adapter.catalog_nominal()

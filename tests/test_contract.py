@@ -7,7 +7,7 @@ import pytest
 
 from envs.bench.robot import MotorRig, ServoRig
 from envs.common.simulation import CTRL_SPEC, STATE_SPEC
-from tests.conftest import ENV_IDS
+from tests.conftest import ENV_IDS, model_bytes
 
 
 def _robots_of_registered_envs() -> dict:
@@ -143,22 +143,16 @@ def test_an_episode_replays_exactly_from_its_controls_through_mujoco_rollout(env
     np.testing.assert_array_equal(replayed, np.array(qpos))
 
 
-def _model_bytes(model: mujoco.MjModel) -> bytes:
-    buffer = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
-    mujoco.mj_saveModel(model, None, buffer)
-    return buffer.tobytes()
-
-
 def test_compile_with_compiles_a_copy_of_the_robots_own_spec(robot):
     """With no edits, the model the robot holds, byte for byte; an edit lands in the copy only (the robot's kept
     spec is not edited); a pickled robot keeps its model hash but not its spec, and says so."""
     import pickle
 
-    assert _model_bytes(robot.compile_with([])) == _model_bytes(robot.model)
+    assert model_bytes(robot.compile_with([])) == model_bytes(robot.model)
     light = robot.compile_with([lambda spec: setattr(spec.option, "gravity", [0.0, 0.0, -1.0])])
     assert light.opt.gravity.tolist() == [0.0, 0.0, -1.0]
     assert robot.model.opt.gravity[2] == pytest.approx(-9.81)
-    assert _model_bytes(robot.compile_with([])) == _model_bytes(robot.model)
+    assert model_bytes(robot.compile_with([])) == model_bytes(robot.model)
     back = pickle.loads(pickle.dumps(robot))
     assert back.model_hash == robot.model_hash and len(robot.model_hash) == 16
     with pytest.raises(RuntimeError, match="does not keep its spec"):

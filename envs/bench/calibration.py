@@ -92,7 +92,7 @@ class RigAdapter(Adapter):
     def __init__(self, load_inertia: float | None = None) -> None:
         super().__init__()
         self.load_inertia = load_inertia
-        rig = self._base = self._rig()  # build's base: each setting's model compiles from its spec
+        rig = self.nominal_robot = self._rig()
         self._h = float(rig.model.opt.timestep)
         self._load_inertia = float(rig.model.body_inertia[rig.model.body("load").id, 2])
         self._dof = int(rig.model.joint(JOINT).dofadr[0])
@@ -126,9 +126,6 @@ class RigAdapter(Adapter):
                 setting, lambda gap: add_backlash(gap, 0.01 * self._load_inertia), disturbance=add_disturbance
             ),
         ]
-
-    def build(self, edits) -> mujoco.MjModel:
-        return self._base.compile_with(edits)  # the model _rig(edits) would hold
 
     def _shaft(self, model: mujoco.MjModel, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Angle and speed of the load (driven shaft plus play)."""

@@ -208,7 +208,7 @@ class BioloidAdapter(Adapter):
         from envs.bioloid.robot import Bioloid
 
         self._robot_class = Bioloid
-        robot = self._robot = self._make_robot(())  # build's base: each setting's model compiles from its spec
+        robot = self.nominal_robot = self._make_robot(())
         m = robot.model
         self._h = float(m.opt.timestep)
         self._servo = robot.servo.constants
@@ -265,9 +265,6 @@ class BioloidAdapter(Adapter):
         if abs(volts - NOMINAL_SUPPLY) < 1e-9:
             return (), []
         return (volts,), [supply_edit(volts)]
-
-    def build(self, edits) -> mujoco.MjModel:
-        return self._robot.compile_with(edits)  # the model _make_robot(edits) would hold
 
     def _addresses(self, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, int]:
         """The servos' qpos and dof addresses and the root's qpos address in ``model`` (an effect may add joints)."""

@@ -229,7 +229,7 @@ class RoachAdapter(Adapter):
         from envs.velociroach.robot import VelociRoach
 
         self._robot_class = VelociRoach
-        robot = self._robot = self._make_robot(())  # build's base: each setting's model compiles from its spec
+        robot = self.nominal_robot = self._make_robot(())
         self._nominal_gains = robot.model.actuator_gainprm.copy()
         self._h = float(robot.model.opt.timestep)
         self._linkage = robot._linkage
@@ -296,9 +296,6 @@ class RoachAdapter(Adapter):
     # --- replay -----------------------------------------------------------------------------------------------------
     def spec_edits(self, setting: Setting) -> list:
         return [effects_edit(setting), *self.structural_edits(setting, bump=add_bump, disturbance=add_disturbance)]
-
-    def build(self, edits) -> mujoco.MjModel:
-        return self._robot.compile_with(edits)  # the model _make_robot(edits) would hold
 
     def segment_edits(self, segment: Segment, setting: Setting) -> tuple[tuple, list]:
         """The firmware's gains for the segment's battery voltage and duty clip (after the setting's edits, which

@@ -262,7 +262,7 @@ class XjusAdapter(Adapter):
         from envs.xjus.robot import Xjus
 
         self._robot_class = Xjus
-        robot = self._robot = self._make_robot(())  # build's base: each setting's model compiles from its spec
+        robot = self.nominal_robot = self._make_robot(())
         m = robot.model
         self._h = float(m.opt.timestep)
         self._constants = robot.constants
@@ -322,9 +322,6 @@ class XjusAdapter(Adapter):
     # --- replay -----------------------------------------------------------------------------------------------------
     def spec_edits(self, setting: Setting) -> list:
         return [effects_edit(setting), *self.structural_edits(setting, add_backlash, add_bump, add_disturbance)]
-
-    def build(self, edits) -> mujoco.MjModel:
-        return self._robot.compile_with(edits)  # the model _make_robot(edits) would hold
 
     def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
         """The measured hip angles and speeds; the body carried over, or standing level at rest on the first
