@@ -45,6 +45,7 @@ from sysid.robots import adapters
 COVERAGE = {"motor": ["viscous_friction", "delay"], "servo": ["delay", "servo_gain"],
             "roach": ["viscous_friction_left"], "xjus": ["viscous_friction_left"],
             "bioloid": ["servo_gain"]}  # fmt: skip
+PAIR_SEED = 500  # pair k of a robot: its two effects and their values drawn with seed PAIR_SEED + k
 OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"],
                   "xjus": ["disturbance", "terrain_bump"], "bioloid": ["disturbance", "terrain_bump"]}  # fmt: skip
 
@@ -66,7 +67,8 @@ def run_job(job: Job) -> tuple[dict, str]:
         row = _weak(robot, name)
         return row, (f"{robot:6s} weak     {name:28s} nominal error at the range's far end "
                      f"{row['nominal_error']:.2f}")  # fmt: skip
-    case, error = _safe_case(robot, {} if kind == "null" else {name: None}, seed)
+    effects = {} if kind == "null" else dict.fromkeys(name.split("+")) if kind == "pairs" else {name: None}
+    case, error = _safe_case(robot, effects, seed)
     tag = f"{robot:6s} {kind:8s} {name or '-':28s} seed {seed:3d}"
     if case is None:
         return {"robot": robot, "effect": name, "seed": seed, "error": error}, f"{tag} could not be generated: {error}"
@@ -130,7 +132,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="these coverage seeds instead (to rerun a few)")  # fmt: skip
     p.add_argument("--minutes", type=float, default=45.0, help="no case starts after this budget")
     p.add_argument("--kinds", nargs="+", default=["effect", "weak", "null", "ooc", "coverage"],
-                   choices=["effect", "weak", "null", "ooc", "coverage"], help="which cases to run")  # fmt: skip
+                   choices=["effect", "weak", "null", "ooc", "coverage", "pairs"],
+                   help="which cases to run (pairs: two effects at once, not in the default matrix)")  # fmt: skip
+    p.add_argument("--pairs", type=int, default=6, help="pairs of effects per robot (kind pairs)")
     p.add_argument("--effects", nargs="+", help="only these effects (default: every catalogued one)")
     p.add_argument("--draw", type=int, default=0, help="the effect cases' draw: effect k of a catalog takes seed "
                    "1000 DRAW + k + 1 (default 0: the seeds reported in docs/calibration.md); another draw checks "
@@ -141,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
                    "locally, 1 on a cluster)")  # fmt: skip
     p.add_argument("--address", help="a running Ray cluster (HEAD:PORT) to run the cases on")
     args = p.parse_args(argv)
-    for flag in ("workers", "threads", "seeds"):
+    for flag in ("workers", "threads", "seeds", "pairs"):
         value = getattr(args, flag)
         if value is not None and value < 1:
             p.error(f"--{flag} {value}: expected at least 1")
@@ -174,7 +178,10 @@ def main(argv: list[str] | None = None) -> int:
         plan += [("ooc", robot, name, 3) for name in OUT_OF_CATALOG.get(robot, [])]
         seeds = args.coverage_seeds or [100 + s for s in range(args.seeds)]
         plan += [("coverage", robot, name, s) for name in COVERAGE.get(robot, []) for s in seeds]
-    plan = [c for c in plan if c[0] in args.kinds and (args.effects is None or c[0] == "null" or c[2] in args.effects)]
+        plan += [("pairs", robot, "+".join(pair), PAIR_SEED + k)
+                 for k, pair in enumerate(pairs(adapter, observable, args.pairs))]  # fmt: skip
+    plan = [c for c in plan if c[0] in args.kinds
+            and (args.effects is None or c[0] == "null" or set(c[2].split("+")) <= set(args.effects))]  # fmt: skip
     parallel = args.workers > 1 or args.address
     results = _on_ray(plan, left, args.workers, threads, args.address) if parallel else _serial(plan, left)
     done: dict[Job, dict] = {}
@@ -195,16 +202,27 @@ def main(argv: list[str] | None = None) -> int:
 WEAK_SEEDS = (0, 1, 2)
 
 
+def pairs(adapter, observable: list[str], count: int) -> list[tuple[str, str]]:
+    """``count`` pairs of a robot's observable effects from two different alias groups (the data could not tell
+    two of one group apart), drawn with seed PAIR_SEED: every pair once before any repeats, in a seeded order."""
+    effects = adapter.effects()
+    every = [(a, b) for i, a in enumerate(observable) for b in observable[i + 1 :]
+             if effects[a].alias != effects[b].alias]  # fmt: skip
+    order = np.random.default_rng(PAIR_SEED).permutation(len(every))
+    return [every[int(k)] for k in order[:count]]
+
+
 def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_run: list[Job], partial=False,
            workers: int = 1, threads: int | None = None) -> None:  # fmt: skip
     """Write the matrix's results (benchmarks/results/<name>.md and .json): every case run so far, in the plan's
     order, and the cases not run (``partial``: still to come, in a run under way or cut short)."""
-    rows, null_rows, ooc_rows, coverage_rows, weak_rows = [], [], [], [], []
+    rows, null_rows, ooc_rows, coverage_rows, weak_rows, pair_rows = [], [], [], [], [], []
     for job in plan:
         if job in done:
             {"effect": rows, "null": null_rows, "ooc": ooc_rows, "coverage": coverage_rows,
-             "weak": weak_rows}[job[0]].append(done[job])  # fmt: skip
+             "weak": weak_rows, "pairs": pair_rows}[job[0]].append(done[job])  # fmt: skip
     not_run = [f"{k} {r} {n or ''} seed {s}" for k, r, n, s in not_run]
+    pair_section = _pairs_section(args, pair_rows)
     state = "**partial: the run was still going or was cut short**; " if partial else ""
     how = f" ({workers} cases at a time, {threads} rollout threads each)" if workers > 1 else ""
     md = [f"# Calibration matrix\n\n{state}{minutes:.1f} min on this machine{how}; budget {args.minutes:g} min.\n"]
@@ -264,14 +282,49 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
     md.append(md_table(["robot", "effect", "cases run", "effect picked", "interval covers truth", "coverage",
                         "goal"], cov_table))  # fmt: skip
     md.append("\n(coverage counts a case whose first pick was another effect as not covered)\n")
+    md += pair_section
     if not_run:
         title = "Not run yet" if partial else "Not run within the budget"
         md.append(f"\n## {title} ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
         md.append("\n")
     save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "workers": workers, "threads": threads,
                      "effects": rows, "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
-                     "weak": weak_rows, "partial": partial, "not_run": not_run},
+                     "weak": weak_rows, "pairs": pair_rows, "partial": partial, "not_run": not_run},
          "".join(md), echo=not partial)  # fmt: skip
+
+
+def _pairs_section(args, pair_rows: list[dict]) -> list[str]:
+    """The two-effect cases: is an effect kept from each injected effect's alias group and nothing else, is each
+    injected effect's value recovered and covered where it was the one kept, does the held-out excess halve."""
+    if not pair_rows:
+        return []
+    md = ["\n## Two effects at once (`--kinds pairs`: two effects of different alias groups, drawn with seed "
+          f"{PAIR_SEED} + k)\n\n"]  # fmt: skip
+    table = []
+    for r in pair_rows:
+        if "error" in r:
+            table.append([r["robot"], r["seed"], r["effect"], "not generated: " + r["error"], *[""] * 8])
+            continue
+        truth = "; ".join(f"{n} {' '.join(f'{v:.3g}' for v in vals.values())}" for n, vals in r["injected"].items())
+        found = [f for f in r["found"].values()]
+        estimates = "; ".join(
+            f"{n} " + ", ".join(f"{got:.3g} {format_interval(got, *f['intervals'][k])}"
+                                for k, (_, got, _) in f["values"].items())
+            for n, f in r["found"].items() if f["values"]
+        )  # fmt: skip
+        table.append([r["robot"], r["seed"], truth, ", ".join(r["chosen"]) or "none", _yn(r["all_found"]),
+                      estimates or "-", _yn(all(f["recovered"] for f in found)),
+                      _yn(all(all(f["covered"].values()) and f["covered"] for f in found)), r["error_before"],
+                      r["error_after"], _yn(r["halved"]), round(r["seconds"])])  # fmt: skip
+    md.append(md_table(["robot", "seed", "truth", "chosen", "both found, nothing else", "estimates +- 95%",
+                        "both recovered", "both covered", "before", "after", "halved", "s"], table))  # fmt: skip
+    for robot in args.robots:
+        mine = [r for r in pair_rows if r["robot"] == robot and "error" not in r]
+        if mine:
+            md.append(f"\n{robot}: both found and nothing else in {sum(r['all_found'] for r in mine)}/{len(mine)}, "
+                      f"both recovered in {sum(all(f['recovered'] for f in r['found'].values()) for r in mine)}/"
+                      f"{len(mine)}, excess halved in {sum(r['halved'] for r in mine)}/{len(mine)}.\n")  # fmt: skip
+    return md
 
 
 def _weak(robot: str, name: str) -> dict:

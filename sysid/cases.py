@@ -36,10 +36,19 @@ class Case:
     values: dict[str, tuple[float, float, float]]  # parameter -> (truth, estimate, half-width: the larger side)
     intervals: dict[str, tuple[float, float]]  # parameter -> the 95% interval (low, high)
     excess_ratio: float  # held-out excess over the noise floor, after / before
+    # every injected effect (several at once, ``found``): the effect kept from its alias group (None: none), and,
+    # where that is the effect itself, whether each parameter is recovered and covered as above
+    found: dict[str, dict[str, Any]] = field(default_factory=dict)
+    spurious: list[str] = field(default_factory=list)  # effects kept from no injected effect's alias group
 
     @property
     def halved(self) -> bool:
         return self.excess_ratio <= 0.5
+
+    @property
+    def all_found(self) -> bool:
+        """Every injected effect's alias group has an effect kept, and nothing else is kept."""
+        return all(f["chosen"] is not None for f in self.found.values()) and not self.spurious
 
     def row(self) -> dict[str, Any]:
         return {
@@ -52,6 +61,7 @@ class Case:
             "unexplained": self.result.unexplained, "threshold": self.result.threshold, "seconds": self.seconds,
             # why each refused effect was refused: which cases a change to a test can move, read without a rerun
             "rejected": [dict(r) for r in self.result.outcome.rejected],
+            "found": self.found, "spurious": self.spurious, "all_found": self.all_found,
         }  # fmt: skip
 
 
@@ -87,19 +97,37 @@ def run_case(
     first = chosen[0] if chosen else None
     catalog = adapter.effects()
     in_group, recovered, covered, values, intervals = False, False, {}, {}, {}
-    if len(truth["effects"]) == 1 and first is not None:
-        (name, true_values), = truth["effects"].items()  # fmt: skip
+    found = {}
+    for name, true_values in truth["effects"].items():
         injected = catalog[name]
-        in_group = first.effect.alias == injected.alias
-        if first.effect.name == name:
-            recovered = True
-            for p in injected.params:
-                key = injected.key(p.name)
-                true, got, half = true_values[p.name], first.values[key], first.ci95[key]
-                low, high = first.bounds95[key]
-                values[p.name], intervals[p.name] = (true, got, half), (low, high)
-                covered[p.name] = low <= true <= high
-                recovered &= abs(got - true) <= max(2 * half, 0.05 * p.span)
+        kept = next((c for c in chosen if c.effect.alias == injected.alias), None)
+        judged = _judge(kept, name, injected, true_values)
+        found[name] = {"chosen": kept.effect.name if kept else None, **judged}
+        if len(truth["effects"]) == 1 and first is not None:
+            in_group = first.effect.alias == injected.alias
+            if first.effect.name == name:
+                recovered, covered = judged["recovered"], judged["covered"]
+                values, intervals = judged["values"], judged["intervals"]
+    groups = {catalog[name].alias for name in truth["effects"]}
+    spurious = [c.effect.name for c in chosen if c.effect.alias not in groups]
     return Case(robot, truth["effects"], seed, truth["nominal_error"], result, time.perf_counter() - start,
                 first.effect.name if first else None, in_group, recovered, covered, values, intervals,
-                relative_excess(result.before.error, result.after.error))  # fmt: skip
+                relative_excess(result.before.error, result.after.error), found, spurious)  # fmt: skip
+
+
+def _judge(kept, name: str, injected, true_values: Mapping[str, float]) -> dict[str, Any]:
+    """An injected effect against the choice kept from its alias group: if that is the effect itself, whether each
+    parameter is recovered (within max(2 x half-width, 5% of its range)) and covered by its 95% interval."""
+    out: dict[str, Any] = {"recovered": False, "covered": {}, "values": {}, "intervals": {}}
+    if kept is None or kept.effect.name != name:
+        return out
+    recovered = True
+    for p in injected.params:
+        key = injected.key(p.name)
+        true, got, half = true_values[p.name], kept.values[key], kept.ci95[key]
+        low, high = kept.bounds95[key]
+        out["values"][p.name], out["intervals"][p.name] = (true, got, half), (low, high)
+        out["covered"][p.name] = bool(low <= true <= high)
+        recovered &= bool(abs(got - true) <= max(2 * half, 0.05 * p.span))
+    out["recovered"] = recovered
+    return out

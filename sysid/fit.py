@@ -32,6 +32,8 @@ FD_STEP = 1e-3  # finite-difference step in normalized coordinates (an adapter m
 GRID_POINTS = 9
 CMA_EVALS = 120  # cost evaluations of a derivative-free fit (the second, re-anchored pass gets half)
 XTOL = 1e-6  # stop when a step moves the parameters by less than this (relative, in normalized coordinates)
+ALTERNATIONS = 4  # turns of a fit of non-smooth and smooth parameters together (grid, then least squares)
+ALTERNATION_GAIN = 0.01  # another turn only while the last lowered the cost by more than this share
 MU_FACTOR = 10**0.5  # the regularizer's growth after a failed step (mujoco.minimize's default 10^0.1 takes many)
 
 
@@ -91,8 +93,10 @@ def fit(
     local: bool | str = False,
     intervals: bool = True,
 ) -> FitResult:
-    """Fit ``params`` (flat name -> Param) from ``base``: smooth ones by least squares, then non-smooth ones by grid
-    and CMA-ES with the smooth ones refitted at the best grid point.
+    """Fit ``params`` (flat name -> Param) from ``base``: non-smooth ones by grid and CMA-ES, then smooth ones by
+    least squares at the best grid point; where there are both, in turn while a turn lowers the cost by more than
+    ALTERNATION_GAIN (at most ALTERNATIONS turns). Where the cost is rough (``Adapter.rough_cost``), all of them
+    without derivatives.
 
     ``local``: ``start`` is near the optimum (a refit on part of the data): non-smooth and derivative-free searches
     stay near it; ``"fine"``: very near (a refit on all the data of a fit on part of it), a window of a sixteenth
@@ -104,12 +108,22 @@ def fit(
     if problem.adapter.rough_cost:
         result = _derivative_free(problem, setting, dict(params), segments, local)
     else:
-        if rough:
-            setting = _grid_search(problem, setting, rough, smooth, segments, local)
-        if smooth:
-            result = _least_squares(problem, setting, smooth, segments, max_iter)
-        else:
-            result = evaluate(problem, setting, segments)
+        result = None
+        for _ in range(ALTERNATIONS if rough and smooth else 1):
+            # non-smooth parameters on a grid with the smooth ones held, then the smooth ones by least squares at
+            # the grid's best point; where both kinds are fitted, in turn until the cost stops falling (a servo's
+            # supply and backlash, each fitted with the other held at a value the other had pushed it to)
+            if rough:
+                setting = _grid_search(problem, setting, rough, smooth, segments, local or result is not None)
+            step = (
+                _least_squares(problem, setting, smooth, segments, max_iter)
+                if smooth
+                else evaluate(problem, setting, segments)
+            )
+            if result is not None and step.objective >= (1.0 - ALTERNATION_GAIN) * result.objective:
+                result = step if step.objective < result.objective else result
+                break
+            result, setting = step, dict(step.values)
     if intervals:
         set_intervals(result, fit_intervals(problem, result, params, segments))
     return result

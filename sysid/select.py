@@ -14,7 +14,9 @@ and stop when nothing helps.
    predicted by a fit on the others) beats a paired bootstrap interval over segments, and the data identify every
    parameter (a 95% interval narrower than half the parameter's range, the value off the range's ends).
    Otherwise record why, and try the next candidate. If no single effect earns its place, chains of two or three
-   effects that may help only together are grown by the score statistic at each step's fit (``_chains``).
+   effects that may help only together are grown by the score statistic at each step's fit (``_chains``); a chain
+   whose joint fit leaves members at nominal is tried again without them. A kept effect is refitted on every
+   segment jointly with the effects kept before it (backfitting: their values had taken up part of its effect).
 4. Effects of an alias group that already has a member are not offered again: the data cannot tell them apart.
 5. Stop when nothing is kept or the training residual reaches the noise floor.
 """
@@ -262,11 +264,18 @@ def calibrate(
             _, group_effects, entries, trial = chosen_group
             label = " + ".join(e.name for e in group_effects)
             params = {k: p for e in group_effects for k, p in _params(e).items()}
-            if on_all:  # the fit already saw every segment
+            # the effects kept before were fitted without this one, and their values took up some of its part (a
+            # servo's gain fitted before its delay was known comes out low): they are refitted with it, jointly
+            # (backfitting), so that a later round does not keep a third effect to mend the bias of the first
+            earlier = {k: p for c in outcome.chosen for k, p in _params(c.effect).items()}
+            if on_all and not earlier:  # the fit already saw every segment
                 refit = trial
             else:
-                refit = fit(whole, current, {**params, **nuisance}, None, start=trial.values, local="fine")
+                refit = fit(whole, current, {**earlier, **params, **nuisance}, None, start=trial.values, local="fine")
             current = refit.values
+            for choice in outcome.chosen:  # their values and intervals as the joint fit has them
+                choice.values = {k: current[k] for k in _params(choice.effect)}
+                choice.bounds95 = _bounds(refit, choice.effect)
             outcome.training_errors.append(refit.error)
             floor_moved = adapter.replay_floor and refit.error > NOISE_FLOOR
             if floor_moved:  # the loop goes on: from this model's floor
@@ -425,6 +434,7 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
     ``beam`` best of each length (by training cost) grow on, up to CHAIN_DEPTH effects. The first chain that earns
     its place is returned as (BIC change, effects, ranking entries, fit)."""
     seeds, width, beam = problem.adapter.chain_search
+    tried: set[frozenset[str]] = set()  # a joint fit is of a set of effects: one met in another order is not refitted
     for _, seed, seed_entry, seed_trial in sorted(singles, key=lambda x: x[0])[:seeds]:
         frontier = [([seed], [seed_entry], seed_trial)]
         for _length in range(2, CHAIN_DEPTH + 1):
@@ -437,10 +447,26 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
                 ranking = [e for e in score(problem, trial.values, rest, fitting) if e["p_value"] <= 0.05]
                 for entry in ranking[:width]:
                     effects = [*chain, candidates[entry["effect"]]]
+                    if frozenset(e.name for e in effects) in tried:
+                        continue
+                    tried.add(frozenset(e.name for e in effects))
                     say(f"trying together: {' + '.join(e.name for e in effects)}")
                     verdict, fitted, bic = attempt(effects, {**trial.values, **entry["start"]})
                     if verdict is None:
                         return bic, effects, [*entries, entry], fitted
+                    # a chain whose joint fit leaves some of its members at nominal (their intervals hold it) says
+                    # the others may be at work without them: the chain without them is fitted from there (the
+                    # seed of a chain is only the single that fitted best, and may be the member the data reject)
+                    idle = _unidentified(effects, fitted) if verdict.startswith("not told from nominal") else []
+                    rest_chain = [(e, en) for e, en in zip(effects, [*entries, entry], strict=True) if e not in idle]
+                    if idle and len(rest_chain) >= 2 and frozenset(e.name for e, _ in rest_chain) not in tried:
+                        tried.add(frozenset(e.name for e, _ in rest_chain))
+                        pruned = [e for e, _ in rest_chain]
+                        say(f"trying together: {' + '.join(e.name for e in pruned)} (without "
+                            f"{', '.join(e.name for e in idle)}, which the joint fit left at nominal)")  # fmt: skip
+                        verdict, refitted, bic = attempt(pruned, fitted.values)
+                        if verdict is None:
+                            return bic, pruned, [en for _, en in rest_chain], refitted
                     grown.append((effects, [*entries, entry], fitted))
             frontier = sorted(grown, key=lambda x: x[2].cost)[:beam]
             if not frontier:
@@ -527,14 +553,25 @@ def _identified(
                     f"{k} {value:.3g} [{low:.3g}, {high:.3g}] {p.unit}: within one standard error of the "
                     f"end of its range ({bound:g}), the data would take it further: something else is at work"
                 )
+    for e in _unidentified(effects, trial)[:1]:
+        own = _params(e)
+        bounds = {k: trial.bounds95[k] for k in own}
+        shown = ", ".join(f"{k} {trial.values[k]:.3g} [{bounds[k][0]:.3g}, {bounds[k][1]:.3g}] (nominal "
+                          f"{p.nominal:.3g})" for k, p in own.items())  # fmt: skip
+        return f"not told from nominal: {shown}"
+    return None
+
+
+def _unidentified(effects: Sequence[Effect], trial: FitResult) -> list[Effect]:
+    """The effects of a fit that its 95% intervals cannot tell from nominal (every parameter's interval holds its
+    nominal value): no evidence that they are there. Empty where the fit has no intervals yet."""
+    out = []
     for e in effects:
         own = _params(e)
-        bounds = {k: trial.bounds95.get(k, nowhere) for k in own}
-        if all(low <= p.nominal <= high for k, p in own.items() for low, high in [bounds[k]]):
-            shown = ", ".join(f"{k} {trial.values[k]:.3g} [{bounds[k][0]:.3g}, {bounds[k][1]:.3g}] (nominal "
-                              f"{p.nominal:.3g})" for k, p in own.items())  # fmt: skip
-            return f"not told from nominal: {shown}"
-    return None
+        if all(k in trial.bounds95 and trial.bounds95[k][0] <= p.nominal <= trial.bounds95[k][1]
+               for k, p in own.items()):  # fmt: skip
+            out.append(e)
+    return out
 
 
 def _held_out_test(

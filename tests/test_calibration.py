@@ -214,6 +214,47 @@ def test_servo_recovers_a_drawn_delay():
     _check_recovery("servo", "delay", seed=12)
 
 
+def _check_pair(robot: str, effects: dict, seed: int) -> Case:
+    """Two hidden effects at once: an effect kept from each one's alias group and nothing else, each injected effect
+    that was kept recovered with its interval covering the truth, the held-out residual explained."""
+    case = run_case(robot, effects, seed)
+    chosen = [c.effect.name for c in case.result.outcome.chosen]
+    assert case.all_found, (chosen, case.found, case.result.outcome.rejected)
+    for name, found in case.found.items():
+        if found["chosen"] == name:
+            assert found["recovered"] and all(found["covered"].values()), (name, found)
+    assert not case.result.unexplained, (case.result.before.error, case.result.after.error)
+    return case
+
+
+def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_second():
+    """Stop 41: the motor's viscous friction was kept first and fitted without the delay, 3.8% high; a third
+    effect (a torque constant 1.04) was then kept to make up for it. The effects kept before are now refitted
+    jointly with each new one (backfitting): two effects, both values inside their intervals, nothing else."""
+    case = _check_pair("motor", {"delay": None, "viscous_friction": None}, seed=1)
+    assert len(case.result.outcome.chosen) == 2
+
+
+@pytest.mark.slow
+def test_a_chain_left_partly_at_nominal_is_tried_without_those_members():
+    """Stop 41: a large Coulomb friction and a low back-EMF constant (which pull the top speed opposite ways): no
+    single effect earns its place, and the chain grown from the best single (the torque constant) fitted it back to
+    nominal with the two true effects beside it, and was refused as a whole. The chain without the member the
+    joint fit leaves at nominal is now tried, and kept. (About 2 min; the matrix's pairs run more: --kinds pairs.)"""
+    _check_pair("motor", {"coulomb_friction": None, "back_emf_constant": None}, seed=2)
+
+
+def test_the_motors_torque_constant_below_nominal_is_one_effect_with_a_rotor_inertia():
+    """On the motor rig the torque constant scales the drive and the back-EMF brake alike, and the shaft has no
+    friction of its own: a torque constant s moves the load as an inertia 1/s does. Stop 41 found a torque constant
+    of 0.45 fitted as an armature (to the noise floor); the catalog now puts the armature in the torque constant's
+    alias group on this robot, as it says of a load's inertia."""
+    effects = make_adapter("motor").effects()
+    assert effects["armature"].alias == effects["torque_constant"].alias
+    case = run_case("motor", {"torque_constant": 0.45}, seed=3)
+    assert case.first_in_alias_group and case.halved, (case.first, case.excess_ratio)
+
+
 def _evaluate(tmp_path, name: str, calibration: str | None) -> dict[str, float]:
     out = tmp_path / name
     argv = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "2", "--out", str(out),

@@ -174,8 +174,15 @@ class MotorAdapter(RigAdapter):
         # ranges of the same order as the motor's own: stall 2.17 N m, back-EMF damping 0.073 N m s/rad
         # wide enough to take the seed's model to another gearmotor of its kind (the RHex3 log's runs at half its
         # no-load speed)
+        shaft = {e.name: e for e in self.shaft_effects(friction=0.4, damping=0.2, armature=0.01)}
+        # the drive and the back-EMF brake both scale with the torque constant (controls), and the shaft has no
+        # friction of its own: a torque constant s times the nominal moves the load as an inertia 1/s times it does,
+        # exactly. Below nominal, the torque constant and the rotor's added inertia are one effect on these channels
+        # (stop 41: a torque constant of 0.45 was fitted as an armature of 0.0012 kg m^2, to the noise floor)
+        shaft["armature"] = replace(shaft["armature"], alias=E.GROUP_DRIVE)
+        shaft["delay"] = replace(shaft["delay"], alias="lag: delay")
         out = [
-            *self.shaft_effects(friction=0.4, damping=0.2, armature=0.01),
+            *shaft.values(),
             E.make("deadband", duty=(0.0, 0.0, 0.2)),
             E.make("torque_constant", scale=(1.0, 0.3, 3.0)),
             E.make("back_emf_constant", scale=(1.0, 0.3, 3.0)),
