@@ -281,7 +281,7 @@ def calibrate(
             if floor_moved:  # the loop goes on: from this model's floor
                 problem.set_floor(current)  # the whole problem's, which a decision problem adopts
                 outcome.training_errors[-1] = evaluate(whole, current).error
-            before = trial if on_all and not floor_moved else evaluate(problem, current, fitting)
+            before = refit if on_all and not floor_moved else evaluate(problem, current, fitting)
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
                     Choice(effect, {k: current[k] for k in _params(effect)}, _bounds(refit, effect), entry["score"],
