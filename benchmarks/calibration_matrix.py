@@ -12,6 +12,10 @@ the declaration held to the data. Then, per robot, the null case (noise only: no
 out-of-catalog cases (a periodic disturbance torque, and for the roach a terrain bump: the report should say
 "unexplained"), and the coverage of the reported 95% intervals over SEEDS seeds for a few effects (goal: >= 80%).
 
+Not in the default matrix (``--kinds pairs``, ``--pairs N``): cases with two hidden effects of different alias
+groups at once, drawn with seed PAIR_SEED + k: is an effect kept from each one's group and nothing else, is each
+recovered where it was the one kept, does the held-out excess halve.
+
 Every case that ran is reported; a budget (``--minutes``, default 45) stops new cases from starting, and the cases
 left out are listed as not run, never counted as passes.
 
