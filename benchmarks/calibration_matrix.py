@@ -310,7 +310,7 @@ def _pairs_section(args, pair_rows: list[dict]) -> list[str]:
             table.append([r["robot"], r["seed"], r["effect"], "not generated: " + r["error"], *[""] * 8])
             continue
         truth = "; ".join(f"{n} {' '.join(f'{v:.3g}' for v in vals.values())}" for n, vals in r["injected"].items())
-        found = [f for f in r["found"].values()]
+        found = list(r["found"].values())
         estimates = "; ".join(
             f"{n} " + ", ".join(f"{got:.3g} {format_interval(got, *f['intervals'][k])}"
                                 for k, (_, got, _) in f["values"].items())

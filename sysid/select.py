@@ -435,6 +435,14 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
     its place is returned as (BIC change, effects, ranking entries, fit)."""
     seeds, width, beam = problem.adapter.chain_search
     tried: set[frozenset[str]] = set()  # a joint fit is of a set of effects: one met in another order is not refitted
+
+    def first_time(effects: Sequence[Effect]) -> bool:
+        """Whether this set of effects is met for the first time (it is then marked as tried)."""
+        key = frozenset(e.name for e in effects)
+        new = key not in tried
+        tried.add(key)
+        return new
+
     for _, seed, seed_entry, seed_trial in sorted(singles, key=lambda x: x[0])[:seeds]:
         frontier = [([seed], [seed_entry], seed_trial)]
         for _length in range(2, CHAIN_DEPTH + 1):
@@ -446,28 +454,26 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
                     continue
                 ranking = [e for e in score(problem, trial.values, rest, fitting) if e["p_value"] <= 0.05]
                 for entry in ranking[:width]:
-                    effects = [*chain, candidates[entry["effect"]]]
-                    if frozenset(e.name for e in effects) in tried:
+                    effects, chain_entries = [*chain, candidates[entry["effect"]]], [*entries, entry]
+                    if not first_time(effects):
                         continue
-                    tried.add(frozenset(e.name for e in effects))
                     say(f"trying together: {' + '.join(e.name for e in effects)}")
                     verdict, fitted, bic = attempt(effects, {**trial.values, **entry["start"]})
                     if verdict is None:
-                        return bic, effects, [*entries, entry], fitted
+                        return bic, effects, chain_entries, fitted
                     # a chain whose joint fit leaves some of its members at nominal (their intervals hold it) says
                     # the others may be at work without them: the chain without them is fitted from there (the
                     # seed of a chain is only the single that fitted best, and may be the member the data reject)
                     idle = _unidentified(effects, fitted) if verdict.startswith("not told from nominal") else []
-                    rest_chain = [(e, en) for e, en in zip(effects, [*entries, entry], strict=True) if e not in idle]
-                    if idle and len(rest_chain) >= 2 and frozenset(e.name for e, _ in rest_chain) not in tried:
-                        tried.add(frozenset(e.name for e, _ in rest_chain))
-                        pruned = [e for e, _ in rest_chain]
+                    kept = [(e, en) for e, en in zip(effects, chain_entries, strict=True) if e not in idle]
+                    if idle and len(kept) >= 2 and first_time([e for e, _ in kept]):
+                        pruned = [e for e, _ in kept]
                         say(f"trying together: {' + '.join(e.name for e in pruned)} (without "
                             f"{', '.join(e.name for e in idle)}, which the joint fit left at nominal)")  # fmt: skip
                         verdict, refitted, bic = attempt(pruned, fitted.values)
                         if verdict is None:
-                            return bic, pruned, [en for _, en in rest_chain], refitted
-                    grown.append((effects, [*entries, entry], fitted))
+                            return bic, pruned, [en for _, en in kept], refitted
+                    grown.append((effects, chain_entries, fitted))
             frontier = sorted(grown, key=lambda x: x[2].cost)[:beam]
             if not frontier:
                 break
@@ -553,13 +559,13 @@ def _identified(
                     f"{k} {value:.3g} [{low:.3g}, {high:.3g}] {p.unit}: within one standard error of the "
                     f"end of its range ({bound:g}), the data would take it further: something else is at work"
                 )
-    for e in _unidentified(effects, trial)[:1]:
-        own = _params(e)
-        bounds = {k: trial.bounds95[k] for k in own}
-        shown = ", ".join(f"{k} {trial.values[k]:.3g} [{bounds[k][0]:.3g}, {bounds[k][1]:.3g}] (nominal "
-                          f"{p.nominal:.3g})" for k, p in own.items())  # fmt: skip
-        return f"not told from nominal: {shown}"
-    return None
+    idle = _unidentified(effects, trial)
+    if not idle:
+        return None
+    own = _params(idle[0])
+    shown = ", ".join(f"{k} {trial.values[k]:.3g} [{trial.bounds95[k][0]:.3g}, {trial.bounds95[k][1]:.3g}] (nominal "
+                      f"{p.nominal:.3g})" for k, p in own.items())  # fmt: skip
+    return f"not told from nominal: {shown}"
 
 
 def _unidentified(effects: Sequence[Effect], trial: FitResult) -> list[Effect]:
