@@ -124,9 +124,51 @@ def fit(
                 result = step if step.objective < result.objective else result
                 break
             result, setting = step, dict(step.values)
+        if len(rough) == 1 and smooth:
+            result = _profile_walk(problem, result, rough, smooth, segments, max_iter)
     if intervals:
         set_intervals(result, fit_intervals(problem, result, params, segments))
     return result
+
+
+def _profile_walk(
+    problem: Problem,
+    result: FitResult,
+    rough: Mapping[str, Param],
+    smooth: Mapping[str, Param],
+    segments: Sequence[int] | None,
+    max_iter: int,
+) -> FitResult:
+    """Turns of grid and least squares move along the axes; where the non-smooth parameter and the smooth ones lie
+    along one narrow valley (a motor's delay and its torque constant: a longer delay wants a stronger drive), they
+    stall short of its floor. The profile cost (the smooth ones fitted at each value of the non-smooth one) has no
+    such valley: walk it from the fit, a step of the parameter's resolution at a time in the direction that lowers
+    it, the step doubling while it does, then halving back to the resolution (a line search on the profile)."""
+    ((k, p),) = rough.items()
+    best = result
+
+    def at(value: float) -> FitResult | None:
+        if not p.low <= value <= p.high:
+            return None
+        return _least_squares(problem, {**best.values, k: float(value)}, smooth, segments, max_iter)
+
+    for direction in (1.0, -1.0):
+        step = p.resolution
+        moved = False
+        while step >= p.resolution:
+            trial = at(best.values[k] + direction * step)
+            if trial is not None and trial.objective < best.objective * (1.0 - 1e-9):
+                best, moved = trial, True
+                step *= 2.0
+            elif moved or step > p.resolution:
+                step /= 2.0
+                if step < p.resolution:
+                    break
+            else:
+                break
+        if moved:
+            break
+    return best
 
 
 def half_widths(values: Mapping[str, float], bounds: Mapping[str, tuple[float, float]]) -> dict[str, float]:

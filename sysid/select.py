@@ -15,8 +15,10 @@ and stop when nothing helps.
    parameter (a 95% interval narrower than half the parameter's range, the value off the range's ends).
    Otherwise record why, and try the next candidate. If no single effect earns its place, chains of two or three
    effects that may help only together are grown by the score statistic at each step's fit (``_chains``); a chain
-   whose joint fit leaves members at nominal is tried again without them. A kept effect is refitted on every
-   segment jointly with the effects kept before it (backfitting: their values had taken up part of its effect).
+   whose joint fit leaves members at nominal is tried again without them. Where fits are least squares, every
+   candidate is fitted together with the effects already kept (stepwise with refitting: held, their values would hide
+   part of it). A kept effect is refitted on every segment jointly with the effects kept before it (backfitting:
+   their values had taken up part of its effect).
 4. Effects of an alias group that already has a member are not offered again: the data cannot tell them apart.
 5. Stop when nothing is kept or the training residual reaches the noise floor.
 """
@@ -191,7 +193,15 @@ def calibrate(
         candidates = {k: e for k, e in offered.items() if e.alias not in used_groups}
         if not candidates:
             break
-        ranking = score(problem, current, candidates, fitting)
+        # the effects kept so far are fitted again with every candidate (stepwise with refitting): held at values
+        # that took up part of the candidate's effect, they would hide it (a delay fitted first, without the torque
+        # constant also at work, comes out short and leaves the torque constant too little to explain); with the
+        # nuisance parameters, they are what the candidate is fitted beside, and what the ranking takes as
+        # refitted. Where fits are derivative-free (``rough_cost``: contacts), a joint fit of every candidate would
+        # cost several times a single one: the kept effects are held (the backfit after a keep still refits them)
+        kept_params = {k: p for c in outcome.chosen for k, p in _params(c.effect).items()}
+        beside = {**({} if adapter.rough_cost else kept_params), **nuisance}
+        ranking = score(problem, current, candidates, fitting, None if adapter.rough_cost else beside)
         outcome.rounds.append(ranking)
         say("ranking: " + ", ".join(f"{r['effect']} {r['score']:.1f}" for r in ranking[:5]))
         # the close contenders (a score within CONTENDERS of the best) are all fitted and the best by BIC is kept;
@@ -205,14 +215,14 @@ def calibrate(
         singles: list[tuple[float, Effect, dict, FitResult]] = []
 
         def attempt(group_effects: list[Effect], start_values: Mapping[str, float], current=current, before=before,
-                    failed=failed):  # fmt: skip
+                    beside=beside):  # fmt: skip
             """Fit and test effects together: (verdict, fit, BIC change); the verdict is None if they earn their
             place."""
-            verdict, trial, bic = _fit_candidate(problem, current, group_effects, nuisance, fitting, before,
+            verdict, trial, bic = _fit_candidate(problem, current, group_effects, beside, fitting, before,
                                                  start_values)  # fmt: skip
             if verdict is None:
-                verdict = _identified(problem, group_effects, nuisance, fitting, trial) or _held_out_test(
-                    problem, current, group_effects, nuisance, fitting, folds, trial
+                verdict = _identified(problem, group_effects, beside, fitting, trial) or _held_out_test(
+                    problem, current, group_effects, beside, fitting, folds, trial
                 )
             _record(group_effects, verdict)
             return verdict, trial, bic
@@ -230,14 +240,14 @@ def calibrate(
             passing = []
             for entry in stage:
                 effect = candidates[entry["effect"]]
-                verdict, trial, bic = _fit_candidate(problem, current, [effect], nuisance, fitting, before,
+                verdict, trial, bic = _fit_candidate(problem, current, [effect], beside, fitting, before,
                                                      entry["start"])  # fmt: skip
                 if entry.get("measured") is not None and trial.objective > entry["measured"][1]:
                     # the local fit from nominal ended above a point the ranking measured: it stalled (a cost
                     # so curved that its steps fail, the pwm decay's); it is fitted again from that point, and the
                     # better of the two fits stands
                     again = {**entry, "start": entry["measured"][0]}
-                    retry = _fit_candidate(problem, current, [effect], nuisance, fitting, before, again["start"])
+                    retry = _fit_candidate(problem, current, [effect], beside, fitting, before, again["start"])
                     if retry[1].objective < trial.objective:
                         entry, (verdict, trial, bic) = again, retry
                 singles.append((trial.cost, effect, entry, trial))
@@ -247,8 +257,8 @@ def calibrate(
                     _record([effect], verdict)
             passing.sort(key=lambda x: x[0])
             for k, (bic, group_effects, entries, trial) in enumerate(passing):
-                verdict = _identified(problem, group_effects, nuisance, fitting, trial) or _held_out_test(
-                    problem, current, group_effects, nuisance, fitting, folds, trial
+                verdict = _identified(problem, group_effects, beside, fitting, trial) or _held_out_test(
+                    problem, current, group_effects, beside, fitting, folds, trial
                 )
                 if verdict is None:
                     chosen_group = (bic, group_effects, entries, trial)
@@ -292,6 +302,10 @@ def calibrate(
                 offered.pop(effect.name)
                 failed.pop(effect.name, None)
             say(f"kept {label}: error {outcome.training_errors[-1]:.2f} on the training logs")
+            if not adapter.rough_cost and _drop_idle(whole, outcome, len(group_effects), nuisance, refit, say):
+                current = outcome.setting
+                used_groups.intersection_update(c.effect.alias for c in outcome.chosen)
+                before = evaluate(problem, current, fitting)
         for label, verdict in failed.items():
             if " + " not in label:
                 outcome.rejected.append({"name": label, "reason": verdict})
@@ -306,6 +320,48 @@ def calibrate(
     outcome.setting = current
     outcome.diagnostics_after = diagnostics.diagnose(whole, whole.residuals([current])[0], adapter.context)
     return outcome
+
+
+def _drop_idle(
+    problem: Problem, outcome: Outcome, new: int, nuisance: Mapping[str, Param], refit: FitResult, say
+) -> bool:
+    """The backward step of stepwise selection: an effect kept before the ``new`` last ones may have stood in for
+    what they do (a supply voltage kept first, in place of the back-EMF constant kept later). Each is taken out in
+    turn and the rest refitted on every segment; the one whose absence costs least is dropped if the model without
+    it is no worse by the information criterion. It goes to ``rejected``, its step out of the history (the later
+    steps with it at nominal), and its alias group is free again. Returns whether one was dropped;
+    ``outcome.setting`` then holds the refit."""
+    n_eff = refit.n_eff
+    best = None
+    for c in outcome.chosen[:-new]:
+        nominal = {k: p.nominal for k, p in _params(c.effect).items()}
+        rest = {k: p for o in outcome.chosen if o is not c for k, p in _params(o.effect).items()}
+        again = fit(problem, {**refit.values, **nominal}, {**rest, **nuisance}, None, start=refit.values,
+                    local="fine")  # fmt: skip
+        bic = n_eff * math.log(max(again.cost, 1e-300) / max(refit.cost, 1e-300)) - len(nominal) * math.log(n_eff)
+        if best is None or bic < best[0]:
+            best = (bic, c, again, nominal)
+    if best is None or best[0] > 0:
+        return False
+    bic, idle, again, nominal = best
+    later = ", ".join(c.effect.name for c in outcome.chosen[-new:])
+    shown = ", ".join(f"{k} {refit.values[k]:.4g}" for k in nominal)
+    outcome.rejected.append({"name": idle.effect.name, "reason": (
+        f"kept, then dropped once {later} was kept: the model without it ({shown} in the joint fit), refitted, "
+        f"is no worse by the information criterion (BIC change {bic:+.1f} on {n_eff:.0f} effective samples)"
+    )})  # fmt: skip
+    steps = [i for i, c in enumerate(outcome.chosen) if c is not idle]
+    outcome.history = [outcome.history[0]] + [{**outcome.history[i + 1], **nominal} for i in steps]
+    outcome.history[-1] = dict(again.values)
+    outcome.chosen = [c for c in outcome.chosen if c is not idle]
+    for choice in outcome.chosen:
+        choice.values = {k: again.values[k] for k in _params(choice.effect)}
+        choice.bounds95 = _bounds(again, choice.effect)
+    outcome.training_errors[-1] = again.error
+    outcome.setting = dict(again.values)
+    say(f"dropped {idle.effect.name}: {later} {'explain' if new > 1 else 'explains'} what it did; error "
+        f"{again.error:.2f} on the training logs")  # fmt: skip
+    return True
 
 
 def fit_chosen(
@@ -357,7 +413,13 @@ def score_grid(effect: Effect, points: int | None = None) -> list[dict[str, floa
              for p in effect.params} for f in np.linspace(0.0, 1.0, n)]  # fmt: skip
 
 
-def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], segments) -> list[dict]:
+def score(
+    problem: Problem,
+    current: Setting,
+    candidates: Mapping[str, Effect],
+    segments,
+    beside: Mapping[str, Param] | None = None,
+) -> list[dict]:
     """Each candidate's score statistic at ``current``, highest first.
 
     For an effect's parameters the statistic is the residual sum of squares their Jacobian can explain (the
@@ -366,6 +428,11 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
     effects (and says nothing of non-smooth ones), so each effect is also tried on a small grid across its range
     (a diagonal for several parameters); the statistic is the larger of the two reductions. Every Jacobian column
     and grid point runs in one batched rollout. Each entry keeps its best grid point, where its fit starts.
+
+    ``beside``: smooth parameters fitted with every candidate (the effects kept so far, the nuisance). The statistic
+    is then the score test's with them refitted: the candidate's columns are taken orthogonal to theirs before the
+    residual is projected, so that a candidate whose direction the kept effects' columns nearly share (a back-EMF
+    constant beside a supply voltage kept first) is measured by what it adds, not hidden by what they took.
     """
     base = evaluate(problem, current, segments)
     r0 = flatten(base.residuals)
@@ -385,6 +452,12 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
                 continue
             probes.append({**current, **point})
             owners.append((name, "grid", point))
+    for key, p in (beside or {}).items():
+        if p.smooth and p.span > 0:
+            fd = max(FD_STEP * 10, problem.adapter.fd_step)
+            step = (fd if (current[key] - p.low) / p.span < 0.5 else -fd) * p.span
+            probes.append({**current, key: current[key] + step})
+            owners.append((None, "held", step))
     # a carried effect's grid points run with their own carried state (Effect.carried): its action through the
     # body shows only so; the rest, anchored at ``current``, in one batched rollout
     own = [k for k, (name, kind, _) in enumerate(owners) if kind == "grid" and candidates[name].carried]
@@ -396,9 +469,12 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
             for k, col in zip(rows, ran, strict=True):
                 columns[k] = col
     by_effect: dict[str, dict] = {n: {"jac": [], "grid": []} for n in candidates}
+    held = []
     for (name, kind, arg), col in zip(owners, columns, strict=True):
         r = flatten(col)
-        if kind == "fd":
+        if kind == "held":
+            held.append((r - r0) / arg)
+        elif kind == "fd":
             by_effect[name]["jac"].append((r - r0) / arg)
         else:
             by_effect[name]["grid"].append((float(r @ r), arg, total_objective(col)))
@@ -408,6 +484,9 @@ def score(problem: Problem, current: Setting, candidates: Mapping[str, Effect], 
         explained, start, measured = 0.0, {}, None
         if parts["jac"]:
             jac = np.column_stack(parts["jac"])
+            if held:  # the part of each column the parameters fitted beside it cannot make
+                other = np.column_stack(held)
+                jac = jac - other @ np.linalg.lstsq(other, jac, rcond=None)[0]
             coef, *_ = np.linalg.lstsq(jac, r0, rcond=None)
             fitted = jac @ coef
             explained = float(fitted @ fitted)

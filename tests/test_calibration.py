@@ -235,6 +235,30 @@ def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_se
     assert len(case.result.outcome.chosen) == 2
 
 
+def test_a_second_effect_is_fitted_with_the_first_and_an_effect_it_replaced_is_dropped():
+    """Stop 42, the motor's back-EMF constant (1.77) and PWM decay: a supply voltage (of another alias group) is kept
+    first in the back-EMF constant's place. The back-EMF constant then scored 0.3 beside it: its column nearly
+    shares the supply's, and the score did not take the supply as refitted. Now the ranking projects the kept
+    effects' columns out (the score test with them refitted), each candidate is fitted with them, and once the
+    back-EMF constant is kept, the supply, taken out and the rest refitted, costs nothing by the information
+    criterion: it is dropped (backward step), its reason in ``rejected``."""
+    case = _check_pair("motor", {"back_emf_constant": None, "pwm_decay": None}, seed=504)
+    outcome = case.result.outcome
+    assert [c.effect.name for c in outcome.chosen] == ["pwm_decay", "back_emf_constant"], outcome.chosen
+    dropped = [r for r in outcome.rejected if r["reason"].startswith("kept, then dropped")]
+    assert [r["name"] for r in dropped] == ["supply_voltage"], outcome.rejected
+    # the history holds one setting per kept effect after the nominal one, the last the final model
+    assert len(outcome.history) == len(outcome.chosen) + 1 and outcome.history[-1] == outcome.setting
+
+
+def test_a_delay_and_a_drive_along_one_valley_are_fitted_by_walking_the_profile():
+    """Stop 42, the motor's delay 0.0291 s and torque constant 2.77: a longer delay wants a stronger drive, and
+    turns of grid (the delay) and least squares (the drive) stalled in that valley (torque constant 2.45, training
+    error 4.2). The delay's profile (the drive fitted at each delay) is now walked from the fit: both recovered,
+    the residual at the floor."""
+    _check_pair("motor", {"delay": None, "torque_constant": None}, seed=502)
+
+
 @pytest.mark.slow
 def test_a_chain_left_partly_at_nominal_is_tried_without_those_members():
     """Stop 41: a large Coulomb friction and a low back-EMF constant (which pull the top speed opposite ways): no
