@@ -34,6 +34,8 @@ CMA_EVALS = 120  # cost evaluations of a derivative-free fit (the second, re-anc
 XTOL = 1e-6  # stop when a step moves the parameters by less than this (relative, in normalized coordinates)
 ALTERNATIONS = 4  # turns of a fit of non-smooth and smooth parameters together (grid, then least squares)
 ALTERNATION_GAIN = 0.01  # another turn only while the last lowered the cost by more than this share
+PROFILE_GAIN = 1e-4  # a step of the profile walk (_profile_walk) must lower the cost by this share of itself
+PROFILE_FITS = 24  # and the walk stops after this many least-squares fits
 MU_FACTOR = 10**0.5  # the regularizer's growth after a failed step (mujoco.minimize's default 10^0.1 takes many)
 
 
@@ -143,31 +145,36 @@ def _profile_walk(
     along one narrow valley (a motor's delay and its torque constant: a longer delay wants a stronger drive), they
     stall short of its floor. The profile cost (the smooth ones fitted at each value of the non-smooth one) has no
     such valley: walk it from the fit, a step of the parameter's resolution at a time in the direction that lowers
-    it, the step doubling while it does, then halving back to the resolution (a line search on the profile)."""
+    it, the step doubling while it does, then halving back to the resolution (a line search on the profile). A
+    move must lower the cost by PROFILE_GAIN of itself (no creeping along a flat profile on the fits' own
+    tolerance), and the walk stops after PROFILE_FITS fits."""
     ((k, p),) = rough.items()
     best = result
+    fits = 0
 
     def at(value: float) -> FitResult | None:
-        if not p.low <= value <= p.high:
+        nonlocal fits
+        if not p.low <= value <= p.high or fits >= PROFILE_FITS:
             return None
+        fits += 1
         return _least_squares(problem, {**best.values, k: float(value)}, smooth, segments, max_iter)
 
-    for direction in (1.0, -1.0):
-        step = p.resolution
-        moved = False
-        while step >= p.resolution:
-            trial = at(best.values[k] + direction * step)
-            if trial is not None and trial.objective < best.objective * (1.0 - 1e-9):
-                best, moved = trial, True
-                step *= 2.0
-            elif moved or step > p.resolution:
-                step /= 2.0
-                if step < p.resolution:
+    improved = True
+    while improved:  # both ways until neither moves (a walk that overshot comes back)
+        improved = False
+        for direction in (1.0, -1.0):
+            step = p.resolution
+            moved = False
+            while step >= p.resolution and fits < PROFILE_FITS:
+                trial = at(best.values[k] + direction * step)
+                if trial is not None and trial.objective < best.objective * (1.0 - PROFILE_GAIN):
+                    best, moved = trial, True
+                    step *= 2.0
+                elif moved or step > p.resolution:
+                    step /= 2.0
+                else:
                     break
-            else:
-                break
-        if moved:
-            break
+            improved = improved or moved
     return best
 
 

@@ -328,35 +328,45 @@ def _drop_idle(
     """The backward step of stepwise selection: an effect kept before the ``new`` last ones may have stood in for
     what they do (a supply voltage kept first, in place of the back-EMF constant kept later). Each is taken out in
     turn and the rest refitted on every segment; the one whose absence costs least is dropped if the model without
-    it is no worse by the information criterion. It goes to ``rejected``, its step out of the history (the later
-    steps with it at nominal), and its alias group is free again. Returns whether one was dropped;
-    ``outcome.setting`` then holds the refit."""
+    it is no worse by the information criterion. It goes to ``rejected``, its step out of the history (each step
+    is then the final model with the effects kept after it at nominal), and its alias group is free again. Returns
+    whether one was dropped; ``outcome.setting`` then holds the refit. (The rigs' adapters have one noise level and
+    no replay floor, which the BIC here assumes.)"""
     n_eff = refit.n_eff
     best = None
     for c in outcome.chosen[:-new]:
         nominal = {k: p.nominal for k, p in _params(c.effect).items()}
         rest = {k: p for o in outcome.chosen if o is not c for k, p in _params(o.effect).items()}
         again = fit(problem, {**refit.values, **nominal}, {**rest, **nuisance}, None, start=refit.values,
-                    local="fine")  # fmt: skip
+                    local="fine", intervals=False)  # fmt: skip
         bic = n_eff * math.log(max(again.cost, 1e-300) / max(refit.cost, 1e-300)) - len(nominal) * math.log(n_eff)
         if best is None or bic < best[0]:
             best = (bic, c, again, nominal)
     if best is None or best[0] > 0:
         return False
     bic, idle, again, nominal = best
+    rest = {k: p for o in outcome.chosen if o is not idle for k, p in _params(o.effect).items()}
+    set_intervals(again, fit_intervals(problem, again, {**rest, **nuisance}, None))
     later = ", ".join(c.effect.name for c in outcome.chosen[-new:])
     shown = ", ".join(f"{k} {refit.values[k]:.4g}" for k in nominal)
     outcome.rejected.append({"name": idle.effect.name, "reason": (
         f"kept, then dropped once {later} was kept: the model without it ({shown} in the joint fit), refitted, "
         f"is no worse by the information criterion (BIC change {bic:+.1f} on {n_eff:.0f} effective samples)"
     )})  # fmt: skip
-    steps = [i for i, c in enumerate(outcome.chosen) if c is not idle]
-    outcome.history = [outcome.history[0]] + [{**outcome.history[i + 1], **nominal} for i in steps]
-    outcome.history[-1] = dict(again.values)
     outcome.chosen = [c for c in outcome.chosen if c is not idle]
+    # the history: after each kept effect, the final model with the effects kept later at nominal (the path's own
+    # settings held the dropped effect); the effects of this step share the final model
+    after = [{k: p.nominal for c in outcome.chosen[i + 1 :] for k, p in _params(c.effect).items()}
+             for i in range(len(outcome.chosen))]  # fmt: skip
+    outcome.history = [outcome.history[0]] + [{**again.values, **later_nominal} for later_nominal in after]
+    for j in range(1, new + 1):
+        outcome.history[-j] = dict(again.values)
     for choice in outcome.chosen:
         choice.values = {k: again.values[k] for k in _params(choice.effect)}
         choice.bounds95 = _bounds(again, choice.effect)
+        choice.together = [name for name in choice.together if name != idle.effect.name]
+    for choice in outcome.chosen[-new:]:
+        choice.training_error = again.error
     outcome.training_errors[-1] = again.error
     outcome.setting = dict(again.values)
     say(f"dropped {idle.effect.name}: {later} {'explain' if new > 1 else 'explains'} what it did; error "

@@ -18,10 +18,11 @@ import calibrate
 import evaluate
 from envs.common.calibration import read_calibration
 from envs.common.telemetry import write_telemetry
+from sysid import fit as fit_module
 from sysid import synth
 from sysid.cases import Case, pair, run_case
 from sysid.effects import Param, base_name
-from sysid.fit import _plateau_reach, fit, half_widths
+from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Problem, Residual, total_objective
 from sysid.report import report_markdown
@@ -249,6 +250,31 @@ def test_a_second_effect_is_fitted_with_the_first_and_an_effect_it_replaced_is_d
     assert [r["name"] for r in dropped] == ["supply_voltage"], outcome.rejected
     # the history holds one setting per kept effect after the nominal one, the last the final model
     assert len(outcome.history) == len(outcome.chosen) + 1 and outcome.history[-1] == outcome.setting
+
+
+@pytest.mark.parametrize(("best", "start", "expected"), [(0.0233, 0.010, 0.023), (0.0233, 0.040, 0.023),
+                                                      (0.080, 0.010, 0.050), (0.010, 0.010, 0.010)])  # fmt: skip
+def test_the_profile_walk_finds_the_profiles_floor_from_either_side_and_stops_at_the_range(
+    monkeypatch, best: float, start: float, expected: float
+):
+    """``_profile_walk`` on a profile with a known floor (the least-squares fit at each value stood in by the
+    profile itself): it walks there from either side (overshooting on the doubling steps and coming back), to
+    the nearest resolution step; it stops at the range's end when the floor lies beyond; and it does not move
+    from a start at the floor. It never takes more than PROFILE_FITS fits."""
+    calls = []
+
+    def profile(problem, setting, smooth, segments, max_iter):
+        calls.append(setting["d"])
+        return FitResult({**setting, "g": 2 * setting["d"]}, 1.0 + 1e6 * (setting["d"] - best) ** 2, 100, 50.0)
+
+    monkeypatch.setattr(fit_module, "_least_squares", profile)
+    delay = Param("d", "s", 0.0, 0.0, 0.05, smooth=False, step=0.001)
+    gain = Param("g", "1", 1.0, 0.0, 1.0)
+    start_fit = FitResult({"d": start, "g": 2 * start}, 1.0 + 1e6 * (start - best) ** 2, 100, 50.0)
+    out = _profile_walk(None, start_fit, {"d": delay}, {"g": gain}, None, 10)
+    assert out.values["d"] == pytest.approx(expected, abs=1e-9), calls
+    assert out.values["g"] == pytest.approx(2 * out.values["d"])  # the smooth ones as fitted at that value
+    assert all(delay.low <= d <= delay.high for d in calls) and len(calls) <= fit_module.PROFILE_FITS
 
 
 def test_a_delay_and_a_drive_along_one_valley_are_fitted_by_walking_the_profile():
