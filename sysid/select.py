@@ -152,6 +152,19 @@ def _params(effect: Effect) -> dict[str, Param]:
     return {effect.key(p.name): p for p in effect.params}
 
 
+def _chosen_params(choices: Sequence[Choice]) -> dict[str, Param]:
+    """The parameters of kept effects, flat."""
+    return {k: p for c in choices for k, p in _params(c.effect).items()}
+
+
+def _fd_probe(problem: Problem, current: Setting, key: str, p: Param) -> tuple[dict[str, float], float]:
+    """A finite-difference probe of one smooth parameter at ``current`` (toward the middle of its range): the
+    setting and the step."""
+    fd = max(FD_STEP * 10, problem.adapter.fd_step)
+    step = (fd if (current[key] - p.low) / p.span < 0.5 else -fd) * p.span
+    return {**current, key: current[key] + step}, step
+
+
 def _bounds(result: FitResult, effect: Effect) -> dict[str, tuple[float, float]]:
     """An effect's 95% intervals from a fit (NaN where the fit has none)."""
     return {k: result.bounds95.get(k, (math.nan, math.nan)) for k in _params(effect)}
@@ -186,6 +199,7 @@ def calibrate(
     say(f"nominal model: error {everything.error:.2f} on the training logs")
     offered = {k: e for k, e in effects.items() if not any(key in (start or {}) for key in e.nominal())}
     used_groups: set[str] = set()
+    stepwise = not adapter.rough_cost  # candidates fitted with the kept effects, and the backward step (below)
     for _ in range(MAX_EFFECTS):
         if at_floor(problem, outcome.training_errors[-1]):
             say("the residual is at the noise floor: stop")
@@ -199,9 +213,8 @@ def calibrate(
         # nuisance parameters, they are what the candidate is fitted beside, and what the ranking takes as
         # refitted. Where fits are derivative-free (``rough_cost``: contacts), a joint fit of every candidate would
         # cost several times a single one: the kept effects are held (the backfit after a keep still refits them)
-        kept_params = {k: p for c in outcome.chosen for k, p in _params(c.effect).items()}
-        beside = {**({} if adapter.rough_cost else kept_params), **nuisance}
-        ranking = score(problem, current, candidates, fitting, None if adapter.rough_cost else beside)
+        beside = {**(_chosen_params(outcome.chosen) if stepwise else {}), **nuisance}
+        ranking = score(problem, current, candidates, fitting, beside if stepwise else None)
         outcome.rounds.append(ranking)
         say("ranking: " + ", ".join(f"{r['effect']} {r['score']:.1f}" for r in ranking[:5]))
         # the close contenders (a score within CONTENDERS of the best) are all fitted and the best by BIC is kept;
@@ -277,7 +290,7 @@ def calibrate(
             # the effects kept before were fitted without this one, and their values took up some of its part (a
             # servo's gain fitted before its delay was known comes out low): they are refitted with it, jointly
             # (backfitting), so that a later round does not keep a third effect to mend the bias of the first
-            earlier = {k: p for c in outcome.chosen for k, p in _params(c.effect).items()}
+            earlier = _chosen_params(outcome.chosen)
             if on_all and not earlier:  # the fit already saw every segment
                 refit = trial
             else:
@@ -302,7 +315,7 @@ def calibrate(
                 offered.pop(effect.name)
                 failed.pop(effect.name, None)
             say(f"kept {label}: error {outcome.training_errors[-1]:.2f} on the training logs")
-            if not adapter.rough_cost and _drop_idle(whole, outcome, len(group_effects), nuisance, refit, say):
+            if stepwise and _drop_idle(whole, outcome, len(group_effects), nuisance, refit, say):
                 current = outcome.setting
                 used_groups.intersection_update(c.effect.alias for c in outcome.chosen)
                 before = evaluate(problem, current, fitting)
@@ -336,17 +349,16 @@ def _drop_idle(
     best = None
     for c in outcome.chosen[:-new]:
         nominal = {k: p.nominal for k, p in _params(c.effect).items()}
-        rest = {k: p for o in outcome.chosen if o is not c for k, p in _params(o.effect).items()}
-        again = fit(problem, {**refit.values, **nominal}, {**rest, **nuisance}, None, start=refit.values,
-                    local="fine", intervals=False)  # fmt: skip
+        rest = {**_chosen_params([o for o in outcome.chosen if o is not c]), **nuisance}
+        again = fit(problem, {**refit.values, **nominal}, rest, None, start=refit.values, local="fine",
+                    intervals=False)  # fmt: skip
         bic = n_eff * math.log(max(again.cost, 1e-300) / max(refit.cost, 1e-300)) - len(nominal) * math.log(n_eff)
         if best is None or bic < best[0]:
-            best = (bic, c, again, nominal)
+            best = (bic, c, again, nominal, rest)
     if best is None or best[0] > 0:
         return False
-    bic, idle, again, nominal = best
-    rest = {k: p for o in outcome.chosen if o is not idle for k, p in _params(o.effect).items()}
-    set_intervals(again, fit_intervals(problem, again, {**rest, **nuisance}, None))
+    bic, idle, again, nominal, rest = best
+    set_intervals(again, fit_intervals(problem, again, rest, None))
     later = ", ".join(c.effect.name for c in outcome.chosen[-new:])
     shown = ", ".join(f"{k} {refit.values[k]:.4g}" for k in nominal)
     outcome.rejected.append({"name": idle.effect.name, "reason": (
@@ -354,13 +366,13 @@ def _drop_idle(
         f"is no worse by the information criterion (BIC change {bic:+.1f} on {n_eff:.0f} effective samples)"
     )})  # fmt: skip
     outcome.chosen = [c for c in outcome.chosen if c is not idle]
-    # the history: after each kept effect, the final model with the effects kept later at nominal (the path's own
-    # settings held the dropped effect); the effects of this step share the final model
-    after = [{k: p.nominal for c in outcome.chosen[i + 1 :] for k, p in _params(c.effect).items()}
-             for i in range(len(outcome.chosen))]  # fmt: skip
-    outcome.history = [outcome.history[0]] + [{**again.values, **later_nominal} for later_nominal in after]
-    for j in range(1, new + 1):
-        outcome.history[-j] = dict(again.values)
+    # the history: after each kept effect, the final model with the effects kept after it at nominal (the path's
+    # own settings held the dropped effect); the effects of this step share the final model
+    this_step = len(outcome.chosen) - new
+    after = [outcome.chosen[i + 1 :] if i < this_step else [] for i in range(len(outcome.chosen))]
+    outcome.history = [outcome.history[0]] + [
+        {**again.values, **{k: p.nominal for k, p in _chosen_params(tail).items()}} for tail in after
+    ]
     for choice in outcome.chosen:
         choice.values = {k: again.values[k] for k in _params(choice.effect)}
         choice.bounds95 = _bounds(again, choice.effect)
@@ -451,12 +463,9 @@ def score(
     for name, e in candidates.items():
         for p in e.params:
             if p.smooth:
-                key = e.key(p.name)
-                u = (current[key] - p.low) / p.span
-                fd = max(FD_STEP * 10, problem.adapter.fd_step)
-                step = fd if u < 0.5 else -fd
-                probes.append({**current, key: current[key] + step * p.span})
-                owners.append((name, "fd", step * p.span))
+                probe, step = _fd_probe(problem, current, e.key(p.name), p)
+                probes.append(probe)
+                owners.append((name, "fd", step))
         for point in score_grid(e, problem.adapter.score_grid):
             if all(np.isclose(v, current[k]) for k, v in point.items()):
                 continue
@@ -464,9 +473,8 @@ def score(
             owners.append((name, "grid", point))
     for key, p in (beside or {}).items():
         if p.smooth and p.span > 0:
-            fd = max(FD_STEP * 10, problem.adapter.fd_step)
-            step = (fd if (current[key] - p.low) / p.span < 0.5 else -fd) * p.span
-            probes.append({**current, key: current[key] + step})
+            probe, step = _fd_probe(problem, current, key, p)
+            probes.append(probe)
             owners.append((None, "held", step))
     # a carried effect's grid points run with their own carried state (Effect.carried): its action through the
     # body shows only so; the rest, anchored at ``current``, in one batched rollout
