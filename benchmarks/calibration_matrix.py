@@ -49,6 +49,9 @@ from sysid.robots import adapters
 COVERAGE = {"motor": ["viscous_friction", "delay"], "servo": ["delay", "servo_gain"],
             "roach": ["viscous_friction_left"], "xjus": ["viscous_friction_left"],
             "bioloid": ["servo_gain"]}  # fmt: skip
+# the order in which cases start (longest kinds first, so that no long case starts near the end and sets the wall
+# time; the report keeps the plan's order)
+START_ORDER = ("ooc", "pairs", "effect", "coverage", "null", "weak")
 PAIR_SEED = 500  # pair k of a robot: its two effects and their values drawn with seed PAIR_SEED + k
 OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"],
                   "xjus": ["disturbance", "terrain_bump"], "bioloid": ["disturbance", "terrain_bump"]}  # fmt: skip
@@ -187,7 +190,9 @@ def main(argv: list[str] | None = None) -> int:
     plan = [c for c in plan if c[0] in args.kinds
             and (args.effects is None or c[0] == "null" or set(c[2].split("+")) <= set(args.effects))]  # fmt: skip
     parallel = args.workers > 1 or args.address
-    results = _on_ray(plan, left, args.workers, threads, args.address) if parallel else _serial(plan, left)
+    host = host_speed(args.robots)
+    schedule = sorted(plan, key=lambda job: START_ORDER.index(job[0]))
+    results = _on_ray(schedule, left, args.workers, threads, args.address) if parallel else _serial(schedule, left)
     done: dict[Job, dict] = {}
     not_run: list[Job] = []
     for job, row, line in results:
@@ -198,8 +203,9 @@ def main(argv: list[str] | None = None) -> int:
         done[job] = row
         # the results so far, after every case: a run cut short keeps what it measured (marked partial)
         report(args, (time.perf_counter() - start) / 60, plan, done, [j for j in plan if j not in done],
-               partial=True)  # fmt: skip
-    report(args, (time.perf_counter() - start) / 60, plan, done, not_run, workers=args.workers, threads=threads)
+               partial=True, host=host)  # fmt: skip
+    report(args, (time.perf_counter() - start) / 60, plan, done, not_run, workers=args.workers, threads=threads,
+           host=host)  # fmt: skip
     return 0
 
 
@@ -216,8 +222,24 @@ def pairs(adapter, observable: list[str], count: int) -> list[tuple[str, str]]:
     return [every[int(k)] for k in order[:count]]
 
 
+def host_speed(robots: list[str], steps: int = 4000) -> dict[str, float]:
+    """Microseconds per raw ``mj_step`` of each robot's nominal model from its rest state, on this process's core,
+    measured once before the cases start: the host's speed, against which the matrix's wall time reads (it has
+    varied by about three times between days on the project's shared machine)."""
+    import mujoco
+
+    out = {}
+    for robot in robots:
+        model = make_adapter(robot).nominal_robot.model
+        data = mujoco.MjData(model)
+        tic = time.perf_counter()
+        mujoco.mj_step(model, data, steps)
+        out[robot] = (time.perf_counter() - tic) / steps * 1e6
+    return out
+
+
 def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_run: list[Job], partial=False,
-           workers: int = 1, threads: int | None = None) -> None:  # fmt: skip
+           workers: int = 1, threads: int | None = None, host: Mapping[str, float] | None = None) -> None:  # fmt: skip
     """Write the matrix's results (benchmarks/results/<name>.md and .json): every case run so far, in the plan's
     order, and the cases not run (``partial``: still to come, in a run under way or cut short)."""
     rows, null_rows, ooc_rows, coverage_rows, weak_rows, pair_rows = [], [], [], [], [], []
@@ -230,6 +252,9 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
     state = "**partial: the run was still going or was cut short**; " if partial else ""
     how = f" ({workers} cases at a time, {threads} rollout threads each)" if workers > 1 else ""
     md = [f"# Calibration matrix\n\n{state}{minutes:.1f} min on this machine{how}; budget {args.minutes:g} min.\n"]
+    if host:
+        speeds = ", ".join(f"{robot} {us:.1f}" for robot, us in host.items())
+        md.append(f"\nThe host's speed before the run (us per raw physics step of each nominal model): {speeds}.\n")
     ok = [r for r in rows if "error" not in r]
     md.append(
         "\n## Each catalogued effect, drawn by the generator (effect k of a robot's catalog: seed "
@@ -292,6 +317,7 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
         md.append(f"\n## {title} ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
         md.append("\n")
     save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "workers": workers, "threads": threads,
+                     "host_us_per_step": dict(host or {}),
                      "effects": rows, "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
                      "weak": weak_rows, "pairs": pair_rows, "partial": partial, "not_run": not_run},
          "".join(md), echo=not partial)  # fmt: skip
