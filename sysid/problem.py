@@ -113,6 +113,11 @@ class Adapter(ABC):
     # own, at least the noise level's (a profile likelihood; see Residual.objective). Decisions (the information
     # criterion, the held-out gain) then read the same likelihood, since it is one
     segment_variance: bool = False
+    # stepwise selection with refitting (sysid/select.py): each candidate fitted with the effects already kept, the
+    # ranking's score test taking them as refitted, and the backward step. None: where fits are least squares
+    # (not ``rough_cost``); a robot whose derivative-free fits are cheap enough to fit every candidate jointly with
+    # the kept effects says True
+    stepwise: bool | None = None
     # the breadth of the search for effects that help only together (sysid/select.py: seeds, width, beam); a robot
     # whose every fit costs seconds of rollouts narrows it
     chain_search: tuple[int, int, int] = (3, 3, 2)

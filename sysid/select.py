@@ -199,7 +199,8 @@ def calibrate(
     say(f"nominal model: error {everything.error:.2f} on the training logs")
     offered = {k: e for k, e in effects.items() if not any(key in (start or {}) for key in e.nominal())}
     used_groups: set[str] = set()
-    stepwise = not adapter.rough_cost  # candidates fitted with the kept effects, and the backward step (below)
+    # candidates fitted with the kept effects, and the backward step (below; ``Adapter.stepwise``)
+    stepwise = adapter.stepwise if adapter.stepwise is not None else not adapter.rough_cost
     for _ in range(MAX_EFFECTS):
         if at_floor(problem, outcome.training_errors[-1]):
             say("the residual is at the noise floor: stop")
@@ -211,8 +212,9 @@ def calibrate(
         # that took up part of the candidate's effect, they would hide it (a delay fitted first, without the torque
         # constant also at work, comes out short and leaves the torque constant too little to explain); with the
         # nuisance parameters, they are what the candidate is fitted beside, and what the ranking takes as
-        # refitted. Where fits are derivative-free (``rough_cost``: contacts), a joint fit of every candidate would
-        # cost several times a single one: the kept effects are held (the backfit after a keep still refits them)
+        # refitted. Where fits are derivative-free (``rough_cost``: contacts), a joint fit of every candidate costs
+        # several times a single one: unless the robot asks for it (``Adapter.stepwise``), the kept effects are
+        # held (the backfit after a keep still refits them)
         beside = {**(_chosen_params(outcome.chosen) if stepwise else {}), **nuisance}
         ranking = score(problem, current, candidates, fitting, beside if stepwise else None)
         outcome.rounds.append(ranking)
@@ -303,7 +305,8 @@ def calibrate(
             floor_moved = adapter.replay_floor and refit.error > NOISE_FLOOR
             if floor_moved:  # the loop goes on: from this model's floor
                 problem.set_floor(current)  # the whole problem's, which a decision problem adopts
-                outcome.training_errors[-1] = evaluate(whole, current).error
+                refit_floor = evaluate(whole, current)  # the joint fit under the floor it is compared under next
+                outcome.training_errors[-1] = refit_floor.error
             before = refit if on_all and not floor_moved else evaluate(problem, current, fitting)
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
@@ -315,7 +318,8 @@ def calibrate(
                 offered.pop(effect.name)
                 failed.pop(effect.name, None)
             say(f"kept {label}: error {outcome.training_errors[-1]:.2f} on the training logs")
-            if stepwise and _drop_idle(whole, outcome, len(group_effects), nuisance, refit, say):
+            if stepwise and _drop_idle(whole, outcome, len(group_effects), nuisance,
+                                       refit_floor if floor_moved else refit, say):  # fmt: skip
                 current = outcome.setting
                 used_groups.intersection_update(c.effect.alias for c in outcome.chosen)
                 before = evaluate(problem, current, fitting)
@@ -343,8 +347,8 @@ def _drop_idle(
     turn and the rest refitted on every segment; the one whose absence costs least is dropped if the model without
     it is no worse by the information criterion. It goes to ``rejected``, its step out of the history (each step
     is then the final model with the effects kept after it at nominal), and its alias group is free again. Returns
-    whether one was dropped; ``outcome.setting`` then holds the refit. (The rigs' adapters have one noise level and
-    no replay floor, which the BIC here assumes.)"""
+    whether one was dropped; ``outcome.setting`` then holds the refit. The criterion is a candidate's
+    (:func:`_bic_change`), read from the model with the effect to the model without it."""
     n_eff = refit.n_eff
     best = None
     for c in outcome.chosen[:-new]:
@@ -352,7 +356,7 @@ def _drop_idle(
         rest = {**_chosen_params([o for o in outcome.chosen if o is not c]), **nuisance}
         again = fit(problem, {**refit.values, **nominal}, rest, None, start=refit.values, local="fine",
                     intervals=False)  # fmt: skip
-        bic = n_eff * math.log(max(again.cost, 1e-300) / max(refit.cost, 1e-300)) - len(nominal) * math.log(n_eff)
+        bic = _bic_change(problem, again, refit, -len(nominal))
         if best is None or bic < best[0]:
             best = (bic, c, again, nominal, rest)
     if best is None or best[0] > 0:
@@ -600,12 +604,7 @@ def _fit_candidate(
                 0.0,
             )
     n_eff = before.n_eff
-    if problem.adapter.segment_variance:  # -2 log-likelihood itself (each segment's variance profiled out), its
-        # samples discounted to the effective ones
-        fit_term = (trial.objective - before.objective) * n_eff / max(before.n, 1)
-    else:  # one variance for all, profiled out
-        fit_term = n_eff * math.log(max(trial.cost, 1e-300) / max(before.cost, 1e-300))
-    bic = fit_term + len(params) * math.log(n_eff)
+    bic = _bic_change(problem, trial, before, len(params))
     if bic >= 0:
         return (
             f"no better by the information criterion (BIC change {bic:+.1f} on {n_eff:.0f} effective samples)",
@@ -613,6 +612,18 @@ def _fit_candidate(
             bic,
         )
     return None, trial, bic
+
+
+def _bic_change(problem: Problem, trial: FitResult, before: FitResult, added: int) -> float:
+    """The information criterion's change from ``before`` to ``trial``, which has ``added`` more parameters
+    (negative: fewer), on ``before``'s effective samples."""
+    n_eff = before.n_eff
+    if problem.adapter.segment_variance:  # -2 log-likelihood itself (each segment's variance profiled out), its
+        # samples discounted to the effective ones
+        fit_term = (trial.objective - before.objective) * n_eff / max(before.n, 1)
+    else:  # one variance for all, profiled out
+        fit_term = n_eff * math.log(max(trial.cost, 1e-300) / max(before.cost, 1e-300))
+    return fit_term + added * math.log(n_eff)
 
 
 def _identified(

@@ -27,7 +27,7 @@ from sysid.pipeline import relative_excess, run
 from sysid.problem import Problem, Residual, total_objective
 from sysid.report import report_markdown
 from sysid.robots import adapter as make_adapter
-from sysid.select import UNEXPLAINED_ABOVE
+from sysid.select import UNEXPLAINED_ABOVE, _bic_change
 from tests.conftest import model_bytes
 
 
@@ -250,6 +250,19 @@ def test_a_second_effect_is_fitted_with_the_first_and_an_effect_it_replaced_is_d
     assert [r["name"] for r in dropped] == ["supply_voltage"], outcome.rejected
     # the history holds one setting per kept effect after the nominal one, the last the final model
     assert len(outcome.history) == len(outcome.chosen) + 1 and outcome.history[-1] == outcome.setting
+
+
+@pytest.mark.parametrize("segment_variance", [False, True])
+def test_the_information_criterion_reads_the_same_adding_an_effect_or_dropping_it(segment_variance: bool):
+    """The BIC change of the backward step (a kept effect dropped) is a candidate's read the other way: from the
+    larger model to the smaller, with the parameters counted negative, under either likelihood (one noise variance
+    profiled out, or each segment's: ``Adapter.segment_variance``)."""
+    problem = SimpleNamespace(adapter=SimpleNamespace(segment_variance=segment_variance))
+    small, large = FitResult({}, 1200.0, 1000, 200.0), FitResult({}, 1000.0, 1000, 200.0)
+    added = _bic_change(problem, large, small, 2)
+    fit_term = (1000.0 - 1200.0) * 200.0 / 1000 if segment_variance else 200.0 * math.log(1000.0 / 1200.0)
+    assert added == pytest.approx(fit_term + 2 * math.log(200.0))
+    assert _bic_change(problem, small, large, -2) == pytest.approx(-added)
 
 
 @pytest.mark.parametrize(("best", "start", "expected"), [(0.0233, 0.010, 0.023), (0.0233, 0.040, 0.023),

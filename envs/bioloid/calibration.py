@@ -201,6 +201,7 @@ class BioloidAdapter(Adapter):
     fd_step = 0.02
     rough_cost = True
     chain_search = (1, 2, 1)
+    stepwise = True  # its fits cost seconds, not minutes: each candidate fitted with the kept effects (sysid/select.py)
     sample_lag = 1  # telemetry reads the sensors of its control step's last physics step (as the xJüs's)
 
     def __init__(self) -> None:
