@@ -35,6 +35,7 @@ import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from benchmarks.common import md_table, save
@@ -174,8 +175,10 @@ def main(argv: list[str] | None = None) -> int:
         return (time.perf_counter() - start) / 60 < args.minutes
 
     plan: list[Job] = []
+    models = {}
     for robot in args.robots:
         adapter = make_adapter(robot)
+        models[robot] = adapter.nominal_robot.model
         catalogued = list(adapter.catalog())
         observable = [name for name in catalogued if adapter.effects()[name].observable]
         # a draw of its own each (effect k of the catalog: seed k + 1, plus 1000 per --draw)
@@ -190,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     plan = [c for c in plan if c[0] in args.kinds
             and (args.effects is None or c[0] == "null" or set(c[2].split("+")) <= set(args.effects))]  # fmt: skip
     parallel = args.workers > 1 or args.address
-    host = host_speed(args.robots)
+    host = host_speed(models)
     schedule = sorted(plan, key=lambda job: START_ORDER.index(job[0]))
     results = _on_ray(schedule, left, args.workers, threads, args.address) if parallel else _serial(schedule, left)
     done: dict[Job, dict] = {}
@@ -222,15 +225,12 @@ def pairs(adapter, observable: list[str], count: int) -> list[tuple[str, str]]:
     return [every[int(k)] for k in order[:count]]
 
 
-def host_speed(robots: list[str], steps: int = 4000) -> dict[str, float]:
-    """Microseconds per raw ``mj_step`` of each robot's nominal model from its rest state, on this process's core,
-    measured once before the cases start: the host's speed, against which the matrix's wall time reads (it has
-    varied by about three times between days on the project's shared machine)."""
-    import mujoco
-
+def host_speed(models: Mapping[str, mujoco.MjModel], steps: int = 4000) -> dict[str, float]:
+    """Microseconds per raw ``mj_step`` of each robot's nominal model (robot -> model) from its rest state, on
+    this process's core, measured once before the cases start: the host's speed, against which the matrix's wall
+    time reads (it has varied by about three times between days on the project's shared machine)."""
     out = {}
-    for robot in robots:
-        model = make_adapter(robot).nominal_robot.model
+    for robot, model in models.items():
         data = mujoco.MjData(model)
         tic = time.perf_counter()
         mujoco.mj_step(model, data, steps)

@@ -303,10 +303,11 @@ def calibrate(
                 choice.bounds95 = _bounds(refit, choice.effect)
             outcome.training_errors.append(refit.error)
             floor_moved = adapter.replay_floor and refit.error > NOISE_FLOOR
+            compared = refit  # the joint fit as the backward step compares it: under the floor of the loop's next turn
             if floor_moved:  # the loop goes on: from this model's floor
                 problem.set_floor(current)  # the whole problem's, which a decision problem adopts
-                refit_floor = evaluate(whole, current)  # the joint fit under the floor it is compared under next
-                outcome.training_errors[-1] = refit_floor.error
+                compared = evaluate(whole, current)
+                outcome.training_errors[-1] = compared.error
             before = refit if on_all and not floor_moved else evaluate(problem, current, fitting)
             for effect, entry in zip(group_effects, entries, strict=True):
                 outcome.chosen.append(
@@ -318,8 +319,7 @@ def calibrate(
                 offered.pop(effect.name)
                 failed.pop(effect.name, None)
             say(f"kept {label}: error {outcome.training_errors[-1]:.2f} on the training logs")
-            if stepwise and _drop_idle(whole, outcome, len(group_effects), nuisance,
-                                       refit_floor if floor_moved else refit, say):  # fmt: skip
+            if stepwise and _drop_idle(whole, outcome, len(group_effects), nuisance, compared, say):
                 current = outcome.setting
                 used_groups.intersection_update(c.effect.alias for c in outcome.chosen)
                 before = evaluate(problem, current, fitting)
