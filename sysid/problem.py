@@ -39,6 +39,7 @@ from sysid.logs import Log, LogError, white_noise
 
 Setting = Mapping[str, float]
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
+SENSITIVITY_CACHE = 768  # segments' start sensitivities kept (anchors x segments) before the cache starts over
 MODEL_CACHE = 2048  # compiled models kept per adapter (settings x segment keys) before the cache starts over
 CTRL_SPEC = mujoco.mjtState.mjSTATE_CTRL.value
 LEAD_SECONDS = 0.25  # s of the log kept before each segment: the commands a delayed actuator still acts on
@@ -564,10 +565,10 @@ class Problem:
         self.n_steps = max(seg.n_steps for seg in self.segments)
         for seg in self.segments:
             seg.n_steps = self.n_steps
-        self._sensitivity: dict[tuple, list[np.ndarray]] = {}
+        self._sensitivity: dict[tuple, np.ndarray] = {}  # (anchor, segment) -> its start's sensitivity
         self._carry: dict[tuple, tuple[dict, dict, dict]] = {}  # a setting's run over every segment
         self._datas: dict[tuple, list[mujoco.MjData]] = {}
-        self._objectives: dict[tuple, float] = {}  # anchored objectives already measured (objectives)
+        self._objectives: dict[tuple, float] = {}  # anchored objectives per segment already measured (objectives)
         self.rollouts = 0  # rows rolled out so far (segments x settings), for reports
         noise = [adapter.noise(log) for log in self.logs]
         self.sensor_sigma = {c: float(np.median([n[c] for n in noise])) for c in adapter.channels}
@@ -837,10 +838,11 @@ class Problem:
     def sensitivity(self, anchor: Setting, segments: Sequence[int] | None = None) -> list[np.ndarray]:
         """Per segment, the change of the normalized prediction per standard deviation of each uncertain start
         coordinate, at ``anchor``: (samples x channels, k)."""
-        index = self._index(segments)
-        key = (setting_key(anchor), tuple(index))
-        if key in self._sensitivity:
-            return self._sensitivity[key]
+        asked = self._index(segments)
+        anchor_key = setting_key(anchor)  # kept per segment: each one's columns are its own rows' (one run each)
+        index = [i for i in asked if (anchor_key, i) not in self._sensitivity]
+        if not index:
+            return [self._sensitivity[(anchor_key, i)] for i in asked]
         model = self.adapter.model_for(anchor)
         coords = {i: self.adapter.initial_uncertainty(model, self.segments[i], anchor) for i in index}
         if any(coords.values()):
@@ -860,10 +862,12 @@ class Problem:
             out.append(
                 np.column_stack(columns) if columns else np.zeros((len(self.segments[i].steps) * len(self._sigma), 0))
             )
-        if len(self._sensitivity) > 64:
+        known = {i: self._sensitivity[(anchor_key, i)] for i in asked if (anchor_key, i) in self._sensitivity}
+        known.update(zip(index, out, strict=True))
+        if len(self._sensitivity) + len(index) > SENSITIVITY_CACHE:
             self._sensitivity.clear()
-        self._sensitivity[key] = out
-        return out
+        self._sensitivity.update({(anchor_key, i): known[i] for i in index})
+        return [known[i] for i in asked]
 
     def residuals(
         self, settings: Sequence[Setting], segments: Sequence[int] | None = None, anchor: Setting | None = None
@@ -892,20 +896,31 @@ class Problem:
 
     def objectives(self, settings: Sequence[Setting], segments: Sequence[int] | None, anchor: Setting) -> list[float]:
         """The objective of each setting (``total_objective`` of its residuals), the start's correction and the
-        carried state anchored at ``anchor``. A setting asked for again under the same anchor, segments and noise
-        levels is not rolled out again, nor is one asked for twice in a call: a grid shrinking around its best point
-        asks for that point again, and points clipped to a range's end coincide. A row's rollout does not depend on
-        the others in its batch, so the numbers are those of a rollout of every setting asked for."""
-        index = tuple(self._index(segments))
-        head = (self._sigma.tobytes(), setting_key(anchor), index)
-        keys = [(*head, setting_key(s)) for s in settings]
-        missing = _missing(keys, settings, self._objectives)
-        if missing:
-            ran = self.residuals(list(missing.values()), index, anchor=anchor)
-            if len(self._objectives) + len(missing) > 100_000:
-                self._objectives.clear()
-            self._objectives.update({key: total_objective(r) for key, r in zip(missing, ran, strict=True)})
-        return [self._objectives[k] for k in keys]
+        carried state anchored at ``anchor``. Kept per segment: under an anchor a segment's residual depends on the
+        setting and that segment alone (its carried state comes from the anchor's run, its rollout from its own row
+        of the batch), so a setting asked for again under the same anchor and noise levels is rolled out only on
+        the segments not yet measured: a grid shrinking around its best point asks for that point again, points
+        clipped to a range's end coincide, and the held-out test's folds, each refitted from the same start on two
+        thirds of the segments, share most of their points. The sum runs in the segments' order, as
+        ``total_objective`` sums, so the numbers are those of a rollout of every setting asked for."""
+        index = self._index(segments)
+        head = (self._sigma.tobytes(), setting_key(anchor))
+        keys = [setting_key(s) for s in settings]
+        gaps: dict[tuple[int, ...], dict[tuple, Setting]] = {}  # settings grouped by the segments they lack
+        for key, setting in zip(keys, settings, strict=True):
+            lacking = tuple(i for i in index if (head, i, key) not in self._objectives)
+            if lacking and not any(key in group for group in gaps.values()):
+                gaps.setdefault(lacking, {})[key] = setting
+        measured = {(head, i, key): self._objectives[(head, i, key)] for key in keys for i in index
+                    if (head, i, key) in self._objectives}  # fmt: skip
+        for lacking, group in gaps.items():
+            ran = self.residuals(list(group.values()), lacking, anchor=anchor)
+            for key, per in zip(group, ran, strict=True):
+                measured.update({(head, i, key): r.objective for i, r in zip(lacking, per, strict=True)})
+        if len(self._objectives) + len(measured) > 1_000_000:
+            self._objectives.clear()
+        self._objectives.update(measured)
+        return [float(sum(measured[(head, i, key)] for i in index)) for key in keys]
 
     def error(self, residuals: Sequence[Residual]) -> float:
         """RMS of the normalized residual (the start's correction counted against its prior) per data sample and

@@ -620,8 +620,10 @@ def test_two_logs_with_one_path_are_kept_apart():
 
 def test_an_anchored_objective_asked_again_is_not_rolled_out_again():
     """A fit's grid shrinking around its best point asks for that point again, and grid points clipped to a range's
-    end coincide: under the same anchor, segments and noise levels, such a setting is not rolled out again, and its
-    objective is the one a rollout gives. New noise levels (a moved replay floor) measure it anew."""
+    end coincide: under the same anchor and noise levels, such a setting is not rolled out again, and its objective
+    is the one a rollout gives. It is kept per segment: part of the segments measured before (a held-out fold's
+    refit) costs no rollout, and a set that overlaps them rolls out only the segments it adds. New noise levels (a
+    moved replay floor) measure it anew."""
     from sysid.fit import costs
 
     adapter = make_adapter("bioloid")
@@ -638,9 +640,20 @@ def test_an_anchored_objective_asked_again_is_not_rolled_out_again():
     assert first == direct
     before = problem.rollouts
     assert costs(problem, settings[::-1], None, nominal) == first[::-1] and problem.rollouts == before
-    assert costs(problem, settings[:1], problem.scored[:1], nominal) == [
-        total_objective(problem.residuals(settings[:1], problem.scored[:1], anchor=nominal)[0])
-    ]  # other segments: measured anew
+    assert len(problem.scored) >= 2
+    part = problem.scored[1:]
+    assert costs(problem, settings[:2], part, nominal) == [
+        total_objective(r) for r in problem.residuals(settings[:2], part, anchor=nominal)
+    ]
+    assert problem.rollouts == before + len(part) * 2  # the direct residuals above; the costs themselves: none
+    new = {**nominal, key: 0.9}
+    before = problem.rollouts
+    first_new = costs(problem, [new], part, nominal)
+    assert problem.rollouts - before == len(part)
+    both = costs(problem, [new, settings[1]], None, nominal)
+    assert problem.rollouts - before == len(problem.scored)  # only the segment the new setting lacked
+    assert both == [total_objective(r) for r in problem.residuals([new, settings[1]], None, anchor=nominal)]
+    assert first_new == [total_objective(problem.residuals([new], part, anchor=nominal)[0])]
     problem.set_floor({**nominal, key: 1.1})
     before = problem.rollouts
     again = costs(problem, settings[:2], None, nominal)
@@ -865,3 +878,27 @@ def test_a_settings_model_is_the_model_of_a_robot_built_with_its_edits(robot):
     for setting in settings:
         edits = adapter.spec_edits(setting)
         assert model_bytes(adapter.build(edits)) == model_bytes(make(edits).model), setting
+
+
+def test_the_matrix_runs_every_effect_then_the_next_draws_until_its_cases_per_robot():
+    """benchmarks/calibration_matrix.py: a robot's effect cases are every observable effect at the first draw (the
+    seeds reported before), then again at the next draws, until ``--seeds`` cases; effect k of the catalog at draw d
+    takes seed 1000 d + k + 1, whichever effects run beside it."""
+    from types import SimpleNamespace
+
+    from benchmarks.calibration_matrix import effect_cases
+
+    catalogued = ["a", "weak", "b", "c"]
+    observable = ["a", "b", "c"]
+    cases = effect_cases(catalogued, observable, SimpleNamespace(seeds=7, draw=0, effects=None))
+    assert cases == [("a", 1), ("b", 3), ("c", 4), ("a", 1001), ("b", 1003), ("c", 1004), ("a", 2001)]
+    assert effect_cases(catalogued, observable, SimpleNamespace(seeds=2, draw=1, effects=None)) == [
+        ("a", 1001),
+        ("b", 1003),
+        ("c", 1004),
+    ]  # every effect at least once
+    assert effect_cases(catalogued, observable, SimpleNamespace(seeds=2, draw=0, effects=["c"])) == [
+        ("c", 4),
+        ("c", 1004),
+    ]
+    assert effect_cases(catalogued, observable, SimpleNamespace(seeds=5, draw=0, effects=["weak"])) == []
