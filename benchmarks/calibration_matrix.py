@@ -34,7 +34,6 @@ there unless ``--threads`` says more). Same seeds, same cases: a case's result d
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import time
 from collections.abc import Iterator, Mapping
@@ -228,10 +227,11 @@ def effect_cases(catalogued: list[str], observable: list[str], args) -> list[tup
     effects (those of ``args.effects`` if given) in catalog order at draw ``args.draw``, then again at the next
     draws; effect k of the catalog at draw d takes seed 1000 d + k + 1, whatever else is run beside it."""
     names = [n for n in observable if args.effects is None or n in args.effects]
-    if not names:
-        return []
-    return [(names[j % len(names)], 1000 * (args.draw + j // len(names)) + 1 + catalogued.index(names[j % len(names)]))
-            for j in range(max(args.seeds, len(names)))]  # fmt: skip
+    cases = []
+    for j in range(max(args.seeds, len(names)) if names else 0):
+        draw, k = divmod(j, len(names))
+        cases.append((names[k], 1000 * (args.draw + draw) + 1 + catalogued.index(names[k])))
+    return cases
 
 
 def pairs(adapter, observable: list[str], count: int) -> list[tuple[str, str]]:
@@ -330,7 +330,7 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
     for robot in args.robots:
         mine = [r for r in ok if r["robot"] == robot]
         if mine:
-            hits = [r for r in mine if r["first"] == r["effect"] and r["covered"] and all(r["covered"].values())]
+            hits = [r for r in mine if _covers(r)]
             share = len(hits) / len(mine)
             misses = [f"{r['effect']} (seed {r['seed']})" for r in mine if r not in hits]
             pooled.append([robot, len(mine), len({r["effect"] for r in mine}),
@@ -340,18 +340,17 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
                         "not covered"], pooled))  # fmt: skip
     if coverage_rows:
         md.append(f"\n## Coverage over {args.seeds} seeds of one effect (`--kinds coverage`; goal >= 80%)\n\n")
-    cov_table = []
-    for robot in args.robots:
-        for name in COVERAGE.get(robot, []):
-            mine = [r for r in coverage_rows if r["robot"] == robot and r["effect"] == name and "error" not in r]
-            picked = [r for r in mine if r["covered"]]
-            hits = sum(all(r["covered"].values()) for r in picked)
-            share = hits / len(mine) if mine else math.nan
-            cov_table.append([robot, name, len(mine), len(picked), hits, share,
-                              "met" if share >= 0.8 else "MISSED" if mine else "not run"])  # fmt: skip
-    if coverage_rows:
+        cov_table = []
+        for robot in args.robots:
+            for name in COVERAGE.get(robot, []):
+                mine = [r for r in coverage_rows if r["robot"] == robot and r["effect"] == name and "error" not in r]
+                if mine:
+                    hits = sum(_covers(r) for r in mine)
+                    share = hits / len(mine)
+                    cov_table.append([robot, name, len(mine), sum(r["first"] == name for r in mine), hits, share,
+                                      "met" if share >= 0.8 else "MISSED"])  # fmt: skip
         md.append(md_table(["robot", "effect", "cases run", "effect picked", "interval covers truth", "coverage",
-                            "goal"], [row for row in cov_table if row[2]]))  # fmt: skip
+                            "goal"], cov_table))  # fmt: skip
         md.append("\n(coverage counts a case whose first pick was another effect as not covered)\n")
     md += pair_section
     if not_run:
@@ -412,6 +411,12 @@ def _weak(robot: str, name: str) -> dict:
     return {"robot": robot, "effect": name, "value": "; ".join(f"{k} {v:g}" for k, v in values.items()),
             "nominal_error": median, "errors": errors, "holds": median < synth.MIN_NOMINAL_ERROR,
             "why": effect.weak}  # fmt: skip
+
+
+def _covers(row: dict) -> bool:
+    """A case's intervals cover the truth: its first pick is the injected effect (``covered`` is filled only then)
+    and every parameter's 95% interval holds the true value."""
+    return bool(row["covered"]) and all(row["covered"].values())
 
 
 def _yn(x: bool) -> str:

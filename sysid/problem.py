@@ -907,12 +907,16 @@ class Problem:
         head = (self._sigma.tobytes(), setting_key(anchor))
         keys = [setting_key(s) for s in settings]
         gaps: dict[tuple[int, ...], dict[tuple, Setting]] = {}  # settings grouped by the segments they lack
-        for key, setting in zip(keys, settings, strict=True):
-            lacking = tuple(i for i in index if (head, i, key) not in self._objectives)
-            if lacking and not any(key in group for group in gaps.values()):
-                gaps.setdefault(lacking, {})[key] = setting
-        measured = {(head, i, key): self._objectives[(head, i, key)] for key in keys for i in index
-                    if (head, i, key) in self._objectives}  # fmt: skip
+        measured = {}
+        for key, setting in dict(zip(keys, settings, strict=True)).items():  # each setting once
+            lacking = []
+            for i in index:
+                if (head, i, key) in self._objectives:
+                    measured[(head, i, key)] = self._objectives[(head, i, key)]
+                else:
+                    lacking.append(i)
+            if lacking:
+                gaps.setdefault(tuple(lacking), {})[key] = setting
         for lacking, group in gaps.items():
             ran = self.residuals(list(group.values()), lacking, anchor=anchor)
             for key, per in zip(group, ran, strict=True):
