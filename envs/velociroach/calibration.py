@@ -222,7 +222,7 @@ class RoachAdapter(Adapter):
     burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
     fd_step = 0.02  # contacts make the cost rough at small scales: difference over 2% of each range,
     rough_cost = True  # and fit without derivatives
-    chain_search = (1, 2, 1)  # each fit rolls out thousands of segments: the narrowest search for effects together
+    chain_search = (1, 1, 1)  # each joint fit costs minutes (thousands of segment rollouts): one chain per length
 
     def __init__(self) -> None:
         super().__init__()
