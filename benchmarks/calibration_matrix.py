@@ -274,6 +274,8 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
     if host:
         speeds = ", ".join(f"{robot} {us:.1f}" for robot, us in host.items())
         md.append(f"\nThe host's speed before the run (us per raw physics step of each nominal model): {speeds}.\n")
+    if done:
+        md.append(f"\n{_time_spent(plan, done)}\n")
     ok = [r for r in rows if "error" not in r]
     md.append(
         "\n## Each catalogued effect, drawn by the generator (effect k of a robot's catalog at draw d: seed "
@@ -321,11 +323,6 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
         + [[r["robot"], r["effect"] or "null", f"not generated at seed {r['seed']}: {r['error']}", "", "", "",
             "not run"] for r in null_rows + ooc_rows if "error" in r],
     ))  # fmt: skip
-    md.append(
-        "\n## Coverage of the 95% intervals over each robot's effect cases (goal >= 80%)\n\nPooled over the robot's "
-        "effects: a case counts as covered if its first pick is the injected effect and every parameter's interval "
-        "holds the truth.\n\n"
-    )
     pooled = []
     for robot in args.robots:
         mine = [r for r in ok if r["robot"] == robot]
@@ -336,8 +333,14 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
             pooled.append([robot, len(mine), len({r["effect"] for r in mine}),
                            sum(r["first"] == r["effect"] for r in mine), len(hits), share,
                            "met" if share >= 0.8 else "MISSED", ", ".join(misses) or "-"])  # fmt: skip
-    md.append(md_table(["robot", "cases", "effects", "effect picked", "intervals cover truth", "coverage", "goal",
-                        "not covered"], pooled))  # fmt: skip
+    if pooled:  # (a run without effect cases has no pooled coverage to show)
+        md.append(
+            "\n## Coverage of the 95% intervals over each robot's effect cases (goal >= 80%)\n\nPooled over the "
+            "robot's effects: a case counts as covered if its first pick is the injected effect and every "
+            "parameter's interval holds the truth.\n\n"
+        )
+        md.append(md_table(["robot", "cases", "effects", "effect picked", "intervals cover truth", "coverage",
+                            "goal", "not covered"], pooled))  # fmt: skip
     if coverage_rows:
         md.append(f"\n## Coverage over {args.seeds} seeds of one effect (`--kinds coverage`; goal >= 80%)\n\n")
         cov_table = []
@@ -406,11 +409,26 @@ def _weak(robot: str, name: str) -> dict:
     effect = adapter.effects()[name]
     runs, seconds = synth.protocol(adapter)
     values = {p.name: p.high if p.high - p.nominal >= p.nominal - p.low else p.low for p in effect.params}
+    start = time.perf_counter()
     errors = [float(synth.record(robot, {name: values}, s, seconds, runs)[1]["nominal_error"]) for s in WEAK_SEEDS]
     median = float(np.median(errors))
     return {"robot": robot, "effect": name, "value": "; ".join(f"{k} {v:g}" for k, v in values.items()),
             "nominal_error": median, "errors": errors, "holds": median < synth.MIN_NOMINAL_ERROR,
-            "why": effect.weak}  # fmt: skip
+            "why": effect.weak, "seconds": time.perf_counter() - start}  # fmt: skip
+
+
+def _time_spent(plan: list[Job], done: Mapping[Job, dict]) -> str:
+    """Where the time went: each case's own wall time (``seconds``), summed per robot and kind, in minutes."""
+    minutes: dict[str, dict[str, float]] = {}
+    for job in plan:
+        if job in done:
+            kind, robot = job[0], job[1]
+            per = minutes.setdefault(robot, {})
+            per[kind] = per.get(kind, 0.0) + done[job].get("seconds", 0.0) / 60
+    parts = "; ".join(f"{robot} " + ", ".join(f"{kind} {m:.1f}" for kind, m in kinds.items())
+                      for robot, kinds in minutes.items())  # fmt: skip
+    total = sum(m for kinds in minutes.values() for m in kinds.values())
+    return f"Case-minutes (each case's own wall time, summed): {total:.1f} in all; {parts}."
 
 
 def _covers(row: dict) -> bool:

@@ -902,3 +902,17 @@ def test_the_matrix_runs_every_effect_then_the_next_draws_until_its_cases_per_ro
         ("c", 1004),
     ]
     assert effect_cases(catalogued, observable, SimpleNamespace(seeds=5, draw=0, effects=["weak"])) == []
+
+
+def test_the_matrix_says_where_its_time_went():
+    """The matrix's report sums each case's own wall time per robot and kind, the weak declarations' checks
+    included (they are not cases of the issue's counts, but they take time), and cases not run count nothing."""
+    from benchmarks.calibration_matrix import _time_spent
+
+    plan = [("effect", "roach", "delay", 1), ("effect", "roach", "mass", 2), ("weak", "roach", "mass", 0),
+            ("null", "motor", None, 2), ("ooc", "motor", "disturbance", 3)]  # fmt: skip
+    done = {plan[0]: {"seconds": 120.0}, plan[1]: {"seconds": 60.0}, plan[2]: {"seconds": 30.0},
+            plan[3]: {"seconds": 6.0}}  # fmt: skip
+    assert _time_spent(plan, done) == (
+        "Case-minutes (each case's own wall time, summed): 3.6 in all; roach effect 3.0, weak 0.5; motor null 0.1."
+    )
