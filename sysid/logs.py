@@ -9,6 +9,8 @@ Formats, recognized by their content:
   ``Present Position`` in counts; ``Goal Position`` is the goal; also without the header, from ``Time[ms],
   Present Position``);
 - the RHex-style gearmotor log (``time,pos,speed,power``: ms, encoder clicks, clicks/s, PWM of 255);
+- a CSV whose columns are all our channels (:data:`CHANNEL_UNITS`: ``time,duty_FL,...,leg_angle_FL,...``), ``time``
+  first, in SI units: read as it is, as a Parquet telemetry export would be;
 - any other CSV or JSON with a column map (:class:`ColumnMap`): our channel -> the file's column, its unit and,
   for counts, how many counts make one unit. The map is for files in none of the formats above: one given with
   logs of those formats leaves them to their own readers. A mapped CSV may hold blank lines and ``#`` comments.
@@ -24,6 +26,7 @@ no lines, the number counts its rows (records) from 1.
 from __future__ import annotations
 
 import csv
+import functools
 import importlib
 import json
 import math
@@ -117,11 +120,40 @@ CHANNEL_UNITS: dict[str, str] = {
 def channel_unit(channel: str) -> str | None:
     """The SI unit of our channel ``channel`` (:data:`CHANNEL_UNITS`, the longest name it is or starts with followed
     by ``_``), or None for a channel skitter does not know."""
+    stem = _stem(channel)
+    return None if stem is None else CHANNEL_UNITS[stem]
+
+
+def _stem(channel: str) -> str | None:
+    """The longest :data:`CHANNEL_UNITS` name that ``channel`` is or starts with followed by ``_``, or None."""
     for n in range(channel.count("_") + 1):
         stem = channel.rsplit("_", n)[0]
         if stem in CHANNEL_UNITS:
-            return CHANNEL_UNITS[stem]
+            return stem
     return None
+
+
+@functools.lru_cache(maxsize=1)
+def _declared_suffixes() -> frozenset[str]:
+    """The joints, legs, sides and axes that the robots' calibration channels name (``FL``, ``left``, ``B_L_1``):
+    what may follow a channel's name in a CSV read without a column map."""
+    from sysid.robots import adapter, adapters
+
+    suffixes = set()
+    for robot in adapters():
+        found = adapter(robot)
+        for name in (*found.required(), *found.channels):
+            stem = _stem(name)
+            if stem is not None and name != stem:
+                suffixes.add(name[len(stem) + 1 :])
+    return frozenset(suffixes)
+
+
+def is_our_channel(name: str) -> bool:
+    """Whether ``name`` is a channel of ours exactly: a :data:`CHANNEL_UNITS` name, alone or followed by a joint,
+    leg, side or axis that a robot declares (``leg_angle_FL``, ``sweep_left``; not ``angle_deg``)."""
+    stem = _stem(name)
+    return stem is not None and (name == stem or name[len(stem) + 1 :] in _declared_suffixes())
 
 
 class LogError(ValueError):
@@ -235,13 +267,16 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
     if native is not None:
         log = native(path)
     elif column_map is not None:
-        log = _read_mapped(path, column_map)
+        log = _read_mapped(path, column_map, required)
     else:
         head = _head(path)
         lacking = _lacking_columns(head)
         if lacking:
             raise LogError(f"{path}: line 1 {lacking}")
-        raise LogError(f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns)")
+        raise LogError(
+            f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns), or name the "
+            "columns by skitter's channels (time first, SI units)"
+        )
     return check_log(log, required)
 
 
@@ -274,7 +309,16 @@ def _native_reader(path: Path) -> Callable[[Path], Log] | None:
         return reader.read
     if head.replace(" ", "").lower().startswith(",".join(GEARMOTOR_COLUMNS)):
         return _read_gearmotor
+    if path.suffix.lower() != ".json" and not _lacking_columns(head) and _our_channels(head):
+        return _read_skitter_csv
     return None
+
+
+def _our_channels(head: str) -> bool:
+    """Whether a CSV's first line names only our channels (:data:`CHANNEL_UNITS`), ``time`` first, each once."""
+    names = [n.strip() for n in head.split(",")]
+    names = names[:-1] if len(names) > 2 and names[-1] == "" else names  # a trailing comma
+    return len(names) >= 2 and names[0] == "time" and len(set(names)) == len(names) and all(map(is_our_channel, names))
 
 
 @dataclass(frozen=True)
@@ -517,8 +561,21 @@ def _read_gearmotor(path: Path) -> Log:
     return Log(str(path), df, meta)
 
 
-def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
-    """A CSV or JSON log through a column map; a row whose mapped fields are not all finite numbers is malformed."""
+def _read_skitter_csv(path: Path) -> Log:
+    """A CSV whose columns are all our channels, ``time`` first, in their SI units (as skitter's telemetry has them):
+    read as it is. A field that is not a number is NaN, as a blank is in a Parquet log; :func:`check_log` drops a row
+    whose time or required channel is not finite, naming that column."""
+    names, rows, bad = _csv_rows(path)
+    drop_bad_rows(path, bad, len(rows) + len(bad))
+    data = np.asarray([[_number_or_nan(f) for f in fields] for _, fields in rows], dtype=float)
+    df = pd.DataFrame(data.reshape(-1, len(names)), columns=names)
+    meta = {"format": "skitter CSV (our channel names, SI units)", "file_rows": [number for number, _ in rows]}
+    return Log(str(path), df, meta)
+
+
+def _read_mapped(path: Path, column_map: ColumnMap, required: Sequence[str] = ()) -> Log:
+    """A CSV or JSON log through a column map. A row whose time or required channel is not a finite number is
+    malformed; another mapped channel that is not a number is NaN there (as a blank in a Parquet log)."""
     names, rows, bad = _json_rows(path) if path.suffix.lower() == ".json" else _csv_rows(path)
     columns: dict[str, int] = {}
     for name, entry in column_map.columns.items():
@@ -530,9 +587,13 @@ def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
         columns[name] = names.index(column)
     total = len(rows) + len(bad)
     values, file_rows = [], []
+    strict = {"time", *required}
     for number, fields in rows:
         try:
-            values.append([_number(fields[k], names[k]) for k in columns.values()])
+            values.append(
+                [_number(fields[k], names[k]) if name in strict else _number_or_nan(fields[k])
+                 for name, k in columns.items()]
+            )  # fmt: skip
             file_rows.append(number)
         except ValueError as exc:
             bad.append((number, str(exc)))
@@ -543,6 +604,13 @@ def _read_mapped(path: Path, column_map: ColumnMap) -> Log:
     meta = {"format": "mapped " + path.suffix.lstrip("."), "column_map": dict(column_map.columns),
             "file_rows": file_rows}  # fmt: skip
     return Log(str(path), df, meta)
+
+
+def _number_or_nan(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def _number(value: Any, column: str) -> float:

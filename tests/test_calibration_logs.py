@@ -85,6 +85,46 @@ def test_a_column_map_reads_logs_of_any_format(tmp_path, suffix):
     assert log.df["duty"].iloc[0] == pytest.approx(0.5)
 
 
+def _our_channels_log(n: int = 400) -> pd.DataFrame:
+    """A log in our channels (xJüs names, SI units), its first rows without a gait command (blank, as telemetry has)."""
+    t = np.arange(n) * 0.008
+    df = pd.DataFrame({"time": t, "duty_FL": 0.3, "leg_angle_FL": 2.0 * t, "leg_speed_FL": 2.0, "period": 0.5})
+    df.loc[:9, "period"] = np.nan
+    return df
+
+
+def test_a_csv_named_by_our_channels_reads_as_is_without_a_column_map(tmp_path):
+    df = _our_channels_log()
+    path = tmp_path / "xjus.csv"
+    df.to_csv(path, index=False)
+    log = read_log(path, ("duty_FL", "leg_angle_FL", "leg_speed_FL"))
+    assert log.meta["format"].startswith("skitter CSV")
+    assert len(log.df) == len(df), "a blank channel nobody requires drops no row"
+    np.testing.assert_allclose(log.df["leg_angle_FL"], df["leg_angle_FL"])
+    assert log.df["period"].isna().sum() == 10
+
+
+def test_a_non_finite_required_channel_is_named_as_itself_not_as_an_earlier_blank_one(tmp_path):
+    df = _our_channels_log()
+    df.loc[100:, "leg_angle_FL"] = np.nan  # most rows: the log is refused, naming this column and its first bad line
+    path = tmp_path / "xjus.csv"
+    df.to_csv(path, index=False)
+    with pytest.raises(LogError, match=r"at line 102: column 'leg_angle_FL'"):
+        read_log(path, ("duty_FL", "leg_angle_FL"))
+    mapping = tmp_path / "map.json"  # the same file through a column map: the same message
+    units = {"time": "s", "duty_FL": "1", "leg_angle_FL": "rad", "period": "s"}
+    mapping.write_text(json.dumps({c: {"column": c, "unit": u} for c, u in units.items()}))
+    with pytest.raises(LogError, match=r"at line 102: column 'leg_angle_FL'"):
+        read_log(path, ("duty_FL", "leg_angle_FL"), ColumnMap.load(mapping))
+
+
+def test_a_csv_with_a_name_we_do_not_know_still_needs_a_column_map(tmp_path):
+    path = tmp_path / "other.csv"
+    _our_channels_log().rename(columns={"leg_angle_FL": "angle_deg"}).to_csv(path, index=False)
+    with pytest.raises(LogError, match="unknown log format"):
+        read_log(path, ("duty_FL",))
+
+
 # --- bad input: calibrate.py stops before anything is written ---------------------------------------------------
 def _gearmotor_rows(n: int = 300) -> list[str]:
     return [f"{10 * (i + 1)},{i * 5},{500},{128}" for i in range(n)]

@@ -9,6 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
+from agents import load_policy
 from tests.conftest import ENV_IDS
 
 N_STEPS = 60
@@ -292,3 +293,33 @@ def test_rgb_array_renders_headless_at_any_size(width, height):
     assert frame.std() > 5, "the frame should show a scene, not a blank image"
     for edge in (frame[-20:, :, :], frame[:, -20:, :]):
         assert edge.max() > 0, "no black padding at the edges"
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_rgb_array_frames_follow_the_robot(batched):
+    """The frames' camera tracks the robot's body: after a walk of about a metre it still looks at the robot
+    (Gymnasium 1.x's offscreen renderer set a free camera on every frame, left at the origin)."""
+    kwargs = {"render_mode": "rgb_array", "width": 160, "height": 120}
+    single = gym.make("skitter/XjusWalk-v0", **kwargs)
+    obs, _ = single.reset(seed=0)
+    action, _ = load_policy("buehler", single).predict(obs, None, np.array([True]))  # gait mode: one action
+    if batched:
+        env = gym.make_vec("skitter/XjusWalk-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+        action = np.broadcast_to(action, (2, *action.shape))
+        env.reset(seed=0)
+    else:
+        env = single
+    first = env.render()
+    for _ in range(250):  # 2 s at 125 Hz
+        env.step(action)
+    last = env.render()
+    base = env.unwrapped
+    if batched:
+        body = base.robot.sim.get_data(0).xpos[base._render_model.body(base.robot.root_body).id]
+    else:
+        body = base.data.xpos[base.model.body(base.robot.root_body).id]
+    camera = base._renderer.camera
+    env.close()
+    assert first.shape == last.shape == (120, 160, 3)
+    assert np.linalg.norm(body[:2]) > 0.8, "the robot should have walked away from the origin"
+    np.testing.assert_allclose(camera.lookat[:2], body[:2], atol=0.05)

@@ -661,3 +661,24 @@ def test_ctrl_c_while_a_tool_loads_its_libraries_is_a_quiet_exit(tool, library):
         process.stderr[-2000:],
         process.stdout[:200],
     )
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac", "td3"])
+def test_every_registered_env_has_a_checked_entry_in_the_shipped_hyperparameters(algo):
+    """``train.py --env <any skitter id>`` finds its hyperparameters out of the box, and they pass the checks."""
+    import train
+
+    ids = sorted(env_id for env_id in gym.registry if env_id.startswith("skitter/"))
+    assert {"skitter/XjusWalk-v0", "skitter/BioloidWalk-v1"} <= set(ids)
+    for env_id in ids:
+        hp = train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml", env_id, algo)
+        assert hp.n_envs >= 1, env_id
+
+
+@pytest.mark.parametrize("env_id", ["skitter/XjusWalk-v0", "skitter/BioloidWalk-v1"])
+def test_ppo_trains_the_later_robots_with_the_shipped_hyperparameters(env_id, tmp_path):
+    done = train_in_process("--env", env_id, "--algo", "ppo", "--timesteps", 1, "--n-envs", 2, "--runs-dir", tmp_path)
+    assert done.returncode == 0, done.stderr
+    (run_dir,) = tmp_path.iterdir()
+    assert (run_dir / "model.zip").is_file()
+    assert_policy_acts(run_dir / "model.zip", env_id)

@@ -17,6 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.common.parameters import check_randomize, sample
+from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import Robot, check_flag, check_number
 from envs.common.task import Task
 from envs.common.telemetry import TelemetryRecorder
@@ -158,18 +159,21 @@ class SkitterEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        if self._renderer is None:
+        body = self.model.body(self.robot.root_body).id
+        if self._renderer is None and self.render_mode == "human":
             from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
 
-            vis = self.model.vis.global_
-            # the offscreen buffer must hold the frame, or larger frames come back padded
-            vis.offwidth, vis.offheight = max(vis.offwidth, self._width), max(vis.offheight, self._height)
-            camera = {**self.camera_config(), "trackbodyid": self.model.body(self.robot.root_body).id}
+            camera = {**self.camera_config(), "trackbodyid": body}
             self._renderer = MujocoRenderer(self.model, self.data, camera, self._width, self._height)
-        return self._renderer.render(self.render_mode)
+        elif self._renderer is None:
+            camera = tracking_camera(self.model, self.camera_config(), body)
+            self._renderer = FrameRenderer(self.model, camera, self._width, self._height)
+        if self.render_mode == "human":
+            return self._renderer.render(self.render_mode)
+        return self._renderer.render(self.data)
 
     def camera_config(self) -> dict[str, Any]:
-        """The tracking camera, scaled to the robot's length."""
+        """The tracking camera, scaled to the robot's length (``MjvCamera`` fields)."""
         return {
             "type": mujoco.mjtCamera.mjCAMERA_TRACKING,
             "distance": 3.5 * self.robot.facts.length,

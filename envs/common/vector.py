@@ -26,6 +26,7 @@ from gymnasium.vector.utils import batch_space
 
 from envs.common.env import SkitterEnv
 from envs.common.parameters import sample
+from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import batched_robots
 from envs.common.telemetry import TelemetryRecorder
 
@@ -235,20 +236,13 @@ class SkitterVectorEnv(VectorEnv):
             return None
         sim = self.robot.sim
         if self._renderer is None:
-            from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
-
-            self._render_model = sim.batch.get_model(self.render_sim)
-            self._render_data = mujoco.MjData(self._render_model)
-            vis = self._render_model.vis.global_
-            vis.offwidth = max(vis.offwidth, self.env._width)
-            vis.offheight = max(vis.offheight, self.env._height)
-            camera = {**self.env.camera_config(), "trackbodyid": self._render_model.body(self.robot.root_body).id}
-            self._renderer = MujocoRenderer(
-                self._render_model, self._render_data, camera, self.env._width, self.env._height
-            )
+            model = self._render_model = sim.batch.get_model(self.render_sim)
+            self._render_data = mujoco.MjData(model)
+            camera = tracking_camera(model, self.env.camera_config(), model.body(self.robot.root_body).id)
+            self._renderer = FrameRenderer(model, camera, self.env._width, self.env._height)
         sim.batch.get_data(self.render_sim, self._render_data)
         mujoco.mj_forward(self._render_model, self._render_data)
-        return self._renderer.render("rgb_array")
+        return self._renderer.render(self._render_data)
 
     def metrics_context(self) -> dict[str, Any]:
         return self.env.metrics_context()
