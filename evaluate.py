@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import signal
@@ -182,7 +183,10 @@ def make_env(args, render: bool):
 
 def evaluate_policy(args, spec: str, policy, env, name: str, out: Path, scratch: Path) -> list[Episode]:
     seeds = [args.seed + i for i in range(args.episodes)]
-    episodes = run_episodes(env, policy, seeds, deterministic=not args.stochastic, render_first=args.video)
+    stride = video_stride(env.metadata["render_fps"])
+    episodes = run_episodes(
+        env, policy, seeds, deterministic=not args.stochastic, render_first=args.video, render_every=stride
+    )
     base = env.unwrapped
     # each simulation's first episode is the evaluation's episode i
     frames = [rec.frame().query("episode == 0").assign(episode=i) for i, rec in enumerate(base.recorders)]
@@ -194,19 +198,25 @@ def evaluate_policy(args, spec: str, policy, env, name: str, out: Path, scratch:
         env.unwrapped.robot, telemetry_path, out / "plots" / f"{name}.png", f"{spec} on {args.env}, seed {args.seed}"
     )
     if args.video:
-        write_video(episodes[0].frames, out / "videos" / f"{name}.mp4", fps=env.metadata["render_fps"])
+        write_video(episodes[0].frames, out / "videos" / f"{name}.mp4", fps=env.metadata["render_fps"] / stride)
     env.close()
     return episodes
 
 
-def write_video(frames: list[np.ndarray], path: Path, fps: int) -> None:
+VIDEO_FPS = 30  # at most this many frames a second of simulated time are rendered: rendering is the slow part
+
+
+def video_stride(control_fps: float) -> int:
+    """Render every this many control steps for a video of at most :data:`VIDEO_FPS` frames per second."""
+    return max(1, math.ceil(control_fps / VIDEO_FPS - 1e-9))
+
+
+def write_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
     import imageio.v2 as imageio
 
-    stride = max(1, round(fps / 50))  # at most 50 frames/s of video
-
     def write(tmp: Path) -> None:
-        with imageio.get_writer(tmp, format="FFMPEG", fps=fps / stride, codec="libx264", macro_block_size=8) as w:
-            for frame in frames[::stride]:
+        with imageio.get_writer(tmp, format="FFMPEG", fps=fps, codec="libx264", macro_block_size=8) as w:
+            for frame in frames:
                 w.append_data(frame)
 
     atomic_write(path, write)

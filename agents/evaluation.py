@@ -95,11 +95,17 @@ def run_episode(env, policy: Policy, seed: int, deterministic: bool = True, rend
 
 
 def run_episodes(
-    venv, policy: Policy, seeds: list[int], deterministic: bool = True, render_first: bool = False
+    venv,
+    policy: Policy,
+    seeds: list[int],
+    deterministic: bool = True,
+    render_first: bool = False,
+    render_every: int = 1,
 ) -> list[Episode]:
     """Run one episode per seed at once, simulation i with seed ``seeds[i]``, on a batched env of ``len(seeds)``
     simulations; the same episodes :func:`run_episode` runs one after another (a batched env gives each simulation
-    a single env's results). Each simulation's first episode counts; what it does after it ends is not used."""
+    a single env's results). Each simulation's first episode counts; what it does after it ends is not used.
+    ``render_first``: frames of simulation 0's episode, at its start and after every ``render_every``-th step."""
     base = venv.unwrapped
     n = base.num_envs
     if n != len(seeds):
@@ -117,7 +123,7 @@ def run_episodes(
         obs, reward, terminated, truncated, info = venv.step(action)
         totals[running] += reward[running]
         steps[running] += 1
-        if render_first and running[0]:
+        if render_first and running[0] and steps[0] % render_every == 0:
             frames.append(venv.render())
         for i in np.flatnonzero(running):
             if info["sim_unstable"][i]:

@@ -239,10 +239,12 @@ def plot(summary: dict, settings: list[str], scales: list[float], path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--lanes", type=int, default=20, help="seeded terrains (lanes) per terrain kind, >= 20")
+    parser.add_argument("--lanes", type=int, default=20,
+                        help="seeded terrains (lanes) per terrain kind (default 20, the issue's least; fewer for a "
+                             "quick look)")  # fmt: skip
     parser.add_argument("--roughness", type=float, nargs="+", default=DEFAULT_ROUGHNESS, help="RMS heights, m")
     parser.add_argument("--stiffnesses", type=int, default=6, help="log-spaced settings from 0.3x to 10x")
-    parser.add_argument("--obstacles", nargs="*", default=DEFAULT_OBSTACLES)
+    parser.add_argument("--obstacles", nargs="*", default=DEFAULT_OBSTACLES, help="KIND:HEIGHT (m), e.g. step:0.05")
     parser.add_argument("--obstacle-roughness", type=float, default=0.01)
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--terrain-seed", type=int, default=0)
@@ -255,13 +257,23 @@ def main() -> None:
     )
     parser.add_argument("--name", default="spine_study", help="results name (benchmarks/results/<name>.*)")
     args = parser.parse_args()
-    if args.lanes < 1 or args.stiffnesses < 1 or not args.roughness:
-        parser.error("--lanes, --stiffnesses and --roughness need at least one")
+    if args.lanes < 1 or args.stiffnesses < 1 or args.threads < 1 or not args.roughness:
+        parser.error("--lanes, --stiffnesses, --threads and --roughness need at least one")
+    if not (np.isfinite(args.seconds) and args.seconds > 0):
+        parser.error(f"--seconds must be a positive number of seconds, got {args.seconds!r}")
     scales = np.geomspace(0.3, 10.0, args.stiffnesses).tolist() if args.stiffnesses > 1 else [1.0]
     terrains = [TerrainSpec(f"rough {r:g} m RMS", r) for r in args.roughness]
     for item in args.obstacles:
         kind, _, height = item.partition(":")
-        terrains.append(TerrainSpec(f"{kind} {float(height):g} m", args.obstacle_roughness, kind, float(height)))
+        try:
+            terrains.append(TerrainSpec(f"{kind} {float(height):g} m", args.obstacle_roughness, kind, float(height)))
+        except ValueError:
+            parser.error(f"--obstacles: {item!r} is not KIND:HEIGHT in m (e.g. step:0.05)")
+    for terrain in terrains:  # the env's own checks, before any episode runs
+        try:
+            gym.make(ENV_ID, **terrain.kwargs(), terrain_seed=args.terrain_seed).close()
+        except ValueError as exc:
+            parser.error(f"{terrain.name}: {exc}")
     settings = [f"{s:.3g}x" for s in scales] + ["rigid"]
     started = time.perf_counter()
     records, timings = [], []

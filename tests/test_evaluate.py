@@ -65,6 +65,11 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert len(pngs) == 2 and all(p.endswith(".png") for p in pngs)
     mp4s = list((out / "videos").glob("*.mp4"))
     assert len(mp4s) == 2 and all(p.stat().st_size > 1000 for p in mp4s)
+    import imageio.v2 as imageio
+
+    with imageio.get_reader(mp4s[0]) as reader:  # the start and every 2nd of 60 control steps: 25 frames/s at 50 Hz
+        assert reader.count_frames() == 1 + 60 // 2
+        assert reader.get_meta_data()["fps"] == pytest.approx(25.0)
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten
@@ -344,3 +349,11 @@ def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, r
     evaluate.plot_episode(env.unwrapped.robot, telemetry, tmp_path / "plot.png", "duty mode")
     assert (tmp_path / "plot.png").stat().st_size > 0
     assert not [w for w in recwarn if "legend" in str(w.message)]
+
+
+def test_videos_are_rendered_at_most_30_frames_a_second():
+    from evaluate import VIDEO_FPS, video_stride
+
+    for control_hz, stride in [(25, 1), (30, 1), (50, 2), (125, 5), (1000, 34)]:
+        assert video_stride(control_hz) == stride
+        assert control_hz / stride <= VIDEO_FPS

@@ -1,5 +1,7 @@
 """xJüs's tasks, terrain, reference controller and telemetry: what a user of the envs relies on."""
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -213,3 +215,23 @@ def test_bad_reset_options_are_refused():
     for options, message in (({"start": 99}, "start"), ({"leg_angles": [0, 1]}, "leg_angles")):
         with pytest.raises(ValueError, match=message):
             env.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--obstacles", "step"], "--obstacles: 'step' is not KIND:HEIGHT"),
+        (["--obstacles", "lava:0.05"], "obstacle must be one of"),
+        (["--roughness", "0.5"], "roughness must be <= "),
+        (["--seconds", "0"], "--seconds must be a positive number"),
+    ],
+)
+def test_the_spine_study_refuses_bad_arguments_in_one_line_before_running(args, message, tmp_path):
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-m", "benchmarks.spine_study", *args, "--name", "test_refused_" + tmp_path.name]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    assert done.returncode == 2
+    assert message in done.stderr and "Traceback" not in done.stderr, done.stderr
+    assert not list((Path(__file__).parents[1] / "benchmarks" / "results").glob("test_refused_*"))

@@ -120,7 +120,10 @@ class PlotGroup:
 
 
 def check_number(name: str, value: Any, low: float | None = None, high: float | None = None, strict: bool = False):
-    """``value`` as a finite float within bounds; ValueError naming the argument and value otherwise."""
+    """``value`` as a finite float within bounds; ValueError naming the argument and value otherwise (a string or a
+    bool too: ``float`` would read ``"1.08"`` and ``True`` as numbers)."""
+    if isinstance(value, str | bytes | bool | np.bool_):
+        raise ValueError(f"{name} must be a number, got {value!r}")
     try:
         x = float(value)
     except (TypeError, ValueError):

@@ -60,6 +60,10 @@ STALL_TORQUE = 2.17  # N m at the shaft, Table 1 through the motor formula (robo
 NO_LOAD_SPEED = 29.6  # rad/s, Vs / Ks, Table 1
 SPINE_DESIGN_STIFFNESS = 60 * 0.112984829 / np.radians(20.0)  # N m/rad: 60 lbf in after 20 deg, section 3.4 (19.4)
 SPINE_STIFFNESS_RANGE = (0.1, 20.0)  # x the design stiffness: the range offered (docs/xjus.md)
+# the most a constructor takes, x the design stiffness: measured in stop 46 (XjusRough 0.05 m RMS, buehler, 2 ms step,
+# 3 seeds): 70x ran (flips only), 100x went numerically unstable within 0.1 s
+SPINE_STIFFNESS_MAX_SCALE = 50.0
+SPINE_STIFFNESS_MAX = SPINE_STIFFNESS_MAX_SCALE * SPINE_DESIGN_STIFFNESS  # N m/rad (971)
 MOTOR_CONTINUOUS_CURRENT = 1.08  # A per motor, max continuous, seed 001 section 3.2
 EFFICIENCY_CAP = 0.37  # eta N Kt / Ks: the most the seed's motor model can convert (envs/actuators/motor.py)
 RHEX_SPEED = 0.55  # m/s, Research RHex on flat ground (Saranli, Buehler, Koditschek 2001; robots.md section 2)

@@ -53,7 +53,9 @@ def _telemetry_channels() -> dict[str, str]:
 TELEMETRY_COLUMNS: dict[str, str] = _telemetry_channels()  # name -> unit, in table order
 
 
-def _spine_values(name: str, value: SpineSetting, default: float, zero_allowed: bool) -> dict[str, float]:
+def _spine_values(
+    name: str, value: SpineSetting, default: float, zero_allowed: bool, high: float | None = None
+) -> dict[str, float]:
     """Per joint and axis values from one number or a mapping {"front_pitch": ..., ...} (missing: the default)."""
     if value is None:
         return dict.fromkeys(C.SPINE_JOINTS, default)
@@ -62,8 +64,17 @@ def _spine_values(name: str, value: SpineSetting, default: float, zero_allowed: 
         unknown = set(value) - set(C.SPINE_JOINTS)
         if unknown:
             raise ValueError(f"{name} names unknown spine axes {sorted(unknown)}; known: {list(C.SPINE_JOINTS)}")
-        return {j: check_number(f"{name}[{j!r}]", value.get(j, default), 0, strict=strict) for j in C.SPINE_JOINTS}
-    return dict.fromkeys(C.SPINE_JOINTS, check_number(name, value, 0, strict=strict))
+        values = {j: check_number(f"{name}[{j!r}]", value.get(j, default), 0, strict=strict) for j in C.SPINE_JOINTS}
+    else:
+        values = dict.fromkeys(C.SPINE_JOINTS, check_number(name, value, 0, strict=strict))
+    for joint, x in values.items():
+        if high is not None and x > high:
+            raise ValueError(
+                f"{name}[{joint!r}] must be <= {high:.0f} N m/rad ({C.SPINE_STIFFNESS_MAX_SCALE:g}x the design "
+                f"stiffness; stiffer goes numerically unstable at the 2 ms physics step; spine='rigid' is the rigid "
+                f"chassis), got {x!r}"
+            )
+    return values
 
 
 class Xjus(Robot):
@@ -89,7 +100,8 @@ class Xjus(Robot):
             chassis).
         spine_stiffness: N m/rad, one value for all four spine axes or a mapping over ``front_pitch``,
             ``front_roll``, ``rear_pitch``, ``rear_roll`` (default: the seed's design stiffness, 19.4 N m/rad, 60 lbf
-            in at 20 deg). Compliant spine only.
+            in at 20 deg), at most 50x that (971 N m/rad: stiffer goes unstable at the 2 ms physics step). Compliant
+            spine only.
         spine_damping: N m s/rad, the same way (default 0.1). Compliant spine only.
         battery_voltage: supply voltage Vs, V (default the seed's 22.2 V).
         current_limit: a motor driver's current limit, A per motor, or None (default; the seed gives 1.08 A
@@ -146,7 +158,9 @@ class Xjus(Robot):
         if spine == RIGID and (spine_stiffness is not None or spine_damping is not None):
             raise ValueError("spine_stiffness and spine_damping apply to a compliant spine, not spine='rigid'")
         self.spine = spine
-        self.spine_stiffness = _spine_values("spine_stiffness", spine_stiffness, C.SPINE_DESIGN_STIFFNESS, False)
+        self.spine_stiffness = _spine_values(
+            "spine_stiffness", spine_stiffness, C.SPINE_DESIGN_STIFFNESS, False, C.SPINE_STIFFNESS_MAX
+        )
         self.spine_damping = _spine_values("spine_damping", spine_damping, C.SPINE_DAMPING, True)
         self._battery_arg = (
             None if battery_voltage is None else check_number("battery_voltage", battery_voltage, 0, strict=True)
