@@ -274,8 +274,8 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
         if lacking:
             raise LogError(f"{path}: line 1 {lacking}")
         raise LogError(
-            f"{path}: unknown log format (first line {head[:60]!r}); give a column map (--columns), or name the "
-            "columns by skitter's channels (time first, SI units)"
+            f"{path}: unknown log format (first line {head[:60]!r}{_not_ours(head)}); give a column map (--columns), "
+            "or name the columns by skitter's channels (time first, SI units)"
         )
     return check_log(log, required)
 
@@ -312,6 +312,21 @@ def _native_reader(path: Path) -> Callable[[Path], Log] | None:
     if path.suffix.lower() != ".json" and not _lacking_columns(head) and _our_channels(head):
         return _read_skitter_csv
     return None
+
+
+def _not_ours(head: str) -> str:
+    """For a first line that begins with ``time``: which of its names keeps it from being read by our channels."""
+    names = [n.strip() for n in head.split(",")]
+    if names[0] != "time":
+        return ""
+    seen: set[str] = set()
+    for name in names[1:]:
+        if name in seen:
+            return f": column {name!r} appears twice"
+        if name and not is_our_channel(name):
+            return f": {name!r} is not one of skitter's channels"
+        seen.add(name)
+    return ""
 
 
 def _our_channels(head: str) -> bool:

@@ -121,7 +121,10 @@ def test_a_non_finite_required_channel_is_named_as_itself_not_as_an_earlier_blan
 def test_a_csv_with_a_name_we_do_not_know_still_needs_a_column_map(tmp_path):
     path = tmp_path / "other.csv"
     _our_channels_log().rename(columns={"leg_angle_FL": "angle_deg"}).to_csv(path, index=False)
-    with pytest.raises(LogError, match="unknown log format"):
+    with pytest.raises(LogError, match=r"unknown log format .*'angle_deg' is not one of skitter's channels"):
+        read_log(path, ("duty_FL",))
+    _our_channels_log().rename(columns={"leg_speed_FL": "duty_FL"}).to_csv(path, index=False)
+    with pytest.raises(LogError, match="column 'duty_FL' appears twice"):
         read_log(path, ("duty_FL",))
 
 

@@ -323,3 +323,9 @@ def test_rgb_array_frames_follow_the_robot(batched):
     assert first.shape == last.shape == (120, 160, 3)
     assert np.linalg.norm(body[:2]) > 0.8, "the robot should have walked away from the origin"
     np.testing.assert_allclose(camera.lookat[:2], body[:2], atol=0.05)
+
+
+@pytest.mark.parametrize("bounds", ["34", ("0.02", "0.03"), (True, 1.0), b"12"])
+def test_randomize_bounds_must_be_numbers_not_strings_or_bools(bounds):
+    with pytest.raises(ValueError, match=r"randomize\['battery_voltage'\] must be a \(low, high\) pair of numbers"):
+        gym.make("skitter/RoachWalk-v1", randomize={"battery_voltage": bounds})

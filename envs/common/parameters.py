@@ -146,6 +146,8 @@ def check_randomize(randomize: Ranges | None, parameters: ParameterMap, where: s
             known = ", ".join(parameters.names())
             raise ValueError(f"{where}: unknown parameter {name!r} (this robot's parameters: {known})")
         try:
+            if isinstance(bounds, str | bytes) or any(isinstance(b, str | bytes | bool | np.bool_) for b in bounds):
+                raise TypeError  # float() would read "34" as two bounds and "0.02" or True as numbers
             low, high = (float(b) for b in bounds)
         except (TypeError, ValueError):
             raise ValueError(f"{where}[{name!r}] must be a (low, high) pair of numbers, got {bounds!r}") from None
