@@ -231,3 +231,30 @@ def published_exit_code(tool: str, out: Path, where: Path) -> int:
     print(f"{tool}: error: {out} appeared or took files {tool} does not write during the run; it is left as it is, "
           f"and the results are in {where}/", file=sys.stderr)  # fmt: skip
     return 1
+
+
+class Busy(RuntimeError):
+    """Another process holds the lock of a folder that one process at a time may write (:func:`folder_lock`)."""
+
+
+@contextlib.contextmanager
+def folder_lock(folder: str | Path, tool: str, lock_name: str = ".lock") -> Iterator[Path]:
+    """Hold an exclusive lock on ``folder`` (an ``fcntl.flock`` on the file ``folder/lock_name``, made if missing) for
+    the block, so that two runs of a tool never write one folder at once. A second process gets :class:`Busy` at once,
+    with a message naming the folder. The kernel drops the lock when the process ends, however it ends, so a killed
+    run never leaves the folder locked; the lock file itself stays (removing it would let a third process lock a new
+    file while the second still holds the old one)."""
+    import fcntl
+
+    path = Path(folder) / lock_name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle = open(path, "a+")  # held for the block
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise Busy(f"{tool}: {Path(folder)} is in use by another {tool} run (lock {path}); wait for it to end, "
+                       "or choose another folder") from None  # fmt: skip
+        yield path
+    finally:
+        handle.close()
