@@ -81,7 +81,7 @@ def summary(e: int) -> dict[str, Any]:
     metrics = best["metrics"]
     row.update({
         "iterations_done": len(curve),
-        "best_eq17": metrics["eq17"],
+        "best_eq17": metrics.get("distance_travelled", metrics.get("eq17")),  # (earlier runs: "eq17")
         "best_iteration": best["iteration"],
         "best_progress_x": metrics["progress_x"],
         "best_forward": metrics["forward"],

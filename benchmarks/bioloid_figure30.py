@@ -29,7 +29,7 @@ SEED = {  # seed 002 Figure 30 (robots.md section 3): phi by frequency, gaits in
     1.5: (11.06, 4.17, 0.84, 0.83, 2.81, 0.58, 2.43),
     2.0: (12.41, 3.80, 6.32, 1.70, 3.55, 0.26, 1.41),
 }
-CONFIG = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "seconds": 32.0, "objective": "eq17",
+CONFIG = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "seconds": 32.0, "objective": "distance_travelled",
           "sample_interval": 1.0, "max_tilt": 1.0}  # fmt: skip
 
 
@@ -60,7 +60,7 @@ def figure30(knee_wedge: bool = False, noisy_seeds: int = 0) -> list[dict]:
         }
         row["outcome"] = outcome(row["progress_x"], bool(row["fallen"]))
         if spread:
-            row["noisy_eq17"] = spread[(g, f)]["eq17"]
+            row["noisy_eq17"] = spread[(g, f)]["distance_travelled"]
             row["noisy_progress_x"] = spread[(g, f)]["progress_x"]
         rows.append(row)
     return rows
@@ -89,10 +89,13 @@ def noisy(cells, seeds: int, knee_wedge: bool) -> dict:
             obs, _, _, _, info = venv.step(action)
             if k % every == 0:
                 positions.append(np.column_stack([info["x_position"], info["y_position"]]))
-        from agents.optimize.problem import eq17
+        from agents.optimize.problem import distance_travelled
 
         p = np.stack(positions, axis=1)
-        out[(g, f)] = {"eq17": eq17(p).tolist(), "progress_x": (p[:, -1, 0] - p[:, 0, 0]).tolist()}
+        out[(g, f)] = {
+            "distance_travelled": distance_travelled(p).tolist(),
+            "progress_x": (p[:, -1, 0] - p[:, 0, 0]).tolist(),
+        }
     return out
 
 
@@ -107,12 +110,15 @@ def main() -> None:
     table_rows = []
     for f in FREQUENCIES:
         cells = [r for r in rows if r["frequency"] == f]
-        table_rows.append([f"{f:g}"] + [f"{r['eq17']:.2f} ({r['seed_eq17']:.2f})" for r in cells])
+        table_rows.append([f"{f:g}"] + [f"{r['distance_travelled']:.2f} ({r['seed_eq17']:.2f})" for r in cells])
     progress_rows = []
     for f in FREQUENCIES:
         cells = [r for r in rows if r["frequency"] == f]
         progress_rows.append([f"{f:g}"] + [f"{r['progress_x']:+.2f} {r['outcome']}" for r in cells])
-    best = {f: max((r for r in rows if r["frequency"] == f), key=lambda r: r["eq17"])["gait"] for f in FREQUENCIES}
+    best = {
+        f: max((r for r in rows if r["frequency"] == f), key=lambda r: r["distance_travelled"])["gait"]
+        for f in FREQUENCIES
+    }
     spread_rows = []
     if args.seeds:
         for f in FREQUENCIES:

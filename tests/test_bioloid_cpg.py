@@ -152,7 +152,7 @@ def test_the_gait_check_replays_the_scored_rollout_and_its_variants_change_only_
 
     coupling = read_coupling("experiment5")
     params = np.linspace(0.2, 0.8, coupling.dimension)
-    config = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "seconds": 2.0, "objective": "eq17",
+    config = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "seconds": 2.0, "objective": "distance_travelled",
               "sample_interval": 1.0, "max_tilt": 1.0, "coupling": "experiment5"}  # fmt: skip
     policy = tmp_path / "best.json"
     policy.write_text(json.dumps({"policy": "cpg", "robot": "bioloid", "coupling": coupling.to_dict(),

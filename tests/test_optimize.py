@@ -1,5 +1,6 @@
-"""agents.optimize: the seed's PSO and CMA-ES improve on a tiny budget, a killed run resumes to what an uninterrupted
-run gives, the Ray backend equals the local batch, eq. 17, and the command line's one-line errors."""
+"""agents.optimize: the Bioloid report's PSO and CMA-ES improve on a tiny budget, a killed run resumes to what an
+uninterrupted run gives, the Ray backend equals the local batch, the distance travelled [bioloid-webots, eq. 17],
+randomized rollouts, one run per folder, and the command line's one-line errors."""
 
 import json
 import os
@@ -13,10 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agents.optimize.__main__ import main
 from agents.optimize.optimizers import PSO
-from agents.optimize.problem import Evaluator, eq17, parse_config
+from agents.optimize.problem import ConfigError, Evaluator, distance_travelled, parse_config, read_config
 from agents.optimize.run import LocalBackend, RayBackend, RunError, Settings, run
 from envs.common.cluster import init_ray
+from envs.common.io import folder_lock
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
@@ -34,13 +37,96 @@ def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=timeout)  # fmt: skip
 
 
-def test_eq17_is_the_straight_plus_the_integrated_distance():
+def test_distance_travelled_is_the_straight_plus_the_integrated_distance():
     square = np.array([[[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]]], dtype=float)  # back where it started
-    assert eq17(square)[0] == pytest.approx(4.0)
+    assert distance_travelled(square)[0] == pytest.approx(4.0)
     line = np.array([[[0, 0], [0.5, 0], [1.0, 0]]])
-    assert eq17(line)[0] == pytest.approx(2.0)
+    assert distance_travelled(line)[0] == pytest.approx(2.0)
     backward = -line
-    assert eq17(backward)[0] == eq17(line)[0], "eq. 17 rewards walking backward as much"
+    assert distance_travelled(backward)[0] == distance_travelled(line)[0], "it rewards walking backward as much"
+
+
+def test_the_objectives_earlier_name_eq17_is_read_with_a_warning(tmp_path):
+    path = write_config(tmp_path, objective="eq17")
+    with pytest.warns(FutureWarning, match=r"tiny.json: field 'objective': 'eq17' is a deprecated name of "
+                      r"'distance_travelled'"):  # fmt: skip
+        config = read_config(path)
+    assert config.objective == "distance_travelled"
+    shipped = sorted((ROOT / "agents" / "bioloid" / "optimize").glob("*.json"))
+    assert shipped and all(json.loads(p.read_text())["objective"] != "eq17" for p in shipped)
+    done = cli("--config", str(path), "--iterations", "1", "--particles", "1", "--out", str(tmp_path / "out"))
+    assert done.returncode == 2 and done.stderr.splitlines()[0].startswith("python -m agents.optimize: warning: "), (
+        done.stderr
+    )
+
+
+def test_a_key_given_twice_in_a_config_is_refused_naming_file_and_key(tmp_path):
+    path = tmp_path / "twice.json"
+    path.write_text('{"env": "skitter/BioloidWalk-v1", "controller": "cpg", "coupling": "experiment5", '
+                    '"seconds": 8, "seconds": 1}')  # fmt: skip
+    with pytest.raises(ConfigError, match=r"twice.json: key 'seconds' is given twice"):
+        read_config(path)
+    nested = tmp_path / "nested.json"
+    nested.write_text(json.dumps(TINY)[:-1] + ', "env_kwargs": {"knee_wedge": true, "knee_wedge": false}}')
+    done = cli("--config", str(nested), "--iterations", "1", "--particles", "4", "--out", str(tmp_path / "out"))
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"{nested}: key 'knee_wedge' is given twice" in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_randomize_and_reset_noise_in_env_kwargs_change_the_rollouts_reproducibly():
+    """Domain randomization per particle and iteration: the same draw key gives the same scores, another key and
+    every particle its own physics; without them the scores are the nominal ones."""
+    params = np.full((3, 16), 0.5)  # three copies of one controller: nominal rollouts score alike
+    nominal = Evaluator(parse_config({**TINY, "seconds": 2.0}), 3, nthread=1).evaluate(params, (0, 0))
+    assert np.ptp(nominal["progress_x"]) == 0
+    for kwargs in ({"randomize": {"body_mass": [0.55, 0.85], "foot_friction": [0.5, 1.5]}},
+                   {"reset_noise_scale": 1.0}):  # fmt: skip
+        evaluator = Evaluator(parse_config({**TINY, "seconds": 2.0, "env_kwargs": kwargs}), 3, nthread=1)
+        a = evaluator.evaluate(params, (0, 0))
+        assert np.ptp(a["progress_x"]) > 1e-6, f"{kwargs}: every particle its own draw"
+        assert not np.allclose(a["progress_x"], nominal["progress_x"]), kwargs
+        assert np.array_equal(evaluator.evaluate(params, (0, 0))["progress_x"], a["progress_x"]), kwargs
+        assert not np.array_equal(evaluator.evaluate(params, (0, 1))["progress_x"], a["progress_x"]), kwargs
+        # a worker's share (rows from ``first``) draws what those rows drew in the whole batch
+        share = Evaluator(parse_config({**TINY, "seconds": 2.0, "env_kwargs": kwargs}), 1, nthread=1)
+        assert share.evaluate(params[2:], (0, 0), first=2)["progress_x"][0] == a["progress_x"][2], kwargs
+
+
+def test_a_second_run_into_a_folder_in_use_is_refused_in_one_line(tmp_path):
+    config = write_config(tmp_path, seconds=0.5, sample_interval=0.5)
+    out = tmp_path / "run"
+    with folder_lock(out, "python -m agents.optimize"):  # another run holds the folder
+        done = cli("--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out))
+    assert done.returncode == 2, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"{out} is in use by another python -m agents.optimize run" in done.stderr
+    assert sorted(os.listdir(out)) == [".lock"]
+    again = cli("--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out))
+    assert again.returncode == 0, again.stderr  # free again: the lock file alone is not a foreign folder
+    assert (out / "best.json").is_file()
+
+
+def test_a_finished_run_whose_best_json_is_lost_writes_it_again(tmp_path):
+    config = write_config(tmp_path, seconds=0.5, sample_interval=0.5)
+    out = tmp_path / "run"
+    args = ("--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out))
+    assert cli(*args).returncode == 0
+    first = json.loads((out / "best.json").read_text())
+    (out / "best.json").unlink()
+    again = cli(*args)
+    assert again.returncode == 0, again.stderr
+    assert f"policy {out / 'best.json'}" in again.stdout
+    assert json.loads((out / "best.json").read_text()) == first
+
+
+def test_the_default_out_is_in_the_working_folder(tmp_path, monkeypatch):
+    config = write_config(tmp_path, seconds=0.5, sample_interval=0.5)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    assert main(["--config", str(config), "--iterations", "1", "--particles", "2", "--no-progress"]) == 0
+    assert (work / "runs" / "optimize" / "tiny__pso__0" / "best.json").is_file()
 
 
 def test_pso_inertia_decreases_and_the_social_term_follows_the_best_of_the_nearest():
@@ -151,6 +237,10 @@ def test_a_checkpoint_resumes_only_under_its_own_settings(tmp_path):
         ({}, ["--particles", "0"], "--particles"),
         ({}, ["--workers", "0"], "--workers"),
         ({}, ["--stop-after", "0"], "--stop-after"),
+        ({}, ["--particles", "100000"], "--particles must be in [2, 1024] (one simulation each), got 100000"),
+        ({}, ["--iterations", "10000000"], "--iterations must be in [1, 100000], got 10000000"),
+        ({}, ["--workers", "100000"], "--workers must be in [1, 1024] for the local backend, got 100000"),
+        ({}, ["--stop-after", "10000000"], "--stop-after must be in [1, 100000]"),
     ],
 )
 def test_bad_configs_and_flags_are_one_line_errors_before_anything_is_made(tmp_path, change, args, message):

@@ -8,7 +8,7 @@ that takes the configuration's remaining fields and the robot) and how a rollout
       "env_kwargs": {},                    # keyword arguments of the env (e.g. {"knee_wedge": true})
       "controller": "cpg",                 # a name in the robot folder's CONTROLLERS
       "seconds": 32,                       # rollout length (the seed: 32 s)
-      "objective": "forward",              # "forward" (default) or "eq17"
+      "objective": "forward",              # "forward" (default) or "distance_travelled"
       "sample_interval": 1.0,              # s between the trajectory samples of eq. 17 (the seed: 1 s)
       "max_tilt": 1.0,                     # rad: a body tilted further has fallen
       "coupling": "experiment5"            # ... the controller's own fields
@@ -16,24 +16,32 @@ that takes the configuration's remaining fields and the robot) and how a rollout
 
 **Scores** of a rollout (all reported; ``objective`` picks the one maximized):
 
-- ``eq17``: the seed's performance (eq. 17), ``|p_N - p_1| + sum |p_(i+1) - p_i|`` over the body's ground positions
-  sampled every ``sample_interval`` from the start to the end; it rewards walking backward and tumbling too;
+- ``distance_travelled``: the Bioloid report's performance measure [bioloid-webots, eq. 17], ``|p_N - p_1| + sum
+  |p_(i+1) - p_i|`` over the body's ground positions sampled every ``sample_interval`` from the start to the end:
+  the displacement plus the path length, in any direction, so it rewards walking backward and tumbling too
+  (``"eq17"``, its earlier name, is still read in a configuration, with a warning);
 - ``forward``: progress along +x from the start to the first fall (or the end): walking forward, upright;
 - ``progress_x``: progress along +x at the end, fallen or not (signed); ``fallen``: 1 if the body tilted past
   ``max_tilt`` at any control step; ``fall_time``: when (s; the rollout's length if never).
 
-A rollout starts from the robot's reset posture without noise, so that the same parameters always score the same.
+A rollout starts from the robot's reset posture without noise, so that the same parameters always score the same,
+unless the configuration's ``env_kwargs`` ask otherwise: ``reset_noise_scale`` perturbs each rollout's start as the
+env's reset does, and ``randomize`` draws the named physical parameters for each rollout (domain randomization per
+particle and iteration). The draws come from the evaluation's ``draw`` key and each row's index in the swarm, so a
+run resumed from its checkpoint draws what the uninterrupted run drew.
 The whole batch of parameters runs as one ``mujoco.batch`` of simulations (the env's batched robot), the controller
 vectorized over them; a control step is the robot's ``command`` and ``step`` (no Python per physics step).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import math
 import pkgutil
-from collections.abc import Mapping
+import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -41,13 +49,17 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
-OBJECTIVES = ("forward", "eq17")
+from envs.common.parameters import sample
+
+OBJECTIVES = ("forward", "distance_travelled")
+DEPRECATED_OBJECTIVES = {"eq17": "distance_travelled"}  # an earlier name -> the objective it names now
 GENERIC_FIELDS = {"env", "env_kwargs", "controller", "seconds", "objective", "sample_interval", "max_tilt"}
 
 
-def eq17(positions: np.ndarray, alpha: float = 1.0, beta: float = 1.0) -> np.ndarray:
-    """The seed's performance (eq. 17) of trajectories sampled at fixed intervals, (n, N, 2) ground positions:
-    ``alpha |p_N - p_1| + beta sum_i |p_(i+1) - p_i|`` (the seed: alpha = beta = 1)."""
+def distance_travelled(positions: np.ndarray, alpha: float = 1.0, beta: float = 1.0) -> np.ndarray:
+    """The Bioloid report's performance measure [bioloid-webots, eq. 17] of trajectories sampled at fixed intervals,
+    (n, N, 2) ground positions: ``alpha |p_N - p_1| + beta sum_i |p_(i+1) - p_i|``, the displacement plus the path
+    length, in any direction (the report: alpha = beta = 1)."""
     p = np.asarray(positions, dtype=np.float64)
     straight = np.linalg.norm(p[:, -1] - p[:, 0], axis=1)
     integrated = np.linalg.norm(np.diff(p, axis=1), axis=2).sum(axis=1)
@@ -135,6 +147,11 @@ def parse_config(raw: Any, path: str = "<inline>") -> RunConfig:
     seconds = number("seconds", 32.0, 0.0, 3600.0)
     interval = number("sample_interval", 1.0, 0.0, seconds)
     objective = raw.get("objective", "forward")
+    if isinstance(objective, str) and objective in DEPRECATED_OBJECTIVES:
+        renamed = DEPRECATED_OBJECTIVES[objective]
+        warnings.warn(f"{path}: field 'objective': {objective!r} is a deprecated name of {renamed!r}; write "
+                      f"{renamed!r}", FutureWarning, stacklevel=2)  # fmt: skip
+        objective = renamed
     if objective not in OBJECTIVES:
         raise ConfigError(f"{path}: field 'objective' must be one of {OBJECTIVES}, got {objective!r}")
     return RunConfig(
@@ -155,10 +172,21 @@ def read_config(path: str | Path) -> RunConfig:
     if not p.is_file():
         raise ConfigError(f"{p}: no such run configuration")
     try:
-        raw = json.loads(p.read_text())
+        raw = json.loads(p.read_text(), object_pairs_hook=functools.partial(_unique_keys, p))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise ConfigError(f"{p}: not valid JSON ({error})") from None
     return parse_config(raw, str(p))
+
+
+def _unique_keys(path: Path, pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's pairs as a dict, or a :class:`ConfigError` naming the file and a key given twice (JSON keeps
+    the last silently, and a setting written twice is one of them lost)."""
+    seen: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in seen:
+            raise ConfigError(f"{path}: key {key!r} is given twice; give each field once")
+        seen[key] = value
+    return seen
 
 
 def build_controller(config: RunConfig, robot) -> Controller:
@@ -197,6 +225,10 @@ class Evaluator:
         except (TypeError, ValueError) as error:  # the env's own checks (values, calibration files, names)
             raise ConfigError(f"{config.path}: field 'env_kwargs' = {dict(config.env_kwargs)!r}: {error}") from None
         self.robot = venv.unwrapped.robot
+        env = venv.unwrapped.env  # the env's own checked values of its keyword arguments
+        self.randomize = dict(env.randomize or {})
+        # without one in the configuration, no reset noise: the same parameters always score the same
+        self.reset_noise_scale = env.reset_noise_scale if "reset_noise_scale" in config.env_kwargs else 0.0
         self.num_sims = num_sims
         self.controller = build_controller(config, self.robot) if controller is None else controller(self.robot)
         self.steps = max(1, round(config.seconds / self.robot.control_dt))
@@ -209,8 +241,11 @@ class Evaluator:
     def dimension(self) -> int:
         return self.controller.dimension
 
-    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
-        """Scores of every row of ``parameters`` (n <= num_sims, dimension): a dict of (n,) arrays."""
+    def evaluate(self, parameters: np.ndarray, draw: Sequence[int] = (), first: int = 0) -> dict[str, np.ndarray]:
+        """Scores of every row of ``parameters`` (n <= num_sims, dimension): a dict of (n,) arrays. With
+        ``randomize`` or ``reset_noise_scale`` in the configuration's ``env_kwargs``, row ``j``'s physical parameters
+        and start are drawn from the generator seeded with ``(*draw, first + j)``: ``draw`` names the evaluation (a
+        run's seed and iteration), ``first`` the row's place in the whole swarm (a worker's share starts there)."""
         params = np.atleast_2d(np.asarray(parameters, dtype=np.float64))
         n = len(params)
         if n > self.num_sims or params.shape[1] != self.dimension:
@@ -218,7 +253,12 @@ class Evaluator:
         if n < self.num_sims:  # pad with copies: the batch always runs whole
             params = np.concatenate([params, np.repeat(params[-1:], self.num_sims - n, axis=0)])
         robot = self.robot
-        robot.reset(self._ids, self._rngs, 0.0, None)
+        if self.randomize or self.reset_noise_scale:
+            self._rngs = [np.random.default_rng([*map(int, draw), first + j]) for j in range(self.num_sims)]
+            for j, rng in enumerate(self._rngs):
+                if self.randomize:
+                    robot.set_parameters(self._ids[j : j + 1], sample(self.randomize, rng))
+        robot.reset(self._ids, self._rngs, self.reset_noise_scale, None)
         self.controller.start(params)
         readings = robot.read(self._rngs, stepped=False)
         samples = [readings["position"][:, :2].copy()]
@@ -243,7 +283,7 @@ class Evaluator:
         x_end = p[:, -1, 0]
         forward = np.where(fallen, fall_x, x_end) - x0
         scores = {
-            "eq17": eq17(p),
+            "distance_travelled": distance_travelled(p),
             "forward": forward,
             "progress_x": x_end - x0,
             "fallen": fallen.astype(np.float64),

@@ -6,8 +6,10 @@ Files in the run folder (each written atomically, a temporary file renamed over 
 - ``checkpoint.pkl``: the settings, the optimizer (its whole state, random generators included), the best so far and
   the history; a run started again with the same settings resumes from it and gives what an uninterrupted run gives;
 - ``best.json``: the best parameters as a policy file (the robot folder's policy loads it: ``cpg:<path>``);
-- ``history.json``: per iteration, the best score so far and the iteration's scores (objective, eq. 17, +x
-  progress, falls).
+- ``history.json``: per iteration, the best score so far and the iteration's scores (objective, distance
+  travelled, +x progress, falls);
+- ``.lock``: held while a run writes the folder, so that a second run into it at once is refused
+  (:func:`envs.common.io.folder_lock`).
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ import numpy as np
 from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import Evaluator, RunConfig
 from envs.common.cluster import init_ray
-from envs.common.io import atomic_write, write_json
+from envs.common.io import Busy, atomic_write, folder_lock, write_json
 
-CHECKPOINT, BEST, HISTORY = "checkpoint.pkl", "best.json", "history.json"
+CHECKPOINT, BEST, HISTORY, LOCK = "checkpoint.pkl", "best.json", "history.json", ".lock"
+TOOL = "python -m agents.optimize"
 VERSION = 1
 
 
@@ -61,8 +64,8 @@ class LocalBackend:
     def dimension(self) -> int:
         return self.evaluator.dimension
 
-    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
-        return self.evaluator.evaluate(parameters)
+    def evaluate(self, parameters: np.ndarray, draw: tuple[int, ...] = ()) -> dict[str, np.ndarray]:
+        return self.evaluator.evaluate(parameters, draw)
 
     def close(self) -> None:
         pass
@@ -90,9 +93,9 @@ class RayBackend:
         self._workers = [remote.remote(config, size) for size in sizes]
         self.dimension = ray.get(self._workers[0].dimension.remote())
 
-    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
+    def evaluate(self, parameters: np.ndarray, draw: tuple[int, ...] = ()) -> dict[str, np.ndarray]:
         b = self._bounds
-        futures = [w.evaluate.remote(parameters[b[i] : b[i + 1]]) for i, w in enumerate(self._workers)]
+        futures = [w.evaluate.remote(parameters[b[i] : b[i + 1]], draw, int(b[i])) for i, w in enumerate(self._workers)]
         parts = self._ray.get(futures)
         return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
 
@@ -110,8 +113,8 @@ class _Worker:
     def dimension(self) -> int:
         return self.evaluator.dimension
 
-    def evaluate(self, parameters: np.ndarray) -> dict[str, np.ndarray]:
-        return self.evaluator.evaluate(parameters)
+    def evaluate(self, parameters: np.ndarray, draw: tuple[int, ...] = (), first: int = 0) -> dict[str, np.ndarray]:
+        return self.evaluator.evaluate(parameters, draw, first)
 
 
 def load_checkpoint(out: Path) -> dict[str, Any] | None:
@@ -188,49 +191,75 @@ def run(
     stop_after: int | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) the optimization; returns the record so far (best score, parameters, history).
-    ``stop_after``: run at most this many iterations in this call, then stop (the checkpoint resumes it)."""
+    ``stop_after``: run at most this many iterations in this call, then stop (the checkpoint resumes it). The run
+    holds the folder's lock while it writes: a second run into the same folder at once gets :class:`RunError`. A run
+    found finished writes its ``best.json`` and ``history.json`` again (one lost since is back)."""
     out = Path(out)
-    state = load_checkpoint(out)
+    state = load_checkpoint(out)  # refused before the backend is built (a checkpoint of other settings)
     if state is not None:
         check_resumable(state, settings, out / CHECKPOINT)
     backend = backend_factory()
     try:
-        if state is None:
-            optimizer = OPTIMIZERS[settings.optimizer](backend.dimension, settings.particles, settings.iterations,
-                                                       settings.seed)  # fmt: skip
-            state = {"version": VERSION, "settings": settings.as_dict(), "optimizer": optimizer, "best": None,
-                     "history": [], "wall_seconds": 0.0, "command": command}  # fmt: skip
-        optimizer = state["optimizer"]
-        bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=settings.iterations, initial=optimizer.iteration, desc=f"{settings.optimizer}",
-                       unit="it", dynamic_ncols=True)  # fmt: skip
-            if state["best"] is not None:
-                bar.set_postfix(best=f"{state['best']['score']:.3f}")
-        budget = settings.iterations if stop_after is None else min(settings.iterations,
-                                                                      optimizer.iteration + stop_after)  # fmt: skip
-        while optimizer.iteration < budget:
-            started = time.perf_counter()
-            parameters = optimizer.ask()
-            scores = backend.evaluate(parameters)
-            optimizer.tell(scores["score"])
-            i = int(np.argmax(scores["score"]))
-            if state["best"] is None or scores["score"][i] > state["best"]["score"]:
-                state["best"] = {"score": float(scores["score"][i]), "parameters": parameters[i].tolist(),
-                                 "iteration": optimizer.iteration - 1,
-                                 "metrics": {k: float(v[i]) for k, v in scores.items()}}  # fmt: skip
-            state["history"].append(_history_row(optimizer.iteration - 1, scores, state["best"]["score"]))
-            state["wall_seconds"] += time.perf_counter() - started
-            _save(out, state, config, backend)
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(best=f"{state['best']['score']:.3f}")
-        if bar is not None:
-            bar.close()
+        with folder_lock(out, TOOL, LOCK):
+            return _run_locked(config, settings, out, backend, progress, command, stop_after)
+    except Busy as error:
+        raise RunError(str(error).removeprefix(f"{TOOL}: ")) from None
     finally:
         backend.close()
+
+
+def _run_locked(
+    config: RunConfig,
+    settings: Settings,
+    out: Path,
+    backend: Any,
+    progress: bool,
+    command: str,
+    stop_after: int | None,
+) -> dict[str, Any]:
+    state = load_checkpoint(out)  # again, under the lock: another run may have written it since
+    if state is not None:
+        check_resumable(state, settings, out / CHECKPOINT)
+    if state is None:
+        optimizer = OPTIMIZERS[settings.optimizer](backend.dimension, settings.particles, settings.iterations,
+                                                   settings.seed)  # fmt: skip
+        state = {"version": VERSION, "settings": settings.as_dict(), "optimizer": optimizer, "best": None,
+                 "history": [], "wall_seconds": 0.0, "command": command}  # fmt: skip
+    optimizer = state["optimizer"]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=settings.iterations, initial=optimizer.iteration, desc=f"{settings.optimizer}",
+                   unit="it", dynamic_ncols=True)  # fmt: skip
+        if state["best"] is not None:
+            bar.set_postfix(best=f"{state['best']['score']:.3f}")
+    budget = settings.iterations if stop_after is None else min(settings.iterations,
+                                                                  optimizer.iteration + stop_after)  # fmt: skip
+    while optimizer.iteration < budget:
+        started = time.perf_counter()
+        draw = (settings.seed, optimizer.iteration)  # the randomized rollouts' key: the same when resumed
+        parameters = optimizer.ask()
+        scores = backend.evaluate(parameters, draw)
+        optimizer.tell(scores["score"])
+        i = int(np.argmax(scores["score"]))
+        if state["best"] is None or scores["score"][i] > state["best"]["score"]:
+            state["best"] = {"score": float(scores["score"][i]), "parameters": parameters[i].tolist(),
+                             "iteration": optimizer.iteration - 1,
+                             "metrics": {k: float(v[i]) for k, v in scores.items()}}  # fmt: skip
+        state["history"].append(_history_row(optimizer.iteration - 1, scores, state["best"]["score"]))
+        state["wall_seconds"] += time.perf_counter() - started
+        _save(out, state, config, backend)
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(best=f"{state['best']['score']:.3f}")
+    if bar is not None:
+        bar.close()
+    if state["best"] is not None and not all((out / name).is_file() for name in (BEST, HISTORY)):
+        _save(out, state, config, backend)  # a finished (or paused) run whose files were lost: written again
+    for name in (BEST, HISTORY) if state["best"] is not None else ():
+        if not (out / name).is_file():
+            raise RunError(f"{out / name}: written, but not there: check the folder")
     return {"best": state["best"], "history": state["history"], "wall_seconds": state["wall_seconds"],
             "finished": optimizer.iteration >= settings.iterations}  # fmt: skip
 
