@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import tempfile
@@ -54,6 +53,12 @@ EXCITATIONS = 3
 SYNTHETIC_FORMAT = "skitter synthetic log"  # the metadata record's format: what --overwrite may replace
 SECONDS = 10.0  # a synthetic log's length (issue 7: about 10 s keeps each case to minutes)
 RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of several runs: its commands and noise from seed + k x this
+# sizes the command line accepts, checked before anything is simulated: a synthetic log is seconds long (SECONDS) and
+# is simulated whole, several times over (the drawn effects' pushes, the commands' draws); an hour of one run, or a
+# hundred runs, is already far past any recording protocol a robot declares (``Adapter.runs``)
+MAX_SECONDS = 3600.0
+MAX_RUNS = 100
+MAX_SEED = 2**63 - 1  # numpy's seed sequences take any non-negative integer; run k's seed adds k x RUN_SEED_OFFSET
 
 
 def synthesize(
@@ -142,13 +147,30 @@ def record(
             break
     else:
         if drawn:
-            raise ValueError(
-                f"{', '.join(drawn)}: even far from nominal, under {EXCITATIONS} draws of the commands, the nominal "
-                f"model's error is {error:.2f} < {MIN_NOMINAL_ERROR} against the true or the nominal model's replay "
-                "floor: these channels barely see it"
+            raise NotShown(
+                f"{', '.join(drawn)} (seed {seed}): even far from nominal, under {EXCITATIONS} draws of the commands, "
+                f"the nominal model's error is {error:.2f} < {MIN_NOMINAL_ERROR} against the true or the nominal "
+                "model's replay floor: these channels barely see it"
             )
         error, logs = best  # given values (a case's held-out logs): the commands that showed them best
     return logs, {"robot": robot, "seed": seed, "effects": truth, "nominal_error": error, "setting": setting}
+
+
+class NotShown(ValueError):
+    """Drawn effects that no draw of the commands shows: the nominal model's error on the logs stays under
+    :data:`MIN_NOMINAL_ERROR` (how visible an effect is depends on the commands, drawn from the seed)."""
+
+
+def check_effects(adapter: Adapter, injected: Mapping[str, float | Mapping[str, float] | None]) -> None:
+    """``ValueError`` naming the first effect that ``adapter``'s robot does not have, or a given value outside its
+    parameter's range: what :func:`record` refuses, checked without simulating anything."""
+    effects = adapter.effects()
+    rng = np.random.default_rng(0)  # (given values draw nothing)
+    for name, value in injected.items():
+        if name not in effects:
+            raise ValueError(f"robot {adapter.name!r} has no effect {name!r} (see --list)")
+        if value is not None:
+            effect_values(effects[name], value, rng)
 
 
 def protocol(adapter: Adapter) -> tuple[int, float]:
@@ -307,16 +329,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     twice = sorted({name for name in names if names.count(name) > 1})
     if twice:
         parser.error(f"--effect {twice[0]!r} is given twice")
-    if args.seed < 0:
-        parser.error(f"--seed must be >= 0 (numpy seeds are non-negative), got {args.seed}")
-    if args.runs < 1:
-        parser.error(f"--runs must be at least 1, got {args.runs}")
+    if not 0 <= args.seed <= MAX_SEED - RUN_SEED_OFFSET * MAX_RUNS:
+        parser.error(f"--seed must be in [0, {MAX_SEED - RUN_SEED_OFFSET * MAX_RUNS}] (numpy seeds are "
+                     f"non-negative), got {args.seed}")  # fmt: skip
+    if not 1 <= args.runs <= MAX_RUNS:
+        parser.error(f"--runs must be in [1, {MAX_RUNS}], got {args.runs}")
     adapter = make_adapter(args.robot)
     shortest = adapter.segment_seconds * (2 if adapter.burn_in else 1)  # one segment to replay, after the burn-in
-    if not shortest <= args.seconds < math.inf:
-        parser.error(
-            f"--seconds must be a finite number of at least {shortest:g} for {args.robot}, got {args.seconds:g}"
-        )
+    if not shortest <= args.seconds <= MAX_SECONDS:
+        parser.error(f"--seconds must be a finite number in [{shortest:g}, {MAX_SECONDS:g}] for {args.robot}, got "
+                     f"{args.seconds:g}")  # fmt: skip
+    try:  # the effects' names and given values, before the long part (simulating and measuring how they show)
+        check_effects(adapter, dict(args.effect))
+    except ValueError as exc:
+        parser.error(str(exc))
     out: Path = args.out
     if not out.name:  # '', '.', '/': no file name to give the log (nor its truth beside it)
         parser.error(f"--out {str(out)!r}: give the log's file name, FILE.parquet")
@@ -325,6 +351,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         _check_out(out, [*paths, truth_path], args.overwrite)
         logs, truth = record(args.robot, dict(args.effect), args.seed, args.seconds, args.runs)
+    except NotShown as exc:  # a drawn value the commands of this seed do not show: another seed's commands may
+        print(f"{parser.prog}: error: {exc}; try another --seed, or give the value (--effect NAME=VALUE)",
+              file=sys.stderr)  # fmt: skip
+        return 2
     except (ValueError, FileExistsError) as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)  # as the parser's own errors begin
         return 2

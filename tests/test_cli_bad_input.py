@@ -85,24 +85,47 @@ def test_calibrate_refusal_names_only_the_results_that_exist(capsys, tmp_path):
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
-        (["--seconds", "0"], "--seconds must be a finite number of at least 1 for motor, got 0"),
+        (["--seconds", "0"], "--seconds must be a finite number in [1, 3600] for motor, got 0"),
+        (["--seconds", "1e9"], "--seconds must be a finite number in [1, 3600] for motor, got 1e+09"),
+        (["--runs", "100000"], "--runs must be in [1, 100], got 100000"),
+        (["--seed", str(2**64)], f"got {2**64}"),
+        (["--effect", "no_such_effect"], "robot 'motor' has no effect 'no_such_effect' (see --list)"),
+        (["--effect", "viscous_friction=50"], "viscous_friction.damping=50: outside its range"),
         (["--seconds", "-3"], "got -3"),
         (["--seconds", "nan"], "got nan"),
         (["--seconds", "inf"], "got inf"),
-        (["--seed", "-1"], "--seed must be >= 0"),
-        (["--runs", "0"], "--runs must be at least 1, got 0"),
+        (["--seed", "-1"], "--seed must be in [0, "),
+        (["--runs", "0"], "--runs must be in [1, 100], got 0"),
         (["--effect", "viscous_friction=0.1", "--effect", "viscous_friction"], "--effect 'viscous_friction' is given"),
     ],
 )
-def test_synth_bad_flags_are_one_line_errors(capsys, tmp_path, args, needle):
+def test_synth_bad_flags_are_one_line_errors(capsys, tmp_path, monkeypatch, args, needle):
+    def never(*args, **kwargs):
+        raise AssertionError("simulated before the flags were checked")
+
+    monkeypatch.setattr(synth, "record", never)  # sizes, names and values: all refused before the long part
     code, err = call(synth.main, capsys, "--robot", "motor", "--out", str(tmp_path / "log.parquet"), *args)
     assert code == 2 and needle in err
     assert files(tmp_path) == {}
 
 
+def test_synth_a_drawn_effect_its_seeds_commands_do_not_show_says_what_to_do(capsys, tmp_path, monkeypatch):
+    """The README's ``--robot xjus --effect mass --runs 6 --seconds 2`` at the default seed: no draw of seed 0's
+    commands shows the drawn mass (the nominal model's error stays about 1.5 < 3), and the tool said only that. It
+    now names the seed and what to do instead, and writes nothing; here with a motor whose visibility is held low,
+    so that the same path runs in seconds."""
+    monkeypatch.setattr(synth, "visibility", lambda adapter, logs, reachable: 1.5)
+    out = tmp_path / "log.parquet"
+    code, err = call(synth.main, capsys, "--robot", "motor", "--effect", "viscous_friction", "--seconds", "1",
+                     "--out", str(out))  # fmt: skip
+    assert code == 2 and err.startswith("python -m sysid.synth: error: viscous_friction (seed 0): even far from"), err
+    assert err.endswith("try another --seed, or give the value (--effect NAME=VALUE)"), err
+    assert files(tmp_path) == {}
+
+
 def test_synth_burn_in_robots_need_two_segments(capsys, tmp_path):
     code, err = call(synth.main, capsys, "--robot", "roach", "--seconds", "1.5", "--out", str(tmp_path / "r.parquet"))
-    assert code == 2 and "at least 2 for roach, got 1.5" in err
+    assert code == 2 and "in [2, 3600] for roach, got 1.5" in err
 
 
 @pytest.mark.parametrize(
@@ -222,7 +245,7 @@ def test_synth_errors_begin_like_its_parsers_and_an_empty_out_is_refused(capsys,
     monkeypatch.chdir(tmp_path)
     base = ["--robot", "motor", "--seconds", "1", "--out", str(tmp_path / "log.parquet")]
     for extra, needle in [
-        (["--seed", "-1"], "--seed must be >= 0"),  # the parser's check
+        (["--seed", "-1"], "--seed must be in [0, "),  # the parser's check
         (["--out", str(tmp_path / "log.csv")], "give a path ending in .parquet"),  # main's check
         (["--out", ""], "give the log's file name, FILE.parquet"),  # no traceback from Path('').with_name
     ]:
