@@ -342,7 +342,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:  # the effects' names and given values, before the long part (simulating and measuring how they show)
         check_effects(adapter, dict(args.effect))
     except ValueError as exc:
-        parser.error(str(exc))
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
     out: Path = args.out
     if not out.name:  # '', '.', '/': no file name to give the log (nor its truth beside it)
         parser.error(f"--out {str(out)!r}: give the log's file name, FILE.parquet")
