@@ -25,6 +25,7 @@ import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
 
 if __name__ == "__main__":  # Ctrl-C while the libraries below load (seconds): a quiet exit 130, not a traceback
@@ -41,6 +42,7 @@ from envs.common.io import (
     write_json,
     write_text,
 )
+from envs.common.telemetry import ChannelLimit
 from sysid.logs import ColumnMap, Log, LogError, check_log, read_log
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
@@ -100,13 +102,18 @@ def split_spec(spec: Path) -> tuple[Path, float | None, float | None]:
     return Path(m["path"]), start, end
 
 
-def read_logs(specs: list[Path], required: tuple[str, ...], column_map: ColumnMap | None) -> list[Log]:
+def read_logs(
+    specs: list[Path],
+    required: tuple[str, ...],
+    column_map: ColumnMap | None,
+    limits: Mapping[str, ChannelLimit] | None = None,
+) -> list[Log]:
     logs = []
     for spec in specs:
         path, start, end = split_spec(spec)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            log = read_log(path, required, column_map)
+            log = read_log(path, required, column_map, limits)
         for message in dict.fromkeys(str(w.message) for w in caught):  # once each, in order
             if message not in _WARNED:
                 _WARNED.add(message)
@@ -160,8 +167,9 @@ def _run(args: argparse.Namespace) -> int:
     try:
         check_disjoint(args.train, args.test)
         column_map = ColumnMap.load(args.columns) if args.columns else None
-        train = read_logs(args.train, adapter.required(), column_map)
-        test = read_logs(args.test, adapter.required(), column_map)
+        limits = adapter.channel_limits()  # a sample the robot could not produce is dropped, with a warning
+        train = read_logs(args.train, adapter.required(), column_map, limits)
+        test = read_logs(args.test, adapter.required(), column_map, limits)
         start = None
         if args.calibration is not None:
             start = read_calibration(args.calibration, adapter.robot)

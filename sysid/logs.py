@@ -16,9 +16,11 @@ Formats, recognized by their content:
   logs of those formats leaves them to their own readers. A mapped CSV may hold blank lines and ``#`` comments.
 
 Sampling need not be regular: every channel keeps the file's time column. A malformed row (a repeated timestamp
-among them) is dropped with a warning naming the file and its line; the log is refused (``LogError``: one line
-naming the file, line and column) for a missing required column, time that does not increase, an unknown unit or
-one of the wrong kind for its channel, a log too short to calibrate on, or more than 5% bad rows. Every message
+among them) is dropped with a warning naming the file and its line; so is a row whose sample the robot could not
+have produced (:func:`drop_impossible`: outside its channel's range, or apart from its neighbours by more than the
+channel can move in the time between them, by the robot's ``channel_limits``); the log is refused (``LogError``:
+one line naming the file, line and column) for a missing required column, time that does not increase, an unknown
+unit or one of the wrong kind for its channel, a log too short to calibrate on, or more than 5% bad rows. Every message
 names a row by its line in the file ("line 152"), the number an editor shows; in a Parquet or JSON log, which has
 no lines, the number counts its rows (records) from 1.
 """
@@ -39,11 +41,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from envs.common.telemetry import MAX_REPEATED_ROWS
+from envs.common.telemetry import MAX_REPEATED_ROWS, ChannelLimit
 
 MAX_BAD_FRACTION = 0.05
 MIN_DURATION = 1.0  # s: less than one segment cannot be calibrated on
 MIN_ROWS = 20
+# an impossible jump is judged against the median of the rows this far either side (the sample's own among them):
+# up to this many corrupted rows in a row leave that median on good samples
+NEIGHBOURS = 2
 
 # unit -> factor to SI (the channel's SI unit is implied by the channel, CHANNEL_UNITS: s, rad, rad/s, V, N m, 1, ...)
 UNITS: dict[str, float] = {
@@ -257,9 +262,15 @@ class ColumnMap:
         return cls(data)
 
 
-def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnMap | None = None) -> Log:
+def read_log(
+    path: str | Path,
+    required: Sequence[str] = (),
+    column_map: ColumnMap | None = None,
+    limits: Mapping[str, ChannelLimit] | None = None,
+) -> Log:
     """Read one log in any known format (or, if it is in none, with ``column_map``), check it, and drop malformed
-    rows with a warning."""
+    rows with a warning: among them, with ``limits`` (the robot's ``channel_limits``), rows whose required channel
+    reads what the robot could not have produced (:func:`drop_impossible`)."""
     path = Path(path)
     if not path.is_file():
         raise LogError(f"{path}: {'a directory, not a log file' if path.is_dir() else 'no such file'}")
@@ -277,7 +288,7 @@ def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnM
             f"{path}: unknown log format (first line {head[:60]!r}{_not_ours(head)}); give a column map (--columns), "
             "or name the columns by skitter's channels (time first, SI units)"
         )
-    return check_log(log, required)
+    return check_log(log, required, limits)
 
 
 GEARMOTOR_COLUMNS = ("time", "pos", "speed", "power")
@@ -358,10 +369,11 @@ def _robot_reader(head: str) -> LogReader | None:
     return None
 
 
-def check_log(log: Log, required: Sequence[str]) -> Log:
+def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLimit] | None = None) -> Log:
     """Required columns present, time increasing, long enough; a row whose time or required value is not a finite
     number (NaN, inf, in any reader's format) is malformed: dropped with a warning, as every reader drops a row it
-    cannot parse (more than 5% such rows refuse the log)."""
+    cannot parse (more than 5% such rows refuse the log); so is a row whose required value the robot could not have
+    produced, by ``limits`` (:func:`drop_impossible`)."""
     missing = [c for c in ("time", *required) if c not in log.df.columns]
     if missing:
         raise LogError(
@@ -378,6 +390,9 @@ def check_log(log: Log, required: Sequence[str]) -> Log:
         if t[row] == t[row - 1]:
             raise LogError(f"{where}, the same as the row at line {_row_label(log, row - 1)}: a repeated timestamp")
         raise LogError(f"{where} does not increase (previous {t[row - 1]:.6g} s): time runs backwards")
+    if limits:
+        log = drop_impossible(log, {c: limits[c] for c in required if c in limits})
+        t = log.time
     if len(t) < MIN_ROWS or log.duration < MIN_DURATION:
         raise LogError(
             f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s "
@@ -399,6 +414,58 @@ def _drop_non_finite(log: Log, columns: Sequence[str]) -> Log:
               "finite number") for k in bad]  # fmt: skip
     drop_bad_rows(Path(log.path), lines, len(values))
     return _keep_rows(log, np.flatnonzero(finite.all(axis=1)))
+
+
+def drop_impossible(log: Log, limits: Mapping[str, ChannelLimit]) -> Log:
+    """The log without its rows whose value in a channel of ``limits`` the robot could not have produced (each
+    warned of, naming its line, column, value and the limit; refused above 5%, as malformed rows are):
+
+    - outside the channel's range (``low``, ``high``);
+    - farther from the median of its neighbourhood (the rows :data:`NEIGHBOURS` either side, its own among them)
+      than the channel can move over that neighbourhood's time span at ``max_rate``, plus the reading's own
+      resolution (the reader's quantisation) and eight times its white noise (:func:`white_noise`): a corrupted
+      field (an angle of 1e3 rad among readings near 1), not a fast motion, which moves the whole neighbourhood.
+
+    The limits come from the robot's hardware (``Robot.channel_limits``: its actuators' constants); a channel
+    without one, or a value that is not finite (:func:`check_log` drops those), is not judged here."""
+    t = log.time
+    n = len(t)
+    reasons: dict[int, str] = {}
+    lo = np.clip(np.arange(n) - NEIGHBOURS, 0, n - 1)
+    hi = np.clip(np.arange(n) + NEIGHBOURS, 0, n - 1)
+    span = t[hi] - t[lo] if n else t
+    for column, limit in limits.items():
+        if column not in log.df.columns:
+            continue
+        x = log.df[column].to_numpy(dtype=float)
+        finite = np.isfinite(x)
+        outside = finite & ((x < limit.low) | (x > limit.high))
+        for k in np.flatnonzero(outside):
+            reasons.setdefault(
+                int(k),
+                f"column {column!r}: {x[k]:.6g} is outside what the channel can read, [{limit.low:g}, {limit.high:g}] "
+                f"({limit.source})",
+            )
+        if not math.isfinite(limit.max_rate) or n < 3:
+            continue
+        good = np.where(finite & ~outside, x, np.nan)
+        middle = pd.Series(good).rolling(2 * NEIGHBOURS + 1, center=True, min_periods=1).median().to_numpy()
+        quantum = float((log.meta.get("quantisation") or {}).get(column, 0.0))
+        slack = limit.max_rate * span + quantum + 8.0 * white_noise(good[np.isfinite(good)])
+        jumps = np.isfinite(good) & (np.abs(good - middle) > slack)
+        for k in np.flatnonzero(jumps):
+            reasons.setdefault(
+                int(k),
+                f"column {column!r}: {x[k]:.6g} is {abs(x[k] - middle[k]):.3g} from its neighbours' median "
+                f"{middle[k]:.6g}, more than the channel can move in {span[k]:.3g} s at {limit.max_rate:.3g} per s "
+                f"({limit.source})",
+            )
+    if not reasons:
+        return log
+    bad = sorted(reasons)
+    lines = [(int(_row_label(log, k)), f"a sample the robot could not produce: {reasons[k]}") for k in bad]
+    drop_bad_rows(Path(log.path), lines, n)
+    return _keep_rows(log, np.setdiff1d(np.arange(n), bad))
 
 
 def _keep_rows(log: Log, keep: np.ndarray) -> Log:

@@ -34,6 +34,7 @@ from mujoco import rollout
 
 from envs.common.batch import default_threads
 from envs.common.robot import Robot
+from envs.common.telemetry import ChannelLimit
 from sysid.effects import Effect, Param
 from sysid.logs import Log, LogError, white_noise
 
@@ -169,6 +170,11 @@ class Adapter(ABC):
     def known_effects(self) -> dict[str, dict[str, tuple[float, float]]]:
         """effect -> parameter -> (low, high), of the catalog effects (for checking calibration files)."""
         return {n: {p.name: (p.low, p.high) for p in e.params} for n, e in self.catalog().items()}
+
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        """What the robot's hardware can read on each channel (range, fastest change): a log's sample beyond them is
+        dropped as malformed when the log is read (``sysid.logs.drop_impossible``). The robot's own declaration."""
+        return dict(self.nominal_robot.channel_limits)
 
     def check_logs(self, logs: Sequence[Log]) -> None:  # noqa: B027 (optional hook)
         """Robot-specific checks of logs before anything runs (raise ``LogError`` naming file, row and column)."""

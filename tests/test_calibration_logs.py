@@ -645,3 +645,110 @@ def test_file_arguments_that_are_not_files_or_windows_say_so(capsys, tmp_path):
     code = calibrate.main(["--robot", "motor", "--train", f"{GEARMOTOR}@0:5", "--test", f"{GEARMOTOR}@5:", "--out",
                            str(tmp_path / "out"), "--calibration", str(folder)])  # fmt: skip
     assert code == 2 and f"{folder}: a directory, not a calibration file" in capsys.readouterr().err
+
+
+# --- samples the robot could not have produced ------------------------------------------------------------------
+CLICKS_PER_RAD = 3592 / (2 * math.pi)  # the gearmotor log's encoder (data/real/README.md)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "needle"),
+    [
+        ("pos", f"{1e3 * CLICKS_PER_RAD:.0f}", "column 'angle': 1000 is "),  # an angle of 1e3 rad among ~10
+        ("pos", "1e300", "column 'angle': 1.74922e+297 is "),  # clicks: 1.7e297 rad
+        ("speed", "1e300", "column 'speed': 1.74922e+297 is outside what the channel can read, [-148, 148]"),
+        ("power", "-700", "column 'duty': -2.7451 is outside what the channel can read, [-1, 1]"),
+    ],
+)
+def test_one_impossible_sample_in_a_real_motor_log_is_dropped_naming_file_and_line(capsys, tmp_path, field, value,
+                                                                                   needle):  # fmt: skip
+    """One absurd finite value among 1,047 rows of the RHex3 gearmotor log was read without a word (and with 1e300
+    every ranking score of the calibration was NaN): by the motor's own limits (its no-load speed, its duty) the row
+    is dropped with a warning naming the file and its line, as a NaN row is, and the rest reads as before."""
+    lines = GEARMOTOR.read_text().splitlines()
+    row = 400  # line 401 of the file
+    fields = lines[row].split(",")
+    fields[("time", "pos", "speed", "power").index(field)] = value
+    path = _write(tmp_path, "corrupt.csv", [*lines[:row], ",".join(fields), *lines[row + 1 :]])
+    adapter = make_adapter("motor")
+    [log] = calibrate.read_logs([path], adapter.required(), None, adapter.channel_limits())
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"calibrate.py: warning: {path}: dropped malformed row at line 401: "
+                                               "a sample the robot could not produce: "), err  # fmt: skip
+    assert needle in err[0] and "xjus-report" in err[0], err[0]
+    clean = read_log(GEARMOTOR, adapter.required())
+    assert len(log.df) == len(clean.df) - 1
+    pd.testing.assert_frame_equal(log.df, clean.df.drop(index=row - 1).reset_index(drop=True))
+
+
+def test_impossible_servo_positions_are_dropped_by_the_servos_range_and_speed(tmp_path):
+    lines = AX12A.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.lower().startswith("time"))
+    at = header + 60
+    limits = make_adapter("servo").channel_limits()
+    for value, needle in [("5000", "is outside what the channel can read, [0, 1023]"),
+                          ("1023", "from its neighbours' median")]:  # fmt: skip
+        t, position = lines[at].split(",")[:2]
+        assert abs(float(position) - 1023) > 300, "a full-scale jump within one 16 ms sample"
+        path = _write(tmp_path, "ax.csv", [*lines[:at], f"{t},{value}", *lines[at + 1 :]])
+        with pytest.warns(UserWarning) as caught:
+            log = read_log(path, ("present_position",), limits=limits)
+        impossible = [str(w.message) for w in caught if "could not produce" in str(w.message)]
+        assert len(impossible) == 1 and f"ax.csv: dropped malformed row at line {at + 1}: " in impossible[0]
+        assert needle in impossible[0], impossible[0]
+        assert (log.df["present_position"] <= 1023).all() and float(value) not in log.df["present_position"].tolist()
+
+
+@pytest.mark.parametrize(
+    ("robot", "path"),
+    [
+        ("motor", GEARMOTOR),
+        ("servo", AX12A),
+        *[("servo", p) for p in sorted((REAL.parents[1] / "tests" / "data" / "logs").glob("meiosis_*.csv"))],
+        ("roach", ROACH_2HZ),
+        ("roach", REAL / "velociroach_13Hz_beetleshell_grass_run3.txt"),
+    ],
+    ids=lambda v: getattr(v, "name", v),
+)
+def test_the_real_logs_hold_no_sample_their_robot_could_not_produce(robot, path):
+    """The limits come from the hardware, not from these files; a general check must still pass every real log."""
+    adapter = make_adapter(robot)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        log = read_log(path, adapter.required(), limits=adapter.channel_limits())
+    assert not [str(w.message) for w in caught if "could not produce" in str(w.message)]
+    assert len(log.df) > 100
+
+
+def test_the_channel_limits_are_the_robots_from_its_actuators_constants():
+    from envs.actuators.motor import LOG_SPEED_MARGIN, MotorConstants
+    from envs.actuators.servo import MAX_SUPPLY_VOLTAGE, SPEED_PER_VOLT
+
+    motor = make_adapter("motor").channel_limits()
+    top = LOG_SPEED_MARGIN * MotorConstants().no_load_speed  # 5 x 29.6 rad/s
+    assert (motor["speed"].low, motor["speed"].high, motor["angle"].max_rate) == (-top, top, top)
+    assert (motor["duty"].low, motor["duty"].high) == (-1.0, 1.0)
+    servo = make_adapter("servo").channel_limits()["present_position"]
+    assert (servo.low, servo.high) == (0.0, 1023.0)
+    assert servo.max_rate == pytest.approx(2 * SPEED_PER_VOLT * MAX_SUPPLY_VOLTAGE / (math.radians(300) / 1023))
+    xjus = make_adapter("xjus")
+    limits = xjus.channel_limits()
+    assert limits == dict(xjus.nominal_robot.channel_limits)
+    assert {c for c in xjus.required() if c in limits} >= set(xjus.channels), "every compared channel is bounded"
+    for robot in ("motor", "servo", "bioloid"):
+        adapter = make_adapter(robot)
+        assert set(adapter.channels) <= set(adapter.channel_limits()), robot
+    roach = make_adapter("roach").channel_limits()
+    assert {"leg_angle_left", "leg_angle_right", "duty_left", "duty_right"} <= set(roach)
+
+
+def test_a_synthetic_motor_log_at_full_duty_trips_no_limit():
+    from sysid import synth
+    from sysid.logs import check_log
+
+    adapter = make_adapter("motor")
+    log, _ = synth.synthesize("motor", {"supply_voltage": 1.5, "back_emf_constant": 0.3}, 0, seconds=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        checked = check_log(log, adapter.required(), adapter.channel_limits())
+    assert len(checked.df) == len(log.df)

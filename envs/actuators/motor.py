@@ -23,6 +23,13 @@ from dataclasses import dataclass, fields
 import mujoco
 import numpy as np
 
+from envs.common.telemetry import ChannelLimit
+
+# a log may come from another gearmotor of this kind (the RHex3 rig's runs at about half this one's no-load speed):
+# its shaft speed is bounded at this many times the model's no-load speed, far above any motor of the kind (a shaft
+# does not outrun its motor's no-load speed at full duty unless something drives it) and far below a corrupted field
+LOG_SPEED_MARGIN = 5.0
+
 
 @dataclass(frozen=True)
 class MotorConstants:
@@ -83,6 +90,23 @@ class MotorConstants:
     def duty(self, vpd: np.ndarray) -> np.ndarray:
         """The seed's duty factor from the controller's voltage: clip(Vpd / Vs, -1, 1)."""
         return np.clip(np.asarray(vpd) / self.supply_voltage, -1.0, 1.0)
+
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        """What a log of this motor's output shaft can read (``angle``, ``speed``, ``duty``, ``current``): a speed
+        within :data:`LOG_SPEED_MARGIN` times the no-load speed (and an angle that moves no faster), a duty within
+        +-1, a current within what full reverse duty at that speed drives through the winding."""
+        top = LOG_SPEED_MARGIN * self.no_load_speed
+        speed = (f"{LOG_SPEED_MARGIN:g} x the no-load speed Vs/Ks = {self.no_load_speed:.3g} rad/s "
+                 "[xjus-report, Table 1]")  # fmt: skip
+        current = (self.supply_voltage + self.speed_constant * top) / self.motor_resistance
+        return {
+            "angle": ChannelLimit(max_rate=top, source=speed),
+            "speed": ChannelLimit(-top, top, source=speed),
+            "duty": ChannelLimit(-1.0, 1.0, source="the duty factor d = clip(Vpd / Vs, -1, 1) [xjus-report, sec. 2.3]"),
+            "current": ChannelLimit(
+                -current, current, source=f"(Vs + Ks x {top:.3g} rad/s) / Ra [xjus-report, Table 1]"
+            ),
+        }
 
 
 class Motor:

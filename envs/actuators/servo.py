@@ -34,6 +34,7 @@ import numpy as np
 
 from envs.actuators.dcmotor import DCMotors, PIDGains
 from envs.common.parameters import FieldRef
+from envs.common.telemetry import ChannelLimit
 
 KGF_CM = 0.0980665  # N m
 # AX-12 datasheet figures (seed 002 Table 2; robots.md section 3): (supply V, holding torque N m, speed rad/s)
@@ -50,6 +51,10 @@ TORQUE_PER_VOLT = _per_volt(1)  # N m / V at the output: stall torque = this x s
 SPEED_PER_VOLT = _per_volt(2)  # rad/s / V at the output: no-load speed = this x supply
 MOTOR_CONSTANT = 1.0 / (SPEED_PER_VOLT * GEAR_RATIO)  # V s/rad = N m/A at the motor
 RESISTANCE = GEAR_RATIO * MOTOR_CONSTANT / TORQUE_PER_VOLT  # ohm, effective (gearbox losses lumped in)
+MAX_SUPPLY_VOLTAGE = 12.0  # V: the top of the AX-12A's operating range, 9 to 12 V (ROBOTIS e-manual)
+# a log's servo moves at most this many times the model's no-load speed at MAX_SUPPLY_VOLTAGE: the datasheet's
+# figures are a servo's typical ones, and a back-driven output can run somewhat faster
+LOG_SPEED_MARGIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,22 @@ class ServoConstants:
     def counts_of(self, angle: np.ndarray) -> np.ndarray:
         """Position in counts of a joint angle (not rounded)."""
         return np.asarray(angle) / self.rad_per_count + self.center
+
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        """What a log of this servo can read (``goal``, ``present_position``, ``angle``, ``speed``): positions within
+        the control table's counts, moving no faster than :data:`LOG_SPEED_MARGIN` times the no-load speed at the
+        top of the supply range."""
+        top = LOG_SPEED_MARGIN * SPEED_PER_VOLT * MAX_SUPPLY_VOLTAGE
+        no_load = SPEED_PER_VOLT * MAX_SUPPLY_VOLTAGE
+        speed = (f"{LOG_SPEED_MARGIN:g} x the no-load speed at {MAX_SUPPLY_VOLTAGE:g} V, {no_load:.3g} rad/s "
+                 "(AX-12 datasheet [bioloid-webots, Table 2])")  # fmt: skip
+        counts = f"positions 0..{self.counts - 1} over {self.range_deg:g} deg (ROBOTIS e-manual)"
+        return {
+            "goal": ChannelLimit(0.0, self.counts - 1.0, source=counts),
+            "present_position": ChannelLimit(0.0, self.counts - 1.0, top / self.rad_per_count, f"{counts}; {speed}"),
+            "angle": ChannelLimit(max_rate=top, source=speed),
+            "speed": ChannelLimit(-top, top, source=speed),
+        }
 
 
 class Servo:

@@ -20,6 +20,7 @@ from envs.actuators.motor import Motor, MotorConstants
 from envs.actuators.servo import Servo, ServoConstants
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+from envs.common.telemetry import ChannelLimit
 
 JOINT = "output"
 LOAD = "load"
@@ -206,6 +207,10 @@ class MotorRig(BenchRig):
         d = self.command_now[:, None, :]
         return np.maximum(self.motor.constants.battery_power(d, speed), 0.0).sum(axis=2).mean(axis=1)
 
+    @property
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        return {k: v for k, v in self.motor.constants.channel_limits().items() if k in self.actuator_channels}
+
     def actuator_readings(self, sensordata: np.ndarray) -> list[np.ndarray]:
         d, speed = self.command_now[:, 0], sensordata[:, self._i_speed]
         c = self.motor.constants
@@ -263,6 +268,10 @@ class ServoRig(BenchRig):
 
     def parameters_changed(self, ids: np.ndarray) -> None:
         self.servo.motors.refresh(ids, self.field("actuator_gainprm"))
+
+    @property
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        return {k: v for k, v in self.servo.constants.channel_limits().items() if k in self.actuator_channels}
 
     def rest_command(self, angle: np.ndarray) -> np.ndarray:
         return self.servo.constants.counts_of(angle)[:, None]

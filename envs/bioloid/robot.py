@@ -20,6 +20,7 @@ from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_flag, check_number
+from envs.common.telemetry import ChannelLimit
 
 GOAL = "goal"
 LOAD_FULL_SCALE = 1023.0  # an AX-12 reports its load as 0..1023 of its maximum torque, with a direction bit
@@ -281,6 +282,11 @@ class Bioloid(Robot):
     @property
     def telemetry_channels(self) -> dict[str, str]:
         return TELEMETRY_COLUMNS
+
+    @property
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        servo = self.servo.constants.channel_limits()  # every servo an AX-12
+        return {f"{channel}_{s}": servo[channel] for channel in servo for s in C.SERVOS}
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:

@@ -41,6 +41,7 @@ from envs.common.calibration import Calibration, CalibrationError, read_calibrat
 from envs.common.mujoco_utils import sensor_slices, spec_hash
 from envs.common.parameters import ParameterMap, SpecEdit
 from envs.common.simulation import Simulation
+from envs.common.telemetry import ChannelLimit
 
 # (num_sims, nthread) for robots built inside `batched_robots`: how an env class's own constructor builds the robot of
 # its batched env (envs/common/vector.py) without a second copy of its arguments
@@ -311,6 +312,12 @@ class Robot(ABC):
     @abstractmethod
     def telemetry_channels(self) -> dict[str, str]:
         """Telemetry channel name -> unit, in the order of :meth:`telemetry`'s columns."""
+
+    @property
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        """What the hardware can read on telemetry channels (their range, their fastest change), from the actuators'
+        constants: a real log's sample outside them is dropped as malformed (sysid/logs.py). None declared: {}."""
+        return {}
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:

@@ -8,6 +8,8 @@ record (robot, model hash, controller, rate, units, source) travels inside the P
 from __future__ import annotations
 
 import json
+import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +26,23 @@ METADATA_KEY = b"skitter"
 # log rejoins (dropped as malformed rows); more, and the log's clock went back (the log is refused). Every reader's
 # rule: sysid.logs for the formats it reads, each robot's own reader (envs/velociroach/roach_csv.py)
 MAX_REPEATED_ROWS = 16
+
+
+@dataclass(frozen=True)
+class ChannelLimit:
+    """What a channel's hardware can read: its range and the fastest it can change, in the channel's unit (and that
+    unit per second), with where the bounds come from. A log's sample outside them is one the robot could not have
+    produced (a corrupted field): the log readers drop its row with a warning (sysid/logs.py). A robot declares its
+    channels' limits (``Robot.channel_limits``) from its actuators' constants, never from example logs."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    max_rate: float = math.inf
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if not (self.low < self.high and self.max_rate > 0) or math.isnan(self.max_rate):
+            raise ValueError(f"a channel limit needs low < high and a positive max_rate, got {self}")
 
 
 class TelemetryRecorder:

@@ -14,6 +14,7 @@ from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+from envs.common.telemetry import ChannelLimit
 from envs.velociroach import constants as C
 
 GAIT, DUTY = "gait", "duty"
@@ -41,6 +42,8 @@ def _telemetry_channels() -> dict[str, str]:
 
 
 TELEMETRY_COLUMNS: dict[str, str] = _telemetry_channels()  # name -> unit, in table order
+FULL_CELL_VOLTAGE = 4.2  # V: a fully charged lithium-polymer cell, the top of the robot's one-cell battery
+LOG_SPEED_MARGIN = 2.0  # a log's legs turn at most this many times the model's no-load leg speed
 
 
 class VelociRoach(Robot):
@@ -255,6 +258,18 @@ class VelociRoach(Robot):
     @property
     def telemetry_channels(self) -> dict[str, str]:
         return TELEMETRY_COLUMNS
+
+    @property
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        # a leg turns no faster than its motor's no-load speed V / K at a full cell through the gear (the MJCF's
+        # motor constants), twice over for motors of the kind; the duty is a fraction of the PWM's full scale
+        top = LOG_SPEED_MARGIN * FULL_CELL_VOLTAGE / float(np.min(self.motors.motor_constant * self.motors.gear))
+        source = (
+            f"{LOG_SPEED_MARGIN:g} x the no-load leg speed V / (K gear) at {FULL_CELL_VOLTAGE:g} V, the MJCF's motors"
+        )
+        legs = ChannelLimit(max_rate=top, source=source)
+        duty = ChannelLimit(-1.0, 1.0, source="the PWM duty's full scale")
+        return {**{f"leg_angle_{side}": legs for side in C.SIDES}, **{f"duty_{side}": duty for side in C.SIDES}}
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:

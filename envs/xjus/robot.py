@@ -15,6 +15,7 @@ from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+from envs.common.telemetry import ChannelLimit
 from envs.xjus import constants as C
 from envs.xjus.controller import Gait, MotorArrays, moderate, pd_torque, wrap_angle, wrap_angle_one
 
@@ -417,6 +418,12 @@ class Xjus(Robot):
     @property
     def telemetry_channels(self) -> dict[str, str]:
         return TELEMETRY_COLUMNS
+
+    @property
+    def channel_limits(self) -> dict[str, ChannelLimit]:
+        motor = self.constants.channel_limits()  # each leg on its own gearmotor [xjus-report, Table 1]
+        names = {"leg_angle": "angle", "leg_speed": "speed", "duty": "duty", "current": "current"}
+        return {f"{channel}_{leg}": motor[limit] for channel, limit in names.items() for leg in C.LEGS}
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:
