@@ -54,9 +54,10 @@ SYNTHETIC_FORMAT = "skitter synthetic log"  # the metadata record's format: what
 SECONDS = 10.0  # a synthetic log's length (issue 7: about 10 s keeps each case to minutes)
 RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of several runs: its commands and noise from seed + k x this
 # sizes the command line accepts, checked before anything is simulated: a synthetic log is seconds long (SECONDS) and
-# is simulated whole, several times over (the drawn effects' pushes, the commands' draws); an hour of one run, or a
-# hundred runs, is already far past any recording protocol a robot declares (``Adapter.runs``)
-MAX_SECONDS = 3600.0
+# is simulated whole, several times over (the drawn effects' pushes, the commands' draws), every physics step's state
+# kept; ten minutes of logs in all, or a hundred runs, is far past any recording protocol a robot declares
+# (``Adapter.runs``) and still fits in memory
+MAX_SECONDS = 600.0  # s, of all the runs together
 MAX_RUNS = 100
 MAX_SEED = 2**63 - 1  # numpy's seed sequences take any non-negative integer; run k's seed adds k x RUN_SEED_OFFSET
 
@@ -336,9 +337,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--runs must be in [1, {MAX_RUNS}], got {args.runs}")
     adapter = make_adapter(args.robot)
     shortest = adapter.segment_seconds * (2 if adapter.burn_in else 1)  # one segment to replay, after the burn-in
-    if not shortest <= args.seconds <= MAX_SECONDS:
-        parser.error(f"--seconds must be a finite number in [{shortest:g}, {MAX_SECONDS:g}] for {args.robot}, got "
-                     f"{args.seconds:g}")  # fmt: skip
+    if not shortest <= args.seconds <= MAX_SECONDS / args.runs:
+        parser.error(f"--seconds must be a finite number in [{shortest:g}, {MAX_SECONDS / args.runs:g}] for "
+                     f"{args.robot}{f' with --runs {args.runs}' if args.runs > 1 else ''} (at most {MAX_SECONDS:g} s "
+                     f"of logs in all), got {args.seconds:g}")  # fmt: skip
     try:  # the effects' names and given values, before the long part (simulating and measuring how they show)
         check_effects(adapter, dict(args.effect))
     except ValueError as exc:

@@ -85,9 +85,16 @@ def test_calibrate_refusal_names_only_the_results_that_exist(capsys, tmp_path):
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
-        (["--seconds", "0"], "--seconds must be a finite number in [1, 3600] for motor, got 0"),
-        (["--seconds", "1e9"], "--seconds must be a finite number in [1, 3600] for motor, got 1e+09"),
+        (
+            ["--seconds", "0"],
+            "--seconds must be a finite number in [1, 600] for motor (at most 600 s of logs in all), got 0",
+        ),
+        (
+            ["--seconds", "1e9"],
+            "--seconds must be a finite number in [1, 600] for motor (at most 600 s of logs in all), got 1e+09",
+        ),
         (["--runs", "100000"], "--runs must be in [1, 100], got 100000"),
+        (["--runs", "100", "--seconds", "10"], "--seconds must be a finite number in [1, 6] for motor with --runs 100"),
         (["--seed", str(2**64)], f"got {2**64}"),
         (["--effect", "no_such_effect"], "robot 'motor' has no effect 'no_such_effect' (see --list)"),
         (["--effect", "viscous_friction=50"], "viscous_friction.damping=50: outside its range"),
@@ -125,7 +132,7 @@ def test_synth_a_drawn_effect_its_seeds_commands_do_not_show_says_what_to_do(cap
 
 def test_synth_burn_in_robots_need_two_segments(capsys, tmp_path):
     code, err = call(synth.main, capsys, "--robot", "roach", "--seconds", "1.5", "--out", str(tmp_path / "r.parquet"))
-    assert code == 2 and "in [2, 3600] for roach, got 1.5" in err
+    assert code == 2 and "in [2, 600] for roach (at most 600 s of logs in all), got 1.5" in err
 
 
 @pytest.mark.parametrize(
