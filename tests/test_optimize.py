@@ -331,3 +331,18 @@ def test_a_damaged_checkpoint_is_refused_naming_it_and_left_alone(tmp_path, cont
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert f"cannot resume from {out / 'checkpoint.pkl'}: {reason}" in done.stderr
     assert os.listdir(out) == ["checkpoint.pkl"] and (out / "checkpoint.pkl").read_bytes() == content
+
+
+def test_a_run_from_before_the_objectives_rename_resumes_under_its_new_name(tmp_path, capsys):
+    config = write_config(tmp_path, seconds=0.5, sample_interval=0.5, objective="distance_travelled")
+    out = tmp_path / "run"
+    args = ["--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out), "--no-progress"]
+    assert main(args) == 0
+    state = pickle.loads((out / "checkpoint.pkl").read_bytes())
+    state["settings"]["config"]["objective"] = "eq17"  # as a run of the earlier name wrote it
+    metrics = state["best"]["metrics"]
+    metrics["eq17"] = metrics.pop("distance_travelled")
+    (out / "checkpoint.pkl").write_bytes(pickle.dumps(state))
+    capsys.readouterr()
+    assert main(args) == 0
+    assert f"distance travelled {metrics['eq17']:.3f} m" in capsys.readouterr().out

@@ -8,13 +8,15 @@ Examples::
 
 The run folder (``--out``, default ``runs/optimize/<config>__<optimizer>__<seed>`` under the working folder) holds
 the checkpoint, the best parameters as a policy file (``best.json``: ``evaluate.py --policy cpg:<run>/best.json``)
-and the history. Running the same command again resumes an interrupted run from its last checkpoint (a finished run just reports, and writes
-its ``best.json`` again if it was lost). One run at a time writes a run folder: a second one into it is refused.
+and the history. Running the same command again resumes an interrupted run from its last checkpoint (a finished run
+just reports, and writes its ``best.json`` again if it was lost). One run at a time writes a run folder: a second one
+into it is refused.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import shlex
 import sys
 import warnings
@@ -111,11 +113,11 @@ def main(argv: list[str] | None = None) -> int:
     if best is None:
         print("no iteration run")
         return 0
-    m = best["metrics"]
+    m = {"distance_travelled": best["metrics"].get("eq17", math.nan), **best["metrics"]}  # (runs before the rename)
     status = "" if result["finished"] else f"; stopped at iteration {len(result['history'])}: run again to resume"
     print(f"best {config.objective} = {best['score']:.4f} (iteration {best['iteration']}): distance travelled "
-          f"{m['distance_travelled']:.3f} m, +x progress {m['progress_x']:.3f} m, fallen {int(m['fallen'])}; {result['wall_seconds']:.1f} s of "
-          f"evaluation; policy {args.out / 'best.json'}{status}")  # fmt: skip
+          f"{m['distance_travelled']:.3f} m, +x progress {m['progress_x']:.3f} m, fallen {int(m['fallen'])}; "
+          f"{result['wall_seconds']:.1f} s of evaluation; policy {args.out / 'best.json'}{status}")  # fmt: skip
     return 0
 
 

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from agents.optimize.optimizers import OPTIMIZERS
-from agents.optimize.problem import Evaluator, RunConfig
+from agents.optimize.problem import DEPRECATED_OBJECTIVES, Evaluator, RunConfig
 from envs.common.cluster import init_ray
 from envs.common.io import Busy, atomic_write, folder_lock, write_json
 
@@ -165,7 +165,10 @@ def _checkpoint_problem(state: Any) -> str | None:
 
 def check_resumable(state: dict[str, Any], settings: Settings, path: Path) -> None:
     """The checkpoint's settings equal these, or a one-line error naming the first that differs."""
-    old, new = state["settings"], settings.as_dict()
+    old, new = dict(state["settings"]), settings.as_dict()
+    objective = old["config"].get("objective")
+    if isinstance(objective, str) and objective in DEPRECATED_OBJECTIVES:  # a run from before the objective's rename
+        old["config"] = {**old["config"], "objective": DEPRECATED_OBJECTIVES[objective]}
     for key in new:
         if key == "config":
             for field in sorted(set(old[key]) | set(new[key])):
