@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.actuators.servo import ServoConstants
 from envs.bioloid.robot import GOAL, Bioloid
 from envs.bioloid.walk import ENERGY_COST_WEIGHT
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
 from envs.common.robot import check_flag
@@ -92,4 +92,5 @@ class BioloidTurnEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(BioloidTurnEnv)
 make_batched = vector_entry_point(BioloidTurnEnv)

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 
 from envs.actuators.servo import ServoConstants
 from envs.bioloid.robot import GOAL, Bioloid
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import check_flag
@@ -123,4 +123,5 @@ class BioloidWalkEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(BioloidWalkEnv)
 make_batched = vector_entry_point(BioloidWalkEnv)

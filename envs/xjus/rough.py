@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import Robot, check_flag, check_number
@@ -146,4 +146,5 @@ class XjusRoughEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(XjusRoughEnv)
 make_batched = vector_entry_point(XjusRoughEnv)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import check_flag
@@ -142,4 +142,5 @@ class XjusWalkEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(XjusWalkEnv)
 make_batched = vector_entry_point(XjusWalkEnv)
