@@ -398,6 +398,31 @@ def test_rgb_array_frames_follow_the_robot(batched):
     np.testing.assert_allclose(camera.lookat[:2], body[:2], atol=0.05)
 
 
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
+    """A roach 30 m from the origin, then reset from there: the first frame after each jump of the tracking camera
+    is the scene (the frame a second render gives), not black."""
+    kwargs = {"render_mode": "rgb_array", "width": 160, "height": 120}
+    if batched:
+        env = gym.make_vec("skitter/RoachWalk-v1", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    else:
+        env = gym.make("skitter/RoachWalk-v1", **kwargs)
+    env.reset(seed=0)
+    env.render()
+    base = env.unwrapped
+    if batched:
+        base.robot.sim.qpos[0, 0] = 30.0  # the render reads simulation 0's state
+    else:
+        base.data.qpos[0] = 30.0
+        mujoco.mj_forward(base.model, base.data)
+    for jump in ("30 m away", "reset from there"):
+        first, again = env.render(), env.render()
+        assert first.std() > 5 and first.mean() > 50, f"{jump}: the first frame is blank"
+        assert np.abs(first.astype(int) - again).mean() < 1.0, f"{jump}: the first frame is not the scene"
+        env.reset(seed=0)
+    env.close()
+
+
 @pytest.mark.parametrize("bounds", ["34", ("0.02", "0.03"), (True, 1.0), b"12"])
 def test_randomize_bounds_must_be_numbers_not_strings_or_bools(bounds):
     with pytest.raises(ValueError, match=r"randomize\['battery_voltage'\] must be a \(low, high\) pair of numbers"):
