@@ -427,3 +427,20 @@ def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
 def test_randomize_bounds_must_be_numbers_not_strings_or_bools(bounds):
     with pytest.raises(ValueError, match=r"randomize\['battery_voltage'\] must be a \(low, high\) pair of numbers"):
         gym.make("skitter/RoachWalk-v1", randomize={"battery_voltage": bounds})
+
+
+def test_class_docstrings_state_the_version_history_and_the_time_limit(env_id):
+    """Each env's manual (its class docstring) lists its registered version, states the episode's end by the
+    duration (where it has an Episode End section; the turn envs point to their walk env's), and promises nothing
+    that already exists."""
+    doc = type(gym.make(env_id).unwrapped).__doc__
+    version = env_id.rsplit("-", 1)[1]
+    history = doc.split("## Version History", 1)[1]
+    assert f"- {version}:" in history, f"{env_id}: no {version} in the version history"
+    if "## Episode End" in doc:
+        end = doc.split("## Episode End", 1)[1].split("##", 1)[0]
+        assert "episode_seconds" in end and "10 s" in end, f"{env_id}: the episode's end is not its duration"
+    else:
+        assert "episode end" in doc, f"{env_id}: neither states nor refers to its episode end"
+    for stale in ("to come", "adapter yet", "registration's time limit"):
+        assert stale not in doc, f"{env_id}: {stale!r}"

@@ -44,6 +44,7 @@ class BioloidTurnEnv(SkitterEnv):
     (0.2 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
 
     ## Version History
+    - v1: as BioloidWalk-v1 (the knees stop at straight).
     - v0: first release.
     """
 

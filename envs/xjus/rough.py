@@ -77,7 +77,8 @@ class XjusRoughEnv(SkitterEnv):
 
     ## Episode End
     Terminated when the robot flips (the middle segment tilts ``max_tilt`` from upright, default pi/2) or the
-    simulation goes unstable; truncated after 10 s.
+    simulation goes unstable (as XjusWalk); truncated after ``episode_seconds`` of simulated time (10 s) at any
+    control rate.
 
     ## Info
     As XjusWalk, and ``lane`` (the start's index). Episode metrics add ``progress`` (m along +x) and
