@@ -116,8 +116,9 @@ class ParameterMap:
             reached = max(float(np.max(self.field_values(name, x)[ref.field], initial=-np.inf)) for x in (low, high))
             if reached > ref.most:
                 built = float(np.max(self._nominal_fields[ref.field][ref.index]))
+                given = f"{low:g}" if low == high else f"({low:g}, {high:g})"
                 raise ValueError(
-                    f"{where}[{name!r}] = ({low:g}, {high:g}) takes {ref.field} from {built:g} as built to "
+                    f"{where}[{name!r}] = {given} takes {ref.field} from {built:g} as built to "
                     f"{reached:g}, above its bound {ref.most:g} ({ref.why or 'the most it may be'})"
                 )
 
