@@ -305,8 +305,8 @@ def test_time_limits_are_ten_seconds_at_any_control_rate(env_id):
         venv.close()
 
 
-def test_default_rate_limits_are_the_registered_steps():
-    """The default-rate episodes are as before: 10 s in control steps of each id's default rate."""
+def test_default_rate_episodes_keep_their_step_counts():
+    """At the default rates the limits are the step counts they always were (10 s of control steps)."""
     steps = {"skitter/RoachWalk-v1": 500, "skitter/RoachWalkDuty-v1": 10000, "skitter/XjusWalk-v0": 1250,
              "skitter/BioloidWalk-v1": 500}  # fmt: skip
     for env_id, expected in steps.items():
