@@ -90,10 +90,12 @@ def test_an_unstable_simulation_ends_its_own_episode_and_the_others_go_on():
     venv = make_batched("skitter/RoachWalk-v1")
     venv.reset(seed=0)
     action = np.zeros((N, 3), dtype=np.float32)
-    venv.step(action)
+    *_, good = venv.step(action)
     venv.unwrapped.robot.sim.qvel[1] = 1e12
     obs, reward, terminated, _, info = venv.step(action)
     assert info["sim_unstable"].tolist() == [False, True, False]
+    for key in ("x_position", "y_position", "z_position", "time", "quaternion"):  # the last good pose, not a reset's
+        np.testing.assert_array_equal(info[key][1], good[key][1], err_msg=key)
     assert terminated.tolist() == [False, True, False] and reward[1] == 0.0
     assert np.isfinite(obs).all()
     obs, reward, terminated, *_ = venv.step(action)  # simulation 1 resets, the others step

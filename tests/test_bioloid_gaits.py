@@ -138,3 +138,32 @@ def test_bad_gait_names_and_frequencies_are_refused():
         load_policy("ik-trot:50", env)
     with pytest.raises(ValueError, match="unknown policy"):
         load_policy("ik-moonwalk", env)
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_ik_gaits_walk_when_the_caller_does_not_pass_the_state_back(batched):
+    """A caller that drops predict()'s state (``action, _ = policy.predict(obs)``) gets the same actions as one that
+    passes it back: the policy keeps its clock, and episode_start restarts a row's clock either way."""
+    if batched:
+        env = gym.make_vec("skitter/BioloidTurn-v1", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
+    else:
+        env = gym.make("skitter/BioloidTurn-v1")
+    keeps, drops = load_policy("ik-trot", env), load_policy("ik-trot", env)
+    obs, _ = env.reset(seed=0)
+    n = 2 if batched else 1
+    state, actions = None, []
+    for step in range(40):
+        # a new episode for the first row at step 25 (as a vector env's autoreset would flag it)
+        start = np.array([step in (0, 25)] + [step == 0] * (n - 1))
+        start = start if batched else start[:1]
+        action, state = keeps.predict(obs, state, start)
+        dropped, _ = drops.predict(obs, None, start)
+        np.testing.assert_array_equal(dropped, action)
+        actions.append(action)
+        obs, *_ = env.step(action)
+    actions = np.array(actions)
+    assert np.ptp(actions, axis=0).max() > 0.1, "the legs must move, not stand still"
+    first_row = actions[:, 0] if batched else actions
+    np.testing.assert_array_equal(first_row[25], first_row[0])  # the restarted row is back at its lead-in's start
+    drops.reset()
+    np.testing.assert_array_equal(drops.predict(obs)[0], keeps.predict(obs, None, np.ones(n, dtype=bool))[0])

@@ -129,12 +129,19 @@ def test_out_of_range_actions_are_clipped(env_id):
 def test_unstable_simulation_ends_the_episode_with_finite_observations(env_id):
     env = gym.make(env_id)
     obs, _ = env.reset(seed=0)
+    action = np.zeros(env.action_space.shape, dtype=np.float32)
+    _, _, _, _, good = env.step(action)
     env.unwrapped.data.qvel[:] = 1e12  # no physical robot survives this
-    obs, reward, terminated, _truncated, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    obs, reward, terminated, _truncated, info = env.step(action)
     assert info["sim_unstable"] is True
     assert terminated
     assert np.isfinite(obs).all()
-    assert np.isfinite(reward)
+    assert reward == 0.0
+    # every key of a step's info, the pose and running sums of the last good step, no reward terms
+    assert set(info) == set(good)
+    for key in ("x_position", "y_position", "z_position", "time", "distance"):
+        assert info[key] == good[key], key
+    assert sum(value for key, value in info.items() if key.startswith("reward_")) == reward
 
 
 def test_world_pose_is_in_info_not_in_the_observation():
@@ -275,10 +282,76 @@ def test_turn_command_is_sampled_in_range_and_settable():
         env.reset(seed=0, options={"yaw_rate": "fast"})
 
 
-def test_time_limits_are_ten_seconds():
-    for env_id in ENV_IDS:
-        env = gym.make(env_id)
-        assert env.spec.max_episode_steps * env.unwrapped.dt == pytest.approx(10.0)
+def _other_rate(env_id: str) -> float:
+    """A control rate other than the default that the env accepts: twice it (xJüs in gait mode needs at least
+    120 Hz), or half it where twice is not a whole number of physics steps."""
+    default = 1.0 / gym.make(env_id).unwrapped.dt
+    for freq in (2 * default, default / 2):
+        try:
+            gym.make(env_id, control_freq=freq)
+        except ValueError:
+            continue
+        return freq
+    raise AssertionError(f"{env_id} takes neither twice nor half its default rate")
+
+
+def test_time_limits_are_ten_seconds_at_any_control_rate(env_id):
+    """The limit is a duration: 10 s at the default rate and at another, single (gymnasium.make) and batched."""
+    for kwargs in ({}, {"control_freq": _other_rate(env_id)}):
+        env = gym.make(env_id, **kwargs)
+        assert env.spec.max_episode_steps * env.unwrapped.dt == pytest.approx(10.0), kwargs
+        venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", nthread=1, **kwargs)
+        assert venv.unwrapped.max_episode_steps * venv.unwrapped.dt == pytest.approx(10.0), kwargs
+        venv.close()
+
+
+def test_default_rate_episodes_keep_their_step_counts():
+    """At the default rates the limits are the step counts they always were (10 s of control steps)."""
+    steps = {"skitter/RoachWalk-v1": 500, "skitter/RoachWalkDuty-v1": 10000, "skitter/XjusWalk-v0": 1250,
+             "skitter/BioloidWalk-v1": 500}  # fmt: skip
+    for env_id, expected in steps.items():
+        assert gym.make(env_id).spec.max_episode_steps == expected
+
+
+@pytest.mark.parametrize(("env_id", "freq"), [("skitter/XjusWalk-v0", 250.0), ("skitter/BioloidWalk-v1", 25.0)])
+def test_episodes_truncate_at_their_duration_not_a_step_count(env_id, freq):
+    """Stepped to the end at a non-default rate, an episode is truncated when its simulated time reaches the
+    duration, single and batched (a short duration keeps the test quick)."""
+    seconds = 0.4
+    env = gym.make(env_id, control_freq=freq, episode_seconds=seconds, max_tilt=np.pi)
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        _, _, terminated, truncated, info = env.step(np.zeros(env.action_space.shape))
+        steps += 1
+        assert not terminated
+    assert steps == round(seconds * freq)
+    assert info["time"] == pytest.approx(seconds)
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", nthread=1, control_freq=freq,
+                        episode_seconds=seconds, max_tilt=np.pi)  # fmt: skip
+    venv.reset(seed=0)
+    for step in range(1, steps + 1):
+        *_, truncated, info = venv.step(np.zeros(venv.action_space.shape))
+        assert truncated.all() == (step == steps)
+    assert info["time"] == pytest.approx([seconds, seconds])
+
+
+@pytest.mark.parametrize("seconds", [0, -1, float("nan"), "10", True])
+def test_episode_seconds_must_be_a_positive_duration(seconds):
+    with pytest.raises(ValueError, match="episode_seconds"):
+        gym.make("skitter/RoachWalk-v1", episode_seconds=seconds)
+    with pytest.raises(ValueError, match="episode_seconds"):
+        gym.make_vec("skitter/RoachWalk-v1", vectorization_mode="vector_entry_point", episode_seconds=seconds)
+
+
+def test_episode_seconds_none_and_an_explicit_step_limit():
+    """``episode_seconds=None`` leaves no limit of the env's own; ``max_episode_steps`` (Gymnasium's) still cuts
+    episodes, and in a batched env it replaces the duration."""
+    env = gym.make("skitter/RoachWalk-v1", episode_seconds=None)
+    assert env.spec.max_episode_steps is None
+    assert gym.make("skitter/RoachWalk-v1", max_episode_steps=7).spec.max_episode_steps == 7
+    venv = gym.make_vec("skitter/RoachWalk-v1", vectorization_mode="vector_entry_point", max_episode_steps=700)
+    assert venv.unwrapped.max_episode_steps == 700
 
 
 @pytest.mark.parametrize(("width", "height"), [(160, 120), (800, 600)])
@@ -325,7 +398,49 @@ def test_rgb_array_frames_follow_the_robot(batched):
     np.testing.assert_allclose(camera.lookat[:2], body[:2], atol=0.05)
 
 
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
+    """A roach 30 m from the origin, then reset from there: the first frame after each jump of the tracking camera
+    is the scene (the frame a second render gives), not black."""
+    kwargs = {"render_mode": "rgb_array", "width": 160, "height": 120}
+    if batched:
+        env = gym.make_vec("skitter/RoachWalk-v1", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    else:
+        env = gym.make("skitter/RoachWalk-v1", **kwargs)
+    env.reset(seed=0)
+    env.render()
+    base = env.unwrapped
+    if batched:
+        base.robot.sim.qpos[0, 0] = 30.0  # the render reads simulation 0's state
+    else:
+        base.data.qpos[0] = 30.0
+        mujoco.mj_forward(base.model, base.data)
+    for jump in ("30 m away", "reset from there"):
+        first, again = env.render(), env.render()
+        assert first.std() > 5 and first.mean() > 50, f"{jump}: the first frame is blank"
+        assert np.abs(first.astype(int) - again).mean() < 1.0, f"{jump}: the first frame is not the scene"
+        env.reset(seed=0)
+    env.close()
+
+
 @pytest.mark.parametrize("bounds", ["34", ("0.02", "0.03"), (True, 1.0), b"12"])
 def test_randomize_bounds_must_be_numbers_not_strings_or_bools(bounds):
     with pytest.raises(ValueError, match=r"randomize\['battery_voltage'\] must be a \(low, high\) pair of numbers"):
         gym.make("skitter/RoachWalk-v1", randomize={"battery_voltage": bounds})
+
+
+def test_class_docstrings_state_the_version_history_and_the_time_limit(env_id):
+    """Each env's manual (its class docstring) lists its registered version, states the episode's end by the
+    duration (where it has an Episode End section; the turn envs point to their walk env's), and promises nothing
+    that already exists."""
+    doc = type(gym.make(env_id).unwrapped).__doc__
+    version = env_id.rsplit("-", 1)[1]
+    history = doc.split("## Version History", 1)[1]
+    assert f"- {version}:" in history, f"{env_id}: no {version} in the version history"
+    if "## Episode End" in doc:
+        end = doc.split("## Episode End", 1)[1].split("##", 1)[0]
+        assert "episode_seconds" in end and "10 s" in end, f"{env_id}: the episode's end is not its duration"
+    else:
+        assert "episode end" in doc, f"{env_id}: neither states nor refers to its episode end"
+    for stale in ("to come", "adapter yet", "registration's time limit"):
+        assert stale not in doc, f"{env_id}: {stale!r}"

@@ -210,6 +210,24 @@ def test_bad_env_arguments_are_refused_in_one_line(env_id, kwargs, message):
     assert "\n" not in str(error.value)
 
 
+def test_a_randomized_spine_scale_stays_within_the_stiffness_bound_of_the_spine_as_built():
+    """A stiffness scale multiplies the spine as built: near its bound, a scale of 20 would take it 20 times past
+    (and launch the robot); refused at construction, single and batched, and when set directly. The design spine
+    takes the whole range."""
+    near_bound = 0.98 * C.SPINE_STIFFNESS_MAX
+    randomize = {"spine_stiffness_scale": (1.0, 20.0)}
+    for make in (gym.make, batched):
+        kwargs = {"n": 1} if make is batched else {}
+        with pytest.raises(ValueError, match=r"spine_stiffness_scale.*above its bound") as error:
+            make(WALK, spine_stiffness=near_bound, randomize=randomize, **kwargs)
+        assert "\n" not in str(error.value)
+        make(WALK, spine_stiffness=near_bound, randomize={"spine_stiffness_scale": (0.1, 1.0)}, **kwargs)
+    gym.make(WALK, randomize={"spine_stiffness_scale": C.SPINE_STIFFNESS_RANGE})
+    robot = gym.make(WALK, spine_stiffness=near_bound).unwrapped.robot  # and a value set directly
+    with pytest.raises(ValueError, match=r"spine_stiffness_scale'\] = 20 takes jnt_stiffness"):
+        robot.set_parameters(np.array([0]), {"spine_stiffness_scale": 20.0})
+
+
 def test_bad_reset_options_are_refused():
     env = gym.make(ROUGH)
     for options, message in (({"start": 99}, "start"), ({"leg_angles": [0, 1]}, "leg_angles")):

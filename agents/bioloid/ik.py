@@ -15,7 +15,8 @@ commanded yaw rate (a feed-forward) plus a proportional correction on the observ
 
 Names in the policy registry (agents/bioloid/__init__.py): ``ik-<gait>`` (at 1.5 Hz, the trot's reference) and
 ``ik-<gait>:<Hz>``. Every policy follows Stable-Baselines3's ``predict(observation, state, episode_start,
-deterministic) -> (action, state)``, batched or not; its state is its own clock (seconds since the episode began).
+deterministic) -> (action, state)``, batched or not; its state is its own clock (seconds since the episode began),
+which it also keeps itself, so that a caller that does not pass the state back gets the same walk.
 """
 
 from __future__ import annotations
@@ -107,6 +108,7 @@ class IKGait:
         self._phases = np.asarray(self.gait.phases)
         # every leg in one numpy call (the same arithmetic as leg by leg)
         self._legs, self._ellipses = LegGeometry.stack(self.geometry), Ellipse.stack(self.ellipses)
+        self._clock: np.ndarray | None = None  # the clock after the last call, per row
 
     def __repr__(self) -> str:
         return f"IKGait({self.gait.name}, {self.frequency:g} Hz{', steering' if self.steer else ''})"
@@ -147,16 +149,29 @@ class IKGait:
         episode_start: np.ndarray | None = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray, np.ndarray]:
+        """The goal positions at the gait's clock; ``state`` is the clock (s) per row. Without it, the clock this
+        policy kept from its last call runs on (a new policy, or a new number of rows, starts at 0): rows whose
+        ``episode_start`` is set start again at 0 either way, and :meth:`reset` starts every row again."""
         obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
         single = np.asarray(observation).ndim == 1
         n = len(obs)
-        t = np.zeros(n) if state is None else np.array(np.atleast_1d(state), dtype=np.float64).reshape(n)
+        if state is not None:
+            t = np.array(np.atleast_1d(state), dtype=np.float64).reshape(n)
+        elif self._clock is not None and len(self._clock) == n:
+            t = self._clock.copy()
+        else:
+            t = np.zeros(n)
         if episode_start is not None:
             t[np.atleast_1d(np.asarray(episode_start, dtype=bool))] = 0.0
         goal, _ = self.counts(t, self.strides(obs) * self.lead_in(t)[:, None])
         action = self.mode.to_action(goal).astype(np.float32)
         t = t + self.control_dt
-        return (action[0], t[:1].copy()) if single else (action, t)
+        self._clock = t
+        return (action[0], t[:1].copy()) if single else (action, t.copy())
+
+    def reset(self) -> None:
+        """Start the clock this policy keeps again at 0 (a new episode for a caller that passes no state)."""
+        self._clock = None
 
 
 def ik_for(env, gait: str, arg: str = "") -> IKGait:

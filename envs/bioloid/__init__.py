@@ -1,16 +1,15 @@
 """The Bioloid quadruped of seed 002 (16 AX-12 servos): robot, tasks. ``ENVS`` is what envs/__init__.py registers;
 ``CALIBRATION`` names the calibration adapter (``calibrate.py --robot bioloid``)."""
 
-EPISODE_SECONDS = 10.0
-CONTROL_FREQ = 50.0  # Hz, as envs/bioloid/constants.py: the goal-position packets' rate
+EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
 CALIBRATION = {"bioloid": "envs.bioloid.calibration:BioloidAdapter"}
 
 ENVS = [
     {
         "id": f"skitter/Bioloid{task}-v1",
-        "entry_point": f"envs.bioloid.{task.lower()}:Bioloid{task}Env",
+        "entry_point": f"envs.bioloid.{task.lower()}:make_env",
         "vector_entry_point": f"envs.bioloid.{task.lower()}:make_batched",
-        "max_episode_steps": round(EPISODE_SECONDS * CONTROL_FREQ),
+        "kwargs": {"episode_seconds": EPISODE_SECONDS},
     }
     for task in ("Walk", "Turn")
 ]

@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 from envs.actuators.servo import ServoConstants
 from envs.bioloid.robot import GOAL, Bioloid
 from envs.bioloid.walk import ENERGY_COST_WEIGHT
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
 from envs.common.robot import check_flag
@@ -44,6 +44,7 @@ class BioloidTurnEnv(SkitterEnv):
     (0.2 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
 
     ## Version History
+    - v1: as BioloidWalk-v1 (the knees stop at straight).
     - v0: first release.
     """
 
@@ -92,4 +93,5 @@ class BioloidTurnEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(BioloidTurnEnv)
 make_batched = vector_entry_point(BioloidTurnEnv)

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 
 from envs.actuators.servo import ServoConstants
 from envs.bioloid.robot import GOAL, Bioloid
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import check_flag
@@ -26,10 +26,11 @@ class BioloidWalkEnv(SkitterEnv):
     ## Action Space
     ``Box(-1, 1, (16,))``; out-of-range actions are clipped to [-1, 1]; NaN or infinite actions raise
     ``ValueError``. Each entry is one servo's goal position, mapped linearly from [-1, 1] onto its allowed range in
-    counts (``env.unwrapped.robot.mode``; 0..1023 over 300 deg, 512 = 0 rad; the knees +-90 deg, 205..819), held
-    over the 20 ms control step. Order: PELVIS, F_L_1, F_L_2, F_L_3, F_R_1, F_R_2, F_R_3, B_L_1, B_L_2, B_L_3,
-    B_R_1, B_R_2, B_R_3, N_1, N_2, HEAD (1 hip pitch, 2 abduction, 3 knee). ``robot.mode.to_action(counts)`` builds
-    an action from counts. The robot stands with servo 2 at 819 (left legs) and 205 (right legs).
+    counts (``env.unwrapped.robot.mode``; 0..1023 over 300 deg, 512 = 0 rad; the knees from straight to 90 deg of
+    bend, 512..819), held over the 20 ms control step. Order: PELVIS, F_L_1, F_L_2, F_L_3, F_R_1, F_R_2, F_R_3,
+    B_L_1, B_L_2, B_L_3, B_R_1, B_R_2, B_R_3, N_1, N_2, HEAD (1 hip pitch, 2 abduction, 3 knee).
+    ``robot.mode.to_action(counts)`` builds an action from counts. The robot stands with servo 2 at 819 (left legs)
+    and 205 (right legs).
 
     ## Observation Space
     What the robot senses, in SI units (``Box(-inf, inf)``, float64), laid out by name in
@@ -64,9 +65,10 @@ class BioloidWalkEnv(SkitterEnv):
 
     ## Episode End
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
-      simulation goes numerically unstable (``info["sim_unstable"]``, the last finite observation returned with
-      reward 0);
-    - truncated at the registration's time limit: 10 s (500 steps at 50 Hz).
+      simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last good
+      step's observation and info are returned, with reward 0);
+    - truncated after ``episode_seconds`` of simulated time (10 s: 500 steps at 50 Hz, 250 at 25 Hz), whatever the
+      control rate.
 
     ## Info
     As RoachWalk: ``x_position``, ``y_position``, ``z_position``, ``quaternion``, ``x_velocity``, ``y_velocity``,
@@ -81,9 +83,13 @@ class BioloidWalkEnv(SkitterEnv):
     the 18 deg "aibo style" wedges of seed 002 IV.A when True), ``servo`` (an ``envs.actuators.servo.ServoConstants``:
     supply, compliance slope, torque limit; default AX-12 at 10 V), ``battery_voltage`` (V, shorthand for the
     servos' supply), ``sensor_noise`` (True), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a
-    calibration file; the adapter is to come), ``telemetry``, ``render_mode``, ``width``, ``height``.
+    calibration file from ``calibrate.py --robot bioloid``, docs/calibration.md), ``episode_seconds`` (the time
+    limit, s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.
 
     ## Version History
+    - v1: the knees stop at straight: their joint limits and the servos' allowed range cover 0 to 90 deg of bend
+      only, as the robot's postures and IK have them (v0 let them bend 90 deg backward too, which an optimized CPG
+      exploited).
     - v0: first release.
     """
 
@@ -123,4 +129,5 @@ class BioloidWalkEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(BioloidWalkEnv)
 make_batched = vector_entry_point(BioloidWalkEnv)

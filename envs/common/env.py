@@ -8,13 +8,14 @@ Gymnasium's ``MujocoEnv`` it exposes ``model`` and ``data`` (the live ``MjData``
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium.wrappers import TimeLimit
 
 from envs.common.parameters import check_randomize, sample
 from envs.common.rendering import FrameRenderer, tracking_camera
@@ -23,6 +24,7 @@ from envs.common.task import Task
 from envs.common.telemetry import TelemetryRecorder
 
 MAX_FRAME = (4096, 4096)  # largest width, height of a rendered frame
+EPISODE_SECONDS = 10.0  # an episode's length, whatever the control rate
 
 
 class SkitterEnv(gym.Env):
@@ -73,6 +75,7 @@ class SkitterEnv(gym.Env):
         self.recorder = TelemetryRecorder(self.telemetry_metadata(), robot.telemetry_channels) if telemetry else None
         self._ids = np.array([0])
         self._last_obs = np.zeros(task.layout.size)
+        self._last_info: dict[str, Any] = {}
 
     # --- like MujocoEnv -------------------------------------------------------------------------------------------
     @property
@@ -104,7 +107,9 @@ class SkitterEnv(gym.Env):
             self.recorder.record(self.robot.telemetry(readings)[0])
         if self.render_mode == "human":
             self.render()
-        return obs.copy(), self._info(readings, {}, {}, fallen=False)
+        info = self._info(readings, {}, {}, fallen=False)
+        self._last_info = info.copy()
+        return obs.copy(), info
 
     def step(self, action: np.ndarray):
         action = np.asarray(action, dtype=np.float64).reshape(-1)
@@ -114,8 +119,11 @@ class SkitterEnv(gym.Env):
             raise ValueError(f"action must be finite, got {action}")
         self.robot.command(self.robot.mode.to_command(action)[None])  # mapped in the action's shape: no broadcasting
         if not self.robot.step()[0]:
-            # MuJoCo has reset the data; end the episode with the last good observation
-            info = {"sim_unstable": True, "fallen": False, "time": float(self.data.time)}
+            # MuJoCo has reset the data; end the episode with the last good observation and info, and no reward
+            info = {
+                key: value.copy() if isinstance(value, np.ndarray) else value for key, value in self._last_info.items()
+            }
+            info.update({key: 0.0 for key in info if key.startswith("reward_")}, sim_unstable=True, fallen=False)
             return self._last_obs.copy(), 0.0, True, False, info
         rngs = [self.np_random]
         readings = self.robot.read(rngs)
@@ -129,13 +137,9 @@ class SkitterEnv(gym.Env):
             self.recorder.record(self.robot.telemetry(readings)[0])
         if self.render_mode == "human":
             self.render()
-        return (
-            obs.copy(),
-            reward,
-            terminated,
-            False,
-            self._info(readings, self.task.info(readings, state), terms, terminated),
-        )
+        info = self._info(readings, self.task.info(readings, state), terms, terminated)
+        self._last_info = info.copy()
+        return obs.copy(), reward, terminated, False, info
 
     def _info(self, readings: dict, state: dict, terms: dict[str, float], fallen: bool) -> dict[str, Any]:
         x, y, z = readings["position"][0].tolist()
@@ -203,3 +207,30 @@ class SkitterEnv(gym.Env):
         """What evaluation needs to turn an episode's last ``info`` into metrics: the robot's mass and length, the
         task's own metrics."""
         return {"mass": self.robot.facts.mass, "length": self.robot.facts.length, "task": self.task}
+
+
+def episode_steps(seconds: float | None, dt: float) -> int | None:
+    """The control steps of an episode of ``seconds`` (None: no limit) at a control step of ``dt`` seconds."""
+    if seconds is None:
+        return None
+    return max(1, round(check_number("episode_seconds", seconds, 0, strict=True) / dt))
+
+
+def entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., gym.Env]:
+    """The registration's ``entry_point`` of an env class: the env in a ``TimeLimit`` of ``episode_seconds``.
+
+    The limit is a duration: its steps follow the env's own control rate (``control_freq``), so the spec that
+    ``gymnasium.make`` returns has ``max_episode_steps`` of 10 s at any rate. ``gymnasium.make(id,
+    max_episode_steps=n)`` truncates at ``n`` steps when that comes first; for longer episodes pass ``episode_seconds``
+    (None: no limit of the env's own).
+    """
+
+    def make(episode_seconds: float | None = EPISODE_SECONDS, **kwargs: Any) -> gym.Env:
+        episode_steps(episode_seconds, 1.0)  # refused before anything is built
+        env = env_class(**kwargs)
+        steps = episode_steps(episode_seconds, env.dt)
+        return env if steps is None else TimeLimit(env, steps)
+
+    make.metadata = env_class.metadata  # what gymnasium.make reads of an entry point (render modes)
+    make.__doc__ = f"{env_class.__name__} with its time limit (see envs/common/env.py)."
+    return make

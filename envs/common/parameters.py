@@ -30,6 +30,8 @@ class FieldRef:
     field: str
     index: tuple  # numpy index into the field, e.g. (body_id,) or (ids, slot)
     how: Literal["set", "scale", "inverse"] = "set"
+    most: float | None = None  # the largest value an entry may take, whatever the built model (e.g. for stability)
+    why: str = ""  # why it may take no more, for the message that refuses a range reaching past ``most``
 
 
 @dataclass(frozen=True)
@@ -90,6 +92,36 @@ class ParameterMap:
                 if ref.field not in self._nominal_fields:
                     self._nominal_fields[ref.field] = np.array(getattr(model, ref.field), copy=True)
 
+    def field_values(self, name: str, value: float) -> dict[str, np.ndarray]:
+        """What parameter ``name`` at ``value`` writes into each of its fields (from the built model's values)."""
+        p = self.parameters[name]
+        out = {}
+        for ref in p.fields:
+            built = np.asarray(self._nominal_fields[ref.field][ref.index], dtype=float)
+            if ref.how == "set":
+                out[ref.field] = np.full_like(built, value)
+            elif ref.how == "scale":
+                out[ref.field] = built * (value / p.nominal)
+            else:
+                out[ref.field] = built * (p.nominal / value)
+        return out
+
+    def check_range(self, name: str, low: float, high: float, where: str) -> None:
+        """Refuse a range of parameter ``name`` that takes one of its fields past that field's ``most``: a scale
+        applies to the model as built, whose own value may already be near the bound."""
+        p = self.parameters[name]
+        for ref in p.fields:
+            if ref.most is None:
+                continue
+            reached = max(float(np.max(self.field_values(name, x)[ref.field], initial=-np.inf)) for x in (low, high))
+            if reached > ref.most:
+                built = float(np.max(self._nominal_fields[ref.field][ref.index]))
+                given = f"{low:g}" if low == high else f"({low:g}, {high:g})"
+                raise ValueError(
+                    f"{where}[{name!r}] = {given} takes {ref.field} from {built:g} as built to "
+                    f"{reached:g}, above its bound {ref.most:g} ({ref.why or 'the most it may be'})"
+                )
+
     def apply(self, target: Callable[[str], np.ndarray], values: Mapping[str, float]) -> bool:
         """Set parameters for one simulation, whose writable field arrays ``target(field)`` gives (the model's own
         field, or one simulation's row of a batch's); parameters not named return to nominal. Returns whether
@@ -134,7 +166,8 @@ Ranges = Mapping[str, Sequence[float]]
 def check_randomize(randomize: Ranges | None, parameters: ParameterMap, where: str = "randomize") -> dict:
     """Validate ``randomize`` (parameter name -> (low, high)) against the robot's parameters; return it as floats.
 
-    Each range must be finite, ordered and within the parameter's plausible range.
+    Each range must be finite, ordered and within the parameter's plausible range, and keep the fields it writes
+    within their bounds (``FieldRef.most``) from the model as built.
     """
     if randomize is None:
         return {}
@@ -158,6 +191,7 @@ def check_randomize(randomize: Ranges | None, parameters: ParameterMap, where: s
             raise ValueError(
                 f"{where}[{name!r}] = ({low}, {high}) leaves the parameter's range [{p.low}, {p.high}] {p.unit}"
             )
+        parameters.check_range(name, low, high, where)
         out[name] = (low, high)
     return out
 

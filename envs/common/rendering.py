@@ -24,15 +24,24 @@ def tracking_camera(model: mujoco.MjModel, config: dict[str, Any], body: int) ->
 
 
 class FrameRenderer:
-    """RGB frames of ``model`` at ``width`` x ``height`` from ``camera``."""
+    """RGB frames of ``model`` at ``width`` x ``height`` from ``camera``.
+
+    ``mjv_updateScene`` lays an infinite plane (the floor) out around the scene's camera as the previous frame left
+    it, and its extent is the far clip plane (``vis.map.zfar`` times the model's extent, a few metres for a small
+    robot): after a jump of the camera (the first frame of a robot far from the origin, the first after a reset
+    from there) the floor would lie beyond the far plane and the frame come out black. The scene's camera is
+    brought to the present first.
+    """
 
     def __init__(self, model: mujoco.MjModel, camera: mujoco.MjvCamera, width: int, height: int):
         vis = model.vis.global_  # the offscreen buffer must hold the frame
         vis.offwidth, vis.offheight = max(vis.offwidth, width), max(vis.offheight, height)
         self.camera = camera
+        self._model = model
         self._renderer = mujoco.Renderer(model, height, width)
 
     def render(self, data: mujoco.MjData) -> np.ndarray:
+        mujoco.mjv_updateCamera(self._model, data, self.camera, self._renderer.scene)
         self._renderer.update_scene(data, self.camera)
         return self._renderer.render()
 

@@ -359,6 +359,8 @@ class Robot(ABC):
         unknown = set(values) - set(self.parameters.names())
         if unknown:
             raise ValueError(f"{self.name}: unknown parameters {sorted(unknown)}; known: {self.parameters.names()}")
+        for name, value in values.items():
+            self.parameters.check_range(name, float(value), float(value), f"{self.name} parameters")
         if self.batched:
             for i in ids:
                 self.parameters.apply(lambda name, i=i: self.sim.expand(name)[i], values)

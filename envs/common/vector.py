@@ -24,7 +24,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.common.env import SkitterEnv
+from envs.common.env import EPISODE_SECONDS, SkitterEnv, episode_steps
 from envs.common.parameters import sample
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import batched_robots
@@ -37,7 +37,8 @@ class SkitterVectorEnv(VectorEnv):
     Args:
         env: a :class:`SkitterEnv` whose robot was built batched (see :func:`vector_entry_point`); its task,
             settings and spaces are taken over.
-        max_episode_steps: the time limit (the registration's); episodes are truncated after it.
+        max_episode_steps: the time limit in control steps (see :func:`vector_entry_point`); episodes are truncated
+            after it.
         render_sim: which simulation ``render()`` shows.
     """
 
@@ -77,6 +78,9 @@ class SkitterVectorEnv(VectorEnv):
         self._needs_reset = np.zeros(n, dtype=bool)
         self._no_ids = np.zeros(0, dtype=np.int64)
         self._obs = np.zeros((n, env.observation_space.shape[0]))
+        # each simulation's last good pose and time, which an unstable step's info reports
+        self._pose = {key: np.zeros(n) for key in ("x_position", "y_position", "z_position", "time")}
+        self._pose["quaternion"] = np.zeros((n, 4))
         self._render_model: mujoco.MjModel | None = None
         self._renderer = None
 
@@ -95,6 +99,8 @@ class SkitterVectorEnv(VectorEnv):
                 self.rngs[i] = seeding.np_random(seeds[i])[0]
         readings = self._reset(ids, options or None)
         infos = self._infos(readings, {}, {}, np.zeros(self.num_envs, dtype=bool), ids)
+        for key, last in self._pose.items():
+            last[ids] = infos[key][ids]
         if mask is not None:  # the others' entries describe nothing new
             for key in [k for k in infos if not k.startswith("_")]:
                 infos[f"_{key}"] = infos[f"_{key}"] & mask
@@ -139,6 +145,11 @@ class SkitterVectorEnv(VectorEnv):
         if self.recorders is not None:
             self._record(readings, unstable, reset_ids)
         infos = self._infos(readings, self.task.info(readings, state), terms, terminated & stable, reset_ids, unstable)
+        if unstable.any():  # MuJoCo has reset those simulations: their pose is the last good one
+            for key, last in self._pose.items():
+                infos[key] = np.where(unstable.reshape(-1, *[1] * (last.ndim - 1)), last, infos[key])
+        for key, last in self._pose.items():
+            last[...] = infos[key]
         return obs.copy(), reward, terminated, truncated, infos
 
     def _reset(self, ids: np.ndarray, options: Mapping | None) -> dict[str, np.ndarray]:
@@ -181,7 +192,8 @@ class SkitterVectorEnv(VectorEnv):
 
     def _infos(self, readings, state, terms, fallen, reset_ids, unstable=None) -> dict[str, np.ndarray]:
         """Gymnasium's vector info: an array per key, and ``_key`` marking the simulations that have it. The step's
-        quantities and reward terms are absent for simulations that reset in this call (and unstable ones)."""
+        quantities and reward terms are absent for simulations that reset in this call (and unstable ones, whose pose
+        and time are their last good ones)."""
         n = self.num_envs
         everyone = np.ones(n, dtype=bool)
         unstable = np.zeros(n, dtype=bool) if unstable is None else unstable
@@ -261,21 +273,27 @@ class SkitterVectorEnv(VectorEnv):
 def vector_entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., SkitterVectorEnv]:
     """The ``vector_entry_point`` of an env class: builds the class's own robot and task batched.
 
-    The returned function takes ``num_envs``, ``max_episode_steps`` (the registration's), ``nthread`` (default: the
-    machine's cores), ``render_sim`` and the env's own keyword arguments.
+    The returned function takes ``num_envs``, ``episode_seconds`` (the time limit as a duration, as the single env's
+    entry point: 10 s at any control rate; None for none), ``max_episode_steps`` (a limit in steps given to
+    ``gymnasium.make_vec``, which then replaces the duration), ``nthread`` (default: the machine's cores),
+    ``render_sim`` and the env's own keyword arguments.
     """
 
     def make(
         num_envs: int = 1,
         max_episode_steps: int | None = None,
+        episode_seconds: float | None = EPISODE_SECONDS,
         nthread: int | None = None,
         render_sim: int = 0,
         **kwargs: Any,
     ) -> SkitterVectorEnv:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
+        episode_steps(episode_seconds, 1.0)  # refused before anything is built
         with batched_robots(int(num_envs), nthread):
             env = env_class(**kwargs)
+        if max_episode_steps is None:
+            max_episode_steps = episode_steps(episode_seconds, env.dt)
         return SkitterVectorEnv(env, max_episode_steps, render_sim)
 
     make.__doc__ = f"Batched {env_class.__name__} (see envs/common/vector.py)."

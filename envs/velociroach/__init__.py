@@ -2,7 +2,7 @@
 ``CALIBRATION`` names the calibration adapter (``calibrate.py --robot roach``), ``LOG_READERS`` the reader of its text
 telemetry for calibration."""
 
-EPISODE_SECONDS = 10.0
+EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
 CALIBRATION = {"roach": "envs.velociroach.calibration:RoachAdapter"}
 LOG_READERS = ["envs.velociroach.logs:READER"]
 _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
@@ -10,10 +10,9 @@ _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
 ENVS = [
     {
         "id": f"skitter/Roach{task}{suffix}-v1",
-        "entry_point": f"envs.velociroach.{task.lower()}:Roach{task}Env",
+        "entry_point": f"envs.velociroach.{task.lower()}:make_env",
         "vector_entry_point": f"envs.velociroach.{task.lower()}:make_batched",
-        "max_episode_steps": round(EPISODE_SECONDS * freq),
-        "kwargs": {"action_mode": mode, "control_freq": freq},
+        "kwargs": {"action_mode": mode, "control_freq": freq, "episode_seconds": EPISODE_SECONDS},
     }
     for task in ("Walk", "Turn")
     for suffix, (mode, freq) in _MODES.items()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import check_flag
@@ -74,9 +74,10 @@ class RoachWalkEnv(SkitterEnv):
 
     ## Episode End
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
-      simulation goes numerically unstable (``info["sim_unstable"]``; the last finite observation is returned with
-      reward 0, and ``info`` holds only ``sim_unstable``, ``fallen`` and ``time``: MuJoCo has reset the state);
-    - truncated at the registration's time limit: 10 s (500 steps in gait mode, 10000 in duty mode).
+      simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last good
+      step's observation and info are returned, with reward 0);
+    - truncated after ``episode_seconds`` of simulated time (10 s: 500 steps in gait mode, 10000 in duty mode),
+      whatever the control rate.
 
     ## Info
     ``x_position``, ``y_position``, ``z_position``, ``quaternion``, ``x_velocity``, ``y_velocity``, ``speed`` (along
@@ -91,8 +92,9 @@ class RoachWalkEnv(SkitterEnv):
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``battery_voltage`` (V,
     default the model's 3.7), ``sensor_noise`` (True: the IMU's noise and bias), ``randomize`` (parameter name ->
     (low, high)), ``calibration`` (a calibration file from ``calibrate.py --robot roach``: the model with its
-    effects, docs/calibration.md), ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode``
-    (``"human"``, ``"rgb_array"``), ``width``, ``height``.
+    effects, docs/calibration.md), ``episode_seconds`` (the time limit, s; default 10, None for none),
+    ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode`` (``"human"``, ``"rgb_array"``),
+    ``width``, ``height``.
 
     ## Version History
     - v1: the heading error from the integrated gyro joins the observation, with the gyro's noise and bias; the
@@ -134,4 +136,5 @@ class RoachWalkEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(RoachWalkEnv)
 make_batched = vector_entry_point(RoachWalkEnv)

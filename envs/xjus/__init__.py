@@ -1,16 +1,15 @@
 """xJüs, the RHex-like hexapod with a passive spine (seed 001): robot, tasks. ``ENVS`` is what envs/__init__.py
 registers; ``CALIBRATION`` names the calibration adapter (``calibrate.py --robot xjus``)."""
 
-EPISODE_SECONDS = 10.0
-CONTROL_FREQ = 125.0  # Hz, as envs/xjus/constants.py: the default of both action modes
+EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
 CALIBRATION = {"xjus": "envs.xjus.calibration:XjusAdapter"}
 
 ENVS = [
     {
         "id": f"skitter/Xjus{task}-v0",
-        "entry_point": f"envs.xjus.{task.lower()}:Xjus{task}Env",
+        "entry_point": f"envs.xjus.{task.lower()}:make_env",
         "vector_entry_point": f"envs.xjus.{task.lower()}:make_batched",
-        "max_episode_steps": round(EPISODE_SECONDS * CONTROL_FREQ),
+        "kwargs": {"episode_seconds": EPISODE_SECONDS},
     }
     for task in ("Walk", "Turn", "Rough")
 ]

@@ -359,9 +359,10 @@ class Xjus(Robot):
         if self.spine == COMPLIANT:
             spine = np.array([model.joint(j).id for j in C.SPINE_JOINTS])
             low, high = C.SPINE_STIFFNESS_RANGE
+            stable = "N m/rad; stiffer goes numerically unstable at the 2 ms physics step"
+            stiffness = FieldRef("jnt_stiffness", (spine,), "scale", C.SPINE_STIFFNESS_MAX, stable)
             p.add(Parameter("spine_stiffness_scale", "1", 1.0, low, high,
-                            "x the spine's stiffness per joint and axis as built",
-                            (FieldRef("jnt_stiffness", (spine,), "scale"),)))  # fmt: skip
+                            "x the spine's stiffness per joint and axis as built", (stiffness,)))  # fmt: skip
             p.add(Parameter("spine_damping_scale", "1", 1.0, 0.1, 10.0,
                             "x the spine's damping per joint and axis as built",
                             (FieldRef("dof_damping", (model.jnt_dofadr[spine],), "scale"),)))  # fmt: skip

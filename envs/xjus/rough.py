@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import Robot, check_flag, check_number
@@ -77,7 +77,8 @@ class XjusRoughEnv(SkitterEnv):
 
     ## Episode End
     Terminated when the robot flips (the middle segment tilts ``max_tilt`` from upright, default pi/2) or the
-    simulation goes unstable; truncated after 10 s.
+    simulation goes unstable (as XjusWalk); truncated after ``episode_seconds`` of simulated time (10 s) at any
+    control rate.
 
     ## Info
     As XjusWalk, and ``lane`` (the start's index). Episode metrics add ``progress`` (m along +x) and
@@ -146,4 +147,5 @@ class XjusRoughEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(XjusRoughEnv)
 make_batched = vector_entry_point(XjusRoughEnv)

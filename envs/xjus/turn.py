@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import TurnTask
 from envs.common.robot import check_flag
@@ -97,4 +97,5 @@ class XjusTurnEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(XjusTurnEnv)
 make_batched = vector_entry_point(XjusTurnEnv)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from envs.common.env import SkitterEnv
+from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
 from envs.common.locomotion import WalkTask
 from envs.common.robot import check_flag
@@ -78,9 +78,10 @@ class XjusWalkEnv(SkitterEnv):
 
     ## Episode End
     - terminated when the middle segment tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or
-      when the simulation goes numerically unstable (``info["sim_unstable"]``, the last finite observation returned
-      with reward 0);
-    - truncated at the registration's time limit: 10 s (1250 steps at 125 Hz).
+      when the simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last
+      good step's observation and info are returned, with reward 0);
+    - truncated after ``episode_seconds`` of simulated time (10 s: 1250 steps at 125 Hz, 2500 at 250 Hz), whatever
+      the control rate.
 
     ## Info
     As RoachWalk: ``x_position``, ``y_position``, ``z_position``, ``quaternion``, ``x_velocity``, ``y_velocity``,
@@ -96,7 +97,8 @@ class XjusWalkEnv(SkitterEnv):
     ``front_roll``, ``rear_pitch``, ``rear_roll``; default 19.4), ``spine_damping`` (N m s/rad, default 0.1),
     ``battery_voltage`` (V, default 22.2), ``current_limit`` (A per motor, default none; the seed gives 1.08 A
     continuous), ``sensor_noise`` (True), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a
-    calibration file; no xJüs adapter yet), ``telemetry``, ``render_mode``, ``width``, ``height``.
+    calibration file from ``calibrate.py --robot xjus``, docs/calibration.md), ``episode_seconds`` (the time limit,
+    s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.
 
     ## Version History
     - v0: first release.
@@ -142,4 +144,5 @@ class XjusWalkEnv(SkitterEnv):
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
 
+make_env = entry_point(XjusWalkEnv)
 make_batched = vector_entry_point(XjusWalkEnv)
