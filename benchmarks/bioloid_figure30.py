@@ -19,7 +19,7 @@ import numpy as np
 
 from agents.bioloid.ik import IKRollouts
 from agents.optimize.problem import Evaluator, parse_config
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 
 FREQUENCIES = (0.5, 1.0, 1.5, 2.0)
 ORDER = ("trot", "walk", "gallop", "canter", "pace", "bound", "pronk")
@@ -96,11 +96,22 @@ def noisy(cells, seeds: int, knee_wedge: bool) -> dict:
     return out
 
 
-def main() -> None:
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_figure30": [], "bioloid_figure30_wedge": ["--knee-wedge"]}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4, help="perturbed starts per cell beside the nominal one")
     parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant (seed IV.A)")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_figure30", CONFIGURATIONS)
     started = time.perf_counter()
     rows = figure30(args.knee_wedge, args.seeds)
     wall = time.perf_counter() - started
@@ -119,7 +130,6 @@ def main() -> None:
             cells = [r for r in rows if r["frequency"] == f]
             spread_rows.append([f"{f:g}"] + [f"{np.mean(r['noisy_eq17']):.2f} [{min(r['noisy_eq17']):.2f}, "
                                              f"{max(r['noisy_eq17']):.2f}]" for r in cells])  # fmt: skip
-    name = "bioloid_figure30" + ("_wedge" if args.knee_wedge else "")
     md = (
         f"# Seed 002 Figure 30 on the MuJoCo Bioloid{' (18 deg knee wedges)' if args.knee_wedge else ''}\n\n"
         "eq. 17 over 32 s (positions every 1 s), nominal start; in brackets the seed's Webots value:\n\n"
@@ -133,7 +143,7 @@ def main() -> None:
         + f"\nWall time {wall:.0f} s (28 nominal rollouts as one batch on one thread"
         + (f", then {args.seeds} perturbed per cell)" if args.seeds else ")") + ".\n"
     )  # fmt: skip
-    save(name, {"rows": rows, "best_by_frequency": best, "wall_seconds": wall, "seeds": args.seeds,
+    output.save({"rows": rows, "best_by_frequency": best, "wall_seconds": wall, "seeds": args.seeds,
                 "knee_wedge": args.knee_wedge}, md)  # fmt: skip
 
 

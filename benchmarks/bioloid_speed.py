@@ -33,7 +33,7 @@ from agents import load_policy
 from agents.optimize.problem import read_config
 from agents.optimize.run import LocalBackend, Settings, run
 from benchmarks.batch_speed import time_raw as time_raw_batch
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
 
 WALK = "skitter/BioloidWalk-v1"
@@ -177,11 +177,22 @@ class _Timed:
         self.backend.close()
 
 
-def main() -> None:
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rounds and PSO iterations")
     parser.add_argument("--pso-iterations", type=int, default=None, help="seed-scale PSO iterations to time")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_speed", CONFIGURATIONS)
     rounds, episodes = (3, 2) if args.quick else (7, 3)
     pso_iterations = args.pso_iterations or (2 if args.quick else 4)
     ratios = [single_ratio(rounds), batched_ratio(50, 2, rounds), batched_ratio(100, 2, rounds)]
@@ -224,7 +235,7 @@ def main() -> None:
     md = (
         "# Bioloid: env speed, real-time factor, seed-scale PSO\n\n" + ratio_table + "\n" + rtf_table + "\n" + pso_table
     )
-    save("bioloid_speed", {"ratios": ratios, "real_time_factor": rtf, "pso": pso}, md)
+    output.save({"ratios": ratios, "real_time_factor": rtf, "pso": pso}, md)
 
 
 if __name__ == "__main__":

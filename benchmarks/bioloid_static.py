@@ -34,7 +34,7 @@ import time
 import mujoco
 import numpy as np
 
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.bioloid import constants as C
 from envs.bioloid.robot import Bioloid
 
@@ -177,9 +177,20 @@ def _value(fell: bool, at: float) -> str | int:
     return int(at) if np.isfinite(at) else "no fall"
 
 
-def main() -> None:
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_static": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_static", CONFIGURATIONS)
     started = time.perf_counter()
     rows = run(list(range(9)))
     wall = time.perf_counter() - started
@@ -205,7 +216,7 @@ def main() -> None:
         f"{np.mean(webots):.0f}, max {max(webots)} (it fell twice during setup).\n"
         f"\nWall time {wall:.0f} s.\n"
     )
-    save("bioloid_static", {"rows": rows, "moved": MOVED, "dwell_s": DWELL, "tip_step_deg": float(np.degrees(TIP_STEP)),
+    output.save({"rows": rows, "moved": MOVED, "dwell_s": DWELL, "tip_step_deg": float(np.degrees(TIP_STEP)),
                             "wall_seconds": wall}, md)  # fmt: skip
 
 

@@ -32,6 +32,10 @@ def jackknife(reference: float, refits: np.ndarray) -> tuple[float, float]:
     return corrected, (bias / se if se > 0 else (0.0 if bias == 0 else math.inf))
 
 
+CONFIGURATIONS: dict[str, list[str]] = {}
+"""None kept in benchmarks/results/: this prints its records (JSON lines) and writes no file."""
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--robot", required=True)

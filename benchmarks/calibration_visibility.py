@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import md_table, save
+from benchmarks.common import Output, add_output_options, md_table, resolve_output
 from sysid import synth
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
@@ -79,7 +79,7 @@ def matrix_cases(path: Path) -> list[dict]:
     return rows
 
 
-def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
+def _main_cases(parser: argparse.ArgumentParser, path: Path, output: Output) -> None:
     try:
         rows = matrix_cases(path)
     except (OSError, ValueError, KeyError, TypeError) as e:
@@ -99,22 +99,37 @@ def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
         "nominal floor until stop 29 and the truth's since, is beside); its held-out error before calibration is "
         "measured against the calibrated model's floor.\n\n" + table
     )
-    save(name, {"matrix": str(path), "cases": rows}, text)
+    output.save({"matrix": str(path), "cases": rows}, text)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
+CONFIGURATIONS: dict[str, list[str]] = {
+    "calibration_visibility_roach_foot_friction": ["--robot", "roach", "--effect", "foot_friction=1.39", "--seeds",
+                                                   "13", "1013", "--draws", "3"],
+    "calibration_visibility_roach_foot_friction_far": ["--robot", "roach", "--effect", "foot_friction=1.5", "--seeds",
+                                                       "0", "1", "2", "--draws", "1"],
+}  # fmt: skip
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument("--effect", type=synth.parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--draws", type=int, default=synth.EXCITATIONS, help="command draws per seed")
     parser.add_argument("--cases", type=Path, help="a calibration matrix's results (JSON): measure each effect case")
-    parser.add_argument("--name", default="calibration_visibility", help="results file name")
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
     args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "calibration_visibility", CONFIGURATIONS)
     if args.cases is not None:
         if args.robot or args.effect:
             parser.error("--cases measures the matrix's own cases: give it without --robot and --effect")
-        _main_cases(parser, args.cases, args.name)
+        _main_cases(parser, args.cases, output)
         return
     if not args.robot or not args.effect:
         parser.error("give --robot and --effect, or --cases")
@@ -142,7 +157,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         + table
         + f"\nMedian: {medians[0]:.2f} against the nominal floor, {medians[1]:.2f} against the truth's.\n"
     )
-    save(args.name, {**result, "median_against_nominal_floor": medians[0], "median_against_truth_floor": medians[1]},
+    output.save({**result, "median_against_nominal_floor": medians[0], "median_against_truth_floor": medians[1]},
          text)  # fmt: skip
 
 

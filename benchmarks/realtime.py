@@ -19,15 +19,26 @@ import numpy as np
 
 import envs  # noqa: F401
 from agents import load_policy
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 
 GOAL = 10.0
 
 
-def main() -> None:
+CONFIGURATIONS: dict[str, list[str]] = {"realtime": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=3)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "realtime", CONFIGURATIONS)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
     env = gym.make("skitter/RoachWalk-v1")
@@ -60,7 +71,7 @@ def main() -> None:
         + md_table(["what", "real-time factor (x)", "goal >= 10x"], rows)
         + f"\nMean forward speed in these episodes: {np.mean(speeds):.2f} m/s.\n"
     )
-    save("realtime", {"goal": GOAL, "rtf_episodes": rtfs, "rtf_raw_physics": raw, "speeds": speeds}, text)
+    output.save({"goal": GOAL, "rtf_episodes": rtfs, "rtf_raw_physics": raw, "speeds": speeds}, text)
 
 
 if __name__ == "__main__":
