@@ -1,6 +1,6 @@
-"""Seed 002's CPG experiments 5 and 6 with its PSO at its scale (50 particles x 240 iterations x 32 s): the runs'
-results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments), and the checks
-of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
+"""The CPG experiments 5 and 6 of [bioloid-webots] with its PSO at its scale (50 particles x 240 iterations x 32 s):
+the runs' results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments), and the
+checks of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
 
 Each best policy is then compared with the reference trot (``ik-trot`` at 1.5 Hz) by ``evaluate.py`` (its
 episodes: BioloidWalk-v1, 10 s, reset noise 0.1, seeds 1000 on; mean and 95% bootstrap CI, paired differences),
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = (5, 6)
 WALK = "skitter/BioloidWalk-v1"
 REFERENCE = "ik-trot:1.5"
-SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments (seed 002 VI.B.4; robots.md)
+SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments [bioloid-webots, VI.B.4]
 
 
 def command(e: int) -> str:
@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> None:
                          f"posture sinks {drop['sink_below_rest'] * 1000:.1f} mm below where it comes to rest and "
                          f"rebounds {drop['rebound_above_rest'] * 1000:.1f} mm above it.\n")  # fmt: skip
     md = (
-        "# Seed 002 CPG experiments 5 and 6, PSO at the seed's scale\n\n"
+        "# CPG experiments 5 and 6 of [bioloid-webots], PSO at its scale\n\n"
         "50 particles x 240 iterations x 32 s each (107 h simulated per run), the seed's PSO (decreasing inertia, "
         "geometric neighbourhood), eq. 17 maximized as the seed did, on both cores of this machine (the swarm as one "
         "batch); the seed's best scores over its six experiments: 7-17.\n\n" + table + missing + "\n" + curves

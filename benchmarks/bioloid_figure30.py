@@ -1,5 +1,5 @@
-"""Seed 002 Figure 30 on our Bioloid: the IK library's seven gaits at 0.5, 1, 1.5 and 2 Hz, each scored by eq. 17 over
-32 s (positions every 1 s), beside the seed's Webots values (robots.md section 3).
+"""[bioloid-webots, Figure 30] on our Bioloid: the IK library's seven gaits at 0.5, 1, 1.5 and 2 Hz, each scored by
+eq. 17 over 32 s (positions every 1 s), beside the seed's Webots values.
 
 All 28 rollouts run as one batch (agents.optimize's evaluator, the gaits as ``ik-<gait>:<Hz>`` drive them, lead-in
 included), from the ready posture without noise, as the seed's single Webots run per cell; ``--seeds K`` adds K
@@ -23,7 +23,7 @@ from benchmarks.common import add_output_options, md_table, resolve_output
 
 FREQUENCIES = (0.5, 1.0, 1.5, 2.0)
 ORDER = ("trot", "walk", "gallop", "canter", "pace", "bound", "pronk")
-SEED = {  # seed 002 Figure 30 (robots.md section 3): phi by frequency, gaits in ORDER
+SEED = {  # [bioloid-webots, Figure 30]: phi by frequency, gaits in ORDER
     0.5: (8.68, 2.63, 1.25, 1.11, 0.93, 1.19, 2.98),
     1.0: (11.29, 3.16, 0.33, 0.27, 2.88, 0.39, 0.68),
     1.5: (11.06, 4.17, 0.84, 0.83, 2.81, 0.58, 2.43),
@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> None:
             spread_rows.append([f"{f:g}"] + [f"{np.mean(r['noisy_eq17']):.2f} [{min(r['noisy_eq17']):.2f}, "
                                              f"{max(r['noisy_eq17']):.2f}]" for r in cells])  # fmt: skip
     md = (
-        f"# Seed 002 Figure 30 on the MuJoCo Bioloid{' (18 deg knee wedges)' if args.knee_wedge else ''}\n\n"
+        f"# [bioloid-webots, Figure 30] on the MuJoCo Bioloid{' (18 deg knee wedges)' if args.knee_wedge else ''}\n\n"
         "eq. 17 over 32 s (positions every 1 s), nominal start; in brackets the seed's Webots value:\n\n"
         + md_table(["f (Hz)", *ORDER], table_rows)
         + "\nSigned +x progress (m) over the 32 s and the seed's outcome classes (fallen: tilted past 1 rad):\n\n"

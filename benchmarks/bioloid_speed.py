@@ -219,7 +219,7 @@ def main(argv: list[str] | None = None) -> None:
         [["env + ik-trot, one core", "2 ms", round(rtf["rtf_best"], 1), round(rtf["rtf_mean"], 1),
           "met" if rtf["rtf_best"] >= GOAL_RTF else "MISSED"],
          ["raw mj_step, one core", "2 ms", round(rtf["rtf_raw_physics"], 1), "", ""],
-         ["seed 002's Webots", "", 1.5, "", ""]],
+         ["[bioloid-webots] Webots", "", 1.5, "", ""]],
     )  # fmt: skip
     hours = pso["extrapolated_run_hours"]
     verdict = "met" if hours < GOAL_PSO_HOURS else "MISSED"

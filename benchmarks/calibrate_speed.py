@@ -1,4 +1,4 @@
-"""Wall time of the whole calibration loop on 60 s of 1 kHz VelociRoACH telemetry (issue 7's benchmark; goal: under
+"""Wall time of the whole calibration loop on 60 s of 1 kHz VelociRoACH telemetry (goal: under
 5 minutes on 2 cores).
 
 A synthetic log (sysid.synth: the firmware's clocks at 1 kHz with a hidden effect drawn by the seed) is written as

@@ -1,4 +1,4 @@
-"""The calibration loop on synthetic data, every robot and every catalogued effect (issue 7's matrix).
+"""The calibration loop on synthetic data, every robot and every catalogued effect.
 
 For each robot and each catalogued effect its channels observe, a case (sysid/cases.py): a 10 s training log with the
 effect at a value the generator draws with the seed, a test log of the same truth under other commands; calibrate on
@@ -15,7 +15,7 @@ the null case (noise only: nothing should be chosen), the out-of-catalog cases (
 the roach a terrain bump: the report should say "unexplained").
 
 Not in the default matrix (``--kinds coverage``): the coverage over SEEDS seeds of one effect at a time (seeds
-100, 101, ...; the effects in COVERAGE), the matrix's coverage until stop 43.
+100, 101, ...; the effects in COVERAGE), the matrix's coverage in earlier versions.
 
 Not in the default matrix (``--kinds pairs``, ``--pairs N``): cases with two hidden effects of different alias
 groups at once, drawn with seed PAIR_SEED + k: is an effect kept from each one's group and nothing else, is each
@@ -25,10 +25,11 @@ Every case that ran is reported; a budget (``--minutes``, default 45) stops new 
 left out are listed as not run, never counted as passes.
 
 Run: ``python -m benchmarks.calibration_matrix [--robots motor servo roach] [--seeds 20] [--minutes 45]``; a part
-of it: ``--kinds null ooc --robots roach --name calibration_matrix_roach``. The cases are independent: ``--workers K``
-runs K at a time as Ray tasks, each with its share of the machine's cores (a local Ray instance), or, with
-``--address HEAD:PORT``, on a running Ray cluster whose nodes hold this checkout at the same path (one core per case
-there unless ``--threads`` says more). Same seeds, same cases: a case's result does not depend on where it ran.
+of it: ``--kinds null ooc --robots roach`` (written to ``--out FOLDER`` or a folder named by its options,
+benchmarks/common.py). The cases are independent: ``--workers K`` runs K at a time as Ray tasks, each with its share
+of the machine's cores (a local Ray instance), or, with ``--address HEAD:PORT``, on a running Ray cluster whose nodes
+hold this checkout at the same path (one core per case there unless ``--threads`` says more). Same seeds, same cases:
+a case's result does not depend on where it ran.
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ COVERAGE = {"motor": ["viscous_friction", "delay"], "servo": ["delay", "servo_ga
 # the order in which cases start (longest kinds first, so that no long case starts near the end and sets the wall
 # time; the report keeps the plan's order)
 START_ORDER = ("ooc", "pairs", "effect", "coverage", "null", "weak")
-COVERAGE_GOAL = 0.8  # issue 7: the reported 95% intervals cover the truth at least this often
+COVERAGE_GOAL = 0.8  # the goal: the reported 95% intervals cover the truth at least this often
 PAIR_SEED = 500  # pair k of a robot: its two effects and their values drawn with seed PAIR_SEED + k
 OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"],
                   "xjus": ["disturbance", "terrain_bump"], "bioloid": ["disturbance", "terrain_bump"]}  # fmt: skip

@@ -2,7 +2,7 @@
 
 The env (gait mode, 50 Hz control, 2 kHz physics) runs the scripted tripod for a 10 s episode; the real-time factor
 is simulated seconds per wall-clock second. Goal: at least 10x. The seed's V-REP model ran at 0.1x real time and
-failed above 5 Hz (seed 000). The raw physics rate (``mj_step``) is measured on the same model for reference.
+failed above 5 Hz [roach-sim]. The raw physics rate (``mj_step``) is measured on the same model for reference.
 
 Run: ``python -m benchmarks.realtime``.
 """
@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
         ["env + tripod, best of episodes", round(best, 1), "met" if best >= GOAL else "MISSED"],
         ["env + tripod, mean", round(float(np.mean(rtfs)), 1), ""],
         ["raw mj_step, same model", round(raw, 1), ""],
-        ["seed 000 V-REP model", 0.1, ""],
+        ["[roach-sim] V-REP model", 0.1, ""],
     ]
     text = (
         "# Real-time factor, RoachWalk-v1, tripod at 45 Hz, one core\n\n"

@@ -1,5 +1,5 @@
 """The spine study the xJüs seed asked for and never ran: does a compliant spine beat a rigid chassis over rough ground
-and obstacles? (seed 001, section 2.6: "power usage over stochastically generated terrain ... for various joint
+and obstacles? ([xjus-report, section 2.6]: "power usage over stochastically generated terrain ... for various joint
 stiffnesses")
 
 Every setting walks the same seeded terrains: ``skitter/XjusRough-v0``'s height field, lane ``k`` of field

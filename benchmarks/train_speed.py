@@ -1,7 +1,7 @@
 """PPO training throughput on RoachWalk: env steps per second including the updates, SB3's DummyVecEnv against the
 batched env (agents/vec_env.py), the same hyperparameters (hyperparams/ppo.yml), in one run.
 
-The foundation's DummyVecEnv trained at 865 steps/s on this machine (issue 2's demo). Run:
+The foundation's DummyVecEnv trained at 865 steps/s on this machine (the first training demo). Run:
 ``python -m benchmarks.train_speed``.
 """
 
@@ -17,7 +17,7 @@ import envs  # noqa: F401
 from benchmarks.common import add_output_options, md_table, resolve_output
 from train import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 
-FOUNDATION_DUMMY = 865.0  # steps/s, issue 2's demo (DummyVecEnv, same hyperparameters)
+FOUNDATION_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
 
 
 def throughput(env_id: str, vec_env: str, steps: int, n_envs: int | None) -> float:

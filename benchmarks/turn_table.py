@@ -1,7 +1,8 @@
-"""Yaw rate against left/right phase offset for the tripod gait: the curve of seed 000 figures 16 and 17.
+"""Yaw rate against left/right phase offset for the tripod gait: the curve of [roach-sim, Figures 16 and 17].
 
-Regenerates ``agents/velociroach/turn_table.json`` (used by the turning tripod, ``agents.tripod.TripodTurn``) and
-writes ``benchmarks/results/turn_table.{json,md,png}``. Run: ``python -m benchmarks.turn_table``.
+Writes ``benchmarks/results/turn_table.{json,md,png}`` and regenerates ``agents/velociroach/turn_table.json`` (used by
+the turning tripod, ``agents.tripod.TripodTurn``); another configuration writes its own folder and leaves the
+tripod's table alone. Run: ``python -m benchmarks.turn_table``.
 """
 
 from __future__ import annotations

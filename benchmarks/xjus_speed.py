@@ -287,7 +287,7 @@ def main(argv: list[str] | None = None) -> None:
         [[r["env_id"] + (" (0.04 m RMS)" if r["kwargs"] else ""), f"{r['physics_dt'] * 1e3:g} ms",
           round(r["rtf_best"], 1), round(r["rtf_mean"], 1), round(r["rtf_raw_physics"], 1),
           "met" if r["rtf_best"] >= GOAL_RTF else "MISSED"] for r in rtf]
-        + [["seed 001 Blender model", "1.7 ms", 1.0, "", "", ""]],
+        + [["[xjus-report] Blender model", "1.7 ms", 1.0, "", "", ""]],
     )  # fmt: skip
     flat_table = md_table(
         ["clock period T", "current limit", "forward speed, m/s [95% CI]", "cost of transport [95% CI]",
