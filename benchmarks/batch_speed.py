@@ -25,6 +25,7 @@ import numpy as np
 import envs  # noqa: F401
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.batch import default_threads
+from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC
 
 GOAL_RAW = 0.9
@@ -148,7 +149,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"batch_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, nargs="+", default=[4, 32])
     parser.add_argument("--steps", type=int, default=150, help="control steps per timing (duty ids: x10)")
     parser.add_argument("--rounds", type=int, default=3)

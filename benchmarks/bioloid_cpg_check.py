@@ -41,7 +41,7 @@ from agents.optimize.problem import Evaluator, parse_config
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.actuators.servo import SPEED_PER_VOLT, TORQUE_PER_VOLT
 from envs.bioloid import constants as C
-from envs.common.io import atomic_write
+from envs.common.io import ToolParser, atomic_write
 
 STANCE_FORCE = 1.0  # N: a foot carrying at least this is in stance (a twentieth of the robot's weight, 17.3 N)
 SELF_DEPTH = 0.002  # m: parts overlapping deeper than this pass through each other (the shapes are approximate)
@@ -420,7 +420,7 @@ FILES = ("{name}.json", "{name}.md", "{name}_[0-9]*.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("policies", nargs="+", help="policy files written by agents.optimize (best.json)")
     add_output_options(parser)
     return parser

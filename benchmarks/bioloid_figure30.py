@@ -20,6 +20,7 @@ import numpy as np
 from agents.bioloid.ik import IKRollouts
 from agents.optimize.problem import Evaluator, parse_config
 from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 
 FREQUENCIES = (0.5, 1.0, 1.5, 2.0)
 ORDER = ("trot", "walk", "gallop", "canter", "pace", "bound", "pronk")
@@ -101,7 +102,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_figure30": [], "bioloid_figure3
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4, help="perturbed starts per cell beside the nominal one")
     parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant (seed IV.A)")
     add_output_options(parser)

@@ -35,6 +35,7 @@ from agents.optimize.run import LocalBackend, Settings, run
 from benchmarks.batch_speed import time_raw as time_raw_batch
 from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
+from envs.common.io import ToolParser
 
 WALK = "skitter/BioloidWalk-v1"
 EPISODE = 500  # control steps: 10 s at 50 Hz
@@ -182,7 +183,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rounds and PSO iterations")
     parser.add_argument("--pso-iterations", type=int, default=None, help="seed-scale PSO iterations to time")
     add_output_options(parser)

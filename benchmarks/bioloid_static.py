@@ -37,6 +37,7 @@ import numpy as np
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.bioloid import constants as C
 from envs.bioloid.robot import Bioloid
+from envs.common.io import ToolParser
 
 TABLE4 = {  # [bioloid-webots, Table 4]: servo -> counts in experiments 1..9
     "PELVIS": (513, 513, 205, 819, 513, 513, 513, 513, 513),
@@ -182,7 +183,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_static": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     add_output_options(parser)
     return parser
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import calibrate
 from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.problem import Problem
@@ -33,7 +34,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"calibrate_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--effect", default="coulomb_friction_right")
     parser.add_argument("--seed", type=int, default=0)

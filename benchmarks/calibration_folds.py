@@ -13,13 +13,13 @@ Run: ``python -m benchmarks.calibration_folds --robot roach --effect disturbance
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
 import numpy as np
 
 import sysid.select as select
+from envs.common.io import ToolParser
 from sysid.cases import run_case
 
 
@@ -37,7 +37,7 @@ CONFIGURATIONS: dict[str, list[str]] = {}
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = ToolParser(description=__doc__.splitlines()[0])
     p.add_argument("--robot", required=True)
     p.add_argument("--effect", required=True, help="an effect the generator can inject (sysid.synth --list)")
     p.add_argument("--seed", type=int, required=True)

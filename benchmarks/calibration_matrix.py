@@ -46,6 +46,7 @@ import numpy as np
 from benchmarks.common import Output, add_output_options, md_table, resolve_output
 from envs.common.batch import THREADS_VARIABLE, default_threads
 from envs.common.cluster import init_ray
+from envs.common.io import ToolParser
 from sysid import synth
 from sysid.cases import Case, run_case
 from sysid.report import format_interval
@@ -162,7 +163,7 @@ RUN_OPTIONS = ("minutes", "workers", "threads", "address")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = ToolParser(description=__doc__.splitlines()[0])
     p.add_argument("--robots", nargs="+", default=sorted(adapters()), help="default: every robot with an adapter")
     p.add_argument("--seeds", type=int, default=20, help="effect cases per robot (every observable effect, then "
                    "again at the next draws; coverage pooled over them), and the seeds of --kinds coverage "

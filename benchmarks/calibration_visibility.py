@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import Output, add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from sysid import synth
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
@@ -112,7 +113,7 @@ CONFIGURATIONS: dict[str, list[str]] = {
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument("--effect", type=synth.parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])

@@ -25,6 +25,7 @@ from mujoco import rollout
 
 import envs  # noqa: F401
 from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC, STATE_SPEC
 
 GOAL = 0.9
@@ -156,7 +157,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"env_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=600, help="control steps per round (duty envs: x10)")
     parser.add_argument("--rounds", type=int, default=9)
     add_output_options(parser)

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from envs.common.locomotion import quat_up, quat_yaw
 from envs.velociroach import constants as C
 from envs.velociroach.robot import VelociRoach
@@ -129,7 +130,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"model_scan": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--seconds", type=float, default=4.0)
     add_output_options(parser)

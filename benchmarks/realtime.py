@@ -20,6 +20,7 @@ import numpy as np
 import envs  # noqa: F401
 from agents import load_policy
 from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 
 GOAL = 10.0
 
@@ -29,7 +30,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"realtime": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=3)
     add_output_options(parser)
     return parser

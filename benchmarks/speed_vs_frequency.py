@@ -16,7 +16,7 @@ import numpy as np
 import envs  # noqa: F401
 from agents.velociroach.tripod import TripodContext, TripodGait
 from benchmarks.common import add_output_options, md_table, resolve_output
-from envs.common.io import atomic_write
+from envs.common.io import ToolParser, atomic_write
 from envs.velociroach import constants as C
 
 WARMUP = 1.0
@@ -65,7 +65,7 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--seconds", type=float, default=6.0)
     add_output_options(parser)

@@ -36,7 +36,7 @@ import numpy as np
 import envs  # noqa: F401
 from agents.evaluation import bootstrap_ci
 from benchmarks.common import add_output_options, md_table, resolve_output
-from envs.common.io import atomic_write
+from envs.common.io import ToolParser, atomic_write
 from envs.xjus import constants as C
 
 ENV_ID = "skitter/XjusRough-v0"
@@ -244,7 +244,7 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lanes", type=int, default=20,
                         help="seeded terrains (lanes) per terrain kind (default 20, the issue's least; fewer for a "
                              "quick look)")  # fmt: skip

@@ -15,6 +15,7 @@ import torch
 
 import envs  # noqa: F401
 from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from train import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 
 FOUNDATION_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
@@ -35,7 +36,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"train_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="skitter/RoachWalk-v1")
     parser.add_argument("--steps", type=int, default=40960)
     parser.add_argument("--n-envs", type=int, nargs="+", default=[4, 16])

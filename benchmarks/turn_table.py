@@ -17,7 +17,7 @@ from scipy.optimize import isotonic_regression
 import envs  # noqa: F401  (registers the envs)
 from agents.velociroach.tripod import TURN_TABLE, TripodContext, TripodGait
 from benchmarks.common import add_output_options, md_table, resolve_output
-from envs.common.io import atomic_write, write_json
+from envs.common.io import ToolParser, atomic_write, write_json
 
 PHASES_DEG = np.arange(90, 271, 10)
 # The table spans 130..230 deg: beyond it the model falls into fast spinning modes (about +-150 deg/s near 110 and
@@ -65,7 +65,7 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frequencies", type=float, nargs="+", default=[5.0, 10.0, 20.0])
     parser.add_argument("--table-frequency", type=float, default=10.0)
     parser.add_argument("--seeds", type=int, default=6)

@@ -34,6 +34,7 @@ from agents.evaluation import bootstrap_ci, run_episodes
 from benchmarks.batch_speed import time_raw as time_raw_batch
 from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
+from envs.common.io import ToolParser
 from envs.xjus import constants as C
 
 GOAL_RATIO = 0.9
@@ -247,7 +248,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"xjus_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rounds, seeds and episodes")
     add_output_options(parser)
     return parser
