@@ -1,4 +1,6 @@
-"""Benchmarks: each runs as ``python -m benchmarks.<name>`` and writes ``benchmarks/results/<name>.{md,json}``."""
+"""Benchmarks: each runs as ``python -m benchmarks.<name>``. Its default configuration writes
+``benchmarks/results/<name>.{md,json}``, another configuration it declares ``benchmarks/results/<that one's name>.*``,
+any other ``--out FOLDER`` or ``runs/benchmarks/<derived from the configuration>/`` (the rule: benchmarks/common.py)."""
 
 import os
 

@@ -23,8 +23,9 @@ import mujoco
 import numpy as np
 
 import envs  # noqa: F401
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.batch import default_threads
+from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC
 
 GOAL_RAW = 0.9
@@ -143,12 +144,23 @@ def verdict(row: dict) -> str:
     return ("met" if row["speedup_vs_single"] >= goal else "MISSED") + f" (>= {goal})"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"batch_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, nargs="+", default=[4, 32])
     parser.add_argument("--steps", type=int, default=150, help="control steps per timing (duty ids: x10)")
     parser.add_argument("--rounds", type=int, default=3)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "batch_speed", CONFIGURATIONS)
     threads = default_threads()
     ids = sorted(k for k in gym.registry if k.startswith("skitter/"))
     rows = []
@@ -177,7 +189,7 @@ def main() -> None:
         f"Machine: {threads} cores. Simulation steps per second (control steps x simulations). raw: the batched "
         "env's recorded control blocks replayed on its own batch, one native call per control step.\n\n" + table
     )
-    save("batch_speed", {"goals": {"raw": GOAL_RAW, "single": GOAL_SINGLE}, "rows": rows, "mujoco": mujoco.__version__},
+    output.save({"goals": {"raw": GOAL_RAW, "single": GOAL_SINGLE}, "rows": rows, "mujoco": mujoco.__version__},
          text)  # fmt: skip
 
 

@@ -38,9 +38,10 @@ import mujoco
 import numpy as np
 
 from agents.optimize.problem import Evaluator, parse_config
-from benchmarks.common import RESULTS, md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.actuators.servo import SPEED_PER_VOLT, TORQUE_PER_VOLT
 from envs.bioloid import constants as C
+from envs.common.io import ToolParser, atomic_write
 
 STANCE_FORCE = 1.0  # N: a foot carrying at least this is in stance (a twentieth of the robot's weight, 17.3 N)
 SELF_DEPTH = 0.002  # m: parts overlapping deeper than this pass through each other (the shapes are approximate)
@@ -356,7 +357,7 @@ def contact_sheet(rollout: dict[str, Any], path: Path, start: float = 20.0, fram
     sheet = Image.new("RGB", (240 * columns, 180 * math.ceil(len(images) / columns)), "white")
     for k, image in enumerate(images):
         sheet.paste(image, ((k % columns) * 240, (k // columns) * 180))
-    sheet.save(path)
+    atomic_write(path, lambda p: sheet.save(p, format="PNG"))
     return True
 
 
@@ -413,21 +414,33 @@ def markdown(result: dict[str, Any], title: str) -> str:
     return f"### {title}\n\n" + "\n".join(lines) + "\n\n" + md_table(header, rows) + frames
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {}
+"""None kept in benchmarks/results/: the checks of the optimized gaits are in bioloid_cpg_experiments' results."""
+FILES = ("{name}.json", "{name}.md", "{name}_[0-9]*.png")
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("policies", nargs="+", help="policy files written by agents.optimize (best.json)")
-    parser.add_argument("--name", default="bioloid_cpg_check", help="results/<name>.md and .json")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_cpg_check", CONFIGURATIONS, files=FILES)
+    output.folder.mkdir(parents=True, exist_ok=True)
     results, parts = [], []
     for k, path in enumerate(args.policies):
-        result = check(path, RESULTS / f"{args.name}_{k}.png")
+        result = check(path, output.path(f"_{k}.png"))
         results.append(result)
         parts.append(markdown(result, str(path)))
     drop = drop_rebound()
     contacts = (f"The robot dropped {drop['height'] * 100:.0f} cm in its ready posture sinks "
                 f"{drop['sink_below_rest'] * 1000:.1f} mm below where it comes to rest and rebounds "
                 f"{drop['rebound_above_rest'] * 1000:.1f} mm above it.\n\n")  # fmt: skip
-    save(args.name, {"checks": results, "drop": drop}, "# Is the optimized CPG gait physical?\n\n" + contacts
+    output.save({"checks": results, "drop": drop}, "# Is the optimized CPG gait physical?\n\n" + contacts
          + "\n".join(parts))  # fmt: skip
 
 

@@ -1,6 +1,6 @@
-"""Seed 002's CPG experiments 5 and 6 with its PSO at its scale (50 particles x 240 iterations x 32 s): the runs'
-results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments), and the checks
-of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
+"""The CPG experiments 5 and 6 of [bioloid-webots] with its PSO at its scale (50 particles x 240 iterations x 32 s):
+the runs' results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments), and the
+checks of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
 
 Each best policy is then compared with the reference trot (``ik-trot`` at 1.5 Hz) by ``evaluate.py`` (its
 episodes: BioloidWalk-v1, 10 s, reset noise 0.1, seeds 1000 on; mean and 95% bootstrap CI, paired differences),
@@ -21,7 +21,7 @@ import argparse
 import contextlib
 import json
 import math
-import shutil
+import os
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -30,13 +30,14 @@ import numpy as np
 
 from agents.bioloid.cpg import AMPLITUDE_SCALE, CPG, parse_coupling
 from benchmarks.bioloid_cpg_check import check, drop_rebound, markdown
-from benchmarks.common import RESULTS, md_table, save
+from benchmarks.common import Output, add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = (5, 6)
 WALK = "skitter/BioloidWalk-v1"
 REFERENCE = "ik-trot:1.5"
-SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments (seed 002 VI.B.4; robots.md)
+SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments [bioloid-webots, VI.B.4]
 
 
 def command(e: int) -> str:
@@ -69,7 +70,7 @@ def oscillator_parameters(policy: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def summary(e: int) -> dict[str, Any]:
+def summary(e: int, output: Output) -> dict[str, Any]:
     out = ROOT / "runs" / "optimize" / f"experiment{e}__pso__0"
     row: dict[str, Any] = {"experiment": e, "command": command(e), "run_folder": str(out.relative_to(ROOT))}
     if not (out / "history.json").exists():
@@ -95,8 +96,19 @@ def summary(e: int) -> dict[str, Any]:
         "parameters": best["parameters"],
         "oscillators": oscillator_parameters(best),
     })  # fmt: skip
-    (RESULTS / f"bioloid_cpg_experiment{e}_best.json").write_text(json.dumps(best, indent=2) + "\n")
+    output.folder.mkdir(parents=True, exist_ok=True)
+    write_text(best_policy(output, e), json.dumps(best, indent=2) + "\n")
     return row
+
+
+def best_policy(output: Output, experiment: int) -> Path:
+    """Where a run writes an experiment's best policy (``evaluate.py --policy cpg:<file>``)."""
+    return output.file(f"bioloid_cpg_experiment{experiment}_best.json")
+
+
+def _shown(path: Path) -> str:
+    """A path as the repository's commands give it: relative to the repository."""
+    return os.path.relpath(path.resolve(), ROOT)
 
 
 def _parameter_table(r: dict[str, Any]) -> str:
@@ -107,13 +119,13 @@ def _parameter_table(r: dict[str, Any]) -> str:
     )  # fmt: skip
 
 
-def compare_with_trot(done: list[dict[str, Any]], episodes: int) -> str:
+def compare_with_trot(done: list[dict[str, Any]], episodes: int, output: Output) -> str:
     """``evaluate.py`` on the reference trot and each best policy; its results.md and results.json copied to
     ``results/bioloid_cpg_vs_trot.*``. Returns the command it ran."""
     import evaluate
 
-    policies = [RESULTS / f"bioloid_cpg_experiment{r['experiment']}_best.json" for r in done]
-    specs = [REFERENCE] + [f"cpg:{p.relative_to(ROOT)}" for p in policies]
+    policies = [best_policy(output, r["experiment"]) for r in done]
+    specs = [REFERENCE] + [f"cpg:{_shown(p)}" for p in policies]
     argv = ["--env", WALK, *[a for s in specs for a in ("--policy", s)], "--episodes", str(episodes), "--seed", "1000"]
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "evaluation"
@@ -121,16 +133,31 @@ def compare_with_trot(done: list[dict[str, Any]], episodes: int) -> str:
             if evaluate.main([*argv, "--out", str(out)]) != 0:
                 raise RuntimeError("evaluate.py failed on the best policies")
         for suffix in ("md", "json"):
-            shutil.copyfile(out / f"results.{suffix}", RESULTS / f"bioloid_cpg_vs_trot.{suffix}")
+            write_text(output.file(f"bioloid_cpg_vs_trot.{suffix}"), (out / f"results.{suffix}").read_text())
     return "python evaluate.py " + " ".join(argv) + " --out <folder>"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_cpg_experiments": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+FILES = ("{name}.json", "{name}.md", "bioloid_cpg_vs_trot.json", "bioloid_cpg_vs_trot.md",
+         "bioloid_cpg_experiment[0-9]*_best.json", "bioloid_cpg_experiment[0-9]*_frames.png")  # fmt: skip
+"""The files it writes for the results name ``name`` (``fnmatch`` patterns): its own, the evaluation against the
+reference trot, and per experiment the best policy and its frames."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--no-check", action="store_true", help="skip the physical checks and the evaluation")
     parser.add_argument("--episodes", type=int, default=20, help="evaluate.py episodes per policy")
-    args = parser.parse_args()
-    rows = [summary(e) for e in EXPERIMENTS]
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_cpg_experiments", CONFIGURATIONS, files=FILES)
+    rows = [summary(e, output) for e in EXPERIMENTS]
     done = [r for r in rows if r["iterations_done"]]
     table = md_table(
         ["experiment", "parameters", "iterations done", "best eq. 17 (seed: 7-17)", "at iteration",
@@ -158,14 +185,14 @@ def main() -> None:
     checks, evaluation = [], ""
     drop: dict[str, float] | None = None
     if not args.no_check and done:
-        ran = compare_with_trot(done, args.episodes)
+        ran = compare_with_trot(done, args.episodes, output)
         evaluation = (
             "\n## Against the reference trot (`evaluate.py`, `results/bioloid_cpg_vs_trot.md`)\n\n"
-            f"    {ran}\n\n" + (RESULTS / "bioloid_cpg_vs_trot.md").read_text().split("\n", 1)[1]
+            f"    {ran}\n\n" + output.file("bioloid_cpg_vs_trot.md").read_text().split("\n", 1)[1]
         )
         for r in done:
-            policy = RESULTS / f"bioloid_cpg_experiment{r['experiment']}_best.json"
-            frames = RESULTS / f"bioloid_cpg_experiment{r['experiment']}_frames.png"
+            policy = best_policy(output, r["experiment"])
+            frames = output.file(f"bioloid_cpg_experiment{r['experiment']}_frames.png")
             result = check(policy, frames)
             r["check"] = result
             checks.append(markdown(result, f"Experiment {r['experiment']}'s best policy"))
@@ -174,18 +201,18 @@ def main() -> None:
                          f"posture sinks {drop['sink_below_rest'] * 1000:.1f} mm below where it comes to rest and "
                          f"rebounds {drop['rebound_above_rest'] * 1000:.1f} mm above it.\n")  # fmt: skip
     md = (
-        "# Seed 002 CPG experiments 5 and 6, PSO at the seed's scale\n\n"
+        "# CPG experiments 5 and 6 of [bioloid-webots], PSO at its scale\n\n"
         "50 particles x 240 iterations x 32 s each (107 h simulated per run), the seed's PSO (decreasing inertia, "
         "geometric neighbourhood), eq. 17 maximized as the seed did, on both cores of this machine (the swarm as one "
         "batch); the seed's best scores over its six experiments: 7-17.\n\n" + table + missing + "\n" + curves
         + "\n\nCommands (each resumes its run when run again):\n\n" + "\n".join(f"    {r['command']}" for r in rows)
         + "\n\nThe best policies: "
-        + ", ".join(f"`evaluate.py --policy cpg:benchmarks/results/bioloid_cpg_experiment{r['experiment']}_best.json`"
-                    for r in done) + ".\n\n" + parameters
+        + ", ".join(f"`evaluate.py --policy cpg:{_shown(best_policy(output, r['experiment']))}`" for r in done)
+        + ".\n\n" + parameters
         + evaluation
         + ("\n## Is the gait physical? (`benchmarks/bioloid_cpg_check.py`)\n\n" + "\n".join(checks) if checks else "")
     )  # fmt: skip
-    save("bioloid_cpg_experiments", {"rows": rows, "drop": drop if checks else None}, md)
+    output.save({"rows": rows, "drop": drop if checks else None}, md)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,5 @@
-"""Seed 002 Figure 30 on our Bioloid: the IK library's seven gaits at 0.5, 1, 1.5 and 2 Hz, each scored by eq. 17 over
-32 s (positions every 1 s), beside the seed's Webots values (robots.md section 3).
+"""[bioloid-webots, Figure 30] on our Bioloid: the IK library's seven gaits at 0.5, 1, 1.5 and 2 Hz, each scored by
+eq. 17 over 32 s (positions every 1 s), beside the seed's Webots values.
 
 All 28 rollouts run as one batch (agents.optimize's evaluator, the gaits as ``ik-<gait>:<Hz>`` drive them, lead-in
 included), from the ready posture without noise, as the seed's single Webots run per cell; ``--seeds K`` adds K
@@ -19,11 +19,12 @@ import numpy as np
 
 from agents.bioloid.ik import IKRollouts
 from agents.optimize.problem import Evaluator, parse_config
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 
 FREQUENCIES = (0.5, 1.0, 1.5, 2.0)
 ORDER = ("trot", "walk", "gallop", "canter", "pace", "bound", "pronk")
-SEED = {  # seed 002 Figure 30 (robots.md section 3): phi by frequency, gaits in ORDER
+SEED = {  # [bioloid-webots, Figure 30]: phi by frequency, gaits in ORDER
     0.5: (8.68, 2.63, 1.25, 1.11, 0.93, 1.19, 2.98),
     1.0: (11.29, 3.16, 0.33, 0.27, 2.88, 0.39, 0.68),
     1.5: (11.06, 4.17, 0.84, 0.83, 2.81, 0.58, 2.43),
@@ -99,11 +100,22 @@ def noisy(cells, seeds: int, knee_wedge: bool) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_figure30": [], "bioloid_figure30_wedge": ["--knee-wedge"]}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4, help="perturbed starts per cell beside the nominal one")
     parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant (seed IV.A)")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_figure30", CONFIGURATIONS)
     started = time.perf_counter()
     rows = figure30(args.knee_wedge, args.seeds)
     wall = time.perf_counter() - started
@@ -125,9 +137,8 @@ def main() -> None:
             cells = [r for r in rows if r["frequency"] == f]
             spread_rows.append([f"{f:g}"] + [f"{np.mean(r['noisy_eq17']):.2f} [{min(r['noisy_eq17']):.2f}, "
                                              f"{max(r['noisy_eq17']):.2f}]" for r in cells])  # fmt: skip
-    name = "bioloid_figure30" + ("_wedge" if args.knee_wedge else "")
     md = (
-        f"# Seed 002 Figure 30 on the MuJoCo Bioloid{' (18 deg knee wedges)' if args.knee_wedge else ''}\n\n"
+        f"# [bioloid-webots, Figure 30] on the MuJoCo Bioloid{' (18 deg knee wedges)' if args.knee_wedge else ''}\n\n"
         "eq. 17 over 32 s (positions every 1 s), nominal start; in brackets the seed's Webots value:\n\n"
         + md_table(["f (Hz)", *ORDER], table_rows)
         + "\nSigned +x progress (m) over the 32 s and the seed's outcome classes (fallen: tilted past 1 rad):\n\n"
@@ -139,7 +150,7 @@ def main() -> None:
         + f"\nWall time {wall:.0f} s (28 nominal rollouts as one batch on one thread"
         + (f", then {args.seeds} perturbed per cell)" if args.seeds else ")") + ".\n"
     )  # fmt: skip
-    save(name, {"rows": rows, "best_by_frequency": best, "wall_seconds": wall, "seeds": args.seeds,
+    output.save({"rows": rows, "best_by_frequency": best, "wall_seconds": wall, "seeds": args.seeds,
                 "knee_wedge": args.knee_wedge}, md)  # fmt: skip
 
 

@@ -33,8 +33,9 @@ from agents import load_policy
 from agents.optimize.problem import read_config
 from agents.optimize.run import LocalBackend, Settings, run
 from benchmarks.batch_speed import time_raw as time_raw_batch
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
+from envs.common.io import ToolParser
 
 WALK = "skitter/BioloidWalk-v1"
 EPISODE = 500  # control steps: 10 s at 50 Hz
@@ -177,11 +178,22 @@ class _Timed:
         self.backend.close()
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rounds and PSO iterations")
     parser.add_argument("--pso-iterations", type=int, default=None, help="seed-scale PSO iterations to time")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_speed", CONFIGURATIONS)
     rounds, episodes = (3, 2) if args.quick else (7, 3)
     pso_iterations = args.pso_iterations or (2 if args.quick else 4)
     ratios = [single_ratio(rounds), batched_ratio(50, 2, rounds), batched_ratio(100, 2, rounds)]
@@ -208,7 +220,7 @@ def main() -> None:
         [["env + ik-trot, one core", "2 ms", round(rtf["rtf_best"], 1), round(rtf["rtf_mean"], 1),
           "met" if rtf["rtf_best"] >= GOAL_RTF else "MISSED"],
          ["raw mj_step, one core", "2 ms", round(rtf["rtf_raw_physics"], 1), "", ""],
-         ["seed 002's Webots", "", 1.5, "", ""]],
+         ["[bioloid-webots] Webots", "", 1.5, "", ""]],
     )  # fmt: skip
     hours = pso["extrapolated_run_hours"]
     verdict = "met" if hours < GOAL_PSO_HOURS else "MISSED"
@@ -224,7 +236,7 @@ def main() -> None:
     md = (
         "# Bioloid: env speed, real-time factor, seed-scale PSO\n\n" + ratio_table + "\n" + rtf_table + "\n" + pso_table
     )
-    save("bioloid_speed", {"ratios": ratios, "real_time_factor": rtf, "pso": pso}, md)
+    output.save({"ratios": ratios, "real_time_factor": rtf, "pso": pso}, md)
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
-"""Seed 002's static validation (V, Tables 4-5) on our Bioloid: set a posture, move one servo a count at a time until
-the robot tips, report that servo value (the "equilibrium value"), beside the real robot's and the seed's Webots
-model's.
+"""The static validation of [bioloid-webots, V, Tables 4-5] on our Bioloid: set a posture, move one servo a count at a
+time until the robot tips, report that servo value (the "equilibrium value"), beside the real robot's and the seed's
+Webots model's.
 
 - **Postures**: Table 4's nine, all sixteen servos in counts, on the ground.
-- **The servo moved**: N_1, the neck's pitch servo, in all nine. The seed's text does not name it (robots.md), but it
+- **The servo moved**: N_1, the neck's pitch servo, in all nine. The seed's text does not name it, but it
   names the head for experiment 3 ("in any position of the head the robot doesn't fall"), and N_1 is the one servo
   that moves the head's weight (N_2 and HEAD, 228 g, 13% of the robot) fore and aft without touching the support: the
   postures change the legs (experiments 1-6) and the head's roll (N_2, experiments 8-9), the moved servo probes how
@@ -13,13 +13,13 @@ model's.
 - **Protocol**: the robot is put down level on its lowest point (2 mm up), its servos holding the posture, and left
   3 s to settle into the attitude it rests in (a posture with legs spread fore and aft rests tilted on them, as the
   real robot "disposed in a stable position" would). "Fell during setup" (the seed's X) if it finds no rest: its body
-  still turning more than 1 deg over the last second of settling, or turned over (tilt past 90 deg). Until stop 18 a
-  tilt of 30 deg from level counted as a fall, which split steady rests of 26 and 31 deg (experiments 4 and 5) for
+  still turning more than 1 deg over the last second of settling, or turned over (tilt past 90 deg). An earlier version
+  counted a tilt of 30 deg from level as a fall, which split steady rests of 26 and 31 deg (experiments 4 and 5) for
   no physical reason. Then N_1's
   goal moves one count every 0.1 s (slow against the servo: no inertia, as the seed wanted) until the robot tips:
   its body turns more than 5 deg within one count's 0.1 s, a free rotation about the edge of its support (assumed
-  threshold: the seed gives none), or N_1 reaches 0 or 1023 ("did not fall", the seed's circle). Until stop 19 a
-  tilt of 15 deg from the rest counted as tipping; but where the robot rests on its head (experiments 1, 3, 7, 8,
+  threshold: the seed gives none), or N_1 reaches 0 or 1023 ("did not fall", the seed's circle). An earlier version
+  counted a tilt of 15 deg from the rest as tipping; but where the robot rests on its head (experiments 1, 3, 7, 8,
   9), moving N_1 pushes the body up on it smoothly, about 0.1 deg per count, and the 15 deg threshold was crossed
   by that push, never by a fall. That reading is still reported beside the tip, as "tilted 15 deg from rest".
 
@@ -34,11 +34,12 @@ import time
 import mujoco
 import numpy as np
 
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.bioloid import constants as C
 from envs.bioloid.robot import Bioloid
+from envs.common.io import ToolParser
 
-TABLE4 = {  # seed 002 Table 4: servo -> counts in experiments 1..9
+TABLE4 = {  # [bioloid-webots, Table 4]: servo -> counts in experiments 1..9
     "PELVIS": (513, 513, 205, 819, 513, 513, 513, 513, 513),
     "F_L_1": (513, 513, 0, 0, 513, 513, 513, 513, 513),
     "F_R_1": (513,) * 9,
@@ -56,14 +57,14 @@ TABLE4 = {  # seed 002 Table 4: servo -> counts in experiments 1..9
     "N_2": (513, 513, 513, 513, 513, 513, 513, 819, 205),
     "HEAD": (513,) * 9,
 }
-REAL = (571, 482, 479, 535, 261, 274, 478, 537, 542)  # seed 002 Table 5
-WEBOTS = (531, "fell", 0, "fell", 363, 375, 466, 527, 531)  # seed 002 Table 5 (X: fell during setup)
+REAL = (571, 482, 479, 535, 261, 274, 478, 537, 542)  # [bioloid-webots, Table 5]
+WEBOTS = (531, "fell", 0, "fell", 363, 375, 466, 527, 531)  # [bioloid-webots, Table 5] (X: fell during setup)
 MOVED = "N_1"
 SETTLE = 3.0  # s
 DWELL = 0.1  # s per count
 TIP_STEP = np.radians(5.0)  # a fall: the body turns this much within one count's dwell (50 deg/s; a quasi-static
 # push on the head turns it about 0.1 deg per count, 1 deg/s, so a free rotation about the support is 50 times that)
-PUSHED = np.radians(15.0)  # the earlier reading (until stop 19): tilt this far from the rest, fall or not
+PUSHED = np.radians(15.0)  # the earlier reading: tilt this far from the rest, fall or not
 REST_WINDOW = 1.0  # s: the last part of settling, over which a body at rest turns less than REST_TURN
 REST_TURN = np.radians(1.0)
 
@@ -177,9 +178,20 @@ def _value(fell: bool, at: float) -> str | int:
     return int(at) if np.isfinite(at) else "no fall"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.parse_args()
+CONFIGURATIONS: dict[str, list[str]] = {"bioloid_static": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "bioloid_static", CONFIGURATIONS)
     started = time.perf_counter()
     rows = run(list(range(9)))
     wall = time.perf_counter() - started
@@ -193,11 +205,11 @@ def main() -> None:
           f"{r['pushed_15_up']} / {r['pushed_15_down']}"] for r in rows],
     )  # fmt: skip
     md = (
-        "# Seed 002 static validation (Tables 4-5) on the MuJoCo Bioloid\n\n"
+        "# Static validation [bioloid-webots, Tables 4-5] on the MuJoCo Bioloid\n\n"
         f"Servo moved: {MOVED} (neck pitch), one count per {DWELL:g} s after {SETTLE:g} s of settling; tipped = the "
         f"body turns more than {np.degrees(TIP_STEP):.0f} deg within one count's {DWELL:g} s (a fall, not a push); "
         f"fell during setup = no rest found (still turning over the last {REST_WINDOW:g} s of settling, or turned "
-        f"over). The last column is the earlier reading (until stop 19): where the tilt first departs "
+        f"over). The last column is the earlier reading: where the tilt first departs "
         f"{np.degrees(PUSHED):.0f} deg from the rest, fall or quasi-static push. Values in counts.\n\n"
         + table
         + f"\nOurs: {len(diffs)} of 9 comparable, mean |diff| {np.mean(diffs) if diffs else float('nan'):.0f} counts, "
@@ -205,7 +217,7 @@ def main() -> None:
         f"{np.mean(webots):.0f}, max {max(webots)} (it fell twice during setup).\n"
         f"\nWall time {wall:.0f} s.\n"
     )
-    save("bioloid_static", {"rows": rows, "moved": MOVED, "dwell_s": DWELL, "tip_step_deg": float(np.degrees(TIP_STEP)),
+    output.save({"rows": rows, "moved": MOVED, "dwell_s": DWELL, "tip_step_deg": float(np.degrees(TIP_STEP)),
                             "wall_seconds": wall}, md)  # fmt: skip
 
 

@@ -1,4 +1,4 @@
-"""Wall time of the whole calibration loop on 60 s of 1 kHz VelociRoACH telemetry (issue 7's benchmark; goal: under
+"""Wall time of the whole calibration loop on 60 s of 1 kHz VelociRoACH telemetry (goal: under
 5 minutes on 2 cores).
 
 A synthetic log (sysid.synth: the firmware's clocks at 1 kHz with a hidden effect drawn by the seed) is written as
@@ -19,7 +19,8 @@ import time
 from pathlib import Path
 
 import calibrate
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from envs.common.telemetry import write_telemetry
 from sysid import synth
 from sysid.problem import Problem
@@ -28,12 +29,23 @@ from sysid.robots import adapter as make_adapter
 GOAL_MINUTES = 5.0
 
 
+CONFIGURATIONS: dict[str, list[str]] = {"calibrate_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=60.0)
+    parser.add_argument("--effect", default="coulomb_friction_right")
+    parser.add_argument("--seed", type=int, default=0)
+    add_output_options(parser)
+    return parser
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seconds", type=float, default=60.0)
-    p.add_argument("--effect", default="coulomb_friction_right")
-    p.add_argument("--seed", type=int, default=0)
+    p = make_parser()
     args = p.parse_args(argv)
+    output = resolve_output(p, args, "calibrate_speed", CONFIGURATIONS)
     adapter = make_adapter("roach")
     t0 = time.perf_counter()
     log, truth = synth.synthesize("roach", {args.effect: None}, args.seed, seconds=args.seconds)
@@ -71,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         + f"\n(generating the log took {synth_seconds:.0f} s, not counted)\n"
     )  # fmt: skip
-    save("calibrate_speed", {"seconds_of_log": args.seconds, "effect": args.effect, "truth": truth["effects"],
+    output.save({"seconds_of_log": args.seconds, "effect": args.effect, "truth": truth["effects"],
                              "wall_seconds": wall, "goal_minutes": GOAL_MINUTES, "verdict": verdict,
                              "replay_seconds": replay, "exit_code": code, "report": report}, md)  # fmt: skip
     return 0

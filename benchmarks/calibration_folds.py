@@ -13,13 +13,13 @@ Run: ``python -m benchmarks.calibration_folds --robot roach --effect disturbance
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
 import numpy as np
 
 import sysid.select as select
+from envs.common.io import ToolParser
 from sysid.cases import run_case
 
 
@@ -32,8 +32,12 @@ def jackknife(reference: float, refits: np.ndarray) -> tuple[float, float]:
     return corrected, (bias / se if se > 0 else (0.0 if bias == 0 else math.inf))
 
 
+CONFIGURATIONS: dict[str, list[str]] = {}
+"""None kept in benchmarks/results/: this prints its records (JSON lines) and writes no file."""
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = ToolParser(description=__doc__.splitlines()[0])
     p.add_argument("--robot", required=True)
     p.add_argument("--effect", required=True, help="an effect the generator can inject (sysid.synth --list)")
     p.add_argument("--seed", type=int, required=True)

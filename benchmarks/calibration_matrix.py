@@ -1,4 +1,4 @@
-"""The calibration loop on synthetic data, every robot and every catalogued effect (issue 7's matrix).
+"""The calibration loop on synthetic data, every robot and every catalogued effect.
 
 For each robot and each catalogued effect its channels observe, a case (sysid/cases.py): a 10 s training log with the
 effect at a value the generator draws with the seed, a test log of the same truth under other commands; calibrate on
@@ -15,7 +15,7 @@ the null case (noise only: nothing should be chosen), the out-of-catalog cases (
 the roach a terrain bump: the report should say "unexplained").
 
 Not in the default matrix (``--kinds coverage``): the coverage over SEEDS seeds of one effect at a time (seeds
-100, 101, ...; the effects in COVERAGE), the matrix's coverage until stop 43.
+100, 101, ...; the effects in COVERAGE), the matrix's coverage in earlier versions.
 
 Not in the default matrix (``--kinds pairs``, ``--pairs N``): cases with two hidden effects of different alias
 groups at once, drawn with seed PAIR_SEED + k: is an effect kept from each one's group and nothing else, is each
@@ -25,10 +25,11 @@ Every case that ran is reported; a budget (``--minutes``, default 45) stops new 
 left out are listed as not run, never counted as passes.
 
 Run: ``python -m benchmarks.calibration_matrix [--robots motor servo roach] [--seeds 20] [--minutes 45]``; a part
-of it: ``--kinds null ooc --robots roach --name calibration_matrix_roach``. The cases are independent: ``--workers K``
-runs K at a time as Ray tasks, each with its share of the machine's cores (a local Ray instance), or, with
-``--address HEAD:PORT``, on a running Ray cluster whose nodes hold this checkout at the same path (one core per case
-there unless ``--threads`` says more). Same seeds, same cases: a case's result does not depend on where it ran.
+of it: ``--kinds null ooc --robots roach`` (written to ``--out FOLDER`` or a folder named by its options,
+benchmarks/common.py). The cases are independent: ``--workers K`` runs K at a time as Ray tasks, each with its share
+of the machine's cores (a local Ray instance), or, with ``--address HEAD:PORT``, on a running Ray cluster whose nodes
+hold this checkout at the same path (one core per case there unless ``--threads`` says more). Same seeds, same cases:
+a case's result does not depend on where it ran.
 """
 
 from __future__ import annotations
@@ -42,9 +43,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from benchmarks.common import md_table, save
+from benchmarks.common import Output, add_output_options, md_table, resolve_output
 from envs.common.batch import THREADS_VARIABLE, default_threads
 from envs.common.cluster import init_ray
+from envs.common.io import ToolParser
 from sysid import synth
 from sysid.cases import Case, run_case
 from sysid.report import format_interval
@@ -57,7 +59,7 @@ COVERAGE = {"motor": ["viscous_friction", "delay"], "servo": ["delay", "servo_ga
 # the order in which cases start (longest kinds first, so that no long case starts near the end and sets the wall
 # time; the report keeps the plan's order)
 START_ORDER = ("ooc", "pairs", "effect", "coverage", "null", "weak")
-COVERAGE_GOAL = 0.8  # issue 7: the reported 95% intervals cover the truth at least this often
+COVERAGE_GOAL = 0.8  # the goal: the reported 95% intervals cover the truth at least this often
 PAIR_SEED = 500  # pair k of a robot: its two effects and their values drawn with seed PAIR_SEED + k
 OUT_OF_CATALOG = {"motor": ["disturbance"], "servo": ["disturbance"], "roach": ["disturbance", "terrain_bump"],
                   "xjus": ["disturbance", "terrain_bump"], "bioloid": ["disturbance", "terrain_bump"]}  # fmt: skip
@@ -137,8 +139,31 @@ def _on_ray(plan: list[Job], left, workers: int, threads: int, address: str | No
             ray.shutdown()
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+_EACH_ONCE = ["--seeds", "1", "--coverage-seeds", *map(str, range(100, 120))]  # one case per effect, 20 coverage seeds
+_ALL_KINDS = ["--kinds", "effect", "weak", "null", "ooc", "coverage"]
+CONFIGURATIONS: dict[str, list[str]] = {
+    "calibration_matrix_roach_motor_servo": ["--robots", "roach", "motor", "servo"],
+    "calibration_matrix_roach_motor_servo_coverage": ["--robots", "roach", "motor", "servo", *_ALL_KINDS, *_EACH_ONCE],
+    "calibration_matrix_motor_servo": ["--robots", "motor", "servo", *_ALL_KINDS, "pairs", *_EACH_ONCE],
+    "calibration_matrix_motor_servo_bioloid_draw1": ["--robots", "motor", "servo", "bioloid", "--kinds", "effect",
+                                                     "--draw", "1", "--seeds", "1"],
+    "calibration_matrix_bioloid": ["--robots", "bioloid", *_ALL_KINDS, "pairs", "--pairs", "4", *_EACH_ONCE],
+    "calibration_matrix_xjus": ["--robots", "xjus", *_ALL_KINDS, *_EACH_ONCE],
+    "calibration_matrix_xjus_draw1": ["--robots", "xjus", "--kinds", "effect", "--draw", "1", "--seeds", "1"],
+    "calibration_matrix_xjus_draw1_com": ["--robots", "xjus", "--kinds", "effect", "--draw", "1", "--seeds", "1",
+                                          "--effects", "com_offset"],
+    "calibration_matrix_roach_draw1": ["--robots", "roach", "--kinds", "effect", "--draw", "1", "--seeds", "1"],
+    "calibration_matrix_roach_draw1_rest": ["--robots", "roach", "--kinds", "effect", "--draw", "1", "--seeds", "1",
+                                            "--effects", "torque_constant_right", "sensor_bias_bemf_right"],
+}  # fmt: skip
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py). The budget,
+workers, threads and cluster address say how a matrix runs, not what it measures (a case cut by the budget is listed
+as not run)."""
+RUN_OPTIONS = ("minutes", "workers", "threads", "address")
+
+
+def make_parser() -> argparse.ArgumentParser:
+    p = ToolParser(description=__doc__.splitlines()[0])
     p.add_argument("--robots", nargs="+", default=sorted(adapters()), help="default: every robot with an adapter")
     p.add_argument("--seeds", type=int, default=20, help="effect cases per robot (every observable effect, then "
                    "again at the next draws; coverage pooled over them), and the seeds of --kinds coverage "
@@ -156,11 +181,16 @@ def main(argv: list[str] | None = None) -> int:
                    "seed 1000 DRAW + k + 1, and the cases past the catalog's length the next draws (default 0: the "
                    "seeds reported in docs/calibration.md); another draw checks the loop on values nobody has "
                    "looked at")  # fmt: skip
-    p.add_argument("--name", default="calibration_matrix", help="results file name under benchmarks/results/")
     p.add_argument("--workers", type=int, default=1, help="cases run at a time, as Ray tasks (default 1: in turn)")
     p.add_argument("--threads", type=int, help="rollout threads per case (default: the cores shared by the workers "
                    "locally, 1 on a cluster)")  # fmt: skip
     p.add_argument("--address", help="a running Ray cluster (HEAD:PORT) to run the cases on")
+    add_output_options(p)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = make_parser()
     args = p.parse_args(argv)
     for flag in ("workers", "threads", "seeds", "pairs"):
         value = getattr(args, flag)
@@ -175,8 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(args.robots) - set(adapters()))
     if unknown:
         p.error(f"--robots {unknown[0]!r}: no calibration adapter (known: {', '.join(sorted(adapters()))})")
-    if not args.name or Path(args.name).name != args.name or args.name.startswith("."):
-        p.error(f"--name {args.name!r}: a file name under benchmarks/results/, without folders")
+    output = resolve_output(p, args, "calibration_matrix", CONFIGURATIONS, run_options=RUN_OPTIONS)
     threads = args.threads or (1 if args.address else max(1, default_threads() // args.workers))
     start = time.perf_counter()
 
@@ -213,10 +242,10 @@ def main(argv: list[str] | None = None) -> int:
         print(line, flush=True)
         done[job] = row
         # the results so far, after every case: a run cut short keeps what it measured (marked partial)
-        report(args, (time.perf_counter() - start) / 60, plan, done, [j for j in plan if j not in done],
+        report(args, output, (time.perf_counter() - start) / 60, plan, done, [j for j in plan if j not in done],
                partial=True, host=host)  # fmt: skip
-    report(args, (time.perf_counter() - start) / 60, plan, done, not_run, workers=args.workers, threads=threads,
-           host=host)  # fmt: skip
+    report(args, output, (time.perf_counter() - start) / 60, plan, done, not_run, workers=args.workers,
+           threads=threads, host=host)  # fmt: skip
     return 0
 
 
@@ -258,9 +287,10 @@ def host_speed(models: Mapping[str, mujoco.MjModel], steps: int = 4000) -> dict[
     return out
 
 
-def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_run: list[Job], partial=False,
-           workers: int = 1, threads: int | None = None, host: Mapping[str, float] | None = None) -> None:  # fmt: skip
-    """Write the matrix's results (benchmarks/results/<name>.md and .json): every case run so far, in the plan's
+def report(args, output: Output, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_run: list[Job],
+           partial=False, workers: int = 1, threads: int | None = None,
+           host: Mapping[str, float] | None = None) -> None:  # fmt: skip
+    """Write the matrix's results (``output``: <name>.md and .json): every case run so far, in the plan's
     order, and the cases not run (``partial``: still to come, in a run under way or cut short)."""
     rows, null_rows, ooc_rows, coverage_rows, weak_rows, pair_rows = [], [], [], [], [], []
     for job in plan:
@@ -362,7 +392,7 @@ def report(args, minutes: float, plan: list[Job], done: Mapping[Job, dict], not_
         title = "Not run yet" if partial else "Not run within the budget"
         md.append(f"\n## {title} ({len(not_run)} cases)\n\n" + "\n".join(f"- {x}" for x in not_run))
         md.append("\n")
-    save(args.name, {"minutes": minutes, "budget_minutes": args.minutes, "workers": workers, "threads": threads,
+    output.save({"minutes": minutes, "budget_minutes": args.minutes, "workers": workers, "threads": threads,
                      "host_us_per_step": dict(host or {}), "seeds": args.seeds, "draw": args.draw,
                      "effects": rows, "null": null_rows, "out_of_catalog": ooc_rows, "coverage": coverage_rows,
                      "weak": weak_rows, "pairs": pair_rows, "partial": partial, "not_run": not_run},

@@ -1,12 +1,12 @@
 """Does a hidden effect show in a robot's synthetic logs against the replay floor of the right model?
 
-Until stop 29 the generator (sysid/synth.py) called an effect visible when the nominal model's error on its log
+At first the generator (sysid/synth.py) called an effect visible when the nominal model's error on its log
 reached 3 noise levels, with the replay floor (what replay in segments cannot match even with the right model: the
 unlogged body) measured at the nominal model. The held-out evaluation (sysid/pipeline.py) measures both errors
 against the floor of the calibrated model instead. Where the effect itself makes the body's replay diverge more (a
 high foot friction, say), the two floors differ, and a log the generator called visible could sit at the floor of the
-right model: no calibration could then halve its excess. Stop 29's generator measured against the truth's floor;
-since stop 30 it asks for 3 against both (the loop starts from the nominal model and sees its floor). This tool shows
+right model: no calibration could then halve its excess. A later generator measured against the truth's floor;
+today's asks for 3 against both (the loop starts from the nominal model and sees its floor). This tool shows
 how far the two floors part.
 
 This prints, for an effect at given values, each seed and each of the generator's command draws, the nominal model's
@@ -21,7 +21,7 @@ case's held-out log is its seed + ``sysid.cases.TEST_SEED_OFFSET``.
 the first command draw of its training seed and of its held-out seed at the case's truth: where the two floors part,
 a generator that measured visibility against the truth's floor would draw other truths or logs.
 
-    python -m benchmarks.calibration_visibility --cases benchmarks/results/calibration_matrix_roach_stop26.json
+    python -m benchmarks.calibration_visibility --cases benchmarks/results/calibration_matrix_roach_motor_servo.json
 """
 
 from __future__ import annotations
@@ -34,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import md_table, save
+from benchmarks.common import Output, add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from sysid import synth
 from sysid.robots import adapter as make_adapter
 from sysid.robots import adapters
@@ -79,7 +80,7 @@ def matrix_cases(path: Path) -> list[dict]:
     return rows
 
 
-def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
+def _main_cases(parser: argparse.ArgumentParser, path: Path, output: Output) -> None:
     try:
         rows = matrix_cases(path)
     except (OSError, ValueError, KeyError, TypeError) as e:
@@ -96,25 +97,40 @@ def _main_cases(parser: argparse.ArgumentParser, path: Path, name: str) -> None:
         f"# Visibility of each case of `{path.name}` against both replay floors\n\n"
         "The first command draw of each case's training seed and held-out seed, at the case's truth. The case's own "
         "training log may come from a later draw or push (its training error, recorded by the generator against the "
-        "nominal floor until stop 29 and the truth's since, is beside); its held-out error before calibration is "
+        "nominal floor in earlier versions and the truth's since, is beside); its held-out error before calibration is "
         "measured against the calibrated model's floor.\n\n" + table
     )
-    save(name, {"matrix": str(path), "cases": rows}, text)
+    output.save({"matrix": str(path), "cases": rows}, text)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {
+    "calibration_visibility_roach_foot_friction": ["--robot", "roach", "--effect", "foot_friction=1.39", "--seeds",
+                                                   "13", "1013", "--draws", "3"],
+    "calibration_visibility_roach_foot_friction_far": ["--robot", "roach", "--effect", "foot_friction=1.5", "--seeds",
+                                                       "0", "1", "2", "--draws", "1"],
+}  # fmt: skip
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument("--effect", type=synth.parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--draws", type=int, default=synth.EXCITATIONS, help="command draws per seed")
     parser.add_argument("--cases", type=Path, help="a calibration matrix's results (JSON): measure each effect case")
-    parser.add_argument("--name", default="calibration_visibility", help="results file name")
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
     args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "calibration_visibility", CONFIGURATIONS)
     if args.cases is not None:
         if args.robot or args.effect:
             parser.error("--cases measures the matrix's own cases: give it without --robot and --effect")
-        _main_cases(parser, args.cases, args.name)
+        _main_cases(parser, args.cases, output)
         return
     if not args.robot or not args.effect:
         parser.error("give --robot and --effect, or --cases")
@@ -137,12 +153,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     text = (
         f"# Visibility of {name} on the {args.robot}\n\n"
         f"Setting {result['setting']}. The generator calls an effect visible at an error of "
-        f"{synth.MIN_NOMINAL_ERROR:g} against both floors (stop 29: the truth's alone; earlier, the nominal's); "
+        f"{synth.MIN_NOMINAL_ERROR:g} against both floors (earlier versions: the truth's alone, before that the "
+        "nominal's); "
         "the held-out evaluation measures against the calibrated model's.\n\n"
         + table
         + f"\nMedian: {medians[0]:.2f} against the nominal floor, {medians[1]:.2f} against the truth's.\n"
     )
-    save(args.name, {**result, "median_against_nominal_floor": medians[0], "median_against_truth_floor": medians[1]},
+    output.save({**result, "median_against_nominal_floor": medians[0], "median_against_truth_floor": medians[1]},
          text)  # fmt: skip
 
 

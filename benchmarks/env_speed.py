@@ -24,7 +24,8 @@ import numpy as np
 from mujoco import rollout
 
 import envs  # noqa: F401
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC, STATE_SPEC
 
 GOAL = 0.9
@@ -151,11 +152,22 @@ def measure_ant(steps: int, rounds: int) -> dict | None:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"env_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=600, help="control steps per round (duty envs: x10)")
     parser.add_argument("--rounds", type=int, default=9)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "env_speed", CONFIGURATIONS)
     ids = sorted(k for k in gym.registry if k.startswith("skitter/"))
     rows = []
     for env_id in ids:
@@ -197,7 +209,7 @@ def main() -> None:
         "controls ramp within it). 'same run?': whether the raw loop ended in exactly the env's state. Last column: "
         "against the whole run in a single rollout call.\n\n" + table
     )
-    save("env_speed", {"goal": GOAL, "rows": rows}, text)
+    output.save({"goal": GOAL, "rows": rows}, text)
 
 
 if __name__ == "__main__":

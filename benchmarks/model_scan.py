@@ -16,7 +16,8 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from envs.common.locomotion import quat_up, quat_yaw
 from envs.velociroach import constants as C
 from envs.velociroach.robot import VelociRoach
@@ -124,11 +125,22 @@ def run(robot: VelociRoach, freq: float, phase: float, seed: int, seconds: float
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"model_scan": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--seconds", type=float, default=4.0)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "model_scan", CONFIGURATIONS)
     rows, out = [], {}
     for name, edit in VARIANTS.items():
         robot = VelociRoach("gait", spec_edits=[edit] if edit else [])
@@ -154,7 +166,7 @@ def main() -> None:
         "turning at 10 Hz, 3 seeds: 'turns' means 140 deg turns left and 220 deg turns right.\n\n"
         + md_table(header, rows)
     )
-    save("model_scan", {"variants": out}, text)
+    output.save({"variants": out}, text)
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 
 The env (gait mode, 50 Hz control, 2 kHz physics) runs the scripted tripod for a 10 s episode; the real-time factor
 is simulated seconds per wall-clock second. Goal: at least 10x. The seed's V-REP model ran at 0.1x real time and
-failed above 5 Hz (seed 000). The raw physics rate (``mj_step``) is measured on the same model for reference.
+failed above 5 Hz [roach-sim]. The raw physics rate (``mj_step``) is measured on the same model for reference.
 
 Run: ``python -m benchmarks.realtime``.
 """
@@ -19,15 +19,27 @@ import numpy as np
 
 import envs  # noqa: F401
 from agents import load_policy
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 
 GOAL = 10.0
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"realtime": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=3)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "realtime", CONFIGURATIONS)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
     env = gym.make("skitter/RoachWalk-v1")
@@ -53,14 +65,14 @@ def main() -> None:
         ["env + tripod, best of episodes", round(best, 1), "met" if best >= GOAL else "MISSED"],
         ["env + tripod, mean", round(float(np.mean(rtfs)), 1), ""],
         ["raw mj_step, same model", round(raw, 1), ""],
-        ["seed 000 V-REP model", 0.1, ""],
+        ["[roach-sim] V-REP model", 0.1, ""],
     ]
     text = (
         "# Real-time factor, RoachWalk-v1, tripod at 45 Hz, one core\n\n"
         + md_table(["what", "real-time factor (x)", "goal >= 10x"], rows)
         + f"\nMean forward speed in these episodes: {np.mean(speeds):.2f} m/s.\n"
     )
-    save("realtime", {"goal": GOAL, "rtf_episodes": rtfs, "rtf_raw_physics": raw, "speeds": speeds}, text)
+    output.save({"goal": GOAL, "rtf_episodes": rtfs, "rtf_raw_physics": raw, "speeds": speeds}, text)
 
 
 if __name__ == "__main__":

@@ -8,14 +8,15 @@ Writes ``benchmarks/results/speed_vs_frequency.{json,md,png}``. Run: ``python -m
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401
 from agents.velociroach.tripod import TripodContext, TripodGait
-from benchmarks.common import RESULTS, md_table, save
-from envs.common.io import atomic_write
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, atomic_write
 from envs.velociroach import constants as C
 
 WARMUP = 1.0
@@ -58,11 +59,23 @@ def episode(env, policy, seed: int) -> dict[str, float]:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"speed_vs_frequency": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+FILES = ("{name}.json", "{name}.md", "{name}.png")
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--seconds", type=float, default=6.0)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "speed_vs_frequency", CONFIGURATIONS, files=FILES)
     freqs = np.arange(5.0, 46.0, 5.0)
     env = gym.make("skitter/RoachWalk-v1", max_episode_steps=int(args.seconds * 50))
     layout = TripodContext.from_env(env)
@@ -91,7 +104,8 @@ def main() -> None:
                 int(sum(np.nan_to_num(r["fell"]) + np.nan_to_num(r["unstable"]) for r in runs)),
             ]
         )
-    plot(results, args.seeds)
+    output.folder.mkdir(parents=True, exist_ok=True)
+    plot(results, args.seeds, output.path(".png"))
     header = [
         "stride (Hz)",
         "speed (m/s, mean ± sd)",
@@ -111,10 +125,10 @@ def main() -> None:
         f"{np.nanmean([r['speed'] for r in top]):.2f} m/s. Falls: episodes that tipped over (speed and other columns "
         "average the rest).\n\n" + md_table(header, rows)
     )
-    save("speed_vs_frequency", {"results": {str(k): v for k, v in results.items()}}, text)
+    output.save({"results": {str(k): v for k, v in results.items()}}, text)
 
 
-def plot(results: dict, seeds: int) -> None:
+def plot(results: dict, seeds: int, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -129,7 +143,7 @@ def plot(results: dict, seeds: int) -> None:
     ax.set(xlabel="stride frequency (Hz)", ylabel="speed (m/s)", title=f"VelociRoACH tripod, {seeds} seeds")
     ax.legend()
     fig.tight_layout()
-    atomic_write(RESULTS / "speed_vs_frequency.png", lambda p: fig.savefig(p, format="png", dpi=120))
+    atomic_write(path, lambda p: fig.savefig(p, format="png", dpi=120))
     plt.close(fig)
 
 

@@ -1,5 +1,5 @@
 """The spine study the xJüs seed asked for and never ran: does a compliant spine beat a rigid chassis over rough ground
-and obstacles? (seed 001, section 2.6: "power usage over stochastically generated terrain ... for various joint
+and obstacles? ([xjus-report, section 2.6]: "power usage over stochastically generated terrain ... for various joint
 stiffnesses")
 
 Every setting walks the same seeded terrains: ``skitter/XjusRough-v0``'s height field, lane ``k`` of field
@@ -35,7 +35,8 @@ import numpy as np
 
 import envs  # noqa: F401
 from agents.evaluation import bootstrap_ci
-from benchmarks.common import RESULTS, md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, atomic_write
 from envs.xjus import constants as C
 
 ENV_ID = "skitter/XjusRough-v0"
@@ -233,12 +234,17 @@ def plot(summary: dict, settings: list[str], scales: list[float], path) -> None:
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("xJüs spine study: mean and 95% CI over seeded lanes, Buehler tripod T = 0.5 s")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic_write(path, lambda p: fig.savefig(p, format="png", dpi=90))
     plt.close(fig)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"spine_study": [], "spine_study_constant_damping": ["--damping", "constant"]}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+FILES = ("{name}.json", "{name}.md", "{name}.png")
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lanes", type=int, default=20,
                         help="seeded terrains (lanes) per terrain kind (default 20, the issue's least; fewer for a "
                              "quick look)")  # fmt: skip
@@ -255,8 +261,14 @@ def main() -> None:
         default="ratio",
         help="spine damping: the same damping ratio at every stiffness, or 0.1 N m s/rad throughout",
     )
-    parser.add_argument("--name", default="spine_study", help="results name (benchmarks/results/<name>.*)")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "spine_study", CONFIGURATIONS, files=FILES, run_options=("threads",))
     if args.lanes < 1 or args.stiffnesses < 1 or args.threads < 1 or not args.roughness:
         parser.error("--lanes, --stiffnesses, --threads and --roughness need at least one")
     if not (np.isfinite(args.seconds) and args.seconds > 0):
@@ -289,7 +301,8 @@ def main() -> None:
     wall = time.perf_counter() - started
     episodes = len(records)
     summary = summarize(records, settings, [t.name for t in terrains])
-    plot_path = RESULTS / f"{args.name}.png"
+    plot_path = output.path(".png")
+    output.folder.mkdir(parents=True, exist_ok=True)
     plot(summary, settings, scales, plot_path)
     size = (f"{args.lanes} lanes x {len(settings)} settings ({len(scales)} stiffnesses + rigid) x {len(terrains)} "
             f"terrains, {args.seconds:g} s episodes: {episodes} episodes")  # fmt: skip
@@ -333,8 +346,8 @@ def main() -> None:
             diffs.append([setting] + [fmt(e.get(k, {}).get("paired_vs_rigid"), 2) for k in keys])
         text += [f"## {terrain.name}\n", "Mean [95% CI] over lanes:\n", md_table(header, rows),
                  "Paired difference, setting minus rigid, same lanes:\n", md_table(header, diffs)]  # fmt: skip
-    text.append(f"Plot: benchmarks/results/{plot_path.name}\n")
-    save(args.name, {"size": size, "wall_seconds": wall, "timings": timings, "settings": settings, "scales": scales,
+    text.append(f"Plot: {plot_path.name}\n")
+    output.save({"size": size, "wall_seconds": wall, "timings": timings, "settings": settings, "scales": scales,
                      "terrains": [t.__dict__ for t in terrains], "summary": summary, "records": records,
                      "args": vars(args)}, "\n".join(text))  # fmt: skip
 

@@ -1,7 +1,7 @@
 """PPO training throughput on RoachWalk: env steps per second including the updates, SB3's DummyVecEnv against the
 batched env (agents/vec_env.py), the same hyperparameters (hyperparams/ppo.yml), in one run.
 
-The foundation's DummyVecEnv trained at 865 steps/s on this machine (issue 2's demo). Run:
+The foundation's DummyVecEnv trained at 865 steps/s on this machine (the first training demo). Run:
 ``python -m benchmarks.train_speed``.
 """
 
@@ -14,10 +14,11 @@ from pathlib import Path
 import torch
 
 import envs  # noqa: F401
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
 from train import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 
-FOUNDATION_DUMMY = 865.0  # steps/s, issue 2's demo (DummyVecEnv, same hyperparameters)
+FOUNDATION_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
 
 
 def throughput(env_id: str, vec_env: str, steps: int, n_envs: int | None) -> float:
@@ -30,12 +31,23 @@ def throughput(env_id: str, vec_env: str, steps: int, n_envs: int | None) -> flo
     return model.num_timesteps / (time.perf_counter() - t0)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"train_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="skitter/RoachWalk-v1")
     parser.add_argument("--steps", type=int, default=40960)
     parser.add_argument("--n-envs", type=int, nargs="+", default=[4, 16])
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "train_speed", CONFIGURATIONS)
     rows = []
     for n in args.n_envs:
         dummy = throughput(args.env, "dummy", args.steps, n)
@@ -53,7 +65,7 @@ def main() -> None:
         f"{args.steps} steps per run, hyperparameters of hyperparams/ppo.yml with n_envs as given (n_steps 512 per "
         "env, 10 epochs, minibatches of 256, a 64x64 MLP on one torch thread).\n\n" + table
     )
-    save("train_speed", {"env": args.env, "steps": args.steps, "rows": rows}, text)
+    output.save({"env": args.env, "steps": args.steps, "rows": rows}, text)
 
 
 if __name__ == "__main__":

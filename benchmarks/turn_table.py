@@ -1,7 +1,8 @@
-"""Yaw rate against left/right phase offset for the tripod gait: the curve of seed 000 figures 16 and 17.
+"""Yaw rate against left/right phase offset for the tripod gait: the curve of [roach-sim, Figures 16 and 17].
 
-Regenerates ``agents/velociroach/turn_table.json`` (used by the turning tripod, ``agents.tripod.TripodTurn``) and
-writes ``benchmarks/results/turn_table.{json,md,png}``. Run: ``python -m benchmarks.turn_table``.
+Writes ``benchmarks/results/turn_table.{json,md,png}`` and regenerates ``agents/velociroach/turn_table.json`` (used by
+the turning tripod, ``agents.tripod.TripodTurn``); another configuration writes its own folder and leaves the
+tripod's table alone. Run: ``python -m benchmarks.turn_table``.
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from scipy.optimize import isotonic_regression
 
 import envs  # noqa: F401  (registers the envs)
 from agents.velociroach.tripod import TURN_TABLE, TripodContext, TripodGait
-from benchmarks.common import RESULTS, md_table, save
-from envs.common.io import atomic_write, write_json
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, atomic_write, write_json
 
 PHASES_DEG = np.arange(90, 271, 10)
 # The table spans 130..230 deg: beyond it the model falls into fast spinning modes (about +-150 deg/s near 110 and
@@ -58,13 +59,25 @@ def fit_table(phases: np.ndarray, rates: np.ndarray) -> tuple[slice, np.ndarray]
     return window, isotonic_regression(rates[window], increasing=False).x
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"turn_table": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+FILES = ("{name}.json", "{name}.md", "{name}.png")
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frequencies", type=float, nargs="+", default=[5.0, 10.0, 20.0])
     parser.add_argument("--table-frequency", type=float, default=10.0)
     parser.add_argument("--seeds", type=int, default=6)
     parser.add_argument("--seconds", type=float, default=8.0)
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "turn_table", CONFIGURATIONS, files=FILES)
     env = gym.make("skitter/RoachWalk-v1", max_episode_steps=int(args.seconds * 50))
     layout = TripodContext.from_env(env)
     curves = {}
@@ -98,8 +111,12 @@ def main() -> None:
         "monotonic": {"phase_deg": PHASES_DEG[mono].tolist(), "yaw_rate": fit.tolist()},
         "fit_max_residual": residual,
     }
-    write_json(TURN_TABLE, table)
-    plot(mean, sd, Path(RESULTS / "turn_table.png"))
+    if output.kept:  # the kept configuration's table is the turning tripod's
+        write_json(TURN_TABLE, table)
+    else:
+        print(f"{TURN_TABLE} left as it is: this configuration's table is in {output.path('.json')}")
+    output.folder.mkdir(parents=True, exist_ok=True)
+    plot(mean, sd, output.path(".png"))
     header = ["phase (deg)"] + [f"yaw rate at {f:g} Hz (deg/s, mean ± sd)" for f in args.frequencies]
     rows = [
         [int(p)] + [f"{np.degrees(mean[f][i]):.0f} ± {np.degrees(sd[f][i]):.0f}" for f in args.frequencies]
@@ -113,7 +130,7 @@ def main() -> None:
         f"isotonic regression; largest residual {np.degrees(residual):.0f} deg/s), spanning "
         f"{np.degrees(fit[0]):.0f} to {np.degrees(fit[-1]):.0f} deg/s.\n\n" + md_table(header, rows)
     )
-    save("turn_table", {"curves": {str(f): c.tolist() for f, c in curves.items()}, "table": table}, text)
+    output.save({"curves": {str(f): c.tolist() for f, c in curves.items()}, "table": table}, text)
 
 
 def plot(mean: dict, sd: dict, path: Path) -> None:

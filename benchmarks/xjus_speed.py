@@ -32,8 +32,9 @@ import envs  # noqa: F401
 from agents import load_policy
 from agents.evaluation import bootstrap_ci, run_episodes
 from benchmarks.batch_speed import time_raw as time_raw_batch
-from benchmarks.common import md_table, save
+from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
+from envs.common.io import ToolParser
 from envs.xjus import constants as C
 
 GOAL_RATIO = 0.9
@@ -242,10 +243,21 @@ def fmt_ci(stat: dict, digits: int = 2) -> str:
     return f"{stat['mean']:.{digits}f} [{stat['ci_low']:.{digits}f}, {stat['ci_high']:.{digits}f}]"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+CONFIGURATIONS: dict[str, list[str]] = {"xjus_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rounds, seeds and episodes")
-    args = parser.parse_args()
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "xjus_speed", CONFIGURATIONS)
     rounds, seeds, rtf_episodes = (3, list(range(6)), 2) if args.quick else (7, list(range(12)), 3)
     started = time.perf_counter()
     ratios = [single_ratio(WALK, rounds), single_ratio(ROUGH, rounds, roughness=0.04)]
@@ -276,7 +288,7 @@ def main() -> None:
         [[r["env_id"] + (" (0.04 m RMS)" if r["kwargs"] else ""), f"{r['physics_dt'] * 1e3:g} ms",
           round(r["rtf_best"], 1), round(r["rtf_mean"], 1), round(r["rtf_raw_physics"], 1),
           "met" if r["rtf_best"] >= GOAL_RTF else "MISSED"] for r in rtf]
-        + [["seed 001 Blender model", "1.7 ms", 1.0, "", "", ""]],
+        + [["[xjus-report] Blender model", "1.7 ms", 1.0, "", "", ""]],
     )  # fmt: skip
     flat_table = md_table(
         ["clock period T", "current limit", "forward speed, m/s [95% CI]", "cost of transport [95% CI]",
@@ -322,7 +334,7 @@ def main() -> None:
         + stable_table
         + f"\nWall time of this benchmark: {time.perf_counter() - started:.0f} s.\n"
     )
-    save("xjus_speed", {"goal_ratio": GOAL_RATIO, "goal_rtf": GOAL_RTF, "ratios": ratios, "rtf": rtf,
+    output.save({"goal_ratio": GOAL_RATIO, "goal_rtf": GOAL_RTF, "ratios": ratios, "rtf": rtf,
                         "flat": flat, "stability": stable, "turning": turn, "quick": args.quick}, text)  # fmt: skip
 
 
