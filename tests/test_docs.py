@@ -67,3 +67,11 @@ def test_readme_benchmark_numbers_come_from_the_current_results():
         assert wanted, f"the README row {benchmark!r} gives no number"
         missing = wanted - found
         assert not missing, f"README row {benchmark!r}: {sorted(missing)} not in benchmarks/results/{module}*.md"
+
+
+def test_changelog_names_every_registered_env():
+    """The changelog records env versions: every registered id (with its version) appears in it."""
+    text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    assert text.startswith("# Changelog") and "## [Unreleased]" in text
+    missing = [env_id for env_id in ENV_IDS if f"`{env_id}`" not in text]
+    assert not missing, f"CHANGELOG.md does not name {missing}"
