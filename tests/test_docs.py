@@ -1,10 +1,13 @@
-"""The README as a user reads it: a front page of bounded size, every registered env in its table, and every number
-of its benchmark table found in the current results of the benchmark its command names."""
+"""The documentation as a user reads it: a README of bounded size whose env table matches the registry and whose
+benchmark numbers are found in the current results of the benchmark each row's command names; docs/envs.md and the
+changelog name every registered env."""
 
 import re
 from pathlib import Path
 
+import gymnasium as gym
 import pytest
+from gymnasium.wrappers import TimeLimit
 
 from tests.conftest import ENV_IDS
 
@@ -24,6 +27,15 @@ def _rows(text: str, header_start: str) -> list[list[str]]:
             break
         rows.append([cell.strip() for cell in line.strip().strip("|").split("|")])
     return rows
+
+
+def _time_limit(env: gym.Env) -> int | None:
+    """The steps of the first time limit in the wrapper chain (set by the registration or by the entry point)."""
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, TimeLimit):
+            return env._max_episode_steps
+        env = env.env
+    return None
 
 
 def _numbers(text: str) -> set[float]:
@@ -47,6 +59,21 @@ def test_readme_is_a_front_page():
 def test_every_registered_env_is_in_the_env_table(doc):
     ids = {row[0].strip("`") for row in _rows((ROOT / doc).read_text(encoding="utf-8"), "| id |")}
     assert ids == set(ENV_IDS), f"{doc}: missing {sorted(set(ENV_IDS) - ids)}, unknown {sorted(ids - set(ENV_IDS))}"
+
+
+def test_readme_env_table_matches_the_envs():
+    """Observation size, control rate and episode length as the registered envs have them."""
+    for env_id, _robot, _task, _action, control, obs, episode in _rows(README.read_text(encoding="utf-8"), "| id |"):
+        env = gym.make(env_id.strip("`"))
+        try:
+            rate = 1.0 / env.unwrapped.dt
+            quoted = float(control.split()[0]) * (1000.0 if "kHz" in control else 1.0)
+            assert abs(rate - quoted) < 1e-6, (env_id, control, rate)
+            assert int(obs) == env.observation_space.shape[0], (env_id, obs, env.observation_space.shape)
+            steps = int(re.search(r"\((\d+) steps\)", episode).group(1))
+            assert steps == round(float(episode.split()[0]) * rate) == _time_limit(env), (env_id, episode)
+        finally:
+            env.close()
 
 
 def test_readme_benchmark_numbers_come_from_the_current_results():
