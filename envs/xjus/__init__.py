@@ -1,9 +1,8 @@
 """xJüs, the RHex-like hexapod with a passive spine (seed 001): robot, tasks. ``ENVS`` is what envs/__init__.py
-registers; ``CALIBRATION`` names the calibration adapter (``calibrate.py --robot xjus``)."""
+registers; its calibration adapter (``calibrate.py --robot xjus``) is sysid/adapters/xjus.py."""
 
 EPISODE_SECONDS = 10.0
 CONTROL_FREQ = 125.0  # Hz, as envs/xjus/constants.py: the default of both action modes
-CALIBRATION = {"xjus": "envs.xjus.calibration:XjusAdapter"}
 
 ENVS = [
     {
