@@ -252,17 +252,11 @@ class ColumnMap:
         return cls(data)
 
 
-def read_log(
-    path: str | Path,
-    required: Sequence[str] = (),
-    column_map: ColumnMap | None = None,
-    formats: LogFormats | None = None,
-) -> Log:
+def read_log(path: str | Path, required: Sequence[str], column_map: ColumnMap | None, formats: LogFormats) -> Log:
     """Read one log in any known format (the shared ones and ``formats``, the robots'; or, if it is in none, with
-    ``column_map``), check it, and drop malformed rows with a warning. ``sysid.robots.read_log`` gives it every
-    robot's formats."""
+    ``column_map``), check it, and drop malformed rows with a warning. ``sysid.robots.read_log`` calls it with
+    every robot's formats."""
     path = Path(path)
-    formats = LogFormats() if formats is None else formats
     if not path.is_file():
         raise LogError(f"{path}: {'a directory, not a log file' if path.is_dir() else 'no such file'}")
     native = _native_reader(path, formats)

@@ -14,8 +14,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import sysid.adapters
+from sysid import logs
 from sysid.logs import ColumnMap, Log, LogFormats, LogReader, channel_suffixes
-from sysid.logs import read_log as read_log_with
 from sysid.problem import Adapter
 
 
@@ -61,4 +61,4 @@ def formats() -> LogFormats:
 
 def read_log(path: str | Path, required: Sequence[str] = (), column_map: ColumnMap | None = None) -> Log:
     """:func:`sysid.logs.read_log` with every robot's log formats and channels (:func:`formats`)."""
-    return read_log_with(path, required, column_map, formats())
+    return logs.read_log(path, required, column_map, formats())
