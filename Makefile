@@ -28,6 +28,7 @@ setup: $(STAMP)
 lint: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports --no-cache
 
 # slow cases (marked) are covered by the calibration matrix benchmark; `make test-slow` runs them too
 test: lint

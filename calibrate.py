@@ -43,9 +43,9 @@ from envs.common.io import (
     write_text,
 )
 from envs.common.telemetry import ChannelLimit
-from sysid.logs import ColumnMap, Log, LogError, check_log, read_log
+from sysid.logs import ColumnMap, Log, LogError, check_log
 from sysid.robots import adapter as make_adapter
-from sysid.robots import adapters
+from sysid.robots import adapters, read_log
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:

@@ -40,12 +40,12 @@ import numpy as np
 from agents.optimize.problem import Evaluator, parse_config
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.actuators.servo import SPEED_PER_VOLT, TORQUE_PER_VOLT
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 from envs.common.io import ToolParser, atomic_write
 
 STANCE_FORCE = 1.0  # N: a foot carrying at least this is in stance (a twentieth of the robot's weight, 17.3 N)
 SELF_DEPTH = 0.002  # m: parts overlapping deeper than this pass through each other (the shapes are approximate)
-LEG_SERVOS = tuple(s for s in C.SERVOS if s[:3] in C.LEGS)
+LEG_SERVOS = tuple(s for s in constants.SERVOS if s[:3] in constants.LEGS)
 Edit = Callable[[mujoco.MjModel], None]
 
 
@@ -66,7 +66,7 @@ def record_controls(policy_path: str | Path) -> dict[str, Any]:
         blocks.append(robot.sim.ctrl[0].copy())
         robot.step()
     end = robot.sim.get_data(0)
-    x0 = float(_start(robot.model, state).xpos[robot.model.body(C.ROOT_BODY).id][0])
+    x0 = float(_start(robot.model, state).xpos[robot.model.body(constants.ROOT_BODY).id][0])
     return {"model": robot.model, "state": state, "x0": x0, "ctrl": np.concatenate(blocks),
             "qpos_end": end.qpos.copy(), "max_tilt": config.max_tilt, "record": record}  # fmt: skip
 
@@ -80,8 +80,10 @@ def _start(model: mujoco.MjModel, state: np.ndarray) -> mujoco.MjData:
 
 def _geom_classes(model: mujoco.MjModel) -> dict[int, str]:
     """Each robot geom's class for the ground-force shares: crutch (foot sphere and shaft), knee case, other."""
-    feet = {model.geom(C.FOOT_GEOM[leg]).id for leg in C.LEGS} | {model.geom(C.CRUTCH_GEOM[leg]).id for leg in C.LEGS}
-    knees = {model.geom(f"{leg}_3_case").id for leg in C.LEGS}
+    feet = {model.geom(constants.FOOT_GEOM[leg]).id for leg in constants.LEGS} | {
+        model.geom(constants.CRUTCH_GEOM[leg]).id for leg in constants.LEGS
+    }
+    knees = {model.geom(f"{leg}_3_case").id for leg in constants.LEGS}
     return {g: "crutch" if g in feet else "knee case" if g in knees else "other"
             for g in range(model.ngeom) if model.geom_bodyid[g] != 0}  # fmt: skip
 
@@ -90,17 +92,17 @@ def gait_statistics(rollout: dict[str, Any]) -> dict[str, Any]:
     """The rollout replayed one physics step at a time: slip, contacts, servo speeds and torques (module docstring)."""
     m, ctrl = rollout["model"], rollout["ctrl"]
     d = _start(m, rollout["state"])
-    dt, floor, body = m.opt.timestep, m.geom(C.FLOOR_GEOM).id, m.body(C.ROOT_BODY).id
+    dt, floor, body = m.opt.timestep, m.geom(constants.FLOOR_GEOM).id, m.body(constants.ROOT_BODY).id
     classes = _geom_classes(m)
-    leg_geom = {m.geom(C.FOOT_GEOM[leg]).id: i for i, leg in enumerate(C.LEGS)}
-    leg_geom.update({m.geom(C.CRUTCH_GEOM[leg]).id: i for i, leg in enumerate(C.LEGS)})
-    servos = [C.SERVO_INDEX[s] for s in LEG_SERVOS]
-    actuators = np.array([m.actuator(f"{s}_servo").id for s in C.SERVOS])[servos]
-    dofs = np.array([m.jnt_dofadr[m.joint(s).id] for s in C.SERVOS])[servos]
-    qadr = np.array([m.jnt_qposadr[m.joint(s).id] for s in C.SERVOS])[servos]
+    leg_geom = {m.geom(constants.FOOT_GEOM[leg]).id: i for i, leg in enumerate(constants.LEGS)}
+    leg_geom.update({m.geom(constants.CRUTCH_GEOM[leg]).id: i for i, leg in enumerate(constants.LEGS)})
+    servos = [constants.SERVO_INDEX[s] for s in LEG_SERVOS]
+    actuators = np.array([m.actuator(f"{s}_servo").id for s in constants.SERVOS])[servos]
+    dofs = np.array([m.jnt_dofadr[m.joint(s).id] for s in constants.SERVOS])[servos]
+    qadr = np.array([m.jnt_qposadr[m.joint(s).id] for s in constants.SERVOS])[servos]
     low, high = m.jnt_range[[m.joint(s).id for s in LEG_SERVOS]].T
     gear = m.actuator_gear[actuators, 0]
-    stall, no_load = TORQUE_PER_VOLT * C.BATTERY_VOLTAGE, SPEED_PER_VOLT * C.BATTERY_VOLTAGE
+    stall, no_load = TORQUE_PER_VOLT * constants.BATTERY_VOLTAGE, SPEED_PER_VOLT * constants.BATTERY_VOLTAGE
     weight = float(m.body_subtreemass[body]) * float(np.linalg.norm(m.opt.gravity))
     f6, vel6 = np.zeros(6), np.zeros(6)
     probe = copy.deepcopy(m)  # the same bodies with self-collision, to measure how far parts pass through each other
@@ -183,8 +185,10 @@ def gait_statistics(rollout: dict[str, Any]) -> dict[str, Any]:
         "airborne_fraction": airborne / len(ctrl),
         "ground_force_share": {k: v / ground_total for k, v in force_by_class.items()},
         "touching_fraction": {k: v / len(ctrl) for k, v in sorted(touching.items(), key=lambda kv: -kv[1])},
-        "stance_slip_speed": dict(zip(C.LEGS, (slip_work / np.maximum(stance_force, 1e-12)).tolist(), strict=True)),
-        "slip_distance": dict(zip(C.LEGS, slip_distance.tolist(), strict=True)),
+        "stance_slip_speed": dict(
+            zip(constants.LEGS, (slip_work / np.maximum(stance_force, 1e-12)).tolist(), strict=True)
+        ),
+        "slip_distance": dict(zip(constants.LEGS, slip_distance.tolist(), strict=True)),
         "ground_reaction_bw": {"p99": float(np.percentile(ground, 99) / weight), "max": float(ground.max() / weight)},
         "body_height": {"min": float(min(heights)), "max": float(max(heights))},
         "max_tilt_deg": float(np.degrees(np.arccos(np.clip(ups.min(), -1, 1)))),
@@ -243,7 +247,7 @@ def _geoms(field: str, column: int, value: float, which: str = "all") -> Edit:
 
 def _gear_friction(torque: float) -> Edit:
     def edit(m: mujoco.MjModel) -> None:
-        for s in C.SERVOS:
+        for s in constants.SERVOS:
             m.dof_frictionloss[m.jnt_dofadr[m.joint(s).id]] = torque
 
     return edit
@@ -299,7 +303,7 @@ def replay(rollout: dict[str, Any], substeps: int = 1, edit: Edit | None = None)
         edit(m)
     m.opt.timestep = rollout["model"].opt.timestep / substeps
     d = _start(m, rollout["state"])
-    body, floor = m.body(C.ROOT_BODY).id, m.geom(C.FLOOR_GEOM).id
+    body, floor = m.body(constants.ROOT_BODY).id, m.geom(constants.FLOOR_GEOM).id
     classes = _geom_classes(m)
     min_up = math.cos(rollout["max_tilt"])
     ctrl = rollout["ctrl"]
@@ -340,7 +344,7 @@ def contact_sheet(rollout: dict[str, Any], path: Path, start: float = 20.0, fram
     d = _start(m, rollout["state"])
     camera = mujoco.MjvCamera()
     camera.type, camera.distance, camera.elevation, camera.azimuth = mujoco.mjtCamera.mjCAMERA_FREE, 0.6, -5.0, 90.0
-    body, dt = m.body(C.ROOT_BODY).id, m.opt.timestep
+    body, dt = m.body(constants.ROOT_BODY).id, m.opt.timestep
     wanted = {round((start + k * seconds / frames) / dt) for k in range(frames)}
     images = []
     for i, row in enumerate(rollout["ctrl"]):

@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from benchmarks.common import add_output_options, md_table, resolve_output
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 from envs.bioloid.robot import Bioloid
 from envs.common.io import ToolParser
 
@@ -70,14 +70,14 @@ REST_TURN = np.radians(1.0)
 
 
 def posture(experiment: int) -> np.ndarray:
-    return np.array([TABLE4[s][experiment] for s in C.SERVOS], dtype=np.float64)
+    return np.array([TABLE4[s][experiment] for s in constants.SERVOS], dtype=np.float64)
 
 
 def lowest_point(robot: Bioloid, counts: np.ndarray) -> float:
     """Height (m) of the lowest point of the collision shapes, level, the body's origin at 0, in posture ``counts``."""
     m = robot.model
     d = mujoco.MjData(m)
-    d.qpos[robot._servo_qpos] = (counts - C.CENTER) * C.RAD_PER_COUNT
+    d.qpos[robot._servo_qpos] = (counts - constants.CENTER) * constants.RAD_PER_COUNT
     d.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
     mujoco.mj_kinematics(m, d)
     lowest = 0.0
@@ -129,14 +129,14 @@ def run(experiments: list[int]) -> list[dict]:
     turned_over = (start * settled).sum(axis=1) < 0.0
     setup_fall = turning | turned_over
     direction = np.tile([1.0, -1.0], len(experiments))
-    column = C.SERVO_INDEX[MOVED]
+    column = constants.SERVO_INDEX[MOVED]
     tipped_at, pushed_at = np.full(n, np.nan), np.full(n, np.nan)
     active = ~setup_fall
     per_count = round(DWELL / robot.control_dt)
     last = settled
     while active.any():
         goal[active, column] += direction[active]
-        at_end = (goal[:, column] <= 0) | (goal[:, column] >= C.COUNTS - 1)
+        at_end = (goal[:, column] <= 0) | (goal[:, column] >= constants.COUNTS - 1)
         for _ in range(per_count):
             robot.command(goal)
             robot.step()

@@ -19,23 +19,23 @@ import numpy as np
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
 from envs.common.locomotion import quat_up, quat_yaw
-from envs.velociroach import constants as C
+from envs.velociroach import constants
 from envs.velociroach.robot import VelociRoach
 
-LEGS = [f"{leg}_leg" for leg in C.LEGS]
+LEGS = [f"{leg}_leg" for leg in constants.LEGS]
 
 
 def set_lift(b: float) -> Callable[[mujoco.MjSpec], None]:
     """Foot ellipse with lift half-amplitude b (the two cranks' radii are (a + b) / 2 and (a - b) / 2)."""
 
     def edit(spec: mujoco.MjSpec) -> None:
-        a = spec.numeric(C.NUMERIC_SWEEP).data[0]
+        a = spec.numeric(constants.NUMERIC_SWEEP).data[0]
         r1, r2 = (a + b) / 2, (a - b) / 2
-        for side in C.SIDES:
+        for side in constants.SIDES:
             for kind, up in (("fb", -1), ("m", 1)):
                 spec.body(f"link_{side}_{kind}").pos[2] = up * r1
                 spec.body(f"carrier_{side}_{kind}").pos[2] = -up * r2
-        spec.numeric(C.NUMERIC_LIFT).data = [b]
+        spec.numeric(constants.NUMERIC_LIFT).data = [b]
 
     return edit
 
@@ -56,14 +56,14 @@ def set_leg_mass(grams: float) -> Callable[[mujoco.MjSpec], None]:
             for g in spec.body(leg).geoms:
                 delta += grams * 1e-3 / 4 - g.mass
                 g.mass = grams * 1e-3 / 4
-        spec.geom(C.CHASSIS_GEOM).mass -= delta  # keep 30 g
+        spec.geom(constants.CHASSIS_GEOM).mass -= delta  # keep 30 g
 
     return edit
 
 
 def set_leg_damping(value: float) -> Callable[[mujoco.MjSpec], None]:
     def edit(spec: mujoco.MjSpec) -> None:
-        for leg in C.LEGS:
+        for leg in constants.LEGS:
             spec.joint(f"{leg}_spring").damping[0] = value
 
     return edit
@@ -71,7 +71,7 @@ def set_leg_damping(value: float) -> Callable[[mujoco.MjSpec], None]:
 
 def set_friction(mu: float) -> Callable[[mujoco.MjSpec], None]:
     def edit(spec: mujoco.MjSpec) -> None:
-        spec.geom(C.FLOOR_GEOM).friction[0] = mu
+        spec.geom(constants.FLOOR_GEOM).friction[0] = mu
         for leg in LEGS:
             for g in spec.body(leg).geoms:
                 g.friction[0] = mu

@@ -17,7 +17,7 @@ import envs  # noqa: F401
 from agents.velociroach.tripod import TripodContext, TripodGait
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser, atomic_write
-from envs.velociroach import constants as C
+from envs.velociroach import constants
 
 WARMUP = 1.0
 FAILED = dict.fromkeys(
@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> None:
             [
                 f,
                 f"{np.nanmean(sp):.2f} ± {np.nanstd(sp, ddof=1):.2f}",
-                round(np.nanmean(sp) / C.LENGTH, 1),
+                round(np.nanmean(sp) / constants.LENGTH, 1),
                 round(np.nanmean(sp) / f * 1000, 1),
                 round(mean("lag_deg"), 1),
                 round(mean("power"), 2),
@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> None:
     text = (
         "# Tripod speed against stride frequency (RoachWalk-v1, gait mode)\n\n"
         f"{args.seeds} seeds x {args.seconds:g} s per frequency, first {WARMUP:g} s left out. Real robot: "
-        f"{C.TOP_SPEED} m/s at up to {C.MAX_STRIDE_FREQUENCY:g} Hz (ICRA 2013); model at 45 Hz: "
+        f"{constants.TOP_SPEED} m/s at up to {constants.MAX_STRIDE_FREQUENCY:g} Hz (ICRA 2013); model at 45 Hz: "
         f"{np.nanmean([r['speed'] for r in top]):.2f} m/s. Falls: episodes that tipped over (speed and other columns "
         "average the rest).\n\n" + md_table(header, rows)
     )
@@ -139,7 +139,7 @@ def plot(results: dict, seeds: int, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     mean, sd = np.nanmean(speed, axis=1), np.nanstd(speed, axis=1, ddof=1)
     ax.errorbar(f, mean, yerr=sd, marker="o", capsize=3, label="model, tripod (mean ± sd over seeds)")
-    ax.axhline(C.TOP_SPEED, color="C3", ls="--", label=f"real robot top speed, {C.TOP_SPEED} m/s")
+    ax.axhline(constants.TOP_SPEED, color="C3", ls="--", label=f"real robot top speed, {constants.TOP_SPEED} m/s")
     ax.set(xlabel="stride frequency (Hz)", ylabel="speed (m/s)", title=f"VelociRoACH tripod, {seeds} seeds")
     ax.legend()
     fig.tight_layout()

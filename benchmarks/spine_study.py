@@ -37,10 +37,10 @@ import envs  # noqa: F401
 from agents.evaluation import bootstrap_ci
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser, atomic_write
-from envs.xjus import constants as C
+from envs.xjus import constants
 
 ENV_ID = "skitter/XjusRough-v0"
-PERIOD, SWEEP = 0.5, C.WALK_SWEEP
+PERIOD, SWEEP = 0.5, constants.WALK_SWEEP
 WARMUP = 1.0  # s left out of the roll and pitch variance
 DEFAULT_ROUGHNESS = [0.0, 0.02, 0.04]  # m RMS: level ground (lanes differ by the reset perturbation only), two rough
 DEFAULT_OBSTACLES = ["step:0.05", "step:0.1", "stairs:0.05"]
@@ -82,7 +82,7 @@ def run_batch(terrain: TerrainSpec, scales: list[float | None], lanes: int, seco
     damping ratio at every stiffness), ``"constant"`` keeps 0.1 N m s/rad. Returns a record per episode."""
     rigid = scales[0] is None
     n = len(scales) * lanes
-    steps = round(seconds * C.CONTROL_FREQ)
+    steps = round(seconds * constants.CONTROL_FREQ)
     kwargs = {**terrain.kwargs(), "terrain_seed": terrain_seed, "spine": "rigid" if rigid else "compliant"}
     venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads,
                         max_episode_steps=steps, **kwargs)  # fmt: skip
@@ -213,7 +213,7 @@ def plot(summary: dict, settings: list[str], scales: list[float], path) -> None:
 
     panels = ["speed", "cot", "roll_var", "pitch_var", "flipped", "progress"]
     fig, axes = plt.subplots(2, 3, figsize=(15, 8))
-    stiffness = np.array(scales) * C.SPINE_DESIGN_STIFFNESS
+    stiffness = np.array(scales) * constants.SPINE_DESIGN_STIFFNESS
     for ax, metric in zip(axes.ravel(), panels, strict=True):
         for j, (terrain, by_setting) in enumerate(summary.items()):
             color = f"C{j}"
@@ -230,7 +230,7 @@ def plot(summary: dict, settings: list[str], scales: list[float], path) -> None:
         ax.set_xscale("log")
         ax.set_xlabel("spine stiffness per axis, N m/rad (dashed: rigid, band: its 95% CI)")
         ax.set_title(METRICS[metric])
-        ax.axvline(C.SPINE_DESIGN_STIFFNESS, color="grey", linewidth=0.5)
+        ax.axvline(constants.SPINE_DESIGN_STIFFNESS, color="grey", linewidth=0.5)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle("xJüs spine study: mean and 95% CI over seeded lanes, Buehler tripod T = 0.5 s")
     fig.tight_layout()

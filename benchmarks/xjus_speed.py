@@ -35,7 +35,7 @@ from benchmarks.batch_speed import time_raw as time_raw_batch
 from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
 from envs.common.io import ToolParser
-from envs.xjus import constants as C
+from envs.xjus import constants
 
 GOAL_RATIO = 0.9
 GOAL_RTF = 20.0
@@ -186,7 +186,7 @@ def flat_ground(period: float, seeds: list[int], threads: int, **kwargs) -> dict
         values = np.array([e.metrics[metric] for e in episodes])
         low, high = bootstrap_ci(values)
         row[metric] = {"mean": float(np.mean(values)), "ci_low": low, "ci_high": high, "values": values.tolist()}
-    energy = [e.metrics["cost_of_transport"] * C.MASS * 9.81 * e.metrics["speed"] for e in episodes]
+    energy = [e.metrics["cost_of_transport"] * constants.MASS * 9.81 * e.metrics["speed"] for e in episodes]
     row["mean_power_w"] = float(np.mean(energy))
     return row
 
@@ -199,7 +199,7 @@ def turning(seeds: list[int], threads: int) -> dict:
     for diff in differences:
         venv = gym.make_vec(WALK, num_envs=len(seeds), vectorization_mode="vector_entry_point", nthread=threads,
                             max_episode_steps=EPISODE)  # fmt: skip
-        command = np.array([0.5, C.WALK_SWEEP - diff / 2, C.WALK_SWEEP + diff / 2])
+        command = np.array([0.5, constants.WALK_SWEEP - diff / 2, constants.WALK_SWEEP + diff / 2])
         action = np.tile(venv.unwrapped.robot.mode.to_action(command), (len(seeds), 1))
         venv.reset(seed=seeds)
         for _ in range(EPISODE):
@@ -224,7 +224,7 @@ def turning(seeds: list[int], threads: int) -> dict:
 
 def stability(seconds_episodes: int, threads: int) -> list[dict]:
     rows = []
-    low, high = (scale * C.SPINE_DESIGN_STIFFNESS for scale in C.SPINE_STIFFNESS_RANGE)
+    low, high = (scale * constants.SPINE_DESIGN_STIFFNESS for scale in constants.SPINE_STIFFNESS_RANGE)
     for spine, stiffness in (("compliant", low), ("compliant", high), ("rigid", None)):
         kwargs = {"spine": spine, "roughness": 0.05}
         if stiffness is not None:
@@ -265,7 +265,7 @@ def main(argv: list[str] | None = None) -> None:
     for r in ratios:
         print(r)
     flat = [flat_ground(p, seeds, 2) for p in (0.5, 0.75, 1.0)]
-    flat += [flat_ground(p, seeds, 2, current_limit=C.MOTOR_CONTINUOUS_CURRENT) for p in (0.5, 1.0)]
+    flat += [flat_ground(p, seeds, 2, current_limit=constants.MOTOR_CONTINUOUS_CURRENT) for p in (0.5, 1.0)]
     stable = stability(4 if args.quick else 8, 2)
     turn = turning(seeds[:3], 2)
     if hasattr(os, "sched_setaffinity"):

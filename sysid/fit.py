@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from sysid.effects import Param
+from envs.common.effects import Param
 from sysid.problem import (
     Problem,
     Residual,

@@ -3,8 +3,9 @@
 Formats, recognized by their content:
 
 - skitter telemetry (``.parquet``, envs/common/telemetry.py);
-- the VelociRoACH's text telemetry (``%`` header lines, or the lab's older double-quoted ones; envs/velociroach/
-  roach_csv.py);
+- the robots' own formats (:class:`LogFormats`, declared in sysid/adapters and given by ``sysid.robots.read_log``):
+  the VelociRoACH's text telemetry (``%`` header lines, or the lab's older double-quoted ones;
+  envs/velociroach/roach_csv.py);
 - DYNAMIXEL Wizard exports (a ``DYNAMIXEL Graph`` header, then ``Time[ms]`` and the plotted items, e.g.
   ``Present Position`` in counts; ``Goal Position`` is the goal; also without the header, from ``Time[ms],
   Present Position``);
@@ -28,12 +29,10 @@ no lines, the number counts its rows (records) from 1.
 from __future__ import annotations
 
 import csv
-import functools
-import importlib
 import json
 import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -138,27 +137,23 @@ def _stem(channel: str) -> str | None:
     return None
 
 
-@functools.lru_cache(maxsize=1)
-def _declared_suffixes() -> frozenset[str]:
-    """The joints, legs, sides and axes that the robots' calibration channels name (``FL``, ``left``, ``B_L_1``):
-    what may follow a channel's name in a CSV read without a column map."""
-    from sysid.robots import adapter, adapters
-
+def channel_suffixes(channels: Iterable[str]) -> frozenset[str]:
+    """The joints, legs, sides and axes that ``channels`` name after a :data:`CHANNEL_UNITS` name (``FL``, ``left``,
+    ``B_L_1``)."""
     suffixes = set()
-    for robot in adapters():
-        found = adapter(robot)
-        for name in (*found.required(), *found.channels):
-            stem = _stem(name)
-            if stem is not None and name != stem:
-                suffixes.add(name[len(stem) + 1 :])
+    for name in channels:
+        stem = _stem(name)
+        if stem is not None and name != stem:
+            suffixes.add(name[len(stem) + 1 :])
     return frozenset(suffixes)
 
 
-def is_our_channel(name: str) -> bool:
-    """Whether ``name`` is a channel of ours exactly: a :data:`CHANNEL_UNITS` name, alone or followed by a joint,
-    leg, side or axis that a robot declares (``leg_angle_FL``, ``sweep_left``; not ``angle_deg``)."""
+def is_our_channel(name: str, suffixes: Collection[str] = frozenset()) -> bool:
+    """Whether ``name`` is a channel of ours exactly: a :data:`CHANNEL_UNITS` name, alone or followed by one of
+    ``suffixes``, a joint, leg, side or axis that a robot declares (``leg_angle_FL``, ``sweep_left``; not
+    ``angle_deg``)."""
     stem = _stem(name)
-    return stem is not None and (name == stem or name[len(stem) + 1 :] in _declared_suffixes())
+    return stem is not None and (name == stem or name[len(stem) + 1 :] in suffixes)
 
 
 class LogError(ValueError):
@@ -264,17 +259,19 @@ class ColumnMap:
 
 def read_log(
     path: str | Path,
-    required: Sequence[str] = (),
-    column_map: ColumnMap | None = None,
+    required: Sequence[str],
+    column_map: ColumnMap | None,
+    formats: LogFormats,
     limits: Mapping[str, ChannelLimit] | None = None,
 ) -> Log:
-    """Read one log in any known format (or, if it is in none, with ``column_map``), check it, and drop malformed
-    rows with a warning: among them, with ``limits`` (the robot's ``channel_limits``), rows whose required channel
-    reads what the robot could not have produced (:func:`drop_impossible`)."""
+    """Read one log in any known format (the shared ones and ``formats``, the robots'; or, if it is in none, with
+    ``column_map``), check it, and drop malformed rows with a warning: among them, with ``limits`` (the robot's
+    ``channel_limits``), rows whose required channel reads what the robot could not have produced
+    (:func:`drop_impossible`). ``sysid.robots.read_log`` calls it with every robot's formats."""
     path = Path(path)
     if not path.is_file():
         raise LogError(f"{path}: {'a directory, not a log file' if path.is_dir() else 'no such file'}")
-    native = _native_reader(path)
+    native = _native_reader(path, formats)
     if native is not None:
         log = native(path)
     elif column_map is not None:
@@ -285,8 +282,8 @@ def read_log(
         if lacking:
             raise LogError(f"{path}: line 1 {lacking}")
         raise LogError(
-            f"{path}: unknown log format (first line {head[:60]!r}{_not_ours(head)}); give a column map (--columns), "
-            "or name the columns by skitter's channels (time first, SI units)"
+            f"{path}: unknown log format (first line {head[:60]!r}{_not_ours(head, formats.suffixes)}); give a column "
+            "map (--columns), or name the columns by skitter's channels (time first, SI units)"
         )
     return check_log(log, required, limits)
 
@@ -309,23 +306,24 @@ def _lacking_columns(head: str) -> str | None:
     return None
 
 
-def _native_reader(path: Path) -> Callable[[Path], Log] | None:
+def _native_reader(path: Path, formats: LogFormats) -> Callable[[Path], Log] | None:
     """The reader of a format skitter knows, recognized by the file's content (a column map is for the others)."""
     if path.suffix == ".parquet":
         return _read_parquet
     head = _head(path)
     if head.startswith("DYNAMIXEL") or head.replace(" ", "").lower().startswith("time[ms],present"):
         return _read_dynamixel
-    if (reader := _robot_reader(head)) is not None:
-        return reader.read
+    for reader in formats.readers:
+        if reader.matches(head):
+            return reader.read
     if head.replace(" ", "").lower().startswith(",".join(GEARMOTOR_COLUMNS)):
         return _read_gearmotor
-    if path.suffix.lower() != ".json" and not _lacking_columns(head) and _our_channels(head):
+    if path.suffix.lower() != ".json" and not _lacking_columns(head) and _our_channels(head, formats.suffixes):
         return _read_skitter_csv
     return None
 
 
-def _not_ours(head: str) -> str:
+def _not_ours(head: str, suffixes: Collection[str]) -> str:
     """For a first line that begins with ``time``: which of its names keeps it from being read by our channels."""
     names = [n.strip() for n in head.split(",")]
     if names[0] != "time":
@@ -334,22 +332,27 @@ def _not_ours(head: str) -> str:
     for name in names[1:]:
         if name in seen:
             return f": column {name!r} appears twice"
-        if name and not is_our_channel(name):
+        if name and not is_our_channel(name, suffixes):
             return f": {name!r} is not one of skitter's channels"
         seen.add(name)
     return ""
 
 
-def _our_channels(head: str) -> bool:
+def _our_channels(head: str, suffixes: Collection[str]) -> bool:
     """Whether a CSV's first line names only our channels (:data:`CHANNEL_UNITS`), ``time`` first, each once."""
     names = [n.strip() for n in head.split(",")]
     names = names[:-1] if len(names) > 2 and names[-1] == "" else names  # a trailing comma
-    return len(names) >= 2 and names[0] == "time" and len(set(names)) == len(names) and all(map(is_our_channel, names))
+    return (
+        len(names) >= 2
+        and names[0] == "time"
+        and len(set(names)) == len(names)
+        and all(is_our_channel(name, suffixes) for name in names)
+    )
 
 
 @dataclass(frozen=True)
 class LogReader:
-    """A robot's own log format, declared in its folder (``LOG_READERS`` in ``envs/<robot>/__init__.py``): whether
+    """A robot's own log format, declared beside its adapter (``LOG_READERS`` in sysid/adapters): whether
     a file's first non-empty line is its, and how to read it (raising :class:`LogError`; malformed rows through
     :func:`drop_bad_rows`)."""
 
@@ -358,15 +361,14 @@ class LogReader:
     read: Callable[[Path], Log]
 
 
-def _robot_reader(head: str) -> LogReader | None:
-    from sysid.robots import declared
+@dataclass(frozen=True)
+class LogFormats:
+    """What the robots add to the shared formats (``sysid.robots.formats``): their own readers, and the joints,
+    legs, sides and axes their channels name (what may follow a channel's name in a CSV read without a column
+    map)."""
 
-    for spec in declared("LOG_READERS"):
-        module, _, attr = spec.partition(":")
-        reader = getattr(importlib.import_module(module), attr)
-        if reader.matches(head):
-            return reader
-    return None
+    readers: tuple[LogReader, ...] = ()
+    suffixes: frozenset[str] = frozenset()
 
 
 def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLimit] | None = None) -> Log:

@@ -33,12 +33,11 @@ import pandas as pd
 from mujoco import rollout
 
 from envs.common.batch import default_threads
+from envs.common.effects import Effect, Param, Setting
 from envs.common.robot import Robot
 from envs.common.telemetry import ChannelLimit
-from sysid.effects import Effect, Param
 from sysid.logs import Log, LogError, white_noise
 
-Setting = Mapping[str, float]
 STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 SENSITIVITY_CACHE = 768  # segments' start sensitivities kept (anchors x segments) before the cache starts over
 MODEL_CACHE = 2048  # compiled models kept per adapter (settings x segment keys) before the cache starts over

@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from envs.common.calibration import calibration_record
+from envs.common.effects import Effect
 from sysid import diagnostics
-from sysid.effects import Effect
 from sysid.pipeline import Result
 
 

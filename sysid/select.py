@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from envs.common.effects import Effect, Param
 from sysid import diagnostics
-from sysid.effects import Effect, Param
 from sysid.fit import FD_STEP, FitResult, evaluate, fit, fit_intervals, half_widths, rise_at, set_intervals
 from sysid.problem import Problem, Setting, flatten, total_objective
 

@@ -34,9 +34,9 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from envs.common.effects import Effect
 from envs.common.io import ToolParser, parent_problem, write_json
 from envs.common.telemetry import METADATA_KEY, write_telemetry
-from sysid.effects import Effect
 from sysid.logs import Log
 from sysid.problem import Adapter, Problem, simulate
 from sysid.robots import adapter as make_adapter

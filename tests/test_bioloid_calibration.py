@@ -13,7 +13,7 @@ import pytest
 import calibrate
 import envs  # noqa: F401 (registers the ids)
 from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 from envs.common.telemetry import read_telemetry, write_telemetry
 from sysid import synth
 from sysid.cases import pair, run_case
@@ -42,10 +42,14 @@ def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_pa
     path = _write(tmp_path / "cal.json")
     m0 = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model
     m = gym.make("skitter/BioloidWalk-v1", calibration=str(path)).unwrapped.robot.model
-    for servo in C.SERVOS:
+    for servo in constants.SERVOS:
         dof0, dof = (x.joint(servo).dofadr[0] for x in (m0, m))
-        left = any(servo == f"{leg}_{k}" for leg in C.LEGS if C.LEG_SIDE[leg] == "left" for k in (1, 2, 3))
-        right = any(servo == f"{leg}_{k}" for leg in C.LEGS if C.LEG_SIDE[leg] == "right" for k in (1, 2, 3))
+        left = any(
+            servo == f"{leg}_{k}" for leg in constants.LEGS if constants.LEG_SIDE[leg] == "left" for k in (1, 2, 3)
+        )
+        right = any(
+            servo == f"{leg}_{k}" for leg in constants.LEGS if constants.LEG_SIDE[leg] == "right" for k in (1, 2, 3)
+        )
         assert m.dof_frictionloss[dof] == pytest.approx(m0.dof_frictionloss[dof0] + (0.05 if left else 0.0))
         assert m.dof_damping[dof] == pytest.approx(m0.dof_damping[dof0] + (0.02 if right else 0.0))
         assert m.joint(f"{servo}_play").range[1] == pytest.approx(0.01)  # the gear train's play: +-gap/2
@@ -54,9 +58,9 @@ def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_pa
         assert a.gainprm[GAIN_KP] == pytest.approx(0.5 * 0.9 * a0.gainprm[GAIN_KP])
         assert a.gainprm[GAIN_VMAX] == pytest.approx(0.9 * a0.gainprm[GAIN_VMAX])
         assert m.actuator_delay[a.id] == pytest.approx(0.01)
-    body = m0.body(C.ROOT_BODY).id
+    body = m0.body(constants.ROOT_BODY).id
     assert m.body_subtreemass[0] == pytest.approx(m0.body_subtreemass[0] + 0.1 * m0.body_mass[body], rel=1e-9)
-    assert m.geom_friction[m.geom(C.FOOT_GEOM["F_L"]).id, 0] == pytest.approx(0.5)
+    assert m.geom_friction[m.geom(constants.FOOT_GEOM["F_L"]).id, 0] == pytest.approx(0.5)
     again = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model  # the nominal model stays nominal
     assert again.nq == m0.nq and again.dof_frictionloss.sum() == m0.dof_frictionloss.sum()
 

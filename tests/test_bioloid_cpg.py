@@ -12,7 +12,7 @@ import pytest
 import envs  # noqa: F401
 from agents import load_policy
 from agents.bioloid.cpg import AMPLITUDE_SCALE, CPG, CouplingError, parse_coupling, read_coupling, read_policy_file
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 
 SEED_COUNTS = {1: 64, 2: 33, 3: 32, 4: 24, 5: 16, 6: 24}  # seed 002 VI.B.3: experiments 1-6
 
@@ -69,9 +69,9 @@ def test_goals_are_the_standing_posture_plus_offset_and_state_and_mirror_the_rig
     for servo in ("F_L_2", "F_R_2", "F_L_1", "F_R_1"):
         i = names.index(servo)
         sign = -1.0 if servo == "F_R_2" else 1.0
-        angle = C.STAND_ANGLES[servo] + sign * (cpg.offset[0, i] + AMPLITUDE_SCALE * cpg.x[0, i])
-        assert goal[C.SERVO_INDEX[servo]] == pytest.approx(C.counts(angle))
-    assert goal[C.SERVO_INDEX["HEAD"]] == 512.0, "a fixed servo holds its count"
+        angle = constants.STAND_ANGLES[servo] + sign * (cpg.offset[0, i] + AMPLITUDE_SCALE * cpg.x[0, i])
+        assert goal[constants.SERVO_INDEX[servo]] == pytest.approx(constants.counts(angle))
+    assert goal[constants.SERVO_INDEX["HEAD"]] == 512.0, "a fixed servo holds its count"
 
 
 def test_a_rows_trajectory_does_not_depend_on_the_batch_it_is_in():

@@ -9,7 +9,7 @@ import envs  # noqa: F401
 from agents import load_policy, reference_policy
 from agents.bioloid.ik import GAITS, stance, touchdown_fraction
 from agents.evaluation import run_episodes
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 from envs.bioloid.kinematics import LegGeometry
 
 
@@ -38,11 +38,14 @@ def test_every_gait_commands_its_tables_swing_and_stance_order_within_the_knee_l
     t = np.arange(0.0, 3.0, 0.002) + 1.0  # after the one-cycle lead-in
     goal, limited = policy.counts(t, np.ones((len(t), 4)))
     assert not limited.any(), "the seed's ellipse keeps the knee within 90 deg"
-    assert (goal[:, [C.SERVO_INDEX[C.KNEE[leg]] for leg in C.LEGS]] <= C.counts(C.KNEE_LIMIT) + 1e-9).all()
+    assert (
+        goal[:, [constants.SERVO_INDEX[constants.KNEE[leg]] for leg in constants.LEGS]]
+        <= constants.counts(constants.KNEE_LIMIT) + 1e-9
+    ).all()
     heights, strides = [], []
-    for leg in C.LEGS:
-        hip = (goal[:, C.SERVO_INDEX[C.HIP[leg]]] - C.CENTER) * C.RAD_PER_COUNT
-        knee = (goal[:, C.SERVO_INDEX[C.KNEE[leg]]] - C.CENTER) * C.RAD_PER_COUNT
+    for leg in constants.LEGS:
+        hip = (goal[:, constants.SERVO_INDEX[constants.HIP[leg]]] - constants.CENTER) * constants.RAD_PER_COUNT
+        knee = (goal[:, constants.SERVO_INDEX[constants.KNEE[leg]]] - constants.CENTER) * constants.RAD_PER_COUNT
         x, z = LegGeometry.of(leg).forward(hip, knee)
         heights.append(z)
         strides.append(x)
@@ -117,7 +120,7 @@ def test_shortening_one_sides_stride_turns_the_trot_toward_the_other_side():
     venv = gym.make_vec("skitter/BioloidWalk-v1", num_envs=4, vectorization_mode="vector_entry_point")
     policy = load_policy("ik-trot", venv)
     robot = venv.unwrapped.robot
-    side = np.array([C.LEG_SIDE[leg] == "right" for leg in C.LEGS])
+    side = np.array([constants.LEG_SIDE[leg] == "right" for leg in constants.LEGS])
     strides = np.array([np.where(side, s, 1.0) if s is not None else np.where(~side, 0.0, 1.0)
                         for s in (0.0, 0.0, None, None)])  # fmt: skip
     venv.reset(seed=[0, 1, 0, 1])

@@ -10,7 +10,7 @@ import pytest
 
 import envs  # noqa: F401
 from envs.actuators.servo import KGF_CM, ServoConstants
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 from envs.bioloid.kinematics import LegGeometry
 from envs.bioloid.robot import Bioloid
 
@@ -21,20 +21,20 @@ ONE = np.array([0])
 def test_total_mass_is_the_seeds_within_two_percent_and_every_part_is_table_3():
     robot = Bioloid(imu_noise=None)
     m = robot.model
-    assert robot.facts.mass == pytest.approx(C.MASS, rel=C.MASS_TOLERANCE)
-    for part, grams in C.PARTS_G.items():
+    assert robot.facts.mass == pytest.approx(constants.MASS, rel=constants.MASS_TOLERANCE)
+    for part, grams in constants.PARTS_G.items():
         assert m.body(part).mass[0] == pytest.approx(grams / 1000.0), part
-    assert sum(C.PARTS_G.values()) == 1760
+    assert sum(constants.PARTS_G.values()) == 1760
 
 
 def test_hip_anchor_segments_and_servo_names_follow_the_sources():
     robot = Bioloid(imu_noise=None)
     m = robot.model
-    assert [m.actuator(i).name for i in range(m.nu)] == [f"{s}_servo" for s in C.SERVOS]
-    np.testing.assert_allclose(m.body("F_L_1").pos, C.HIP_ANCHOR_FRONT)
-    np.testing.assert_allclose(m.body("F_R_1").pos, np.array(C.HIP_ANCHOR_FRONT) * [1, -1, 1])
-    assert m.body("F_L_3").pos[1] == pytest.approx(C.THIGH)
-    assert m.site("F_L_sole").pos[1] == pytest.approx(C.SHANK)
+    assert [m.actuator(i).name for i in range(m.nu)] == [f"{s}_servo" for s in constants.SERVOS]
+    np.testing.assert_allclose(m.body("F_L_1").pos, constants.HIP_ANCHOR_FRONT)
+    np.testing.assert_allclose(m.body("F_R_1").pos, np.array(constants.HIP_ANCHOR_FRONT) * [1, -1, 1])
+    assert m.body("F_L_3").pos[1] == pytest.approx(constants.THIGH)
+    assert m.site("F_L_sole").pos[1] == pytest.approx(constants.SHANK)
 
 
 def test_standing_posture_puts_the_legs_down_and_forward_kinematics_matches_the_model():
@@ -42,18 +42,18 @@ def test_standing_posture_puts_the_legs_down_and_forward_kinematics_matches_the_
         robot = Bioloid(knee_wedge=wedge, imu_noise=None)
         m, d = robot.model, mujoco.MjData(robot.model)
         rng = np.random.default_rng(1)
-        angles = np.array([C.STAND_ANGLES[s] for s in C.SERVOS])
-        for leg in C.LEGS:
-            angles[C.SERVO_INDEX[C.HIP[leg]]] = rng.uniform(-0.5, 0.5)
-            angles[C.SERVO_INDEX[C.KNEE[leg]]] = rng.uniform(0.0, 1.2)
+        angles = np.array([constants.STAND_ANGLES[s] for s in constants.SERVOS])
+        for leg in constants.LEGS:
+            angles[constants.SERVO_INDEX[constants.HIP[leg]]] = rng.uniform(-0.5, 0.5)
+            angles[constants.SERVO_INDEX[constants.KNEE[leg]]] = rng.uniform(0.0, 1.2)
         d.qpos[robot._servo_qpos] = angles
         d.qpos[:7] = [0, 0, 0, 1, 0, 0, 0]
         mujoco.mj_kinematics(m, d)
-        for leg in C.LEGS:
-            hip = d.body(C.HIP[leg]).xpos
-            sole = d.site(C.SOLE_SITE[leg]).xpos
+        for leg in constants.LEGS:
+            hip = d.body(constants.HIP[leg]).xpos
+            sole = d.site(constants.SOLE_SITE[leg]).xpos
             x, z = LegGeometry.of(leg, robot.wedge).forward(
-                angles[C.SERVO_INDEX[C.HIP[leg]]], angles[C.SERVO_INDEX[C.KNEE[leg]]]
+                angles[constants.SERVO_INDEX[constants.HIP[leg]]], angles[constants.SERVO_INDEX[constants.KNEE[leg]]]
             )
             assert sole[0] - hip[0] == pytest.approx(x, abs=1e-9), (wedge, leg)
             assert sole[2] - hip[2] == pytest.approx(z, abs=1e-9), (wedge, leg)
@@ -63,10 +63,10 @@ def test_standing_posture_puts_the_legs_down_and_forward_kinematics_matches_the_
 def test_knee_wedge_turns_every_shank_by_18_degrees_and_changes_nothing_else():
     plain, wedged = Bioloid(imu_noise=None), Bioloid(knee_wedge=True, imu_noise=None)
     assert wedged.facts.mass == pytest.approx(plain.facts.mass)
-    for leg in C.LEGS:
-        q = wedged.model.body(C.KNEE[leg]).quat
+    for leg in constants.LEGS:
+        q = wedged.model.body(constants.KNEE[leg]).quat
         assert 2 * math.degrees(math.atan2(q[3], q[0])) == pytest.approx(18.0)
-        np.testing.assert_array_equal(plain.model.body(C.KNEE[leg]).quat, [1, 0, 0, 0])
+        np.testing.assert_array_equal(plain.model.body(constants.KNEE[leg]).quat, [1, 0, 0, 0])
     assert wedged.model_hash != plain.model_hash
 
 
@@ -79,7 +79,7 @@ def test_body_length_constant_matches_the_model_within_a_centimetre():
         g = m.geom(name).id
         half = np.abs(d.geom_xmat[g].reshape(3, 3)[0]) @ m.geom_size[g]  # half-extent along world x
         xs += [d.geom_xpos[g, 0] - half, d.geom_xpos[g, 0] + half]
-    assert max(xs) - min(xs) == pytest.approx(C.LENGTH, abs=0.01)
+    assert max(xs) - min(xs) == pytest.approx(constants.LENGTH, abs=0.01)
 
 
 def settle(robot: Bioloid, seconds: float) -> None:
@@ -111,8 +111,8 @@ def clamped_servo(supply: float, torque_limit: float = 1023.0, servo: str = "F_L
     """The body fixed in the air and one servo (the front-left knee) blocked at 0 rad by its joint limits."""
 
     def edit(spec: mujoco.MjSpec) -> None:
-        spec.delete(spec.joint(C.ROOT_JOINT))
-        spec.body(C.ROOT_BODY).pos = [0.0, 0.0, 0.5]
+        spec.delete(spec.joint(constants.ROOT_JOINT))
+        spec.body(constants.ROOT_BODY).pos = [0.0, 0.0, 0.5]
 
     robot = Bioloid(servo=ServoConstants(supply_voltage=supply, torque_limit=torque_limit), imu_noise=None,
                     spec_edits=[edit])  # fmt: skip
@@ -125,14 +125,14 @@ def clamped_servo(supply: float, torque_limit: float = 1023.0, servo: str = "F_L
 def test_a_blocked_servo_saturates_at_its_holding_torque(supply, kgf_cm):
     # a hip pitch servo (the knee's allowed range is one-sided: straight to bent 90 deg)
     robot = clamped_servo(supply, servo="F_L_1")
-    robot.reset(ONE, RNG, options={"angles": [C.STAND_ANGLES[s] for s in C.SERVOS]})
-    servo = C.SERVO_INDEX["F_L_1"]
-    for goal in (C.CENTER + 200, C.CENTER - 200):  # 59 deg away from where the stop holds it, both ways
+    robot.reset(ONE, RNG, options={"angles": [constants.STAND_ANGLES[s] for s in constants.SERVOS]})
+    servo = constants.SERVO_INDEX["F_L_1"]
+    for goal in (constants.CENTER + 200, constants.CENTER - 200):  # 59 deg away from where the stop holds it, both ways
         robot.goal[0, servo] = goal
         settle(robot, 0.3)
         torque = robot.servo.output_torque(robot.sim.sensordata)[0, servo]
         assert abs(torque) == pytest.approx(kgf_cm * KGF_CM, rel=0.03), goal  # datasheet, seed 002 Table 2
-        assert np.sign(torque) == np.sign(goal - C.CENTER)
+        assert np.sign(torque) == np.sign(goal - constants.CENTER)
         readings = robot.read(RNG)
         row = dict(zip(robot.telemetry_channels, robot.telemetry(readings)[0], strict=True))
         assert abs(row["load_F_L_1"]) == 1023, "the servo reports full load"
@@ -140,9 +140,9 @@ def test_a_blocked_servo_saturates_at_its_holding_torque(supply, kgf_cm):
 
 def test_the_torque_limit_register_caps_the_torque():
     robot = clamped_servo(10.0, torque_limit=512)
-    robot.reset(ONE, RNG, options={"angles": [C.STAND_ANGLES[s] for s in C.SERVOS]})
-    knee = C.SERVO_INDEX["F_L_3"]
-    robot.goal[0, knee] = C.CENTER + 200
+    robot.reset(ONE, RNG, options={"angles": [constants.STAND_ANGLES[s] for s in constants.SERVOS]})
+    knee = constants.SERVO_INDEX["F_L_3"]
+    robot.goal[0, knee] = constants.CENTER + 200
     settle(robot, 0.3)
     torque = robot.servo.output_torque(robot.sim.sensordata)[0, knee]
     assert torque == pytest.approx(16.5 * KGF_CM * 512 / 1023, rel=0.03)
@@ -152,13 +152,15 @@ def test_action_spans_each_servos_allowed_range_and_knees_go_from_straight_to_be
     env = gym.make("skitter/BioloidWalk-v1")
     robot = env.unwrapped.robot
     low, high = robot.mode.to_command(-np.ones(16)), robot.mode.to_command(np.ones(16))
-    for name, (lo, hi) in C.SERVO_RANGE.items():
-        i = C.SERVO_INDEX[name]
+    for name, (lo, hi) in constants.SERVO_RANGE.items():
+        i = constants.SERVO_INDEX[name]
         assert (low[i], high[i]) == (lo, hi), name
-    for leg in C.LEGS:  # seed 002 VI.A.2 (bent at most 90 deg) and Table 4 (straight knees); no backward bend
-        i = C.SERVO_INDEX[C.KNEE[leg]]
-        assert (low[i], high[i]) == pytest.approx((C.CENTER, C.CENTER + math.radians(90) / C.RAD_PER_COUNT))
-        assert robot.model.joint(C.KNEE[leg]).range == pytest.approx([0.0, math.radians(90)])
+    for leg in constants.LEGS:  # seed 002 VI.A.2 (bent at most 90 deg) and Table 4 (straight knees); no backward bend
+        i = constants.SERVO_INDEX[constants.KNEE[leg]]
+        assert (low[i], high[i]) == pytest.approx(
+            (constants.CENTER, constants.CENTER + math.radians(90) / constants.RAD_PER_COUNT)
+        )
+        assert robot.model.joint(constants.KNEE[leg]).range == pytest.approx([0.0, math.radians(90)])
     assert (low[0], high[0]) == (0.0, 1023.0)
 
 
@@ -168,7 +170,7 @@ def test_telemetry_has_goal_present_position_load_and_battery_per_servo():
     for _ in range(5):
         env.step(env.action_space.sample())
     frame = env.unwrapped.recorder.frame()
-    for servo in C.SERVOS:
+    for servo in constants.SERVOS:
         for channel in ("goal", "present_position", "torque", "load"):
             assert f"{channel}_{servo}" in frame.columns
     assert (frame["vbatt"] == 10.0).all()

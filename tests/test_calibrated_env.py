@@ -14,7 +14,7 @@ import pytest
 import envs  # noqa: F401 (registers the ids)
 import evaluate
 from envs.actuators.dcmotor import GAIN_K, GAIN_KP
-from envs.velociroach import constants as C
+from envs.velociroach import constants
 
 EFFECTS = {
     "coulomb_friction_left": {"torque": 0.004},
@@ -38,18 +38,18 @@ def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     nominal = gym.make("skitter/RoachWalk-v1").unwrapped.robot
     robot = gym.make("skitter/RoachWalk-v1", calibration=str(path)).unwrapped.robot
     m0, m = nominal.model, robot.model
-    left = m.joint(C.CRANK_JOINTS["left"]).dofadr[0]
-    right = m.joint(C.CRANK_JOINTS["right"]).dofadr[0]
+    left = m.joint(constants.CRANK_JOINTS["left"]).dofadr[0]
+    right = m.joint(constants.CRANK_JOINTS["right"]).dofadr[0]
     assert m.dof_frictionloss[left] == pytest.approx(m0.dof_frictionloss[left] + 0.004)
     assert m.dof_damping[right] == pytest.approx(m0.dof_damping[right] + 3e-5)
-    a_right, a_left = (m.actuator(C.MOTORS[s]).id for s in ("right", "left"))
+    a_right, a_left = (m.actuator(constants.MOTORS[s]).id for s in ("right", "left"))
     assert m.actuator_gainprm[a_right, GAIN_K] == pytest.approx(2 * m0.actuator_gainprm[a_right, GAIN_K])
     assert m.actuator_gainprm[a_left, GAIN_K] == pytest.approx(m0.actuator_gainprm[a_left, GAIN_K])
     # the firmware's duty gains are the same; its torque-space gains carry the motor constant and the battery
     assert m.actuator_gainprm[a_right, GAIN_KP] == pytest.approx(2 * 0.9 * m0.actuator_gainprm[a_right, GAIN_KP])
     assert robot.nominal_battery == pytest.approx(0.9 * nominal.nominal_battery)
     np.testing.assert_allclose(m.actuator_delay, 0.003)
-    chassis = m.body(C.ROOT_BODY).id
+    chassis = m.body(constants.ROOT_BODY).id
     assert m.body_mass[chassis] == pytest.approx(1.2 * m0.body_mass[chassis])
     assert m.body_subtreemass[0] > m0.body_subtreemass[0]  # mj_setConst ran
     assert robot.model_hash != nominal.model_hash and robot.metadata()["calibration"] == str(path)
@@ -141,7 +141,7 @@ def test_calibration_delay_uses_mujocos_actuator_history(tmp_path):
     for name, cal in (("nominal", None), ("delayed", str(path))):
         m = VelociRoach("duty", calibration=cal).model
         d = mujoco.MjData(m)
-        a = m.actuator(C.MOTORS["left"]).id
+        a = m.actuator(constants.MOTORS["left"]).id
         d.ctrl[m.actuator_ctrladr[a]] = 3.0  # volts
         trace = []
         for _ in range(12):

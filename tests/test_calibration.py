@@ -17,11 +17,11 @@ import pytest
 import calibrate
 import evaluate
 from envs.common.calibration import read_calibration
+from envs.common.effects import Param, base_name
 from envs.common.telemetry import write_telemetry
 from sysid import fit as fit_module
 from sysid import synth
 from sysid.cases import Case, pair, run_case
-from sysid.effects import Param, base_name
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Problem, Residual, total_objective
@@ -103,7 +103,7 @@ def test_the_held_out_test_refuses_an_effect_that_trades_one_channel_for_another
     1% up, on every segment alike, so its interval lies wholly below zero: a sensor bias whose refit start shifts
     another channel a hair) is no trade."""
     import sysid.select as select
-    from sysid.effects import make
+    from envs.common.effects import make
 
     problem = _TradingProblem(trades)
     trial = SimpleNamespace(values={"mass.scale": 2.0})
@@ -502,7 +502,7 @@ class _CarriedProblem(_StandIn):
 
 
 def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
-    from sysid.effects import make
+    from envs.common.effects import make
     from sysid.fit import fit
     from sysid.select import _params, score
 
@@ -538,7 +538,7 @@ class _BasinProblem(_StandIn):
 
 
 def test_a_scale_over_decades_is_ranked_on_a_geometric_grid():
-    from sysid.effects import make
+    from envs.common.effects import make
     from sysid.select import score, score_grid
 
     geometric = make("spine_stiffness", scale=(1.0, 0.1, 10.0), log=True)
@@ -665,11 +665,12 @@ def test_the_replay_floor_keeps_the_logs_own_run_as_a_replay_of_them_makes_it():
     at the floor's setting; that run of the logs is kept as the setting's run. It must be the run a replay of the
     logs alone makes (predictions, starts and carried states, to the bit), and the floor the one measured twin by
     twin, log by log, as before the twins were batched (stop 38)."""
-    from sysid import problem as P
+    from sysid.logs import Log
+    from sysid.problem import FLOOR_TWINS, simulate
 
     adapter = make_adapter("bioloid")
     logs = [synth.synthesize("bioloid", {}, seed, seconds=3.0)[0] for seed in (0, 1)]
-    problem = P.Problem(adapter, logs, nthread=2)
+    problem = Problem(adapter, logs, nthread=2)
     nominal = adapter.catalog_nominal()
     kept = problem._carry[tuple(sorted(nominal.items()))]
     problem._carry.clear()
@@ -682,15 +683,15 @@ def test_the_replay_floor_keeps_the_logs_own_run_as_a_replay_of_them_makes_it():
     squares, count = 0.0, 0
     real = problem.segments
     for source, log in enumerate(logs):
-        clean = P.simulate(adapter, nominal, log.df, log.meta)
+        clean = simulate(adapter, nominal, log.df, log.meta)
         index = problem._by_log[source]
-        for seed in range(P.FLOOR_TWINS):
+        for seed in range(FLOOR_TWINS):
             noise = np.random.default_rng(seed)
             twin = log.df.copy()
             for j, c in enumerate(adapter.channels):
                 twin[c] = adapter.measure(c, clean[:, j] + noise.normal(0.0, problem.sensor_sigma[c], len(clean)))
             problem.segments = list(real)
-            for i, seg in zip(index, adapter.segments(P.Log(log.path, twin, log.meta)), strict=True):
+            for i, seg in zip(index, adapter.segments(Log(log.path, twin, log.meta)), strict=True):
                 seg.n_steps, seg.source = problem.n_steps, source
                 problem.segments[i] = seg
             problem._carry.clear()
@@ -798,8 +799,8 @@ def test_an_estimate_near_the_end_is_refused_only_where_the_cost_does_not_rise_t
     3 was 12,790 against 10,245 at the estimate. Now the cost at the end is read: far above the estimate's (by more
     than the interval's threshold), the estimate is kept and its interval cut at 3; flat out to the end, the data
     would take it further, and it is refused as before."""
+    from envs.common.effects import make
     from sysid import select
-    from sysid.effects import make
     from sysid.fit import FitResult
 
     effect = make("leg_stiffness", scale=(1.0, 0.3, 3.0), carried=True, log=True)

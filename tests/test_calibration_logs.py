@@ -15,8 +15,9 @@ import pytest
 
 import calibrate
 from envs.common.telemetry import write_telemetry
-from sysid.logs import ColumnMap, Log, LogError, read_log, white_noise
+from sysid.logs import ColumnMap, Log, LogError, white_noise
 from sysid.robots import adapter as make_adapter
+from sysid.robots import read_log
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 GEARMOTOR = REAL / "rhex3_motor_speedRamp.csv"
@@ -527,8 +528,6 @@ def test_column_map_units_of_the_right_kind_convert_and_a_missing_unit_is_the_ch
 def test_the_channel_kinds_agree_with_what_the_robots_declare():
     """sysid/logs.py's CHANNEL_UNITS against every robot's telemetry channels and every calibration adapter's
     channels: each declared channel has a known kind, the same as its declaration."""
-    import importlib
-
     from envs.bench.robot import POSE_CHANNELS, MotorRig, ServoRig
     from envs.bioloid.robot import TELEMETRY_COLUMNS as BIOLOID
     from envs.velociroach.robot import TELEMETRY_COLUMNS as ROACH
@@ -537,9 +536,8 @@ def test_the_channel_kinds_agree_with_what_the_robots_declare():
     from sysid.robots import adapters
 
     declared = [BIOLOID, ROACH, XJUS, MotorRig.actuator_channels, ServoRig.actuator_channels, POSE_CHANNELS]
-    for spec in adapters().values():
-        module, _, name = spec.partition(":")
-        declared.append(getattr(importlib.import_module(module), name).channels)
+    for adapter_class in adapters().values():
+        declared.append(adapter_class.channels)
     for channels in declared:
         for channel, unit in channels.items():
             assert channel_unit(channel) == unit, (channel, unit)

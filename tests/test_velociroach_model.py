@@ -4,8 +4,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs.velociroach import constants as C
-from envs.velociroach import facts
+from envs.velociroach import constants, facts
 from envs.velociroach.robot import VelociRoach
 
 RNG = [np.random.default_rng(0)]
@@ -18,21 +17,21 @@ def robot() -> VelociRoach:
 
 
 def test_total_mass_is_30_g(robot):
-    assert robot.facts.mass == pytest.approx(C.MASS, rel=0.05)
+    assert robot.facts.mass == pytest.approx(constants.MASS, rel=0.05)
 
 
 def test_length_is_10_cm(robot):
-    assert facts.overall_length(robot) == pytest.approx(C.LENGTH, rel=0.05)
+    assert facts.overall_length(robot) == pytest.approx(constants.LENGTH, rel=0.05)
 
 
 def test_centre_of_mass_height_standing():
-    assert facts.standing_com_height() == pytest.approx(C.COM_HEIGHT, rel=0.05)
+    assert facts.standing_com_height() == pytest.approx(constants.COM_HEIGHT, rel=0.05)
 
 
 def test_relative_leg_stiffness_in_a_static_load_test():
     result = facts.relative_leg_stiffness()
     assert result["legs_in_stance"] == 3, "the robot stands on a tripod"
-    assert result["k_rel"] == pytest.approx(C.RELATIVE_LEG_STIFFNESS, rel=0.10)
+    assert result["k_rel"] == pytest.approx(constants.RELATIVE_LEG_STIFFNESS, rel=0.10)
     assert result["max_relative_compression"] < 0.05, "the load test stays in the small-compression range"
 
 
@@ -42,15 +41,17 @@ def test_stance_legs_carry_about_0_1_n_each_standing():
     robot = VelociRoach("gait", control_freq=100.0)
     robot.reset(ONE, RNG)
     facts.hold(robot, 1.0)
-    grf = dict(zip(C.LEGS, robot.ground_reaction_forces()[0, :, 2], strict=True))
-    stance = [grf[leg] for leg in C.TRIPOD_A]
-    assert np.mean(stance) == pytest.approx(C.GRF_PER_LEG, rel=0.05)
-    assert all(0.5 * C.GRF_PER_LEG < f < 1.5 * C.GRF_PER_LEG for f in stance), grf
-    assert all(abs(grf[leg]) < 1e-9 for leg in C.LEGS if leg not in C.TRIPOD_A), "the other tripod is in swing"
+    grf = dict(zip(constants.LEGS, robot.ground_reaction_forces()[0, :, 2], strict=True))
+    stance = [grf[leg] for leg in constants.TRIPOD_A]
+    assert np.mean(stance) == pytest.approx(constants.GRF_PER_LEG, rel=0.05)
+    assert all(0.5 * constants.GRF_PER_LEG < f < 1.5 * constants.GRF_PER_LEG for f in stance), grf
+    assert all(abs(grf[leg]) < 1e-9 for leg in constants.LEGS if leg not in constants.TRIPOD_A), (
+        "the other tripod is in swing"
+    )
 
 
 def test_leg_inertia_felt_by_the_crank(robot):
-    assert facts.reflected_leg_inertia(robot) == pytest.approx(C.LEG_INERTIA, rel=0.10)
+    assert facts.reflected_leg_inertia(robot) == pytest.approx(constants.LEG_INERTIA, rel=0.10)
 
 
 def test_motor_reaches_a_45_hz_stride_with_headroom_and_stalls_at_its_datasheet_torque(robot):
@@ -58,7 +59,7 @@ def test_motor_reaches_a_45_hz_stride_with_headroom_and_stalls_at_its_datasheet_
     k, r, v = robot.motors.motor_constant[0, 0], robot.motors.resistance[0, 0], robot.nominal_battery
     assert bench["stall_torque"] == pytest.approx(robot.gear * k * v / r, rel=0.02)
     no_load = v / k / robot.gear / (2 * np.pi)
-    assert C.MAX_STRIDE_FREQUENCY < bench["free_stride_hz"] < no_load
+    assert constants.MAX_STRIDE_FREQUENCY < bench["free_stride_hz"] < no_load
 
 
 def test_model_sizes_are_pinned(robot):
@@ -72,9 +73,9 @@ def test_electrical_power_at_stall_is_v_squared_over_r():
     """Duty mode with the left crank blocked: no back-EMF, so the motor draws (d V)^2 / R."""
 
     def block(spec):
-        spec.delete(spec.joint(C.ROOT_JOINT))
-        spec.body(C.ROOT_BODY).pos[2] = 0.5
-        crank = spec.joint(C.CRANK_JOINTS["left"])
+        spec.delete(spec.joint(constants.ROOT_JOINT))
+        spec.body(constants.ROOT_BODY).pos[2] = 0.5
+        crank = spec.joint(constants.CRANK_JOINTS["left"])
         crank.range = [-1e-4, 1e-4]
         crank.limited = mujoco.mjtLimited.mjLIMITED_TRUE
 
@@ -95,8 +96,8 @@ def test_braking_energy_is_not_returned_to_the_battery():
     nothing, so power is zero, not negative."""
 
     def clamp(spec):
-        spec.delete(spec.joint(C.ROOT_JOINT))
-        spec.body(C.ROOT_BODY).pos[2] = 0.5
+        spec.delete(spec.joint(constants.ROOT_JOINT))
+        spec.body(constants.ROOT_BODY).pos[2] = 0.5
 
     robot = VelociRoach("duty", control_freq=200.0, spec_edits=[clamp])
     robot.reset(ONE, RNG)
@@ -105,6 +106,6 @@ def test_braking_energy_is_not_returned_to_the_battery():
         robot.step()
     robot.command(np.array([[0.0, 0.0]]))
     robot.step()
-    torque = robot.sensor(C.SENSOR_MOTOR_TORQUE["left"])[0, 0]
+    torque = robot.sensor(constants.SENSOR_MOTOR_TORQUE["left"])[0, 0]
     assert torque < 0, "the spinning motor brakes"
     assert robot.read(RNG)["power"][0] == pytest.approx(0.0, abs=1e-12)

@@ -13,7 +13,7 @@ import pytest
 import calibrate
 import envs  # noqa: F401 (registers the ids)
 from envs.common.telemetry import read_telemetry
-from envs.xjus import constants as C
+from envs.xjus import constants
 from sysid import synth
 from sysid.cases import pair, run_case
 from sysid.pipeline import relative_excess, run
@@ -41,9 +41,9 @@ def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path)
     nominal = gym.make("skitter/XjusWalk-v0").unwrapped.robot
     robot = gym.make("skitter/XjusWalk-v0", calibration=str(path)).unwrapped.robot
     m0, m = nominal.model, robot.model
-    for leg in C.LEGS:
-        dof0, dof = (x.joint(C.HIP_JOINTS[leg]).dofadr[0] for x in (m0, m))
-        left = leg in C.LEFT_LEGS
+    for leg in constants.LEGS:
+        dof0, dof = (x.joint(constants.HIP_JOINTS[leg]).dofadr[0] for x in (m0, m))
+        left = leg in constants.LEFT_LEGS
         assert m.dof_frictionloss[dof] == pytest.approx(m0.dof_frictionloss[dof0] + (0.1 if left else 0.0))
         assert m.dof_damping[dof] == pytest.approx(m0.dof_damping[dof0] + (0.0 if left else 0.02))
         assert m.joint(f"{leg}_play").range[1] == pytest.approx(0.025)  # the gearbox's play: +-gap/2
@@ -53,7 +53,7 @@ def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path)
     assert robot.battery[0] == pytest.approx(0.9 * nominal.battery[0])
     drives = [a for a in range(m.nu) if m.actuator(a).name.endswith(("_drive", "_emf"))]
     np.testing.assert_allclose(m.actuator_delay[drives], 0.01)
-    segments = sum(m0.body_mass[m0.body(name).id] for name in C.SEGMENTS)  # plates, housings, motors, battery
+    segments = sum(m0.body_mass[m0.body(name).id] for name in constants.SEGMENTS)  # plates, housings, motors, battery
     assert m.body_subtreemass[0] == pytest.approx(m0.body_subtreemass[0] + 0.1 * segments, rel=1e-9)
     # the driver's deadband on every duty the robot holds
     robot.hold_duty(np.full((1, 6), 0.04))

@@ -9,7 +9,7 @@ import pytest
 from agents import load_policy
 from agents.evaluation import run_episodes
 from envs.common.terrain import Terrain
-from envs.xjus import constants as C
+from envs.xjus import constants
 
 WALK, TURN, ROUGH = "skitter/XjusWalk-v0", "skitter/XjusTurn-v0", "skitter/XjusRough-v0"
 XJUS_IDS = [WALK, TURN, ROUGH]
@@ -73,7 +73,7 @@ def test_the_gait_mode_walk_sends_its_one_action_as_fresh_arrays():
     first, state = policy.predict(obs)
     assert state is None and first.dtype == np.float32 and first.shape == env.action_space.shape
     command = env.unwrapped.robot.mode.to_command(first.astype(np.float64))
-    np.testing.assert_allclose(command, [0.8, C.WALK_SWEEP, C.WALK_SWEEP], rtol=1e-6)
+    np.testing.assert_allclose(command, [0.8, constants.WALK_SWEEP, constants.WALK_SWEEP], rtol=1e-6)
     first[:] = 0.0  # the caller's to change
     again = policy.predict(obs)[0]
     np.testing.assert_array_equal(again, policy.predict(obs)[0])
@@ -117,18 +117,18 @@ def test_telemetry_has_currents_battery_power_and_spine_angles_that_add_up():
         obs, *_, info = env.step(policy.predict(obs)[0])
     df = env.unwrapped.recorder.frame()
     channels = env.unwrapped.robot.telemetry_channels
-    for leg in C.LEGS:
+    for leg in constants.LEGS:
         for name in ("current", "duty", "leg_angle", "leg_speed", "power", "torque"):
             assert f"{name}_{leg}" in channels
-    assert {f"spine_{j}" for j in C.SPINE_JOINTS} <= set(channels)
+    assert {f"spine_{j}" for j in constants.SPINE_JOINTS} <= set(channels)
     assert channels["current_FL"] == "A" and channels["power"] == "W" and channels["spine_front_pitch"] == "rad"
     last = df.iloc[-1]
     c = env.unwrapped.robot.constants
     assert last["current_FL"] == pytest.approx(last["torque_FL"] / c.torque_per_amp)
-    assert last["power"] == pytest.approx(sum(last[f"power_{leg}"] for leg in C.LEGS))
+    assert last["power"] == pytest.approx(sum(last[f"power_{leg}"] for leg in constants.LEGS))
     assert last["power"] == pytest.approx(info["power"])
     assert df["power"].iloc[1:].gt(0).all()
-    assert df[[f"spine_{j}" for j in C.SPINE_JOINTS]].abs().to_numpy().max() > 0.01
+    assert df[[f"spine_{j}" for j in constants.SPINE_JOINTS]].abs().to_numpy().max() > 0.01
     assert df["leg_angle_cmd_FL"].iloc[1:].notna().all() and df["duty_FL"].abs().max() <= 1.0
 
 
@@ -154,7 +154,7 @@ def test_n_single_envs_and_one_batched_env_of_n_agree_with_xjus_parameter_ranges
     stiffness = together.unwrapped.robot.sim.batch.expanded("jnt_stiffness")
     joint = together.unwrapped.robot.model.joint("front_pitch").id
     drawn = [p["spine_stiffness_scale"] for p in together.unwrapped.parameter_values]
-    np.testing.assert_allclose(stiffness[:, joint], C.SPINE_DESIGN_STIFFNESS * np.array(drawn))
+    np.testing.assert_allclose(stiffness[:, joint], constants.SPINE_DESIGN_STIFFNESS * np.array(drawn))
 
 
 def test_terrain_roughness_is_its_rms_height_and_the_same_seed_gives_the_same_ground():
@@ -214,7 +214,7 @@ def test_a_randomized_spine_scale_stays_within_the_stiffness_bound_of_the_spine_
     """A stiffness scale multiplies the spine as built: near its bound, a scale of 20 would take it 20 times past
     (and launch the robot); refused at construction, single and batched, and when set directly. The design spine
     takes the whole range."""
-    near_bound = 0.98 * C.SPINE_STIFFNESS_MAX
+    near_bound = 0.98 * constants.SPINE_STIFFNESS_MAX
     randomize = {"spine_stiffness_scale": (1.0, 20.0)}
     for make in (gym.make, batched):
         kwargs = {"n": 1} if make is batched else {}
@@ -222,7 +222,7 @@ def test_a_randomized_spine_scale_stays_within_the_stiffness_bound_of_the_spine_
             make(WALK, spine_stiffness=near_bound, randomize=randomize, **kwargs)
         assert "\n" not in str(error.value)
         make(WALK, spine_stiffness=near_bound, randomize={"spine_stiffness_scale": (0.1, 1.0)}, **kwargs)
-    gym.make(WALK, randomize={"spine_stiffness_scale": C.SPINE_STIFFNESS_RANGE})
+    gym.make(WALK, randomize={"spine_stiffness_scale": constants.SPINE_STIFFNESS_RANGE})
     robot = gym.make(WALK, spine_stiffness=near_bound).unwrapped.robot  # and a value set directly
     with pytest.raises(ValueError, match=r"spine_stiffness_scale'\] = 20 takes jnt_stiffness"):
         robot.set_parameters(np.array([0]), {"spine_stiffness_scale": 20.0})

@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from envs.actuators.motor import MotorConstants
-from envs.xjus import constants as C
-from envs.xjus import facts
+from envs.xjus import constants, facts
 from envs.xjus.controller import MotorArrays, buehler_clock
 from envs.xjus.robot import COMPLIANT, DUTY, GAIT, RIGID, Xjus, efficiency_cap
 
@@ -20,34 +19,34 @@ def robot() -> Xjus:
 
 
 def test_total_mass_is_4_467_kg_with_the_battery(robot):
-    assert robot.facts.mass == pytest.approx(C.MASS, rel=0.02)
+    assert robot.facts.mass == pytest.approx(constants.MASS, rel=0.02)
     battery = robot.model.geom("battery")
-    assert robot.model.geom_bodyid[battery.id] == robot.model.body(C.ROOT_BODY).id
-    assert float(robot.model.body_mass[robot.model.body(C.ROOT_BODY).id]) > C.BATTERY_MASS
+    assert robot.model.geom_bodyid[battery.id] == robot.model.body(constants.ROOT_BODY).id
+    assert float(robot.model.body_mass[robot.model.body(constants.ROOT_BODY).id]) > constants.BATTERY_MASS
 
 
 def test_body_is_research_rhex_long_and_the_legs_are_7_inch_semicircles(robot):
-    assert facts.body_length(robot) == pytest.approx(C.LENGTH, rel=0.01)
+    assert facts.body_length(robot) == pytest.approx(constants.LENGTH, rel=0.01)
     tip = robot.model.site("FL_tip").pos
-    assert np.linalg.norm(tip) == pytest.approx(C.LEG_DIAMETER, rel=1e-3)
+    assert np.linalg.norm(tip) == pytest.approx(constants.LEG_DIAMETER, rel=1e-3)
 
 
 def test_leg_compliance_in_a_static_load_test():
     """Seed 001 FEA: 29.2 N on a leg deflects it 0.30 in (7.6 mm)."""
     result = facts.leg_load_test()
-    np.testing.assert_allclose(result["toe"], C.LEG_TEST_DEFLECTION, rtol=0.03)
-    np.testing.assert_allclose(result["spring"], C.LEG_TEST_DEFLECTION, rtol=0.03)
+    np.testing.assert_allclose(result["toe"], constants.LEG_TEST_DEFLECTION, rtol=0.03)
+    np.testing.assert_allclose(result["spring"], constants.LEG_TEST_DEFLECTION, rtol=0.03)
 
 
 def test_each_leg_motor_stalls_at_2_17_n_m_and_runs_free_at_29_6_rad_s_in_the_assembled_robot():
     bench = facts.motor_bench(duty=1.0)
-    np.testing.assert_allclose(bench["stall_torque"], C.STALL_TORQUE, rtol=0.01)
-    np.testing.assert_allclose(bench["no_load_speed"], C.NO_LOAD_SPEED, rtol=0.01)
+    np.testing.assert_allclose(bench["stall_torque"], constants.STALL_TORQUE, rtol=0.01)
+    np.testing.assert_allclose(bench["no_load_speed"], constants.NO_LOAD_SPEED, rtol=0.01)
 
 
 def test_motor_constants_are_the_seeds_table_1(robot):
     assert robot.constants == MotorConstants()
-    assert efficiency_cap() == pytest.approx(C.EFFICIENCY_CAP, abs=0.005)
+    assert efficiency_cap() == pytest.approx(constants.EFFICIENCY_CAP, abs=0.005)
     assert robot.facts.extra["efficiency_cap"] == pytest.approx(0.37, abs=0.005)
 
 
@@ -103,11 +102,11 @@ def test_spine_stiffness_and_damping_per_joint_and_axis_through_the_spec():
     stiff = {"front_pitch": 5.0, "front_roll": 10.0, "rear_pitch": 40.0}
     robot = Xjus(GAIT, spine_stiffness=stiff, spine_damping=0.3)
     m = robot.model
-    for joint in C.SPINE_JOINTS:
-        expected = stiff.get(joint, C.SPINE_DESIGN_STIFFNESS)
+    for joint in constants.SPINE_JOINTS:
+        expected = stiff.get(joint, constants.SPINE_DESIGN_STIFFNESS)
         assert m.jnt_stiffness[m.joint(joint).id] == pytest.approx(expected)
         assert m.dof_damping[m.jnt_dofadr[m.joint(joint).id]] == pytest.approx(0.3)
-    assert C.SPINE_DESIGN_STIFFNESS == pytest.approx(19.4, abs=0.05)
+    assert constants.SPINE_DESIGN_STIFFNESS == pytest.approx(19.4, abs=0.05)
 
 
 def test_a_rigid_spine_has_no_spine_joints_and_the_model_sizes_are_pinned():
@@ -115,7 +114,7 @@ def test_a_rigid_spine_has_no_spine_joints_and_the_model_sizes_are_pinned():
     m, r = compliant.model, rigid.model
     assert (m.nq, m.nv, m.nu) == (23, 22, 12)
     assert (r.nq, r.nv, r.nu) == (19, 18, 12)
-    for joint in C.SPINE_JOINTS:
+    for joint in constants.SPINE_JOINTS:
         assert mujoco.mj_name2id(r, mujoco.mjtObj.mjOBJ_JOINT, joint) == -1
     assert compliant.facts.extra["spine"] == COMPLIANT and rigid.facts.extra["spine"] == RIGID
     assert "spine_stiffness_scale" in compliant.parameters and "spine_stiffness_scale" not in rigid.parameters
@@ -147,7 +146,7 @@ def test_bad_robot_arguments_are_refused_in_one_line(kwargs, message):
 
 def test_current_limit_clamps_each_motor_at_its_rating():
     """The seed's 1.08 A continuous rating as a driver limit: the blocked hip's torque stops at 1.08 A x eta N Kt."""
-    limit = C.MOTOR_CONTINUOUS_CURRENT
+    limit = constants.MOTOR_CONTINUOUS_CURRENT
     robot = Xjus(DUTY, spine=RIGID, imu_noise=None, current_limit=limit,
                  spec_edits=[facts.clamp(quat=facts.HIPS_VERTICAL, lock_hips=True)])  # fmt: skip
     robot.reset(ONE, RNG, options={"leg_angles": np.zeros(6)})

@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 
 CONFIGS = Path(__file__).resolve().parent / "cpg_configs"
 DEFAULT_CONFIG = "experiment5"  # the policy ``cpg`` without a file: experiment 5's model at the middle of its box
@@ -141,8 +141,10 @@ def parse_coupling(raw: Any, path: str = "<inline>") -> Coupling:
         )
     names = tuple(oscillators)
     for name in names:
-        if name not in C.SERVO_INDEX:
-            raise CouplingError(f"{path}: field 'oscillators': {name!r} is not a servo; servos: {', '.join(C.SERVOS)}")
+        if name not in constants.SERVO_INDEX:
+            raise CouplingError(
+                f"{path}: field 'oscillators': {name!r} is not a servo; servos: {', '.join(constants.SERVOS)}"
+            )
     inputs, bidir = [], []
     for name, spec in oscillators.items():
         where = f"{path}: field 'oscillators.{name}'"
@@ -176,11 +178,11 @@ def parse_coupling(raw: Any, path: str = "<inline>") -> Coupling:
     if not isinstance(fixed, Mapping):
         raise CouplingError(f"{path}: field 'fixed' must map servos to counts, got {fixed!r}")
     for servo, count in fixed.items():
-        if servo not in C.SERVO_INDEX:
+        if servo not in constants.SERVO_INDEX:
             raise CouplingError(f"{path}: field 'fixed': {servo!r} is not a servo")
         if servo in oscillators:
             raise CouplingError(f"{path}: field 'fixed': {servo!r} also has an oscillator")
-        low, high = C.SERVO_RANGE[servo]
+        low, high = constants.SERVO_RANGE[servo]
         _number(f"{path}: field 'fixed.{servo}'", count, low, high)
     free = raw.get("free_frequency", [])
     if not isinstance(free, list) or any(f not in oscillators for f in free):
@@ -300,11 +302,11 @@ class CPG:
             f_lo, f_hi = r["frequency"]
             frequency[:, list(c.free_frequency)] = (f_lo + p[:, -1] * (f_hi - f_lo))[:, None]
         self.rate = 2.0 * np.pi * frequency  # 1 / tau
-        stand = np.array([C.STAND_ANGLES[s] for s in C.SERVOS])
-        self.base_counts = C.CENTER + stand / C.RAD_PER_COUNT
+        stand = np.array([constants.STAND_ANGLES[s] for s in constants.SERVOS])
+        self.base_counts = constants.CENTER + stand / constants.RAD_PER_COUNT
         for servo, count in c.fixed.items():
-            self.base_counts[C.SERVO_INDEX[servo]] = count
-        self.columns = np.array([C.SERVO_INDEX[s] for s in c.oscillators])
+            self.base_counts[constants.SERVO_INDEX[servo]] = count
+        self.columns = np.array([constants.SERVO_INDEX[s] for s in c.oscillators])
         self.sign = np.array([-1.0 if s in MIRRORED else 1.0 for s in c.oscillators])
         self._floor = FLOOR * self.energy
         self.reset()
@@ -339,8 +341,8 @@ class CPG:
         """Goal counts (n, 16) of the oscillators' present state, clipped to the servos' allowed ranges."""
         goal = np.tile(self.base_counts, (len(self.x), 1))
         angle = self.sign * (self.offset + AMPLITUDE_SCALE * self.x)
-        goal[:, self.columns] += angle / C.RAD_PER_COUNT
-        return np.clip(goal, C.RANGE_LOW, C.RANGE_HIGH)
+        goal[:, self.columns] += angle / constants.RAD_PER_COUNT
+        return np.clip(goal, constants.RANGE_LOW, constants.RANGE_HIGH)
 
 
 class CPGController:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 from envs.bioloid.kinematics import Ellipse, LegGeometry
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
@@ -59,7 +59,7 @@ DEFAULT_FREQUENCY = 1.5  # Hz: the issue's reference trot (the seed's trot score
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
 TURN_GAIN = 0.2  # rad/s of yaw rate with one side's stride at 0 (measured at 1.5 Hz: 0.13-0.28, docs/bioloid.md)
 HEADING_GAIN = 1.0  # stride reduction per rad of heading error
-SIDE = np.array([0.0 if C.LEG_SIDE[leg] == "left" else 1.0 for leg in C.LEGS])  # 0 left, 1 right
+SIDE = np.array([0.0 if constants.LEG_SIDE[leg] == "left" else 1.0 for leg in constants.LEGS])  # 0 left, 1 right
 
 
 def touchdown_fraction(gait: Gait) -> np.ndarray:
@@ -99,12 +99,12 @@ class IKGait:
         self.steer = "yaw_rate_command" in layout if steer is None else bool(steer)
         if self.steer and "yaw_rate_command" not in layout:
             raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn-v1)")
-        self.geometry = [LegGeometry.of(leg, wedge) for leg in C.LEGS]
+        self.geometry = [LegGeometry.of(leg, wedge) for leg in constants.LEGS]
         self.ellipses = [Ellipse.seed_rules(g) for g in self.geometry]
-        stand = np.array([C.STAND_ANGLES[s] for s in C.SERVOS])
-        self.stand_counts = C.CENTER + stand / C.RAD_PER_COUNT
-        self._hips = np.array([C.SERVO_INDEX[C.HIP[leg]] for leg in C.LEGS])
-        self._knees = np.array([C.SERVO_INDEX[C.KNEE[leg]] for leg in C.LEGS])
+        stand = np.array([constants.STAND_ANGLES[s] for s in constants.SERVOS])
+        self.stand_counts = constants.CENTER + stand / constants.RAD_PER_COUNT
+        self._hips = np.array([constants.SERVO_INDEX[constants.HIP[leg]] for leg in constants.LEGS])
+        self._knees = np.array([constants.SERVO_INDEX[constants.KNEE[leg]] for leg in constants.LEGS])
         self._phases = np.asarray(self.gait.phases)
         # every leg in one numpy call (the same arithmetic as leg by leg)
         self._legs, self._ellipses = LegGeometry.stack(self.geometry), Ellipse.stack(self.ellipses)
@@ -138,8 +138,8 @@ class IKGait:
         goal = np.tile(self.stand_counts, (len(t), 1))
         x, z = self._ellipses.point(phase, strides)
         hip, knee, limited = self._legs.inverse(x, z)
-        goal[:, self._hips] = C.CENTER + hip / C.RAD_PER_COUNT
-        goal[:, self._knees] = C.CENTER + knee / C.RAD_PER_COUNT
+        goal[:, self._hips] = constants.CENTER + hip / constants.RAD_PER_COUNT
+        goal[:, self._knees] = constants.CENTER + knee / constants.RAD_PER_COUNT
         return goal, limited
 
     def predict(
@@ -207,7 +207,7 @@ class IKRollouts:
         self.t = np.zeros(len(self.rows))
 
     def commands(self) -> np.ndarray:
-        goals = np.empty((len(self.rows), len(C.SERVOS)))
+        goals = np.empty((len(self.rows), len(constants.SERVOS)))
         for i, gait in enumerate(self.rows):
             t = self.t[i : i + 1]
             goals[i] = gait.counts(t, np.ones((1, 4)) * gait.lead_in(t)[:, None])[0][0]

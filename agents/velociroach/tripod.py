@@ -20,7 +20,7 @@ import numpy as np
 
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
-from envs.velociroach import constants as C
+from envs.velociroach import constants
 from envs.velociroach.robot import DUTY, FIRMWARE_PID, wrap_angle
 
 TURN_TABLE = Path(__file__).resolve().parent / "turn_table.json"
@@ -56,9 +56,9 @@ class TripodGait:
         phase: how far the right legs trail the left, rad (pi: alternating tripod, straight).
     """
 
-    def __init__(self, context: TripodContext, frequency: float = 20.0, phase: float = C.STRAIGHT_PHASE):
-        if not 0 <= frequency <= C.MAX_COMMAND_FREQUENCY:
-            raise ValueError(f"frequency must be in [0, {C.MAX_COMMAND_FREQUENCY:g}] Hz, got {frequency}")
+    def __init__(self, context: TripodContext, frequency: float = 20.0, phase: float = constants.STRAIGHT_PHASE):
+        if not 0 <= frequency <= constants.MAX_COMMAND_FREQUENCY:
+            raise ValueError(f"frequency must be in [0, {constants.MAX_COMMAND_FREQUENCY:g}] Hz, got {frequency}")
         self.context = context
         self.frequency = float(frequency)
         self.phase = float(phase)
@@ -111,7 +111,7 @@ class TripodGait:
         omega = 2.0 * np.pi * self.frequency
         # the right clock moves toward its phase at most PHASE_SLEW, as the firmware does
         lag = wrap_angle(state[:, 0] - state[:, 1] - phase)
-        correction = np.clip(lag, -C.PHASE_SLEW * dt, C.PHASE_SLEW * dt)
+        correction = np.clip(lag, -constants.PHASE_SLEW * dt, constants.PHASE_SLEW * dt)
         state[:, 0] += omega * dt
         state[:, 1] += omega * dt + correction
         error = wrap_angle(state[:, :2] - measured)

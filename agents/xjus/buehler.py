@@ -26,7 +26,7 @@ import numpy as np
 
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
-from envs.xjus import constants as C
+from envs.xjus import constants
 from envs.xjus.controller import Gait, MotorArrays, pd_torque, stand_targets, wrap_angle
 from envs.xjus.robot import DUTY, GAIT
 
@@ -79,12 +79,14 @@ class BuehlerController:
     """
 
     def __init__(self, context: XjusContext, routine: str = "walk", period: float = WALK_PERIOD,
-                 sweep: float = C.WALK_SWEEP):  # fmt: skip
+                 sweep: float = constants.WALK_SWEEP):  # fmt: skip
         if routine not in ROUTINES:
             raise ValueError(f"routine must be one of {ROUTINES}, got {routine!r}")
-        if not C.PERIOD_RANGE[0] <= period <= C.PERIOD_RANGE[1]:
-            raise ValueError(f"period must be in [{C.PERIOD_RANGE[0]}, {C.PERIOD_RANGE[1]}] s, got {period!r}")
-        if not C.SWEEP_RANGE[0] <= sweep <= C.SWEEP_RANGE[1]:
+        if not constants.PERIOD_RANGE[0] <= period <= constants.PERIOD_RANGE[1]:
+            raise ValueError(
+                f"period must be in [{constants.PERIOD_RANGE[0]}, {constants.PERIOD_RANGE[1]}] s, got {period!r}"
+            )
+        if not constants.SWEEP_RANGE[0] <= sweep <= constants.SWEEP_RANGE[1]:
             raise ValueError(f"sweep must be in [0, pi/2] rad, got {sweep!r}")
         if routine == "stand" and context.mode.name == GAIT:
             raise ValueError("the stand routine needs action_mode='duty': the gait mode's clock always runs")
@@ -109,7 +111,7 @@ class BuehlerController:
         s, c = layout.get(obs, "heading_error").T
         difference = command / TURN_GAIN - HEADING_GAIN * np.arctan2(s, c)
         half = 0.5 * np.clip(difference, -MAX_SWEEP_DIFFERENCE, MAX_SWEEP_DIFFERENCE)
-        return np.clip(np.column_stack([self.sweep - half, self.sweep + half]), *C.SWEEP_RANGE)
+        return np.clip(np.column_stack([self.sweep - half, self.sweep + half]), *constants.SWEEP_RANGE)
 
     def predict(
         self,
@@ -158,10 +160,12 @@ class BuehlerController:
         speed = layout.get(obs, "leg_velocity")
         period = np.full(n, self.period)
         if self.routine == "stand":
-            target, rate, accel = stand_targets(n, len(C.LEGS))
+            target, rate, accel = stand_targets(n, len(constants.LEGS))
         else:
             target, rate, accel = self.gait.targets(phase, period, sweeps)
-        torque = pd_torque(wrap_angle(target - angle), rate - speed, accel, ctx.hip_inertia, C.PD_KP, C.PD_KD)
+        torque = pd_torque(
+            wrap_angle(target - angle), rate - speed, accel, ctx.hip_inertia, constants.PD_KP, constants.PD_KD
+        )
         duty = ctx.motors(layout.get(obs, "battery")[:, 0]).duty_for_torque(torque, speed)
         if self.routine != "stand":
             phase = np.mod(phase + ctx.control_dt / period, 1.0)

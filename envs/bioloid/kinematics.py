@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from envs.bioloid import constants as C
+from envs.bioloid import constants
 
 
 @dataclass(frozen=True)
@@ -32,14 +32,14 @@ class LegGeometry:
         wedge: the shank's fixed turn about the knee, rad (0 without the wedge).
     """
 
-    thigh: float = C.ABDUCTION_DROP + C.THIGH
-    shank: float = C.SHANK
+    thigh: float = constants.ABDUCTION_DROP + constants.THIGH
+    shank: float = constants.SHANK
     offset: float = 0.0
     wedge: float = 0.0
 
     @classmethod
     def of(cls, leg: str, wedge: float = 0.0) -> LegGeometry:
-        return cls(offset=-C.BACK_CRUTCH_OFFSET if leg.startswith("B") else 0.0, wedge=wedge)
+        return cls(offset=-constants.BACK_CRUTCH_OFFSET if leg.startswith("B") else 0.0, wedge=wedge)
 
     @classmethod
     def stack(cls, legs: list[LegGeometry]) -> LegGeometry:
@@ -75,8 +75,8 @@ class LegGeometry:
         cos_bend = np.clip((r2 - l1 * l1 - ls * ls) / (2.0 * l1 * ls), -1.0, 1.0)
         bend = np.arccos(cos_bend)  # >= 0: the foot behind the thigh's line, as the seed's Figure 27 bends it
         knee = bend - self.wedge - self.shank_angle
-        limited = knee > C.KNEE_LIMIT + 1e-9  # the ellipse's top reaches the limit exactly
-        knee = np.clip(knee, -C.KNEE_EXTENSION, C.KNEE_LIMIT)
+        limited = knee > constants.KNEE_LIMIT + 1e-9  # the ellipse's top reaches the limit exactly
+        knee = np.clip(knee, -constants.KNEE_EXTENSION, constants.KNEE_LIMIT)
         bend = knee + self.wedge + self.shank_angle
         hip = np.arctan2(-x, -z) - np.arctan2(ls * np.sin(bend), l1 + ls * np.cos(bend))
         return hip, knee, limited

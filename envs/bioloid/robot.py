@@ -14,7 +14,8 @@ import numpy as np
 
 from envs.actuators.dcmotor import GAIN_KP
 from envs.actuators.servo import Servo, ServoConstants
-from envs.bioloid import constants as C
+from envs.bioloid import constants
+from envs.bioloid.effects import add_backlash, bioloid_effects, delay_edit, effects_edit
 from envs.bioloid.kinematics import Ellipse, LegGeometry
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
@@ -37,8 +38,8 @@ def _telemetry_channels() -> dict[str, str]:
         ("load", "count"),
         ("servo_power", "W"),
     ):
-        cols.update({f"{channel}_{servo}": unit for servo in C.SERVOS})
-    cols.update({f"touch_{leg}": "N" for leg in C.LEGS})
+        cols.update({f"{channel}_{servo}": unit for servo in constants.SERVOS})
+    cols.update({f"touch_{leg}": "N" for leg in constants.LEGS})
     cols["vbatt"] = "V"
     cols.update({f"gyro_{a}": "rad/s" for a in "xyz"})
     cols.update({f"accel_{a}": "m/s^2" for a in "xyz"})
@@ -54,22 +55,22 @@ TELEMETRY_COLUMNS: dict[str, str] = _telemetry_channels()
 def ready_angles(wedge: float = 0.0) -> dict[str, float]:
     """The gaits' ready posture, servo -> rad: the standing posture with every sole at the centre of the seed's
     ellipse under its hip (knees bent by the IK)."""
-    angles = dict(C.STAND_ANGLES)
-    for leg in C.LEGS:
+    angles = dict(constants.STAND_ANGLES)
+    for leg in constants.LEGS:
         geometry = LegGeometry.of(leg, wedge)
         ellipse = Ellipse.seed_rules(geometry)
         hip, knee, _ = geometry.inverse(ellipse.h, ellipse.k)
-        angles[C.HIP[leg]], angles[C.KNEE[leg]] = float(hip), float(knee)
+        angles[constants.HIP[leg]], angles[constants.KNEE[leg]] = float(hip), float(knee)
     return angles
 
 
-def knee_wedge_edit(angle: float = C.KNEE_WEDGE) -> SpecEdit:
+def knee_wedge_edit(angle: float = constants.KNEE_WEDGE) -> SpecEdit:
     """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, seed 002 IV.A)."""
 
     def edit(spec: mujoco.MjSpec) -> None:
         half = angle / 2.0
-        for leg in C.LEGS:
-            body = spec.body(C.KNEE[leg])
+        for leg in constants.LEGS:
+            body = spec.body(constants.KNEE[leg])
             # the knee axis is the shank body's own z; turning the body's frame turns the shank and its crutch
             body.quat = [math.cos(half), 0.0, 0.0, math.sin(half)]
 
@@ -103,19 +104,19 @@ class Bioloid(Robot):
         imu_noise: the IMU's error model (the seed's robot has no IMU; one on the CM-5 is assumed so that heading
             tasks can run); None for a perfect IMU.
         spec_edits, num_sims, nthread, batched, calibration: as for every robot (``calibration``: a file written by
-            ``calibrate.py --robot bioloid``, envs/bioloid/calibration.py).
+            ``calibrate.py --robot bioloid``, sysid/adapters/bioloid.py).
     """
 
     name = "bioloid"
-    root_body = C.ROOT_BODY
+    root_body = constants.ROOT_BODY
     action_modes: ClassVar[dict[str, ActionMode]] = {
         GOAL: ActionMode(
             GOAL,
-            C.SERVOS,
-            ("count",) * len(C.SERVOS),
-            tuple(C.RANGE_LOW.tolist()),
-            tuple(C.RANGE_HIGH.tolist()),
-            C.CONTROL_FREQ,
+            constants.SERVOS,
+            ("count",) * len(constants.SERVOS),
+            tuple(constants.RANGE_LOW.tolist()),
+            tuple(constants.RANGE_HIGH.tolist()),
+            constants.CONTROL_FREQ,
             "goal position of each servo, counts (512 = 0 rad, 0.293 deg per count)",
         ),
     }
@@ -137,45 +138,45 @@ class Bioloid(Robot):
         knee_wedge = check_flag("knee_wedge", knee_wedge)
         if servo is not None and not isinstance(servo, ServoConstants):
             raise ValueError(f"servo must be a ServoConstants, got {servo!r}")
-        constants = servo or ServoConstants(supply_voltage=C.BATTERY_VOLTAGE)
+        servo_constants = servo or ServoConstants(supply_voltage=constants.BATTERY_VOLTAGE)
         if battery_voltage is not None:
             supply = check_number("battery_voltage", battery_voltage, 0, strict=True)
-            constants = replace(constants, supply_voltage=supply)
+            servo_constants = replace(servo_constants, supply_voltage=supply)
         self.knee_wedge = knee_wedge
-        self.wedge = C.KNEE_WEDGE if knee_wedge else 0.0
-        self.servo = Servo(C.SERVOS, constants)
-        self.nominal_battery = constants.supply_voltage
+        self.wedge = constants.KNEE_WEDGE if knee_wedge else 0.0
+        self.servo = Servo(constants.SERVOS, servo_constants)
+        self.nominal_battery = servo_constants.supply_voltage
         self.imu_noise = imu_noise
         super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched, calibration)
 
     @classmethod
     def xml_path(cls) -> Path:
-        return C.SCENE_XML
+        return constants.SCENE_XML
 
     # --- building -----------------------------------------------------------------------------------------------
     def configure(self, spec: mujoco.MjSpec) -> None:
-        for name in C.SERVOS:
+        for name in constants.SERVOS:
             joint = spec.joint(name)
-            knee = name in C.KNEE.values()
-            joint.range = [-C.KNEE_EXTENSION, C.KNEE_LIMIT] if knee else [-C.JOINT_STOP, C.JOINT_STOP]
+            knee = name in constants.KNEE.values()
+            joint.range = (
+                [-constants.KNEE_EXTENSION, constants.KNEE_LIMIT]
+                if knee
+                else [-constants.JOINT_STOP, constants.JOINT_STOP]
+            )
             joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         if self.knee_wedge:
             knee_wedge_edit(self.wedge)(spec)
         self.servo.configure(spec)
 
     def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
-        from envs.bioloid.calibration import bioloid_effects
-
         dt = float(mujoco.MjSpec.from_file(str(self.xml_path())).option.timestep)
         return {name: {p.name: (p.low, p.high) for p in e.params}
                 for name, e in bioloid_effects(dt).items() if e.catalogued}  # fmt: skip
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
-        """The calibration's model effects as spec edits (envs/bioloid/calibration.py): joint friction and inertia,
+        """The calibration's model effects as spec edits (envs/bioloid/effects.py): joint friction and inertia,
         the servos' gain and supply, the crutches' contact, BODY's mass and centre of mass, the gear trains' play and
         the goals' delay. A position offset describes the logging robot's sensors and changes nothing here."""
-        from envs.bioloid.calibration import add_backlash, delay_edit, effects_edit
-
         setting = calibration.setting
         gap, delay = setting.get("backlash.gap", 0.0), setting.get("delay.seconds", 0.0)
         return [effects_edit(setting), *([add_backlash(gap)] if gap > 1e-6 else []),
@@ -190,29 +191,29 @@ class Bioloid(Robot):
 
         s = self.servo
         self._i_pos, self._i_torque, self._i_speed = (_as_slice(a) for a in (s.pos_adr, s.torque_adr, s.speed_adr))
-        self._i_gyro, self._i_accel = idx(C.SENSOR_GYRO), idx(C.SENSOR_ACCEL)
+        self._i_gyro, self._i_accel = idx(constants.SENSOR_GYRO), idx(constants.SENSOR_ACCEL)
         self._i_imu = _as_slice(np.concatenate([self._i_gyro, self._i_accel]))
-        self._i_body = _as_slice(idx(C.SENSOR_BODY_POS, C.SENSOR_BODY_QUAT, C.SENSOR_BODY_VEL))
-        self._i_touch = _as_slice(idx(*(C.SENSOR_TOUCH[leg] for leg in C.LEGS)))
+        self._i_body = _as_slice(idx(constants.SENSOR_BODY_POS, constants.SENSOR_BODY_QUAT, constants.SENSOR_BODY_VEL))
+        self._i_touch = _as_slice(idx(*(constants.SENSOR_TOUCH[leg] for leg in constants.LEGS)))
         self._i_gyro_z = int(self._i_gyro[2])
         c = s.constants
         self._count_per_rad, self._rad_per_count, self._center = 1.0 / c.rad_per_count, c.rad_per_count, c.center
         self._inv_gear = 1.0 / s.motors.gear
-        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, constants.ROOT_JOINT)
         self._root_qpos = int(m.jnt_qposadr[root]) if root >= 0 else None
         self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None
-        self._servo_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in C.SERVOS])
-        self._servo_dofs = np.array([m.jnt_dofadr[m.joint(j).id] for j in C.SERVOS])
-        joints = np.array([m.joint(j).id for j in C.SERVOS])
+        self._servo_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in constants.SERVOS])
+        self._servo_dofs = np.array([m.jnt_dofadr[m.joint(j).id] for j in constants.SERVOS])
+        joints = np.array([m.joint(j).id for j in constants.SERVOS])
         self._joint_low, self._joint_high = m.jnt_range[joints, 0].copy(), m.jnt_range[joints, 1].copy()
-        self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
+        self._mass = float(m.body_subtreemass[m.body(constants.ROOT_BODY).id])
         self.ready = ready_angles(self.wedge)
-        self.ready_counts = np.array([self.servo.constants.counts_of(self.ready[s]) for s in C.SERVOS])
+        self.ready_counts = np.array([self.servo.constants.counts_of(self.ready[s]) for s in constants.SERVOS])
         self.goal = np.tile(self.ready_counts, (n, 1))
         self.battery = np.full(n, self.nominal_battery)
         self.imu = Imu(n, self.imu_noise, self.control_dt, float(m.opt.timestep))
         self._imu = np.zeros((n, 6))
-        self._servo_power = np.zeros((n, len(C.SERVOS)))
+        self._servo_power = np.zeros((n, len(constants.SERVOS)))
         self._senses = np.zeros((n, sum(self.sense_structure.values())))
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
@@ -220,9 +221,9 @@ class Bioloid(Robot):
         c = self.servo.constants
         actuators = self.servo.motors.ids
         robot_geoms = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] != 0])
-        feet = np.array([model.geom(C.FOOT_GEOM[leg]).id for leg in C.LEGS]
-                        + [model.geom(C.CRUTCH_GEOM[leg]).id for leg in C.LEGS])  # fmt: skip
-        body = model.body(C.ROOT_BODY).id
+        feet = np.array([model.geom(constants.FOOT_GEOM[leg]).id for leg in constants.LEGS]
+                        + [model.geom(constants.CRUTCH_GEOM[leg]).id for leg in constants.LEGS])  # fmt: skip
+        body = model.body(constants.ROOT_BODY).id
         dofs = self._servo_dofs
         p = ParameterMap()
         p.add(Parameter("battery_voltage", "V", c.supply_voltage, 6.0, 12.6,
@@ -264,10 +265,10 @@ class Bioloid(Robot):
     def facts(self) -> Facts:
         return Facts(
             mass=self._mass,
-            length=C.LENGTH,
-            legs=C.LEGS,
+            length=constants.LENGTH,
+            legs=constants.LEGS,
             extra={
-                "servos": C.SERVOS,
+                "servos": constants.SERVOS,
                 "knee_wedge": self.knee_wedge,
                 "supply_voltage": self.nominal_battery,
                 "stall_torque": self.servo.constants.stall_torque,
@@ -276,7 +277,7 @@ class Bioloid(Robot):
 
     @property
     def sense_structure(self) -> dict[str, int]:
-        n = len(C.SERVOS)
+        n = len(constants.SERVOS)
         return {"leg_cos": n, "leg_sin": n, "servo_speed": n, "servo_load": n, "gyro": 3, "accel": 3, "battery": 1}
 
     @property
@@ -286,7 +287,7 @@ class Bioloid(Robot):
     @property
     def channel_limits(self) -> dict[str, ChannelLimit]:
         servo = self.servo.constants.channel_limits()  # every servo an AX-12
-        return {f"{channel}_{s}": servo[channel] for channel in servo for s in C.SERVOS}
+        return {f"{channel}_{s}": servo[channel] for channel in servo for s in constants.SERVOS}
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:
@@ -299,8 +300,8 @@ class Bioloid(Robot):
                 1.0,
                 tuple(f"goal_{s}" for s in ("F_L_1", "F_L_3")),
             ),
-            PlotGroup("hip torques", "N m", tuple(f"torque_{C.HIP[leg]}" for leg in C.LEGS)),
-            PlotGroup("foot contact force", "N", tuple(f"touch_{leg}" for leg in C.LEGS)),
+            PlotGroup("hip torques", "N m", tuple(f"torque_{constants.HIP[leg]}" for leg in constants.LEGS)),
+            PlotGroup("foot contact force", "N", tuple(f"touch_{leg}" for leg in constants.LEGS)),
             PlotGroup("battery power", "W", ("power",)),
         )
 
@@ -314,7 +315,7 @@ class Bioloid(Robot):
         if self._root_qpos is not None:
             data.qpos[self._root_qpos : self._root_qpos + 7] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
         mujoco.mj_kinematics(m, data)
-        lowest = min(data.site(C.SOLE_SITE[leg]).xpos[2] for leg in C.LEGS)
+        lowest = min(data.site(constants.SOLE_SITE[leg]).xpos[2] for leg in constants.LEGS)
         return float(-lowest)
 
     def reset(
@@ -329,13 +330,13 @@ class Bioloid(Robot):
         m = self.model
         k = len(ids)
         qpos, qvel = np.tile(m.qpos0, (k, 1)), np.zeros((k, m.nv))
-        base = np.array([self.ready[s] for s in C.SERVOS])
+        base = np.array([self.ready[s] for s in constants.SERVOS])
         if "counts" in options or "angles" in options:
             base = self._option_posture(options)
         fixed_height = None if "height" not in options else check_number("options['height']", options["height"], 0)
         heights: dict[bytes, float] = {}
         for j, rng in enumerate(rngs):
-            angles = base + 0.2 * rng.uniform(-noise, noise, len(C.SERVOS))
+            angles = base + 0.2 * rng.uniform(-noise, noise, len(constants.SERVOS))
             lin, ang = rng.normal(0.0, noise / 20.0, 3), rng.normal(0.0, noise / 2.0, 3)
             angles = np.clip(angles, self._joint_low, self._joint_high)
             qpos[j, self._servo_qpos] = angles
@@ -355,13 +356,15 @@ class Bioloid(Robot):
     def _option_posture(options: Mapping) -> np.ndarray:
         key = "counts" if "counts" in options else "angles"
         values = np.asarray(options[key], dtype=np.float64)
-        if values.shape != (len(C.SERVOS),) or not np.isfinite(values).all():
-            raise ValueError(f"options[{key!r}] must be {len(C.SERVOS)} finite numbers in SERVOS order, got {values!r}")
-        return (values - C.CENTER) * C.RAD_PER_COUNT if key == "counts" else values
+        if values.shape != (len(constants.SERVOS),) or not np.isfinite(values).all():
+            raise ValueError(
+                f"options[{key!r}] must be {len(constants.SERVOS)} finite numbers in SERVOS order, got {values!r}"
+            )
+        return (values - constants.CENTER) * constants.RAD_PER_COUNT if key == "counts" else values
 
     def command(self, command: np.ndarray) -> None:
         """Goal positions (n, 16) in counts, clipped to each servo's allowed range, held over the control block."""
-        self.goal[:] = np.minimum(np.maximum(command, C.RANGE_LOW), C.RANGE_HIGH)
+        self.goal[:] = np.minimum(np.maximum(command, constants.RANGE_LOW), constants.RANGE_HIGH)
         self.servo.set_goal(self.sim.ctrl, self.goal)
 
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
@@ -376,7 +379,7 @@ class Bioloid(Robot):
         self._imu = self.imu.update(sd[:, self._i_imu], sub[:, :, self._i_gyro_z], rngs, stepped)
         # the angle as the servo reports it: a whole count
         angle = (np.rint(sd[:, self._i_pos] * self._count_per_rad + self._center) - self._center) * self._rad_per_count
-        n = len(C.SERVOS)
+        n = len(constants.SERVOS)
         senses = self._senses
         np.cos(angle, out=senses[:, 0:n])
         np.sin(angle, out=senses[:, n : 2 * n])

@@ -1,10 +1,7 @@
-"""The VelociRoACH (seed 000): robot, tasks, real-telemetry format. ``ENVS`` is what envs/__init__.py registers;
-``CALIBRATION`` names the calibration adapter (``calibrate.py --robot roach``), ``LOG_READERS`` the reader of its text
-telemetry for calibration."""
+"""The VelociRoACH [roach-sim]: robot, tasks, real-telemetry format. ``ENVS`` is what envs/__init__.py registers; its
+calibration adapter and the reader of its text telemetry for calibration are in sysid/adapters."""
 
 EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
-CALIBRATION = {"roach": "envs.velociroach.calibration:RoachAdapter"}
-LOG_READERS = ["envs.velociroach.logs:READER"]
 _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
 
 ENVS = [

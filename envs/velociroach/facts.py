@@ -9,7 +9,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from envs.velociroach import constants as C
+from envs.velociroach import constants
 from envs.velociroach.robot import VelociRoach
 
 GRAVITY = 9.81
@@ -23,7 +23,7 @@ def overall_length(robot: VelociRoach) -> float:
     """Fore-aft extent (m) of the robot's geoms at the home pose, legs included."""
     robot.reset(ONE, RNG)
     m, d = robot.model, robot.data
-    root = m.body(C.ROOT_BODY).id
+    root = m.body(constants.ROOT_BODY).id
     xs = []
     for g in range(m.ngeom):
         if m.body_rootid[m.geom_bodyid[g]] != root:
@@ -39,7 +39,7 @@ def hold(robot: VelociRoach, seconds: float, load: float = 0.0) -> tuple[float, 
     """Hold the cranks still (firmware clock stopped) under an extra downward load (N) on the body; return the mean
     centre-of-mass height over the last fifth of the time and the number of legs touching the ground."""
     d = robot.data
-    body = robot.model.body(C.ROOT_BODY).id
+    body = robot.model.body(constants.ROOT_BODY).id
     d.xfrc_applied[body] = [0, 0, -load, 0, 0, 0]
     steps = max(1, round(seconds / robot.control_dt))
     heights = []
@@ -84,8 +84,8 @@ def relative_leg_stiffness(loads: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15)) ->
         "k_total": float(k_total),
         "legs_in_stance": n,
         "k_leg": float(k_leg),
-        "k_rel": float(k_leg * C.COM_HEIGHT / weight),
-        "max_relative_compression": float((heights[0] - heights[-1]) / C.COM_HEIGHT),
+        "k_rel": float(k_leg * constants.COM_HEIGHT / weight),
+        "max_relative_compression": float((heights[0] - heights[-1]) / constants.COM_HEIGHT),
     }
 
 
@@ -101,8 +101,8 @@ def motor_bench(duty: float = 1.0, seconds: float = 1.0) -> dict[str, float]:
     crank (at rest) and free-running stride frequency at ``duty``."""
 
     def clamp(spec: mujoco.MjSpec) -> None:
-        spec.delete(spec.joint(C.ROOT_JOINT))
-        spec.body(C.ROOT_BODY).pos[2] = 0.5
+        spec.delete(spec.joint(constants.ROOT_JOINT))
+        spec.body(constants.ROOT_BODY).pos[2] = 0.5
 
     robot = VelociRoach("duty", control_freq=1000.0, spec_edits=[clamp])
     robot.reset(ONE, RNG)

@@ -15,10 +15,13 @@ from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
 from envs.common.telemetry import ChannelLimit
-from envs.velociroach import constants as C
+from envs.velociroach import constants
+from envs.velociroach.effects import delay_edit, effects_edit, roach_effects
 
 GAIT, DUTY = "gait", "duty"
-FIRMWARE_PID = PIDGains(kp=C.PID_KP, ki=C.PID_KI, kd=C.PID_KD, integral_limit=C.PID_INTEGRAL_LIMIT)
+FIRMWARE_PID = PIDGains(
+    kp=constants.PID_KP, ki=constants.PID_KI, kd=constants.PID_KD, integral_limit=constants.PID_INTEGRAL_LIMIT
+)
 
 
 def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
@@ -30,13 +33,13 @@ def _telemetry_channels() -> dict[str, str]:
     cols = {"time": "s"}
     channels = (("leg_angle_cmd", "rad"), ("leg_angle", "rad"), ("duty", "1"), ("torque", "N m"), ("bemf", "V"))
     for channel, unit in channels:
-        cols.update({f"{channel}_{side}": unit for side in C.SIDES})
+        cols.update({f"{channel}_{side}": unit for side in constants.SIDES})
     cols["vbatt"] = "V"
     cols.update({f"gyro_{a}": "rad/s" for a in "xyz"})
     cols.update({f"accel_{a}": "m/s^2" for a in "xyz"})
     cols.update({f"pos_{a}": "m" for a in "xyz"})
     cols.update({f"quat_{a}": "1" for a in "wxyz"})
-    cols.update({f"grf_{leg}_{a}": "N" for leg in C.LEGS for a in "xyz"})
+    cols.update({f"grf_{leg}_{a}": "N" for leg in constants.LEGS for a in "xyz"})
     cols["power"] = "W"
     return cols
 
@@ -73,14 +76,14 @@ class VelociRoach(Robot):
     """
 
     name = "velociroach"
-    root_body = C.ROOT_BODY
+    root_body = constants.ROOT_BODY
     action_modes: ClassVar[dict[str, ActionMode]] = {
         GAIT: ActionMode(
             GAIT,
             ("freq_left", "freq_right", "phase"),
             ("Hz", "Hz", "rad"),
             (0.0, 0.0, 0.0),
-            (C.MAX_COMMAND_FREQUENCY, C.MAX_COMMAND_FREQUENCY, 2 * np.pi),
+            (constants.MAX_COMMAND_FREQUENCY, constants.MAX_COMMAND_FREQUENCY, 2 * np.pi),
             50.0,
             "stride frequency per side and how far the right clock trails the left (pi: alternating tripod)",
         ),
@@ -107,27 +110,27 @@ class VelociRoach(Robot):
 
     @classmethod
     def xml_path(cls) -> Path:
-        return C.SCENE_XML
+        return constants.SCENE_XML
 
     # --- building -----------------------------------------------------------------------------------------------
     def configure(self, spec: mujoco.MjSpec) -> None:
-        nominal = float(spec.numeric(C.NUMERIC_BATTERY).data[0])
+        nominal = float(spec.numeric(constants.NUMERIC_BATTERY).data[0])
         self.nominal_battery = nominal if self._battery_arg is None else self._battery_arg
         if self.calibration is not None:  # what reaches the motors of the calibrated robot's battery
             self.nominal_battery *= self.calibration.setting.get("supply_voltage.scale", 1.0)
         pid = FIRMWARE_PID if self.action_mode == GAIT else None
-        self.motors = DCMotors([C.MOTORS[s] for s in C.SIDES], self.nominal_battery, pid)
+        self.motors = DCMotors([constants.MOTORS[s] for s in constants.SIDES], self.nominal_battery, pid)
         self.motors.configure(spec)
 
     def setup(self) -> None:
         m, n = self.model, self.num_sims
         self.motors.bind(m, n)
         self.gear = float(self.motors.gear[0])
-        self._crank_qpos = np.array([m.joint(C.CRANK_JOINTS[s]).qposadr[0] for s in C.SIDES])
-        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
+        self._crank_qpos = np.array([m.joint(constants.CRANK_JOINTS[s]).qposadr[0] for s in constants.SIDES])
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, constants.ROOT_JOINT)
         self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None  # a bench clamp removes the free joint
-        self.sweep_amplitude = float(m.numeric(C.NUMERIC_SWEEP).data[0])
-        self.lift_amplitude = float(m.numeric(C.NUMERIC_LIFT).data[0])
+        self.sweep_amplitude = float(m.numeric(constants.NUMERIC_SWEEP).data[0])
+        self.lift_amplitude = float(m.numeric(constants.NUMERIC_LIFT).data[0])
         # every joint the linkage ties to a crank: q = q0 + c0 + c1 (crank - crank0), read off the equalities
         self._linkage = []
         for crank in self._crank_qpos:
@@ -141,14 +144,14 @@ class VelociRoach(Robot):
         def idx(*names: str) -> np.ndarray:
             return np.concatenate([np.arange(self.sensors[k].start, self.sensors[k].stop) for k in names])
 
-        self._i_leg_pos = idx(*(C.SENSOR_LEG_POS[s] for s in C.SIDES))
-        self._i_leg_vel = idx(*(C.SENSOR_LEG_VEL[s] for s in C.SIDES))
-        self._i_torque = idx(*(C.SENSOR_MOTOR_TORQUE[s] for s in C.SIDES))
-        self._i_speed = idx(*(C.SENSOR_MOTOR_VEL[s] for s in C.SIDES))
-        self._i_gyro, self._i_accel = idx(C.SENSOR_GYRO), idx(C.SENSOR_ACCEL)
-        self._i_pos, self._i_quat = idx(C.SENSOR_BODY_POS), idx(C.SENSOR_BODY_QUAT)
-        self._i_vel = idx(C.SENSOR_BODY_VEL)
-        self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in C.LEGS))
+        self._i_leg_pos = idx(*(constants.SENSOR_LEG_POS[s] for s in constants.SIDES))
+        self._i_leg_vel = idx(*(constants.SENSOR_LEG_VEL[s] for s in constants.SIDES))
+        self._i_torque = idx(*(constants.SENSOR_MOTOR_TORQUE[s] for s in constants.SIDES))
+        self._i_speed = idx(*(constants.SENSOR_MOTOR_VEL[s] for s in constants.SIDES))
+        self._i_gyro, self._i_accel = idx(constants.SENSOR_GYRO), idx(constants.SENSOR_ACCEL)
+        self._i_pos, self._i_quat = idx(constants.SENSOR_BODY_POS), idx(constants.SENSOR_BODY_QUAT)
+        self._i_vel = idx(constants.SENSOR_BODY_VEL)
+        self._i_grf = idx(*(constants.SENSOR_GRF[leg] for leg in constants.LEGS))
         # one gather per step: legs 0:2, leg rates 2:4, gyro 4:7, accel 7:10, motor speeds 10:12, position 12:15,
         # quaternion 15:19, body velocity 19:22; and per physics step: torques, speeds, z gyro
         self._i_read = np.concatenate(
@@ -156,21 +159,19 @@ class VelociRoach(Robot):
              self._i_vel]
         )  # fmt: skip
         self._i_motor = np.concatenate([self._i_torque, self._i_speed, self._i_gyro[2:]])
-        self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
+        self._mass = float(m.body_subtreemass[m.body(constants.ROOT_BODY).id])
         # per-simulation firmware state
         self.battery = np.full(n, self.nominal_battery)
         self.clock = np.zeros((n, 2))  # firmware leg clocks, rad at the leg (gait mode)
-        self.phase = np.full(n, C.STRAIGHT_PHASE)  # firmware's current left/right phase
+        self.phase = np.full(n, constants.STRAIGHT_PHASE)  # firmware's current left/right phase
         self.last_duty = np.zeros((n, 2))  # duty mode: the duty of the last command
         self.imu = Imu(n, self.imu_noise, self.control_dt, float(m.opt.timestep))
         self._senses = np.zeros((n, sum(self.sense_structure.values())))
         self._imu = np.zeros((n, 6))  # the last (noisy) gyro and accelerometer readings
         self._substep_times = (np.arange(1, self.n_substeps + 1) * float(m.opt.timestep))[None, :, None]
 
-    # --- calibration (envs/velociroach/calibration.py holds the effects) ----------------------------------------
+    # --- calibration (envs/velociroach/effects.py holds the effects) -------------------------------------------------
     def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
-        from envs.velociroach.calibration import roach_effects
-
         return {name: {p.name: (p.low, p.high) for p in e.params}
                 for name, e in roach_effects(self.physics_dt()).items() if e.catalogued}  # fmt: skip
 
@@ -181,13 +182,12 @@ class VelociRoach(Robot):
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
         from envs.actuators.dcmotor import GAIN_KD, GAIN_KP
-        from envs.velociroach.calibration import delay_edit, effects_edit
 
         setting = calibration.setting
 
         def firmware(spec: mujoco.MjSpec) -> None:  # its torque-space gains carry the motor constant (duty V K / R)
-            for side in C.SIDES:
-                spec.actuator(C.MOTORS[side]).gainprm[GAIN_KP : GAIN_KD + 1] *= setting.get(
+            for side in constants.SIDES:
+                spec.actuator(constants.MOTORS[side]).gainprm[GAIN_KP : GAIN_KD + 1] *= setting.get(
                     f"torque_constant_{side}.scale", 1.0
                 )
 
@@ -197,12 +197,12 @@ class VelociRoach(Robot):
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """The VelociRoACH's physical parameters, each with the model fields it sets (see docs/velociroach.md)."""
-        ids = np.array([model.actuator(C.MOTORS[s]).id for s in C.SIDES])
-        chassis = model.body(C.ROOT_BODY).id
-        springs = np.array([model.joint(f"{leg}_spring").id for leg in C.LEGS])
+        ids = np.array([model.actuator(constants.MOTORS[s]).id for s in constants.SIDES])
+        chassis = model.body(constants.ROOT_BODY).id
+        springs = np.array([model.joint(f"{leg}_spring").id for leg in constants.LEGS])
         spring_dofs = model.jnt_dofadr[springs]
         feet = np.array([g for g in range(model.ngeom) if model.body(model.geom_bodyid[g]).name.endswith("_leg")])
-        floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
+        floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, constants.FLOOR_GEOM)
         contact = np.append(feet, floor) if floor >= 0 else feet
         r0, k0 = (float(model.actuator_gainprm[ids[0], s]) for s in (0, 1))
         pid = self.action_mode == GAIT
@@ -242,9 +242,9 @@ class VelociRoach(Robot):
     def facts(self) -> Facts:
         return Facts(
             mass=self._mass,
-            length=C.LENGTH,
-            sides=C.SIDES,
-            legs=C.LEGS,
+            length=constants.LENGTH,
+            sides=constants.SIDES,
+            legs=constants.LEGS,
             extra={"sweep_amplitude": self.sweep_amplitude, "lift_amplitude": self.lift_amplitude, "gear": self.gear},
         )
 
@@ -269,7 +269,10 @@ class VelociRoach(Robot):
         )
         legs = ChannelLimit(max_rate=top, source=source)
         duty = ChannelLimit(-1.0, 1.0, source="the PWM duty's full scale")
-        return {**{f"leg_angle_{side}": legs for side in C.SIDES}, **{f"duty_{side}": duty for side in C.SIDES}}
+        return {
+            **{f"leg_angle_{side}": legs for side in constants.SIDES},
+            **{f"duty_{side}": duty for side in constants.SIDES},
+        }
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:
@@ -308,7 +311,7 @@ class VelociRoach(Robot):
         qpos, qvel = np.zeros((len(ids), m.nq)), np.zeros((len(ids), m.nv))
         for j, rng in enumerate(rngs):
             crank = rng.uniform(-noise, noise)
-            phase = C.STRAIGHT_PHASE + rng.uniform(-noise, noise)
+            phase = constants.STRAIGHT_PHASE + rng.uniform(-noise, noise)
             lin, ang = rng.normal(0.0, noise * 0.1, 3), rng.normal(0.0, noise, 3)
             crank = float(options.get("crank_left", crank))
             phase = float(options.get("phase", phase))
@@ -335,7 +338,7 @@ class VelociRoach(Robot):
             self.motors.set_duty(ctrl, self.last_duty, self.battery)
             return
         dt = self.control_dt
-        step = C.PHASE_SLEW * dt
+        step = constants.PHASE_SLEW * dt
         dphi = np.minimum(np.maximum(wrap_angle(command[:, 2] - self.phase), -step), step)
         self.phase += dphi
         rate = 2.0 * np.pi * command[:, :2]
@@ -414,7 +417,7 @@ class VelociRoach(Robot):
         return -self.sim.sensordata[:, self._i_grf].reshape(-1, 6, 3)
 
     def com_position(self) -> np.ndarray:
-        return self.data.subtree_com[self.model.body(C.ROOT_BODY).id]
+        return self.data.subtree_com[self.model.body(constants.ROOT_BODY).id]
 
     def set_body_velocity(self, linear: np.ndarray, angular: np.ndarray) -> None:
         """Set simulation 0's free-joint velocity (world-frame linear, body-frame angular)."""

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs.common.locomotion import wrap, wrap_one
-from envs.xjus import constants as C
+from envs.xjus import constants
 
-_K = 2.0 * np.arange(1, C.FOURIER_TERMS + 1) - 1.0  # 2m - 1
+_K = 2.0 * np.arange(1, constants.FOURIER_TERMS + 1) - 1.0  # 2m - 1
 _TWO_PI_K = 2.0 * np.pi * _K
 # theta_d = 2 pi s + (theta_g - pi) F(s): the series' weights of F, F' and F'' on cos and sin of the harmonics
 _W = 4.0 / (np.square(_K) * np.pi**2)
@@ -77,11 +77,11 @@ def _sums(s: np.ndarray) -> np.ndarray:
 def _weighted_harmonics(z: np.ndarray) -> np.ndarray:
     """The three weighted sums of the odd powers of ``z = exp(2 pi i s)``, complex, (3, ...): the part of
     :func:`_sums` after the exponential."""
-    harmonics = np.empty((C.FOURIER_TERMS, *z.shape), dtype=np.complex128)
+    harmonics = np.empty((constants.FOURIER_TERMS, *z.shape), dtype=np.complex128)
     harmonics[0] = z
     harmonics[1:] = z * z
     np.multiply.accumulate(harmonics, axis=0, out=harmonics)
-    return (_W_ROWS @ harmonics.reshape(C.FOURIER_TERMS, -1)).reshape(3, *z.shape)
+    return (_W_ROWS @ harmonics.reshape(constants.FOURIER_TERMS, -1)).reshape(3, *z.shape)
 
 
 def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -125,8 +125,8 @@ class Gait:
 
     @classmethod
     def tripod(cls) -> Gait:
-        offsets = np.array([0.0 if leg in C.TRIPOD_A else 0.5 for leg in C.LEGS])
-        side = np.array([0 if leg in C.LEFT_LEGS else 1 for leg in C.LEGS])
+        offsets = np.array([0.0 if leg in constants.TRIPOD_A else 0.5 for leg in constants.LEGS])
+        side = np.array([0 if leg in constants.LEFT_LEGS else 1 for leg in constants.LEGS])
         return cls(offsets, side)
 
     def targets(

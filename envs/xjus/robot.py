@@ -16,8 +16,9 @@ from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
 from envs.common.telemetry import ChannelLimit
-from envs.xjus import constants as C
+from envs.xjus import constants
 from envs.xjus.controller import Gait, MotorArrays, moderate, pd_torque, wrap_angle, wrap_angle_one
+from envs.xjus.effects import add_backlash, delay_edit, effects_edit, xjus_effects
 
 GAIT, DUTY = "gait", "duty"
 COMPLIANT, RIGID = "compliant", "rigid"
@@ -27,7 +28,7 @@ SpineSetting = float | Mapping[str, float] | None
 
 def _telemetry_channels() -> dict[str, str]:
     cols = {"time": "s", "clock_phase": "cycle", "period": "s"}
-    cols.update({f"sweep_{side}": "rad" for side in C.SIDES})
+    cols.update({f"sweep_{side}": "rad" for side in constants.SIDES})
     per_leg = (
         ("leg_angle_cmd", "rad"),
         ("leg_angle", "rad"),
@@ -40,9 +41,9 @@ def _telemetry_channels() -> dict[str, str]:
         ("grf_z", "N"),
     )
     for channel, unit in per_leg:
-        cols.update({f"{channel}_{leg}": unit for leg in C.LEGS})
+        cols.update({f"{channel}_{leg}": unit for leg in constants.LEGS})
     cols["vbatt"] = "V"
-    cols.update({f"spine_{joint}": "rad" for joint in C.SPINE_JOINTS})
+    cols.update({f"spine_{joint}": "rad" for joint in constants.SPINE_JOINTS})
     cols.update({f"gyro_{a}": "rad/s" for a in "xyz"})
     cols.update({f"accel_{a}": "m/s^2" for a in "xyz"})
     cols.update({f"pos_{a}": "m" for a in "xyz"})
@@ -59,19 +60,23 @@ def _spine_values(
 ) -> dict[str, float]:
     """Per joint and axis values from one number or a mapping {"front_pitch": ..., ...} (missing: the default)."""
     if value is None:
-        return dict.fromkeys(C.SPINE_JOINTS, default)
+        return dict.fromkeys(constants.SPINE_JOINTS, default)
     strict = not zero_allowed
     if isinstance(value, Mapping):
-        unknown = set(value) - set(C.SPINE_JOINTS)
+        unknown = set(value) - set(constants.SPINE_JOINTS)
         if unknown:
-            raise ValueError(f"{name} names unknown spine axes {sorted(unknown)}; known: {list(C.SPINE_JOINTS)}")
-        values = {j: check_number(f"{name}[{j!r}]", value.get(j, default), 0, strict=strict) for j in C.SPINE_JOINTS}
+            raise ValueError(
+                f"{name} names unknown spine axes {sorted(unknown)}; known: {list(constants.SPINE_JOINTS)}"
+            )
+        values = {
+            j: check_number(f"{name}[{j!r}]", value.get(j, default), 0, strict=strict) for j in constants.SPINE_JOINTS
+        }
     else:
-        values = dict.fromkeys(C.SPINE_JOINTS, check_number(name, value, 0, strict=strict))
+        values = dict.fromkeys(constants.SPINE_JOINTS, check_number(name, value, 0, strict=strict))
     for joint, x in values.items():
         if high is not None and x > high:
             raise ValueError(
-                f"{name}[{joint!r}] must be <= {high:.0f} N m/rad ({C.SPINE_STIFFNESS_MAX_SCALE:g}x the design "
+                f"{name}[{joint!r}] must be <= {high:.0f} N m/rad ({constants.SPINE_STIFFNESS_MAX_SCALE:g}x the design "
                 f"stiffness; stiffer goes numerically unstable at the 2 ms physics step; spine='rigid' is the rigid "
                 f"chassis), got {x!r}"
             )
@@ -111,28 +116,28 @@ class Xjus(Robot):
             for a perfect IMU.
         starts: where an episode may start, (x, y) on level ground; each reset draws one (default: the origin).
         spec_edits, num_sims, nthread, batched, calibration: as for every robot (``calibration``: a file written by
-            ``calibrate.py --robot xjus``, envs/xjus/calibration.py).
+            ``calibrate.py --robot xjus``, sysid/adapters/xjus.py).
     """
 
     name = "xjus"
-    root_body = C.ROOT_BODY
+    root_body = constants.ROOT_BODY
     action_modes: ClassVar[dict[str, ActionMode]] = {
         GAIT: ActionMode(
             GAIT,
             ("period", "sweep_left", "sweep_right"),
             ("s", "rad", "rad"),
-            (C.PERIOD_RANGE[0], C.SWEEP_RANGE[0], C.SWEEP_RANGE[0]),
-            (C.PERIOD_RANGE[1], C.SWEEP_RANGE[1], C.SWEEP_RANGE[1]),
-            C.CONTROL_FREQ,
+            (constants.PERIOD_RANGE[0], constants.SWEEP_RANGE[0], constants.SWEEP_RANGE[0]),
+            (constants.PERIOD_RANGE[1], constants.SWEEP_RANGE[1], constants.SWEEP_RANGE[1]),
+            constants.CONTROL_FREQ,
             "Buehler-clock period and ground sweep angle per side (equal: straight; larger on the right: turns left)",
         ),
         DUTY: ActionMode(
             DUTY,
-            tuple(f"duty_{leg}" for leg in C.LEGS),
-            ("1",) * len(C.LEGS),
-            (-1.0,) * len(C.LEGS),
-            (1.0,) * len(C.LEGS),
-            C.CONTROL_FREQ,
+            tuple(f"duty_{leg}" for leg in constants.LEGS),
+            ("1",) * len(constants.LEGS),
+            (-1.0,) * len(constants.LEGS),
+            (1.0,) * len(constants.LEGS),
+            constants.CONTROL_FREQ,
             "duty factor d per leg (seed 001 section 2.3)",
         ),
     }
@@ -160,9 +165,9 @@ class Xjus(Robot):
             raise ValueError("spine_stiffness and spine_damping apply to a compliant spine, not spine='rigid'")
         self.spine = spine
         self.spine_stiffness = _spine_values(
-            "spine_stiffness", spine_stiffness, C.SPINE_DESIGN_STIFFNESS, False, C.SPINE_STIFFNESS_MAX
+            "spine_stiffness", spine_stiffness, constants.SPINE_DESIGN_STIFFNESS, False, constants.SPINE_STIFFNESS_MAX
         )
-        self.spine_damping = _spine_values("spine_damping", spine_damping, C.SPINE_DAMPING, True)
+        self.spine_damping = _spine_values("spine_damping", spine_damping, constants.SPINE_DAMPING, True)
         self._battery_arg = (
             None if battery_voltage is None else check_number("battery_voltage", battery_voltage, 0, strict=True)
         )
@@ -171,10 +176,10 @@ class Xjus(Robot):
         )
         if action_mode == GAIT and control_freq is not None:
             freq = check_number("control_freq", control_freq, 0, strict=True)
-            if freq < C.MIN_GAIT_CONTROL_FREQ:
+            if freq < constants.MIN_GAIT_CONTROL_FREQ:
                 raise ValueError(
                     f"control_freq={control_freq!r}: gait mode runs the clock and PD at the control rate, which must "
-                    f"be at least {C.MIN_GAIT_CONTROL_FREQ:g} Hz (the seed's 8.3 ms logic step)"
+                    f"be at least {constants.MIN_GAIT_CONTROL_FREQ:g} Hz (the seed's 8.3 ms logic step)"
                 )
         self.starts = self._check_starts(starts)
         self.imu_noise = imu_noise
@@ -194,54 +199,50 @@ class Xjus(Robot):
 
     @classmethod
     def xml_path(cls) -> Path:
-        return C.SCENE_XML
+        return constants.SCENE_XML
 
     # --- building -----------------------------------------------------------------------------------------------
     def configure(self, spec: mujoco.MjSpec) -> None:
         if self._battery_arg is not None:
             spec.numeric("battery_voltage").data = [self._battery_arg]
         self.constants = MotorConstants(
-            **{field: float(spec.numeric(numeric).data[0]) for field, numeric in C.NUMERIC_MOTOR}
+            **{field: float(spec.numeric(numeric).data[0]) for field, numeric in constants.NUMERIC_MOTOR}
         )
         self.nominal_battery = self.constants.supply_voltage
         if self.spine == RIGID:
-            for joint in C.SPINE_JOINTS:
+            for joint in constants.SPINE_JOINTS:
                 spec.delete(spec.joint(joint))
         else:
-            for joint in C.SPINE_JOINTS:
+            for joint in constants.SPINE_JOINTS:
                 j = spec.joint(joint)
                 j.stiffness = [self.spine_stiffness[joint], 0.0, 0.0]
                 j.damping = [self.spine_damping[joint], 0.0, 0.0]
                 spec.add_sensor(
-                    name=C.SENSOR_SPINE[joint],
+                    name=constants.SENSOR_SPINE[joint],
                     type=mujoco.mjtSensor.mjSENS_JOINTPOS,
                     objtype=mujoco.mjtObj.mjOBJ_JOINT,
                     objname=joint,
                 )
-        self.motor = Motor([C.HIP_JOINTS[leg] for leg in C.LEGS], self.constants)
+        self.motor = Motor([constants.HIP_JOINTS[leg] for leg in constants.LEGS], self.constants)
         self.motor.configure(spec)
         if self.current_limit is not None:
             limit = self.current_limit * self.constants.torque_per_amp
-            for leg in C.LEGS:
-                j = spec.joint(C.HIP_JOINTS[leg])
+            for leg in constants.LEGS:
+                j = spec.joint(constants.HIP_JOINTS[leg])
                 j.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 j.actfrcrange = [-limit, limit]
 
-    # --- calibration (calibrate.py --robot xjus; envs/xjus/calibration.py) ------------------------------------------
+    # --- calibration (calibrate.py --robot xjus; envs/xjus/effects.py holds the effects) ------------------------------
     def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
-        from envs.xjus.calibration import xjus_effects
-
         dt = float(mujoco.MjSpec.from_file(str(self.xml_path())).option.timestep)
         return {name: {p.name: (p.low, p.high) for p in e.params}
                 for name, e in xjus_effects(dt).items() if e.catalogued}  # fmt: skip
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
-        """The calibration's model effects as spec edits (envs/xjus/calibration.py): the hips' friction and inertia,
+        """The calibration's model effects as spec edits (envs/xjus/effects.py): the hips' friction and inertia,
         the motor numerics (which the motor arrays are read from), contacts, stiffnesses, masses, the gearboxes'
         play and the motors' delay. The driver's deadband is applied to every duty the robot holds; sensor effects
         (an angle offset, a current gain) describe the logging robot's sensors and change nothing here."""
-        from envs.xjus.calibration import add_backlash, delay_edit, effects_edit
-
         setting = calibration.setting
         self._deadband = setting.get("deadband.duty", 0.0)
         gap, delay = setting.get("backlash.gap", 0.0), setting.get("delay.seconds", 0.0)
@@ -259,15 +260,19 @@ class Xjus(Robot):
         def idx(*names: str) -> np.ndarray:
             return np.concatenate([np.arange(self.sensors[k].start, self.sensors[k].stop) for k in names])
 
-        legs = C.LEGS
-        self._i_angle = idx(*(C.SENSOR_ANGLE[leg] for leg in legs))
-        self._i_speed = idx(*(C.SENSOR_SPEED[leg] for leg in legs))
-        self._i_torque = idx(*(C.SENSOR_TORQUE[leg] for leg in legs))
-        self._i_deflection = idx(*(C.SENSOR_DEFLECTION[leg] for leg in legs))
-        self._i_grf = idx(*(C.SENSOR_GRF[leg] for leg in legs))
-        self._i_gyro, self._i_accel = idx(C.SENSOR_GYRO), idx(C.SENSOR_ACCEL)
-        self._i_pos, self._i_quat, self._i_vel = idx(C.SENSOR_BODY_POS), idx(C.SENSOR_BODY_QUAT), idx(C.SENSOR_BODY_VEL)
-        self._i_spine = idx(*C.SENSOR_SPINE.values()) if self.spine == COMPLIANT else None
+        legs = constants.LEGS
+        self._i_angle = idx(*(constants.SENSOR_ANGLE[leg] for leg in legs))
+        self._i_speed = idx(*(constants.SENSOR_SPEED[leg] for leg in legs))
+        self._i_torque = idx(*(constants.SENSOR_TORQUE[leg] for leg in legs))
+        self._i_deflection = idx(*(constants.SENSOR_DEFLECTION[leg] for leg in legs))
+        self._i_grf = idx(*(constants.SENSOR_GRF[leg] for leg in legs))
+        self._i_gyro, self._i_accel = idx(constants.SENSOR_GYRO), idx(constants.SENSOR_ACCEL)
+        self._i_pos, self._i_quat, self._i_vel = (
+            idx(constants.SENSOR_BODY_POS),
+            idx(constants.SENSOR_BODY_QUAT),
+            idx(constants.SENSOR_BODY_VEL),
+        )
+        self._i_spine = idx(*constants.SENSOR_SPINE.values()) if self.spine == COMPLIANT else None
         # one gather per step: angles 0:6, speeds 6:12, gyro 12:15, accel 15:18, position 18:21, quaternion 21:25,
         # body velocity 25:28
         self._i_read = np.concatenate(
@@ -277,18 +282,18 @@ class Xjus(Robot):
         # is a tenth of a gather's cost); the helpers below keep the gathers: they hand out copies
         self._at_angle, self._at_speed, self._at_torque = map(_as_slice, (self._i_angle, self._i_speed, self._i_torque))
         self._at_gyro_z = int(self._i_gyro[2])
-        self._numeric = {f: int(m.numeric_adr[m.numeric(name).id]) for f, name in C.NUMERIC_MOTOR}
-        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.ROOT_JOINT)
+        self._numeric = {f: int(m.numeric_adr[m.numeric(name).id]) for f, name in constants.NUMERIC_MOTOR}
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, constants.ROOT_JOINT)
         self._root_qpos = int(m.jnt_qposadr[root]) if root >= 0 else None  # a bench clamp removes the free joint
         self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None
-        self._hip_qpos = np.array([m.jnt_qposadr[m.joint(C.HIP_JOINTS[leg]).id] for leg in legs])
+        self._hip_qpos = np.array([m.jnt_qposadr[m.joint(constants.HIP_JOINTS[leg]).id] for leg in legs])
         # the controller's plant inertia J: leg, hub and reflected rotor about the hip, from the nominal model
-        self.hip_inertia = np.array([m.dof_M0[m.jnt_dofadr[m.joint(C.HIP_JOINTS[leg]).id]] for leg in legs])
+        self.hip_inertia = np.array([m.dof_M0[m.jnt_dofadr[m.joint(constants.HIP_JOINTS[leg]).id]] for leg in legs])
         self._hip_inertia_one = self.hip_inertia.tolist()
         # the gait command's bounds, (period, sweep_left, sweep_right): one clip for all three
-        self._gait_low = np.array([C.PERIOD_RANGE[0], C.SWEEP_RANGE[0], C.SWEEP_RANGE[0]])
-        self._gait_high = np.array([C.PERIOD_RANGE[1], C.SWEEP_RANGE[1], C.SWEEP_RANGE[1]])
-        self._mass = float(m.body_subtreemass[m.body(C.ROOT_BODY).id])
+        self._gait_low = np.array([constants.PERIOD_RANGE[0], constants.SWEEP_RANGE[0], constants.SWEEP_RANGE[0]])
+        self._gait_high = np.array([constants.PERIOD_RANGE[1], constants.SWEEP_RANGE[1], constants.SWEEP_RANGE[1]])
+        self._mass = float(m.body_subtreemass[m.body(constants.ROOT_BODY).id])
         self.stand_height = self._standing_height()
         self.gait = Gait.tripod()
         # per-simulation motor constants, controller state and readings
@@ -308,21 +313,23 @@ class Xjus(Robot):
     def _standing_height(self) -> float:
         """Height of the hips above flat ground with a leg pointing down, its toe just touching (m)."""
         m = self.model
-        tip = m.site(f"{C.LEGS[0]}_tip").pos[2]
-        radius = max(m.geom_size[g, 0] for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name == f"{C.LEGS[0]}_leg")
+        tip = m.site(f"{constants.LEGS[0]}_tip").pos[2]
+        radius = max(
+            m.geom_size[g, 0] for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name == f"{constants.LEGS[0]}_leg"
+        )
         return float(-tip + radius)
 
     def build_parameters(self, model: mujoco.MjModel) -> ParameterMap:
         """xJüs's physical parameters, each with the model fields it sets (docs/xjus.md)."""
         num = {f: (FieldRef("numeric_data", (adr,)),) for f, adr in self._numeric.items()}
         c = self.constants
-        hips = np.array([model.joint(C.HIP_JOINTS[leg]).id for leg in C.LEGS])
+        hips = np.array([model.joint(constants.HIP_JOINTS[leg]).id for leg in constants.LEGS])
         hip_dofs = model.jnt_dofadr[hips]
-        springs = np.array([model.joint(C.SPRING_JOINTS[leg]).id for leg in C.LEGS])
+        springs = np.array([model.joint(constants.SPRING_JOINTS[leg]).id for leg in constants.LEGS])
         spring_dofs = model.jnt_dofadr[springs]
-        leg_bodies = {model.body(f"{leg}_leg").id for leg in C.LEGS}
+        leg_bodies = {model.body(f"{leg}_leg").id for leg in constants.LEGS}
         feet = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] in leg_bodies])
-        segments = np.array([model.body(s).id for s in C.SEGMENTS])
+        segments = np.array([model.body(s).id for s in constants.SEGMENTS])
         limit = (FieldRef("jnt_actfrcrange", (hips,), "scale"),) if self.current_limit is not None else ()
         p = ParameterMap()
         p.add(Parameter("battery_voltage", "V", c.supply_voltage, 18.0, 25.2,
@@ -357,10 +364,10 @@ class Xjus(Robot):
                         (FieldRef("body_mass", (segments,), "scale"), FieldRef("body_inertia", (segments,), "scale")),
                         setconst=True))  # fmt: skip
         if self.spine == COMPLIANT:
-            spine = np.array([model.joint(j).id for j in C.SPINE_JOINTS])
-            low, high = C.SPINE_STIFFNESS_RANGE
+            spine = np.array([model.joint(j).id for j in constants.SPINE_JOINTS])
+            low, high = constants.SPINE_STIFFNESS_RANGE
             stable = "N m/rad; stiffer goes numerically unstable at the 2 ms physics step"
-            stiffness = FieldRef("jnt_stiffness", (spine,), "scale", C.SPINE_STIFFNESS_MAX, stable)
+            stiffness = FieldRef("jnt_stiffness", (spine,), "scale", constants.SPINE_STIFFNESS_MAX, stable)
             p.add(Parameter("spine_stiffness_scale", "1", 1.0, low, high,
                             "x the spine's stiffness per joint and axis as built", (stiffness,)))  # fmt: skip
             p.add(Parameter("spine_damping_scale", "1", 1.0, 0.1, 10.0,
@@ -380,7 +387,7 @@ class Xjus(Robot):
         )
         # what every read divides and multiplies by, per leg (refreshed with the motors): an operand of the arrays' own
         # shape spares numpy the broadcasting, which costs as much as the operation
-        legs = len(C.LEGS)
+        legs = len(constants.LEGS)
         self._torque_per_amp_legs = np.repeat(mo.torque_per_amp[:, None], legs, axis=1)
         self._volts_per_torque_legs = np.repeat((mo.supply_voltage / mo.torque_per_amp)[:, None], legs, axis=1)
 
@@ -394,13 +401,13 @@ class Xjus(Robot):
     def facts(self) -> Facts:
         return Facts(
             mass=self._mass,
-            length=C.LENGTH,
-            sides=C.SIDES,
-            legs=C.LEGS,
+            length=constants.LENGTH,
+            sides=constants.SIDES,
+            legs=constants.LEGS,
             extra={
                 "spine": self.spine,
                 "gear": self.constants.gear_ratio,
-                "leg_diameter": C.LEG_DIAMETER,
+                "leg_diameter": constants.LEG_DIAMETER,
                 "hip_inertia": float(self.hip_inertia[0]),
                 "current_limit": self.current_limit,
                 "efficiency_cap": self.constants.torque_per_amp / self.constants.speed_constant,
@@ -409,7 +416,7 @@ class Xjus(Robot):
 
     @property
     def sense_structure(self) -> dict[str, int]:
-        legs = len(C.LEGS)
+        legs = len(constants.LEGS)
         senses = {"leg_cos": legs, "leg_sin": legs, "leg_velocity": legs, "gyro": 3, "accel": 3,
                   "motor_current": legs, "battery": 1}  # fmt: skip
         if self.action_mode == GAIT:
@@ -424,11 +431,11 @@ class Xjus(Robot):
     def channel_limits(self) -> dict[str, ChannelLimit]:
         motor = self.constants.channel_limits()  # each leg on its own gearmotor [xjus-report, Table 1]
         names = {"leg_angle": "angle", "leg_speed": "speed", "duty": "duty", "current": "current"}
-        return {f"{channel}_{leg}": motor[limit] for channel, limit in names.items() for leg in C.LEGS}
+        return {f"{channel}_{leg}": motor[limit] for channel, limit in names.items() for leg in constants.LEGS}
 
     @property
     def plot_groups(self) -> tuple[PlotGroup, ...]:
-        a = C.TRIPOD_A
+        a = constants.TRIPOD_A
         return (
             PlotGroup(
                 "leg angle minus clock target, tripod A",
@@ -440,7 +447,7 @@ class Xjus(Robot):
             PlotGroup("duty, tripod A", "1", tuple(f"duty_{leg}" for leg in a)),
             PlotGroup("motor current, tripod A", "A", tuple(f"current_{leg}" for leg in a)),
             PlotGroup("battery power", "W", ("power",)),
-            PlotGroup("spine angles", "deg", tuple(f"spine_{j}" for j in C.SPINE_JOINTS), 180 / np.pi),
+            PlotGroup("spine angles", "deg", tuple(f"spine_{j}" for j in constants.SPINE_JOINTS), 180 / np.pi),
         )
 
     def reset(
@@ -454,10 +461,10 @@ class Xjus(Robot):
         m = self.model
         k = len(ids)
         qpos, qvel = np.tile(m.qpos0, (k, 1)), np.zeros((k, m.nv))
-        rest = np.array([0.0 if leg in C.TRIPOD_A else np.pi for leg in C.LEGS])
+        rest = np.array([0.0 if leg in constants.TRIPOD_A else np.pi for leg in constants.LEGS])
         for j, rng in enumerate(rngs):
             start = int(rng.integers(len(self.starts))) if len(self.starts) > 1 else 0
-            angles = rest + rng.uniform(-noise, noise, len(C.LEGS))
+            angles = rest + rng.uniform(-noise, noise, len(constants.LEGS))
             lin, ang = rng.normal(0.0, noise * 0.1, 3), rng.normal(0.0, noise, 3)
             if "start" in options:
                 start = self._option_start(options["start"])
@@ -486,8 +493,8 @@ class Xjus(Robot):
     @staticmethod
     def _option_angles(value) -> np.ndarray:
         angles = np.asarray(value, dtype=np.float64)
-        if angles.shape != (len(C.LEGS),) or not np.isfinite(angles).all():
-            raise ValueError(f"options['leg_angles'] must be {len(C.LEGS)} finite angles (rad), got {value!r}")
+        if angles.shape != (len(constants.LEGS),) or not np.isfinite(angles).all():
+            raise ValueError(f"options['leg_angles'] must be {len(constants.LEGS)} finite angles (rad), got {value!r}")
         return angles
 
     def command(self, command: np.ndarray) -> None:
@@ -507,15 +514,15 @@ class Xjus(Robot):
         target, rate, accel = self.gait.targets(self.phase, period, sweep)
         error = wrap_angle(target - angle)
         self.target = angle + error
-        torque = pd_torque(error, rate - speed, accel, self.hip_inertia, C.PD_KP, C.PD_KD)
+        torque = pd_torque(error, rate - speed, accel, self.hip_inertia, constants.PD_KP, constants.PD_KD)
         self.hold_duty(self.motors.duty_for_torque(torque, speed))
         self.phase = np.mod(self.phase + self.control_dt / period, 1.0)
 
     def _command_one(self, command: list[float]) -> bool:
         """The gait command of a single simulation on Python floats (the controller's ``*_one`` functions): the vector
         path's numbers at under half its cost. False, having changed nothing, unless the values are moderate."""
-        period = _clip(command[0], *C.PERIOD_RANGE)
-        sweep = [_clip(command[1], *C.SWEEP_RANGE), _clip(command[2], *C.SWEEP_RANGE)]
+        period = _clip(command[0], *constants.PERIOD_RANGE)
+        sweep = [_clip(command[1], *constants.SWEEP_RANGE), _clip(command[2], *constants.SWEEP_RANGE)]
         sd = self.sim.sensordata[0]
         angles, speeds = sd[self._at_angle].tolist(), sd[self._at_speed].tolist()
         phase = self.phase.item()
@@ -524,7 +531,7 @@ class Xjus(Robot):
         target, rate, accel = self.gait.targets_one(phase, period, sweep)
         errors = [wrap_angle_one(t - a) for t, a in zip(target, angles, strict=True)]
         torque = [
-            pd_torque(e, r - w, acc, j, C.PD_KP, C.PD_KD)
+            pd_torque(e, r - w, acc, j, constants.PD_KP, constants.PD_KD)
             for e, r, w, acc, j in zip(errors, rate, speeds, accel, self._hip_inertia_one, strict=True)
         ]
         try:
@@ -635,7 +642,7 @@ class Xjus(Robot):
         angle, speed, torque = sd[:, self._i_angle], sd[:, self._i_speed], sd[:, self._i_torque]
         gait = self.action_mode == GAIT
         nan = np.full((n, 1), np.nan)
-        spine = sd[:, self._i_spine] if self._i_spine is not None else np.zeros((n, len(C.SPINE_JOINTS)))
+        spine = sd[:, self._i_spine] if self._i_spine is not None else np.zeros((n, len(constants.SPINE_JOINTS)))
         columns = [
             readings["time"][:, None],
             self.phase[:, None] if gait else nan,
@@ -649,7 +656,7 @@ class Xjus(Robot):
             torque,
             self._leg_power,
             sd[:, self._i_deflection],
-            -sd[:, self._i_grf].reshape(n, len(C.LEGS), 3)[:, :, 2],
+            -sd[:, self._i_grf].reshape(n, len(constants.LEGS), 3)[:, :, 2],
             self.motors.supply_voltage[:, None],
             spine,
             self._imu,
@@ -661,7 +668,7 @@ class Xjus(Robot):
 
     # --- helpers for tests, benchmarks and the spine study ----------------------------------------------------
     def leg_angles(self) -> np.ndarray:
-        """Hip angles, unwrapped, rad: (num_sims, 6) in the order of ``C.LEGS``."""
+        """Hip angles, unwrapped, rad: (num_sims, 6) in the order of ``constants.LEGS``."""
         return self.sim.sensordata[:, self._i_angle]
 
     def leg_speeds(self) -> np.ndarray:
@@ -674,19 +681,19 @@ class Xjus(Robot):
     def spine_angles(self) -> np.ndarray:
         """Spine joint angles (front pitch, front roll, rear pitch, rear roll), rad; zeros for a rigid spine."""
         if self._i_spine is None:
-            return np.zeros((self.num_sims, len(C.SPINE_JOINTS)))
+            return np.zeros((self.num_sims, len(constants.SPINE_JOINTS)))
         return self.sim.sensordata[:, self._i_spine]
 
     def segment_quaternions(self) -> np.ndarray:
         """World orientation of the front, middle and rear segments, (num_sims, 3, 4) (w, x, y, z)."""
         sd = self.sim.sensordata
-        parts = [self.sensor(C.SENSOR_SEGMENT_QUAT["front"], sd), sd[:, self._i_quat],
-                 self.sensor(C.SENSOR_SEGMENT_QUAT["rear"], sd)]  # fmt: skip
+        parts = [self.sensor(constants.SENSOR_SEGMENT_QUAT["front"], sd), sd[:, self._i_quat],
+                 self.sensor(constants.SENSOR_SEGMENT_QUAT["rear"], sd)]  # fmt: skip
         return np.stack(parts, axis=1)
 
     def ground_reaction_forces(self) -> np.ndarray:
         """Force of the ground on each leg, world frame, N: (num_sims, 6, 3)."""
-        return -self.sim.sensordata[:, self._i_grf].reshape(-1, len(C.LEGS), 3)
+        return -self.sim.sensordata[:, self._i_grf].reshape(-1, len(constants.LEGS), 3)
 
 
 def _clip(x: float, low: float, high: float) -> float:

@@ -15,12 +15,12 @@ the clock's period and sweeps) of the control step that *ended* at its time (``e
 stepping), and the clock's phase at its time, so the replay takes a step's commands from the row after its start.
 Multiple shooting over one-second segments: each starts from the measured hip angles and speeds; the body (its
 pose and motion, the spine) is not logged and is carried over from the previous segment, as the VelociRoACH's is
-(envs/velociroach/calibration.py), with the same replay floor and derivative-free fits (contacts make the cost
+(sysid/adapters/velociroach.py), with the same replay floor and derivative-free fits (contacts make the cost
 rough).
 
 **Channels** compared: per leg the hip angle, hip speed and motor current (``current = torque / (eta N Kt)``).
 
-**Effects** (sysid/effects.py): delay of the duty; per side (three legs each) Coulomb and viscous friction and rotor
+**Effects** (envs/xjus/effects.py): delay of the duty; per side (three legs each) Coulomb and viscous friction and rotor
 inertia at the hips; backlash between each motor and its leg (a hinge of limited play, a structural spec edit); the
 driver's deadband; the motors' torque constant (an ideal motor's: Kt and Ks together), back-EMF constant, supply (a
 scale on the logged battery voltage) and supply sag (the battery's resistance, in the formula's ``d^2`` term); foot
@@ -38,163 +38,14 @@ import mujoco
 import numpy as np
 import pandas as pd
 
-from envs.xjus import constants as C
-from sysid import edits
-from sysid import effects as E
-from sysid.edits import delay_actuators
-from sysid.effects import Effect
+from envs.common import edits
+from envs.common.effects import Effect
+from envs.xjus import constants
+from envs.xjus.effects import LEGS_OF, add_backlash, effects_edit, xjus_effects
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting
 
-SIDES = C.SIDES
-LEGS_OF = {"left": C.LEFT_LEGS, "right": tuple(leg for leg in C.LEGS if leg not in C.LEFT_LEGS)}
-PLAY = "play"  # the backlash joint of each leg: <leg>_play
-
-
-def xjus_effects(dt: float) -> dict[str, Effect]:
-    """The xJüs's catalog effects and their bounds (nominal values are the model's, docs/xjus.md). Ranges: hip
-    friction up to a quarter of the stall torque (2.17 N m) dry and up to the motor's own back-EMF damping
-    (eta N Kt Ks / Ra = 0.089 N m s/rad) viscous; rotor inertia up to five times the assumed 8.5e-4 kg m^2 (the seed
-    gives none); the centre of mass up to 0.1 m along the body (a payload at one end); a current sensor's gain from
-    half to double (an uncalibrated shunt); a gearbox's play up to 0.1 rad (6 deg: a worn planetary gearhead and its
-    coupling); motor
-    constants from half to twice the seed's Table 1 (its Kt and Ks were chosen to fit a stall torque and a no-load
-    speed, not measured); the supply 20% either way of the logged battery; a sag up to 1 ohm (a 6-cell LiPo's
-    internal resistance is tens of milliohms; a worn pack or long leads reach an ohm). The feet's contact, the mass,
-    the centre of mass and the leg and spine stiffness reach the legs' channels through the body (its sag on the
-    legs, the spine's bending), which no log holds and the replay carries from segment to segment: they are declared
-    ``carried`` (the ranking runs their grid, and the fits their trials, with their own carried body)."""
-    out: list[Effect] = [
-        E.make("delay", seconds=(0.0, 0.0, 0.05, dt)),
-        E.make("backlash", gap=(0.0, 0.0, 0.1)),
-        E.make("deadband", duty=(0.0, 0.0, 0.2)),
-    ]
-    for side in SIDES:
-        out += [
-            E.make("coulomb_friction", side, torque=(0.0, 0.0, 0.5)),
-            E.make("viscous_friction", side, damping=(0.0, 0.0, 0.1)),
-            E.make("armature", side, inertia=(0.0, 0.0, 4e-3)),
-            E.make("sensor_bias", f"angle_{side}", offset=(0.0, -0.2, 0.2)),
-        ]
-    out += [
-        E.make("torque_constant", scale=(1.0, 0.5, 2.0)),
-        E.make("back_emf_constant", scale=(1.0, 0.5, 2.0)),
-        E.make("supply_voltage", scale=(1.0, 0.8, 1.2)),
-        E.make(
-            "supply_sag",
-            resistance=(0.0, 0.0, 1.0),
-            weak="the gait's PD pushes through a sagging supply, and even at 1 ohm the sag (d^2 R) is a few percent "
-            "of the drive: nominal error 2.8 at the range's far end (median of three seeds)",
-        ),
-        E.make("foot_friction", mu=(0.8, 0.2, 1.5), carried=True),
-        E.make(
-            "ground_contact",
-            timeconst=(0.004, 0.004, 0.03),
-            dampratio=(1.0, 0.3, 2.0),
-            carried=True,
-            weak="acts on the body, which the log does not hold: against the true model's own replay floor the "
-            "legs barely see it (stop 29's generator: 1.76 at best on seed 17's runs, pushed to 90% of its range)",
-        ),
-        # the spine's angles and the legs' deflection are not logged: their stiffness acts through the state the
-        # replay carries over (the body on its legs, the spine), as the mass does, so both are declared carried;
-        # and both are scales over a decade or more, ranked on a geometric grid (``log``). Stop 31 on the spine's
-        # seed 19 (truth 0.398): the cost is lowest in a basin from about 0.3 to 0.55 and above the nominal model's
-        # at 0.1, 0.2 and from 2 up, so the linear grid (0.1, 5.05, 10) scored it nothing, carried or not; the
-        # geometric one has 0.316 (docs/calibration.md, "Carried and geometric stiffness")
-        E.make("leg_stiffness", scale=(1.0, 0.3, 3.0), carried=True, log=True),
-        E.make("spine_stiffness", scale=(1.0, 0.1, 10.0), carried=True, log=True),
-        E.make("mass", scale=(1.0, 0.7, 1.5), carried=True),
-        E.make("com_offset", x=(0.0, -0.1, 0.1), carried=True),
-        E.make(
-            "sensor_gain",
-            "current",
-            scale=(1.0, 0.5, 2.0),
-            weak="the currents' replay floor (their divergence in replay, with the body the log lacks) is read through "
-            "the gain too: at twice the gain the nominal model's error is 4.29 against the nominal model's floor but "
-            "2.25 against the true model's (seed 1), median 2.12 over three seeds at the range's far end. Stop 30's "
-            "generator, which asks for 3 against both floors, reached 2.82 at best on seed 22's runs",
-        ),
-        E.make("terrain_bump", height=(0.0, 0.0, 0.05)),
-        E.make("disturbance", torque=(0.0, 0.0, 40.0), frequency=(3.0, 0.5, 10.0)),
-    ]
-    return {e.name: e for e in out}
-
-
-def effects_edit(setting: Setting):
-    """Spec edit of a setting's model effects (calibration and the calibrated envs alike): per side the hips'
-    Coulomb and viscous friction and rotor inertia; the motor numerics (torque and back-EMF constants, supply sag as
-    amplifier resistance; the supply scale, which the calibrated robot applies to its battery); the legs' friction
-    and contact; leg and spine stiffness; the segments' mass and the middle segment's centre of mass."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        for side in SIDES:
-            for leg in LEGS_OF[side]:
-                hip = spec.joint(C.HIP_JOINTS[leg])
-                hip.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
-                hip.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
-                hip.armature += setting.get(f"armature_{side}.inertia", 0.0)
-        k = setting.get("torque_constant.scale", 1.0)
-        numerics = {
-            "torque_constant": k,  # an ideal motor's Kt and Ks scale together
-            "speed_constant": k * setting.get("back_emf_constant.scale", 1.0),
-            "battery_voltage": setting.get("supply_voltage.scale", 1.0),
-        }
-        for name, scale in numerics.items():
-            if scale != 1.0:
-                spec.numeric(name).data = [spec.numeric(name).data[0] * scale]
-        sag = setting.get("supply_sag.resistance", 0.0)
-        if sag:
-            spec.numeric("amplifier_resistance").data = [spec.numeric("amplifier_resistance").data[0] + sag]
-        legs = [g for g in spec.geoms if g.parent is not None and g.parent.name.endswith("_leg")]
-        for geom in legs:
-            if "foot_friction.mu" in setting:
-                geom.friction[0] = setting["foot_friction.mu"]
-            if "ground_contact.timeconst" in setting:
-                geom.solref = [setting["ground_contact.timeconst"], setting.get("ground_contact.dampratio", 1.0)]
-        stiffness = setting.get("leg_stiffness.scale", 1.0)
-        for leg in C.LEGS:
-            spec.joint(C.SPRING_JOINTS[leg]).stiffness[0] *= stiffness
-        spine = setting.get("spine_stiffness.scale", 1.0)
-        for name in C.SPINE_JOINTS:
-            joint = spec.joint(name)
-            if joint is not None:
-                joint.stiffness[0] *= spine
-        edits.scale_mass(
-            spec, C.SEGMENTS, setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0), shifted=C.ROOT_BODY
-        )
-
-    return edit
-
-
-def add_backlash(gap: float):
-    """Spec edit: between each hip and its leg, a hinge about the hip's axis free within +-gap/2 (the gearbox's
-    play); the encoder reads the motor side (the hip joint), the leg hangs on the play."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        for leg in C.LEGS:
-            body = spec.body(f"{leg}_leg")
-            # the play turns the leg about the hip's axis before the leg's radial spring slides along its chord:
-            # MuJoCo applies a body's joints in order, so the spring is taken out and put back after the play
-            spring = spec.joint(C.SPRING_JOINTS[leg])
-            kept = {k: getattr(spring, k) for k in ("type", "axis", "pos", "stiffness", "damping", "range",
-                                                   "limited", "armature", "springref")}  # fmt: skip
-            kept = {k: (v.copy() if hasattr(v, "copy") else v) for k, v in kept.items()}
-            spec.delete(spring)
-            play = body.add_joint(name=f"{leg}_{PLAY}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
-            play.range = [-gap / 2, gap / 2]
-            play.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-            play.armature = 1e-5  # the leg's own inertia carries it; a little keeps the free play well posed
-            again = body.add_joint(name=C.SPRING_JOINTS[leg])
-            for k, v in kept.items():
-                setattr(again, k, v)
-
-    return edit
-
-
-def delay_edit(seconds: float):
-    """Spec edit of the calibrated envs: every motor's two actuators delayed by ``seconds``, as the replay shifts the
-    logged duty."""
-    return delay_actuators(seconds, [f"{C.HIP_JOINTS[leg]}_{kind}" for leg in C.LEGS for kind in ("drive", "emf")])
+SIDES = constants.SIDES
 
 
 def add_bump(height: float):
@@ -213,15 +64,15 @@ class XjusAdapter(Adapter):
 
     name = "xjus"
     channels = {  # noqa: RUF012
-        **{f"leg_angle_{leg}": "rad" for leg in C.LEGS},
-        **{f"leg_speed_{leg}": "rad/s" for leg in C.LEGS},
-        **{f"current_{leg}": "A" for leg in C.LEGS},
+        **{f"leg_angle_{leg}": "rad" for leg in constants.LEGS},
+        **{f"leg_speed_{leg}": "rad/s" for leg in constants.LEGS},
+        **{f"current_{leg}": "A" for leg in constants.LEGS},
     }
-    commands = (*(f"duty_{leg}" for leg in C.LEGS), "vbatt")
+    commands = (*(f"duty_{leg}" for leg in constants.LEGS), "vbatt")
     segment_seconds = 1.0
     # each leg's channels against that leg's speed, duty, current and angle (cos > 0: the leg points down, stance)
     context = {
-        key: {f"{channel}_{leg}": f"{column}_{leg}" for leg in C.LEGS for channel in ("leg_angle", "leg_speed",
+        key: {f"{channel}_{leg}": f"{column}_{leg}" for leg in constants.LEGS for channel in ("leg_angle", "leg_speed",
                                                                                        "current")}
         for key, column in (("velocity", "leg_speed"), ("command", "duty"), ("load", "current"),
                             ("phase", "leg_angle"))
@@ -267,10 +118,17 @@ class XjusAdapter(Adapter):
         self._h = float(m.opt.timestep)
         self._constants = robot.constants
         self._stand = robot.stand_height
-        self._drive = {leg: int(m.actuator_ctrladr[m.actuator(f"{C.HIP_JOINTS[leg]}_drive").id]) for leg in C.LEGS}
-        self._emf = {leg: int(m.actuator_ctrladr[m.actuator(f"{C.HIP_JOINTS[leg]}_emf").id]) for leg in C.LEGS}
-        self._sensors = {name: int(m.sensor(name).adr[0]) for leg in C.LEGS
-                         for name in (C.SENSOR_ANGLE[leg], C.SENSOR_SPEED[leg], C.SENSOR_TORQUE[leg])}  # fmt: skip
+        self._drive = {
+            leg: int(m.actuator_ctrladr[m.actuator(f"{constants.HIP_JOINTS[leg]}_drive").id]) for leg in constants.LEGS
+        }
+        self._emf = {
+            leg: int(m.actuator_ctrladr[m.actuator(f"{constants.HIP_JOINTS[leg]}_emf").id]) for leg in constants.LEGS
+        }
+        self._sensors = {
+            name: int(m.sensor(name).adr[0])
+            for leg in constants.LEGS
+            for name in (constants.SENSOR_ANGLE[leg], constants.SENSOR_SPEED[leg], constants.SENSOR_TORQUE[leg])
+        }
         self._gait = robot.gait
         self._hip_inertia = robot.hip_inertia.copy()  # the controller's plant inertia, from the nominal model
         self.feedback_steps = 0  # set from the logs (segments): the control step, where a log holds the clock
@@ -303,7 +161,7 @@ class XjusAdapter(Adapter):
         step), which every log must share."""
         out = super().segments(log)
         t = log.time
-        acting = {f"acting_{leg}": self.acting(log.df[f"duty_{leg}"].to_numpy(dtype=float)) for leg in C.LEGS}
+        acting = {f"acting_{leg}": self.acting(log.df[f"duty_{leg}"].to_numpy(dtype=float)) for leg in constants.LEGS}
         clocked = all(c in log.df.columns for c in self.CLOCK) and bool(np.isfinite(log.df["period"]).any())
         if clocked:
             acting["clock_phase"] = log.df["clock_phase"].to_numpy(dtype=float)
@@ -347,9 +205,9 @@ class XjusAdapter(Adapter):
 
     def _addresses(self, model: mujoco.MjModel) -> tuple[dict[str, int], dict[str, int], int]:
         """The hips' qpos and dof addresses and the root's qpos address in ``model``."""
-        hips = {leg: model.joint(C.HIP_JOINTS[leg]) for leg in C.LEGS}
+        hips = {leg: model.joint(constants.HIP_JOINTS[leg]) for leg in constants.LEGS}
         return ({leg: int(j.qposadr[0]) for leg, j in hips.items()}, {leg: int(j.dofadr[0]) for leg, j in hips.items()},
-                int(model.joint(C.ROOT_JOINT).qposadr[0]))  # fmt: skip
+                int(model.joint(constants.ROOT_JOINT).qposadr[0]))  # fmt: skip
 
     def _motor(self, setting: Setting) -> dict[str, float]:
         c = self._constants
@@ -365,7 +223,7 @@ class XjusAdapter(Adapter):
         vs = segment.command_at("vbatt", t, delay) * mo["supply"]
         band = setting.get("deadband.duty", 0.0)
         ctrl = np.zeros((len(t), model.nu))
-        for leg in C.LEGS:
+        for leg in constants.LEGS:
             d = np.clip(segment.command_at(f"acting_{leg}", t, delay), -1.0, 1.0)
             if band > 0:
                 d = np.sign(d) * np.maximum(np.abs(d) - band, 0.0)
@@ -403,7 +261,9 @@ class XjusAdapter(Adapter):
             period = np.where(live, clock[:, 1], 1.0)
             sweep = np.where(live[:, None], clock[:, 2:4], 0.0)
             target, rate, accel = self._gait.targets(phase, period, sweep)
-            torque = pd_torque(wrap_angle(target - angle), rate - speed, accel, self._hip_inertia, C.PD_KP, C.PD_KD)
+            torque = pd_torque(
+                wrap_angle(target - angle), rate - speed, accel, self._hip_inertia, constants.PD_KP, constants.PD_KD
+            )
             duty = self._firmware(b["vbatt"][:, u]).duty_for_torque(torque, speed)
             history[live, u] = duty[live]
         source = (step + np.arange(ctrl.shape[1])[None, :] - b["delay"][:, None]) // k  # (rows, steps)
@@ -432,7 +292,7 @@ class XjusAdapter(Adapter):
                 clock = np.column_stack([seg.command_at(c, tau) if c in seg.data else np.full(updates, np.nan)
                                          for c in ("clock_phase", "acting_period", "acting_sweep_left",
                                                    "acting_sweep_right")])  # fmt: skip
-                acting = np.column_stack([seg.command_at(f"acting_{leg}", tau) for leg in C.LEGS])
+                acting = np.column_stack([seg.command_at(f"acting_{leg}", tau) for leg in constants.LEGS])
                 seg.cache[key] = (clock, acting, seg.command_at("vbatt", tau))
             tables.append(seg.cache[key])
         motors = [self._motor(setting) for setting, _ in rows]
@@ -441,14 +301,14 @@ class XjusAdapter(Adapter):
             "clock": np.stack([t[0] for t in tables]),
             "acting": np.stack([t[1] for t in tables]),
             "vbatt": np.stack([t[2] for t in tables]),
-            "history": np.zeros((len(rows), updates, len(C.LEGS))),
+            "history": np.zeros((len(rows), updates, len(constants.LEGS))),
             "delay": np.array([round(setting.get("delay.seconds", 0.0) / self._h) for setting, _ in rows]),
             "band": np.array([setting.get("deadband.duty", 0.0) for setting, _ in rows]),
             **{name: np.array([m[name] for m in motors]) for name in ("tpa", "ks", "ra", "ramp", "supply")},
-            "angle": [s[C.SENSOR_ANGLE[leg]] for leg in C.LEGS],
-            "speed": [s[C.SENSOR_SPEED[leg]] for leg in C.LEGS],
-            "drive": [self._drive[leg] for leg in C.LEGS],
-            "emf": [self._emf[leg] for leg in C.LEGS],
+            "angle": [s[constants.SENSOR_ANGLE[leg]] for leg in constants.LEGS],
+            "speed": [s[constants.SENSOR_SPEED[leg]] for leg in constants.LEGS],
+            "drive": [self._drive[leg] for leg in constants.LEGS],
+            "emf": [self._emf[leg] for leg in constants.LEGS],
         }
 
     def _firmware(self, vbatt: np.ndarray):
@@ -465,11 +325,13 @@ class XjusAdapter(Adapter):
         gain = setting.get("sensor_gain_current.scale", 1.0)
         s = self._sensors
         angles, speeds, currents = [], [], []
-        for leg in C.LEGS:
-            side = "left" if leg in C.LEFT_LEGS else "right"
-            angles.append(sensordata[:, s[C.SENSOR_ANGLE[leg]]] + setting.get(f"sensor_bias_angle_{side}.offset", 0.0))
-            speeds.append(sensordata[:, s[C.SENSOR_SPEED[leg]]])
-            currents.append(gain * sensordata[:, s[C.SENSOR_TORQUE[leg]]] / mo["tpa"])
+        for leg in constants.LEGS:
+            side = "left" if leg in constants.LEFT_LEGS else "right"
+            angles.append(
+                sensordata[:, s[constants.SENSOR_ANGLE[leg]]] + setting.get(f"sensor_bias_angle_{side}.offset", 0.0)
+            )
+            speeds.append(sensordata[:, s[constants.SENSOR_SPEED[leg]]])
+            currents.append(gain * sensordata[:, s[constants.SENSOR_TORQUE[leg]]] / mo["tpa"])
         return np.column_stack([*angles, *speeds, *currents])
 
     # --- synthetic logs ---------------------------------------------------------------------------------------------
@@ -485,7 +347,7 @@ class XjusAdapter(Adapter):
         start_angles = robot.leg_angles()[0].copy()
         dt = robot.control_dt
         steps = round(seconds / dt)
-        rows = np.zeros((steps + 1, len(C.LEGS)))
+        rows = np.zeros((steps + 1, len(constants.LEGS)))
         start = 0.0
         plan: list[tuple[float, float, float, float, bool]] = []
         while start < seconds:
@@ -502,7 +364,7 @@ class XjusAdapter(Adapter):
                 k_plan += 1
             _, period, left, right, pause = plan[k_plan]
             if pause:  # the driver told nothing: the legs go limp, the clock stands still and is not logged
-                robot.hold_duty(np.zeros((1, len(C.LEGS))))
+                robot.hold_duty(np.zeros((1, len(constants.LEGS))))
             else:
                 robot.command(np.array([[period, left, right]]))
                 clock[k + 1] = [robot.phase[0], period, left, right]
@@ -512,16 +374,22 @@ class XjusAdapter(Adapter):
                 clock[k + 1, 0] = robot.phase[0]
         t = np.arange(steps + 1) * dt
         battery = 23.5 - 0.5 * t / max(seconds, 1e-9) + rng.normal(0.0, 0.02, len(t))
-        table = {"time": t, **{f"duty_{leg}": rows[:, i] for i, leg in enumerate(C.LEGS)}, "vbatt": battery,
+        table = {"time": t, **{f"duty_{leg}": rows[:, i] for i, leg in enumerate(constants.LEGS)}, "vbatt": battery,
                  **dict(zip(self.CLOCK, clock.T, strict=True))}  # fmt: skip
         for channel in self.channels:
             table[channel] = 0.0
-        for i, leg in enumerate(C.LEGS):  # the start the replay begins from: the robot's reset pose
+        for i, leg in enumerate(constants.LEGS):  # the start the replay begins from: the robot's reset pose
             table[f"leg_angle_{leg}"] = float(start_angles[i])
         return pd.DataFrame(table)
 
     def synth_noise(self) -> dict[str, float]:
         # the hip encoders (a 500-count encoder behind the gearbox: 1e-3 rad), a speed from its differences, the
         # EPOS2's current reading (20 mA)
-        return {**{f"leg_angle_{leg}": 1e-3 for leg in C.LEGS}, **{f"leg_speed_{leg}": 0.05 for leg in C.LEGS},
-                **{f"current_{leg}": 0.02 for leg in C.LEGS}}  # fmt: skip
+        return {
+            **{f"leg_angle_{leg}": 1e-3 for leg in constants.LEGS},
+            **{f"leg_speed_{leg}": 0.05 for leg in constants.LEGS},
+            **{f"current_{leg}": 0.02 for leg in constants.LEGS},
+        }
+
+
+ADAPTERS = {"xjus": XjusAdapter}

@@ -5,11 +5,11 @@ and the deepest contact of a state (for starting a segment out of the ground).""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import mujoco
 
-SpecEdit = Callable[[mujoco.MjSpec], None]
+from envs.common.parameters import SpecEdit
 
 
 def scale_mass(spec: mujoco.MjSpec, bodies: Iterable[str], scale: float, shift_x: float = 0.0,

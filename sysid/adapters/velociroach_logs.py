@@ -1,4 +1,5 @@
-"""The VelociRoACH's text telemetry as a calibration log (``calibrate.py`` finds it through ``LOG_READERS``)."""
+"""The VelociRoACH's text telemetry as a calibration log (``sysid.robots.read_log`` finds it through
+``LOG_READERS``)."""
 
 from __future__ import annotations
 
@@ -29,3 +30,4 @@ def _read(path: Path) -> Log:
 
 
 READER = LogReader("VelociRoACH text telemetry", _matches, _read)
+LOG_READERS = [READER]

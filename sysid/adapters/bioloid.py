@@ -19,14 +19,13 @@ over (``burn_in``). The replay floor is measured on the model's own twin of the 
 **Channels** compared: the 16 reported positions (counts). The AX-12's "present load" is not compared: it reports
 the amplifier's duty, not a torque (ROBOTIS e-manual), and it is the coarsest of its readings.
 
-**Effects** (sysid/effects.py): delay of the goals; the servos' gain (compliance slope) and supply; per side (the
-six servos of a side's two legs) Coulomb and viscous friction at the joints; the servos' rotor inertia; backlash
-between each servo's horn and the bracket it drives (a hinge of limited play, a structural spec edit); the crutches'
-friction and contact; the body's (BODY: the CM-5 and battery, Table 3) mass and centre of mass; an offset on each
-side's reported positions. Not offered: the compliance margin (a deadband the native servo cannot run,
-envs/actuators/servo.py; on positions it aliases Coulomb friction), motor constants apart from the supply (the servo
-model's torque and speed both scale with it: ``supply_voltage`` is that group), leg or spine stiffness (the robot's
-brackets are rigid).
+**Effects** (envs/bioloid/effects.py): delay of the goals; the servos' gain (compliance slope) and supply; per side (the
+six servos of a side's two legs) Coulomb and viscous friction at the joints; the servos' rotor inertia; backlash between
+each servo's horn and the bracket it drives (a hinge of limited play, a structural spec edit); the crutches' friction
+and contact; the body's (BODY: the CM-5 and battery, Table 3) mass and centre of mass; an offset on each side's reported
+positions. Not offered: the compliance margin (a deadband the native servo cannot run, envs/actuators/servo.py; on
+positions it aliases Coulomb friction), motor constants apart from the supply (the servo model's torque and speed both
+scale with it: ``supply_voltage`` is that group), leg or spine stiffness (the robot's brackets are rigid).
 """
 
 from __future__ import annotations
@@ -39,96 +38,15 @@ import numpy as np
 import pandas as pd
 
 from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
-from envs.bioloid import constants as C
-from sysid import edits
-from sysid import effects as E
-from sysid.edits import delay_actuators
-from sysid.effects import Effect
+from envs.bioloid import constants
+from envs.bioloid.effects import SIDE_SERVOS, add_backlash, bioloid_effects, effects_edit
+from envs.common import edits
+from envs.common.effects import Effect
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting
 
-PLAY = "play"  # the backlash joint of each servo: <servo>_play
-SERVO_TOP_SPEED = "servo top speed: viscous friction / supply voltage"
-SIDE_SERVOS = {side: tuple(s for leg in C.LEGS if C.LEG_SIDE[leg] == side for s in (C.HIP[leg], C.ABDUCTION[leg],
-                                                                                     C.KNEE[leg]))
-               for side in C.SIDES}  # fmt: skip
-# why the 16 positions barely see an effect (Effect.weak; measured: the matrix's weak cases, the nominal model's
-# error at the range's far end, median of three seeds): the servos' position loop holds a joint within a few counts
-# of its goal whatever resists it, and the body the log lacks sets a replay floor of half a count
-HIDDEN_BY_THE_LOOP = ("the servo's position loop (0.05 N m per count) hides it: at the range's far end it shifts a "
-                      "moving servo by a few counts, within the replay floor (nominal error 1.2-1.9)")  # fmt: skip
-THROUGH_THE_BODY = ("it acts through the body, which the log lacks: the servos' stiff position loops pass its load to "
-                    "their positions as a count or two, within the replay floor (nominal error 1.0-1.5 at the range's "
-                    "far end, one seed)")  # fmt: skip
 SUPPLY_STEP = 0.05  # V: segments whose median supply rounds alike share a model
-NOMINAL_SUPPLY = C.BATTERY_VOLTAGE
-
-
-def bioloid_effects(dt: float) -> dict[str, Effect]:
-    """The Bioloid's catalog effects and their bounds. Ranges: dry friction up to an eighth of the AX-12's 1.62 N m
-    stall torque at 10 V and viscous friction up to a third of its own back-EMF damping (stall torque over no-load
-    speed: 1.62 / 5.3 = 0.30 N m s/rad) per joint; rotor inertia up to three times the assumed 1.5e-8 kg m^2 x 254^2
-    = 9.7e-4 kg m^2 at the joint; the compliance slope from a quarter to four times the factory 32 counts (the
-    control table's 2..128 range, ROBOTIS); the supply 20% either way (a 9.6 V pack from full to flat); a worn
-    gear train's play up to 0.05 rad (3 deg); the CM-5's mass +-20% (a different battery; the robot's own parameter
-    range, envs/bioloid/robot.py) and its centre of mass 2 cm either way (the seed suspects it is off, seed 002
-    V.B); a position offset up to 20 counts (a horn mounted a spline off)."""
-    out: list[Effect] = [
-        E.make("delay", seconds=(0.0, 0.0, 0.05, dt)),
-        E.make("backlash", gap=(0.0, 0.0, 0.05)),
-        E.make("servo_gain", scale=(1.0, 0.25, 4.0)),
-        E.make("supply_voltage", scale=(1.0, 0.8, 1.2), alias=SERVO_TOP_SPEED),
-        E.make("armature", inertia=(0.0, 0.0, 2e-3), weak=HIDDEN_BY_THE_LOOP),
-    ]
-    for side in C.SIDES:
-        out += [
-            E.make("coulomb_friction", side, torque=(0.0, 0.0, 0.2), weak=HIDDEN_BY_THE_LOOP),
-            E.make("viscous_friction", side, alias=SERVO_TOP_SPEED, damping=(0.0, 0.0, 0.1), weak=HIDDEN_BY_THE_LOOP),
-            E.make("sensor_bias", f"position_{side}", offset=(0.0, -20.0, 20.0)),
-        ]
-    out += [
-        E.make("foot_friction", mu=(0.8, 0.2, 1.5), weak=THROUGH_THE_BODY),
-        E.make("ground_contact", timeconst=(0.004, 0.004, 0.03), dampratio=(1.0, 0.3, 2.0), weak=THROUGH_THE_BODY),
-        E.make("mass", scale=(1.0, 0.8, 1.2), weak=THROUGH_THE_BODY),
-        E.make("com_offset", x=(0.0, -0.02, 0.02), weak=THROUGH_THE_BODY),
-        # ridges up to 8 cm: under half the leg's 0.175 m reach (robots.md: L1 0.09 + L2 0.085 m), an obstacle its
-        # feet step onto; the 16 servo positions barely see the body, so 5 cm ridges did not show in 10 s logs
-        # (2.29 at most over three draws at seed 3; 3.14 at 5 cm)
-        E.make("terrain_bump", height=(0.0, 0.0, 0.08)),
-        E.make("disturbance", torque=(0.0, 0.0, 3.0), frequency=(3.0, 0.5, 10.0)),
-    ]
-    return {e.name: e for e in out}
-
-
-def effects_edit(setting: Setting):
-    """Spec edit of a setting's model effects (calibration and the calibrated envs alike), after the servos are
-    configured: per side the joints' Coulomb and viscous friction; every servo's rotor inertia, gain and supply
-    (the amplifier's torque-space gains and bound scale with the supply, envs/actuators/dcmotor.py); the crutches'
-    friction and contact; BODY's mass and centre of mass."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        for side in C.SIDES:
-            for servo in SIDE_SERVOS[side]:
-                joint = spec.joint(servo)
-                joint.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
-                joint.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
-        inertia = setting.get("armature.inertia", 0.0)
-        gain, supply = setting.get("servo_gain.scale", 1.0), setting.get("supply_voltage.scale", 1.0)
-        for servo in C.SERVOS:
-            spec.joint(servo).armature += inertia
-            a = spec.actuator(f"{servo}_servo")
-            a.gainprm[GAIN_KP] *= gain * supply
-            a.gainprm[GAIN_VMAX] *= supply
-        feet = {C.FOOT_GEOM[leg] for leg in C.LEGS} | {C.CRUTCH_GEOM[leg] for leg in C.LEGS}
-        for geom in spec.geoms:
-            if geom.name in feet:
-                if "foot_friction.mu" in setting:
-                    geom.friction[0] = setting["foot_friction.mu"]
-                if "ground_contact.timeconst" in setting:
-                    geom.solref = [setting["ground_contact.timeconst"], setting.get("ground_contact.dampratio", 1.0)]
-        edits.scale_mass(spec, [C.ROOT_BODY], setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0))
-
-    return edit
+NOMINAL_SUPPLY = constants.BATTERY_VOLTAGE
 
 
 def supply_edit(volts: float):
@@ -136,33 +54,12 @@ def supply_edit(volts: float):
 
     def edit(spec: mujoco.MjSpec) -> None:
         ratio = volts / NOMINAL_SUPPLY
-        for servo in C.SERVOS:
+        for servo in constants.SERVOS:
             a = spec.actuator(f"{servo}_servo")
             a.gainprm[GAIN_KP] *= ratio
             a.gainprm[GAIN_VMAX] *= ratio
 
     return edit
-
-
-def add_backlash(gap: float):
-    """Spec edit: on each servo's bracket, a second hinge on the servo's axis free within +-gap/2 (the gear train's
-    play); the servo's potentiometer reads the output shaft (the servo joint), the bracket hangs on the play."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        for servo in C.SERVOS:
-            axis = np.array(spec.joint(servo).axis, dtype=float)
-            play = spec.body(servo).add_joint(name=f"{servo}_{PLAY}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis)
-            play.range = [-gap / 2, gap / 2]
-            play.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-            play.armature = 1e-6  # the bracket's own inertia carries it; a little keeps the free play well posed
-
-    return edit
-
-
-def delay_edit(seconds: float):
-    """Spec edit of the calibrated envs: every servo's goal delayed by ``seconds``, as the replay shifts the logged
-    goals."""
-    return delay_actuators(seconds, [f"{servo}_servo" for servo in C.SERVOS])
 
 
 def add_bump(height: float):
@@ -189,11 +86,11 @@ class BioloidAdapter(Adapter):
     """The Bioloid replayed from its servos' logged goals through the AX-12 model."""
 
     name = "bioloid"
-    channels = {f"present_position_{s}": "count" for s in C.SERVOS}  # noqa: RUF012
-    commands = tuple(f"goal_{s}" for s in C.SERVOS)
+    channels = {f"present_position_{s}": "count" for s in constants.SERVOS}  # noqa: RUF012
+    commands = tuple(f"goal_{s}" for s in constants.SERVOS)
     segment_seconds = 1.0
     context = {
-        key: {f"present_position_{s}": f"{column}_{s}" for s in C.SERVOS}
+        key: {f"present_position_{s}": f"{column}_{s}" for s in constants.SERVOS}
         for key, column in (("velocity", "speed"), ("command", "goal"), ("load", "load"))
     } | {"supply": "vbatt"}
     replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
@@ -214,9 +111,9 @@ class BioloidAdapter(Adapter):
         self._h = float(m.opt.timestep)
         self._servo = robot.servo.constants
         self._stand = robot.stand_height
-        self._ctrl = {s: int(m.actuator_ctrladr[m.actuator(f"{s}_servo").id]) for s in C.SERVOS}
-        self._gear = {s: float(m.actuator_gear[m.actuator(f"{s}_servo").id, 0]) for s in C.SERVOS}
-        self._pos = np.array([int(m.sensor(f"{s}_pos").adr[0]) for s in C.SERVOS])
+        self._ctrl = {s: int(m.actuator_ctrladr[m.actuator(f"{s}_servo").id]) for s in constants.SERVOS}
+        self._gear = {s: float(m.actuator_gear[m.actuator(f"{s}_servo").id, 0]) for s in constants.SERVOS}
+        self._pos = np.array([int(m.sensor(f"{s}_pos").adr[0]) for s in constants.SERVOS])
         self._ready = robot.ready_counts.copy()
         self._mode, self._control_dt = robot.mode, robot.control_dt
 
@@ -251,7 +148,7 @@ class BioloidAdapter(Adapter):
         step that ended at its time, so what acts from row k on is row k + 1's (the last row's is held)."""
         out = super().segments(log)
         self.attach(log, out, {f"acting_{s}": self.acting(log.df[f"goal_{s}"].to_numpy(dtype=float))
-                               for s in C.SERVOS})  # fmt: skip
+                               for s in constants.SERVOS})  # fmt: skip
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------
@@ -269,14 +166,14 @@ class BioloidAdapter(Adapter):
 
     def _addresses(self, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, int]:
         """The servos' qpos and dof addresses and the root's qpos address in ``model`` (an effect may add joints)."""
-        joints = [model.joint(s) for s in C.SERVOS]
+        joints = [model.joint(s) for s in constants.SERVOS]
         return (np.array([int(j.qposadr[0]) for j in joints]), np.array([int(j.dofadr[0]) for j in joints]),
-                int(model.joint(C.ROOT_JOINT).qposadr[0]))  # fmt: skip
+                int(model.joint(constants.ROOT_JOINT).qposadr[0]))  # fmt: skip
 
     def _measured_angles(self, segment: Segment, setting: Setting) -> np.ndarray:
-        counts = np.array([float(segment.data[f"present_position_{s}"][0]) for s in C.SERVOS])
+        counts = np.array([float(segment.data[f"present_position_{s}"][0]) for s in constants.SERVOS])
         bias = np.array([setting.get(f"sensor_bias_position_{side}.offset", 0.0) if side else 0.0
-                         for side in map(_side, C.SERVOS)])  # fmt: skip
+                         for side in map(_side, constants.SERVOS)])  # fmt: skip
         return self._servo.angle(counts - bias)
 
     def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
@@ -289,7 +186,7 @@ class BioloidAdapter(Adapter):
             data.qvel[:] = 0.0
             data.qpos[qpos] = angles
             mujoco.mj_kinematics(model, data)
-            lowest = min(data.site(C.SOLE_SITE[leg]).xpos[2] for leg in C.LEGS)
+            lowest = min(data.site(constants.SOLE_SITE[leg]).xpos[2] for leg in constants.LEGS)
             data.qpos[root : root + 7] = [0.0, 0.0, float(0.2 - lowest) + 1e-4, 1.0, 0.0, 0.0, 0.0]
             return
         before = edits.deepest_contact(model, data)
@@ -303,7 +200,7 @@ class BioloidAdapter(Adapter):
         delay = setting.get("delay.seconds", 0.0)
         ctrl = np.zeros((len(t), model.nu))
         top = self._servo.counts - 1
-        for s in C.SERVOS:
+        for s in constants.SERVOS:
             goal = np.clip(segment.command_at(f"acting_{s}", t, delay), 0.0, top)
             ctrl[:, self._ctrl[s]] = self._gear[s] * self._servo.angle(goal)
         if setting.get("disturbance.torque", 0.0) > 0:
@@ -315,7 +212,7 @@ class BioloidAdapter(Adapter):
 
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
         counts = self._servo.counts_of(sensordata[:, self._pos])
-        for i, side in enumerate(map(_side, C.SERVOS)):
+        for i, side in enumerate(map(_side, constants.SERVOS)):
             if side:
                 counts[:, i] += setting.get(f"sensor_bias_position_{side}.offset", 0.0)
         return counts
@@ -349,22 +246,22 @@ class BioloidAdapter(Adapter):
             k = stop
         wander = {"PELVIS": 25.0, "N_1": 60.0, "N_2": 60.0, "HEAD": 60.0}  # counts: slow random walks, bounded
         for servo, reach in wander.items():
-            i = C.SERVO_INDEX[servo]
+            i = constants.SERVO_INDEX[servo]
             walk = np.cumsum(rng.normal(0.0, reach * 0.05, steps + 1))
             walk = reach * np.tanh(walk / reach)
             walk[0] = 0.0
             goals[:, i] = self._ready[i] + walk
-        goals = np.clip(np.rint(goals), C.RANGE_LOW, C.RANGE_HIGH)
+        goals = np.clip(np.rint(goals), constants.RANGE_LOW, constants.RANGE_HIGH)
         t = np.arange(steps + 1) * dt
-        table = {"time": t, **{f"goal_{s}": goals[:, i] for i, s in enumerate(C.SERVOS)},
+        table = {"time": t, **{f"goal_{s}": goals[:, i] for i, s in enumerate(constants.SERVOS)},
                  "vbatt": 10.0 - 0.3 * t / max(seconds, 1e-9)}  # fmt: skip
-        for i, s in enumerate(C.SERVOS):  # the start the replay begins from: the ready posture
+        for i, s in enumerate(constants.SERVOS):  # the start the replay begins from: the ready posture
             table[f"present_position_{s}"] = float(self._ready[i])
         return pd.DataFrame(table).iloc[:steps]  # samples before ``seconds``: each in a segment
 
     def synth_noise(self) -> dict[str, float]:
         # the AX-12's potentiometer reading: noise of a third of a count before the servo rounds it (as the bench
-        # rig's, envs/bench/calibration.py)
+        # rig's, sysid/adapters/bench.py)
         return {c: 0.3 for c in self.channels}
 
     def measure(self, channel: str, values: np.ndarray) -> np.ndarray:
@@ -372,3 +269,6 @@ class BioloidAdapter(Adapter):
 
     def recorded_noise(self, noise: dict[str, float]) -> dict[str, float]:
         return {c: float(np.sqrt(s * s + 1.0 / 12.0)) for c, s in noise.items()}
+
+
+ADAPTERS = {"bioloid": BioloidAdapter}

@@ -37,8 +37,7 @@ import pandas as pd
 from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
 from envs.actuators.motor import MotorConstants
 from envs.bench.robot import JOINT, MotorRig, ServoRig
-from sysid import effects as E
-from sysid.effects import Effect, Param
+from envs.common.effects import GROUP_DRIVE, Effect, Param, make
 from sysid.logs import Log
 from sysid.problem import Adapter, Segment, Setting
 
@@ -109,15 +108,15 @@ class RigAdapter(Adapter):
 
     def shaft_effects(self, friction: float, damping: float, armature: float) -> list[Effect]:
         return [
-            E.make("delay", seconds=(0.0, 0.0, 0.05, self._h)),
-            E.make("coulomb_friction", torque=(0.0, 0.0, friction)),
-            E.make("viscous_friction", damping=(0.0, 0.0, damping)),
-            E.make("armature", inertia=(0.0, 0.0, armature)),
-            E.make("backlash", gap=(0.0, 0.0, 0.2)),
+            make("delay", seconds=(0.0, 0.0, 0.05, self._h)),
+            make("coulomb_friction", torque=(0.0, 0.0, friction)),
+            make("viscous_friction", damping=(0.0, 0.0, damping)),
+            make("armature", inertia=(0.0, 0.0, armature)),
+            make("backlash", gap=(0.0, 0.0, 0.2)),
         ]
 
     def out_of_catalog(self) -> list[Effect]:
-        return [E.make("disturbance", torque=(0.0, 0.0, 0.5), frequency=(3.0, 0.5, 10.0))]
+        return [make("disturbance", torque=(0.0, 0.0, 0.5), frequency=(3.0, 0.5, 10.0))]
 
     def spec_edits(self, setting: Setting) -> list:
         return [
@@ -179,18 +178,18 @@ class MotorAdapter(RigAdapter):
         # friction of its own: a torque constant s times the nominal moves the load as an inertia 1/s times it does,
         # exactly. Below nominal, the torque constant and the rotor's added inertia are one effect on these channels
         # (stop 41: a torque constant of 0.45 was fitted as an armature of 0.0012 kg m^2, to the noise floor)
-        shaft["armature"] = replace(shaft["armature"], alias=E.GROUP_DRIVE)
+        shaft["armature"] = replace(shaft["armature"], alias=GROUP_DRIVE)
         shaft["delay"] = replace(shaft["delay"], alias="lag: delay")
         out = [
             *shaft.values(),
-            E.make("deadband", duty=(0.0, 0.0, 0.2)),
-            E.make("torque_constant", scale=(1.0, 0.3, 3.0)),
-            E.make("back_emf_constant", scale=(1.0, 0.3, 3.0)),
-            E.make("supply_voltage", scale=(1.0, 0.3, 1.5)),
-            E.make("supply_sag", resistance=(0.0, 0.0, 10.0)),
-            E.make("pwm_decay", coast=(0.0, 0.0, 1.0)),
-            E.make("sensor_gain", target="angle", scale=(1.0, 0.8, 1.25)),
-            E.make("sensor_bias", target="speed", offset=(0.0, -2.0, 2.0)),
+            make("deadband", duty=(0.0, 0.0, 0.2)),
+            make("torque_constant", scale=(1.0, 0.3, 3.0)),
+            make("back_emf_constant", scale=(1.0, 0.3, 3.0)),
+            make("supply_voltage", scale=(1.0, 0.3, 1.5)),
+            make("supply_sag", resistance=(0.0, 0.0, 10.0)),
+            make("pwm_decay", coast=(0.0, 0.0, 1.0)),
+            make("sensor_gain", target="angle", scale=(1.0, 0.8, 1.25)),
+            make("sensor_bias", target="speed", offset=(0.0, -2.0, 2.0)),
             *self.out_of_catalog(),
         ]
         return {e.name: e for e in out}
@@ -269,9 +268,9 @@ class ServoAdapter(RigAdapter):
         shaft["viscous_friction"] = replace(shaft["viscous_friction"], alias=SERVO_TOP_SPEED)
         out = [
             *shaft.values(),
-            E.make("servo_gain", scale=(1.0, 0.25, 4.0)),
-            E.make("supply_voltage", scale=(1.0, 0.5, 1.5), alias=SERVO_TOP_SPEED),
-            E.make("sensor_bias", target="position", offset=(0.0, -20.0, 20.0)),
+            make("servo_gain", scale=(1.0, 0.25, 4.0)),
+            make("supply_voltage", scale=(1.0, 0.5, 1.5), alias=SERVO_TOP_SPEED),
+            make("sensor_bias", target="position", offset=(0.0, -20.0, 20.0)),
             *self.out_of_catalog(),
         ]
         return {e.name: e for e in out}
@@ -445,3 +444,6 @@ def _tag(source: int, path: str) -> str:
     """The prefix of an unlogged goal's parameters: the log's place in its problem and a hash of its path (the place
     tells two logs with one path apart; the path keeps a training log's goal apart from a held-out one's)."""
     return f"goal_{source}_{hashlib.sha1(str(path).encode()).hexdigest()[:6]}_"
+
+
+ADAPTERS = {"motor": MotorAdapter, "servo": ServoAdapter}

@@ -2,9 +2,10 @@
 group.
 
 An effect is declared here once, generically (its parameters' units and what it looks like in the residual
-diagnostics); each robot's calibration adapter says which effects it can apply, on what (a joint, a side, a
-channel), with which bounds, and how (an ``MjSpec`` edit or a field of the compiled model, a change of the
-controls it replays, a wrapper on a predicted sensor channel). Effects that alias each other on a robot's channels
+diagnostics); each robot says which effects it can take, on what (a joint, a side, a channel) and with which bounds
+(``envs/<robot>/effects.py``, with the spec edits that apply them to its model), and its calibration adapter
+(sysid/adapters) how the rest act in a replay (a change of the controls it replays, a wrapper on a predicted sensor
+channel). Effects that alias each other on a robot's channels
 share an ``alias`` group: the data cannot tell them apart, and a calibration that picks one of a group has found the
 group.
 
@@ -17,6 +18,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+
+Setting = Mapping[str, float]  # effect parameter (``effect.param``) -> value: a point of the effects' space
 
 
 @dataclass(frozen=True)

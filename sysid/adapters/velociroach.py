@@ -46,15 +46,14 @@ from envs.actuators.dcmotor import (
     INPUT_POS,
     INPUT_VEL,
 )
-from envs.velociroach import constants as C
-from sysid import edits
-from sysid import effects as E
-from sysid.edits import delay_actuators
-from sysid.effects import Effect, Param
+from envs.common import edits
+from envs.common.effects import Effect, Param
+from envs.velociroach import constants
+from envs.velociroach.effects import effects_edit, roach_effects
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
 
-SIDES = C.SIDES
+SIDES = constants.SIDES
 COUNTS_PER_RAD = 65536 / (2 * math.pi)  # leg encoder counts (the firmware's p_state) per radian
 PWM_PERIOD = 3900  # PWM counts of full duty (docs/telemetry.md)
 TICK = 1e-3  # s, the firmware's PID period
@@ -90,7 +89,7 @@ def configure_firmware(spec: mujoco.MjSpec) -> None:
     """Spec edit: both motors take a position and a velocity input and run a PID with an integrator (gains are
     written per segment)."""
     for side in SIDES:
-        a = spec.actuator(C.MOTORS[side])
+        a = spec.actuator(constants.MOTORS[side])
         a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
         a.ctrlspec = INPUT_POS | INPUT_VEL
         a.gainprm[GAIN_KP] = 1.0
@@ -100,96 +99,6 @@ def configure_firmware(spec: mujoco.MjSpec) -> None:
         a.dynprm[DYN_SLEW] = 0.0
         a.dynprm[DYN_IMAX] = 0.0  # the firmware's integrator is unbounded (Kaw = 0 in the logs)
         a.actdim = 1
-
-
-# --- the effects, applied by calibration and by the calibrated envs alike ---------------------------------------
-def roach_effects(dt: float) -> dict[str, Effect]:
-    """The VelociRoACH's catalog effects with their bounds (nominal values are the model's; see docs/velociroach.md).
-    Ranges: the crank's Coulomb friction up to 1.4 times the motor's stall torque at the crank (11 mN m at 3.7 V: the
-    2 Hz log's right leg stands stalled at full duty); its
-    viscous friction up to three times the motor's own back-EMF damping (2.9e-5 N m s/rad); rotor inertia up to 70
-    times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to 4 times the lab script's 1.41 mN m/A (the
-    real logs' back-EMF is two to three times the model's, issue 7); the back-EMF reading's offset +-0.3 V (the board
-    subtracts an offset measured at start-up)."""
-    # what the leg channels barely see (Effect.weak): at each range's far end the nominal model's error is mostly
-    # under 3 noise levels against the true model's replay floor (the matrix benchmark measures it), where the
-    # others reach 4 to 20
-    rotor = ("the rotor's inertia torque at the logged strides stays under the duty's noise and the replay floor "
-             "(it grows with the stride frequency squared: a log above 12 Hz shows more)")  # fmt: skip
-    body = ("acts on the body, which the log does not hold: the legs feel it only through stance loads, under the "
-            "replay floor that the body's unknown state sets")  # fmt: skip
-    floor = ("acts on the body, which the log does not hold: the legs see it against the nominal model's replay "
-             "floor, but the true model's own replay diverges about as much: the gain hides in its floor")  # fmt: skip
-    supply = ("the firmware's PID closes the loop around the logged battery voltage: a supply 20% off changes only "
-              "the duty, by a fifth of its small mean")  # fmt: skip
-    out: list[Effect] = [E.make("delay", seconds=(0.0, 0.0, 0.02, dt))]
-    for side in SIDES:
-        out += [
-            E.make("coulomb_friction", side, torque=(0.0, 0.0, 15e-3)),
-            E.make("viscous_friction", side, damping=(0.0, 0.0, 1e-4)),
-            E.make("armature", side, inertia=(0.0, 0.0, 1e-7), weak=rotor),
-            E.make("torque_constant", side, scale=(1.0, 0.3, 4.0)),
-            E.make("sensor_bias", f"bemf_{side}", offset=(0.0, -0.3, 0.3)),
-        ]
-    out += [
-        E.make("supply_voltage", scale=(1.0, 0.8, 1.2), weak=supply),
-        # foot friction and mass act on the body too. Against the nominal model's replay floor the leg channels see
-        # them at their ranges' far ends (median nominal error 3.7 and 3.2 on three seeds), but not against the true
-        # model's, which is the floor a calibrated model is judged against: a heavier or grippier roach's own replay
-        # diverges more (foot friction 1.5: median 3.71 against the nominal floor, 1.06 against the truth's;
-        # benchmarks/results/calibration_visibility_roach_foot_friction_far.md; docs/calibration.md, stop 29). They
-        # reach the legs mostly through where the carried body is when a segment starts, so they are declared
-        # carried (ranked and fitted with each trial's own carried body; docs/calibration.md, stop 20)
-        E.make("foot_friction", mu=(0.4, 0.05, 1.5), carried=True, weak=floor),
-        E.make("ground_contact", timeconst=(0.002, 0.001, 0.02), dampratio=(1.0, 0.2, 2.0), weak=body),
-        E.make("leg_stiffness", scale=(1.0, 0.3, 3.0), weak=body),
-        E.make("mass", scale=(1.0, 0.5, 2.0), carried=True, weak=floor),
-        E.make("com_offset", x=(0.0, -0.02, 0.02), weak=body),
-        # ridges up to 3 cm: about twice the C-leg's 13.4 mm diameter (assets/velociroach/cleg.xml), obstacles of
-        # the 13 Hz log's kind; ridges of 1 cm or less barely reached the leg channels through the body (error 1.18)
-        E.make("terrain_bump", height=(0.0, 0.0, 0.03)),
-        E.make("disturbance", torque=(0.0, 0.0, 2e-3), frequency=(3.0, 0.5, 10.0)),
-    ]
-    return {e.name: e for e in out}
-
-
-def effects_edit(setting: Setting):
-    """Spec edit of a setting's model effects (calibration and the calibrated envs alike), added to the nominal
-    spec's values: each crank's Coulomb and viscous friction, each motor's rotor inertia and motor constant, the
-    feet's and floor's friction, the floor's contact time constant and damping ratio, the C-legs' stiffness, and the
-    chassis' mass (its inertia with it) and centre of mass (its inertial written explicitly, from the compiled
-    nominal body)."""
-
-    def edit(spec: mujoco.MjSpec) -> None:
-        for side in SIDES:
-            crank = spec.joint(C.CRANK_JOINTS[side])
-            crank.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
-            crank.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
-            motor = spec.actuator(C.MOTORS[side])
-            motor.armature += setting.get(f"armature_{side}.inertia", 0.0)
-            motor.gainprm[GAIN_K] *= setting.get(f"torque_constant_{side}.scale", 1.0)
-        if "foot_friction.mu" in setting:
-            for geom in spec.geoms:
-                body = geom.parent
-                if geom.name == C.FLOOR_GEOM or (body is not None and body.name.endswith("_leg")):
-                    geom.friction[0] = setting["foot_friction.mu"]
-        floor = spec.geom(C.FLOOR_GEOM)
-        if floor is not None:
-            floor.solref = [setting.get("ground_contact.timeconst", floor.solref[0]),
-                            setting.get("ground_contact.dampratio", floor.solref[1])]  # fmt: skip
-        stiffness = setting.get("leg_stiffness.scale", 1.0)
-        for joint in spec.joints:
-            if joint.name.endswith("_spring"):
-                joint.stiffness[0] *= stiffness
-        edits.scale_mass(spec, [C.ROOT_BODY], setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0))
-
-    return edit
-
-
-def delay_edit(seconds: float):
-    """Spec edit of the calibrated envs: both motors' inputs delayed by ``seconds``, as the replay shifts the logged
-    commands."""
-    return delay_actuators(seconds, [C.MOTORS[side] for side in SIDES])
 
 
 def add_bump(height: float):
@@ -233,14 +142,18 @@ class RoachAdapter(Adapter):
         self._nominal_gains = robot.model.actuator_gainprm.copy()
         self._h = float(robot.model.opt.timestep)
         self._linkage = robot._linkage
-        self._crank_qpos = {s: int(robot.model.joint(C.CRANK_JOINTS[s]).qposadr[0]) for s in SIDES}
-        self._crank_dof = {s: int(robot.model.joint(C.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
+        self._crank_qpos = {s: int(robot.model.joint(constants.CRANK_JOINTS[s]).qposadr[0]) for s in SIDES}
+        self._crank_dof = {s: int(robot.model.joint(constants.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
         self._home = robot.linkage_qpos(0.0, -np.pi)
-        self._motor = {s: robot.model.actuator(C.MOTORS[s]).id for s in SIDES}
+        self._motor = {s: robot.model.actuator(constants.MOTORS[s]).id for s in SIDES}
         self._gear = float(robot.model.actuator_gear[self._motor["left"], 0])
-        names = (*C.SENSOR_LEG_POS.values(), *C.SENSOR_MOTOR_TORQUE.values(), *C.SENSOR_MOTOR_VEL.values())
+        names = (
+            *constants.SENSOR_LEG_POS.values(),
+            *constants.SENSOR_MOTOR_TORQUE.values(),
+            *constants.SENSOR_MOTOR_VEL.values(),
+        )
         self._sensors = {name: int(robot.model.sensor(name).adr[0]) for name in names}
-        self._sensors_gyro = int(robot.model.sensor(C.SENSOR_GYRO).adr[0])
+        self._sensors_gyro = int(robot.model.sensor(constants.SENSOR_GYRO).adr[0])
 
     def _make_robot(self, edits):
         return self._robot_class(action_mode="duty", imu_noise=None, spec_edits=[configure_firmware, *edits])
@@ -306,7 +219,7 @@ class RoachAdapter(Adapter):
 
         def edit(spec: mujoco.MjSpec) -> None:
             for side in SIDES:
-                a = spec.actuator(C.MOTORS[side])
+                a = spec.actuator(constants.MOTORS[side])
                 g = firmware_gains(gains[side], battery, a.gainprm[GAIN_R], a.gainprm[GAIN_K], self._gear)
                 a.gainprm[GAIN_KP], a.gainprm[GAIN_KI], a.gainprm[GAIN_KD] = g["kp"], g["ki"], g["kd"]
                 a.gainprm[GAIN_VMAX] = clip * battery
@@ -388,19 +301,19 @@ class RoachAdapter(Adapter):
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
         gains = self._nominal_gains
         battery = self._battery(segment, setting)
-        columns = [sensordata[:, self._sensors[C.SENSOR_LEG_POS[s]]] - setting.get(f"crank_offset.{s}", 0.0)
+        columns = [sensordata[:, self._sensors[constants.SENSOR_LEG_POS[s]]] - setting.get(f"crank_offset.{s}", 0.0)
                    for s in SIDES]  # fmt: skip
         for side in SIDES:
             a = self._motor[side]
             r = gains[a, GAIN_R]
             k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
-            torque = sensordata[:, self._sensors[C.SENSOR_MOTOR_TORQUE[side]]]
-            speed = sensordata[:, self._sensors[C.SENSOR_MOTOR_VEL[side]]]
+            torque = sensordata[:, self._sensors[constants.SENSOR_MOTOR_TORQUE[side]]]
+            speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
             columns.append((r * torque / k + k * speed) / battery)
         for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed, plus its offset
             a = self._motor[side]
             k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
-            speed = sensordata[:, self._sensors[C.SENSOR_MOTOR_VEL[side]]]
+            speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
             columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0))
         return np.column_stack(columns)
 
@@ -575,3 +488,6 @@ def _rates_table(rates: Mapping[str, Mapping[str, Mapping]], bands) -> str:
             "are simulated without a break under each model and the distributions compared.\n\n"
             f"| rate | source | std (rad/s) | {header} | Wasserstein / log std |\n"
             + "|---" * (4 + len(bands)) + "|\n" + "\n".join(rows) + "\n")  # fmt: skip
+
+
+ADAPTERS = {"roach": RoachAdapter}
