@@ -110,7 +110,7 @@ def _parameter_table(r: dict[str, Any]) -> str:
 def compare_with_trot(done: list[dict[str, Any]], episodes: int) -> str:
     """``evaluate.py`` on the reference trot and each best policy; its results.md and results.json copied to
     ``results/bioloid_cpg_vs_trot.*``. Returns the command it ran."""
-    import evaluate
+    from agents import compare
 
     policies = [RESULTS / f"bioloid_cpg_experiment{r['experiment']}_best.json" for r in done]
     specs = [REFERENCE] + [f"cpg:{p.relative_to(ROOT)}" for p in policies]
@@ -118,7 +118,7 @@ def compare_with_trot(done: list[dict[str, Any]], episodes: int) -> str:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "evaluation"
         with contextlib.chdir(ROOT):  # the policy paths are relative to the repository
-            if evaluate.main([*argv, "--out", str(out)]) != 0:
+            if compare.main([*argv, "--out", str(out)]) != 0:
                 raise RuntimeError("evaluate.py failed on the best policies")
         for suffix in ("md", "json"):
             shutil.copyfile(out / f"results.{suffix}", RESULTS / f"bioloid_cpg_vs_trot.{suffix}")

@@ -14,8 +14,8 @@ from pathlib import Path
 import torch
 
 import envs  # noqa: F401
+from agents.training import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 from benchmarks.common import md_table, save
-from train import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 
 FOUNDATION_DUMMY = 865.0  # steps/s, issue 2's demo (DummyVecEnv, same hyperparameters)
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-import calibrate
-import evaluate
+from agents import compare as evaluate
+from sysid import cli as calibrate
 from sysid import synth
 
 ROOT = Path(__file__).resolve().parents[1]

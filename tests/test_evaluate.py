@@ -240,7 +240,7 @@ def copy_model(src: Path, dst: Path, drop: tuple[str, ...] = (), replace: dict |
 
 
 def evaluate_main(capsys, model: Path, out: Path, env_id: str = "skitter/RoachWalk-v1") -> tuple[int, str]:
-    import evaluate
+    from agents import compare as evaluate
 
     code = evaluate.main(["--env", env_id, "--policy", str(model), "--episodes", "1", "--out", str(out)])
     return code, capsys.readouterr().err
@@ -309,7 +309,7 @@ def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(mod
     """Stop 32's review: a model trained with env_kwargs (its run's config.json) was evaluated silently on the
     default env. --env-kwargs makes the env as it was trained; a difference is warned of, and a shape mismatch
     names the env_kwargs it was trained with."""
-    import evaluate
+    from agents import compare as evaluate
 
     run_dir = tmp_path / "run"
     model = copy_model(model_zip, run_dir / "model.zip")
@@ -344,7 +344,7 @@ def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, r
         env.step(env.action_space.sample() * 0)
     telemetry = tmp_path / "episode.parquet"
     env.unwrapped.recorder.save(telemetry)
-    import evaluate
+    from agents import compare as evaluate
 
     evaluate.plot_episode(env.unwrapped.robot, telemetry, tmp_path / "plot.png", "duty mode")
     assert (tmp_path / "plot.png").stat().st_size > 0
@@ -352,7 +352,7 @@ def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, r
 
 
 def test_videos_are_rendered_at_most_30_frames_a_second():
-    from evaluate import VIDEO_FPS, video_stride
+    from agents.compare import VIDEO_FPS, video_stride
 
     for control_hz, stride in [(25, 1), (30, 1), (50, 2), (125, 5), (1000, 34)]:
         assert video_stride(control_hz) == stride

@@ -41,6 +41,8 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
+from agents.config import ConfigError
+
 OBJECTIVES = ("forward", "eq17")
 GENERIC_FIELDS = {"env", "env_kwargs", "controller", "seconds", "objective", "sample_interval", "max_tilt"}
 
@@ -52,10 +54,6 @@ def eq17(positions: np.ndarray, alpha: float = 1.0, beta: float = 1.0) -> np.nda
     straight = np.linalg.norm(p[:, -1] - p[:, 0], axis=1)
     integrated = np.linalg.norm(np.diff(p, axis=1), axis=2).sum(axis=1)
     return alpha * straight + beta * integrated
-
-
-class ConfigError(ValueError):
-    """A run configuration that cannot be used; the message names the file, the field and the value."""
 
 
 class Controller(Protocol):
