@@ -24,6 +24,7 @@ import re
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -48,7 +49,6 @@ from envs.common.io import (
     published_exit_code,
     results_folder_problem,
     run_interruptibly,
-    write_json,
     write_text,
 )
 from envs.common.telemetry import read_telemetry, write_telemetry
@@ -264,12 +264,15 @@ def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def fmt(s: dict[str, float]) -> str:
+def fmt(s: dict[str, float], total: int) -> str:
+    """Mean [95% CI] of a summary; "(n of N episodes)" when the mean is over fewer than all ``total`` episodes (a
+    metric an episode does not have, such as the cost of transport of one that travelled no distance, is left out)."""
+    subset = f" ({s['n']} of {total} episodes)" if s["n"] < total else ""
     if not np.isfinite(s["mean"]):
-        return "n/a"
+        return "n/a" + subset
     if not np.isfinite(s["ci_low"]):  # one episode: no interval
-        return f"{s['mean']:.3g}"
-    return f"{s['mean']:.3g} [{s['ci_low']:.3g}, {s['ci_high']:.3g}]"
+        return f"{s['mean']:.3g}{subset}"
+    return f"{s['mean']:.3g} [{s['ci_low']:.3g}, {s['ci_high']:.3g}]{subset}"
 
 
 def report(
@@ -277,15 +280,16 @@ def report(
 ) -> str:
     specs = list(results)
     names = [m for m in metrics if m in summaries[specs[0]]]
+    total = len(seeds)
     lines = [
-        f"# {env_id}: {len(seeds)} episodes per policy, seeds {seeds[0]}..{seeds[-1]} (the same for every policy)",
+        f"# {env_id}: {total} episodes per policy, seeds {seeds[0]}..{seeds[-1]} (the same for every policy)",
         "",
         "Mean [95% CI] per episode: "
         + (
             "no interval from one episode."
-            if len(seeds) < 2
+            if total < 2
             else f"Student's t intervals (fewer than {MIN_BOOTSTRAP} episodes: a bootstrap would be too narrow)."
-            if len(seeds) < MIN_BOOTSTRAP
+            if total < MIN_BOOTSTRAP
             else "bootstrap (BCa)."
         ),
         "",
@@ -293,16 +297,43 @@ def report(
         "|---|" + "---|" * len(specs),
     ]
     for m in names:
-        lines.append(f"| {m} | " + " | ".join(fmt(summaries[s][m]) for s in specs) + " |")
+        lines.append(f"| {m} | " + " | ".join(fmt(summaries[s][m], total) for s in specs) + " |")
     unstable = {s: sum(e.unstable for e in eps) for s, eps in results.items()}
     lines.append("| unstable episodes | " + " | ".join(str(unstable[s]) for s in specs) + " |")
     if comparisons:
         lines += ["", f"Paired differences against {specs[0]} (same seeds), mean [95% CI]:", ""]
         lines += ["| policy | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
         for s, diffs in comparisons.items():
-            lines.append(f"| {s} | " + " | ".join(fmt(diffs[m]) for m in names) + " |")
+            lines.append(f"| {s} | " + " | ".join(fmt(diffs[m], total) for m in names) + " |")
+    subsets = any(
+        summary["n"] < total for table in (summaries, comparisons) for row in table.values() for summary in row.values()
+    )
+    if subsets:
+        note = (
+            f"A value marked (n of {total} episodes) is the mean over the n episodes that have the metric (a cost of "
+            "transport needs a distance travelled; a paired difference needs both episodes of a seed)."
+        )
+        lines += ["", note]
     lines += ["", "Metrics: " + "; ".join(f"{k}: {v}" for k, v in metrics.items() if k in names) + "."]
     return "\n".join(lines) + "\n"
+
+
+def strict_json(value: Any) -> Any:
+    """``value`` as plain JSON values, every NaN or infinite number as None: JSON has no NaN, and the bare ``NaN``
+    Python's ``json`` writes by default is refused by strict readers (JavaScript's ``JSON.parse``)."""
+    if isinstance(value, dict):
+        return {key: strict_json(item) for key, item in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [strict_json(item) for item in value]
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, Path):
+        return str(value)
+    return value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -354,23 +385,21 @@ def _run(args: argparse.Namespace) -> int:
         }
         seeds = [args.seed + i for i in range(args.episodes)]
         text = report(args.env, results, summaries, comparisons, seeds, metrics)
-        write_json(
-            staging / "results.json",
-            {
-                "env": args.env,
-                "calibration": None if args.calibration is None else str(args.calibration),
-                "env_kwargs": args.env_kwargs,
-                "seeds": seeds,
-                "deterministic": not args.stochastic,
-                "metrics": metrics,
-                "files": names,
-                "policies": {
-                    s: {"summary": summaries[s], "episodes": [episode_record(e) for e in eps]}
-                    for s, eps in results.items()
-                },
-                "paired_differences": {"reference": reference, "policies": comparisons},
+        record = {
+            "env": args.env,
+            "calibration": None if args.calibration is None else str(args.calibration),
+            "env_kwargs": args.env_kwargs,
+            "seeds": seeds,
+            "deterministic": not args.stochastic,
+            "metrics": metrics,
+            "files": names,
+            "policies": {
+                s: {"summary": summaries[s], "episodes": [episode_record(e) for e in eps]} for s, eps in results.items()
             },
-        )
+            "paired_differences": {"reference": reference, "policies": comparisons},
+        }
+        # strict JSON: a metric an episode does not have (NaN) is null
+        write_text(staging / "results.json", json.dumps(strict_json(record), indent=2, allow_nan=False) + "\n")
         write_text(staging / "results.md", text)
         where = publish_folder(staging, out, args.out_existed, _foreign(out))
     print(text)

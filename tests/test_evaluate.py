@@ -357,3 +357,41 @@ def test_videos_are_rendered_at_most_30_frames_a_second():
     for control_hz, stride in [(25, 1), (30, 1), (50, 2), (125, 5), (1000, 34)]:
         assert video_stride(control_hz) == stride
         assert control_hz / stride <= VIDEO_FPS
+
+
+def test_results_are_strict_json_and_a_mean_over_some_episodes_says_how_many(tmp_path, monkeypatch, capsys):
+    """An episode without a cost of transport (no distance travelled) has NaN there: results.json writes null (bare
+    NaN is not JSON), and the table says that the mean is over the episodes that have one."""
+    from agents import compare
+
+    run_episodes = compare.run_episodes
+
+    def first_without_a_distance(*args, **kwargs):
+        episodes = run_episodes(*args, **kwargs)
+        episodes[0].metrics["cost_of_transport"] = float("nan")  # as episode_metrics gives it for no distance
+        return episodes
+
+    monkeypatch.setattr(compare, "run_episodes", first_without_a_distance)
+    out = tmp_path / "r"
+    argv = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--policy", "tripod:20", "--episodes", "3",
+            "--max-episode-steps", "10", "--out", str(out)]  # fmt: skip
+    assert compare.main(argv) == 0
+    text = (out / "results.json").read_text()
+
+    def refuse(constant: str):
+        raise ValueError(f"{constant} is not JSON")
+
+    results = json.loads(text, parse_constant=refuse)
+    tripod = results["policies"]["tripod"]
+    assert tripod["episodes"][0]["metrics"]["cost_of_transport"] is None
+    assert tripod["summary"]["cost_of_transport"]["n"] == 2
+    assert results["paired_differences"]["policies"]["tripod:20"]["cost_of_transport"]["n"] == 2
+    assert tripod["summary"]["speed"]["n"] == 3
+    table = {line.split(" | ")[0]: line for line in (out / "results.md").read_text().splitlines()}
+    assert table["| cost_of_transport"].count("(2 of 3 episodes)") == 2 and "of 3 episodes" not in table["| speed"]
+    (paired,) = [line for line in table.values() if line.startswith("| tripod:20 |")]
+    assert paired.count("(2 of 3 episodes)") == 1  # the cost of transport's column
+    assert (
+        "A value marked (n of 3 episodes) is the mean over the n episodes that have the metric"
+        in capsys.readouterr().out
+    )
