@@ -45,8 +45,10 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     atomic_write,
+    keep_unpublished,
     publish_folder,
     published_exit_code,
+    replace_problem,
     results_folder_problem,
     run_interruptibly,
     write_text,
@@ -116,6 +118,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if repeated:
         p.error(f"--policy {repeated[0]!r} is given twice")
     problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign(args.out))
+    problem = problem or replace_problem(args.out)
     if problem:
         p.error(problem)
     args.out_existed = args.out.exists()  # publishing checks again: a folder that appeared meanwhile is not replaced
@@ -401,7 +404,14 @@ def _run(args: argparse.Namespace) -> int:
         # strict JSON: a metric an episode does not have (NaN) is null
         write_text(staging / "results.json", json.dumps(strict_json(record), indent=2, allow_nan=False) + "\n")
         write_text(staging / "results.md", text)
-        where = publish_folder(staging, out, args.out_existed, _foreign(out))
+        try:
+            where = publish_folder(staging, out, args.out_existed, _foreign(out))
+        except OSError as exc:  # checked before the run, yet the file system may change meanwhile
+            kept = keep_unpublished(staging, out)
+            place = f"they are kept in {kept}/" if kept else "nowhere could keep them"
+            print(f"evaluate.py: error: cannot put the results at {out} ({exc.strerror or exc}); {place}",
+                  file=sys.stderr)  # fmt: skip
+            return 1
     print(text)
     extra = (" videos/" if args.video else "") + (" telemetry/" if args.telemetry else "")
     print(f"results in {where}/ (results.json, results.md, plots/{extra})")

@@ -29,6 +29,8 @@ replay buffer (kept only in the newest checkpoint), and ``checkpoint.json``. ``-
 or a run's name (no ``/``), looked up in ``--runs-dir``; it continues from the newest checkpoint that loads, says
 which ones it skipped and why, and removes the temporary folders and files a killed run left (only the names
 train.py's own writers give them). Ctrl-C and SIGTERM save a checkpoint first.
+One train.py process at a time writes a run folder: a new run and a resume hold its lock (``train.lock``), and a
+second process on the folder is refused at once, before it reads or removes anything. The guide is docs/training.md.
 
 Every input is checked before anything is created: the command line (``--runs-dir`` by making and removing a probe
 folder; an empty path is refused), the hyperparameter file (a key given twice in one mapping is refused; each field

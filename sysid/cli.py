@@ -30,8 +30,10 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     foreign_unless,
+    keep_unpublished,
     publish_folder,
     published_exit_code,
+    replace_problem,
     results_folder_problem,
     run_interruptibly,
     write_json,
@@ -62,6 +64,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.threads is not None and args.threads < 1:
         p.error(f"--threads must be at least 1, got {args.threads}")
     problem = results_folder_problem(args.out, args.overwrite, "calibrate.py", foreign_unless(RESULTS))
+    problem = problem or replace_problem(args.out)
     if problem:
         p.error(problem)
     args.out_existed = args.out.exists()  # publishing checks again: a folder that appeared meanwhile is not replaced
@@ -190,7 +193,10 @@ def _run(args: argparse.Namespace) -> int:
         write_json(staging / "calibration.json", calibration_dict(result, report, _base(start)))
         plot_residuals(result, staging / "residual_before.png", "before")
         plot_residuals(result, staging / "residual_after.png", "after")
-        where = publish_folder(staging, out, args.out_existed, foreign_unless(RESULTS))
+        try:
+            where = publish_folder(staging, out, args.out_existed, foreign_unless(RESULTS))
+        except OSError as exc:  # checked before the run, yet the file system may change in minutes
+            return _unpublished(staging, out, exc)
     chosen = ", ".join(c["name"] for c in report["chosen"]) or "nothing"
     print(
         f"{args.robot}: held-out error {report['error_before']:.3g} -> {report['error_after']:.3g} (1 is the noise "
@@ -201,6 +207,14 @@ def _run(args: argparse.Namespace) -> int:
         print(f"calibrate.py: warning: the calibrated model's held-out error ({after:.3g}) is above the nominal "
               f"model's ({before:.3g}); see {where}/report.md", file=sys.stderr)  # fmt: skip
     return published_exit_code("calibrate.py", out, where)
+
+
+def _unpublished(staging: Path, out: Path, exc: OSError) -> int:
+    """The results could not be put at ``out``: kept elsewhere, and said where, in one line; exit code 1."""
+    kept = keep_unpublished(staging, out)
+    where = f"they are kept in {kept}/" if kept else "nowhere could keep them"
+    print(f"calibrate.py: error: cannot put the results at {out} ({exc.strerror or exc}); {where}", file=sys.stderr)
+    return 1
 
 
 def _base(start) -> dict | None:
