@@ -716,3 +716,40 @@ def test_ppo_trains_the_later_robots_with_the_shipped_hyperparameters(env_id, tm
     (run_dir,) = tmp_path.iterdir()
     assert (run_dir / "model.zip").is_file()
     assert_policy_acts(run_dir / "model.zip", env_id)
+
+
+def test_the_commands_are_thin_and_nothing_in_the_package_or_benchmarks_imports_them():
+    """train.py, evaluate.py and calibrate.py only call the package's main; the package and the benchmarks import
+    the package modules, never the root scripts."""
+    import ast
+
+    from agents import compare, training
+    from sysid import cli
+
+    for script, module in (("train.py", training), ("evaluate.py", compare), ("calibrate.py", cli)):
+        tree = ast.parse((ROOT / script).read_text())
+        imported = [
+            (node.module, [a.name for a in node.names]) for node in tree.body if isinstance(node, ast.ImportFrom)
+        ]
+        assert imported == [(module.__name__, ["main"])], script
+        assert not [node for node in tree.body if isinstance(node, ast.FunctionDef | ast.ClassDef)], script
+    for folder in ("agents", "envs", "sysid", "benchmarks"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+                names += [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 else []
+                assert not {"train", "evaluate", "calibrate"} & {str(n).split(".")[0] for n in names}, path
+
+
+def test_one_config_error_and_no_callback_under_sb3s_name():
+    """One ConfigError for the trainer and the optimizer; the run's checkpoint callback is not SB3's name."""
+    from stable_baselines3.common import callbacks
+
+    from agents import training
+    from agents.config import ConfigError
+    from agents.optimize import problem
+
+    assert training.ConfigError is ConfigError and problem.ConfigError is ConfigError
+    assert issubclass(ConfigError, ValueError)
+    assert not hasattr(training, "CheckpointCallback") and not hasattr(callbacks, "RunCheckpointCallback")
+    assert issubclass(training.RunCheckpointCallback, callbacks.BaseCallback)
