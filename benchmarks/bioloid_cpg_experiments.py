@@ -122,7 +122,7 @@ def _parameter_table(r: dict[str, Any]) -> str:
 def compare_with_trot(done: list[dict[str, Any]], episodes: int, output: Output) -> str:
     """``evaluate.py`` on the reference trot and each best policy; its results.md and results.json copied to
     ``results/bioloid_cpg_vs_trot.*``. Returns the command it ran."""
-    import evaluate
+    from agents import compare
 
     policies = [best_policy(output, r["experiment"]) for r in done]
     specs = [REFERENCE] + [f"cpg:{_shown(p)}" for p in policies]
@@ -130,7 +130,7 @@ def compare_with_trot(done: list[dict[str, Any]], episodes: int, output: Output)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "evaluation"
         with contextlib.chdir(ROOT):  # the policy paths are relative to the repository
-            if evaluate.main([*argv, "--out", str(out)]) != 0:
+            if compare.main([*argv, "--out", str(out)]) != 0:
                 raise RuntimeError("evaluate.py failed on the best policies")
         for suffix in ("md", "json"):
             write_text(output.file(f"bioloid_cpg_vs_trot.{suffix}"), (out / f"results.{suffix}").read_text())

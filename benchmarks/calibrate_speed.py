@@ -18,10 +18,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import calibrate
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
 from envs.common.telemetry import write_telemetry
+from sysid import cli as calibrate_cli
 from sysid import synth
 from sysid.problem import Problem
 from sysid.robots import adapter as make_adapter
@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         argv_cal = ["--robot", "roach", "--train", f"{path}@0:{split}", "--test", f"{path}@{split}:",
                     "--out", str(Path(tmp) / "out"), "--quiet"]  # fmt: skip
         t0 = time.perf_counter()
-        code = calibrate.main(argv_cal)
+        code = calibrate_cli.main(argv_cal)
         wall = time.perf_counter() - t0
         report = json.loads((Path(tmp) / "out" / "report.json").read_text()) if code == 0 else {}
     minutes = wall / 60

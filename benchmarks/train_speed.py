@@ -14,9 +14,9 @@ from pathlib import Path
 import torch
 
 import envs  # noqa: F401
+from agents.training import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
-from train import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
 
 FOUNDATION_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
 

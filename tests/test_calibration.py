@@ -14,11 +14,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import calibrate
-import evaluate
+from agents import compare as evaluate
 from envs.common.calibration import read_calibration
 from envs.common.effects import Param, base_name
 from envs.common.telemetry import write_telemetry
+from sysid import cli as calibrate
 from sysid import fit as fit_module
 from sysid import synth
 from sysid.cases import Case, pair, run_case

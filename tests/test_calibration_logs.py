@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import calibrate
 from envs.common.telemetry import write_telemetry
+from sysid import cli as calibrate
 from sysid.logs import ColumnMap, Log, LogError, white_noise
 from sysid.robots import adapter as make_adapter
 from sysid.robots import read_log

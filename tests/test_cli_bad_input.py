@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,8 +13,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-import calibrate
-import evaluate
+from agents import compare as evaluate
+from sysid import cli as calibrate
 from sysid import synth
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,6 +80,56 @@ def test_calibrate_refusal_names_only_the_results_that_exist(capsys, tmp_path):
     assert calibrate.parse_args(
         ["--robot", "motor", "--train", "a.csv", "--test", "b.csv", "--out", str(out), "--overwrite"]
     ).overwrite
+
+
+def test_calibrate_out_that_publishing_could_not_replace_is_refused_before_fitting(capsys, tmp_path, monkeypatch):
+    """A name too long for the folders that stage and replace it beside it, or a mount point (no rename moves one):
+    refused in one line before any log is read, not in a traceback after the whole run."""
+    long = tmp_path / ("r" * 250)  # a name a file system takes, but not ".<name>.<8 random>" beside it
+    code, err = calibrate_with(capsys, long)
+    assert code == 2 and f"--out {long}: the folders that stage and replace it cannot be made beside it" in err
+    assert "File name too long" in err and list(tmp_path.iterdir()) == []
+    mount = tmp_path / "mounted"
+    mount.mkdir()
+    monkeypatch.setattr(os.path, "ismount", lambda path: Path(path) == mount)
+    code, err = calibrate_with(capsys, mount)
+    message = f"calibrate.py: error: --out {mount} is a mount point, which cannot be replaced; give a folder inside it"
+    assert code == 2 and err == f"{message} (see --help)"
+    assert list(tmp_path.iterdir()) == [mount] and not any(mount.iterdir())
+
+
+def test_calibrate_results_that_cannot_be_published_are_kept_and_said_where(capsys, tmp_path, monkeypatch):
+    """If putting the results at --out still fails after the run (the file system changed meanwhile), they are kept
+    in a folder beside it, named in one line, exit 1: the run is not lost in a traceback."""
+    import errno
+
+    from envs.common.telemetry import write_telemetry
+    from sysid.cases import pair
+
+    (train,), (test,), _ = pair("motor", {"coulomb_friction": 0.2}, seed=15)
+    logs = []
+    for name, log in (("train", train), ("test", test)):
+        write_telemetry(tmp_path / f"{name}.parquet", log.df, log.meta)
+        logs.append(str(tmp_path / f"{name}.parquet"))
+
+    def busy(*args, **kwargs):
+        raise OSError(errno.EBUSY, os.strerror(errno.EBUSY))
+
+    monkeypatch.setattr(calibrate, "publish_folder", busy)
+    out = tmp_path / "cal"
+    code, err = call(calibrate.main, capsys, "--robot", "motor", "--train", logs[0], "--test", logs[1], "--out",
+                     str(out), "--fit", "coulomb_friction", "--quiet")  # fmt: skip
+    (kept,) = [p for p in tmp_path.iterdir() if p.name.startswith("cal.unpublished-")]
+    assert code == 1 and err == (
+        f"calibrate.py: error: cannot put the results at {out} ({os.strerror(errno.EBUSY)}); they are kept in {kept}/"
+    )
+    assert sorted(p.name for p in kept.iterdir()) == sorted(calibrate.RESULTS)
+    assert json.loads((kept / "report.json").read_text())["robot"] == "motor"
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == [
+        kept.name,
+        "test.parquet",
+        "train.parquet",
+    ]
 
 
 # --- python -m sysid.synth --------------------------------------------------------------------------------------

@@ -240,7 +240,7 @@ def copy_model(src: Path, dst: Path, drop: tuple[str, ...] = (), replace: dict |
 
 
 def evaluate_main(capsys, model: Path, out: Path, env_id: str = "skitter/RoachWalk-v1") -> tuple[int, str]:
-    import evaluate
+    from agents import compare as evaluate
 
     code = evaluate.main(["--env", env_id, "--policy", str(model), "--episodes", "1", "--out", str(out)])
     return code, capsys.readouterr().err
@@ -309,7 +309,7 @@ def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(mod
     """Stop 32's review: a model trained with env_kwargs (its run's config.json) was evaluated silently on the
     default env. --env-kwargs makes the env as it was trained; a difference is warned of, and a shape mismatch
     names the env_kwargs it was trained with."""
-    import evaluate
+    from agents import compare as evaluate
 
     run_dir = tmp_path / "run"
     model = copy_model(model_zip, run_dir / "model.zip")
@@ -344,7 +344,7 @@ def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, r
         env.step(env.action_space.sample() * 0)
     telemetry = tmp_path / "episode.parquet"
     env.unwrapped.recorder.save(telemetry)
-    import evaluate
+    from agents import compare as evaluate
 
     evaluate.plot_episode(env.unwrapped.robot, telemetry, tmp_path / "plot.png", "duty mode")
     assert (tmp_path / "plot.png").stat().st_size > 0
@@ -352,8 +352,46 @@ def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, r
 
 
 def test_videos_are_rendered_at_most_30_frames_a_second():
-    from evaluate import VIDEO_FPS, video_stride
+    from agents.compare import VIDEO_FPS, video_stride
 
     for control_hz, stride in [(25, 1), (30, 1), (50, 2), (125, 5), (1000, 34)]:
         assert video_stride(control_hz) == stride
         assert control_hz / stride <= VIDEO_FPS
+
+
+def test_results_are_strict_json_and_a_mean_over_some_episodes_says_how_many(tmp_path, monkeypatch, capsys):
+    """An episode without a cost of transport (no distance travelled) has NaN there: results.json writes null (bare
+    NaN is not JSON), and the table says that the mean is over the episodes that have one."""
+    from agents import compare
+
+    run_episodes = compare.run_episodes
+
+    def first_without_a_distance(*args, **kwargs):
+        episodes = run_episodes(*args, **kwargs)
+        episodes[0].metrics["cost_of_transport"] = float("nan")  # as episode_metrics gives it for no distance
+        return episodes
+
+    monkeypatch.setattr(compare, "run_episodes", first_without_a_distance)
+    out = tmp_path / "r"
+    argv = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--policy", "tripod:20", "--episodes", "3",
+            "--max-episode-steps", "10", "--out", str(out)]  # fmt: skip
+    assert compare.main(argv) == 0
+    text = (out / "results.json").read_text()
+
+    def refuse(constant: str):
+        raise ValueError(f"{constant} is not JSON")
+
+    results = json.loads(text, parse_constant=refuse)
+    tripod = results["policies"]["tripod"]
+    assert tripod["episodes"][0]["metrics"]["cost_of_transport"] is None
+    assert tripod["summary"]["cost_of_transport"]["n"] == 2
+    assert results["paired_differences"]["policies"]["tripod:20"]["cost_of_transport"]["n"] == 2
+    assert tripod["summary"]["speed"]["n"] == 3
+    table = {line.split(" | ")[0]: line for line in (out / "results.md").read_text().splitlines()}
+    assert table["| cost_of_transport"].count("(2 of 3 episodes)") == 2 and "of 3 episodes" not in table["| speed"]
+    (paired,) = [line for line in table.values() if line.startswith("| tripod:20 |")]
+    assert paired.count("(2 of 3 episodes)") == 1  # the cost of transport's column
+    assert (
+        "A value marked (n of 3 episodes) is the mean over the n episodes that have the metric"
+        in capsys.readouterr().out
+    )

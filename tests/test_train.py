@@ -48,7 +48,7 @@ def train_in_process(*args: object) -> subprocess.CompletedProcess:
     """``train.main`` in the test's process, as the command runs it, for inputs refused before training: a
     subprocess per case spent seconds loading torch each (the command line itself is checked by the tests that
     run it)."""
-    import train
+    from agents import training as train
 
     argv = [*map(str, args), "--no-progress"]
     stdout, stderr = io.StringIO(), io.StringIO()
@@ -466,6 +466,40 @@ def test_resume_removes_what_a_killed_run_left_half_written(tiny_run, tmp_path):
     assert max(checkpoints(run_dir)) == 192
 
 
+def test_a_second_train_process_on_a_run_folder_is_refused_while_the_first_runs(tiny_run, tmp_path):
+    """Two resumes of one run at once would delete each other's temporary files and overwrite each other's
+    checkpoints: the second is refused in one line, before it reads or removes anything, and the first goes on."""
+    run_dir = shutil.copytree(tiny_run, tmp_path / "run")
+    first = subprocess.Popen(
+        [sys.executable, str(ROOT / "train.py"), "--resume", str(run_dir), "--timesteps", "10000000",
+         "--checkpoint-freq", "10000000", "--no-progress"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    try:
+        assert first.stdout.readline().startswith(f"resuming {run_dir}")  # it holds the lock and is training
+        config = (run_dir / "config.json").read_bytes()
+        stale = run_dir / ".model.k1ll3d_0.tmp.zip"  # a file the second would remove as a killed run's leftover
+        stale.write_bytes(b"the first run's")
+        for args in (["--resume", run_dir, "--timesteps", 10000000], ["--resume", "run", "--runs-dir", tmp_path]):
+            second = run_train(*args)
+            assert second.returncode == 1 and "Traceback" not in second.stderr, second.stderr
+            assert second.stderr.strip() == (
+                f"train.py: {run_dir} is in use by another train.py run (lock {run_dir / 'train.lock'}); wait for it "
+                "to end, or choose another folder"
+            )
+            assert not second.stdout
+        assert (run_dir / "config.json").read_bytes() == config and stale.read_bytes() == b"the first run's"
+        assert first.poll() is None, "the first run goes on"
+        first.send_signal(signal.SIGTERM)
+        _, stderr = first.communicate(timeout=60)
+    finally:
+        first.kill()
+    assert first.returncode == 128 + signal.SIGTERM and "checkpoint saved" in stderr, stderr
+    stale.unlink()
+    assert train_ok("--resume", run_dir, "--timesteps", max(checkpoints(run_dir)) + 64).returncode == 0  # released
+
+
 @pytest.mark.parametrize(("key", "value"), [("n_envs", None), ("timesteps", None), ("timesteps", "lots")])
 def test_resume_names_a_bad_field_of_config_json(ppo_run, tmp_path, key, value):
     config = json.loads((ppo_run / "config.json").read_text())
@@ -492,7 +526,7 @@ def test_a_bad_thread_cap_is_named_as_itself(tmp_path):
 
 def train_main(capsys, *args: object) -> tuple[int, str]:
     """Exit code and stderr of ``train.main`` (in this process: fast), whether it returns or exits."""
-    import train
+    from agents import training as train
 
     try:
         code = train.main([*map(str, args), "--no-progress"])
@@ -529,7 +563,7 @@ def test_a_key_given_twice_in_a_hyperparameter_file_is_refused(capsys, tmp_path,
 
 
 def test_keys_merged_from_an_anchor_may_still_be_overridden(tmp_path):
-    import train
+    from agents import training as train
 
     hyperparams = tmp_path / "anchors.yml"
     hyperparams.write_text(
@@ -562,7 +596,7 @@ def test_an_empty_runs_dir_or_resume_is_refused_not_taken_as_the_current_folder(
 
 
 def test_a_run_name_given_to_resume_is_looked_up_in_runs_dir(capsys, tmp_path, monkeypatch):
-    import train
+    from agents import training as train
 
     runs = tmp_path / "elsewhere"
     (runs / "run").mkdir(parents=True)
@@ -609,7 +643,7 @@ def test_the_leftover_patterns_match_the_writers_own_temporary_names(tmp_path):
     """What resume removes is exactly what atomic_write and save_checkpoint's mkdtemp name their temporary saves."""
     import tempfile
 
-    import train
+    from agents import training as train
     from envs.common.io import atomic_write, atomic_write_leftovers
 
     seen = []
@@ -622,7 +656,7 @@ def test_the_leftover_patterns_match_the_writers_own_temporary_names(tmp_path):
 
 
 def test_an_off_policy_minibatch_larger_than_its_replay_buffer_is_refused():
-    import train
+    from agents import training as train
 
     with pytest.raises(train.ConfigError, match=r"x.yml: field 'batch_size' = 256: larger than the replay buffer"):
         train.resolve_hyperparams({"buffer_size": 100, "batch_size": 256}, "sac", where="x.yml")
@@ -666,7 +700,7 @@ def test_ctrl_c_while_a_tool_loads_its_libraries_is_a_quiet_exit(tool, library):
 @pytest.mark.parametrize("algo", ["ppo", "sac", "td3"])
 def test_every_registered_env_has_a_checked_entry_in_the_shipped_hyperparameters(algo):
     """``train.py --env <any skitter id>`` finds its hyperparameters out of the box, and they pass the checks."""
-    import train
+    from agents import training as train
 
     ids = sorted(env_id for env_id in gym.registry if env_id.startswith("skitter/"))
     assert {"skitter/XjusWalk-v0", "skitter/BioloidWalk-v1"} <= set(ids)
@@ -682,3 +716,40 @@ def test_ppo_trains_the_later_robots_with_the_shipped_hyperparameters(env_id, tm
     (run_dir,) = tmp_path.iterdir()
     assert (run_dir / "model.zip").is_file()
     assert_policy_acts(run_dir / "model.zip", env_id)
+
+
+def test_the_commands_are_thin_and_nothing_in_the_package_or_benchmarks_imports_them():
+    """train.py, evaluate.py and calibrate.py only call the package's main; the package and the benchmarks import
+    the package modules, never the root scripts."""
+    import ast
+
+    from agents import compare, training
+    from sysid import cli
+
+    for script, module in (("train.py", training), ("evaluate.py", compare), ("calibrate.py", cli)):
+        tree = ast.parse((ROOT / script).read_text())
+        imported = [
+            (node.module, [a.name for a in node.names]) for node in tree.body if isinstance(node, ast.ImportFrom)
+        ]
+        assert imported == [(module.__name__, ["main"])], script
+        assert not [node for node in tree.body if isinstance(node, ast.FunctionDef | ast.ClassDef)], script
+    for folder in ("agents", "envs", "sysid", "benchmarks"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+                names += [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 else []
+                assert not {"train", "evaluate", "calibrate"} & {str(n).split(".")[0] for n in names}, path
+
+
+def test_one_config_error_and_no_callback_under_sb3s_name():
+    """One ConfigError for the trainer and the optimizer; the run's checkpoint callback is not SB3's name."""
+    from stable_baselines3.common import callbacks
+
+    from agents import training
+    from agents.config import ConfigError
+    from agents.optimize import problem
+
+    assert training.ConfigError is ConfigError and problem.ConfigError is ConfigError
+    assert issubclass(ConfigError, ValueError)
+    assert not hasattr(training, "CheckpointCallback") and not hasattr(callbacks, "RunCheckpointCallback")
+    assert issubclass(training.RunCheckpointCallback, callbacks.BaseCallback)

@@ -49,6 +49,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import numpy as np
 
+from agents.config import ConfigError
 from envs.common.parameters import sample
 
 OBJECTIVES = ("forward", "distance_travelled")
@@ -64,10 +65,6 @@ def distance_travelled(positions: np.ndarray, alpha: float = 1.0, beta: float = 
     straight = np.linalg.norm(p[:, -1] - p[:, 0], axis=1)
     integrated = np.linalg.norm(np.diff(p, axis=1), axis=2).sum(axis=1)
     return alpha * straight + beta * integrated
-
-
-class ConfigError(ValueError):
-    """A run configuration that cannot be used; the message names the file, the field and the value."""
 
 
 class Controller(Protocol):

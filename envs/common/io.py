@@ -174,6 +174,46 @@ def results_folder_problem(
     return f"{flag} {out}: {problem}" if problem else None
 
 
+def replace_problem(out: str | Path, flag: str = "--out") -> str | None:
+    """Why :func:`publish_folder` could not put a finished folder in place of ``out``, or None: ``out`` is a mount
+    point (which no rename moves), or the folders it makes beside ``out`` (``.<name>.<8 random>`` to stage the
+    results, ``.<name>.old-<pid>`` for the folder it replaces) cannot be made there, e.g. a name near the file
+    system's length limit. Tried with a probe folder of the longer name, removed at once; checked before anything is
+    computed, after :func:`results_folder_problem`."""
+    out = Path(out)
+    if out.is_dir() and os.path.ismount(out):
+        return f"{flag} {out} is a mount point, which cannot be replaced; give a folder inside it"
+    parent = out.parent
+    while not parent.exists():  # ends at "." or "/"
+        parent = parent.parent
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=parent))
+    except OSError as exc:
+        return f"{flag} {out}: the folders that stage and replace it cannot be made beside it ({exc.strerror})"
+    return None
+
+
+def keep_unpublished(staging: str | Path, out: str | Path) -> Path | None:
+    """Keep a finished folder that :func:`publish_folder` could not put at ``out``: moved to a new folder of its own
+    beside ``out`` (``<name>.unpublished-<8 random>``), else in the system's temporary folder. Returns where it is,
+    or None if neither could take it."""
+    import shutil
+
+    staging, out = Path(staging), Path(out)
+    for parent in (out.parent, Path(tempfile.gettempdir())):
+        try:
+            kept = Path(tempfile.mkdtemp(prefix=f"{out.name[:100]}.unpublished-", dir=parent))
+            try:
+                os.replace(staging, kept)  # onto the empty folder just made
+            except OSError:  # another file system
+                shutil.copytree(staging, kept, dirs_exist_ok=True)
+            os.chmod(kept, 0o777 & ~current_umask())
+            return kept
+        except OSError:
+            continue
+    return None
+
+
 def foreign_unless(names: tuple[str, ...]) -> Callable[[Path], list[str]]:
     """For :func:`results_folder_problem`: every entry but the files ``names`` is foreign."""
     return lambda entry: [] if entry.name in names and entry.is_file() else [entry.name + "/" * entry.is_dir()]
