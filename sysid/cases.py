@@ -1,4 +1,4 @@
-"""One synthetic calibration case, judged as issue 7 asks: training logs with hidden effects (drawn by the generator
+"""One synthetic calibration case, judged by the calibration matrix's criteria: training logs with hidden effects (drawn by the generator
 when no value is given) and held-out logs of the same truth under other commands (one 10 s log each, or the robot's
 protocol of several shorter runs: ``Adapter.runs``); calibrate on the one, judge on the other. Shared by the tests
 (one fast case per robot) and ``benchmarks/calibration_matrix.py`` (every effect, coverage over seeds)."""
@@ -21,7 +21,7 @@ TEST_SEED_OFFSET = 1000  # the test log's commands and noise come from seed + th
 
 @dataclass
 class Case:
-    """What a case found, against the truth; the verdicts follow issue 7's criteria."""
+    """What a case found, against the truth; the verdicts follow the calibration matrix's criteria."""
 
     robot: str
     injected: dict[str, dict[str, float]]

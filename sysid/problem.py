@@ -986,7 +986,7 @@ class DecisionProblem(Problem):
 
     The burn-in costs a little: a body started mid-walk from the adapter's guess (the roach's: at home, at rest)
     settles within a segment or two, and on two synthetic roach logs with the true model the decision segments'
-    RMS error read 0.81 and 0.82 this way against 0.73 and 0.76 carried from the log's start (stop 36; two
+    RMS error read 0.81 and 0.82 this way against 0.73 and 0.76 carried from the log's start (two
     burn-in segments: 0.89 and 0.74, no better), against a floor measured on the whole problem."""
 
     def __init__(self, whole: Problem, index: Sequence[int]):

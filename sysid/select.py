@@ -49,7 +49,7 @@ UNEXPLAINED_ABOVE = 1.1
 SCORE_GRID = 5  # grid points across the range of a non-smooth effect in the ranking
 SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian), unless it is a scale over decades
 # (``Param.log``), whose grid is SCORE_GRID points spread geometrically: the xJüs's spine stiffness over [0.1, 10] has
-# a basin a factor of two wide (stop 31) that the linear grid's 0.1, 5.05 and 10 all miss
+# a basin a factor of two wide that the linear grid's 0.1, 5.05 and 10 all miss
 CHAIN_DEPTH = 3  # effects that help only together: chains of up to this many effects (the breadth of the search is
 # the adapter's ``chain_search``: seeds, width, beam)
 CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
@@ -640,7 +640,7 @@ def _identified(
     an end that the interval reaches only by its shape (a rough cost's parabola is symmetric): where the cost at
     the end itself rises above the estimate's by more than the interval's threshold (:func:`sysid.fit.rise_at`),
     the data hold the estimate inside, and the interval is cut at the end (the xJüs's leg stiffness 2.92 of at
-    most 3, its cost 25% higher at 3: docs/calibration.md, stop 34). And
+    most 3, its cost 25% higher at 3: docs/calibration.md). And
     whether each effect is there at all: at least one of its parameters' intervals leaves out the nominal value (a
     Wald test at 5%, read on the side toward nominal; an estimate the interval cannot tell from nominal is no
     evidence of the effect). None if so, else the reason."""

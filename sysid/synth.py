@@ -51,7 +51,7 @@ PUSHES = 4  # pushes of a drawn value toward MAX_REACH (60, 70, 80, 90% of the w
 # visible an effect is depends on what the commands excite, and the generator's job is commands that show it
 EXCITATIONS = 3
 SYNTHETIC_FORMAT = "skitter synthetic log"  # the metadata record's format: what --overwrite may replace
-SECONDS = 10.0  # a synthetic log's length (issue 7: about 10 s keeps each case to minutes)
+SECONDS = 10.0  # a synthetic log's length (about 10 s keeps each matrix case to minutes)
 RUN_SEED_OFFSET = 1_000_000  # run k (from 0) of several runs: its commands and noise from seed + k x this
 # sizes the command line accepts, checked before anything is simulated: a synthetic log is seconds long (SECONDS) and
 # is simulated whole, several times over (the drawn effects' pushes, the commands' draws), every physics step's state

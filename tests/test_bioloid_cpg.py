@@ -14,7 +14,7 @@ from agents import load_policy
 from agents.bioloid.cpg import AMPLITUDE_SCALE, CPG, CouplingError, parse_coupling, read_coupling, read_policy_file
 from envs.bioloid import constants
 
-SEED_COUNTS = {1: 64, 2: 33, 3: 32, 4: 24, 5: 16, 6: 24}  # seed 002 VI.B.3: experiments 1-6
+SEED_COUNTS = {1: 64, 2: 33, 3: 32, 4: 24, 5: 16, 6: 24}  # [bioloid-webots, VI.B.3]: experiments 1-6
 
 
 @pytest.mark.parametrize("experiment", sorted(SEED_COUNTS))

@@ -131,7 +131,7 @@ def test_a_blocked_servo_saturates_at_its_holding_torque(supply, kgf_cm):
         robot.goal[0, servo] = goal
         settle(robot, 0.3)
         torque = robot.servo.output_torque(robot.sim.sensordata)[0, servo]
-        assert abs(torque) == pytest.approx(kgf_cm * KGF_CM, rel=0.03), goal  # datasheet, seed 002 Table 2
+        assert abs(torque) == pytest.approx(kgf_cm * KGF_CM, rel=0.03), goal  # datasheet, [bioloid-webots, Table 2]
         assert np.sign(torque) == np.sign(goal - constants.CENTER)
         readings = robot.read(RNG)
         row = dict(zip(robot.telemetry_channels, robot.telemetry(readings)[0], strict=True))
@@ -155,7 +155,9 @@ def test_action_spans_each_servos_allowed_range_and_knees_go_from_straight_to_be
     for name, (lo, hi) in constants.SERVO_RANGE.items():
         i = constants.SERVO_INDEX[name]
         assert (low[i], high[i]) == (lo, hi), name
-    for leg in constants.LEGS:  # seed 002 VI.A.2 (bent at most 90 deg) and Table 4 (straight knees); no backward bend
+    for leg in (
+        constants.LEGS
+    ):  # [bioloid-webots, VI.A.2] (bent at most 90 deg) and Table 4 (straight knees); no backward bend
         i = constants.SERVO_INDEX[constants.KNEE[leg]]
         assert (low[i], high[i]) == pytest.approx(
             (constants.CENTER, constants.CENTER + math.radians(90) / constants.RAD_PER_COUNT)

@@ -1,4 +1,4 @@
-"""The VelociRoACH model against the numbers of its sources (shared/robots.md section 1, seed 000)."""
+"""The VelociRoACH model against the numbers of its sources (shared/robots.md section 1, [roach-sim])."""
 
 import mujoco
 import numpy as np
@@ -36,7 +36,7 @@ def test_relative_leg_stiffness_in_a_static_load_test():
 
 
 def test_stance_legs_carry_about_0_1_n_each_standing():
-    """Seed 000 Table 1: about 0.1 N per leg. On a tripod the lone middle leg carries half the weight by statics
+    """[roach-sim, Table 1]: about 0.1 N per leg. On a tripod the lone middle leg carries half the weight by statics
     (it faces two legs across the body), the front and back legs a quarter each."""
     robot = VelociRoach("gait", control_freq=100.0)
     robot.reset(ONE, RNG)

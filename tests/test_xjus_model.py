@@ -1,4 +1,4 @@
-"""The xJüs model against the numbers of its sources (shared/robots.md section 2, seed 001)."""
+"""The xJüs model against the numbers of its sources (shared/robots.md section 2, [xjus-report])."""
 
 import mujoco
 import numpy as np
@@ -32,7 +32,7 @@ def test_body_is_research_rhex_long_and_the_legs_are_7_inch_semicircles(robot):
 
 
 def test_leg_compliance_in_a_static_load_test():
-    """Seed 001 FEA: 29.2 N on a leg deflects it 0.30 in (7.6 mm)."""
+    """[xjus-report] FEA: 29.2 N on a leg deflects it 0.30 in (7.6 mm)."""
     result = facts.leg_load_test()
     np.testing.assert_allclose(result["toe"], constants.LEG_TEST_DEFLECTION, rtol=0.03)
     np.testing.assert_allclose(result["spring"], constants.LEG_TEST_DEFLECTION, rtol=0.03)
@@ -75,7 +75,7 @@ def test_duty_for_torque_inverts_the_motor_model():
 
 
 def test_buehler_clock_is_the_seeds_fourier_series():
-    """Seed 001 section 2.5: theta_d(0) = 0, a full turn per cycle, theta_g swept in the first half (exactly for the
+    """[xjus-report, section 2.5]: theta_d(0) = 0, a full turn per cycle, theta_g swept in the first half (exactly for the
     infinite series; the M = 10 terms reach 98% of the way from pi to theta_g, 2.4 deg short at 60 deg), ground
     speed about 2 theta_g / T in mid-stance."""
     sweep = np.radians(60.0)

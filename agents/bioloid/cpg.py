@@ -1,4 +1,4 @@
-"""The seed's central pattern generator for the Bioloid quadruped (seed 002 VI.B): coupled nonlinear oscillators.
+"""The seed's central pattern generator for the Bioloid quadruped [bioloid-webots, VI.B]: coupled nonlinear oscillators.
 
 Each oscillating servo has an oscillator of seed eq. 14 (Mojon's normalized coupling)::
 
@@ -15,7 +15,7 @@ parameters shared by a left-right pair move the pair symmetrically.
 
     {
       "name": "experiment 5",
-      "source": "seed 002 VI.B.3.e (CPG Model 4)",
+      "source": "[bioloid-webots, VI.B.3.e] (CPG Model 4)",
       "frequency": 1.0,                   # Hz, every oscillator's (tau = 1 / (2 pi f))
       "alpha": 0.7,                       # convergence rate to the limit cycle
       "oscillators": {                    # the oscillating servos; each listens to one other (its connection)

@@ -1,4 +1,4 @@
-"""The seed's inverse-kinematics gait library for the Bioloid quadruped (seed 002 VI.A).
+"""The seed's inverse-kinematics gait library for the Bioloid quadruped [bioloid-webots, VI.A].
 
 Each foot follows the seed's ellipse (eqs. 7-8, with its rules of thumb and the knee-limit correction of the y
 radius) under its hip; the hip and knee servos come from the leg's inverse kinematics (eqs. 3-6), the knee never

@@ -1,7 +1,7 @@
 """The optimizers, as ask-and-tell objects whose whole state pickles (a checkpoint resumes them exactly); both
 maximize over the unit box [0, 1]^n (the seed's mapping of parameters, VI.B.3).
 
-**PSO** (seed 002 VI.B.2, eqs. 15-16, after Kennedy and Eberhart 1995 [16] as Bourquin [15] ran it)::
+**PSO** ([bioloid-webots, VI.B.2], eqs. 15-16, after Kennedy and Eberhart 1995 [16] as Bourquin [15] ran it)::
 
     v_id(t+1) = w(t) v_id(t) + phi1 rand() (p_id - x_id(t)) + phi2 rand() (p_gd - x_id(t))
     x_id(t+1) = x_id(t) + v_id(t+1)

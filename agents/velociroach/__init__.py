@@ -1,4 +1,4 @@
-"""The VelociRoACH's scripted gaits (seed 000 and the lab's firmware): ``POLICIES`` for agents/__init__.py."""
+"""The VelociRoACH's scripted gaits ([roach-sim] and the lab's firmware): ``POLICIES`` for agents/__init__.py."""
 
 from agents import ScriptedPolicy
 

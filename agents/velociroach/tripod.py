@@ -1,4 +1,4 @@
-"""The alternating tripod gait of the VelociRoACH (seed 000 and the lab's firmware) as reference policies.
+"""The alternating tripod gait of the VelociRoACH ([roach-sim] and the lab's firmware) as reference policies.
 
 A leg clock per side runs at stride frequency f; the right clock trails the left by a phase (pi runs straight,
 other offsets turn). In gait mode the clock and its PID are the robot's firmware, so the policy only sends
@@ -24,7 +24,7 @@ from envs.velociroach import constants
 from envs.velociroach.robot import DUTY, FIRMWARE_PID, wrap_angle
 
 TURN_TABLE = Path(__file__).resolve().parent / "turn_table.json"
-WALK_FREQUENCY = 45.0  # Hz: the real robot's top stride (seed 000 Table 1)
+WALK_FREQUENCY = 45.0  # Hz: the real robot's top stride [roach-sim, Table 1]
 
 
 @dataclass(frozen=True)
@@ -126,7 +126,7 @@ class TripodGait:
 class TripodTurn(TripodGait):
     """The tripod that turns: it maps a commanded yaw rate to a left/right phase.
 
-    The map is the yaw rate measured against phase in this simulation (the curve of seed 000 figures 16 and 17),
+    The map is the yaw rate measured against phase in this simulation (the curve of [roach-sim, figures 16 and 17]),
     written by ``benchmarks/turn_table.py`` to ``agents/velociroach/turn_table.json``; the policy inverts its
     monotonic part and clips commands beyond it.
     """

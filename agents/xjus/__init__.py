@@ -1,4 +1,4 @@
-"""xJüs's scripted controller (seed 001): ``POLICIES`` for agents/__init__.py."""
+"""xJüs's scripted controller [xjus-report]: ``POLICIES`` for agents/__init__.py."""
 
 from agents import ScriptedPolicy
 

@@ -1,4 +1,4 @@
-"""The seed's controller as reference policies for xJüs: stand, walk and turn (seed 001, sections 2.4 and 2.5).
+"""The seed's controller as reference policies for xJüs: stand, walk and turn [xjus-report, sections 2.4 and 2.5].
 
 Three stages: the Buehler clock's target per leg (the Fourier series, M = 10, tripods half a cycle apart), PD
 feedback on the leg angle giving a desired torque and, through the seed's motor model inverted, the voltage Vpd and

@@ -1,4 +1,4 @@
-"""The DC gearmotor model of the xJüs seed (seed 001, section 2.3 and Table 1, after Seipel, Lin and Holmes 2006).
+"""The DC gearmotor model of the xJüs seed ([xjus-report, section 2.3 and Table 1], after [seipel2006]).
 
     tau = eta N Kt (d Vs - Ks thetadot) / (Ra + d^2 Ramp),    d = clip(Vpd / Vs, -1, 1)
 
@@ -33,7 +33,7 @@ LOG_SPEED_MARGIN = 5.0
 
 @dataclass(frozen=True)
 class MotorConstants:
-    """The seed's Table 1 (seed 001): "taken from the specifications of purchased components, except for Kt and Ks,
+    """The seed's Table 1 [xjus-report]: "taken from the specifications of purchased components, except for Kt and Ks,
     which were chosen such that the model reflects the stall torque and no load speed of the motor"."""
 
     gear_ratio: float = 729 / 25  # N

@@ -2,7 +2,7 @@
 
 Modelled as what it is, on MuJoCo's native dcmotor (see :mod:`envs.actuators.dcmotor`):
 
-- **goal**: a position in counts, 0..1023 over 300 deg, 512 at the centre (ROBOTIS e-manual; robots.md section 3).
+- **goal**: a position in counts, 0..1023 over 300 deg, 512 at the centre [ax12-manual].
 - **controller**: the servo's amplifier drives the motor with a duty that grows linearly with the position error
   from the compliance margin to full duty at the compliance slope (ROBOTIS e-manual: "compliance slope", default 32
   counts), bounded by the torque limit (default 1023 of 1023). Natively: a position-only dcmotor controller whose
@@ -10,7 +10,7 @@ Modelled as what it is, on MuJoCo's native dcmotor (see :mod:`envs.actuators.dcm
   voltage source (``v = supply x duty``).
 - **limits**: the servo's speed and torque limits are not clamps; they come out of the motor and the supply voltage:
   stall torque ``N K V / R``, no-load speed ``V / (N K)``. K and R are set so that the model meets the AX-12
-  datasheet figures at 7 V and at 10 V (robots.md: 12 kgf cm and 0.269 s/60 deg at 7 V, 16.5 kgf cm and
+  datasheet figures at 7 V and at 10 V ([ax12-manual]: 12 kgf cm and 0.269 s/60 deg at 7 V, 16.5 kgf cm and
   0.196 s/60 deg at 10 V) with the least worst relative error, 2% (tests/test_actuators.py measures them on the
   bench rig). The figures grow a little less than in proportion to the voltage; a linear motor cannot follow that
   exactly, and 2% is what it costs.
@@ -37,9 +37,9 @@ from envs.common.parameters import FieldRef
 from envs.common.telemetry import ChannelLimit
 
 KGF_CM = 0.0980665  # N m
-# AX-12 datasheet figures (seed 002 Table 2; robots.md section 3): (supply V, holding torque N m, speed rad/s)
+# AX-12 datasheet figures ([bioloid-webots, Table 2]; [ax12-manual]): (supply V, holding torque N m, speed rad/s)
 DATASHEET = ((7.0, 12.0 * KGF_CM, (math.pi / 3) / 0.269), (10.0, 16.5 * KGF_CM, (math.pi / 3) / 0.196))
-GEAR_RATIO = 254.0  # seed 002 Table 2; ROBOTIS
+GEAR_RATIO = 254.0  # [bioloid-webots, Table 2]; ROBOTIS
 
 
 def _per_volt(index: int) -> float:
@@ -61,7 +61,7 @@ LOG_SPEED_MARGIN = 2.0
 class ServoConstants:
     """An AX-12's constants and its control table's settings."""
 
-    supply_voltage: float = 10.0  # V: the seed's robots ran at 10 V (seed 002)
+    supply_voltage: float = 10.0  # V: the seed's robots ran at 10 V [bioloid-webots]
     compliance_slope: float = 32.0  # counts from the margin to full duty (ROBOTIS default 32)
     torque_limit: float = 1023.0  # of 1023: the bound of the duty (ROBOTIS default 1023)
     counts: int = 1024  # positions 0..1023

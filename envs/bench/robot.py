@@ -154,7 +154,7 @@ class BenchRig(Robot):
 
 
 class MotorRig(BenchRig):
-    """The xJüs seed's DC gearmotor (seed 001 Table 1) on the rig, commanded by duty cycle, held per control step.
+    """The xJüs seed's DC gearmotor [xjus-report, Table 1] on the rig, commanded by duty cycle, held per control step.
 
     Args:
         constants: the motor's constants (default: the seed's Table 1).

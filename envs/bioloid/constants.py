@@ -1,8 +1,8 @@
 """Bioloid quadruped names, source facts and servo settings.
 
 The physical model constants (masses, anchors, axes, shapes) live in ``assets/bioloid/bioloid.xml``, each with its
-source. This module holds what the code needs beside them: the servo names the seed uses (seed 002, Figure 41 and
-Table 3), the postures in servo counts, each servo's allowed range, and the facts the model is checked against.
+source. This module holds what the code needs beside them: the servo names the seed uses ([bioloid-webots, Figure 41 and
+Table] 3), the postures in servo counts, each servo's allowed range, and the facts the model is checked against.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import assets
 
 SCENE_XML = assets.path("bioloid", "scene.xml")
 
-# --- names (seed 002 Table 3 and Figure 41; robots.md section 3) ---------------------------------------------------
+# --- names ([bioloid-webots, Table 3 and Figure 41]) ----------------------------------------------------
 LEGS = ("F_L", "F_R", "B_L", "B_R")  # front/back, left/right
 SIDES = ("left", "right")
 LEG_SIDE = {"F_L": "left", "F_R": "right", "B_L": "left", "B_R": "right"}
@@ -42,20 +42,20 @@ SENSOR_GYRO, SENSOR_ACCEL = "gyro", "accel"
 SENSOR_BODY_POS, SENSOR_BODY_QUAT, SENSOR_BODY_VEL = "body_pos", "body_quat", "body_vel"
 
 # --- facts from the sources (what the model is checked against) ---------------------------------------------------
-MASS = 1.76  # kg, seed 002 Table 3 (the sum of its parts: 1.760 kg)
+MASS = 1.76  # kg, [bioloid-webots, Table 3] (the sum of its parts: 1.760 kg)
 MASS_TOLERANCE = 0.02  # the issue's +-2%
-PARTS_G = {  # g, seed 002 Table 3
+PARTS_G = {  # g, [bioloid-webots, Table 3]
     "BODY": 692, "PELVIS": 146, "N_1": 10, "N_2": 118, "HEAD": 110,
     **{f"{leg}_1": 12 for leg in LEGS}, **{f"{leg}_2": 126 for leg in LEGS},
     "F_L_3": 32, "F_R_3": 32, "B_L_3": 34, "B_R_3": 34,
 }  # fmt: skip
-HIP_ANCHOR_FRONT = (0.0565, 0.086, 0.0135)  # m, front-left hip in the body frame (Webots model; robots.md)
-L1_SEED, L2_SEED = 0.09, 0.085  # m, the leg segments the seed's IK used (robots.md section 3)
+HIP_ANCHOR_FRONT = (0.0565, 0.086, 0.0135)  # m, front-left hip in the body frame [webots-bioloid]
+L1_SEED, L2_SEED = 0.09, 0.085  # m, the leg segments the seed's IK used [bioloid-webots, VI.A]
 ABDUCTION_DROP = 0.0145  # m, hip pitch axis to abduction axis (Webots model)
-THIGH = 0.083  # m, abduction axis to knee, "0.083 m joint-to-joint" (Webots model; robots.md)
-SHANK = 0.085  # m, knee to sole, L2 (robots.md)
+THIGH = 0.083  # m, abduction axis to knee, "0.083 m joint-to-joint" [webots-bioloid]
+SHANK = 0.085  # m, knee to sole, L2 [bioloid-webots, VI.A]
 BACK_CRUTCH_OFFSET = 0.0145  # m, the back crutches sit behind their knee line (Webots model)
-KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg (seed 002 VI.A.2, Figure 27)
+KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg ([bioloid-webots, VI.A.2], Figure 27)
 # ... nor stretch past straight: the seed's postures hold every knee straight (513, Table 4) and its IK bends it one
 # way only (eq. 3's arccos); the seed's own Webots controller keeps the knee between 50 and 90 deg of bend
 # (cyberbotics/webots, projects/robots/robotis/bioloid/controllers/bioloid_dog/Robot.cpp, computeWalkingPosition)
@@ -63,13 +63,15 @@ KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg (seed 002 VI
 # verlab/bioloid_common typea.xacro). No source gives a backward stop; v0 assumed 90 deg, which the CPG search
 # exploited (benchmarks/bioloid_cpg_check.py: the best gait of experiment 5 landed on its back knee servos).
 KNEE_EXTENSION = 0.0
-KNEE_WEDGE = math.radians(18.0)  # the "aibo style" wedge at each knee (seed 002 IV.A, Figure 11)
+KNEE_WEDGE = math.radians(18.0)  # the "aibo style" wedge at each knee ([bioloid-webots, IV.A], Figure 11)
 LENGTH = 0.30  # m, body length at the standing posture, the head's front to the pelvis' back (measured on the model
 # in tests/test_bioloid_model.py, within 1 cm); hip to hip 0.165 m
-BATTERY_VOLTAGE = 10.0  # V: the servos' supply; AX-12 rated figures at 10 V (seed 002 Table 2); the CM-5's pack is
-# 9.6 V (seed 002 II.A)
+BATTERY_VOLTAGE = (
+    10.0  # V: the servos' supply; AX-12 rated figures at 10 V [bioloid-webots, Table 2]; the CM-5's pack is
+)
+# 9.6 V [bioloid-webots, II.A]
 
-# --- servo counts (AX-12: 0..1023 over 300 deg, 512 = 0 rad; robots.md section 3) ---------------------------------
+# --- servo counts (AX-12: 0..1023 over 300 deg, 512 = 0 rad; [ax12-manual]) ---------------------------------------
 COUNTS = 1024
 CENTER = 512.0
 RAD_PER_COUNT = math.radians(300.0) / (COUNTS - 1)
@@ -86,7 +88,7 @@ STAND_ANGLES.update({"F_L_2": math.pi / 2, "B_L_2": math.pi / 2, "F_R_2": -math.
 STAND_ANGLES["N_1"] = -math.pi / 2
 
 # Each servo's allowed range in counts: the AX-12's full 0..1023 (its angle limits' factory settings, ROBOTIS), except
-# the knees: from straight (KNEE_EXTENSION) to bent 90 deg (seed 002 VI.A.2). An action of -1..1 spans this range.
+# the knees: from straight (KNEE_EXTENSION) to bent 90 deg [bioloid-webots, VI.A.2]. An action of -1..1 spans this range.
 SERVO_RANGE = {name: (0.0, float(COUNTS - 1)) for name in SERVOS}
 for _leg in LEGS:
     SERVO_RANGE[KNEE[_leg]] = (counts(-KNEE_EXTENSION), counts(KNEE_LIMIT))

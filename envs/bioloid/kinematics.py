@@ -5,9 +5,9 @@ body's +y axis; positive angles swing the foot backward (assets/bioloid/bioloid.
 pitch axis (x forward, z up), the thigh runs from the pitch axis to the knee (0.0145 m to the abduction axis, 0.083 m
 on to the knee: L1 = 0.0975 m) and the shank from the knee to the sole (0.085 m; the back crutches 0.0145 m behind the
 knee line: their shank is the vector (-0.0145, -0.085) turned with the knee). An optional wedge turns every shank by a
-fixed angle about its knee (seed 002 IV.A).
+fixed angle about its knee [bioloid-webots, IV.A].
 
-Inverse kinematics as seed 002 eqs. 3-6 solve it (the law of cosines for the knee, then the hip), with the knee bent
+Inverse kinematics as [bioloid-webots, eqs. 3-6] solve it (the law of cosines for the knee, then the hip), with the knee bent
 forward-of-the-foot (a positive knee angle, as the seed's model bends it) and never past ``KNEE_LIMIT`` (eq. 3's
 angle clipped: the seed's Figure 27 shows the servo value flat at that limit).
 """
@@ -84,7 +84,7 @@ class LegGeometry:
 
 @dataclass(frozen=True)
 class Ellipse:
-    """The seed's foot trajectory (eqs. 7-8) with its rules of thumb (seed 002 VI.A.2): centre (h, k) =
+    """The seed's foot trajectory (eqs. 7-8) with its rules of thumb [bioloid-webots, VI.A.2]: centre (h, k) =
     (0, -(L1 + L2/2)), x radius a = 0.95 L1/2 and, corrected for the knee limit, y radius b = -k - sqrt(L1^2 + L2^2),
     so that the top of the ellipse is where the knee is bent 90 deg. L1 and L2 are this model's thigh and shank."""
 

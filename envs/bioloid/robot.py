@@ -1,4 +1,4 @@
-"""The Bioloid quadruped of seed 002: 16 AX-12 servos on goal positions, an IMU and telemetry, on the robot contract;
+"""The Bioloid quadruped of [bioloid-webots]: 16 AX-12 servos on goal positions, an IMU and telemetry, on the robot contract;
 it knows no task."""
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def ready_angles(wedge: float = 0.0) -> dict[str, float]:
 
 
 def knee_wedge_edit(angle: float = constants.KNEE_WEDGE) -> SpecEdit:
-    """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, seed 002 IV.A)."""
+    """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, [bioloid-webots, IV.A])."""
 
     def edit(spec: mujoco.MjSpec) -> None:
         half = angle / 2.0
@@ -86,7 +86,7 @@ def _as_slice(addresses: np.ndarray) -> slice | np.ndarray:
 
 
 class Bioloid(Robot):
-    """A Bioloid quadruped (seed 002) in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints the
+    """A Bioloid quadruped [bioloid-webots] in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints the
     seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
 
     One action mode, ``goal``: the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), each
@@ -98,7 +98,7 @@ class Bioloid(Robot):
     Args:
         action_mode: ``"goal"``.
         control_freq: control steps per second (default 50).
-        knee_wedge: add the 18 deg wedge at each knee (seed 002 IV.A; False: the design the seed validated).
+        knee_wedge: add the 18 deg wedge at each knee ([bioloid-webots, IV.A]; False: the design the seed validated).
         servo: the servos' constants and control-table settings (default: AX-12 at 10 V, factory compliance).
         battery_voltage: the servos' supply, V (default: ``servo``'s, 10 V); a shorthand for ``servo``'s.
         imu_noise: the IMU's error model (the seed's robot has no IMU; one on the CM-5 is assumed so that heading
@@ -253,7 +253,7 @@ class Bioloid(Robot):
         for axis, i in (("x", 0), ("y", 1), ("z", 2)):
             p.add(Parameter(f"body_com_{axis}", "m", float(model.body_ipos[body, i]),
                             float(model.body_ipos[body, i]) - 0.02, float(model.body_ipos[body, i]) + 0.02,
-                            f"BODY's centre of mass along {axis} (the seed suspects the CM-5's is off, seed 002 V.B)",
+                            f"BODY's centre of mass along {axis} (the seed suspects the CM-5's is off, [bioloid-webots, V.B])",
                             (FieldRef("body_ipos", (body, i)),), setconst=True))  # fmt: skip
         return p
 

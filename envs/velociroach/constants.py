@@ -39,18 +39,18 @@ NUMERIC_SWEEP = "sweep_amplitude"
 NUMERIC_LIFT = "lift_amplitude"
 
 # --- facts from the sources (what the model is checked against) -------------------------------------------------
-MASS = 0.030  # kg, seed 000; ICRA 2013
-LENGTH = 0.10  # m, overall, seed 000; ICRA 2013
-COM_HEIGHT = 0.015  # m, V-REP model, seed 000 Table 1
-RELATIVE_LEG_STIFFNESS = 10.3  # k L / (m g) per leg, seed 000 (SLIP analysis)
-LEG_INERTIA = 30e-9  # kg m^2 (30 g mm^2), real robot, seed 000 Table 1
-GRF_PER_LEG = 0.1  # N in stance, seed 000 Table 1
-MAX_STRIDE_FREQUENCY = 45.0  # Hz, real robot, seed 000 Table 1
+MASS = 0.030  # kg, [roach-sim]; ICRA 2013
+LENGTH = 0.10  # m, overall, [roach-sim]; ICRA 2013
+COM_HEIGHT = 0.015  # m, V-REP model, [roach-sim, Table 1]
+RELATIVE_LEG_STIFFNESS = 10.3  # k L / (m g) per leg, [roach-sim] (SLIP analysis)
+LEG_INERTIA = 30e-9  # kg m^2 (30 g mm^2), real robot, [roach-sim, Table 1]
+GRF_PER_LEG = 0.1  # N in stance, [roach-sim, Table 1]
+MAX_STRIDE_FREQUENCY = 45.0  # Hz, real robot, [roach-sim, Table 1]
 TOP_SPEED = 2.7  # m/s, ICRA 2013 abstract
 STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmware phase 0x8000 of 65536)
 
 # --- firmware: leg clock and per-side PID (the lab's roach firmware runs them at 1 kHz) ----------------------------
-# The real firmware's gains are in its own fixed-point units: robots.md gives Kp=1800, Ki=200, Kd=100; the 2 Hz real
+# The real firmware's gains are in its own fixed-point units: [roach-firmware] gives Kp=1800, Ki=200, Kd=100; the 2 Hz real
 # log's header lists [1800, 100, 200, 0, 200], which in the firmware's usual order (Kp, Ki, Kd, anti-windup,
 # feed-forward) reads Ki=100, Kd=200. Ours are in duty per leg radian, chosen so that the legs follow the clock within
 # 1 to 3 deg up to 45 Hz (benchmarks/speed_vs_frequency.py).

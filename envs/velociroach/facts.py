@@ -63,7 +63,7 @@ def standing_com_height(robot: VelociRoach | None = None) -> float:
 def relative_leg_stiffness(loads: tuple[float, ...] = (0.0, 0.05, 0.1, 0.15)) -> dict[str, float]:
     """Static load test: press the standing robot down with growing loads and fit height against load.
 
-    Relative stiffness per leg, k_rel = k L / (m g) (seed 000), with k = (load / compression) / legs in stance,
+    Relative stiffness per leg, k_rel = k L / (m g) [roach-sim], with k = (load / compression) / legs in stance,
     L = the 0.015 m centre-of-mass height of the source and m the robot's mass. The floor contact's own compliance is
     part of what the test measures, as it would be on a real robot.
     """

@@ -24,7 +24,7 @@ class RoachTurnEnv(SkitterEnv):
     A yaw rate ``r`` (rad/s, positive counter-clockwise seen from above), drawn per episode from
     ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.8 rad/s, within what the tripod reaches by phase alone,
     ``benchmarks/results/turn_table.md``), or set with ``reset(options={"yaw_rate": r})``. The commanded heading
-    turns at ``r`` from the heading at reset. The real robot turns by the phase offset between its sides (seed 000;
+    turns at ``r`` from the heading at reset. The real robot turns by the phase offset between its sides ([roach-sim];
     Haldane and Fearing, ICRA 2014); so does this model, once its feet slip (docs/velociroach.md).
 
     ## Observation Space

@@ -28,7 +28,7 @@ class RoachWalkEnv(SkitterEnv):
 
       | index | command | range |
       |---|---|---|
-      | 0 | left stride frequency | 0 to 45 Hz (the real robot's range, seed 000 Table 1) |
+      | 0 | left stride frequency | 0 to 45 Hz (the real robot's range, [roach-sim, Table 1]) |
       | 1 | right stride frequency | 0 to 45 Hz |
       | 2 | how far the right clock trails the left | 0 to 2 pi rad (0 action: pi, the alternating tripod) |
 

@@ -50,28 +50,28 @@ NUMERIC_MOTOR = (  # custom numerics of the MJCF, in MotorConstants' field order
 )
 
 # --- facts from the sources (what the model is checked against) -------------------------------------------------
-MASS = 4.467  # kg, total with the battery, seed 001 section 3.1
-BATTERY_MASS = 0.401  # kg, seed 001 Table 2
-LENGTH = 0.53  # m, body length: Research RHex's (robots.md section 2); the seed follows its dimensions
-LEG_DIAMETER = 7 * 0.0254  # m, 7 in semicircles, seed 001 sections 3.3 and 4
-LEG_TEST_LOAD = 29.2  # N, the FEA's dynamic load per leg, seed 001 section 3.3
-LEG_TEST_DEFLECTION = 0.30 * 0.0254  # m, 0.30 in under that load, seed 001 section 3.3
-STALL_TORQUE = 2.17  # N m at the shaft, Table 1 through the motor formula (robots.md section 2)
+MASS = 4.467  # kg, total with the battery, [xjus-report, section 3.1]
+BATTERY_MASS = 0.401  # kg, [xjus-report, Table 2]
+LENGTH = 0.53  # m, body length: Research RHex's [saranli2001]; the report follows its dimensions
+LEG_DIAMETER = 7 * 0.0254  # m, 7 in semicircles, [xjus-report, sections 3.3 and 4]
+LEG_TEST_LOAD = 29.2  # N, the FEA's dynamic load per leg, [xjus-report, section 3.3]
+LEG_TEST_DEFLECTION = 0.30 * 0.0254  # m, 0.30 in under that load, [xjus-report, section 3.3]
+STALL_TORQUE = 2.17  # N m at the shaft, Table 1 through the motor formula [xjus-report, Table 1]
 NO_LOAD_SPEED = 29.6  # rad/s, Vs / Ks, Table 1
 SPINE_DESIGN_STIFFNESS = 60 * 0.112984829 / np.radians(20.0)  # N m/rad: 60 lbf in after 20 deg, section 3.4 (19.4)
 SPINE_STIFFNESS_RANGE = (0.1, 20.0)  # x the design stiffness: the range offered (docs/xjus.md)
-# the most a constructor takes, x the design stiffness: measured in stop 46 (XjusRough 0.05 m RMS, buehler, 2 ms step,
+# the most a constructor takes, x the design stiffness: measured (XjusRough 0.05 m RMS, buehler, 2 ms step,
 # 3 seeds): 70x ran (flips only), 100x went numerically unstable within 0.1 s
 SPINE_STIFFNESS_MAX_SCALE = 50.0
 SPINE_STIFFNESS_MAX = SPINE_STIFFNESS_MAX_SCALE * SPINE_DESIGN_STIFFNESS  # N m/rad (971)
-MOTOR_CONTINUOUS_CURRENT = 1.08  # A per motor, max continuous, seed 001 section 3.2
+MOTOR_CONTINUOUS_CURRENT = 1.08  # A per motor, max continuous, [xjus-report, section 3.2]
 EFFICIENCY_CAP = 0.37  # eta N Kt / Ks: the most the seed's motor model can convert (envs/actuators/motor.py)
-RHEX_SPEED = 0.55  # m/s, Research RHex on flat ground (Saranli, Buehler, Koditschek 2001; robots.md section 2)
+RHEX_SPEED = 0.55  # m/s, Research RHex on flat ground [saranli2001]
 RHEX_MASS = 7.0  # kg, the same source
 
-# --- controller: the seed's Buehler clock and PD (seed 001, sections 2.4 and 2.5) -----------------------------------
-FOURIER_TERMS = 10  # M, seed 001 section 2.5
-# The PD of seed 001 section 2.4: desired torque J (theta_d'' + kp e + kd e'), then the motor model inverted for the
+# --- controller: the seed's Buehler clock and PD [xjus-report, sections 2.4 and 2.5] -----------------------------------
+FOURIER_TERMS = 10  # M, [xjus-report, section 2.5]
+# The PD of [xjus-report, section 2.4]: desired torque J (theta_d'' + kp e + kd e'), then the motor model inverted for the
 # voltage Vpd. Gains as a second-order error system, natural frequency 40 rad/s and damping ratio 0.8 (assumed, the
 # seed gives none): fast against a 0.5 s stride, slow enough for the 8 ms logic step (w dt = 0.32).
 PD_KP = 40.0**2  # 1/s^2

@@ -1,4 +1,4 @@
-"""The seed's controller in three stages (seed 001, sections 2.3 to 2.5), vectorized over simulations and legs.
+"""The seed's controller in three stages [xjus-report, sections 2.3 to 2.5], vectorized over simulations and legs.
 
 1. **Buehler clock** (section 2.5): each leg's target angle over a cycle of period T, the Fourier series of a profile
    that sweeps the ground angle theta_g slowly in the first half of the cycle and the rest of the turn quickly in

@@ -57,12 +57,12 @@ def xjus_effects(dt: float) -> dict[str, Effect]:
             dampratio=(1.0, 0.3, 2.0),
             carried=True,
             weak="acts on the body, which the log does not hold: against the true model's own replay floor the "
-            "legs barely see it (stop 29's generator: 1.76 at best on seed 17's runs, pushed to 90% of its range)",
+            "legs barely see it (1.76 at best against it on a synthetic case pushed to 90% of its range)",
         ),
         # the spine's angles and the legs' deflection are not logged: their stiffness acts through the state the
         # replay carries over (the body on its legs, the spine), as the mass does, so both are declared carried;
-        # and both are scales over a decade or more, ranked on a geometric grid (``log``). Stop 31 on the spine's
-        # seed 19 (truth 0.398): the cost is lowest in a basin from about 0.3 to 0.55 and above the nominal model's
+        # and both are scales over a decade or more, ranked on a geometric grid (``log``). On a synthetic case
+        # (truth 0.398): the cost is lowest in a basin from about 0.3 to 0.55 and above the nominal model's
         # at 0.1, 0.2 and from 2 up, so the linear grid (0.1, 5.05, 10) scored it nothing, carried or not; the
         # geometric one has 0.316 (docs/calibration.md, "Carried and geometric stiffness")
         make("leg_stiffness", scale=(1.0, 0.3, 3.0), carried=True, log=True),
@@ -75,8 +75,8 @@ def xjus_effects(dt: float) -> dict[str, Effect]:
             scale=(1.0, 0.5, 2.0),
             weak="the currents' replay floor (their divergence in replay, with the body the log lacks) is read through "
             "the gain too: at twice the gain the nominal model's error is 4.29 against the nominal model's floor but "
-            "2.25 against the true model's (seed 1), median 2.12 over three seeds at the range's far end. Stop 30's "
-            "generator, which asks for 3 against both floors, reached 2.82 at best on seed 22's runs",
+            "2.25 against the true model's (seed 1), median 2.12 over three seeds at the range's far end. The "
+            "generator, which asks for 3 against both floors, reached 2.82 at best",
         ),
         make("terrain_bump", height=(0.0, 0.0, 0.05)),
         make("disturbance", torque=(0.0, 0.0, 40.0), frequency=(3.0, 0.5, 10.0)),

@@ -26,7 +26,7 @@ class XjusWalkEnv(SkitterEnv):
     ``Box(-1, 1)``; out-of-range actions are clipped to [-1, 1]; NaN or infinite actions raise ``ValueError``. Each
     entry maps linearly from [-1, 1] onto its physical range (``env.unwrapped.robot.mode``):
 
-    - ``action_mode="gait"`` (default), shape (3,): the robot's Buehler clock and PD (seed 001 sections 2.4-2.5) run
+    - ``action_mode="gait"`` (default), shape (3,): the robot's Buehler clock and PD [xjus-report, sections 2.4-2.5] run
       at the control rate (at least 120 Hz) and drive the legs in an alternating tripod:
 
       | index | command | range |

@@ -177,7 +177,7 @@ class MotorAdapter(RigAdapter):
         # the drive and the back-EMF brake both scale with the torque constant (controls), and the shaft has no
         # friction of its own: a torque constant s times the nominal moves the load as an inertia 1/s times it does,
         # exactly. Below nominal, the torque constant and the rotor's added inertia are one effect on these channels
-        # (stop 41: a torque constant of 0.45 was fitted as an armature of 0.0012 kg m^2, to the noise floor)
+        # (measured: a torque constant of 0.45 was fitted as an armature of 0.0012 kg m^2, to the noise floor)
         shaft["armature"] = replace(shaft["armature"], alias=GROUP_DRIVE)
         shaft["delay"] = replace(shaft["delay"], alias="lag: delay")
         out = [

@@ -328,7 +328,7 @@ class RoachAdapter(Adapter):
         """Two views of the held-out logs simulated without a break (the log's commands through the logged firmware,
         nothing re-measured) under the nominal and the calibrated model:
 
-        - **tracking**, the quantities of issue 7's table: the leg's tracking error (median and 95th percentile,
+        - **tracking**, the quantities of the tracking table: the leg's tracking error (median and 95th percentile,
           deg), the mean |duty|, and the back-EMF per leg speed (the slope of the reading on the leg's rate,
           mV s/rad), per side, over the commanded stretch from its first second on;
         - **body rates compared as distributions**: the body's pose is not logged, so its rates cannot be aligned
@@ -369,7 +369,7 @@ class RoachAdapter(Adapter):
                     entry[name]["wasserstein"] = float(
                         wasserstein_distance(sim[window, n + axis], measured[window, axis]) / scale
                     )
-        sections = {"Tracking on the held-out logs (issue 7's table)": _tracking_table(tracking)}
+        sections = {"Tracking on the held-out logs": _tracking_table(tracking)}
         if rates:
             sections["Body rates compared as distributions"] = _rates_table(rates, self.BANDS)
         return {"tracking": tracking, "distributions": rates, "sections": sections}
