@@ -1,4 +1,5 @@
-"""The Bioloid quadruped's scripted controllers [bioloid-webots, VI]: ``POLICIES`` and ``REFERENCE`` for agents/__init__.py.
+"""The Bioloid quadruped's scripted controllers [bioloid-webots, VI]: ``POLICIES`` and ``REFERENCE`` for
+agents/__init__.py.
 
 - ``ik-<gait>`` and ``ik-<gait>:<Hz>``: the inverse-kinematics gait library (trot, walk, gallop, canter, pace,
   bound, pronk), steering by each side's stride on a turning task (agents/bioloid/ik.py);

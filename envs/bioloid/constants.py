@@ -88,7 +88,8 @@ STAND_ANGLES.update({"F_L_2": math.pi / 2, "B_L_2": math.pi / 2, "F_R_2": -math.
 STAND_ANGLES["N_1"] = -math.pi / 2
 
 # Each servo's allowed range in counts: the AX-12's full 0..1023 (its angle limits' factory settings, ROBOTIS), except
-# the knees: from straight (KNEE_EXTENSION) to bent 90 deg [bioloid-webots, VI.A.2]. An action of -1..1 spans this range.
+# the knees: from straight (KNEE_EXTENSION) to bent 90 deg [bioloid-webots, VI.A.2]. An action of -1..1 spans this
+# range.
 SERVO_RANGE = {name: (0.0, float(COUNTS - 1)) for name in SERVOS}
 for _leg in LEGS:
     SERVO_RANGE[KNEE[_leg]] = (counts(-KNEE_EXTENSION), counts(KNEE_LIMIT))

@@ -42,7 +42,8 @@ def bioloid_effects(dt: float) -> dict[str, Effect]:
     = 9.7e-4 kg m^2 at the joint; the compliance slope from a quarter to four times the factory 32 counts (the
     control table's 2..128 range, ROBOTIS); the supply 20% either way (a 9.6 V pack from full to flat); a worn
     gear train's play up to 0.05 rad (3 deg); the CM-5's mass +-20% (a different battery; the robot's own parameter
-    range, envs/bioloid/robot.py) and its centre of mass 2 cm either way (the seed suspects it is off, [bioloid-webots, V.B]); a position offset up to 20 counts (a horn mounted a spline off)."""
+    range, envs/bioloid/robot.py) and its centre of mass 2 cm either way (the report suspects it is off,
+    [bioloid-webots, V.B]); a position offset up to 20 counts (a horn mounted a spline off)."""
     out: list[Effect] = [
         make("delay", seconds=(0.0, 0.0, 0.05, dt)),
         make("backlash", gap=(0.0, 0.0, 0.05)),
@@ -61,7 +62,8 @@ def bioloid_effects(dt: float) -> dict[str, Effect]:
         make("ground_contact", timeconst=(0.004, 0.004, 0.03), dampratio=(1.0, 0.3, 2.0), weak=THROUGH_THE_BODY),
         make("mass", scale=(1.0, 0.8, 1.2), weak=THROUGH_THE_BODY),
         make("com_offset", x=(0.0, -0.02, 0.02), weak=THROUGH_THE_BODY),
-        # ridges up to 8 cm: under half the leg's 0.175 m reach ([bioloid-webots, VI.A]: L1 0.09 + L2 0.085 m), an obstacle its
+        # ridges up to 8 cm: under half the leg's 0.175 m reach ([bioloid-webots, VI.A]: L1 0.09 + L2 0.085 m), an
+        # obstacle its
         # feet step onto; the 16 servo positions barely see the body, so 5 cm ridges did not show in 10 s logs
         # (2.29 at most over three draws at seed 3; 3.14 at 5 cm)
         make("terrain_bump", height=(0.0, 0.0, 0.08)),

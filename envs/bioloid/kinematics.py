@@ -7,7 +7,8 @@ on to the knee: L1 = 0.0975 m) and the shank from the knee to the sole (0.085 m;
 knee line: their shank is the vector (-0.0145, -0.085) turned with the knee). An optional wedge turns every shank by a
 fixed angle about its knee [bioloid-webots, IV.A].
 
-Inverse kinematics as [bioloid-webots, eqs. 3-6] solve it (the law of cosines for the knee, then the hip), with the knee bent
+Inverse kinematics as [bioloid-webots, eqs. 3-6] solve it (the law of cosines for the knee, then the hip), with the
+knee bent
 forward-of-the-foot (a positive knee angle, as the seed's model bends it) and never past ``KNEE_LIMIT`` (eq. 3's
 angle clipped: the seed's Figure 27 shows the servo value flat at that limit).
 """

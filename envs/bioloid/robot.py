@@ -1,4 +1,5 @@
-"""The Bioloid quadruped of [bioloid-webots]: 16 AX-12 servos on goal positions, an IMU and telemetry, on the robot contract;
+"""The Bioloid quadruped of [bioloid-webots]: 16 AX-12 servos on goal positions, an IMU and telemetry, on the robot
+contract;
 it knows no task."""
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ def ready_angles(wedge: float = 0.0) -> dict[str, float]:
 
 
 def knee_wedge_edit(angle: float = constants.KNEE_WEDGE) -> SpecEdit:
-    """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, [bioloid-webots, IV.A])."""
+    """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, [bioloid-webots,
+    IV.A])."""
 
     def edit(spec: mujoco.MjSpec) -> None:
         half = angle / 2.0
@@ -86,7 +88,8 @@ def _as_slice(addresses: np.ndarray) -> slice | np.ndarray:
 
 
 class Bioloid(Robot):
-    """A Bioloid quadruped [bioloid-webots] in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints the
+    """A Bioloid quadruped [bioloid-webots] in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints
+    the
     seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
 
     One action mode, ``goal``: the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), each
@@ -253,7 +256,8 @@ class Bioloid(Robot):
         for axis, i in (("x", 0), ("y", 1), ("z", 2)):
             p.add(Parameter(f"body_com_{axis}", "m", float(model.body_ipos[body, i]),
                             float(model.body_ipos[body, i]) - 0.02, float(model.body_ipos[body, i]) + 0.02,
-                            f"BODY's centre of mass along {axis} (the seed suspects the CM-5's is off, [bioloid-webots, V.B])",
+                            f"BODY's centre of mass along {axis} (the report suspects the CM-5's is off, "
+                            "[bioloid-webots, V.B])",
                             (FieldRef("body_ipos", (body, i)),), setconst=True))  # fmt: skip
         return p
 

@@ -58,7 +58,8 @@ class BioloidWalkEnv(SkitterEnv):
 
     ## Starting State
     The gaits' ready posture: legs down (servo 2 at +-90 deg), knees bent so that every sole is at the centre of the
-    seed's IK ellipse [bioloid-webots, eqs. 7-8], neck up, level with its lowest sole on the ground; servo angles perturbed
+    seed's IK ellipse [bioloid-webots, eqs. 7-8], neck up, level with its lowest sole on the ground; servo angles
+    perturbed
     by ``U(-1, 1) * 0.2 * reset_noise_scale`` rad (the goals hold the perturbed posture), body angular velocity by
     ``N(0, reset_noise_scale / 2)`` rad/s and linear velocity by ``N(0, reset_noise_scale / 20)`` m/s. With
     ``randomize``, the named physical parameters (``env.unwrapped.robot.parameters``) are drawn at every reset.
@@ -80,7 +81,8 @@ class BioloidWalkEnv(SkitterEnv):
     ``gymnasium.make("skitter/BioloidWalk-v1", **kwargs)``: ``action_mode`` (``"goal"``), ``control_freq`` (Hz,
     default 50), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.01 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.0 rad), ``reset_noise_scale`` (0.1), ``knee_wedge`` (False:
-    the 18 deg "aibo style" wedges of [bioloid-webots, IV.A] when True), ``servo`` (an ``envs.actuators.servo.ServoConstants``:
+    the 18 deg "aibo style" wedges of [bioloid-webots, IV.A] when True), ``servo`` (an
+    ``envs.actuators.servo.ServoConstants``:
     supply, compliance slope, torque limit; default AX-12 at 10 V), ``battery_voltage`` (V, shorthand for the
     servos' supply), ``sensor_noise`` (True), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a
     calibration file from ``calibrate.py --robot bioloid``, docs/calibration.md), ``episode_seconds`` (the time

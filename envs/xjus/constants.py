@@ -69,9 +69,11 @@ EFFICIENCY_CAP = 0.37  # eta N Kt / Ks: the most the seed's motor model can conv
 RHEX_SPEED = 0.55  # m/s, Research RHex on flat ground [saranli2001]
 RHEX_MASS = 7.0  # kg, the same source
 
-# --- controller: the seed's Buehler clock and PD [xjus-report, sections 2.4 and 2.5] -----------------------------------
+# --- controller: the seed's Buehler clock and PD [xjus-report, sections 2.4 and 2.5]
+# -----------------------------------
 FOURIER_TERMS = 10  # M, [xjus-report, section 2.5]
-# The PD of [xjus-report, section 2.4]: desired torque J (theta_d'' + kp e + kd e'), then the motor model inverted for the
+# The PD of [xjus-report, section 2.4]: desired torque J (theta_d'' + kp e + kd e'), then the motor model inverted for
+# the
 # voltage Vpd. Gains as a second-order error system, natural frequency 40 rad/s and damping ratio 0.8 (assumed, the
 # seed gives none): fast against a 0.5 s stride, slow enough for the 8 ms logic step (w dt = 0.32).
 PD_KP = 40.0**2  # 1/s^2

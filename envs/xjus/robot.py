@@ -90,7 +90,8 @@ class Xjus(Robot):
     Two action modes, both at 125 Hz by default (an 8 ms step, at least as fast as the seed's 8.3 ms logic step):
 
     - ``gait``: ``(period, sweep_left, sweep_right)``: the robot's own Buehler clock (one per robot, tripods half a
-      cycle apart) and PD ([xjus-report, sections 2.4 and 2.5]; envs/xjus/controller.py) run once per control step, at the
+      cycle apart) and PD ([xjus-report, sections 2.4 and 2.5]; envs/xjus/controller.py) run once per control step, at
+      the
       control rate, which must be at least 120 Hz. Equal sweeps walk straight; a larger sweep on one side makes that
       side's legs sweep the ground faster over the same period, and the robot turns away from it. The duty the PD
       gives is held over the control step, as the seed's logic step held it.
