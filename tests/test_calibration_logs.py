@@ -15,6 +15,7 @@ import pytest
 
 import calibrate
 from envs.common.telemetry import write_telemetry
+from sysid import synth
 from sysid.logs import ColumnMap, Log, LogError, read_log, white_noise
 from sysid.robots import adapter as make_adapter
 
@@ -645,3 +646,15 @@ def test_file_arguments_that_are_not_files_or_windows_say_so(capsys, tmp_path):
     code = calibrate.main(["--robot", "motor", "--train", f"{GEARMOTOR}@0:5", "--test", f"{GEARMOTOR}@5:", "--out",
                            str(tmp_path / "out"), "--calibration", str(folder)])  # fmt: skip
     assert code == 2 and f"{folder}: a directory, not a calibration file" in capsys.readouterr().err
+
+
+def test_a_bioloid_log_with_a_position_out_of_range_is_refused(tmp_path, capsys):
+    log, _ = synth.synthesize("bioloid", {}, 0, seconds=4.0)
+    df = log.df.copy()
+    df.loc[40, "goal_F_L_3"] = 1500.0
+    path = write_telemetry(tmp_path / "bad.parquet", df, log.meta)
+    out = tmp_path / "cal"
+    code = calibrate.main(["--robot", "bioloid", "--train", f"{path}@0:2", "--test", f"{path}@2:", "--out", str(out)])
+    assert code == 2 and not out.exists()
+    err = capsys.readouterr().err
+    assert "bad.parquet" in err and "goal_F_L_3" in err and "1500" in err
