@@ -396,7 +396,8 @@ def test_a_roach_effect_fitted_from_its_logs_brings_the_tripod_closer_to_the_mea
     _roach_calibration_walks_closer(tmp_path, "--fit", "viscous_friction_left")
 
 
-# the legged robots' null and out-of-catalog cases take minutes each: the matrix runs them too (--kinds null ooc)
+# the legged robots' null and out-of-catalog cases take minutes each, the motor's out-of-catalog case one: the
+# matrix runs them too (--kinds null ooc)
 SLOW = pytest.mark.slow
 
 
@@ -409,9 +410,11 @@ def test_null_noise_only_chooses_nothing(robot: str, seed: int):
     assert result.after.error < result.threshold and not result.unexplained, result.after.error
 
 
-@pytest.mark.parametrize(("robot", "seed"), [("motor", 14), pytest.param("xjus", 22, marks=SLOW),
+@pytest.mark.parametrize(("robot", "seed"), [("servo", 14), pytest.param("motor", 14, marks=SLOW),
+                                             pytest.param("xjus", 22, marks=SLOW),
                                              pytest.param("bioloid", 22, marks=SLOW)])  # fmt: skip
 def test_out_of_catalog_disturbance_is_unexplained(robot: str, seed: int):
+    """The servo rig's case runs in about a third of the motor's time, which the slow run and the matrix take."""
     train, test, truth = pair(robot, {"disturbance": None}, seed=seed)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     result = run(make_adapter(robot), train, test, say=lambda s: None)

@@ -110,10 +110,11 @@ def test_two_models_with_the_same_file_name_get_their_own_plots(model_zip, tmp_p
     other = tmp_path / "other" / "checkpoints" / checkpoint.name
     shutil.copytree(checkpoint, other)
     out = tmp_path / "both"
-    done = run("--env", "skitter/RoachWalk-v1", "--policy", str(checkpoint / "model.zip"), "--policy",
-               str(other / "model.zip"), "--episodes", "1", "--out", str(out), "--max-episode-steps", "20",
-               "--telemetry")  # fmt: skip
-    assert done.returncode == 0, done.stderr
+    import evaluate
+
+    assert evaluate.main(["--env", "skitter/RoachWalk-v1", "--policy", str(checkpoint / "model.zip"), "--policy",
+                          str(other / "model.zip"), "--episodes", "1", "--out", str(out), "--max-episode-steps", "20",
+                          "--telemetry"]) == 0  # fmt: skip
     assert len(list((out / "plots").glob("*.png"))) == 2
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     files = json.loads((out / "results.json").read_text())["files"]
