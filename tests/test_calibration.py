@@ -22,7 +22,7 @@ from envs.common.calibration import read_calibration
 from envs.common.telemetry import read_telemetry, write_telemetry
 from sysid import fit as fit_module
 from sysid import synth
-from sysid.cases import Case, pair, run_case
+from sysid.cases import TEST_SEED_OFFSET, Case, pair, run_case
 from sysid.effects import Param, base_name
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.pipeline import relative_excess, run
@@ -351,13 +351,17 @@ def _evaluate(tmp_path, name: str, calibration: str | None) -> dict[str, float]:
     return {m: summary[m]["mean"] for m in ("forward_speed", "heading_drift")}
 
 
-def _roach_calibration_walks_closer(tmp_path, *options: str) -> None:
+def _roach_calibration_walks_closer(tmp_path, *options: str, seconds: float | None = None) -> None:
     """The VelociRoACH's case, end to end: synthetic logs of a robot with a hidden left-side friction (drawn by the
     generator) go through calibrate.py (with ``options``); the calibrated model, run by evaluate.py, walks the tripod
     gait closer to the 'measured' robot (the model with the true effect) in speed and heading drift than the nominal
-    model does."""
+    model does. The logs are a case's (``pair``), or training and held-out logs of ``seconds`` each."""
     effect, seed = "viscous_friction_left", 1
-    (train,), (test,), truth = pair("roach", {effect: None}, seed)
+    if seconds is None:
+        (train,), (test,), truth = pair("roach", {effect: None}, seed)
+    else:
+        (train,), truth = synth.record("roach", {effect: None}, seed, seconds)
+        (test,), _ = synth.record("roach", truth["effects"], seed + TEST_SEED_OFFSET, seconds, show=True)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     paths = []
     for name, log in (("train", train), ("test", test)):
@@ -392,8 +396,9 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
 
 
 def test_a_roach_effect_fitted_from_its_logs_brings_the_tripod_closer_to_the_measured_robot(tmp_path):
-    """The same chain with the effect named (``calibrate.py --fit``), without the search over the catalog."""
-    _roach_calibration_walks_closer(tmp_path, "--fit", "viscous_friction_left")
+    """The same chain with the effect named (``calibrate.py --fit``), without the search over the catalog, on logs
+    of 4 s (a case's are 10 s)."""
+    _roach_calibration_walks_closer(tmp_path, "--fit", "viscous_friction_left", seconds=4.0)
 
 
 # the legged robots' null and out-of-catalog cases take minutes each, the motor's out-of-catalog case one: the
