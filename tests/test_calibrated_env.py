@@ -1,6 +1,6 @@
-"""Calibrated envs: ``gym.make(id, calibration=PATH)`` adds a calibration file's effects to the nominal model (which
-stays as it was), batched envs take the same file, bad files are refused with the file, field and value named, and
-``evaluate.py --calibration`` runs the calibrated model."""
+"""Calibrated envs, every robot: ``gym.make(id, calibration=PATH)`` adds a calibration file's effects to the nominal
+model (which stays as it was), batched envs take the same file, bad files are refused with the file, field and value
+named, and ``evaluate.py --calibration`` runs the calibrated model."""
 
 from __future__ import annotations
 
@@ -13,8 +13,10 @@ import pytest
 
 import envs  # noqa: F401 (registers the ids)
 import evaluate
-from envs.actuators.dcmotor import GAIN_K, GAIN_KP
+from envs.actuators.dcmotor import GAIN_K, GAIN_KP, GAIN_VMAX
+from envs.bioloid import constants as BIOLOID
 from envs.velociroach import constants
+from envs.xjus import constants as XJUS
 
 EFFECTS = {
     "coulomb_friction_left": {"torque": 0.004},
@@ -23,6 +25,26 @@ EFFECTS = {
     "supply_voltage": {"scale": 0.9},
     "delay": {"seconds": 0.003},
     "mass": {"scale": 1.2},
+}
+XJUS_EFFECTS = {
+    "coulomb_friction_left": {"torque": 0.1},
+    "viscous_friction_right": {"damping": 0.02},
+    "torque_constant": {"scale": 1.2},
+    "supply_voltage": {"scale": 0.9},
+    "delay": {"seconds": 0.01},
+    "backlash": {"gap": 0.05},
+    "deadband": {"duty": 0.05},
+    "mass": {"scale": 1.1},
+}
+BIOLOID_EFFECTS = {
+    "coulomb_friction_left": {"torque": 0.05},
+    "viscous_friction_right": {"damping": 0.02},
+    "servo_gain": {"scale": 0.5},
+    "supply_voltage": {"scale": 0.9},
+    "delay": {"seconds": 0.01},
+    "backlash": {"gap": 0.02},
+    "mass": {"scale": 1.1},
+    "foot_friction": {"mu": 0.5},
 }
 
 
@@ -59,42 +81,109 @@ def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     assert again.dof_frictionloss[left] == m0.dof_frictionloss[left] and again.actuator_delay[a_left] == 0
 
 
-def test_calibrated_env_changes_the_gait_and_batches_alike(tmp_path):
-    path = _write(tmp_path / "cal.json")
-    action = np.array([0.5, 0.5, 0.0], dtype=np.float32)
+def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
+    path = _write(tmp_path / "cal.json", XJUS_EFFECTS, "xjus")
+    nominal = gym.make("skitter/XjusWalk-v0").unwrapped.robot
+    robot = gym.make("skitter/XjusWalk-v0", calibration=str(path)).unwrapped.robot
+    m0, m = nominal.model, robot.model
+    for leg in XJUS.LEGS:
+        dof0, dof = (x.joint(XJUS.HIP_JOINTS[leg]).dofadr[0] for x in (m0, m))
+        left = leg in XJUS.LEFT_LEGS
+        assert m.dof_frictionloss[dof] == pytest.approx(m0.dof_frictionloss[dof0] + (0.1 if left else 0.0))
+        assert m.dof_damping[dof] == pytest.approx(m0.dof_damping[dof0] + (0.0 if left else 0.02))
+        assert m.joint(f"{leg}_play").range[1] == pytest.approx(0.025)  # the gearbox's play: +-gap/2
+    # the motor numerics the robot reads its motor arrays from: Kt and Ks scale together, the supply by 0.9
+    assert robot.motors.torque_per_amp[0] == pytest.approx(1.2 * nominal.motors.torque_per_amp[0])
+    assert robot.motors.speed_constant[0] == pytest.approx(1.2 * nominal.motors.speed_constant[0])
+    assert robot.battery[0] == pytest.approx(0.9 * nominal.battery[0])
+    drives = [a for a in range(m.nu) if m.actuator(a).name.endswith(("_drive", "_emf"))]
+    np.testing.assert_allclose(m.actuator_delay[drives], 0.01)
+    segments = sum(m0.body_mass[m0.body(name).id] for name in XJUS.SEGMENTS)  # plates, housings, motors, battery
+    assert m.body_subtreemass[0] == pytest.approx(m0.body_subtreemass[0] + 0.1 * segments, rel=1e-9)
+    # the driver's deadband on every duty the robot holds
+    robot.hold_duty(np.full((1, 6), 0.04))
+    assert np.all(robot.last_duty == 0.0)
+    # the nominal model stays nominal
+    again = gym.make("skitter/XjusWalk-v0").unwrapped.robot.model
+    assert again.nq == m0.nq and again.dof_frictionloss.sum() == m0.dof_frictionloss.sum()
 
-    def run(env, n=50):
-        env.reset(seed=3)
-        for _ in range(n):
-            *_, info = env.step(action if env.action_space.shape == action.shape else np.tile(action, (1, 1)))
+
+def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
+    path = _write(tmp_path / "cal.json", BIOLOID_EFFECTS, "bioloid")
+    m0 = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model
+    m = gym.make("skitter/BioloidWalk-v1", calibration=str(path)).unwrapped.robot.model
+    for servo in BIOLOID.SERVOS:
+        dof0, dof = (x.joint(servo).dofadr[0] for x in (m0, m))
+        sides = {BIOLOID.LEG_SIDE[leg] for leg in BIOLOID.LEGS if servo in (f"{leg}_{k}" for k in (1, 2, 3))}
+        left, right = "left" in sides, "right" in sides
+        assert m.dof_frictionloss[dof] == pytest.approx(m0.dof_frictionloss[dof0] + (0.05 if left else 0.0))
+        assert m.dof_damping[dof] == pytest.approx(m0.dof_damping[dof0] + (0.02 if right else 0.0))
+        assert m.joint(f"{servo}_play").range[1] == pytest.approx(0.01)  # the gear train's play: +-gap/2
+        a0, a = m0.actuator(f"{servo}_servo"), m.actuator(f"{servo}_servo")
+        # the compliance slope halved (gain x 0.5) at 0.9 of the supply; the duty bound at 0.9 of the supply
+        assert a.gainprm[GAIN_KP] == pytest.approx(0.5 * 0.9 * a0.gainprm[GAIN_KP])
+        assert a.gainprm[GAIN_VMAX] == pytest.approx(0.9 * a0.gainprm[GAIN_VMAX])
+        assert m.actuator_delay[a.id] == pytest.approx(0.01)
+    body = m0.body(BIOLOID.ROOT_BODY).id
+    assert m.body_subtreemass[0] == pytest.approx(m0.body_subtreemass[0] + 0.1 * m0.body_mass[body], rel=1e-9)
+    assert m.geom_friction[m.geom(BIOLOID.FOOT_GEOM["F_L"]).id, 0] == pytest.approx(0.5)
+    again = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model  # the nominal model stays nominal
+    assert again.nq == m0.nq and again.dof_frictionloss.sum() == m0.dof_frictionloss.sum()
+
+
+# one walk per robot: its env, its calibration file's robot and effects, a constant action (None: zeros), the reset
+# seed and steps, and the info entry the effects move, by at least how much
+MOTIONS = {
+    # the right side is stronger: it turns
+    "velociroach": ("skitter/RoachWalk-v1", EFFECTS, np.array([0.5, 0.5, 0.0], dtype=np.float32), 3, 50, "yaw", 0.05),
+    "xjus": ("skitter/XjusWalk-v0", XJUS_EFFECTS, np.array([0.0, 0.3, 0.3]), 5, 60, "x_position", 1e-3),
+    # a softer servo under a heavier body sags
+    "bioloid": ("skitter/BioloidWalk-v1", BIOLOID_EFFECTS, None, 5, 50, "z_position", 1e-4),
+}
+
+
+@pytest.mark.parametrize("robot", list(MOTIONS))
+def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
+    env_id, effects, action, seed, steps, key, moved = MOTIONS[robot]
+    path = _write(tmp_path / "cal.json", effects, robot)
+
+    def run(env):
+        env.reset(seed=seed)
+        act = np.zeros(env.action_space.shape[-1], dtype=np.float32) if action is None else action
+        for _ in range(steps):
+            *_, info = env.step(act if env.action_space.shape == act.shape else act[None])
         return info
 
-    plain = run(gym.make("skitter/RoachWalk-v1"))
-    calibrated = run(gym.make("skitter/RoachWalk-v1", calibration=str(path)))
-    assert abs(calibrated["yaw"] - plain["yaw"]) > 0.05  # the right side is stronger: it turns
-    vec = gym.make_vec("skitter/RoachWalk-v1", num_envs=1, vectorization_mode="vector_entry_point",
-                       calibration=str(path))  # fmt: skip
+    plain = run(gym.make(env_id))
+    calibrated = run(gym.make(env_id, calibration=str(path)))
+    assert abs(calibrated[key] - plain[key]) > moved
+    vec = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", calibration=str(path))
     batched = run(vec)
-    assert batched["yaw"][0] == pytest.approx(calibrated["yaw"], abs=1e-9)
+    assert batched[key][0] == pytest.approx(calibrated[key], abs=1e-9)
 
 
 @pytest.mark.parametrize(
-    "change, field",
+    "env_id, robot, change, needles",
     [
-        ({"robot": "servo"}, "'robot'"),
-        ({"effects": {"warp_drive": {"level": 1.0}}}, "'effects.warp_drive'"),
-        ({"effects": {"delay": {"seconds": 5.0}}}, "'effects.delay.seconds'"),
-        ({"effects": {"delay": {"minutes": 0.0}}}, "'effects.delay.minutes'"),
-        ({"version": 7}, "'version'"),
+        ("skitter/RoachWalk-v1", "velociroach", {"robot": "servo"}, ["'robot'"]),
+        ("skitter/RoachWalk-v1", "velociroach", {"effects": {"warp_drive": {"level": 1.0}}}, ["'effects.warp_drive'"]),
+        ("skitter/RoachWalk-v1", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
+        ("skitter/RoachWalk-v1", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
+        ("skitter/RoachWalk-v1", "velociroach", {"version": 7}, ["'version'"]),
+        ("skitter/XjusWalk-v0", "xjus", {"effects": {"viscous_friction_left": {"damping": 5.0}}},
+         ["viscous_friction_left.damping", "outside its range"]),
+        ("skitter/BioloidWalk-v1", "bioloid", {"effects": {"servo_gain": {"scale": 9.0}}},
+         ["servo_gain.scale", "outside its range"]),
     ],
-)
-def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, change, field):
-    data = {"format": "skitter calibration", "version": 1, "robot": "velociroach", "effects": EFFECTS, **change}
+)  # fmt: skip
+def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, env_id, robot, change, needles):
+    data = {"format": "skitter calibration", "version": 1, "robot": robot, "effects": EFFECTS, **change}
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(data))
     with pytest.raises(ValueError) as info:
-        gym.make("skitter/RoachWalk-v1", calibration=str(path))
-    assert str(path) in str(info.value) and field in str(info.value)
+        gym.make(env_id, calibration=str(path))
+    assert str(path) in str(info.value)
+    assert all(needle in str(info.value) for needle in needles), (needles, str(info.value))
 
 
 def test_a_calibration_that_is_not_a_file_is_refused():

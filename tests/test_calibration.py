@@ -10,18 +10,20 @@ import math
 from pathlib import Path
 from types import SimpleNamespace
 
+import gymnasium as gym
 import numpy as np
 import pandas as pd
 import pytest
 
+import envs  # noqa: F401 (registers the ids)
 from agents import compare as evaluate
 from envs.common.calibration import read_calibration
 from envs.common.effects import Param, base_name
-from envs.common.telemetry import write_telemetry
+from envs.common.telemetry import read_telemetry, write_telemetry
 from sysid import cli as calibrate
 from sysid import fit as fit_module
 from sysid import synth
-from sysid.cases import Case, pair, run_case
+from sysid.cases import TEST_SEED_OFFSET, Case, pair, run_case
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Problem, Residual, total_objective
@@ -207,12 +209,32 @@ def _check_recovery(robot: str, effect: str, seed: int) -> Case:
     return case
 
 
-def test_motor_recovers_a_drawn_viscous_friction():
-    _check_recovery("motor", "viscous_friction", seed=11)
+# one drawn effect per robot (robot, effect, seed, exact): exact, the first pick is the effect itself, its interval
+# covers the truth and the held-out residual is explained. The legged robots' seeds are the matrix's for their
+# effects (effect k of the catalog: seed k + 1); the matrix's coverage runs count its misses at other seeds.
+RECOVERY = [
+    ("motor", "viscous_friction", 11, False),
+    ("servo", "delay", 12, False),
+    ("xjus", "viscous_friction_left", 5, False),
+    ("bioloid", "servo_gain", 3, True),
+]
 
 
-def test_servo_recovers_a_drawn_delay():
-    _check_recovery("servo", "delay", seed=12)
+@pytest.mark.parametrize(("robot", "effect", "seed", "exact"), RECOVERY)
+def test_a_drawn_effect_is_recovered(robot: str, effect: str, seed: int, exact: bool):
+    """A robot recorded as several runs from rest (``Adapter.runs``: the xJüs, six runs of 2 s) is recorded so for
+    training and held-out alike."""
+    case = _check_recovery(robot, effect, seed)
+    if exact:
+        assert case.first == effect, case.first
+        assert case.recovered and all(case.covered.values()), case.values
+        assert not case.result.unexplained, (case.result.before.error, case.result.after.error)
+    protocol = make_adapter(robot).runs
+    if protocol is not None:
+        runs, seconds = protocol
+        for logs in (case.result.train, case.result.test):
+            assert len(logs) == runs > 1 and len({log.path for log in logs}) == runs
+            assert all(log.time[-1] - log.time[0] == pytest.approx(seconds, abs=0.02) for log in logs)
 
 
 def _check_pair(robot: str, effects: dict, seed: int) -> Case:
@@ -236,6 +258,7 @@ def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_se
     assert len(case.result.outcome.chosen) == 2
 
 
+@pytest.mark.slow  # pair 504 of the matrix's motor pairs (python -m benchmarks.calibration_matrix --kinds pairs)
 def test_a_second_effect_is_fitted_with_the_first_and_an_effect_it_replaced_is_dropped():
     """Stop 42, the motor's back-EMF constant (1.77) and PWM decay: a supply voltage (of another alias group) is kept
     first in the back-EMF constant's place. The back-EMF constant then scored 0.3 beside it: its column nearly
@@ -290,6 +313,7 @@ def test_the_profile_walk_finds_the_profiles_floor_from_either_side_and_stops_at
     assert all(delay.low <= d <= delay.high for d in calls) and len(calls) <= fit_module.PROFILE_FITS
 
 
+@pytest.mark.slow  # pair 502 of the matrix's motor pairs (python -m benchmarks.calibration_matrix --kinds pairs)
 def test_a_delay_and_a_drive_along_one_valley_are_fitted_by_walking_the_profile():
     """Stop 42, the motor's delay 0.0291 s and torque constant 2.77: a longer delay wants a stronger drive, and
     turns of grid (the delay) and least squares (the drive) stalled in that valley (torque constant 2.45, training
@@ -327,12 +351,17 @@ def _evaluate(tmp_path, name: str, calibration: str | None) -> dict[str, float]:
     return {m: summary[m]["mean"] for m in ("forward_speed", "heading_drift")}
 
 
-def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measured_robot(tmp_path):
+def _roach_calibration_walks_closer(tmp_path, *options: str, seconds: float | None = None) -> None:
     """The VelociRoACH's case, end to end: synthetic logs of a robot with a hidden left-side friction (drawn by the
-    generator) go through calibrate.py; the calibrated model, run by evaluate.py, walks the tripod gait closer to the
-    'measured' robot (the model with the true effect) in speed and heading drift than the nominal model does."""
+    generator) go through calibrate.py (with ``options``); the calibrated model, run by evaluate.py, walks the tripod
+    gait closer to the 'measured' robot (the model with the true effect) in speed and heading drift than the nominal
+    model does. The logs are a case's (``pair``), or training and held-out logs of ``seconds`` each."""
     effect, seed = "viscous_friction_left", 1
-    (train,), (test,), truth = pair("roach", {effect: None}, seed)
+    if seconds is None:
+        (train,), (test,), truth = pair("roach", {effect: None}, seed)
+    else:
+        (train,), truth = synth.record("roach", {effect: None}, seed, seconds)
+        (test,), _ = synth.record("roach", truth["effects"], seed + TEST_SEED_OFFSET, seconds, show=True)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
     paths = []
     for name, log in (("train", train), ("test", test)):
@@ -340,7 +369,7 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
         write_telemetry(paths[-1], log.df, log.meta)
     out = tmp_path / "cal"
     argv = ["--robot", "roach", "--train", str(paths[0]), "--test", str(paths[1]), "--out", str(out), "--quiet"]
-    assert calibrate.main(argv) == 0
+    assert calibrate.main([*argv, *options]) == 0
     report = json.loads((out / "report.json").read_text())
     injected = make_adapter("roach").effects()[effect]
     first = report["chosen"][0]
@@ -361,21 +390,90 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
             metric, measured, nominal, calibrated)  # fmt: skip
 
 
-def test_null_noise_only_chooses_nothing():
-    train, test, _ = pair("motor", {}, seed=13)
-    result = run(make_adapter("motor"), train, test, say=lambda s: None)
+@pytest.mark.slow  # the selection over the roach's whole catalog: the matrix's roach cases run it on every effect
+def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measured_robot(tmp_path):
+    _roach_calibration_walks_closer(tmp_path)
+
+
+def test_a_roach_effect_fitted_from_its_logs_brings_the_tripod_closer_to_the_measured_robot(tmp_path):
+    """The same chain with the effect named (``calibrate.py --fit``), without the search over the catalog, on logs
+    of 4 s (a case's are 10 s)."""
+    _roach_calibration_walks_closer(tmp_path, "--fit", "viscous_friction_left", seconds=4.0)
+
+
+# the legged robots' null and out-of-catalog cases take minutes each, the motor's out-of-catalog case one: the
+# matrix runs them too (--kinds null ooc)
+SLOW = pytest.mark.slow
+
+
+@pytest.mark.parametrize(("robot", "seed"), [("motor", 13), pytest.param("xjus", 21, marks=SLOW),
+                                             pytest.param("bioloid", 21, marks=SLOW)])  # fmt: skip
+def test_null_noise_only_chooses_nothing(robot: str, seed: int):
+    train, test, _ = pair(robot, {}, seed=seed)
+    result = run(make_adapter(robot), train, test, say=lambda s: None)
     assert result.outcome.chosen == []
-    assert result.after.error < UNEXPLAINED_ABOVE and not result.unexplained
+    assert result.after.error < result.threshold and not result.unexplained, result.after.error
 
 
-def test_out_of_catalog_disturbance_is_unexplained():
-    train, test, truth = pair("motor", {"disturbance": None}, seed=14)
+@pytest.mark.parametrize(("robot", "seed"), [("servo", 14), pytest.param("motor", 14, marks=SLOW),
+                                             pytest.param("xjus", 22, marks=SLOW),
+                                             pytest.param("bioloid", 22, marks=SLOW)])  # fmt: skip
+def test_out_of_catalog_disturbance_is_unexplained(robot: str, seed: int):
+    """The servo rig's case runs in about a third of the motor's time, which the slow run and the matrix take."""
+    train, test, truth = pair(robot, {"disturbance": None}, seed=seed)
     assert truth["nominal_error"] >= synth.MIN_NOMINAL_ERROR
-    result = run(make_adapter("motor"), train, test, say=lambda s: None)
+    result = run(make_adapter(robot), train, test, say=lambda s: None)
     assert result.unexplained and result.after.error > UNEXPLAINED_ABOVE
     assert "above the noise floor" in result.where()
     # no catalog effect claims to have fixed it: whatever was kept leaves most of the excess
     assert relative_excess(result.before.error, result.after.error) > 0.5
+
+
+def _xjus_walk(env) -> None:
+    """7 s of the xJüs's gait mode (the clock, the duty, the hips, the currents), its gait changed after 4 s."""
+    env.reset(seed=0)
+    action = env.unwrapped.robot.mode.to_action(np.array([[0.8, 1.0, 1.0]]))[0]
+    for k in range(875):
+        if k == 500:
+            action = env.unwrapped.robot.mode.to_action(np.array([[0.6, 1.2, 0.9]]))[0]
+        env.step(action)
+
+
+def _bioloid_trot(env) -> None:
+    """7 s of the Bioloid's trot at 50 Hz (the servos' goals and reported positions)."""
+    from agents.bioloid.ik import ik_for
+
+    obs, _ = env.reset(seed=0)
+    policy = ik_for(env, "trot", "1.5")
+    state = None
+    for _ in range(350):
+        action, state = policy.predict(obs, state)
+        obs, *_ = env.step(action)
+
+
+OWN_TELEMETRY = {
+    "xjus": ("skitter/XjusWalk-v0", _xjus_walk, {"clock_phase", "period", "duty_FL", "current_FL", "leg_angle_FL"}),
+    "bioloid": ("skitter/BioloidWalk-v1", _bioloid_trot, {"goal_F_L_1", "present_position_F_L_1"}),
+}
+
+
+@pytest.mark.parametrize("robot", list(OWN_TELEMETRY))
+def test_calibrate_runs_on_the_robots_own_telemetry(tmp_path, robot):
+    """The env's telemetry goes through calibrate.py: the model replays itself, so nothing is chosen and the held-out
+    residual is explained (within what a right model's replay of these few segments may miss: the replay floor's
+    own uncertainty)."""
+    env_id, drive, columns = OWN_TELEMETRY[robot]
+    env = gym.make(env_id, telemetry=True, max_episode_steps=1000)
+    drive(env)
+    path = env.unwrapped.recorder.save(tmp_path / "walk.parquet")
+    df, _ = read_telemetry(path)
+    assert {*columns, "vbatt"} <= set(df.columns)
+    out = tmp_path / "cal"
+    argv = ["--robot", robot, "--train", f"{path}@0:4", "--test", f"{path}@4:", "--out", str(out), "--quiet"]
+    assert calibrate.main(argv) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["robot"] == robot and report["chosen"] == [], report["chosen"]
+    assert not report["unexplained"], (report["error_after"], report["noise"]["threshold_unexplained"])
 
 
 def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys):

@@ -15,6 +15,7 @@ import pytest
 
 from envs.common.telemetry import write_telemetry
 from sysid import cli as calibrate
+from sysid import synth
 from sysid.logs import ColumnMap, Log, LogError, white_noise
 from sysid.robots import adapter as make_adapter
 from sysid.robots import read_log
@@ -750,3 +751,25 @@ def test_a_synthetic_motor_log_at_full_duty_trips_no_limit():
         warnings.simplefilter("error")
         checked = check_log(log, adapter.required(), adapter.channel_limits())
     assert len(checked.df) == len(log.df)
+
+
+def test_an_impossible_bioloid_goal_is_dropped_and_many_are_refused(tmp_path, capsys):
+    """A servo goal the AX-12 cannot take (1500 counts of 0..1023) in one row of the Bioloid's own telemetry is
+    dropped with a warning naming the file, the column and the value; in more than 5% of the rows, the log is refused
+    before anything runs, in one line naming them."""
+    log, _ = synth.synthesize("bioloid", {}, 0, seconds=4.0)
+    adapter = make_adapter("bioloid")
+    df = log.df.copy()
+    df.loc[40, "goal_F_L_3"] = 1500.0
+    path = write_telemetry(tmp_path / "bad.parquet", df, log.meta)
+    [read] = calibrate.read_logs([path], adapter.required(), None, adapter.channel_limits())
+    err = capsys.readouterr().err
+    assert "bad.parquet" in err and "goal_F_L_3" in err and "1500" in err and "could not produce" in err
+    assert len(read.df) == len(df) - 1 and read.df["goal_F_L_3"].max() <= 1023
+    df.loc[::10, "goal_F_L_3"] = 1500.0
+    path = write_telemetry(tmp_path / "worse.parquet", df, log.meta)
+    out = tmp_path / "cal"
+    code = calibrate.main(["--robot", "bioloid", "--train", f"{path}@0:2", "--test", f"{path}@2:", "--out", str(out)])
+    assert code == 2 and not out.exists()
+    err = capsys.readouterr().err
+    assert "worse.parquet" in err and "goal_F_L_3" in err and "1500" in err

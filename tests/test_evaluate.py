@@ -80,12 +80,14 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_runs_on_every_registered_env(env_id, tmp_path):
-    """No robot-specific code: the reference gait, metrics, plots and telemetry on every env."""
+    """No robot-specific code: the reference gait, metrics, plots and telemetry on every env (``evaluate.main`` in
+    this process: the command line itself is run by the other tests here, each start of it loads torch anew)."""
+    import evaluate
+
     steps = "40" if "Duty" not in env_id else "300"
     gait = reference_policy(gym.make(env_id).unwrapped.robot.name)
-    done = run("--env", env_id, "--policy", gait, "--episodes", "2", "--out", str(tmp_path / "r"),
-               "--max-episode-steps", steps, "--telemetry")  # fmt: skip
-    assert done.returncode == 0, done.stderr
+    assert evaluate.main(["--env", env_id, "--policy", gait, "--episodes", "2", "--out", str(tmp_path / "r"),
+                          "--max-episode-steps", steps, "--telemetry"]) == 0  # fmt: skip
     results = json.loads((tmp_path / "r" / "results.json").read_text())
     summary = results["policies"][gait]["summary"]
     assert set(results["metrics"]) <= set(summary)
@@ -94,9 +96,10 @@ def test_runs_on_every_registered_env(env_id, tmp_path):
 
 
 def test_turn_reports_the_yaw_rate_error(tmp_path):
-    done = run("--env", "skitter/RoachTurn-v1", "--policy", "tripod", "--episodes", "2", "--out", str(tmp_path / "t"),
-               "--max-episode-steps", "100")  # fmt: skip
-    assert done.returncode == 0, done.stderr
+    import evaluate
+
+    assert evaluate.main(["--env", "skitter/RoachTurn-v1", "--policy", "tripod", "--episodes", "2", "--out",
+                          str(tmp_path / "t"), "--max-episode-steps", "100"]) == 0  # fmt: skip
     summary = json.loads((tmp_path / "t" / "results.json").read_text())["policies"]["tripod"]["summary"]
     assert 0 <= summary["yaw_rate_error"]["mean"] < 1.0
 
@@ -107,10 +110,11 @@ def test_two_models_with_the_same_file_name_get_their_own_plots(model_zip, tmp_p
     other = tmp_path / "other" / "checkpoints" / checkpoint.name
     shutil.copytree(checkpoint, other)
     out = tmp_path / "both"
-    done = run("--env", "skitter/RoachWalk-v1", "--policy", str(checkpoint / "model.zip"), "--policy",
-               str(other / "model.zip"), "--episodes", "1", "--out", str(out), "--max-episode-steps", "20",
-               "--telemetry")  # fmt: skip
-    assert done.returncode == 0, done.stderr
+    import evaluate
+
+    assert evaluate.main(["--env", "skitter/RoachWalk-v1", "--policy", str(checkpoint / "model.zip"), "--policy",
+                          str(other / "model.zip"), "--episodes", "1", "--out", str(out), "--max-episode-steps", "20",
+                          "--telemetry"]) == 0  # fmt: skip
     assert len(list((out / "plots").glob("*.png"))) == 2
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     files = json.loads((out / "results.json").read_text())["files"]
