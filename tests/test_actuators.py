@@ -111,7 +111,7 @@ def servo_stall_torque(volts: float) -> float:
 
 @pytest.mark.parametrize(("volts", "torque", "speed"), DATASHEET)
 def test_servo_speed_and_torque_limits_match_the_datasheet_within_5_percent(volts, torque, speed):
-    """They come out of the motor and the supply (no clamps): robots.md, AX-12 at 7 V and 10 V."""
+    """They come out of the motor and the supply (no clamps): [ax12-manual], AX-12 at 7 V and 10 V."""
     assert servo_stall_torque(volts) == pytest.approx(torque, rel=0.05)
     assert servo_speed(volts) == pytest.approx(speed, rel=0.05)
 

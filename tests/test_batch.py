@@ -157,7 +157,7 @@ def test_pickling_gives_a_clear_error():
     [
         ({"num_envs": 0}, "num"),
         ({"num_envs": 2, "nthread": 0}, "nthread"),
-        ({"num_envs": 2, "nthread": "x"}, "nthread must be a whole number of at least 1, got 'x'"),  # stop 33
+        ({"num_envs": 2, "nthread": "x"}, "nthread must be a whole number of at least 1, got 'x'"),
         ({"num_envs": 2, "render_sim": 5}, "render_sim"),
     ],
 )

@@ -189,7 +189,8 @@ def test_the_generator_measures_visibility_on_all_runs_together(monkeypatch):
 def test_a_drawn_effect_shows_against_both_replay_floors():
     """A legged robot's visibility is measured against two replay floors: the true model's (as the held-out
     evaluation judges a calibrated model) and the nominal model's (as the loop, starting from it, first sees the
-    data). Stop 29's miss: the Bioloid's servo gain drawn with seed 0 read 3.54 against the true model's floor, 2.01
+    data). A miss this guards against: the Bioloid's servo gain drawn with seed 0 read 3.54 against the true model's
+    floor, 2.01
     against the nominal model's, and nothing was kept. The draw now has to show against both."""
     logs, truth = synth.record("bioloid", {"servo_gain": None}, 0)
     adapter = make_adapter("bioloid")
@@ -251,7 +252,7 @@ def _check_pair(robot: str, effects: dict, seed: int) -> Case:
 
 
 def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_second():
-    """Stop 41: the motor's viscous friction was kept first and fitted without the delay, 3.8% high; a third
+    """Found once: the motor's viscous friction was kept first and fitted without the delay, 3.8% high; a third
     effect (a torque constant 1.04) was then kept to make up for it. The effects kept before are now refitted
     jointly with each new one (backfitting): two effects, both values inside their intervals, nothing else."""
     case = _check_pair("motor", {"delay": None, "viscous_friction": None}, seed=1)
@@ -260,7 +261,8 @@ def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_se
 
 @pytest.mark.slow  # pair 504 of the matrix's motor pairs (python -m benchmarks.calibration_matrix --kinds pairs)
 def test_a_second_effect_is_fitted_with_the_first_and_an_effect_it_replaced_is_dropped():
-    """Stop 42, the motor's back-EMF constant (1.77) and PWM decay: a supply voltage (of another alias group) is kept
+    """A case once missed: the motor's back-EMF constant (1.77) and PWM decay: a supply voltage (of another alias
+    group) is kept
     first in the back-EMF constant's place. The back-EMF constant then scored 0.3 beside it: its column nearly
     shares the supply's, and the score did not take the supply as refitted. Now the ranking projects the kept
     effects' columns out (the score test with them refitted), each candidate is fitted with them, and once the
@@ -315,7 +317,8 @@ def test_the_profile_walk_finds_the_profiles_floor_from_either_side_and_stops_at
 
 @pytest.mark.slow  # pair 502 of the matrix's motor pairs (python -m benchmarks.calibration_matrix --kinds pairs)
 def test_a_delay_and_a_drive_along_one_valley_are_fitted_by_walking_the_profile():
-    """Stop 42, the motor's delay 0.0291 s and torque constant 2.77: a longer delay wants a stronger drive, and
+    """A case once missed: the motor's delay 0.0291 s and torque constant 2.77: a longer delay wants a stronger drive,
+    and
     turns of grid (the delay) and least squares (the drive) stalled in that valley (torque constant 2.45, training
     error 4.2). The delay's profile (the drive fitted at each delay) is now walked from the fit: both recovered,
     the residual at the floor."""
@@ -324,7 +327,8 @@ def test_a_delay_and_a_drive_along_one_valley_are_fitted_by_walking_the_profile(
 
 @pytest.mark.slow
 def test_a_chain_left_partly_at_nominal_is_tried_without_those_members():
-    """Stop 41: a large Coulomb friction and a low back-EMF constant (which pull the top speed opposite ways): no
+    """A case once missed: a large Coulomb friction and a low back-EMF constant (which pull the top speed opposite
+    ways): no
     single effect earns its place, and the chain grown from the best single (the torque constant) fitted it back to
     nominal with the two true effects beside it, and was refused as a whole. The chain without the member the
     joint fit leaves at nominal is now tried, and kept. (About 2 min; the matrix's pairs run more: --kinds pairs.)"""
@@ -333,8 +337,9 @@ def test_a_chain_left_partly_at_nominal_is_tried_without_those_members():
 
 def test_the_motors_torque_constant_below_nominal_is_one_effect_with_a_rotor_inertia():
     """On the motor rig the torque constant scales the drive and the back-EMF brake alike, and the shaft has no
-    friction of its own: a torque constant s moves the load as an inertia 1/s does. Stop 41 found a torque constant
-    of 0.45 fitted as an armature (to the noise floor); the catalog now puts the armature in the torque constant's
+    friction of its own: a torque constant s moves the load as an inertia 1/s does. A torque constant
+    of 0.45 was once fitted as an armature (to the noise floor); the catalog now puts the armature in the torque
+    constant's
     alias group on this robot, as it says of a load's inertia."""
     effects = make_adapter("motor").effects()
     assert effects["armature"].alias == effects["torque_constant"].alias
@@ -542,7 +547,7 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
 
 
 def test_roach_report_compares_tracking_and_body_rates():
-    """The roach's report: issue 7's tracking table (log, nominal and calibrated model), and the gyro, which cannot
+    """The roach's report: the tracking table (log, nominal and calibrated model), and the gyro, which cannot
     be aligned in time with a log whose body pose is unknown, compared by spread, band power and distribution."""
     adapter = make_adapter("roach")
     (log,) = calibrate.read_logs([Path("data/real/velociroach_behavior4_2Hz.txt@0:4")], adapter.required(), None)
@@ -550,7 +555,7 @@ def test_roach_report_compares_tracking_and_body_rates():
     stronger = {**nominal, "torque_constant_left.scale": 2.0, "torque_constant_right.scale": 2.0}
     result = SimpleNamespace(test=[log], outcome=SimpleNamespace(nominal=nominal, setting=stronger))
     extra = adapter.report_extra(result)
-    assert set(extra["sections"]) == {"Tracking on the held-out logs (issue 7's table)",
+    assert set(extra["sections"]) == {"Tracking on the held-out logs",
                                       "Body rates compared as distributions"}  # fmt: skip
     table = extra["tracking"][log.path]
     t = log.time
@@ -620,7 +625,7 @@ def test_a_carried_effect_is_ranked_and_fitted_with_its_own_carried_state():
 
 class _BasinProblem(_StandIn):
     """A stand-in for Problem whose one effect ``spine_stiffness.scale`` (truth 0.4) explains the residual only in a
-    basin a factor of two wide and makes it worse outside, as the xJüs's spine stiffness does (stop 31: lowest from
+    basin a factor of two wide and makes it worse outside, as the xJüs's spine stiffness does (lowest from
     about 0.3 to 0.55, above the nominal model's cost at 0.1, 0.2 and from 2 up)."""
 
     truth = 0.4
@@ -762,7 +767,7 @@ def test_the_replay_floor_keeps_the_logs_own_run_as_a_replay_of_them_makes_it():
     """The replay floor replays every reading of each log's twin in one chain, and the logs themselves beside them
     at the floor's setting; that run of the logs is kept as the setting's run. It must be the run a replay of the
     logs alone makes (predictions, starts and carried states, to the bit), and the floor the one measured twin by
-    twin, log by log, as before the twins were batched (stop 38)."""
+    twin, log by log, as before the twins were batched."""
     from sysid.logs import Log
     from sysid.problem import FLOOR_TWINS, simulate
 
@@ -856,7 +861,7 @@ def test_visibility_is_the_same_against_either_floor_where_replay_has_no_floor(t
 
 
 def test_a_fit_that_stalls_below_a_measured_point_is_fitted_again_from_it():
-    """Stop 32's second draw: the motor's PWM decay at 0.785 (seed 1011) has a cost so curved (491 noise levels at
+    """A second draw: the motor's PWM decay at 0.785 (seed 1011) has a cost so curved (491 noise levels at
     nominal, 274 at 0.5, 1.03 at the truth, 626 at 1) that least squares from nominal stalls at 0.002, where the
     ranking's Jacobian promised more than its grid measured. The loop now refits from the grid's measured point when
     the fit ends above it (sysid.select.calibrate), and keeps the better fit."""
@@ -892,7 +897,7 @@ class _EndProblem(_StandIn):
 
 @pytest.mark.parametrize("at_end, refused", [(12790.0, False), (10250.0, True)])
 def test_an_estimate_near_the_end_is_refused_only_where_the_cost_does_not_rise_there(monkeypatch, at_end, refused):
-    """Stop 33's second draw of the xJüs's leg stiffness (truth 2.8, range to 3): the fit found 2.916, with a rough
+    """A second draw of the xJüs's leg stiffness (truth 2.8, range to 3): the fit found 2.916, with a rough
     cost's symmetric interval +-0.27, so the end 3 lay within one standard error; it was refused though the cost at
     3 was 12,790 against 10,245 at the estimate. Now the cost at the end is read: far above the estimate's (by more
     than the interval's threshold), the estimate is kept and its interval cut at 3; flat out to the end, the data

@@ -224,7 +224,7 @@ def test_synth_writes_the_log_and_its_truth_as_a_pair(capsys, tmp_path):
     assert synth.main(["--robot", "motor", "--seconds", "1", "--seed", "1", "--out", str(out), "--overwrite"]) == 0
     assert json.loads(truth.read_text())["seed"] == 1 and files(tmp_path)["log.parquet"] != before["log.parquet"]
     assert math.isfinite(json.loads(truth.read_text())["nominal_error"])
-    # --overwrite replaces this tool's own log and truth, never a user's file in their place (stop 33's review)
+    # --overwrite replaces this tool's own log and truth, never a user's file in their place
     truth.write_text('{"my": "notes"}')
     before = files(tmp_path)
     code, err = call(synth.main, capsys, "--robot", "motor", "--seconds", "1", "--out", str(out), "--overwrite")

@@ -253,7 +253,7 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
         ({"width": 0}, "width"),
         ({"height": 2.5}, "height"),
         ({"render_mode": "ascii"}, "render_mode"),
-        # a string would read as true ("false" too): a switch takes True or False only (stop 32's review)
+        # a string would read as true ("false" too): a switch takes True or False only
         ({"sensor_noise": "false"}, "sensor_noise must be True or False, got 'false'"),
         ({"privileged_obs": "no"}, "privileged_obs must be True or False, got 'no'"),
         ({"telemetry": 1}, "telemetry must be True or False, got 1"),

@@ -293,7 +293,7 @@ def test_a_corrupt_policy_file_is_named_as_a_policy_file(model_zip, tmp_path, ca
 
 
 def test_intervals_from_few_episodes_are_not_narrower_than_the_data_allow():
-    """A bootstrap from 3 values spans about their min to max (stop 32's review found [2237.6, 2438.8] from three
+    """A bootstrap from 3 values spans about their min to max (a review found [2237.6, 2438.8] from three
     returns whose t interval is [2087, 2587]); one value has no interval at all."""
     from scipy import stats
 
@@ -310,7 +310,7 @@ def test_intervals_from_few_episodes_are_not_narrower_than_the_data_allow():
 
 
 def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(model_zip, tmp_path, capsys):
-    """Stop 32's review: a model trained with env_kwargs (its run's config.json) was evaluated silently on the
+    """A model trained with env_kwargs (its run's config.json) was evaluated silently on the
     default env. --env-kwargs makes the env as it was trained; a difference is warned of, and a shape mismatch
     names the env_kwargs it was trained with."""
     from agents import compare as evaluate
@@ -341,7 +341,7 @@ def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(mod
 
 
 def test_a_plot_group_not_recorded_in_a_run_is_said_so_not_warned_of(tmp_path, recwarn):
-    """Stop 33's review: the xJüs in duty mode records its clock target as NaN; matplotlib warned of an empty legend."""
+    """The xJüs in duty mode records its clock target as NaN; matplotlib warned of an empty legend."""
     env = gym.make("skitter/XjusWalk-v0", action_mode="duty", telemetry=True, max_episode_steps=5)
     env.reset(seed=0)
     for _ in range(5):

@@ -176,9 +176,9 @@ BAD_INPUTS = {
     "wrong type": ({WALK: "  n_steps: lots"}, [], ["bad.yml", "n_steps", "lots"]),
     "unknown field": ({WALK: "  n_step: 64"}, [], ["bad.yml", "n_step", "did you mean 'n_steps'"]),
     "non-positive timesteps": ({}, ["--timesteps", "0"], ["--timesteps"]),
-    "run name ..": ({}, ["--run-name", ".."], ["--run-name", "'..'"]),  # stop 32's review: it made --runs-dir first
+    "run name ..": ({}, ["--run-name", ".."], ["--run-name", "'..'"]),  # it used to make --runs-dir first
     "a string for a switch": ({WALK: "  env_kwargs: {sensor_noise: 'false'}"}, [], ["bad.yml", "sensor_noise"]),
-    # stop 33: a zero learning rate, and a minibatch larger than the rollout it is drawn from, trained silently
+    # a zero learning rate, and a minibatch larger than the rollout it is drawn from, trained silently
     "zero learning rate": ({WALK: "  learning_rate: lin_0"}, [], ["bad.yml", "learning_rate", "above 0"]),
     "batch larger than rollout": ({WALK: "  n_steps: 64\n  batch_size: 512"}, [], ["batch_size", "512", "64 x 1"]),
 }
@@ -664,7 +664,7 @@ def test_an_off_policy_minibatch_larger_than_its_replay_buffer_is_refused():
     assert hp.model_kwargs["batch_size"] == 256
 
 
-# A Ctrl-C delivered at a set point of the loading, not after a sleep: stop 34's CI sent it after a 0.3 s sleep and
+# A Ctrl-C delivered at a set point of the loading, not after a sleep: a CI run sent it after a 0.3 s sleep and
 # found calibrate.py --help already finished (exit 0). The child sends SIGINT to itself as the named library is first
 # looked up, so the test no longer races the machine's speed.
 _CTRL_C_AT_IMPORT = """
@@ -687,7 +687,7 @@ runpy.run_path(tool, run_name="__main__")
     [("train.py", "numpy"), ("train.py", "torch"), ("evaluate.py", "numpy"), ("calibrate.py", "mujoco")],
 )
 def test_ctrl_c_while_a_tool_loads_its_libraries_is_a_quiet_exit(tool, library):
-    """Stop 33's review: a Ctrl-C in the first seconds (torch, mujoco and SB3 loading) printed a traceback."""
+    """A Ctrl-C in the first seconds (torch, mujoco and SB3 loading) printed a traceback."""
     process = subprocess.run([sys.executable, "-c", _CTRL_C_AT_IMPORT, str(ROOT / tool), library], cwd=ROOT,
                              capture_output=True, text=True, timeout=120)  # fmt: skip
     assert process.returncode == 130 and "Traceback" not in process.stderr and not process.stdout, (

@@ -1,4 +1,4 @@
-"""The VelociRoACH model against the numbers of its sources (shared/robots.md section 1, [roach-sim])."""
+"""The VelociRoACH model against the numbers of its sources ([roach-sim], [haldane2013]; docs/references.md)."""
 
 import mujoco
 import numpy as np

@@ -65,7 +65,7 @@ def test_gait_mode_is_the_duty_mode_controller_run_by_the_robot():
 
 
 def test_the_gait_mode_walk_sends_its_one_action_as_fresh_arrays():
-    """The walk's gait-mode action is computed once (stop 35): still the period and sweep it names, one row per
+    """The walk's gait-mode action is computed once: still the period and sweep it names, one row per
     observation, and each call's array the caller's own."""
     env = gym.make(WALK)
     policy = load_policy("buehler:0.8", env)

@@ -1,4 +1,4 @@
-"""The xJüs model against the numbers of its sources (shared/robots.md section 2, [xjus-report])."""
+"""The xJüs model against the numbers of its sources ([xjus-report], [saranli2001]; docs/references.md)."""
 
 import mujoco
 import numpy as np
