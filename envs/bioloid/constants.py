@@ -43,7 +43,7 @@ SENSOR_BODY_POS, SENSOR_BODY_QUAT, SENSOR_BODY_VEL = "body_pos", "body_quat", "b
 
 # --- facts from the sources (what the model is checked against) ---------------------------------------------------
 MASS = 1.76  # kg, [bioloid-webots, Table 3] (the sum of its parts: 1.760 kg)
-MASS_TOLERANCE = 0.02  # the issue's +-2%
+MASS_TOLERANCE = 0.02  # the model's parts sum to MASS within +-2% (tests/test_bioloid_model.py)
 PARTS_G = {  # g, [bioloid-webots, Table 3]
     "BODY": 692, "PELVIS": 146, "N_1": 10, "N_2": 118, "HEAD": 110,
     **{f"{leg}_1": 12 for leg in LEGS}, **{f"{leg}_2": 126 for leg in LEGS},
@@ -60,8 +60,8 @@ KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg ([bioloid-we
 # way only (eq. 3's arccos); the seed's own Webots controller keeps the knee between 50 and 90 deg of bend
 # (cyberbotics/webots, projects/robots/robotis/bioloid/controllers/bioloid_dog/Robot.cpp, computeWalkingPosition)
 # and other public Bioloid models limit their knees to one side (dxydas/ros-bioloid bioloid.xacro: -pi..0;
-# verlab/bioloid_common typea.xacro). No source gives a backward stop; v0 assumed 90 deg, which the CPG search
-# exploited (benchmarks/bioloid_cpg_check.py: the best gait of experiment 5 landed on its back knee servos).
+# verlab/bioloid_common typea.xacro). No source gives a backward stop (docs/bioloid.md, "Why the knees stop at
+# straight").
 KNEE_EXTENSION = 0.0
 KNEE_WEDGE = math.radians(18.0)  # the "aibo style" wedge at each knee ([bioloid-webots, IV.A], Figure 11)
 LENGTH = 0.30  # m, body length at the standing posture, the head's front to the pelvis' back (measured on the model

@@ -63,9 +63,7 @@ def bioloid_effects(dt: float) -> dict[str, Effect]:
         make("mass", scale=(1.0, 0.8, 1.2), weak=THROUGH_THE_BODY),
         make("com_offset", x=(0.0, -0.02, 0.02), weak=THROUGH_THE_BODY),
         # ridges up to 8 cm: under half the leg's 0.175 m reach ([bioloid-webots, VI.A]: L1 0.09 + L2 0.085 m), an
-        # obstacle its
-        # feet step onto; the 16 servo positions barely see the body, so 5 cm ridges did not show in 10 s logs
-        # (2.29 at most over three draws at seed 3; 3.14 at 5 cm)
+        # obstacle its feet step onto; the 16 servo positions barely see the body, so lower ridges hardly show
         make("terrain_bump", height=(0.0, 0.0, 0.08)),
         make("disturbance", torque=(0.0, 0.0, 3.0), frequency=(3.0, 0.5, 10.0)),
     ]

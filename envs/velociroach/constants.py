@@ -51,8 +51,7 @@ STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmw
 
 # --- firmware: leg clock and per-side PID (the lab's roach firmware runs them at 1 kHz) ----------------------------
 # The real firmware's gains are in its own fixed-point units: [roach-firmware] gives Kp=1800, Ki=200, Kd=100; the 2 Hz
-# real
-# log's header lists [1800, 100, 200, 0, 200], which in the firmware's usual order (Kp, Ki, Kd, anti-windup,
+# real log's header lists [1800, 100, 200, 0, 200], which in the firmware's usual order (Kp, Ki, Kd, anti-windup,
 # feed-forward) reads Ki=100, Kd=200. Ours are in duty per leg radian, chosen so that the legs follow the clock within
 # 1 to 3 deg up to 45 Hz (benchmarks/speed_vs_frequency.py).
 PID_KP = 1.8  # duty / rad of leg angle error: full duty at about 32 deg

@@ -17,12 +17,10 @@ from envs.velociroach.constants import SIDES
 def roach_effects(dt: float) -> dict[str, Effect]:
     """The VelociRoACH's catalog effects with their bounds (nominal values are the model's; see docs/velociroach.md).
     Ranges: the crank's Coulomb friction up to 1.4 times the motor's stall torque at the crank (11 mN m at 3.7 V: the
-    2 Hz log's right leg stands stalled at full duty); its
-    viscous friction up to three times the motor's own back-EMF damping (2.9e-5 N m s/rad); rotor inertia up to 70
-    times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to 4 times the lab script's 1.41 mN m/A (the
-    real logs' back-EMF is two to three times the model's: docs/calibration.md); the back-EMF reading's offset +-0.3 V
-    (the board
-    subtracts an offset measured at start-up)."""
+    2 Hz log's right leg stands stalled at full duty); its viscous friction up to three times the motor's own back-EMF
+    damping (2.9e-5 N m s/rad); rotor inertia up to 70 times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to
+    4 times the lab script's 1.41 mN m/A (the real logs' back-EMF is two to three times the model's:
+    docs/calibration.md); the back-EMF reading's offset +-0.3 V (the board subtracts an offset measured at start-up)."""
     # what the leg channels barely see (Effect.weak): at each range's far end the nominal model's error is mostly
     # under 3 noise levels against the true model's replay floor (the matrix benchmark measures it), where the
     # others reach 4 to 20
@@ -45,20 +43,16 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         ]
     out += [
         make("supply_voltage", scale=(1.0, 0.8, 1.2), weak=supply),
-        # foot friction and mass act on the body too. Against the nominal model's replay floor the leg channels see
-        # them at their ranges' far ends (median nominal error 3.7 and 3.2 on three seeds), but not against the true
-        # model's, which is the floor a calibrated model is judged against: a heavier or grippier roach's own replay
-        # diverges more (foot friction 1.5: median 3.71 against the nominal floor, 1.06 against the truth's;
-        # benchmarks/results/calibration_visibility_roach_foot_friction_far.md; docs/calibration.md). They
-        # reach the legs mostly through where the carried body is when a segment starts, so they are declared
-        # carried (ranked and fitted with each trial's own carried body; docs/calibration.md)
+        # foot friction and mass act on the body: a heavier or grippier roach's own replay diverges more, so the
+        # true model's replay floor swallows them (docs/calibration.md, "Why some effects are weak"). They reach the
+        # legs mostly through where the carried body is when a segment starts, so they are declared carried
         make("foot_friction", mu=(0.4, 0.05, 1.5), carried=True, weak=floor),
         make("ground_contact", timeconst=(0.002, 0.001, 0.02), dampratio=(1.0, 0.2, 2.0), weak=body),
         make("leg_stiffness", scale=(1.0, 0.3, 3.0), weak=body),
         make("mass", scale=(1.0, 0.5, 2.0), carried=True, weak=floor),
         make("com_offset", x=(0.0, -0.02, 0.02), weak=body),
         # ridges up to 3 cm: about twice the C-leg's 13.4 mm diameter (assets/velociroach/cleg.xml), obstacles of
-        # the 13 Hz log's kind; ridges of 1 cm or less barely reached the leg channels through the body (error 1.18)
+        # the 13 Hz log's kind; lower ones barely reach the leg channels through the body
         make("terrain_bump", height=(0.0, 0.0, 0.03)),
         make("disturbance", torque=(0.0, 0.0, 2e-3), frequency=(3.0, 0.5, 10.0)),
     ]

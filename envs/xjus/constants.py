@@ -60,8 +60,8 @@ STALL_TORQUE = 2.17  # N m at the shaft, Table 1 through the motor formula [xjus
 NO_LOAD_SPEED = 29.6  # rad/s, Vs / Ks, Table 1
 SPINE_DESIGN_STIFFNESS = 60 * 0.112984829 / np.radians(20.0)  # N m/rad: 60 lbf in after 20 deg, section 3.4 (19.4)
 SPINE_STIFFNESS_RANGE = (0.1, 20.0)  # x the design stiffness: the range offered (docs/xjus.md)
-# the most a constructor takes, x the design stiffness: measured (XjusRough 0.05 m RMS, buehler, 2 ms step,
-# 3 seeds): 70x ran (flips only), 100x went numerically unstable within 0.1 s
+# the most a constructor takes, x the design stiffness: stiffer spines go numerically unstable on rough ground
+# (measured in docs/xjus.md, "Spine stiffness: the range offered")
 SPINE_STIFFNESS_MAX_SCALE = 50.0
 SPINE_STIFFNESS_MAX = SPINE_STIFFNESS_MAX_SCALE * SPINE_DESIGN_STIFFNESS  # N m/rad (971)
 MOTOR_CONTINUOUS_CURRENT = 1.08  # A per motor, max continuous, [xjus-report, section 3.2]
@@ -69,13 +69,11 @@ EFFICIENCY_CAP = 0.37  # eta N Kt / Ks: the most the seed's motor model can conv
 RHEX_SPEED = 0.55  # m/s, Research RHex on flat ground [saranli2001]
 RHEX_MASS = 7.0  # kg, the same source
 
-# --- controller: the seed's Buehler clock and PD [xjus-report, sections 2.4 and 2.5]
-# -----------------------------------
+# --- controller: the report's Buehler clock and PD [xjus-report, sections 2.4 and 2.5] ---------------------------
 FOURIER_TERMS = 10  # M, [xjus-report, section 2.5]
 # The PD of [xjus-report, section 2.4]: desired torque J (theta_d'' + kp e + kd e'), then the motor model inverted for
-# the
-# voltage Vpd. Gains as a second-order error system, natural frequency 40 rad/s and damping ratio 0.8 (assumed, the
-# seed gives none): fast against a 0.5 s stride, slow enough for the 8 ms logic step (w dt = 0.32).
+# the voltage Vpd. Gains as a second-order error system, natural frequency 40 rad/s and damping ratio 0.8 (assumed,
+# the report gives none): fast against a 0.5 s stride, slow enough for the 8 ms logic step (w dt = 0.32).
 PD_KP = 40.0**2  # 1/s^2
 PD_KD = 2 * 0.8 * 40.0  # 1/s
 CONTROL_FREQ = 125.0  # Hz: the logic step, 8 ms, at least as fast as the seed's 8.3 ms (section 2.2)

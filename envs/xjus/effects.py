@@ -18,16 +18,16 @@ PLAY = "play"  # the backlash joint of each leg: <leg>_play
 def xjus_effects(dt: float) -> dict[str, Effect]:
     """The xJüs's catalog effects and their bounds (nominal values are the model's, docs/xjus.md). Ranges: hip
     friction up to a quarter of the stall torque (2.17 N m) dry and up to the motor's own back-EMF damping
-    (eta N Kt Ks / Ra = 0.089 N m s/rad) viscous; rotor inertia up to five times the assumed 8.5e-4 kg m^2 (the seed
-    gives none); the centre of mass up to 0.1 m along the body (a payload at one end); a current sensor's gain from
-    half to double (an uncalibrated shunt); a gearbox's play up to 0.1 rad (6 deg: a worn planetary gearhead and its
-    coupling); motor
-    constants from half to twice the seed's Table 1 (its Kt and Ks were chosen to fit a stall torque and a no-load
-    speed, not measured); the supply 20% either way of the logged battery; a sag up to 1 ohm (a 6-cell LiPo's
-    internal resistance is tens of milliohms; a worn pack or long leads reach an ohm). The feet's contact, the mass,
-    the centre of mass and the leg and spine stiffness reach the legs' channels through the body (its sag on the
-    legs, the spine's bending), which no log holds and the replay carries from segment to segment: they are declared
-    ``carried`` (the ranking runs their grid, and the fits their trials, with their own carried body)."""
+    (eta N Kt Ks / Ra = 0.089 N m s/rad) viscous; rotor inertia up to five times the assumed 8.5e-4 kg m^2 (the
+    report gives none); the centre of mass up to 0.1 m along the body (a payload at one end); a current sensor's gain
+    from half to double (an uncalibrated shunt); a gearbox's play up to 0.1 rad (6 deg: a worn planetary gearhead and
+    its coupling); motor constants from half to twice [xjus-report, Table 1] (its Kt and Ks were chosen to fit a
+    stall torque and a no-load speed, not measured); the supply 20% either way of the logged battery; a sag up to 1
+    ohm (a 6-cell LiPo's internal resistance is tens of milliohms; a worn pack or long leads reach an ohm). The
+    feet's contact, the mass, the centre of mass and the leg and spine stiffness reach the legs' channels through the
+    body (its sag on the legs, the spine's bending), which no log holds and the replay carries from segment to
+    segment: they are declared ``carried`` (the ranking runs their grid, and the fits their trials, with their own
+    carried body)."""
     out: list[Effect] = [
         make("delay", seconds=(0.0, 0.0, 0.05, dt)),
         make("backlash", gap=(0.0, 0.0, 0.1)),
@@ -61,10 +61,8 @@ def xjus_effects(dt: float) -> dict[str, Effect]:
         ),
         # the spine's angles and the legs' deflection are not logged: their stiffness acts through the state the
         # replay carries over (the body on its legs, the spine), as the mass does, so both are declared carried;
-        # and both are scales over a decade or more, ranked on a geometric grid (``log``). On a synthetic case
-        # (truth 0.398): the cost is lowest in a basin from about 0.3 to 0.55 and above the nominal model's
-        # at 0.1, 0.2 and from 2 up, so the linear grid (0.1, 5.05, 10) scored it nothing, carried or not; the
-        # geometric one has 0.316 (docs/calibration.md, "Carried and geometric stiffness")
+        # and both are scales over a decade or more, ranked on a geometric grid (``log``): a linear grid's points
+        # all miss a basin below nominal (docs/calibration.md, "4. Ranking")
         make("leg_stiffness", scale=(1.0, 0.3, 3.0), carried=True, log=True),
         make("spine_stiffness", scale=(1.0, 0.1, 10.0), carried=True, log=True),
         make("mass", scale=(1.0, 0.7, 1.5), carried=True),

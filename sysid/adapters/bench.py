@@ -176,8 +176,8 @@ class MotorAdapter(RigAdapter):
         shaft = {e.name: e for e in self.shaft_effects(friction=0.4, damping=0.2, armature=0.01)}
         # the drive and the back-EMF brake both scale with the torque constant (controls), and the shaft has no
         # friction of its own: a torque constant s times the nominal moves the load as an inertia 1/s times it does,
-        # exactly. Below nominal, the torque constant and the rotor's added inertia are one effect on these channels
-        # (measured: a torque constant of 0.45 was fitted as an armature of 0.0012 kg m^2, to the noise floor)
+        # so below nominal the two are one effect on these channels (tests/test_calibration.py,
+        # test_the_motors_torque_constant_below_nominal_is_one_effect_with_a_rotor_inertia)
         shaft["armature"] = replace(shaft["armature"], alias=GROUP_DRIVE)
         shaft["delay"] = replace(shaft["delay"], alias="lag: delay")
         out = [

@@ -81,28 +81,17 @@ class XjusAdapter(Adapter):
     burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
     fd_step = 0.02
     rough_cost = True
-    # a heavy hexapod's leg stalls in the ground in one replay and runs on in the other, and the body carried into
-    # a segment can stumble where the log's robot did not: such a segment's error dwarfs the rest, even the true
-    # model's (a viscous friction of 0.06 fitted at 0.09 by least squares, the end of its range). Each segment's
-    # residual variance is its own (sysid/problem.py, Residual.objective): with a soft-L1 loss the
-    # right viscous friction of seed 9 was still refused (its cost chaotic in the damping: 0.07 and 0.092 best, the
-    # truth 0.084 no better than the range's end); with this likelihood it is fitted at 0.0844 +- 0.0081
+    # a heavy hexapod's leg can stall in one replay and run on in the other, and the carried body can stumble where
+    # the log's robot did not: such a segment's error dwarfs the rest, even the true model's. Each segment's residual
+    # variance is its own (sysid/problem.py, Residual.objective; docs/calibration.md, "5. Fitting")
     segment_variance = True
-    # a synthetic case records six runs of 2 s, each from rest, not one of 10 s: the body the log does not hold is
-    # carried from segment to segment, and even the true model's replay parts from it within seconds (mass 1.39x,
-    # seed 20, one 10 s log: the truth's own replay has mean squares 0.12-0.90 on its first four scored segments and
-    # 1.5-5.0 on the rest, and the cost jumps between nearby values: 27k at the truth, 52k at 1.3874). Three
-    # runs of 4 s still parted on that truth in their second and third scored segments (mean squares 24.9 and
-    # 7.8 at the truth; the cost's basin 0.06 wide, so the ranking's grid missed it and nothing was chosen, held-out
-    # 34.0). Six runs of 2 s score the one segment after each burn-in, within 2 s of a known body: the cost falls
-    # smoothly to a basin from 1.36 to 1.42, the mass ranks first and is kept at 1.381 +- 0.019, held-out
-    # 2.88 -> 0.84, in 61 s (docs/calibration.md, "Runs from rest")
+    # even the true model's replay of the carried body parts from the log within seconds, so a synthetic case is six
+    # runs of 2 s, each from rest, scoring the one segment after each burn-in (docs/calibration.md, "Settings per
+    # robot")
     runs = (6, 2.0)
     chain_search = (1, 2, 1)
-    # the cost's basins are narrow here (the replay carries a body the log does not hold): the second draw's supply
-    # voltage 0.838 (seed 1014) costs 47k at the truth, 82k at 0.85, 375k at 0.9, 584k at 0.8 and 711k at nominal,
-    # so the ranking's three points (0.8, 1, 1.2) and the Jacobian scored it ninth, it was never fitted, and the
-    # deadband was kept (held-out 10.4 -> 8.5). Nine points put one in that basin (docs/calibration.md)
+    # the cost's basins (the replay carries a body the log does not hold) are narrower than a three-point grid's
+    # spacing: nine points put one in the basin (docs/calibration.md, "Settings per robot")
     score_grid = 9
     # the robot's telemetry (envs/common/env.py) stamps a row with the time after its control step and reads the
     # sensors MuJoCo computed at the start of the step's last physics step: a physics step older
