@@ -64,7 +64,7 @@ SETTLE = 3.0  # s
 DWELL = 0.1  # s per count
 TIP_STEP = np.radians(5.0)  # a fall: the body turns this much within one count's dwell (50 deg/s; a quasi-static
 # push on the head turns it about 0.1 deg per count, 1 deg/s, so a free rotation about the support is 50 times that)
-PUSHED = np.radians(15.0)  # the earlier reading: tilt this far from the rest, fall or not
+PUSHED = np.radians(15.0)  # a second reading: tilt this far from the rest, fall or not
 REST_WINDOW = 1.0  # s: the last part of settling, over which a body at rest turns less than REST_TURN
 REST_TURN = np.radians(1.0)
 

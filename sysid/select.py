@@ -48,8 +48,8 @@ NOISE_FLOOR = 1.05  # stop when the training error is this close to the noise fl
 UNEXPLAINED_ABOVE = 1.1
 SCORE_GRID = 5  # grid points across the range of a non-smooth effect in the ranking
 SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian), unless it is a scale over decades
-# (``Param.log``), whose grid is SCORE_GRID points spread geometrically: the xJüs's spine stiffness over [0.1, 10] has
-# a basin a factor of two wide that the linear grid's 0.1, 5.05 and 10 all miss
+# (``Param.log``), whose grid is SCORE_GRID points spread geometrically: a linear grid over decades misses a basin
+# below nominal
 CHAIN_DEPTH = 3  # effects that help only together: chains of up to this many effects (the breadth of the search is
 # the adapter's ``chain_search``: seeds, width, beam)
 CONTENDERS = 0.5  # candidates scoring at least this share of the best are all fitted before one is kept
@@ -634,14 +634,14 @@ def _identified(
     parameter's range, and the estimate more than one standard error from an end of the range other than nominal,
     the standard error read on the interval's other side (1.96 of them from the estimate to that side's end): how
     tightly the data hold the estimate from within. Closer, the estimate sits at the end: the data would take it
-    further, something else is at work (the fit's end-of-range test, which the roach's 2 Hz log needs: an armature
-    at 98% of its range, a foot friction at 99%). A cost flat from the estimate out to the end (a friction above
-    which the leg stalls anyway) is no such push: the estimate is a lower bound and the interval says so. Nor is
-    an end that the interval reaches only by its shape (a rough cost's parabola is symmetric): where the cost at
-    the end itself rises above the estimate's by more than the interval's threshold (:func:`sysid.fit.rise_at`),
-    the data hold the estimate inside, and the interval is cut at the end (the xJüs's leg stiffness 2.92 of at
-    most 3, its cost 25% higher at 3: docs/calibration.md). And
-    whether each effect is there at all: at least one of its parameters' intervals leaves out the nominal value (a
+    further, something else is at work (the roach's 2 Hz log needs this test: docs/calibration.md, "VelociRoACH 2
+    Hz"). A cost flat from the estimate out to the end (a friction above which the leg stalls anyway) is no such
+    push: the estimate is a lower bound and the interval says so. Nor is an end that the interval reaches only by
+    its shape (a rough cost's parabola is symmetric): where the cost at the end itself rises above the estimate's by
+    more than the interval's threshold (:func:`sysid.fit.rise_at`), the data hold the estimate inside, and the
+    interval is cut at the end (tests/test_calibration.py,
+    test_an_estimate_near_the_end_is_refused_only_where_the_cost_does_not_rise_there). And whether each effect is
+    there at all: at least one of its parameters' intervals leaves out the nominal value (a
     Wald test at 5%, read on the side toward nominal; an estimate the interval cannot tell from nominal is no
     evidence of the effect). None if so, else the reason."""
     params = {k: p for e in effects for k, p in _params(e).items()}

@@ -55,7 +55,7 @@ GAITS: dict[str, Gait] = {
         Gait("pronk", (0.0, 0.0, 0.0, 0.0), "below 0.5"),
     )
 }
-DEFAULT_FREQUENCY = 1.5  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
+DEFAULT_FREQUENCY = 1.5  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
 TURN_GAIN = 0.2  # rad/s of yaw rate with one side's stride at 0 (measured at 1.5 Hz: 0.13-0.28, docs/bioloid.md)
 HEADING_GAIN = 1.0  # stride reduction per rad of heading error

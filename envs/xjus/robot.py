@@ -91,9 +91,8 @@ class Xjus(Robot):
 
     - ``gait``: ``(period, sweep_left, sweep_right)``: the robot's own Buehler clock (one per robot, tripods half a
       cycle apart) and PD ([xjus-report, sections 2.4 and 2.5]; envs/xjus/controller.py) run once per control step, at
-      the
-      control rate, which must be at least 120 Hz. Equal sweeps walk straight; a larger sweep on one side makes that
-      side's legs sweep the ground faster over the same period, and the robot turns away from it. The duty the PD
+      the control rate, which must be at least 120 Hz. Equal sweeps walk straight; a larger sweep on one side makes
+      that side's legs sweep the ground faster over the same period, and the robot turns away from it. The duty the PD
       gives is held over the control step, as the seed's logic step held it.
     - ``duty``: the duty ``d`` per leg in [-1, 1], held over the control step (the seed's simulation input).
 
