@@ -15,7 +15,7 @@ the null case (noise only: nothing should be chosen), the out-of-catalog cases (
 the roach a terrain bump: the report should say "unexplained").
 
 Not in the default matrix (``--kinds coverage``): the coverage over SEEDS seeds of one effect at a time (seeds
-100, 101, ...; the effects in COVERAGE), the matrix's coverage in earlier versions.
+100, 101, ...; the effects in COVERAGE): each effect's interval coverage over many values of it.
 
 Not in the default matrix (``--kinds pairs``, ``--pairs N``): cases with two hidden effects of different alias
 groups at once, drawn with seed PAIR_SEED + k: is an effect kept from each one's group and nothing else, is each

@@ -1,13 +1,11 @@
 """Does a hidden effect show in a robot's synthetic logs against the replay floor of the right model?
 
-At first the generator (sysid/synth.py) called an effect visible when the nominal model's error on its log
-reached 3 noise levels, with the replay floor (what replay in segments cannot match even with the right model: the
-unlogged body) measured at the nominal model. The held-out evaluation (sysid/pipeline.py) measures both errors
-against the floor of the calibrated model instead. Where the effect itself makes the body's replay diverge more (a
-high foot friction, say), the two floors differ, and a log the generator called visible could sit at the floor of the
-right model: no calibration could then halve its excess. A later generator measured against the truth's floor;
-today's asks for 3 against both (the loop starts from the nominal model and sees its floor). This tool shows
-how far the two floors part.
+The replay floor (what replay in segments cannot match even with the right model: the unlogged body) depends on the
+model replayed. Calibration starts from the nominal model and sees its floor; the held-out evaluation
+(sysid/pipeline.py) measures against the floor of the calibrated model. Where the effect itself makes the body's
+replay diverge more (a high foot friction, say), the two floors differ, and a log visible against the nominal floor
+can sit at the floor of the right model: no calibration could then halve its excess. The generator (sysid/synth.py)
+therefore asks for 3 noise levels against both. This tool shows how far the two floors part.
 
 This prints, for an effect at given values, each seed and each of the generator's command draws, the nominal model's
 error against both floors.

@@ -489,7 +489,7 @@ class Residual:
         the noise level's (1): its -2 log-likelihood, that variance profiled out, is n c for a mean square c <= 1 (least
         squares) and n (1 + log c) above (each sample at the variance c), plus the prior's squares. A segment whose
         replay parted from the log for good (the body carried into a stumble the log's robot did not take) then
-        weighs by the log of its error, not the error itself: a true model's few chaotic segments no longer outweigh
+        weighs by the log of its error, not the error itself: a true model's few chaotic segments do not outweigh
         what the others show."""
         if self.segment_variance:
             return float(self._segment_loss + self.prior @ self.prior)
@@ -984,10 +984,9 @@ class DecisionProblem(Problem):
     floor there and clears the view's sensitivities (in noise units): a view serves one ``calibrate`` call, which
     moves the floor only through it. Kept effects are refitted on the whole problem.
 
-    The burn-in costs a little: a body started mid-walk from the adapter's guess (the roach's: at home, at rest)
-    settles within a segment or two, and on two synthetic roach logs with the true model the decision segments'
-    RMS error read 0.81 and 0.82 this way against 0.73 and 0.76 carried from the log's start (two
-    burn-in segments: 0.89 and 0.74, no better), against a floor measured on the whole problem."""
+    The burn-in costs a little accuracy: a body started mid-walk from the adapter's guess (the roach's: at home, at
+    rest) settles within a segment or two, so the true model's error on the decision segments reads slightly above
+    its error carried from the log's start (a second burn-in segment does no better)."""
 
     def __init__(self, whole: Problem, index: Sequence[int]):
         self.whole = whole
