@@ -1,8 +1,8 @@
 """One synthetic calibration case, judged by the calibration matrix's criteria: training logs with hidden effects
-(drawn by the generator
-when no value is given) and held-out logs of the same truth under other commands (one 10 s log each, or the robot's
-protocol of several shorter runs: ``Adapter.runs``); calibrate on the one, judge on the other. Shared by the tests
-(one fast case per robot) and ``benchmarks/calibration_matrix.py`` (every effect, coverage over seeds)."""
+(drawn by the generator when no value is given) and held-out logs of the same truth under other commands (one 10 s log
+each, or the robot's protocol of several shorter runs: ``Adapter.runs``); calibrate on the one, judge on the other.
+Shared by the tests (one fast case per robot) and ``benchmarks/calibration_matrix.py`` (every effect, coverage over
+seeds)."""
 
 from __future__ import annotations
 

@@ -253,6 +253,7 @@ def _check_pair(robot: str, effects: dict, seed: int) -> Case:
     return case
 
 
+@pytest.mark.slow  # half a minute; the matrix's motor pairs (python -m benchmarks.calibration_matrix --kinds pairs)
 def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_second():
     """Found once: the motor's viscous friction was kept first and fitted without the delay, 3.8% high; a third
     effect (a torque constant 1.04) was then kept to make up for it. The effects kept before are now refitted
@@ -263,13 +264,12 @@ def test_two_hidden_effects_are_both_found_and_the_first_is_refitted_with_the_se
 
 @pytest.mark.slow  # pair 504 of the matrix's motor pairs (python -m benchmarks.calibration_matrix --kinds pairs)
 def test_a_second_effect_is_fitted_with_the_first_and_an_effect_it_replaced_is_dropped():
-    """A case once missed: the motor's back-EMF constant (1.77) and PWM decay: a supply voltage (of another alias
-    group) is kept
-    first in the back-EMF constant's place. The back-EMF constant then scored 0.3 beside it: its column nearly
-    shares the supply's, and the score did not take the supply as refitted. Now the ranking projects the kept
-    effects' columns out (the score test with them refitted), each candidate is fitted with them, and once the
-    back-EMF constant is kept, the supply, taken out and the rest refitted, costs nothing by the information
-    criterion: it is dropped (backward step), its reason in ``rejected``."""
+    """A case once missed: the motor's back-EMF constant (1.77) and PWM decay: a supply voltage (of another alias group)
+    is kept first in the back-EMF constant's place. The back-EMF constant then scored 0.3 beside it: its column nearly
+    shares the supply's, and the score did not take the supply as refitted. Now the ranking projects the kept effects'
+    columns out (the score test with them refitted), each candidate is fitted with them, and once the back-EMF constant
+    is kept, the supply, taken out and the rest refitted, costs nothing by the information criterion: it is dropped
+    (backward step), its reason in ``rejected``."""
     case = _check_pair("motor", {"back_emf_constant": None, "pwm_decay": None}, seed=504)
     outcome = case.result.outcome
     assert [c.effect.name for c in outcome.chosen] == ["pwm_decay", "back_emf_constant"], outcome.chosen

@@ -76,8 +76,7 @@ def test_duty_for_torque_inverts_the_motor_model():
 
 def test_buehler_clock_is_the_seeds_fourier_series():
     """[xjus-report, section 2.5]: theta_d(0) = 0, a full turn per cycle, theta_g swept in the first half (exactly for
-    the
-    infinite series; the M = 10 terms reach 98% of the way from pi to theta_g, 2.4 deg short at 60 deg), ground
+    the infinite series; the M = 10 terms reach 98% of the way from pi to theta_g, 2.4 deg short at 60 deg), ground
     speed about 2 theta_g / T in mid-stance."""
     sweep = np.radians(60.0)
     s = np.array([0.0, 0.25, 0.5, 1.0])

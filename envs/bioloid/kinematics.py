@@ -8,9 +8,8 @@ knee line: their shank is the vector (-0.0145, -0.085) turned with the knee). An
 fixed angle about its knee [bioloid-webots, IV.A].
 
 Inverse kinematics as [bioloid-webots, eqs. 3-6] solve it (the law of cosines for the knee, then the hip), with the
-knee bent
-forward-of-the-foot (a positive knee angle, as the seed's model bends it) and never past ``KNEE_LIMIT`` (eq. 3's
-angle clipped: the seed's Figure 27 shows the servo value flat at that limit).
+knee bent forward-of-the-foot (a positive knee angle, as the seed's model bends it) and never past ``KNEE_LIMIT`` (eq.
+3's angle clipped: the seed's Figure 27 shows the servo value flat at that limit).
 """
 
 from __future__ import annotations

@@ -1,6 +1,5 @@
 """The Bioloid quadruped of [bioloid-webots]: 16 AX-12 servos on goal positions, an IMU and telemetry, on the robot
-contract;
-it knows no task."""
+contract; it knows no task."""
 
 from __future__ import annotations
 
@@ -89,8 +88,7 @@ def _as_slice(addresses: np.ndarray) -> slice | np.ndarray:
 
 class Bioloid(Robot):
     """A Bioloid quadruped [bioloid-webots] in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints
-    the
-    seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
+    the seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
 
     One action mode, ``goal``: the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), each
     within its allowed range (``constants.SERVO_RANGE``: the full span, the knees from straight to bent 90 deg),

@@ -59,9 +59,8 @@ class BioloidWalkEnv(SkitterEnv):
     ## Starting State
     The gaits' ready posture: legs down (servo 2 at +-90 deg), knees bent so that every sole is at the centre of the
     seed's IK ellipse [bioloid-webots, eqs. 7-8], neck up, level with its lowest sole on the ground; servo angles
-    perturbed
-    by ``U(-1, 1) * 0.2 * reset_noise_scale`` rad (the goals hold the perturbed posture), body angular velocity by
-    ``N(0, reset_noise_scale / 2)`` rad/s and linear velocity by ``N(0, reset_noise_scale / 20)`` m/s. With
+    perturbed by ``U(-1, 1) * 0.2 * reset_noise_scale`` rad (the goals hold the perturbed posture), body angular
+    velocity by ``N(0, reset_noise_scale / 2)`` rad/s and linear velocity by ``N(0, reset_noise_scale / 20)`` m/s. With
     ``randomize``, the named physical parameters (``env.unwrapped.robot.parameters``) are drawn at every reset.
 
     ## Episode End
