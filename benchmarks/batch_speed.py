@@ -82,7 +82,7 @@ def time_raw(venv, start: np.ndarray, blocks: np.ndarray) -> float:
 
 
 def time_single(env_id: str, actions: np.ndarray) -> float:
-    env = gym.make(env_id, max_episode_steps=10**9, max_tilt=np.pi)
+    env = gym.make(env_id, episode_seconds=None, max_tilt=np.pi)  # no time limit
     env.reset(seed=0)
     t0 = time.perf_counter()
     for a in actions:
@@ -95,7 +95,7 @@ def time_subproc(env_id: str, actions: np.ndarray) -> float:
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
     vec = make_vec_env(
-        env_id, n_envs=2, vec_env_cls=SubprocVecEnv, env_kwargs={"max_episode_steps": 10**9, "max_tilt": np.pi}
+        env_id, n_envs=2, vec_env_cls=SubprocVecEnv, env_kwargs={"episode_seconds": None, "max_tilt": np.pi}
     )
     vec.reset()
     t0 = time.perf_counter()

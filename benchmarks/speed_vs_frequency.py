@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "speed_vs_frequency", CONFIGURATIONS, files=FILES)
     freqs = np.arange(5.0, 46.0, 5.0)
-    env = gym.make("skitter/RoachWalk-v1", max_episode_steps=int(args.seconds * 50))
+    env = gym.make("skitter/RoachWalk-v1", episode_seconds=args.seconds)
     layout = TripodContext.from_env(env)
     results = {}
     for f in freqs:

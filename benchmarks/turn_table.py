@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "turn_table", CONFIGURATIONS, files=FILES)
-    env = gym.make("skitter/RoachWalk-v1", max_episode_steps=int(args.seconds * 50))
+    env = gym.make("skitter/RoachWalk-v1", episode_seconds=args.seconds)
     layout = TripodContext.from_env(env)
     curves = {}
     for f in args.frequencies:
