@@ -938,6 +938,9 @@ def resume_run(args: argparse.Namespace) -> Path:
     """Continue the run ``args.resume`` names (:func:`resume_folder`) from its newest whole checkpoint; returns the
     final model's path. The run folder is locked first (:func:`lock_run`): a second resume of it is refused."""
     run_dir = resume_folder(args.resume, args.runs_dir)
+    config_path = run_dir / "config.json"
+    if not config_path.is_file():  # not a run folder: refused before its lock file is made in it
+        raise ConfigError(f"--resume {run_dir}: cannot read {config_path} (no such file: not a run folder)")
     with contextlib.ExitStack() as stack:
         lock_run(run_dir, stack)
         return _resume_locked(args, run_dir)

@@ -482,7 +482,7 @@ def test_a_second_train_process_on_a_run_folder_is_refused_while_the_first_runs(
         stale = run_dir / ".model.k1ll3d_0.tmp.zip"  # a file the second would remove as a killed run's leftover
         stale.write_bytes(b"the first run's")
         for args in (["--resume", run_dir, "--timesteps", 10000000], ["--resume", "run", "--runs-dir", tmp_path]):
-            second = run_train(*args)
+            second = train_in_process(*args)  # the lock is the first process's, so refused here just the same
             assert second.returncode == 1 and "Traceback" not in second.stderr, second.stderr
             assert second.stderr.strip() == (
                 f"train.py: {run_dir} is in use by another train.py run (lock {run_dir / 'train.lock'}); wait for it "
@@ -498,6 +498,15 @@ def test_a_second_train_process_on_a_run_folder_is_refused_while_the_first_runs(
     assert first.returncode == 128 + signal.SIGTERM and "checkpoint saved" in stderr, stderr
     stale.unlink()
     assert train_ok("--resume", run_dir, "--timesteps", max(checkpoints(run_dir)) + 64).returncode == 0  # released
+
+
+def test_resume_of_a_folder_that_is_not_a_run_is_refused_before_anything_is_made_in_it(tmp_path):
+    folder = tmp_path / "notes"
+    folder.mkdir()
+    (folder / "mine.txt").write_text("a user's file")
+    result = train_in_process("--resume", folder)
+    assert_one_line_error(result, f"cannot read {folder / 'config.json'}", "not a run folder")
+    assert sorted(p.name for p in folder.iterdir()) == ["mine.txt"]
 
 
 @pytest.mark.parametrize(("key", "value"), [("n_envs", None), ("timesteps", None), ("timesteps", "lots")])
