@@ -45,12 +45,12 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     atomic_write,
-    keep_unpublished,
     publish_folder,
     published_exit_code,
     replace_problem,
     results_folder_problem,
     run_interruptibly,
+    unpublished_exit_code,
     write_text,
 )
 from envs.common.telemetry import read_telemetry, write_telemetry
@@ -407,11 +407,7 @@ def _run(args: argparse.Namespace) -> int:
         try:
             where = publish_folder(staging, out, args.out_existed, _foreign(out))
         except OSError as exc:  # checked before the run, yet the file system may change meanwhile
-            kept = keep_unpublished(staging, out)
-            place = f"they are kept in {kept}/" if kept else "nowhere could keep them"
-            print(f"evaluate.py: error: cannot put the results at {out} ({exc.strerror or exc}); {place}",
-                  file=sys.stderr)  # fmt: skip
-            return 1
+            return unpublished_exit_code("evaluate.py", staging, out, exc)
     print(text)
     extra = (" videos/" if args.video else "") + (" telemetry/" if args.telemetry else "")
     print(f"results in {where}/ (results.json, results.md, plots/{extra})")

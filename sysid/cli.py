@@ -31,12 +31,12 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     foreign_unless,
-    keep_unpublished,
     publish_folder,
     published_exit_code,
     replace_problem,
     results_folder_problem,
     run_interruptibly,
+    unpublished_exit_code,
     write_json,
     write_text,
 )
@@ -204,7 +204,7 @@ def _run(args: argparse.Namespace) -> int:
         try:
             where = publish_folder(staging, out, args.out_existed, foreign_unless(RESULTS))
         except OSError as exc:  # checked before the run, yet the file system may change in minutes
-            return _unpublished(staging, out, exc)
+            return unpublished_exit_code("calibrate.py", staging, out, exc)
     chosen = ", ".join(c["name"] for c in report["chosen"]) or "nothing"
     print(
         f"{args.robot}: held-out error {report['error_before']:.3g} -> {report['error_after']:.3g} (1 is the noise "
@@ -215,14 +215,6 @@ def _run(args: argparse.Namespace) -> int:
         print(f"calibrate.py: warning: the calibrated model's held-out error ({after:.3g}) is above the nominal "
               f"model's ({before:.3g}); see {where}/report.md", file=sys.stderr)  # fmt: skip
     return published_exit_code("calibrate.py", out, where)
-
-
-def _unpublished(staging: Path, out: Path, exc: OSError) -> int:
-    """The results could not be put at ``out``: kept elsewhere, and said where, in one line; exit code 1."""
-    kept = keep_unpublished(staging, out)
-    where = f"they are kept in {kept}/" if kept else "nowhere could keep them"
-    print(f"calibrate.py: error: cannot put the results at {out} ({exc.strerror or exc}); {where}", file=sys.stderr)
-    return 1
 
 
 def _base(start) -> dict | None:

@@ -382,6 +382,7 @@ def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLim
             f"{log.path}: column {missing[0]!r} is missing (needed: {', '.join(required)}; "
             f"the file has: {', '.join(map(str, log.df.columns))})"
         )
+    rows = len(log.df)
     log = _drop_non_finite(log, ("time", *required))
     log = _drop_time_glitches(log)
     t = log.time
@@ -395,6 +396,10 @@ def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLim
     if limits:
         log = drop_impossible(log, {c: limits[c] for c in required if c in limits})
         t = log.time
+    dropped = rows - len(t)
+    if dropped > MAX_BAD_FRACTION * rows:  # each kind of bad row is within bounds, but not all of them together
+        raise LogError(f"{log.path}: {dropped} of {rows} rows are malformed (more than {MAX_BAD_FRACTION:.0%}), "
+                       "counting every kind dropped above")  # fmt: skip
     if len(t) < MIN_ROWS or log.duration < MIN_DURATION:
         raise LogError(
             f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s "

@@ -773,3 +773,17 @@ def test_an_impossible_bioloid_goal_is_dropped_and_many_are_refused(tmp_path, ca
     assert code == 2 and not out.exists()
     err = capsys.readouterr().err
     assert "worse.parquet" in err and "goal_F_L_3" in err and "1500" in err
+
+
+def test_bad_rows_of_every_kind_count_together_towards_the_refusal(tmp_path):
+    """4% rows with a NaN and 4% with a duty the motor cannot take: each kind within 5%, together 8% refuse the log."""
+    t = np.arange(1000) * 0.001
+    duty = np.full(1000, 0.5)
+    angle = t.copy()
+    angle[10:50] = np.nan
+    duty[500:540] = 3.0
+    path = write_telemetry(tmp_path / "bad.parquet", pd.DataFrame({"time": t, "duty": duty, "angle": angle}),
+                           {"robot": "motor"})  # fmt: skip
+    adapter = make_adapter("motor")
+    with pytest.warns(UserWarning), pytest.raises(LogError, match=r"80 of 1000 rows are malformed .*every kind"):
+        read_log(path, ("duty", "angle"), limits=adapter.channel_limits())

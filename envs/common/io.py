@@ -115,10 +115,14 @@ def publish_folder(
                     except OSError:
                         continue
                     return target
-            raise FileExistsError(f"{out}-2 to {out}-9999 all exist; the results are in {tmp}")
+            raise FileExistsError(f"{out}-2 to {out}-9999 all exist")
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
         os.replace(out, old)
-        os.replace(tmp, out)
+        try:
+            os.replace(tmp, out)
+        except OSError:
+            os.replace(old, out)  # the earlier results go back in place; the caller keeps the new ones elsewhere
+            raise
         shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(tmp, out)
@@ -205,13 +209,24 @@ def keep_unpublished(staging: str | Path, out: str | Path) -> Path | None:
             kept = Path(tempfile.mkdtemp(prefix=f"{out.name[:100]}.unpublished-", dir=parent))
             try:
                 os.replace(staging, kept)  # onto the empty folder just made
-            except OSError:  # another file system
+            except OSError:  # the system's temporary folder may be on another file system
                 shutil.copytree(staging, kept, dirs_exist_ok=True)
             os.chmod(kept, 0o777 & ~current_umask())
             return kept
         except OSError:
+            if "kept" in locals():
+                shutil.rmtree(kept, ignore_errors=True)  # no half-copied folder left behind
             continue
     return None
+
+
+def unpublished_exit_code(tool: str, staging: str | Path, out: str | Path, exc: OSError) -> int:
+    """:func:`publish_folder` could not put a results tool's finished folder at ``out``: kept elsewhere
+    (:func:`keep_unpublished`) and said where, in one line; exit code 1."""
+    kept = keep_unpublished(staging, out)
+    where = f"they are kept in {kept}/" if kept else "nowhere could keep them"
+    print(f"{tool}: error: cannot put the results at {out} ({exc.strerror or exc}); {where}", file=sys.stderr)
+    return 1
 
 
 def foreign_unless(names: tuple[str, ...]) -> Callable[[Path], list[str]]:
