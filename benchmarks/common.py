@@ -178,7 +178,7 @@ def resolve_output(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
 
 def _refuse_another_configuration(parser: argparse.ArgumentParser, output: Output, files: Sequence[str],
                                   known: Mapping[str, dict[str, Any]]) -> None:  # fmt: skip
-    if not output.folder.is_dir():
+    if output.kept or not output.folder.is_dir():  # a declared configuration, by resolve_output's own check
         return
     patterns = [f.format(name=output.name) for f in files]
     present = sorted(p.name for p in output.folder.iterdir() if any(fnmatch.fnmatch(p.name, f) for f in patterns))

@@ -238,6 +238,7 @@ def plot(summary: dict, settings: list[str], scales: list[float], path) -> None:
     plt.close(fig)
 
 
+RUN_OPTIONS = ("threads",)  # options that do not change the results (benchmarks/common.py)
 CONFIGURATIONS: dict[str, list[str]] = {"spine_study": [], "spine_study_constant_damping": ["--damping", "constant"]}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
 FILES = ("{name}.json", "{name}.md", "{name}.png")
@@ -268,7 +269,7 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
-    output = resolve_output(parser, args, "spine_study", CONFIGURATIONS, files=FILES, run_options=("threads",))
+    output = resolve_output(parser, args, "spine_study", CONFIGURATIONS, files=FILES, run_options=RUN_OPTIONS)
     if args.lanes < 1 or args.stiffnesses < 1 or args.threads < 1 or not args.roughness:
         parser.error("--lanes, --stiffnesses, --threads and --roughness need at least one")
     if not (np.isfinite(args.seconds) and args.seconds > 0):

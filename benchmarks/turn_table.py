@@ -77,6 +77,8 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
+    if args.table_frequency not in args.frequencies:
+        parser.error(f"--table-frequency {args.table_frequency:g} must be one of --frequencies {args.frequencies}")
     output = resolve_output(parser, args, "turn_table", CONFIGURATIONS, files=FILES)
     env = gym.make("skitter/RoachWalk-v1", episode_seconds=args.seconds)
     layout = TripodContext.from_env(env)
@@ -94,8 +96,6 @@ def main(argv: list[str] | None = None) -> None:
     mean = {f: c.mean(axis=1) for f, c in curves.items()}
     sd = {f: c.std(axis=1, ddof=1) for f, c in curves.items()}
     f0 = args.table_frequency
-    if f0 not in curves:
-        raise SystemExit(f"--table-frequency {f0} must be one of --frequencies {args.frequencies}")
     mono, fit = fit_table(PHASES_DEG, mean[f0])
     residual = float(np.abs(fit - mean[f0][mono]).max())
     table = {
