@@ -164,7 +164,7 @@ def slugs(specs: list[str]) -> dict[str, str]:
 def make_env(args, render: bool):
     """All the episodes of a policy at once: a batched env of one simulation per episode (the same results as single
     envs run one after another, tests/test_batch.py)."""
-    limit = {"max_episode_steps": args.max_episode_steps} if args.max_episode_steps else {}
+    limit = {"max_episode_steps": args.max_episode_steps, "episode_seconds": None} if args.max_episode_steps else {}
     if args.calibration is not None:
         limit["calibration"] = str(args.calibration)
     return gym.make_vec(

@@ -109,7 +109,7 @@ def time_subproc(env_id: str, actions: np.ndarray) -> float:
 def measure(env_id: str, n: int, threads: int, steps: int, rounds: int, compare_single: bool) -> dict:
     # no episode ends during the run (max_tilt pi: a fallen robot runs on), so the raw replay needs no resets
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads,
-                        max_episode_steps=10**9, max_tilt=np.pi)  # fmt: skip
+                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi)  # fmt: skip
     gait = venv.unwrapped.robot.action_mode == "gait"
     actions = random_actions(venv.single_action_space, steps, n, gait)
     start, blocks = record(venv, actions)

@@ -76,8 +76,8 @@ def noisy(cells, seeds: int, knee_wedge: bool) -> dict:
     out = {}
     for g, f in cells:
         venv = gym.make_vec("skitter/BioloidWalk-v1", num_envs=seeds, vectorization_mode="vector_entry_point",
-                            nthread=1, max_episode_steps=10**6, max_tilt=np.pi, knee_wedge=knee_wedge,
-                            sensor_noise=False)  # fmt: skip
+                            nthread=1, max_episode_steps=10**6, episode_seconds=None, max_tilt=np.pi,
+                            knee_wedge=knee_wedge, sensor_noise=False)  # fmt: skip
         policy = load_policy(f"ik-{g}:{f}", venv)
         obs, info = venv.reset(seed=0)
         positions = [np.column_stack([info["x_position"], info["y_position"]])]

@@ -85,7 +85,7 @@ def run_batch(terrain: TerrainSpec, scales: list[float | None], lanes: int, seco
     steps = round(seconds * constants.CONTROL_FREQ)
     kwargs = {**terrain.kwargs(), "terrain_seed": terrain_seed, "spine": "rigid" if rigid else "compliant"}
     venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads,
-                        max_episode_steps=steps, **kwargs)  # fmt: skip
+                        max_episode_steps=steps, episode_seconds=None, **kwargs)  # fmt: skip
     base = venv.unwrapped
     robot = base.robot
     setting = np.repeat(np.arange(len(scales)), lanes)

@@ -346,12 +346,22 @@ def test_episode_seconds_must_be_a_positive_duration(seconds):
 
 def test_episode_seconds_none_and_an_explicit_step_limit():
     """``episode_seconds=None`` leaves no limit of the env's own; ``max_episode_steps`` (Gymnasium's) still cuts
-    episodes, and in a batched env it replaces the duration."""
+    episodes, single and batched alike: whichever limit comes first ends the episode."""
     env = gym.make("skitter/RoachWalk-v1", episode_seconds=None)
     assert env.spec.max_episode_steps is None
     assert gym.make("skitter/RoachWalk-v1", max_episode_steps=7).spec.max_episode_steps == 7
-    venv = gym.make_vec("skitter/RoachWalk-v1", vectorization_mode="vector_entry_point", max_episode_steps=700)
+    batched = "vector_entry_point"
+    venv = gym.make_vec("skitter/RoachWalk-v1", vectorization_mode=batched, max_episode_steps=700, episode_seconds=None)
     assert venv.unwrapped.max_episode_steps == 700
+    for steps in (300, 700):  # 10 s at 50 Hz is 500 steps
+        single = gym.make("skitter/RoachWalk-v1", max_episode_steps=steps, max_tilt=np.pi)
+        venv = gym.make_vec("skitter/RoachWalk-v1", vectorization_mode=batched, max_episode_steps=steps, max_tilt=np.pi)
+        single.reset(seed=0)
+        count, truncated = 0, False
+        while not truncated:
+            *_, truncated, _ = single.step(single.action_space.sample())
+            count += 1
+        assert count == venv.unwrapped.max_episode_steps == min(steps, 500), (steps, count)
 
 
 @pytest.mark.parametrize(("width", "height"), [(160, 120), (800, 600)])

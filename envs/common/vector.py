@@ -275,8 +275,9 @@ def vector_entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., Sk
 
     The returned function takes ``num_envs``, ``episode_seconds`` (the time limit as a duration, as the single env's
     entry point: 10 s at any control rate; None for none), ``max_episode_steps`` (a limit in steps given to
-    ``gymnasium.make_vec``, which then replaces the duration), ``nthread`` (default: the machine's cores),
-    ``render_sim`` and the env's own keyword arguments.
+    ``gymnasium.make_vec``: the episode ends at whichever limit comes first, as in a single env made with
+    ``gymnasium.make(id, max_episode_steps=n)``; for longer episodes pass ``episode_seconds`` too, or None),
+    ``nthread`` (default: the machine's cores), ``render_sim`` and the env's own keyword arguments.
     """
 
     def make(
@@ -292,8 +293,9 @@ def vector_entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., Sk
         episode_steps(episode_seconds, 1.0)  # refused before anything is built
         with batched_robots(int(num_envs), nthread):
             env = env_class(**kwargs)
-        if max_episode_steps is None:
-            max_episode_steps = episode_steps(episode_seconds, env.dt)
+        duration = episode_steps(episode_seconds, env.dt)
+        if max_episode_steps is None or (duration is not None and duration < max_episode_steps):
+            max_episode_steps = duration
         return SkitterVectorEnv(env, max_episode_steps, render_sim)
 
     make.__doc__ = f"Batched {env_class.__name__} (see envs/common/vector.py)."
