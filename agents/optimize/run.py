@@ -201,7 +201,7 @@ def run(
     state = load_checkpoint(out)  # refused before the backend is built (a checkpoint of other settings)
     if state is not None:
         check_resumable(state, settings, out / CHECKPOINT)
-    backend = backend_factory()
+    backend = backend_factory()  # first: building it checks the env's arguments before the folder is made
     try:
         with folder_lock(out, TOOL, LOCK):
             return _run_locked(config, settings, out, backend, progress, command, stop_after)
@@ -260,9 +260,6 @@ def _run_locked(
         bar.close()
     if state["best"] is not None and not all((out / name).is_file() for name in (BEST, HISTORY)):
         _save(out, state, config, backend)  # a finished (or paused) run whose files were lost: written again
-    for name in (BEST, HISTORY) if state["best"] is not None else ():
-        if not (out / name).is_file():
-            raise RunError(f"{out / name}: written, but not there: check the folder")
     return {"best": state["best"], "history": state["history"], "wall_seconds": state["wall_seconds"],
             "finished": optimizer.iteration >= settings.iterations}  # fmt: skip
 
