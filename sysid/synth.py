@@ -95,6 +95,7 @@ def record(
     reach it). Run k's commands and noise come from seed + k x RUN_SEED_OFFSET (run 0's from the seed's generator,
     before the drawn values); redrawn commands are redrawn for every run. Returns the logs and the truth."""
     adapter = make_adapter(robot)
+    check_effects(adapter, injected)
     effects = adapter.effects()  # the catalog's and the out-of-catalog ones the generator alone injects
     rng = np.random.default_rng(seed)
     first = adapter.excite(seconds, rng)  # draw 0 (``excitation``): the first numbers of the seed's generator
@@ -103,8 +104,6 @@ def record(
     setting: dict[str, float] = {}
     truth: dict[str, dict[str, float]] = {}
     for name, value in injected.items():
-        if name not in effects:
-            raise ValueError(f"robot {robot!r} has no effect {name!r} (see --list)")
         effect = effects[name]
         values = effect_values(effect, value, rng)
         setting.update({effect.key(k): v for k, v in values.items()})

@@ -1,7 +1,7 @@
 """The Bioloid quadruped of [bioloid-webots] (16 AX-12 servos): robot, tasks. ``ENVS`` is what envs/__init__.py
 registers; its calibration adapter (``calibrate.py --robot bioloid``) is sysid/adapters/bioloid.py."""
 
-EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
+from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
 
 ENVS = [
     {

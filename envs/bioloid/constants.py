@@ -99,4 +99,3 @@ JOINT_STOP = math.radians(150.0)  # the AX-12's 300 deg span; the knees stop at 
 
 CONTROL_FREQ = 50.0  # Hz: a goal-position packet to all 16 servos every 20 ms (the Webots model's controller ran at
 # 16 ms; the CM-5's bus at 1 Mbps carries a 16-servo sync write in well under 1 ms)
-EPISODE_SECONDS = 10.0

@@ -41,7 +41,7 @@ class ChannelLimit:
     source: str = ""
 
     def __post_init__(self) -> None:
-        if not (self.low < self.high and self.max_rate > 0) or math.isnan(self.max_rate):
+        if not (self.low < self.high and self.max_rate > 0):  # false for NaN too
             raise ValueError(f"a channel limit needs low < high and a positive max_rate, got {self}")
 
 

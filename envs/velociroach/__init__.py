@@ -1,7 +1,8 @@
 """The VelociRoACH [roach-sim]: robot, tasks, real-telemetry format. ``ENVS`` is what envs/__init__.py registers; its
 calibration adapter and the reader of its text telemetry for calibration are in sysid/adapters."""
 
-EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
+from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
+
 _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
 
 ENVS = [

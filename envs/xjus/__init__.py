@@ -1,7 +1,7 @@
 """xJüs, the RHex-like hexapod with a passive spine [xjus-report]: robot, tasks. ``ENVS`` is what envs/__init__.py
 registers; its calibration adapter (``calibrate.py --robot xjus``) is sysid/adapters/xjus.py."""
 
-EPISODE_SECONDS = 10.0  # the time limit, whatever the control rate (envs/common/env.py)
+from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
 
 ENVS = [
     {
