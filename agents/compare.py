@@ -24,7 +24,6 @@ import re
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -51,6 +50,7 @@ from envs.common.io import (
     results_folder_problem,
     run_interruptibly,
     unpublished_exit_code,
+    write_json,
     write_text,
 )
 from envs.common.telemetry import read_telemetry, write_telemetry
@@ -321,24 +321,6 @@ def report(
     return "\n".join(lines) + "\n"
 
 
-def strict_json(value: Any) -> Any:
-    """``value`` as plain JSON values, every NaN or infinite number as None: JSON has no NaN, and the bare ``NaN``
-    Python's ``json`` writes by default is refused by strict readers (JavaScript's ``JSON.parse``)."""
-    if isinstance(value, dict):
-        return {key: strict_json(item) for key, item in value.items()}
-    if isinstance(value, list | tuple | np.ndarray):
-        return [strict_json(item) for item in value]
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     return run_interruptibly("evaluate.py", args.out, lambda: _run(args))
@@ -401,8 +383,7 @@ def _run(args: argparse.Namespace) -> int:
             },
             "paired_differences": {"reference": reference, "policies": comparisons},
         }
-        # strict JSON: a metric an episode does not have (NaN) is null
-        write_text(staging / "results.json", json.dumps(strict_json(record), indent=2, allow_nan=False) + "\n")
+        write_json(staging / "results.json", record, strict=True)  # a metric an episode does not have (NaN): null
         write_text(staging / "results.md", text)
         try:
             where = publish_folder(staging, out, args.out_existed, _foreign(out))

@@ -14,7 +14,6 @@ Files in the run folder (each written atomically, a temporary file renamed over 
 
 from __future__ import annotations
 
-import math
 import pickle
 import time
 from collections.abc import Callable
@@ -288,17 +287,6 @@ def _save(out: Path, state: dict[str, Any], config: RunConfig, backend) -> None:
         "iteration": best["iteration"],
         "run": {**state["settings"], "command": state.get("command", "")},
     })  # fmt: skip
-    write_json(out / BEST, _finite(record))
-    write_json(out / HISTORY, _finite({"settings": state["settings"], "history": state["history"],
-                                       "wall_seconds": state["wall_seconds"]}))  # fmt: skip
-
-
-def _finite(obj: Any) -> Any:
-    """JSON has no infinities: they become None."""
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    return obj
+    write_json(out / BEST, record, strict=True)
+    write_json(out / HISTORY, {"settings": state["settings"], "history": state["history"],
+                               "wall_seconds": state["wall_seconds"]}, strict=True)  # fmt: skip

@@ -69,8 +69,36 @@ def write_text(path: str | Path, text: str) -> Path:
     return atomic_write(path, lambda p: p.write_text(text))
 
 
-def write_json(path: str | Path, obj: Any) -> Path:
-    return write_text(path, json.dumps(obj, indent=2, sort_keys=False, default=json_default) + "\n")
+def write_json(path: str | Path, obj: Any, strict: bool = False) -> Path:
+    """``obj`` as JSON at ``path``, atomically. ``strict``: every NaN or infinite number is written as null
+    (:func:`finite_json`), so that strict readers (JavaScript's ``JSON.parse``) take the file."""
+    if strict:
+        text = json.dumps(finite_json(obj), indent=2, allow_nan=False)
+    else:
+        text = json.dumps(obj, indent=2, sort_keys=False, default=json_default)
+    return write_text(path, text + "\n")
+
+
+def finite_json(value: Any) -> Any:
+    """``value`` as plain JSON values (numpy scalars and arrays, paths converted), every NaN or infinite number as
+    None: JSON has no NaN, and the bare ``NaN`` Python's ``json`` writes by default is refused by strict readers."""
+    import math
+
+    import numpy as np
+
+    if isinstance(value, dict):
+        return {key: finite_json(item) for key, item in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [finite_json(item) for item in value]
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, Path):
+        return str(value)
+    return value
 
 
 def json_default(obj: Any) -> Any:
