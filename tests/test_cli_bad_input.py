@@ -368,3 +368,31 @@ def test_calibrate_stopped_by_sigterm_leaves_nothing_and_says_so(tmp_path):
     assert proc.returncode == 128 + signal.SIGTERM
     assert err.strip() == f"calibrate.py: interrupted; {out} is as it was", err
     assert list(tmp_path.iterdir()) == []  # no results, no staging folder
+
+
+def test_a_publish_that_fails_halfway_puts_the_earlier_results_back(tmp_path, monkeypatch):
+    """publish_folder moves the earlier results aside, then the new ones in: if the second rename fails, the earlier
+    results are back at ``out`` (not left under a hidden name) and the new ones are still in their staging folder."""
+    import os
+
+    from envs.common.io import publish_folder
+
+    out, staging = tmp_path / "out", tmp_path / ".staging"
+    out.mkdir()
+    staging.mkdir()
+    (out / "results.json").write_text("earlier")
+    (staging / "results.json").write_text("new")
+    replace, calls = os.replace, []
+
+    def second_fails(source, target):
+        calls.append(source)
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return replace(source, target)
+
+    monkeypatch.setattr(os, "replace", second_fails)
+    with pytest.raises(OSError, match="No space left"):
+        publish_folder(staging, out)
+    monkeypatch.undo()
+    assert (out / "results.json").read_text() == "earlier" and (staging / "results.json").read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".staging", "out"]

@@ -165,16 +165,17 @@ def refuse_overwrite(path: str | Path, what: str = "file") -> Path:
     return path
 
 
-def parent_problem(path: str | Path) -> str | None:
+def parent_problem(path: str | Path, probe: str = ".probe-") -> str | None:
     """Why nothing can be created at ``path`` (its nearest existing ancestor a file, or no folder can be made in it),
-    or None. Tried with a probe folder, removed at once: a permission check alone passes for root even in /proc."""
+    or None. Tried with a probe folder named ``probe`` + 8 random characters, removed at once: a permission check
+    alone passes for root even in /proc."""
     parent = Path(path).parent
     while not parent.exists():  # ends at "." or "/"
         parent = parent.parent
     if not parent.is_dir():
         return f"{parent} is a file, not a directory"
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=".probe-", dir=parent))
+        os.rmdir(tempfile.mkdtemp(prefix=probe, dir=parent))
     except OSError as exc:
         return f"cannot create folders in {parent} ({exc.strerror})"
     return None
@@ -215,13 +216,9 @@ def replace_problem(out: str | Path, flag: str = "--out") -> str | None:
     out = Path(out)
     if out.is_dir() and os.path.ismount(out):
         return f"{flag} {out} is a mount point, which cannot be replaced; give a folder inside it"
-    parent = out.parent
-    while not parent.exists():  # ends at "." or "/"
-        parent = parent.parent
-    try:
-        os.rmdir(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=parent))
-    except OSError as exc:
-        return f"{flag} {out}: the folders that stage and replace it cannot be made beside it ({exc.strerror})"
+    problem = parent_problem(out, probe=f".{out.name}.old-")  # the longest name it makes beside ``out``
+    if problem:
+        return f"{flag} {out}: the folders that stage and replace it cannot be made beside it: {problem}"
     return None
 
 
