@@ -54,9 +54,8 @@ def formats() -> LogFormats:
     adapters' channels name (``FL``, ``left``, ``B_L_1``: what may follow a channel's name in a CSV read without a
     column map)."""
     names: set[str] = set()
-    for robot in adapters():
-        found = adapter(robot)
-        names.update(found.required(), found.channels)
+    for cls in adapters().values():  # class attributes: no robot is built for this
+        names.update(cls.commands, cls.channels)
     return LogFormats(readers=tuple(log_readers()), suffixes=channel_suffixes(names))
 
 
