@@ -45,7 +45,7 @@ def run_train(*args: object) -> subprocess.CompletedProcess:
 
 
 def train_in_process(*args: object) -> subprocess.CompletedProcess:
-    """``train.main`` in the test's process, as the command runs it, for inputs refused before training: a
+    """``train.main`` in the test's process, as the command runs it (inputs refused before training, short resumes): a
     subprocess per case spent seconds loading torch each (the command line itself is checked by the tests that
     run it)."""
     from agents import training as train
@@ -227,7 +227,7 @@ def test_resume_falls_back_past_a_corrupt_newest_checkpoint_and_says_so(ppo_run,
     run_dir = shutil.copytree(ppo_run, tmp_path / ppo_run.name)
     saved = checkpoints(run_dir)
     breaker(saved[2048])
-    result = run_train("--resume", run_dir, "--timesteps", 3072)
+    result = train_in_process("--resume", run_dir, "--timesteps", 3072)  # a resume in this process: no torch load
     assert result.returncode == 0, result.stderr
     assert "skipping a broken checkpoint" in result.stderr and "step_0000002048" in result.stderr
     assert "from step_0000001024 (1024 steps)" in result.stdout
@@ -402,12 +402,12 @@ def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_pat
 def test_resume_refuses_a_corrupt_replay_buffer(tmp_path):
     (tmp_path / "tiny.yml").write_text(TINY_OFF_POLICY)
     args = ["--env", WALK, "--algo", "sac", "--timesteps", 120, "--runs-dir", tmp_path / "runs", "--run-name", "sac"]
-    assert run_train(*args, "--hyperparams", tmp_path / "tiny.yml").returncode == 0
+    assert train_in_process(*args, "--hyperparams", tmp_path / "tiny.yml").returncode == 0  # in this process: fast
     run_dir = tmp_path / "runs" / "sac"
     buffer = checkpoints(run_dir)[120] / "replay_buffer.pkl"
     buffer.write_bytes(buffer.read_bytes()[:100])
     before = files(run_dir)
-    result = run_train("--resume", run_dir, "--timesteps", 240)
+    result = train_in_process("--resume", run_dir, "--timesteps", 240)
     assert_one_line_error(result, f"cannot read checkpoint {buffer}: ", "delete it to continue with an empty")
     assert files(run_dir) == before
 
@@ -491,6 +491,10 @@ def test_a_second_train_process_on_a_run_folder_is_refused_while_the_first_runs(
             assert not second.stdout
         assert (run_dir / "config.json").read_bytes() == config and stale.read_bytes() == b"the first run's"
         assert first.poll() is None, "the first run goes on"
+        deadline = time.monotonic() + 60.0  # SIGTERM once it learns (its logger is set up just before), as a user's
+        while not any((run_dir / "tb").glob("events.*")) and time.monotonic() < deadline:  # Ctrl-C mid-run
+            time.sleep(0.1)
+        time.sleep(1.0)
         first.send_signal(signal.SIGTERM)
         _, stderr = first.communicate(timeout=60)
     finally:
