@@ -38,8 +38,8 @@ test-slow: setup
 	$(BIN)/python -m pytest -n 2 -q -m slow
 
 demo: setup
-	$(BIN)/python train.py --env skitter/RoachWalk-v1 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
-	$(BIN)/python evaluate.py --env skitter/RoachWalk-v1 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
+	$(BIN)/python train.py --env skitter/RoachWalk-v2 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
+	$(BIN)/python evaluate.py --env skitter/RoachWalk-v2 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
 		--episodes $(DEMO_EPISODES) --seed 1000 --out results/$(DEMO_ID)
 
 bench: setup

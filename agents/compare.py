@@ -1,7 +1,7 @@
 """Evaluate policies (scripted gaits and trained models) on the same episode seeds, with honest statistics: the code
 of the ``evaluate.py`` command.
 
-    python evaluate.py --env skitter/RoachWalk-v1 --policy tripod --policy runs/.../model.zip \
+    python evaluate.py --env skitter/RoachWalk-v2 --policy tripod --policy runs/.../model.zip \
         --episodes 10 --seed 0 --out results/walk [--video] [--telemetry]
 
 Prints a side-by-side table (mean and 95% CI per metric: bootstrap from 10 episodes, Student's t below), and writes
@@ -58,7 +58,7 @@ from envs.common.telemetry import read_telemetry, write_telemetry
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = ToolParser(prog="evaluate.py", description="Compare policies on the same seeds.")
-    p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v1")
+    p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v2")
     p.add_argument(
         "--policy", action="append", required=True, help=f"scripted gait ({describe_policies()}) or a model.zip; repeat"
     )

@@ -214,7 +214,7 @@ def drop_rebound(height: float = 0.05, seconds: float = 1.0) -> dict[str, float]
 
     import envs  # noqa: F401
 
-    env = gym.make("skitter/BioloidWalk-v1", reset_noise_scale=0.0, sensor_noise=False)
+    env = gym.make("skitter/BioloidWalk-v2", reset_noise_scale=0.0, sensor_noise=False)
     env.reset(seed=0)
     robot = env.unwrapped.robot
     data = robot.sim.get_data(0)

@@ -3,7 +3,7 @@ the runs' results, read from their run folders, beside the seed's (best scores 7
 checks of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
 
 Each best policy is then compared with the reference trot (``ik-trot`` at 1.5 Hz) by ``evaluate.py`` (its
-episodes: BioloidWalk-v1, 10 s, reset noise 0.1, seeds 1000 on; mean and 95% bootstrap CI, paired differences),
+episodes: BioloidWalk-v2, 10 s, reset noise 0.1, seeds 1000 on; mean and 95% bootstrap CI, paired differences),
 written to ``results/bioloid_cpg_vs_trot.{md,json}``.
 
 The runs themselves are ``python -m agents.optimize`` (the commands below; each resumes from its checkpoint when run
@@ -35,7 +35,7 @@ from envs.common.io import ToolParser, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = (5, 6)
-WALK = "skitter/BioloidWalk-v1"
+WALK = "skitter/BioloidWalk-v2"
 REFERENCE = "ik-trot:1.5"
 SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments [bioloid-webots, VI.B.4]
 

@@ -30,7 +30,7 @@ SEED = {  # [bioloid-webots, Figure 30]: phi by frequency, gaits in ORDER
     1.5: (11.06, 4.17, 0.84, 0.83, 2.81, 0.58, 2.43),
     2.0: (12.41, 3.80, 6.32, 1.70, 3.55, 0.26, 1.41),
 }
-CONFIG = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "seconds": 32.0, "objective": "distance_travelled",
+CONFIG = {"env": "skitter/BioloidWalk-v2", "controller": "cpg", "seconds": 32.0, "objective": "distance_travelled",
           "sample_interval": 1.0, "max_tilt": 1.0}  # fmt: skip
 
 
@@ -75,7 +75,7 @@ def noisy(cells, seeds: int, knee_wedge: bool) -> dict:
 
     out = {}
     for g, f in cells:
-        venv = gym.make_vec("skitter/BioloidWalk-v1", num_envs=seeds, vectorization_mode="vector_entry_point",
+        venv = gym.make_vec("skitter/BioloidWalk-v2", num_envs=seeds, vectorization_mode="vector_entry_point",
                             nthread=1, max_episode_steps=10**6, episode_seconds=None, max_tilt=np.pi,
                             knee_wedge=knee_wedge, sensor_noise=False)  # fmt: skip
         policy = load_policy(f"ik-{g}:{f}", venv)

@@ -37,7 +37,7 @@ from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import time_raw
 from envs.common.io import ToolParser
 
-WALK = "skitter/BioloidWalk-v1"
+WALK = "skitter/BioloidWalk-v2"
 EPISODE = 500  # control steps: 10 s at 50 Hz
 GOAL_RATIO, GOAL_RTF, GOAL_PSO_HOURS = 0.9, 50.0, 1.0
 SEED_SCALE = {"particles": 50, "iterations": 240, "seconds": 32.0}

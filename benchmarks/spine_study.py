@@ -2,7 +2,7 @@
 and obstacles? ([xjus-report, section 2.6]: "power usage over stochastically generated terrain ... for various joint
 stiffnesses")
 
-Every setting walks the same seeded terrains: ``skitter/XjusRough-v0``'s height field, lane ``k`` of field
+Every setting walks the same seeded terrains: ``skitter/XjusRough-v1``'s height field, lane ``k`` of field
 ``terrain_seed`` for every setting, started with the same reset perturbation (seed ``1000 + k``). Settings: the spine
 stiffness log-spaced from 0.3x to 10x the seed's design stiffness (19.4 N m/rad, 60 lbf in at 20 deg), on all four
 spine axes, and a rigid chassis. The gait is the reference Buehler-clock tripod (T = 0.5 s, 60 deg sweep, gait mode),
@@ -39,7 +39,7 @@ from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser, atomic_write
 from envs.xjus import constants
 
-ENV_ID = "skitter/XjusRough-v0"
+ENV_ID = "skitter/XjusRough-v1"
 PERIOD, SWEEP = 0.5, constants.WALK_SWEEP
 WARMUP = 1.0  # s left out of the roll and pitch variance
 DEFAULT_ROUGHNESS = [0.0, 0.02, 0.04]  # m RMS: level ground (lanes differ by the reset perturbation only), two rough

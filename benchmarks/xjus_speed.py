@@ -39,8 +39,8 @@ from envs.xjus import constants
 
 GOAL_RATIO = 0.9
 GOAL_RTF = 20.0
-WALK = "skitter/XjusWalk-v0"
-ROUGH = "skitter/XjusRough-v0"
+WALK = "skitter/XjusWalk-v1"
+ROUGH = "skitter/XjusRough-v1"
 EPISODE = 1250  # control steps: 10 s at 125 Hz
 
 
@@ -193,7 +193,7 @@ def flat_ground(period: float, seeds: list[int], threads: int, **kwargs) -> dict
 
 def turning(seeds: list[int], threads: int) -> dict:
     """Yaw rate against the sweep difference (right minus left, around 60 deg) at T = 0.5 s, and the turn routine's
-    tracking of commanded yaw rates (XjusTurn-v0, 10 s episodes)."""
+    tracking of commanded yaw rates (XjusTurn-v1, 10 s episodes)."""
     differences = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
     open_loop = []
     for diff in differences:
@@ -208,7 +208,7 @@ def turning(seeds: list[int], threads: int) -> dict:
         open_loop.append({"difference_deg": float(np.degrees(diff)), "yaw_rate": rates.tolist()})
     tracking = []
     for command in (-0.4, -0.2, 0.2, 0.4):
-        env = gym.make("skitter/XjusTurn-v0")
+        env = gym.make("skitter/XjusTurn-v1")
         policy = load_policy("buehler", env)
         errors = []
         for seed in seeds:

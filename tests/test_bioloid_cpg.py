@@ -113,7 +113,7 @@ def test_bad_coupling_files_are_refused_naming_the_field(tmp_path, change, messa
 
 
 def test_policy_files_load_by_name_and_parameters_are_checked(tmp_path):
-    env = gym.make("skitter/BioloidWalk-v1")
+    env = gym.make("skitter/BioloidWalk-v2")
     coupling = read_coupling("experiment6")
     params = np.linspace(0.1, 0.9, coupling.dimension)
     record = {"policy": "cpg", "robot": "bioloid", "coupling": coupling.to_dict(), "parameters": params.tolist()}
@@ -131,7 +131,7 @@ def test_policy_files_load_by_name_and_parameters_are_checked(tmp_path):
 
 
 def test_the_cpg_policy_runs_an_episode_and_replays_the_same():
-    env = gym.make("skitter/BioloidWalk-v1", max_episode_steps=50)
+    env = gym.make("skitter/BioloidWalk-v2", max_episode_steps=50)
     xs = []
     for _ in range(2):
         policy = load_policy("cpg", env)
@@ -152,7 +152,7 @@ def test_the_gait_check_replays_the_scored_rollout_and_its_variants_change_only_
 
     coupling = read_coupling("experiment5")
     params = np.linspace(0.2, 0.8, coupling.dimension)
-    config = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "seconds": 2.0, "objective": "distance_travelled",
+    config = {"env": "skitter/BioloidWalk-v2", "controller": "cpg", "seconds": 2.0, "objective": "distance_travelled",
               "sample_interval": 1.0, "max_tilt": 1.0, "coupling": "experiment5"}  # fmt: skip
     policy = tmp_path / "best.json"
     policy.write_text(json.dumps({"policy": "cpg", "robot": "bioloid", "coupling": coupling.to_dict(),

@@ -23,7 +23,7 @@ def test_the_reference_gait_is_the_trot():
 
 
 def test_ik_trot_at_1_5_hz_walks_forward_on_flat_ground():
-    venv = gym.make_vec("skitter/BioloidWalk-v1", num_envs=3, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec("skitter/BioloidWalk-v2", num_envs=3, vectorization_mode="vector_entry_point")
     episodes = run_episodes(venv, load_policy("ik-trot:1.5", venv), [0, 1, 2])
     for e in episodes:
         assert e.length == 500 and e.metrics["falls"] == 0, "10 s upright"
@@ -32,7 +32,7 @@ def test_ik_trot_at_1_5_hz_walks_forward_on_flat_ground():
 
 @pytest.mark.parametrize("gait", sorted(GAITS))
 def test_every_gait_commands_its_tables_swing_and_stance_order_within_the_knee_limit(gait):
-    env = gym.make("skitter/BioloidWalk-v1")
+    env = gym.make("skitter/BioloidWalk-v2")
     frequency = 1.0
     policy = load_policy(f"ik-{gait}:{frequency}", env)
     t = np.arange(0.0, 3.0, 0.002) + 1.0  # after the one-cycle lead-in
@@ -64,7 +64,7 @@ def test_every_gait_commands_its_tables_swing_and_stance_order_within_the_knee_l
 
 def contact_phases(gait: str, frequency: float, seed: int, seconds: float = 8.0) -> np.ndarray:
     """Each foot's contact force, averaged over the cycle as a phase (force-weighted circular mean), after 2 s."""
-    env = gym.make("skitter/BioloidWalk-v1", sensor_noise=False)
+    env = gym.make("skitter/BioloidWalk-v2", sensor_noise=False)
     robot = env.unwrapped.robot
     policy = load_policy(f"ik-{gait}:{frequency}", env)
     obs, _ = env.reset(seed=seed)
@@ -102,7 +102,7 @@ def test_stride_steering_turns_the_way_the_task_commands_on_average(yaw_rate):
     """The trot's yaw drifts by up to +-0.17 rad/s from episode to episode (docs/bioloid.md), as large as the stride
     scaling's authority (0.13-0.28 rad/s), and a change of 1e-6 in the first step sends an episode elsewhere; over
     sixteen episodes (standard error about 0.04 rad/s) the mean yaw rate follows the command's sign."""
-    venv = gym.make_vec("skitter/BioloidTurn-v1", num_envs=16, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("skitter/BioloidTurn-v2", num_envs=16, vectorization_mode="vector_entry_point",
                         max_episode_steps=500)  # fmt: skip
     policy = load_policy("ik-trot", venv)
     obs, _ = venv.reset(seed=0, options={"yaw_rate": yaw_rate})
@@ -117,7 +117,7 @@ def test_stride_steering_turns_the_way_the_task_commands_on_average(yaw_rate):
 
 
 def test_shortening_one_sides_stride_turns_the_trot_toward_the_other_side():
-    venv = gym.make_vec("skitter/BioloidWalk-v1", num_envs=4, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec("skitter/BioloidWalk-v2", num_envs=4, vectorization_mode="vector_entry_point")
     policy = load_policy("ik-trot", venv)
     robot = venv.unwrapped.robot
     side = np.array([constants.LEG_SIDE[leg] == "right" for leg in constants.LEGS])
@@ -134,7 +134,7 @@ def test_shortening_one_sides_stride_turns_the_trot_toward_the_other_side():
 
 
 def test_bad_gait_names_and_frequencies_are_refused():
-    env = gym.make("skitter/BioloidWalk-v1")
+    env = gym.make("skitter/BioloidWalk-v2")
     with pytest.raises(ValueError, match="frequency"):
         load_policy("ik-trot:fast", env)
     with pytest.raises(ValueError, match="frequency"):
@@ -148,9 +148,9 @@ def test_ik_gaits_walk_when_the_caller_does_not_pass_the_state_back(batched):
     """A caller that drops predict()'s state (``action, _ = policy.predict(obs)``) gets the same actions as one that
     passes it back: the policy keeps its clock, and episode_start restarts a row's clock either way."""
     if batched:
-        env = gym.make_vec("skitter/BioloidTurn-v1", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
+        env = gym.make_vec("skitter/BioloidTurn-v2", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
     else:
-        env = gym.make("skitter/BioloidTurn-v1")
+        env = gym.make("skitter/BioloidTurn-v2")
     keeps, drops = load_policy("ik-trot", env), load_policy("ik-trot", env)
     obs, _ = env.reset(seed=0)
     n = 2 if batched else 1

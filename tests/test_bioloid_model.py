@@ -149,7 +149,7 @@ def test_the_torque_limit_register_caps_the_torque():
 
 
 def test_action_spans_each_servos_allowed_range_and_knees_go_from_straight_to_bent_90_degrees():
-    env = gym.make("skitter/BioloidWalk-v1")
+    env = gym.make("skitter/BioloidWalk-v2")
     robot = env.unwrapped.robot
     low, high = robot.mode.to_command(-np.ones(16)), robot.mode.to_command(np.ones(16))
     for name, (lo, hi) in constants.SERVO_RANGE.items():
@@ -167,7 +167,7 @@ def test_action_spans_each_servos_allowed_range_and_knees_go_from_straight_to_be
 
 
 def test_telemetry_has_goal_present_position_load_and_battery_per_servo():
-    env = gym.make("skitter/BioloidWalk-v1", telemetry=True)
+    env = gym.make("skitter/BioloidWalk-v2", telemetry=True)
     env.reset(seed=0)
     for _ in range(5):
         env.step(env.action_space.sample())
@@ -203,4 +203,4 @@ def test_parameters_reach_the_model():
 )
 def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        gym.make("skitter/BioloidWalk-v1", **kwargs)
+        gym.make("skitter/BioloidWalk-v2", **kwargs)

@@ -57,8 +57,8 @@ def _write(path, effects=EFFECTS, robot="velociroach", **extra):
 def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json")
     before = path.read_bytes()
-    nominal = gym.make("skitter/RoachWalk-v1").unwrapped.robot
-    robot = gym.make("skitter/RoachWalk-v1", calibration=str(path)).unwrapped.robot
+    nominal = gym.make("skitter/RoachWalk-v2").unwrapped.robot
+    robot = gym.make("skitter/RoachWalk-v2", calibration=str(path)).unwrapped.robot
     m0, m = nominal.model, robot.model
     left = m.joint(constants.CRANK_JOINTS["left"]).dofadr[0]
     right = m.joint(constants.CRANK_JOINTS["right"]).dofadr[0]
@@ -77,14 +77,14 @@ def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     assert robot.model_hash != nominal.model_hash and robot.metadata()["calibration"] == str(path)
     # nothing written to the file; a new nominal env is still nominal
     assert path.read_bytes() == before
-    again = gym.make("skitter/RoachWalk-v1").unwrapped.robot.model
+    again = gym.make("skitter/RoachWalk-v2").unwrapped.robot.model
     assert again.dof_frictionloss[left] == m0.dof_frictionloss[left] and again.actuator_delay[a_left] == 0
 
 
 def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json", XJUS_EFFECTS, "xjus")
-    nominal = gym.make("skitter/XjusWalk-v0").unwrapped.robot
-    robot = gym.make("skitter/XjusWalk-v0", calibration=str(path)).unwrapped.robot
+    nominal = gym.make("skitter/XjusWalk-v1").unwrapped.robot
+    robot = gym.make("skitter/XjusWalk-v1", calibration=str(path)).unwrapped.robot
     m0, m = nominal.model, robot.model
     for leg in XJUS.LEGS:
         dof0, dof = (x.joint(XJUS.HIP_JOINTS[leg]).dofadr[0] for x in (m0, m))
@@ -104,14 +104,14 @@ def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path)
     robot.hold_duty(np.full((1, 6), 0.04))
     assert np.all(robot.last_duty == 0.0)
     # the nominal model stays nominal
-    again = gym.make("skitter/XjusWalk-v0").unwrapped.robot.model
+    again = gym.make("skitter/XjusWalk-v1").unwrapped.robot.model
     assert again.nq == m0.nq and again.dof_frictionloss.sum() == m0.dof_frictionloss.sum()
 
 
 def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json", BIOLOID_EFFECTS, "bioloid")
-    m0 = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model
-    m = gym.make("skitter/BioloidWalk-v1", calibration=str(path)).unwrapped.robot.model
+    m0 = gym.make("skitter/BioloidWalk-v2").unwrapped.robot.model
+    m = gym.make("skitter/BioloidWalk-v2", calibration=str(path)).unwrapped.robot.model
     for servo in BIOLOID.SERVOS:
         dof0, dof = (x.joint(servo).dofadr[0] for x in (m0, m))
         sides = {BIOLOID.LEG_SIDE[leg] for leg in BIOLOID.LEGS if servo in (f"{leg}_{k}" for k in (1, 2, 3))}
@@ -127,7 +127,7 @@ def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_pa
     body = m0.body(BIOLOID.ROOT_BODY).id
     assert m.body_subtreemass[0] == pytest.approx(m0.body_subtreemass[0] + 0.1 * m0.body_mass[body], rel=1e-9)
     assert m.geom_friction[m.geom(BIOLOID.FOOT_GEOM["F_L"]).id, 0] == pytest.approx(0.5)
-    again = gym.make("skitter/BioloidWalk-v1").unwrapped.robot.model  # the nominal model stays nominal
+    again = gym.make("skitter/BioloidWalk-v2").unwrapped.robot.model  # the nominal model stays nominal
     assert again.nq == m0.nq and again.dof_frictionloss.sum() == m0.dof_frictionloss.sum()
 
 
@@ -135,10 +135,10 @@ def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_pa
 # seed and steps, and the info entry the effects move, by at least how much
 MOTIONS = {
     # the right side is stronger: it turns
-    "velociroach": ("skitter/RoachWalk-v1", EFFECTS, np.array([0.5, 0.5, 0.0], dtype=np.float32), 3, 50, "yaw", 0.05),
-    "xjus": ("skitter/XjusWalk-v0", XJUS_EFFECTS, np.array([0.0, 0.3, 0.3]), 5, 60, "x_position", 1e-3),
+    "velociroach": ("skitter/RoachWalk-v2", EFFECTS, np.array([0.5, 0.5, 0.0], dtype=np.float32), 3, 50, "yaw", 0.05),
+    "xjus": ("skitter/XjusWalk-v1", XJUS_EFFECTS, np.array([0.0, 0.3, 0.3]), 5, 60, "x_position", 1e-3),
     # a softer servo under a heavier body sags
-    "bioloid": ("skitter/BioloidWalk-v1", BIOLOID_EFFECTS, None, 5, 50, "z_position", 1e-4),
+    "bioloid": ("skitter/BioloidWalk-v2", BIOLOID_EFFECTS, None, 5, 50, "z_position", 1e-4),
 }
 
 
@@ -165,14 +165,14 @@ def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
 @pytest.mark.parametrize(
     "env_id, robot, change, needles",
     [
-        ("skitter/RoachWalk-v1", "velociroach", {"robot": "servo"}, ["'robot'"]),
-        ("skitter/RoachWalk-v1", "velociroach", {"effects": {"warp_drive": {"level": 1.0}}}, ["'effects.warp_drive'"]),
-        ("skitter/RoachWalk-v1", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
-        ("skitter/RoachWalk-v1", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
-        ("skitter/RoachWalk-v1", "velociroach", {"version": 7}, ["'version'"]),
-        ("skitter/XjusWalk-v0", "xjus", {"effects": {"viscous_friction_left": {"damping": 5.0}}},
+        ("skitter/RoachWalk-v2", "velociroach", {"robot": "servo"}, ["'robot'"]),
+        ("skitter/RoachWalk-v2", "velociroach", {"effects": {"warp_drive": {"level": 1.0}}}, ["'effects.warp_drive'"]),
+        ("skitter/RoachWalk-v2", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
+        ("skitter/RoachWalk-v2", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
+        ("skitter/RoachWalk-v2", "velociroach", {"version": 7}, ["'version'"]),
+        ("skitter/XjusWalk-v1", "xjus", {"effects": {"viscous_friction_left": {"damping": 5.0}}},
          ["viscous_friction_left.damping", "outside its range"]),
-        ("skitter/BioloidWalk-v1", "bioloid", {"effects": {"servo_gain": {"scale": 9.0}}},
+        ("skitter/BioloidWalk-v2", "bioloid", {"effects": {"servo_gain": {"scale": 9.0}}},
          ["servo_gain.scale", "outside its range"]),
     ],
 )  # fmt: skip
@@ -188,15 +188,15 @@ def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, env_i
 
 def test_a_calibration_that_is_not_a_file_is_refused():
     with pytest.raises(ValueError, match="calibration must be the path of a calibration file, got 3"):
-        gym.make("skitter/RoachWalk-v1", calibration=3)
+        gym.make("skitter/RoachWalk-v2", calibration=3)
     with pytest.raises(ValueError, match="no such calibration file"):
-        gym.make("skitter/RoachWalk-v1", calibration="nowhere.json")
+        gym.make("skitter/RoachWalk-v2", calibration="nowhere.json")
 
 
 def test_evaluate_refuses_a_bad_calibration_before_writing(tmp_path, capsys):
     bad = _write(tmp_path / "bad.json", robot="motor", effects={"viscous_friction": {"damping": 1e-4}})
     out = tmp_path / "results"
-    argv = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "1", "--out", str(out),
+    argv = ["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "1", "--out", str(out),
             "--max-episode-steps", "5", "--calibration", str(bad)]  # fmt: skip
     assert evaluate.main(argv) == 2
     err = capsys.readouterr().err
@@ -212,7 +212,7 @@ def test_evaluate_runs_the_calibrated_model(tmp_path):
     runs = {}
     for name, extra in (("nominal", []), ("calibrated", ["--calibration", str(path)])):
         out = tmp_path / name
-        argv = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "2", "--out", str(out),
+        argv = ["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "2", "--out", str(out),
                 "--max-episode-steps", "100", *extra]  # fmt: skip
         assert evaluate.main(argv) == 0
         runs[name] = json.loads((out / "results.json").read_text())

@@ -351,7 +351,7 @@ def test_the_motors_torque_constant_below_nominal_is_one_effect_with_a_rotor_ine
 
 def _evaluate(tmp_path, name: str, calibration: str | None) -> dict[str, float]:
     out = tmp_path / name
-    argv = ["--env", "skitter/RoachWalk-v1", "--policy", "tripod", "--episodes", "2", "--out", str(out),
+    argv = ["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "2", "--out", str(out),
             "--max-episode-steps", "150", *(["--calibration", calibration] if calibration else [])]  # fmt: skip
     assert evaluate.main(argv) == 0
     summary = json.loads((out / "results.json").read_text())["policies"]["tripod"]["summary"]
@@ -459,8 +459,8 @@ def _bioloid_trot(env) -> None:
 
 
 OWN_TELEMETRY = {
-    "xjus": ("skitter/XjusWalk-v0", _xjus_walk, {"clock_phase", "period", "duty_FL", "current_FL", "leg_angle_FL"}),
-    "bioloid": ("skitter/BioloidWalk-v1", _bioloid_trot, {"goal_F_L_1", "present_position_F_L_1"}),
+    "xjus": ("skitter/XjusWalk-v1", _xjus_walk, {"clock_phase", "period", "duty_FL", "current_FL", "leg_angle_FL"}),
+    "bioloid": ("skitter/BioloidWalk-v2", _bioloid_trot, {"goal_F_L_1", "present_position_F_L_1"}),
 }
 
 

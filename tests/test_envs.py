@@ -17,10 +17,10 @@ N_STEPS = 60
 
 def test_registry_has_walk_and_turn_in_both_action_modes():
     assert {
-        "skitter/RoachWalk-v1",
-        "skitter/RoachTurn-v1",
-        "skitter/RoachWalkDuty-v1",
-        "skitter/RoachTurnDuty-v1",
+        "skitter/RoachWalk-v2",
+        "skitter/RoachTurn-v2",
+        "skitter/RoachWalkDuty-v2",
+        "skitter/RoachTurnDuty-v2",
     } <= set(ENV_IDS)
 
 
@@ -110,7 +110,7 @@ def test_non_finite_actions_raise(env_id, bad):
 
 
 def test_wrong_action_shape_raises():
-    env = gym.make("skitter/RoachWalk-v1")
+    env = gym.make("skitter/RoachWalk-v2")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros(5))
@@ -145,10 +145,10 @@ def test_unstable_simulation_ends_the_episode_with_finite_observations(env_id):
 
 
 def test_world_pose_is_in_info_not_in_the_observation():
-    env = gym.make("skitter/RoachWalk-v1")
+    env = gym.make("skitter/RoachWalk-v2")
     obs, info = env.reset(seed=0)
     assert obs.shape == (21,)
-    priv = gym.make("skitter/RoachWalk-v1", privileged_obs=True)
+    priv = gym.make("skitter/RoachWalk-v2", privileged_obs=True)
     obs_p, _ = priv.reset(seed=0)
     assert obs_p.shape == (28,)
     np.testing.assert_array_equal(obs_p[:21], obs)
@@ -182,7 +182,7 @@ def test_env_exposes_model_and_data_like_mujoco_env(env_id):
 
 def test_heading_error_follows_the_gyro_and_drifts_with_its_bias():
     """The observed heading error tracks the true yaw within the drift the gyro's bias allows."""
-    env = gym.make("skitter/RoachWalk-v1")
+    env = gym.make("skitter/RoachWalk-v2")
     obs, _ = env.reset(seed=5)
     layout = env.unwrapped.task.layout
     action = env.unwrapped.robot.mode.to_action([10.0, 10.0, 2.8])  # a turning gait
@@ -194,7 +194,7 @@ def test_heading_error_follows_the_gyro_and_drifts_with_its_bias():
     assert abs(info["yaw"]) > 0.3, "the gait turned"
     # the firmware integrates the body's z rate, not the world's yaw rate: a few percent apart while the body rocks
     assert abs(estimate - info["yaw"]) < abs(bias) * info["time"] + 0.05 * abs(info["yaw"])
-    perfect = gym.make("skitter/RoachWalk-v1", sensor_noise=False)
+    perfect = gym.make("skitter/RoachWalk-v2", sensor_noise=False)
     obs, _ = perfect.reset(seed=5)
     for _ in range(200):
         obs, _, _, _, info = perfect.step(action)
@@ -203,7 +203,7 @@ def test_heading_error_follows_the_gyro_and_drifts_with_its_bias():
 
 
 def test_gait_commands_are_bounded_to_the_real_robots_strides():
-    env = gym.make("skitter/RoachWalk-v1")
+    env = gym.make("skitter/RoachWalk-v2")
     mode = env.unwrapped.robot.mode
     low = mode.to_command(-np.ones(3))
     high = mode.to_command(np.ones(3))
@@ -212,7 +212,7 @@ def test_gait_commands_are_bounded_to_the_real_robots_strides():
 
 
 def test_randomize_draws_parameters_at_every_reset_and_is_checked():
-    env = gym.make("skitter/RoachWalk-v1", randomize={"foot_friction": (0.3, 0.5), "battery_voltage": (3.4, 3.9)})
+    env = gym.make("skitter/RoachWalk-v2", randomize={"foot_friction": (0.3, 0.5), "battery_voltage": (3.4, 3.9)})
     base = env.unwrapped
     drawn = []
     for seed in range(3):
@@ -225,7 +225,7 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
     assert len({d["foot_friction"] for d in drawn}) == 3
     env.reset(seed=1)
     assert base.parameter_values == drawn[1], "same seed, same draw"
-    off = gym.make("skitter/RoachWalk-v1")
+    off = gym.make("skitter/RoachWalk-v2")
     off.reset(seed=0)
     assert off.unwrapped.parameter_values == {}
     for bad, message in [
@@ -235,7 +235,7 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
         ({"foot_friction": "rough"}, "pair of numbers"),
     ]:
         with pytest.raises(ValueError, match=message):
-            gym.make("skitter/RoachWalk-v1", randomize=bad)
+            gym.make("skitter/RoachWalk-v2", randomize=bad)
 
 
 @pytest.mark.parametrize(
@@ -261,11 +261,11 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
 )
 def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        gym.make("skitter/RoachWalk-v1", **kwargs)
+        gym.make("skitter/RoachWalk-v2", **kwargs)
 
 
 def test_turn_command_is_sampled_in_range_and_settable():
-    env = gym.make("skitter/RoachTurn-v1")
+    env = gym.make("skitter/RoachTurn-v2")
     index = env.unwrapped.task.layout["yaw_rate_command"].start
     commands = []
     for seed in range(20):
@@ -307,13 +307,13 @@ def test_time_limits_are_ten_seconds_at_any_control_rate(env_id):
 
 def test_default_rate_episodes_keep_their_step_counts():
     """At the default rates the limits are the step counts they always were (10 s of control steps)."""
-    steps = {"skitter/RoachWalk-v1": 500, "skitter/RoachWalkDuty-v1": 10000, "skitter/XjusWalk-v0": 1250,
-             "skitter/BioloidWalk-v1": 500}  # fmt: skip
+    steps = {"skitter/RoachWalk-v2": 500, "skitter/RoachWalkDuty-v2": 10000, "skitter/XjusWalk-v1": 1250,
+             "skitter/BioloidWalk-v2": 500}  # fmt: skip
     for env_id, expected in steps.items():
         assert gym.make(env_id).spec.max_episode_steps == expected
 
 
-@pytest.mark.parametrize(("env_id", "freq"), [("skitter/XjusWalk-v0", 250.0), ("skitter/BioloidWalk-v1", 25.0)])
+@pytest.mark.parametrize(("env_id", "freq"), [("skitter/XjusWalk-v1", 250.0), ("skitter/BioloidWalk-v2", 25.0)])
 def test_episodes_truncate_at_their_duration_not_a_step_count(env_id, freq):
     """Stepped to the end at a non-default rate, an episode is truncated when its simulated time reaches the
     duration, single and batched (a short duration keeps the test quick)."""
@@ -339,23 +339,23 @@ def test_episodes_truncate_at_their_duration_not_a_step_count(env_id, freq):
 @pytest.mark.parametrize("seconds", [0, -1, float("nan"), "10", True])
 def test_episode_seconds_must_be_a_positive_duration(seconds):
     with pytest.raises(ValueError, match="episode_seconds"):
-        gym.make("skitter/RoachWalk-v1", episode_seconds=seconds)
+        gym.make("skitter/RoachWalk-v2", episode_seconds=seconds)
     with pytest.raises(ValueError, match="episode_seconds"):
-        gym.make_vec("skitter/RoachWalk-v1", vectorization_mode="vector_entry_point", episode_seconds=seconds)
+        gym.make_vec("skitter/RoachWalk-v2", vectorization_mode="vector_entry_point", episode_seconds=seconds)
 
 
 def test_episode_seconds_none_and_an_explicit_step_limit():
     """``episode_seconds=None`` leaves no limit of the env's own; ``max_episode_steps`` (Gymnasium's) still cuts
     episodes, single and batched alike: whichever limit comes first ends the episode."""
-    env = gym.make("skitter/RoachWalk-v1", episode_seconds=None)
+    env = gym.make("skitter/RoachWalk-v2", episode_seconds=None)
     assert env.spec.max_episode_steps is None
-    assert gym.make("skitter/RoachWalk-v1", max_episode_steps=7).spec.max_episode_steps == 7
+    assert gym.make("skitter/RoachWalk-v2", max_episode_steps=7).spec.max_episode_steps == 7
     batched = "vector_entry_point"
-    venv = gym.make_vec("skitter/RoachWalk-v1", vectorization_mode=batched, max_episode_steps=700, episode_seconds=None)
+    venv = gym.make_vec("skitter/RoachWalk-v2", vectorization_mode=batched, max_episode_steps=700, episode_seconds=None)
     assert venv.unwrapped.max_episode_steps == 700
     for steps in (300, 700):  # 10 s at 50 Hz is 500 steps
-        single = gym.make("skitter/RoachWalk-v1", max_episode_steps=steps, max_tilt=np.pi)
-        venv = gym.make_vec("skitter/RoachWalk-v1", vectorization_mode=batched, max_episode_steps=steps, max_tilt=np.pi)
+        single = gym.make("skitter/RoachWalk-v2", max_episode_steps=steps, max_tilt=np.pi)
+        venv = gym.make_vec("skitter/RoachWalk-v2", vectorization_mode=batched, max_episode_steps=steps, max_tilt=np.pi)
         single.reset(seed=0)
         count, truncated = 0, False
         while not truncated:
@@ -367,7 +367,7 @@ def test_episode_seconds_none_and_an_explicit_step_limit():
 @pytest.mark.parametrize(("width", "height"), [(160, 120), (800, 600)])
 def test_rgb_array_renders_headless_at_any_size(width, height):
     """Frames larger than the model's default 640x480 offscreen buffer come back whole, not black-padded."""
-    env = gym.make("skitter/RoachWalk-v1", render_mode="rgb_array", width=width, height=height)
+    env = gym.make("skitter/RoachWalk-v2", render_mode="rgb_array", width=width, height=height)
     env.reset(seed=0)
     frame = env.render()
     env.close()
@@ -383,11 +383,11 @@ def test_rgb_array_frames_follow_the_robot(batched):
     """The frames' camera tracks the robot's body: after a walk of about a metre it still looks at the robot
     (Gymnasium 1.x's offscreen renderer set a free camera on every frame, left at the origin)."""
     kwargs = {"render_mode": "rgb_array", "width": 160, "height": 120}
-    single = gym.make("skitter/XjusWalk-v0", **kwargs)
+    single = gym.make("skitter/XjusWalk-v1", **kwargs)
     obs, _ = single.reset(seed=0)
     action, _ = load_policy("buehler", single).predict(obs, None, np.array([True]))  # gait mode: one action
     if batched:
-        env = gym.make_vec("skitter/XjusWalk-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+        env = gym.make_vec("skitter/XjusWalk-v1", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
         action = np.broadcast_to(action, (2, *action.shape))
         env.reset(seed=0)
     else:
@@ -414,9 +414,9 @@ def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
     is the scene (the frame a second render gives), not black."""
     kwargs = {"render_mode": "rgb_array", "width": 160, "height": 120}
     if batched:
-        env = gym.make_vec("skitter/RoachWalk-v1", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+        env = gym.make_vec("skitter/RoachWalk-v2", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
     else:
-        env = gym.make("skitter/RoachWalk-v1", **kwargs)
+        env = gym.make("skitter/RoachWalk-v2", **kwargs)
     env.reset(seed=0)
     env.render()
     base = env.unwrapped
@@ -436,7 +436,7 @@ def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
 @pytest.mark.parametrize("bounds", ["34", ("0.02", "0.03"), (True, 1.0), b"12"])
 def test_randomize_bounds_must_be_numbers_not_strings_or_bools(bounds):
     with pytest.raises(ValueError, match=r"randomize\['battery_voltage'\] must be a \(low, high\) pair of numbers"):
-        gym.make("skitter/RoachWalk-v1", randomize={"battery_voltage": bounds})
+        gym.make("skitter/RoachWalk-v2", randomize={"battery_voltage": bounds})
 
 
 def test_class_docstrings_state_the_version_history_and_the_time_limit(env_id):

@@ -22,7 +22,7 @@ from envs.common.cluster import init_ray
 from envs.common.io import folder_lock
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY = {"env": "skitter/BioloidWalk-v1", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
+TINY = {"env": "skitter/BioloidWalk-v2", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
         "objective": "forward", "sample_interval": 1.0}  # fmt: skip
 
 
@@ -62,7 +62,7 @@ def test_the_objectives_earlier_name_eq17_is_read_with_a_warning(tmp_path):
 
 def test_a_key_given_twice_in_a_config_is_refused_naming_file_and_key(tmp_path):
     path = tmp_path / "twice.json"
-    path.write_text('{"env": "skitter/BioloidWalk-v1", "controller": "cpg", "coupling": "experiment5", '
+    path.write_text('{"env": "skitter/BioloidWalk-v2", "controller": "cpg", "coupling": "experiment5", '
                     '"seconds": 8, "seconds": 1}')  # fmt: skip
     with pytest.raises(ConfigError, match=r"twice.json: key 'seconds' is given twice"):
         read_config(path)

@@ -23,10 +23,10 @@ import envs  # noqa: F401  (registers the skitter envs)
 from agents.sb3 import ModelFileError, SB3Policy, read_model_file
 
 ROOT = Path(__file__).resolve().parents[1]
-WALK = "skitter/RoachWalk-v1"
+WALK = "skitter/RoachWalk-v2"
 # SAC/TD3 on a budget: learning starts after 100 steps, small networks and buffer
 TINY_OFF_POLICY = """
-skitter/RoachWalk-v1:
+skitter/RoachWalk-v2:
   normalize: {norm_obs: true, norm_reward: false}
   buffer_size: 1000
   learning_starts: 100
@@ -362,7 +362,7 @@ def test_a_model_torch_cannot_build_is_a_config_error_naming_the_field(tmp_path,
 def test_resume_refuses_a_checkpoint_of_another_env(tiny_run, tmp_path):
     run_dir = shutil.copytree(tiny_run, tmp_path / "run")
     config = run_dir / "config.json"
-    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v1"))  # 22 observations, not 21
+    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v2"))  # 22 observations, not 21
     before = files(run_dir)
     result = run_train("--resume", run_dir, "--timesteps", 256)
     model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"
@@ -716,13 +716,13 @@ def test_every_registered_env_has_a_checked_entry_in_the_shipped_hyperparameters
     from agents import training as train
 
     ids = sorted(env_id for env_id in gym.registry if env_id.startswith("skitter/"))
-    assert {"skitter/XjusWalk-v0", "skitter/BioloidWalk-v1"} <= set(ids)
+    assert {"skitter/XjusWalk-v1", "skitter/BioloidWalk-v2"} <= set(ids)
     for env_id in ids:
         hp = train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml", env_id, algo)
         assert hp.n_envs >= 1, env_id
 
 
-@pytest.mark.parametrize("env_id", ["skitter/XjusWalk-v0", "skitter/BioloidWalk-v1"])
+@pytest.mark.parametrize("env_id", ["skitter/XjusWalk-v1", "skitter/BioloidWalk-v2"])
 def test_ppo_trains_the_later_robots_with_the_shipped_hyperparameters(env_id, tmp_path):
     done = train_in_process("--env", env_id, "--algo", "ppo", "--timesteps", 1, "--n-envs", 2, "--runs-dir", tmp_path)
     assert done.returncode == 0, done.stderr

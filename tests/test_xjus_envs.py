@@ -11,7 +11,7 @@ from agents.evaluation import run_episodes
 from envs.common.terrain import Terrain
 from envs.xjus import constants
 
-WALK, TURN, ROUGH = "skitter/XjusWalk-v0", "skitter/XjusTurn-v0", "skitter/XjusRough-v0"
+WALK, TURN, ROUGH = "skitter/XjusWalk-v1", "skitter/XjusTurn-v1", "skitter/XjusRough-v1"
 XJUS_IDS = [WALK, TURN, ROUGH]
 SEEDS = [0, 1, 2]
 

@@ -98,7 +98,7 @@ class IKGait:
         self.gait, self.frequency = GAITS[gait], float(frequency)
         self.steer = "yaw_rate_command" in layout if steer is None else bool(steer)
         if self.steer and "yaw_rate_command" not in layout:
-            raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn-v1)")
+            raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn-v2)")
         self.geometry = [LegGeometry.of(leg, wedge) for leg in constants.LEGS]
         self.ellipses = [Ellipse.seed_rules(g) for g in self.geometry]
         stand = np.array([constants.STAND_ANGLES[s] for s in constants.SERVOS])

@@ -4,7 +4,7 @@ A **run configuration** (JSON) names the env, the controller (from the robot fol
 that takes the configuration's remaining fields and the robot) and how a rollout is scored::
 
     {
-      "env": "skitter/BioloidWalk-v1",     # any registered id; its robot runs the rollouts
+      "env": "skitter/BioloidWalk-v2",     # any registered id; its robot runs the rollouts
       "env_kwargs": {},                    # keyword arguments of the env (e.g. {"knee_wedge": true})
       "controller": "cpg",                 # a name in the robot folder's CONTROLLERS
       "seconds": 32,                       # rollout length (the seed: 32 s)

@@ -5,7 +5,7 @@ from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the cont
 
 ENVS = [
     {
-        "id": f"skitter/Bioloid{task}-v1",
+        "id": f"skitter/Bioloid{task}-v2",
         "entry_point": f"envs.bioloid.{task.lower()}:make_env",
         "vector_entry_point": f"envs.bioloid.{task.lower()}:make_batched",
         "kwargs": {"episode_seconds": EPISODE_SECONDS},

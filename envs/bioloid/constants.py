@@ -35,6 +35,15 @@ ROOT_BODY = "BODY"
 ROOT_JOINT = "root"
 FLOOR_GEOM = "floor"
 FOOT_GEOM = {leg: f"{leg}_foot" for leg in LEGS}
+
+# what may touch the ground when the robot walks: each leg's shank below the knee, its crutch and sole (the seed warns
+# against gaits where the dog is "almost swimming" on the ground [bioloid-webots, IV.A])
+FEET = tuple(KNEE.values())
+# the body's origin above level ground in the gaits' ready posture (lowest sole on the ground), and the lowest point
+# of the body's own geoms (CM-5 and its servo cases) then, m; from the model (assets/bioloid/);
+# tests/test_ground_rules.py recomputes them
+STANDING_HEIGHT = 0.1406
+BELLY_CLEARANCE = 0.1157
 CRUTCH_GEOM = {leg: f"{leg}_crutch" for leg in LEGS}
 SOLE_SITE = {leg: f"{leg}_sole" for leg in LEGS}
 SENSOR_TOUCH = {leg: f"{leg}_touch" for leg in LEGS}

@@ -20,7 +20,7 @@ from envs.bioloid.kinematics import Ellipse, LegGeometry
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
-from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_flag, check_number
+from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_flag, check_number, standing_band
 from envs.common.telemetry import ChannelLimit
 
 GOAL = "goal"
@@ -110,6 +110,8 @@ class Bioloid(Robot):
 
     name = "bioloid"
     root_body = constants.ROOT_BODY
+    feet = constants.FEET
+    height_band = standing_band(constants.STANDING_HEIGHT, constants.BELLY_CLEARANCE)
     action_modes: ClassVar[dict[str, ActionMode]] = {
         GOAL: ActionMode(
             GOAL,

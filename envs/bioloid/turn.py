@@ -9,7 +9,7 @@ from envs.bioloid.robot import GOAL, Bioloid
 from envs.bioloid.walk import ENERGY_COST_WEIGHT
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import TurnTask
+from envs.common.locomotion import GRACE_TIME, TurnTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 
@@ -44,6 +44,7 @@ class BioloidTurnEnv(SkitterEnv):
     (0.2 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
 
     ## Version History
+    - v2: as BioloidWalk-v2 (the episode ends on a non-foot ground contact or a body out of its height band).
     - v1: as BioloidWalk-v1 (the knees stop at straight).
     - v0: first release.
     """
@@ -59,6 +60,9 @@ class BioloidTurnEnv(SkitterEnv):
         speed_reward_weight: float = 0.1,
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
         max_tilt: float = 1.0,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         knee_wedge: bool = False,
         servo: ServoConstants | None = None,
@@ -89,6 +93,9 @@ class BioloidTurnEnv(SkitterEnv):
             speed_reward_weight,
             energy_cost_weight,
             max_tilt,
+            terminate_when_unhealthy=terminate_when_unhealthy,
+            height_band=height_band,
+            grace_time=grace_time,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

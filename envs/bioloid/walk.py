@@ -8,7 +8,7 @@ from envs.actuators.servo import ServoConstants
 from envs.bioloid.robot import GOAL, Bioloid
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import WalkTask
+from envs.common.locomotion import GRACE_TIME, WalkTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 
@@ -64,6 +64,11 @@ class BioloidWalkEnv(SkitterEnv):
     ``randomize``, the named physical parameters (``env.unwrapped.robot.parameters``) are drawn at every reset.
 
     ## Episode End
+    - terminated also (``info["fallen"]``) when anything but its feet (each leg's shank below the knee: crutch and sole)
+      has touched the ground, or its body's origin has been outside its height band (0.083 to 0.281 m above the ground
+      under it), for longer than ``grace_time`` (1 s) in a leaky count: a step that breaks the rule adds its duration,
+      one that keeps it takes it away (``info["contact_time"]``, ``info["band_time"]``; see envs/common/locomotion.py).
+      Off with ``terminate_when_unhealthy=False``;
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
       simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last good
       step's observation and info are returned, with reward 0);
@@ -75,9 +80,13 @@ class BioloidWalkEnv(SkitterEnv):
     ``speed``, ``yaw``, ``yaw_rate``, ``up_z``, ``power`` (W), ``heading_error``, ``time``, ``fallen``,
     ``sim_unstable``, the reward terms and the running sums ``distance``, ``energy`` (J), ``progress_x``,
     ``elapsed``, ``yaw_travel``, ``yaw_travel_warmup``.
+    The ground rules' values: ``body_height`` (m above the ground), ``ground_contact`` (1 if anything but the
+    feet touched the ground in the step), their leaky counts ``contact_time`` and ``band_time`` (s), and the
+    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``ground_contact`` (fraction
+    of steps) and ``body_height`` (mean, m).
 
     ## Arguments
-    ``gymnasium.make("skitter/BioloidWalk-v1", **kwargs)``: ``action_mode`` (``"goal"``), ``control_freq`` (Hz,
+    ``gymnasium.make("skitter/BioloidWalk-v2", **kwargs)``: ``action_mode`` (``"goal"``), ``control_freq`` (Hz,
     default 50), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.01 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.0 rad), ``reset_noise_scale`` (0.1), ``knee_wedge`` (False:
     the 18 deg "aibo style" wedges of [bioloid-webots, IV.A] when True), ``servo`` (an
@@ -86,8 +95,14 @@ class BioloidWalkEnv(SkitterEnv):
     servos' supply), ``sensor_noise`` (True), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a
     calibration file from ``calibrate.py --robot bioloid``, docs/calibration.md), ``episode_seconds`` (the time
     limit, s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.
+    The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
+    ``grace_time`` (1.0 s).
 
     ## Version History
+    - v2: the episode also ends when anything but the feet touches the ground, or the body leaves its height
+      band, for more than ``grace_time`` (a leaky count); ``info`` and the evaluation report the fraction of
+      steps with a non-foot ground contact and the mean body height (v1 ended only on a tilt, and a learner
+      could win it crawling).
     - v1: the knees stop at straight: their joint limits and the servos' allowed range cover 0 to 90 deg of bend
       only, as the robot's postures and IK have them (v0 let them bend 90 deg backward too, which an optimized CPG
       exploited).
@@ -103,6 +118,9 @@ class BioloidWalkEnv(SkitterEnv):
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
         upright_reward_weight: float = 1.0,
         max_tilt: float = 1.0,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         knee_wedge: bool = False,
         servo: ServoConstants | None = None,
@@ -125,7 +143,15 @@ class BioloidWalkEnv(SkitterEnv):
             calibration=calibration,
         )
         task = WalkTask(
-            robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
+            robot,
+            privileged_obs,
+            forward_reward_weight,
+            energy_cost_weight,
+            upright_reward_weight,
+            max_tilt,
+            terminate_when_unhealthy=terminate_when_unhealthy,
+            height_band=height_band,
+            grace_time=grace_time,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -1,7 +1,13 @@
 """Walking and turning tasks for any legged robot of the contract.
 
 Both observe what the robot senses, its heading error and (optionally, privileged) the body's velocity and
-orientation; both end the episode when the body tilts past ``max_tilt``. The heading error is the robot's own estimate
+orientation. Both end the episode when the robot fails as a walker: when its body tilts past ``max_tilt``, and, as
+Gymnasium's Ant-v5 does with its healthy z range, when anything of it but its feet has touched the ground or its
+body has left its height band (the robot's :attr:`~envs.common.robot.Robot.feet` and
+:attr:`~envs.common.robot.Robot.height_band`) for longer than a grace time. The grace is a leaky count: each control
+step that breaks a rule adds its duration, each that keeps it takes it away (down to zero), and the episode ends when
+the count passes ``grace_time``; a knee that grazes the floor now and then costs nothing, a body that rests on the
+ground more than half the time ends its episode however it alternates. The heading error is the robot's own estimate
 of its heading (integrating its gyro, as firmware can, so that it drifts with the gyro's bias) against the commanded
 heading: +x for walking, a heading that turns at the commanded rate for turning. Running sums of distance, progress,
 energy and yaw give the episode metrics.
@@ -10,7 +16,7 @@ energy and yaw give the episode metrics.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -20,10 +26,12 @@ from envs.common.task import Task
 
 GRAVITY = 9.81
 METRIC_WARMUP = 1.0  # s: left out of rate metrics, while the gait settles
+GRACE_TIME = 1.0  # s: how long in all a walker may break its ground rules before its episode ends
 _TWO_PI = 2.0 * np.pi
 # the keys of LocomotionTask.update's state, in its order
 _STATE_KEYS = ("x_velocity", "y_velocity", "speed", "yaw", "yaw_rate", "up_z", "power", "heading_error", "distance",
-               "energy", "progress_x", "elapsed", "yaw_travel", "yaw_travel_warmup")  # fmt: skip
+               "energy", "progress_x", "elapsed", "yaw_travel", "yaw_travel_warmup", "body_height", "ground_contact",
+               "contact_time", "band_time", "contact_steps", "height_sum", "steps")  # fmt: skip
 
 
 def wrap(x: np.ndarray) -> np.ndarray:
@@ -48,11 +56,23 @@ def quat_up(q: np.ndarray) -> np.ndarray:
     return 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2)
 
 
+def check_band(band: Any) -> tuple[float, float]:
+    """``band`` as (low, high) heights, m, 0 <= low < high; ValueError naming the value otherwise."""
+    if band is None or isinstance(band, str | bytes) or not hasattr(band, "__len__") or len(band) != 2:
+        raise ValueError(f"height_band must be (low, high) in metres, got {band!r}")
+    low = check_number("height_band[0]", band[0], 0)
+    high = check_number("height_band[1]", band[1], low, strict=True)
+    return low, high
+
+
 class LocomotionTask(Task):
     """What walking and turning share. Subclasses give ``_command_structure``, ``_draw_command``,
     ``_target_heading`` and ``reward_terms``."""
 
-    metrics: ClassVar[dict[str, str]] = {}
+    metrics: ClassVar[dict[str, str]] = {
+        "ground_contact": "fraction of steps in which anything but the feet touched the ground",
+        "body_height": "mean height of the body's origin above the ground under it, m",
+    }
 
     def __init__(
         self,
@@ -60,11 +80,19 @@ class LocomotionTask(Task):
         privileged_obs: bool = False,
         energy_cost_weight: float = 0.1,
         max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+        ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
     ):
         self.privileged_obs = check_flag("privileged_obs", privileged_obs)
         self.energy_cost_weight = check_number("energy_cost_weight", energy_cost_weight, 0)
         self.max_tilt = check_number("max_tilt", max_tilt, 0, np.pi, strict=True)
         self._min_up = float(np.cos(self.max_tilt))
+        self.terminate_when_unhealthy = check_flag("terminate_when_unhealthy", terminate_when_unhealthy)
+        self.height_band = check_band(robot.height_band if height_band is None else height_band)
+        self.grace_time = check_number("grace_time", grace_time, 0)
+        self._ground_height = ground_height
         n = robot.num_sims
         self.length = robot.facts.length
         # per simulation: x, y, yaw at the end of the last step; x and time at reset; the episode's running sums
@@ -72,6 +100,9 @@ class LocomotionTask(Task):
         self._yaw, self._x0, self._t0 = (np.zeros(n) for _ in range(3))
         self._distance, self._energy_used, self._yaw_travel, self._yaw_warmup = (np.zeros(n) for _ in range(4))
         self._heading_error = np.zeros(n)
+        # the ground rules' leaky counts (s) and the running sums of the ground metrics
+        self._contact_time, self._band_time = np.zeros(n), np.zeros(n)
+        self._contact_steps, self._height_sum, self._steps = np.zeros(n), np.zeros(n), np.zeros(n)
         self._dt = robot.control_dt
         self._rate = 1.0 / robot.control_dt
         self._single = n == 1
@@ -112,6 +143,11 @@ class LocomotionTask(Task):
             ("_yaw_travel", 0.0),
             ("_yaw_warmup", 0.0),
             ("_heading_error", wrap(readings["heading"][ids])),
+            ("_contact_time", 0.0),
+            ("_band_time", 0.0),
+            ("_contact_steps", 0.0),
+            ("_height_sum", 0.0),
+            ("_steps", 0.0),
         ):
             array = getattr(self, name).copy()
             array[ids] = value
@@ -139,6 +175,15 @@ class LocomotionTask(Task):
         if elapsed.min() <= METRIC_WARMUP + 1e-9:
             self._yaw_warmup = np.where(elapsed <= METRIC_WARMUP + 1e-9, self._yaw_travel, self._yaw_warmup)
         self._heading_error = wrap(readings["heading"] - self._target_heading(elapsed))
+        height = pos[:, 2] - self._ground(pos)
+        contact = self.robot.ground_contact()
+        low, high = self.height_band
+        outside = (height < low) | (height > high)
+        self._contact_time = np.maximum(self._contact_time + np.where(contact, dt, -dt), 0.0)
+        self._band_time = np.maximum(self._band_time + np.where(outside, dt, -dt), 0.0)
+        self._contact_steps = self._contact_steps + contact
+        self._height_sum = self._height_sum + height
+        self._steps = self._steps + 1.0
         return {
             "x_velocity": x_velocity,
             "y_velocity": y_velocity,
@@ -154,7 +199,18 @@ class LocomotionTask(Task):
             "elapsed": elapsed,
             "yaw_travel": self._yaw_travel,
             "yaw_travel_warmup": self._yaw_warmup,
+            "body_height": height,
+            "ground_contact": contact.astype(np.float64),
+            "contact_time": self._contact_time,
+            "band_time": self._band_time,
+            "contact_steps": self._contact_steps,
+            "height_sum": self._height_sum,
+            "steps": self._steps,
         }
+
+    def _ground(self, pos: np.ndarray) -> np.ndarray | float:
+        """The ground's height under positions (n, 3): 0 on level ground, the terrain's where the task has one."""
+        return 0.0 if self._ground_height is None else self._ground_height(pos[:, :2])
 
     def _update_one(self, readings: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None:
         """:meth:`update` of a single simulation on Python floats: the same operations in the same order, arctan2, cos
@@ -180,6 +236,12 @@ class LocomotionTask(Task):
         speed = np.cos(yaw).item() * x_velocity + np.sin(yaw).item() * y_velocity
         yaw_travel = self._yaw_travel.item() + yaw_step
         yaw_warmup = yaw_travel if elapsed <= METRIC_WARMUP + 1e-9 else self._yaw_warmup.item()
+        ground = self._ground(pos)
+        height = pos[0, 2].item() - (ground if isinstance(ground, float) else ground.item())
+        contact = bool(self.robot.ground_contact()[0])
+        low, high = self.height_band
+        contact_time = max(self._contact_time.item() + (dt if contact else -dt), 0.0)
+        band_time = max(self._band_time.item() + (dt if height < low or height > high else -dt), 0.0)
         values = [
             x_velocity,
             y_velocity,
@@ -195,12 +257,21 @@ class LocomotionTask(Task):
             elapsed,
             yaw_travel,
             yaw_warmup,
+            height,
+            float(contact),
+            contact_time,
+            band_time,
+            self._contact_steps.item() + contact,
+            self._height_sum.item() + height,
+            self._steps.item() + 1.0,
         ]
         # the arrays update returns, as (1,) views of one array (one call, not fourteen)
         state = dict(zip(_STATE_KEYS, np.array(values)[:, None], strict=True))
         self._xy, self._yaw, self._heading_error = pos[:, :2], state["yaw"], state["heading_error"]
         self._distance, self._energy_used = state["distance"], state["energy"]
         self._yaw_travel, self._yaw_warmup = state["yaw_travel"], state["yaw_travel_warmup"]
+        self._contact_time, self._band_time = state["contact_time"], state["band_time"]
+        self._contact_steps, self._height_sum, self._steps = state["contact_steps"], state["height_sum"], state["steps"]
         return state
 
     def observe(self, readings: dict[str, np.ndarray]) -> np.ndarray:
@@ -211,7 +282,21 @@ class LocomotionTask(Task):
         return np.concatenate(parts, axis=1)
 
     def terminated(self, state: dict[str, np.ndarray]) -> np.ndarray:
-        return state["up_z"] < self._min_up
+        """The body tilted past ``max_tilt``; or, unless ``terminate_when_unhealthy`` is off, the leaky count of
+        steps with a non-foot ground contact, or of steps with the body outside its height band, passed
+        ``grace_time``."""
+        tilted = state["up_z"] < self._min_up
+        if not self.terminate_when_unhealthy:
+            return tilted
+        limit = self.grace_time + 1e-9
+        return tilted | (state["contact_time"] > limit) | (state["band_time"] > limit)
+
+    def ground_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
+        """The episode's fraction of steps with a non-foot ground contact and mean body height (NaN before a step)."""
+        steps = info.get("steps", 0.0)
+        if steps <= 0:
+            return dict.fromkeys(LocomotionTask.metrics, float("nan"))
+        return {"ground_contact": info["contact_steps"] / steps, "body_height": info["height_sum"] / steps}
 
     def _energy(self, state: dict[str, np.ndarray]) -> np.ndarray:
         return -self.energy_cost_weight * state["power"]
@@ -222,6 +307,7 @@ class WalkTask(LocomotionTask):
 
     name = "walk"
     metrics: ClassVar[dict[str, str]] = {
+        **LocomotionTask.metrics,
         "forward_speed": "progress along +x over the episode, m/s",
         "heading_drift": "mean yaw rate after the first second (signed; + is to the left), rad/s",
     }
@@ -234,10 +320,23 @@ class WalkTask(LocomotionTask):
         energy_cost_weight: float = 0.1,
         upright_reward_weight: float = 1.0,
         max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+        ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
     ):
         self.forward_reward_weight = check_number("forward_reward_weight", forward_reward_weight)
         self.upright_reward_weight = check_number("upright_reward_weight", upright_reward_weight)
-        super().__init__(robot, privileged_obs, energy_cost_weight, max_tilt)
+        super().__init__(
+            robot,
+            privileged_obs,
+            energy_cost_weight,
+            max_tilt,
+            terminate_when_unhealthy,
+            height_band,
+            grace_time,
+            ground_height,
+        )
 
     def reward_terms(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {
@@ -250,7 +349,11 @@ class WalkTask(LocomotionTask):
         elapsed = info["elapsed"]
         after = elapsed - METRIC_WARMUP
         drift = (info["yaw_travel"] - info["yaw_travel_warmup"]) / after if after > 1e-9 else float("nan")
-        return {"forward_speed": info["progress_x"] / elapsed if elapsed > 0 else float("nan"), "heading_drift": drift}
+        return {
+            **self.ground_metrics(info),
+            "forward_speed": info["progress_x"] / elapsed if elapsed > 0 else float("nan"),
+            "heading_drift": drift,
+        }
 
 
 class TurnTask(LocomotionTask):
@@ -258,6 +361,7 @@ class TurnTask(LocomotionTask):
 
     name = "turn"
     metrics: ClassVar[dict[str, str]] = {
+        **LocomotionTask.metrics,
         "yaw_rate_error": "|mean yaw rate after the first second - command|, rad/s",
     }
 
@@ -271,13 +375,26 @@ class TurnTask(LocomotionTask):
         speed_reward_weight: float = 0.1,
         energy_cost_weight: float = 0.1,
         max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+        ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
     ):
         self.yaw_rate_range = check_number("yaw_rate_range", yaw_rate_range, 0)
         self.tracking_reward_weight = check_number("tracking_reward_weight", tracking_reward_weight)
         self.tracking_sigma = check_number("tracking_sigma", tracking_sigma, 0, strict=True)
         self.speed_reward_weight = check_number("speed_reward_weight", speed_reward_weight)
         self.yaw_rate_command = np.zeros(robot.num_sims)
-        super().__init__(robot, privileged_obs, energy_cost_weight, max_tilt)
+        super().__init__(
+            robot,
+            privileged_obs,
+            energy_cost_weight,
+            max_tilt,
+            terminate_when_unhealthy,
+            height_band,
+            grace_time,
+            ground_height,
+        )
 
     def _command_structure(self) -> dict[str, int]:
         return {"yaw_rate_command": 1}
@@ -309,6 +426,6 @@ class TurnTask(LocomotionTask):
     def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
         after = info["elapsed"] - METRIC_WARMUP
         if after <= 1e-9:
-            return {"yaw_rate_error": float("nan")}
+            return {**self.ground_metrics(info), "yaw_rate_error": float("nan")}
         mean_rate = (info["yaw_travel"] - info["yaw_travel_warmup"]) / after
-        return {"yaw_rate_error": abs(mean_rate - info["yaw_rate_command"])}
+        return {**self.ground_metrics(info), "yaw_rate_error": abs(mean_rate - info["yaw_rate_command"])}

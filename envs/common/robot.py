@@ -120,6 +120,51 @@ class PlotGroup:
     minus: tuple[str, ...] = ()
 
 
+GROUND_SENSOR = "ground_contact_"  # prefix of the contact sensors add_ground_contact_sensors adds
+
+
+def add_ground_contact_sensors(spec: mujoco.MjSpec, root_body: str, feet: Sequence[str]) -> list[str]:
+    """Add to ``spec`` a contact sensor (MuJoCo's ``contact``, ``data="found"``: the number of contacts) between each
+    body of the robot under ``root_body`` that has a colliding geom and is not one of ``feet``, and the world body
+    (the floor, a terrain); the sensors' names, in body order. ValueError if a foot is not a body of the robot."""
+    root = spec.body(root_body)
+    if root is None:
+        raise ValueError(f"the model has no body {root_body!r}")
+    bodies = [root, *root.find_all(mujoco.mjtObj.mjOBJ_BODY)]
+    unknown = sorted(set(feet) - {b.name for b in bodies})
+    if unknown:
+        raise ValueError(f"feet {unknown} are not bodies of the robot under {root_body!r}")
+    names = []
+    for body in bodies:
+        if body.name in feet or not any(g.contype or g.conaffinity for g in body.geoms):
+            continue
+        name = GROUND_SENSOR + body.name
+        spec.add_sensor(
+            name=name,
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            objname=body.name,
+            reftype=mujoco.mjtObj.mjOBJ_BODY,
+            refname=spec.worldbody.name,
+            intprm=[1, 0, 1],  # data "found", no reduction, one match (MuJoCo's contact sensor)
+        )
+        names.append(name)
+    return names
+
+
+def standing_band(standing_height: float, belly_clearance: float) -> tuple[float, float]:
+    """The height band of a legged robot's root body from its standing pose (its own model): from halfway between
+    standing and lying on its belly (``standing_height - belly_clearance / 2``) to twice its standing height.
+
+    ``standing_height`` is the root body's origin above level ground in the robot's ready posture, and
+    ``belly_clearance`` how far the lowest point of the root body's geoms is above the ground then. Below the band the
+    body has sunk more than half its clearance, as a robot crawling on its knees or belly does; above it, the robot
+    has leapt clear of the ground by more than its own standing height, which no gait of these robots does."""
+    check_number("standing_height", standing_height, 0, strict=True)
+    check_number("belly_clearance", belly_clearance, 0, standing_height, strict=True)
+    return standing_height - 0.5 * belly_clearance, 2.0 * standing_height
+
+
 def check_number(name: str, value: Any, low: float | None = None, high: float | None = None, strict: bool = False):
     """``value`` as a finite float within bounds; ValueError naming the argument and value otherwise (a string or a
     bool too: ``float`` would read ``"1.08"`` and ``True`` as numbers)."""
@@ -166,6 +211,13 @@ class Robot(ABC):
     name: ClassVar[str]
     action_modes: ClassVar[Mapping[str, ActionMode]]
     root_body: ClassVar[str]
+    # the bodies whose geoms may touch the ground when the robot walks (None: the robot declares no feet and
+    # :meth:`ground_contact` is always False, as for a bench rig); every other colliding body of the robot gets a
+    # contact sensor against the ground (the world body's geoms: the floor, a terrain)
+    feet: ClassVar[tuple[str, ...] | None] = None
+    # (low, high): the band of heights of the root body's origin above the ground under it, m, that the robot holds
+    # when it stands or walks (see :func:`standing_band`); None: no band
+    height_band: ClassVar[tuple[float, float] | None] = None
 
     def __init__(
         self,
@@ -210,6 +262,7 @@ class Robot(ABC):
                 edit(spec)
         for edit in spec_edits:
             edit(spec)
+        ground_sensors = add_ground_contact_sensors(spec, self.root_body, self.feet) if self.feet is not None else []
         # the spec as it compiles, kept uncompiled: the base of compile_with and the source of model_hash (writing
         # the MJCF out to hash it takes longer than compiling it, so only a record that asks for the hash pays)
         self._spec: mujoco.MjSpec | None = spec.copy()
@@ -218,6 +271,9 @@ class Robot(ABC):
         self.sensors: dict[str, slice] = sensor_slices(
             self.model, [self.model.sensor(i).name for i in range(self.model.nsensor)]
         )
+        self._ground_index = np.array(
+            [self.sensors[name].start for name in ground_sensors], dtype=np.intp
+        )  # one value ("found") each
         self.sim = self.make_simulation()
         self.setup()
         self.parameters = self.build_parameters(self.model)
@@ -348,6 +404,14 @@ class Robot(ABC):
     @abstractmethod
     def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
         """Telemetry channels (num_sims, channels) after the step that gave ``readings``."""
+
+    def ground_contact(self) -> np.ndarray:
+        """(num_sims,) bool: whether anything of the robot but its :attr:`feet` touched the ground in any physics step
+        of the last control step (after a reset: in the reset state). Read from contact sensors that MuJoCo
+        evaluates at every physics step, so a touch between control steps counts."""
+        if not self._ground_index.size:
+            return np.zeros(self.num_sims, dtype=bool)
+        return self.sim.substep_sensordata[:, :, self._ground_index].max(axis=(1, 2)) > 0.0
 
     def sensor(self, name: str, sensordata: np.ndarray | None = None) -> np.ndarray:
         """Values of the named sensor in every simulation, (num_sims, dim)."""

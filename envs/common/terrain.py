@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 from scipy import ndimage
+from scipy.interpolate import RegularGridInterpolator
 
 OBSTACLES = ("none", "step", "stairs", "course")
 GEOM = "terrain"
@@ -30,6 +31,9 @@ def _check(name: str, value: float, low: float, high: float) -> float:
     if not (np.isfinite(x) and low <= x <= high):
         raise ValueError(f"{name} must be in [{low}, {high}], got {value!r}")
     return x
+
+
+FLOOR_BELOW = 0.05  # m: the scene's floor plane lies this far under the height field's lowest point
 
 
 @dataclass(frozen=True)
@@ -158,6 +162,20 @@ class Terrain:
             h = noise * ramp[None, :]
         return h + self.obstacle_profile(x)[None, :]
 
+    def height_at(self, xy: np.ndarray) -> np.ndarray:
+        """The ground's height under points (n, 2), m: the height field interpolated linearly between its grid
+        points (MuJoCo's height field is linear between them too); beyond the field, the floor plane under it."""
+        cached = self.__dict__.get("_interpolator")  # built once (a frozen dataclass: set past its fields)
+        if cached is None:
+            x, y = self.grid()
+            heights = self.heights()
+            interpolator = RegularGridInterpolator((y, x), heights, method="linear", bounds_error=False)
+            cached = interpolator, float(heights.min()) - FLOOR_BELOW
+            object.__setattr__(self, "_interpolator", cached)
+        interpolator, floor = cached
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        return np.nan_to_num(interpolator(xy[:, ::-1]), nan=floor)
+
     def rms_roughness(self) -> float:
         """RMS of the random part of the ground where it is fully ramped in, m (what ``roughness`` asks for)."""
         x, _ = self.grid()
@@ -191,4 +209,4 @@ class Terrain:
         )
         floor = next((g for g in spec.geoms if g.name == "floor"), None)
         if floor is not None:
-            floor.pos = [floor.pos[0], floor.pos[1], low - 0.05]
+            floor.pos = [floor.pos[0], floor.pos[1], low - FLOOR_BELOW]

@@ -7,7 +7,7 @@ _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
 
 ENVS = [
     {
-        "id": f"skitter/Roach{task}{suffix}-v1",
+        "id": f"skitter/Roach{task}{suffix}-v2",
         "entry_point": f"envs.velociroach.{task.lower()}:make_env",
         "vector_entry_point": f"envs.velociroach.{task.lower()}:make_batched",
         "kwargs": {"action_mode": mode, "control_freq": freq, "episode_seconds": EPISODE_SECONDS},

@@ -19,6 +19,13 @@ SIDES = ("left", "right")
 LEGS = ("FL", "ML", "BL", "FR", "MR", "BR")  # front/middle/back, left/right
 TRIPOD_A = ("FL", "BL", "MR")  # down at the home pose
 ROOT_BODY = "chassis"
+
+# what may touch the ground when the robot runs: its C-legs (the chassis never does in the tripod gait)
+FEET = tuple(f"{leg}_leg" for leg in LEGS)
+# the chassis origin above level ground at the reset pose (tripod A down), and the chassis's lowest point then, m;
+# from the model (assets/velociroach/); tests/test_ground_rules.py recomputes them
+STANDING_HEIGHT = 0.0156
+BELLY_CLEARANCE = 0.0144
 ROOT_JOINT = "root"
 CHASSIS_GEOM = "chassis"
 FLOOR_GEOM = "floor"

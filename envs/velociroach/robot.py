@@ -13,7 +13,7 @@ from envs.actuators.dcmotor import DCMotors, PIDGains
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
-from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number, standing_band
 from envs.common.telemetry import ChannelLimit
 from envs.velociroach import constants
 from envs.velociroach.effects import delay_edit, effects_edit, roach_effects
@@ -77,6 +77,8 @@ class VelociRoach(Robot):
 
     name = "velociroach"
     root_body = constants.ROOT_BODY
+    feet = constants.FEET
+    height_band = standing_band(constants.STANDING_HEIGHT, constants.BELLY_CLEARANCE)
     action_modes: ClassVar[dict[str, ActionMode]] = {
         GAIT: ActionMode(
             GAIT,

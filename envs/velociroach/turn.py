@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import TurnTask
+from envs.common.locomotion import GRACE_TIME, TurnTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 from envs.velociroach.robot import GAIT, VelociRoach
@@ -43,6 +43,7 @@ class RoachTurnEnv(SkitterEnv):
     ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.5 rad/s), ``speed_reward_weight`` (0.1).
 
     ## Version History
+    - v2: as RoachWalk-v2 (the episode ends on a non-foot ground contact or a body out of its height band).
     - v1: as RoachWalk-v1 (heading error in the observation, IMU noise, 0-45 Hz strides, replayable controls).
     - v0: first release.
     """
@@ -58,6 +59,9 @@ class RoachTurnEnv(SkitterEnv):
         speed_reward_weight: float = 0.1,
         energy_cost_weight: float = 0.1,
         max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         battery_voltage: float | None = None,
         sensor_noise: bool = True,
@@ -84,6 +88,9 @@ class RoachTurnEnv(SkitterEnv):
             speed_reward_weight,
             energy_cost_weight,
             max_tilt,
+            terminate_when_unhealthy=terminate_when_unhealthy,
+            height_band=height_band,
+            grace_time=grace_time,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import WalkTask
+from envs.common.locomotion import GRACE_TIME, WalkTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 from envs.velociroach.robot import GAIT, VelociRoach
@@ -73,6 +73,11 @@ class RoachWalkEnv(SkitterEnv):
     ``randomize``, the named physical parameters (``env.unwrapped.robot.parameters``) are drawn at every reset.
 
     ## Episode End
+    - terminated also (``info["fallen"]``) when anything but its feet (its six C-legs) has touched the
+      ground, or its body's origin has been outside its height band (0.0084 to 0.0312 m above the ground under
+      it), for longer than ``grace_time`` (1 s) in a leaky count: a step that breaks the rule adds its
+      duration, one that keeps it takes it away (``info["contact_time"]``, ``info["band_time"]``; see
+      envs/common/locomotion.py). Off with ``terminate_when_unhealthy=False``;
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
       simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last good
       step's observation and info are returned, with reward 0);
@@ -85,9 +90,13 @@ class RoachWalkEnv(SkitterEnv):
     ``sim_unstable``, the reward terms, and the episode's running sums ``distance`` (along the heading, m),
     ``energy`` (J), ``progress_x`` (m), ``elapsed`` (s), ``yaw_travel`` (rad, unwrapped) and
     ``yaw_travel_warmup`` (its value at 1 s, where rate metrics start).
+    The ground rules' values: ``body_height`` (m above the ground), ``ground_contact`` (1 if anything but the
+    feet touched the ground in the step), their leaky counts ``contact_time`` and ``band_time`` (s), and the
+    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``ground_contact`` (fraction
+    of steps) and ``body_height`` (mean, m).
 
     ## Arguments
-    ``gymnasium.make("skitter/RoachWalk-v1", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
+    ``gymnasium.make("skitter/RoachWalk-v2", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
     mode, 1000 in duty mode), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.1 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``battery_voltage`` (V,
     default the model's 3.7), ``sensor_noise`` (True: the IMU's noise and bias), ``randomize`` (parameter name ->
@@ -95,8 +104,14 @@ class RoachWalkEnv(SkitterEnv):
     effects, docs/calibration.md), ``episode_seconds`` (the time limit, s; default 10, None for none),
     ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode`` (``"human"``, ``"rgb_array"``),
     ``width``, ``height``.
+    The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
+    ``grace_time`` (1.0 s).
 
     ## Version History
+    - v2: the episode also ends when anything but the feet touches the ground, or the body leaves its height
+      band, for more than ``grace_time`` (a leaky count); ``info`` and the evaluation report the fraction of
+      steps with a non-foot ground contact and the mean body height (v1 ended only on a tilt, and a learner
+      could win it crawling).
     - v1: the heading error from the integrated gyro joins the observation, with the gyro's noise and bias; the
       stride frequencies are bounded to the real robot's 0-45 Hz (v0: -50 to 50 Hz); the firmware's clock is given to
       the motor controller at every physics step through ``ctrl`` (v0 rewrote the model's slew limit at every step),
@@ -113,6 +128,9 @@ class RoachWalkEnv(SkitterEnv):
         energy_cost_weight: float = 0.1,
         upright_reward_weight: float = 1.0,
         max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         battery_voltage: float | None = None,
         sensor_noise: bool = True,
@@ -131,7 +149,15 @@ class RoachWalkEnv(SkitterEnv):
             calibration=calibration,
         )
         task = WalkTask(
-            robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
+            robot,
+            privileged_obs,
+            forward_reward_weight,
+            energy_cost_weight,
+            upright_reward_weight,
+            max_tilt,
+            terminate_when_unhealthy=terminate_when_unhealthy,
+            height_band=height_band,
+            grace_time=grace_time,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -5,7 +5,7 @@ from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the cont
 
 ENVS = [
     {
-        "id": f"skitter/Xjus{task}-v0",
+        "id": f"skitter/Xjus{task}-v1",
         "entry_point": f"envs.xjus.{task.lower()}:make_env",
         "vector_entry_point": f"envs.xjus.{task.lower()}:make_batched",
         "kwargs": {"episode_seconds": EPISODE_SECONDS},

@@ -21,6 +21,13 @@ LEFT_LEGS = ("FL", "ML", "BL")
 TRIPOD_A = ("FL", "BL", "MR")  # in stance at the reset pose
 TRIPOD_B = ("FR", "BR", "ML")
 ROOT_BODY = "middle"
+
+# what may touch the ground when the robot walks: its six compliant legs (RHex's legs [saranli2001])
+FEET = tuple(f"{leg}_leg" for leg in LEGS)
+# the middle segment's origin above level ground at the reset pose, and the lowest point of the middle segment then,
+# m; from the model (assets/xjus/); tests/test_ground_rules.py recomputes them
+STANDING_HEIGHT = 0.1818
+BELLY_CLEARANCE = 0.1568
 ROOT_JOINT = "root"
 SEGMENTS = ("front", "middle", "rear")
 SPINE_JOINTS = ("front_pitch", "front_roll", "rear_pitch", "rear_roll")  # joint, then axis

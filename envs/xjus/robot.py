@@ -14,7 +14,7 @@ from envs.actuators.motor import Motor, MotorConstants
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
-from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number
+from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number, standing_band
 from envs.common.telemetry import ChannelLimit
 from envs.xjus import constants
 from envs.xjus.controller import Gait, MotorArrays, moderate, pd_torque, wrap_angle, wrap_angle_one
@@ -121,6 +121,8 @@ class Xjus(Robot):
 
     name = "xjus"
     root_body = constants.ROOT_BODY
+    feet = constants.FEET
+    height_band = standing_band(constants.STANDING_HEIGHT, constants.BELLY_CLEARANCE)
     action_modes: ClassVar[dict[str, ActionMode]] = {
         GAIT: ActionMode(
             GAIT,

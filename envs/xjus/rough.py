@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import WalkTask
+from envs.common.locomotion import GRACE_TIME, WalkTask
 from envs.common.robot import Robot, check_flag, check_number
 from envs.common.terrain import Terrain
 from envs.common.vector import vector_entry_point
@@ -39,10 +39,23 @@ class RoughTask(WalkTask):
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
         upright_reward_weight: float = 1.0,
         max_tilt: float = FLIPPED,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+        ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
     ):
         self.terrain = terrain
         super().__init__(
-            robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
+            robot,
+            privileged_obs,
+            forward_reward_weight,
+            energy_cost_weight,
+            upright_reward_weight,
+            max_tilt,
+            terminate_when_unhealthy,
+            height_band,
+            grace_time,
+            terrain.height_at if ground_height is None else ground_height,
         )
 
     def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -76,9 +89,14 @@ class XjusRoughEnv(SkitterEnv):
     is capped at 0.37 by the seed's constants).
 
     ## Episode End
-    Terminated when the robot flips (the middle segment tilts ``max_tilt`` from upright, default pi/2) or the
-    simulation goes unstable (as XjusWalk); truncated after ``episode_seconds`` of simulated time (10 s) at any
-    control rate.
+    - terminated also (``info["fallen"]``) when anything but its feet (its six legs) has touched the ground, or its
+      body's origin has been outside its height band (0.103 to 0.364 m above the ground under it), for longer than
+      ``grace_time`` (1 s), the ground's height taken from the terrain under the body, in a leaky count: a step that
+      breaks the rule adds its duration, one that keeps it takes it away (``info["contact_time"]``,
+      ``info["band_time"]``; see envs/common/locomotion.py). Off with ``terminate_when_unhealthy=False``;
+    - terminated when the robot flips (the middle segment tilts ``max_tilt`` from upright, default pi/2) or the
+      simulation goes unstable (as XjusWalk); truncated after ``episode_seconds`` of simulated time (10 s) at any
+      control rate.
 
     ## Info
     As XjusWalk, and ``lane`` (the start's index). Episode metrics add ``progress`` (m along +x) and
@@ -90,6 +108,7 @@ class XjusRoughEnv(SkitterEnv):
     and ``terrain_seed`` (the random ground's seed, default 0).
 
     ## Version History
+    - v1: as XjusWalk-v1 (the episode ends on a non-foot ground contact or a body out of its height band).
     - v0: first release.
     """
 
@@ -106,6 +125,9 @@ class XjusRoughEnv(SkitterEnv):
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
         upright_reward_weight: float = 1.0,
         max_tilt: float = FLIPPED,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         spine: str = COMPLIANT,
         spine_stiffness: SpineSetting = None,
@@ -142,7 +164,17 @@ class XjusRoughEnv(SkitterEnv):
             calibration=calibration,
         )
         task = RoughTask(
-            robot, terrain, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
+            robot,
+            terrain,
+            privileged_obs,
+            forward_reward_weight,
+            energy_cost_weight,
+            upright_reward_weight,
+            max_tilt,
+            terminate_when_unhealthy=terminate_when_unhealthy,
+            height_band=height_band,
+            grace_time=grace_time,
+            ground_height=terrain.height_at,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -6,7 +6,7 @@ from collections.abc import Mapping, Sequence
 
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import WalkTask
+from envs.common.locomotion import GRACE_TIME, WalkTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 from envs.xjus.robot import COMPLIANT, GAIT, SpineSetting, Xjus
@@ -77,6 +77,11 @@ class XjusWalkEnv(SkitterEnv):
     (``env.unwrapped.robot.parameters``) are drawn at every reset.
 
     ## Episode End
+    - terminated also (``info["fallen"]``) when anything but its feet (its six legs) has touched the
+      ground, or its body's origin has been outside its height band (0.103 to 0.364 m above the ground under
+      it), for longer than ``grace_time`` (1 s) in a leaky count: a step that breaks the rule adds its
+      duration, one that keeps it takes it away (``info["contact_time"]``, ``info["band_time"]``; see
+      envs/common/locomotion.py). Off with ``terminate_when_unhealthy=False``;
     - terminated when the middle segment tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or
       when the simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last
       good step's observation and info are returned, with reward 0);
@@ -88,9 +93,13 @@ class XjusWalkEnv(SkitterEnv):
     ``speed``, ``yaw``, ``yaw_rate``, ``up_z``, ``power`` (W), ``heading_error``, ``time``, ``fallen``,
     ``sim_unstable``, the reward terms and the running sums ``distance``, ``energy`` (J), ``progress_x``,
     ``elapsed``, ``yaw_travel``, ``yaw_travel_warmup``.
+    The ground rules' values: ``body_height`` (m above the ground), ``ground_contact`` (1 if anything but the
+    feet touched the ground in the step), their leaky counts ``contact_time`` and ``band_time`` (s), and the
+    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``ground_contact`` (fraction
+    of steps) and ``body_height`` (mean, m).
 
     ## Arguments
-    ``gymnasium.make("skitter/XjusWalk-v0", **kwargs)``: ``action_mode``, ``control_freq`` (Hz, default 125; gait
+    ``gymnasium.make("skitter/XjusWalk-v1", **kwargs)``: ``action_mode``, ``control_freq`` (Hz, default 125; gait
     mode at least 120), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.002 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``spine``
     (``"compliant"`` or ``"rigid"``), ``spine_stiffness`` (N m/rad, one value or per ``front_pitch``,
@@ -99,8 +108,14 @@ class XjusWalkEnv(SkitterEnv):
     continuous), ``sensor_noise`` (True), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a
     calibration file from ``calibrate.py --robot xjus``, docs/calibration.md), ``episode_seconds`` (the time limit,
     s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.
+    The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
+    ``grace_time`` (1.0 s).
 
     ## Version History
+    - v1: the episode also ends when anything but the feet touches the ground, or the body leaves its height
+      band, for more than ``grace_time`` (a leaky count); ``info`` and the evaluation report the fraction of
+      steps with a non-foot ground contact and the mean body height (v0 ended only on a tilt, and a learner
+      could win it crawling).
     - v0: first release.
     """
 
@@ -113,6 +128,9 @@ class XjusWalkEnv(SkitterEnv):
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
         upright_reward_weight: float = 1.0,
         max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         spine: str = COMPLIANT,
         spine_stiffness: SpineSetting = None,
@@ -139,7 +157,15 @@ class XjusWalkEnv(SkitterEnv):
             calibration=calibration,
         )
         task = WalkTask(
-            robot, privileged_obs, forward_reward_weight, energy_cost_weight, upright_reward_weight, max_tilt
+            robot,
+            privileged_obs,
+            forward_reward_weight,
+            energy_cost_weight,
+            upright_reward_weight,
+            max_tilt,
+            terminate_when_unhealthy=terminate_when_unhealthy,
+            height_band=height_band,
+            grace_time=grace_time,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

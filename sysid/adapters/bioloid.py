@@ -1,5 +1,5 @@
 """Calibration of the Bioloid quadruped against its servo logs (``calibrate.py --robot bioloid``), and the calibrated
-model (``gym.make("skitter/BioloidWalk-v1", calibration=PATH)``).
+model (``gym.make("skitter/BioloidWalk-v2", calibration=PATH)``).
 
 **Replay.** A Bioloid log holds, per servo, the goal position it was sent and the position it reports (counts), and
 optionally the servos' supply (``vbatt``). The goals are replayed natively: every servo is the shared AX-12 model

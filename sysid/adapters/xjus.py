@@ -1,5 +1,5 @@
 """Calibration of the xJüs against its telemetry (``calibrate.py --robot xjus``), and the calibrated model
-(``gym.make("skitter/XjusWalk-v0", calibration=PATH)``).
+(``gym.make("skitter/XjusWalk-v1", calibration=PATH)``).
 
 **Replay.** An xJüs log holds the duty ``d`` of each leg's motor (the seed's simulation input, and what the PD of gait
 mode puts out), the battery voltage, and per leg the hip angle, its speed and the motor current; in gait mode also
