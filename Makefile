@@ -58,6 +58,7 @@ bench: setup
 	$(BIN)/python -m benchmarks.bioloid_figure30
 	$(BIN)/python -m benchmarks.bioloid_figure30 --knee-wedge
 	$(BIN)/python -m benchmarks.bioloid_static
+	$(BIN)/python -m benchmarks.ground_rules
 	$(BIN)/python -m benchmarks.bioloid_cpg_experiments
 
 # the seed's CPG experiments 5 and 6 with its PSO at its scale (about 50 minutes each on 2 cores; each resumes from

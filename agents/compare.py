@@ -6,8 +6,8 @@ of the ``evaluate.py`` command.
 
 Prints a side-by-side table (mean and 95% CI per metric: bootstrap from 10 episodes, Student's t below), and writes
 DIR/results.json (every episode and the summaries), DIR/results.md, a plot of one episode per policy (trajectory, body
-angles and the robot's own channel groups) and, with --video, an mp4 per policy; with --telemetry, the telemetry of
-every episode as Parquet.
+angles and the robot's own channel groups) and, with --video, an mp4 of each policy's first episode and one of them
+all side by side; with --telemetry, the telemetry of every episode as Parquet.
 
 Everything is checked before the first episode runs, and the results are written as one unit: into a temporary folder
 beside DIR, which then takes DIR's place. A trained model must fit --env: one whose record from train.py (the manifest
@@ -65,7 +65,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--episodes", type=int, default=10)
     p.add_argument("--seed", type=int, default=0, help="episode i runs with seed SEED + i, for every policy")
     p.add_argument("--out", required=True, type=Path, help="output directory")
-    p.add_argument("--video", action="store_true", help="write an mp4 of the first episode of each policy")
+    p.add_argument(
+        "--video",
+        action="store_true",
+        help="write an mp4 of the first episode of each policy, and one of them side by side",
+    )
     p.add_argument("--telemetry", action="store_true", help="write the telemetry of every episode as Parquet")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
     p.add_argument(
@@ -206,6 +210,16 @@ VIDEO_FPS = 30  # at most this many frames a second of simulated time are render
 def video_stride(control_fps: float) -> int:
     """Render every this many control steps for a video of at most :data:`VIDEO_FPS` frames per second."""
     return max(1, math.ceil(control_fps / VIDEO_FPS - 1e-9))
+
+
+SIDE_BY_SIDE = "side_by_side"  # videos/side_by_side.mp4: every policy's first episode, left to right in --policy order
+
+
+def side_by_side(episodes: list[list[np.ndarray]]) -> list[np.ndarray]:
+    """The frames of several episodes next to each other, left to right; one that ended sooner holds its last
+    frame (the robot stays where its episode ended)."""
+    length = max(len(frames) for frames in episodes)
+    return [np.concatenate([f[min(i, len(f) - 1)] for f in episodes], axis=1) for i in range(length)]
 
 
 def write_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
@@ -361,6 +375,13 @@ def _run(args: argparse.Namespace) -> int:
             spec: evaluate_policy(args, spec, policy, env, names[spec], staging, Path(scratch))
             for spec, (policy, env) in prepared.items()
         }
+        if args.video and len(results) > 1:
+            fps = next(iter(prepared.values()))[1].metadata["render_fps"]
+            write_video(
+                side_by_side([eps[0].frames for eps in results.values()]),
+                staging / "videos" / f"{SIDE_BY_SIDE}.mp4",
+                fps=fps / video_stride(fps),
+            )
         summaries = {s: summarize(eps) for s, eps in results.items()}
         reference = args.policy[0]
         comparisons = {

@@ -1,7 +1,7 @@
 """Train a Stable-Baselines3 agent (PPO, SAC or TD3) on a skitter environment: the code of the ``train.py`` command.
 
     python train.py --env skitter/RoachWalk-v2 --algo ppo --timesteps 500000 --seed 0
-    python train.py --resume runs/skitter_RoachWalk-v1__ppo__0__20250101-120000 --timesteps 1000000
+    python train.py --resume runs/skitter_RoachWalk-v2__ppo__0__20250101-120000 --timesteps 1000000
     tensorboard --logdir runs
 
 Hyperparameters come from ``hyperparams/<algo>.yml`` (RL Baselines3 Zoo style: one entry per env id, YAML anchors

@@ -99,7 +99,7 @@ def ppo_run(tmp_path_factory) -> Path:
 
 
 def test_ppo_run_writes_model_config_checkpoints_and_logs(ppo_run):
-    assert re.fullmatch(r"skitter_RoachWalk-v1__ppo__3__\d{8}-\d{6}", ppo_run.name)
+    assert re.fullmatch(r"skitter_RoachWalk-v2__ppo__3__\d{8}-\d{6}", ppo_run.name)
     for name in ("model.zip", "config.json", "command.txt"):
         assert (ppo_run / name).is_file(), name
     assert not (ppo_run / "vecnormalize.pkl").exists(), "the statistics live inside model.zip"

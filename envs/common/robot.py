@@ -271,9 +271,11 @@ class Robot(ABC):
         self.sensors: dict[str, slice] = sensor_slices(
             self.model, [self.model.sensor(i).name for i in range(self.model.nsensor)]
         )
-        self._ground_index = np.array(
-            [self.sensors[name].start for name in ground_sensors], dtype=np.intp
-        )  # one value ("found") each
+        # the contact sensors, added together, hold one value ("found") each in one run of sensordata
+        starts = [self.sensors[name].start for name in ground_sensors]
+        self._ground = slice(starts[0], starts[-1] + 1) if starts else None
+        if starts and starts != list(range(starts[0], starts[-1] + 1)):
+            raise RuntimeError(f"{self.name}: the ground contact sensors are not one run of sensordata")
         self.sim = self.make_simulation()
         self.setup()
         self.parameters = self.build_parameters(self.model)
@@ -409,9 +411,9 @@ class Robot(ABC):
         """(num_sims,) bool: whether anything of the robot but its :attr:`feet` touched the ground in any physics step
         of the last control step (after a reset: in the reset state). Read from contact sensors that MuJoCo
         evaluates at every physics step, so a touch between control steps counts."""
-        if not self._ground_index.size:
+        if self._ground is None:
             return np.zeros(self.num_sims, dtype=bool)
-        return self.sim.substep_sensordata[:, :, self._ground_index].max(axis=(1, 2)) > 0.0
+        return self.sim.substep_sensordata[:, :, self._ground].max(axis=(1, 2)) > 0.0
 
     def sensor(self, name: str, sensordata: np.ndarray | None = None) -> np.ndarray:
         """Values of the named sensor in every simulation, (num_sims, dim)."""
