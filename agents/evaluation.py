@@ -27,7 +27,7 @@ GENERIC_METRICS = {
     "speed": "mean speed along the body's heading, m/s",
     "speed_bl": "the same in body lengths per second",
     "cost_of_transport": "electrical energy / (m g distance travelled)",
-    "falls": "1 if the episode ended with the robot fallen",
+    "falls": "1 if the task ended the episode: the robot fell (tilted past its limit) or broke a ground rule",
 }
 
 

@@ -76,7 +76,7 @@ def run(env_id: str, seeds: list[int]) -> dict:
         "max_contact_time": float(most_contact.max()),
         "max_band_time": float(most_band.max()),
         "grace_time": float(task.grace_time),
-        "ground_contact": float(contact_steps.sum() / steps.sum()),
+        "non_foot_contact": float(contact_steps.sum() / steps.sum()),
         "body_height": float(height_sum.sum() / steps.sum()),
         "lowest_height": float(low_height.min()),
         "highest_height": float(high_height.max()),
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> None:
          "body height mean (lowest-highest), m", "band, m"],
         [[r["env_id"], r["policy"], r["episodes"], r["ended_by_ground_rules"], r["ended_by_tilt"],
           f"{r['max_contact_time']:.2f} / {r['grace_time']:g}", f"{r['max_band_time']:.2f} / {r['grace_time']:g}",
-          round(r["ground_contact"], 3),
+          f"{r['non_foot_contact']:.2g}",
           f"{r['body_height']:.4f} ({r['lowest_height']:.4f}-{r['highest_height']:.4f})",
           f"{r['height_band'][0]:.4f}-{r['height_band'][1]:.4f}"] for r in rows],
     )  # fmt: skip

@@ -29,6 +29,9 @@ def run(venv, actions: np.ndarray, seed: int):
         out["terminated"].append(terminated)
         out["truncated"].append(truncated)
         out["x"].append(np.where(info["_x_position"], info["x_position"], np.nan))
+        for key in ("steps", "height_sum", "contact_time", "band_time", "non_foot_touch"):  # the ground rules' sums
+            has = info.get(f"_{key}", np.zeros(len(obs), dtype=bool))  # absent where every simulation reset
+            out.setdefault(key, []).append(np.where(has, info.get(key, np.nan), np.nan))
     return {k: np.array(v) for k, v in out.items()}
 
 

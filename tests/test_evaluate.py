@@ -56,6 +56,10 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
         assert s["n"] == 3 and s["ci_low"] <= s["mean"] <= s["ci_high"]
         for metric in ("return", "speed", "speed_bl", "cost_of_transport", "falls", "forward_speed"):
             assert metric in policy["summary"]
+        # the ground rules' metrics: the tripod's legs only touch the ground, its body rides at its standing height
+        assert policy["summary"]["non_foot_contact"]["mean"] <= 1.0 and 0.0 < policy["summary"]["body_height"]["mean"]
+    assert results["policies"]["tripod:20"]["summary"]["non_foot_contact"]["mean"] == 0.0
+    assert results["policies"]["tripod:20"]["summary"]["body_height"]["mean"] == pytest.approx(0.016, abs=0.003)
     tripod = results["policies"]["tripod:20"]["summary"]["speed"]["mean"]
     assert tripod > 0.5, "the 20 Hz tripod runs forward"
     diff = results["paired_differences"]["policies"][str(model_zip)]["speed"]
@@ -63,13 +67,16 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v2")
     pngs = sorted(p.name for p in (out / "plots").iterdir())
     assert len(pngs) == 2 and all(p.endswith(".png") for p in pngs)
-    mp4s = list((out / "videos").glob("*.mp4"))
-    assert len(mp4s) == 2 and all(p.stat().st_size > 1000 for p in mp4s)
+    mp4s = sorted((out / "videos").glob("*.mp4"))
+    assert len(mp4s) == 3 and all(p.stat().st_size > 1000 for p in mp4s)
     import imageio.v2 as imageio
 
     with imageio.get_reader(mp4s[0]) as reader:  # the start and every 2nd of 60 control steps: 25 frames/s at 50 Hz
         assert reader.count_frames() == 1 + 60 // 2
         assert reader.get_meta_data()["fps"] == pytest.approx(25.0)
+        single = reader.get_meta_data()["size"]
+    with imageio.get_reader(out / "videos" / "side_by_side.mp4") as reader:  # both policies, left to right
+        assert reader.count_frames() == 1 + 60 // 2 and reader.get_meta_data()["size"] == (2 * single[0], single[1])
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten

@@ -66,7 +66,7 @@ def test_every_colliding_body_but_the_feet_has_a_ground_sensor(env_id):
     }
     sensed = {name.removeprefix(GROUND_SENSOR) for name in robot.sensors if name.startswith(GROUND_SENSOR)}
     assert set(robot.feet) <= colliding and sensed == colliding - set(robot.feet)
-    assert not robot.ground_contact()[0]  # standing at reset, only its feet touch
+    assert not robot.non_foot_contact()[0]  # standing at reset, only its feet touch
 
 
 def crawl_episode(env_id: str, action, options=None, **kwargs) -> dict:
@@ -112,7 +112,7 @@ def test_a_scripted_crawl_ends_its_episode(env_id):
     ended = crawl_episode(env_id, policy, options, episode_seconds=5.0, **kwargs)
     assert ended["terminated"] and ended["steps"] * gym.make(env_id, **kwargs).unwrapped.dt < 3.0
     assert max(ended["contact_time"], ended["band_time"]) > GRACE_TIME  # a ground rule ended it, not a tilt
-    assert ended["body_height"] < gym.make(env_id).unwrapped.task.height_band[0] or ended["ground_contact"]
+    assert ended["body_height"] < gym.make(env_id).unwrapped.task.height_band[0] or ended["non_foot_touch"]
     # without the rules the same crawl stays upright to the time limit: nothing but the rules stops it
     free = crawl_episode(env_id, policy, options, episode_seconds=5.0, terminate_when_unhealthy=False, **kwargs)
     assert not free["terminated"] and free["up_z"] > 0.9
@@ -191,9 +191,50 @@ def test_the_terrain_height_is_the_height_field_mujoco_collides_with():
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"height_band": (0.2, 0.1)}, {"height_band": "low"}, {"grace_time": -1.0}, {"terminate_when_unhealthy": "no"}],
+    [
+        {"height_band": (0.2, 0.1)},
+        {"height_band": "low"},
+        {"height_band": np.array(0.1)},
+        {"height_band": {"low": 0.05, "high": 0.3}},
+        {"height_band": {0.05, 0.3}},
+        {"height_band": (float("nan"), 0.3)},
+        {"height_band": [0.1]},
+        {"grace_time": -1.0},
+        {"grace_time": True},
+        {"terminate_when_unhealthy": "no"},
+    ],
 )
 def test_bad_ground_rule_arguments_are_refused_by_name(kwargs):
     name = next(iter(kwargs))
     with pytest.raises(ValueError, match=name):
         gym.make("skitter/BioloidWalk-v2", **kwargs)
+
+
+def test_a_band_may_be_open_above_and_a_robot_without_feet_or_band_has_no_rules(monkeypatch):
+    env = gym.make("skitter/BioloidWalk-v2", height_band=(0.05, float("inf")))
+    assert env.unwrapped.task.height_band == (0.05, float("inf"))
+    from envs.bioloid.robot import Bioloid
+
+    monkeypatch.setattr(Bioloid, "feet", None)
+    monkeypatch.setattr(Bioloid, "height_band", None)
+    env = gym.make("skitter/BioloidWalk-v2", episode_seconds=1.0)
+    robot = env.unwrapped.robot
+    assert not [name for name in robot.sensors if name.startswith(GROUND_SENSOR)]
+    env.reset(seed=0, options={"height": 0.03})  # dropped onto its belly: no rule to break
+    *_, info = env.step(env.action_space.sample())
+    assert not robot.non_foot_contact()[0] and info["band_time"] == 0.0 and env.unwrapped.task.height_band[0] < 0
+
+
+def test_the_optimizer_scores_a_rule_break_as_a_fall():
+    """The optimizer's rollouts keep their env's ground rules: with a band the Bioloid's body cannot be in, every
+    rollout falls once the grace has passed; without the rules the same rollouts run on until this CPG tips over."""
+    from agents.optimize.problem import Evaluator, parse_config
+
+    def scores(env_kwargs: dict) -> dict:
+        config = {"env": "skitter/BioloidWalk-v2", "controller": "cpg", "coupling": "experiment5", "seconds": 2.0,
+                  "env_kwargs": {"height_band": [0.2, 0.3], "grace_time": 0.1, **env_kwargs}}  # fmt: skip
+        return Evaluator(parse_config(config), 2, nthread=1).evaluate(np.full((2, 16), 0.5))
+
+    ruled, free = scores({}), scores({"terminate_when_unhealthy": False})
+    assert ruled["fallen"].all() and ruled["fall_time"] == pytest.approx([0.12, 0.12])  # 0.1 s grace, 50 Hz steps
+    assert (free["fall_time"] > 0.3).all() and (free["forward"] > ruled["forward"]).all()

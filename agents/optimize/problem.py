@@ -22,7 +22,9 @@ that takes the configuration's remaining fields and the robot) and how a rollout
   (``"eq17"``, its earlier name, is still read in a configuration, with a warning);
 - ``forward``: progress along +x from the start to the first fall (or the end): walking forward, upright;
 - ``progress_x``: progress along +x at the end, fallen or not (signed); ``fallen``: 1 if the body tilted past
-  ``max_tilt`` at any control step; ``fall_time``: when (s; the rollout's length if never).
+  ``max_tilt`` at any control step, or broke the env's ground rules (anything but the feet on the ground, or the
+  body out of its height band, past the grace time: docs/envs.md; not with ``terminate_when_unhealthy: false`` in
+  ``env_kwargs``); ``fall_time``: when (s; the rollout's length if never).
 
 A rollout starts from the robot's reset posture without noise, so that the same parameters always score the same,
 unless the configuration's ``env_kwargs`` ask otherwise: ``reset_noise_scale`` perturbs each rollout's start as the
@@ -50,6 +52,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.config import ConfigError
+from envs.common.locomotion import leaky_count
 from envs.common.parameters import sample
 
 OBJECTIVES = ("forward", "distance_travelled")
@@ -222,6 +225,7 @@ class Evaluator:
         except (TypeError, ValueError) as error:  # the env's own checks (values, calibration files, names)
             raise ConfigError(f"{config.path}: field 'env_kwargs' = {dict(config.env_kwargs)!r}: {error}") from None
         self.robot = venv.unwrapped.robot
+        self.task = venv.unwrapped.task
         env = venv.unwrapped.env  # the env's own checked values of its keyword arguments
         self.randomize = dict(env.randomize or {})
         # without one in the configuration, no reset noise: the same parameters always score the same
@@ -263,13 +267,23 @@ class Evaluator:
         fallen = np.zeros(self.num_sims, dtype=bool)
         fall_x = np.zeros(self.num_sims)
         fall_time = np.full(self.num_sims, self.steps * robot.control_dt)
+        rules = getattr(self.task, "terminate_when_unhealthy", False)  # a walking task's ground rules
+        contact_time, band_time = np.zeros(self.num_sims), np.zeros(self.num_sims)
         for k in range(1, self.steps + 1):
             robot.command(self.controller.commands())
             stable = robot.step()
             readings = robot.read(self._rngs)
             q = readings["quaternion"]
             up = 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2)
-            down = ((up < self._min_up) | ~stable) & ~fallen
+            down = (up < self._min_up) | ~stable
+            if rules:  # the same leaky counts as the task's (envs/common/locomotion.py)
+                low, high = self.task.height_band
+                height = readings["position"][:, 2] - self.task.ground_height(readings["position"])
+                contact_time = leaky_count(contact_time, robot.non_foot_contact(), robot.control_dt)
+                band_time = leaky_count(band_time, (height < low) | (height > high), robot.control_dt)
+                limit = self.task.grace_time + 1e-9
+                down |= (contact_time > limit) | (band_time > limit)
+            down &= ~fallen
             if down.any():
                 fall_x[down] = readings["position"][down, 0]
                 fall_time[down] = k * robot.control_dt

@@ -30,7 +30,7 @@ GRACE_TIME = 1.0  # s: how long in all a walker may break its ground rules befor
 _TWO_PI = 2.0 * np.pi
 # the keys of LocomotionTask.update's state, in its order
 _STATE_KEYS = ("x_velocity", "y_velocity", "speed", "yaw", "yaw_rate", "up_z", "power", "heading_error", "distance",
-               "energy", "progress_x", "elapsed", "yaw_travel", "yaw_travel_warmup", "body_height", "ground_contact",
+               "energy", "progress_x", "elapsed", "yaw_travel", "yaw_travel_warmup", "body_height", "non_foot_touch",
                "contact_time", "band_time", "contact_steps", "height_sum", "steps")  # fmt: skip
 
 
@@ -57,12 +57,27 @@ def quat_up(q: np.ndarray) -> np.ndarray:
 
 
 def check_band(band: Any) -> tuple[float, float]:
-    """``band`` as (low, high) heights, m, 0 <= low < high; ValueError naming the value otherwise."""
-    if band is None or isinstance(band, str | bytes) or not hasattr(band, "__len__") or len(band) != 2:
-        raise ValueError(f"height_band must be (low, high) in metres, got {band!r}")
-    low = check_number("height_band[0]", band[0], 0)
-    high = check_number("height_band[1]", band[1], low, strict=True)
+    """``band`` as (low, high) heights, m, 0 <= low < high (high may be infinite: no upper bound); ValueError naming
+    the value otherwise."""
+    message = f"height_band must be (low, high) in metres with 0 <= low < high, got {band!r}"
+    if isinstance(band, str | bytes | Mapping | set | frozenset):
+        raise ValueError(message)
+    try:
+        low, high = tuple(band)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+    try:
+        low = check_number("height_band", low, 0)
+        high = math.inf if high == math.inf else check_number("height_band", high, low, strict=True)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
     return low, high
+
+
+def leaky_count(count: np.ndarray, broken: np.ndarray, dt: float) -> np.ndarray:
+    """A ground rule's leaky count after a step of ``dt`` seconds: up by ``dt`` where the rule was ``broken``, down
+    by ``dt`` where it was kept, never below zero."""
+    return np.maximum(count + np.where(broken, dt, -dt), 0.0)
 
 
 class LocomotionTask(Task):
@@ -70,7 +85,7 @@ class LocomotionTask(Task):
     ``_target_heading`` and ``reward_terms``."""
 
     metrics: ClassVar[dict[str, str]] = {
-        "ground_contact": "fraction of steps in which anything but the feet touched the ground",
+        "non_foot_contact": "fraction of steps in which anything but the feet touched the ground",
         "body_height": "mean height of the body's origin above the ground under it, m",
     }
 
@@ -90,7 +105,9 @@ class LocomotionTask(Task):
         self.max_tilt = check_number("max_tilt", max_tilt, 0, np.pi, strict=True)
         self._min_up = float(np.cos(self.max_tilt))
         self.terminate_when_unhealthy = check_flag("terminate_when_unhealthy", terminate_when_unhealthy)
-        self.height_band = check_band(robot.height_band if height_band is None else height_band)
+        band = robot.height_band if height_band is None else height_band
+        # a robot that declares no band (and no band given) has none: the band rule never fires
+        self.height_band = (-math.inf, math.inf) if band is None else check_band(band)
         self.grace_time = check_number("grace_time", grace_time, 0)
         self._ground_height = ground_height
         n = robot.num_sims
@@ -153,8 +170,8 @@ class LocomotionTask(Task):
             array[ids] = value
             setattr(self, name, array)
 
-    def update(self, readings: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        if self._single and (state := self._update_one(readings)) is not None:
+    def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        if self._single and stepped is None and (state := self._update_one(readings)) is not None:
             return state
         dt = self._dt
         pos, quat, time = readings["position"], readings["quaternion"], readings["time"]
@@ -175,15 +192,20 @@ class LocomotionTask(Task):
         if elapsed.min() <= METRIC_WARMUP + 1e-9:
             self._yaw_warmup = np.where(elapsed <= METRIC_WARMUP + 1e-9, self._yaw_travel, self._yaw_warmup)
         self._heading_error = wrap(readings["heading"] - self._target_heading(elapsed))
-        height = pos[:, 2] - self._ground(pos)
-        contact = self.robot.ground_contact()
+        height = pos[:, 2] - self.ground_height(pos)
+        contact = self.robot.non_foot_contact()
         low, high = self.height_band
-        outside = (height < low) | (height > high)
-        self._contact_time = np.maximum(self._contact_time + np.where(contact, dt, -dt), 0.0)
-        self._band_time = np.maximum(self._band_time + np.where(outside, dt, -dt), 0.0)
-        self._contact_steps = self._contact_steps + contact
-        self._height_sum = self._height_sum + height
-        self._steps = self._steps + 1.0
+        counts = (
+            leaky_count(self._contact_time, contact, dt),
+            leaky_count(self._band_time, (height < low) | (height > high), dt),
+            self._contact_steps + contact,
+            self._height_sum + height,
+            self._steps + 1.0,
+        )
+        if stepped is not None:  # a simulation reset in this step took no step: its counts stay as the reset left them
+            old = (self._contact_time, self._band_time, self._contact_steps, self._height_sum, self._steps)
+            counts = tuple(np.where(stepped, new, was) for new, was in zip(counts, old, strict=True))
+        self._contact_time, self._band_time, self._contact_steps, self._height_sum, self._steps = counts
         return {
             "x_velocity": x_velocity,
             "y_velocity": y_velocity,
@@ -200,7 +222,7 @@ class LocomotionTask(Task):
             "yaw_travel": self._yaw_travel,
             "yaw_travel_warmup": self._yaw_warmup,
             "body_height": height,
-            "ground_contact": contact.astype(np.float64),
+            "non_foot_touch": contact.astype(np.float64),
             "contact_time": self._contact_time,
             "band_time": self._band_time,
             "contact_steps": self._contact_steps,
@@ -208,7 +230,7 @@ class LocomotionTask(Task):
             "steps": self._steps,
         }
 
-    def _ground(self, pos: np.ndarray) -> np.ndarray | float:
+    def ground_height(self, pos: np.ndarray) -> np.ndarray | float:
         """The ground's height under positions (n, 3): 0 on level ground, the terrain's where the task has one."""
         return 0.0 if self._ground_height is None else self._ground_height(pos[:, :2])
 
@@ -236,9 +258,9 @@ class LocomotionTask(Task):
         speed = np.cos(yaw).item() * x_velocity + np.sin(yaw).item() * y_velocity
         yaw_travel = self._yaw_travel.item() + yaw_step
         yaw_warmup = yaw_travel if elapsed <= METRIC_WARMUP + 1e-9 else self._yaw_warmup.item()
-        ground = self._ground(pos)
+        ground = self.ground_height(pos)
         height = pos[0, 2].item() - (ground if isinstance(ground, float) else ground.item())
-        contact = bool(self.robot.ground_contact()[0])
+        contact = bool(self.robot.non_foot_contact()[0])
         low, high = self.height_band
         contact_time = max(self._contact_time.item() + (dt if contact else -dt), 0.0)
         band_time = max(self._band_time.item() + (dt if height < low or height > high else -dt), 0.0)
@@ -265,7 +287,7 @@ class LocomotionTask(Task):
             self._height_sum.item() + height,
             self._steps.item() + 1.0,
         ]
-        # the arrays update returns, as (1,) views of one array (one call, not fourteen)
+        # the arrays update returns, as (1,) views of one array (one call, not one per key)
         state = dict(zip(_STATE_KEYS, np.array(values)[:, None], strict=True))
         self._xy, self._yaw, self._heading_error = pos[:, :2], state["yaw"], state["heading_error"]
         self._distance, self._energy_used = state["distance"], state["energy"]
@@ -296,7 +318,7 @@ class LocomotionTask(Task):
         steps = info.get("steps", 0.0)
         if steps <= 0:
             return dict.fromkeys(LocomotionTask.metrics, float("nan"))
-        return {"ground_contact": info["contact_steps"] / steps, "body_height": info["height_sum"] / steps}
+        return {"non_foot_contact": info["contact_steps"] / steps, "body_height": info["height_sum"] / steps}
 
     def _energy(self, state: dict[str, np.ndarray]) -> np.ndarray:
         return -self.energy_cost_weight * state["power"]

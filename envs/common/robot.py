@@ -212,7 +212,7 @@ class Robot(ABC):
     action_modes: ClassVar[Mapping[str, ActionMode]]
     root_body: ClassVar[str]
     # the bodies whose geoms may touch the ground when the robot walks (None: the robot declares no feet and
-    # :meth:`ground_contact` is always False, as for a bench rig); every other colliding body of the robot gets a
+    # :meth:`non_foot_contact` is always False, as for a bench rig); every other colliding body of the robot gets a
     # contact sensor against the ground (the world body's geoms: the floor, a terrain)
     feet: ClassVar[tuple[str, ...] | None] = None
     # (low, high): the band of heights of the root body's origin above the ground under it, m, that the robot holds
@@ -273,7 +273,7 @@ class Robot(ABC):
         )
         # the contact sensors, added together, hold one value ("found") each in one run of sensordata
         starts = [self.sensors[name].start for name in ground_sensors]
-        self._ground = slice(starts[0], starts[-1] + 1) if starts else None
+        self._ground_sensors = slice(starts[0], starts[-1] + 1) if starts else None
         if starts and starts != list(range(starts[0], starts[-1] + 1)):
             raise RuntimeError(f"{self.name}: the ground contact sensors are not one run of sensordata")
         self.sim = self.make_simulation()
@@ -407,13 +407,13 @@ class Robot(ABC):
     def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
         """Telemetry channels (num_sims, channels) after the step that gave ``readings``."""
 
-    def ground_contact(self) -> np.ndarray:
+    def non_foot_contact(self) -> np.ndarray:
         """(num_sims,) bool: whether anything of the robot but its :attr:`feet` touched the ground in any physics step
         of the last control step (after a reset: in the reset state). Read from contact sensors that MuJoCo
         evaluates at every physics step, so a touch between control steps counts."""
-        if self._ground is None:
+        if self._ground_sensors is None:
             return np.zeros(self.num_sims, dtype=bool)
-        return self.sim.substep_sensordata[:, :, self._ground].max(axis=(1, 2)) > 0.0
+        return self.sim.substep_sensordata[:, :, self._ground_sensors].max(axis=(1, 2)) > 0.0
 
     def sensor(self, name: str, sensordata: np.ndarray | None = None) -> np.ndarray:
         """Values of the named sensor in every simulation, (num_sims, dim)."""

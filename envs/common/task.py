@@ -77,9 +77,10 @@ class Task(ABC):
         """Start episodes in simulations ``ids``: draw their commands, zero their running sums."""
 
     @abstractmethod
-    def update(self, readings: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """After a control step: the step's quantities (velocities, power, ...) per simulation, advancing the task's
-        running sums. Called once per step, before the methods below."""
+        running sums. Called once per step, before the methods below. ``stepped`` (n,) bool, where some simulations
+        were reset in this step instead of stepped (a batched env's auto-reset): their sums must not advance."""
 
     @abstractmethod
     def observe(self, readings: dict[str, np.ndarray]) -> np.ndarray:

@@ -163,8 +163,9 @@ class Terrain:
         return h + self.obstacle_profile(x)[None, :]
 
     def height_at(self, xy: np.ndarray) -> np.ndarray:
-        """The ground's height under points (n, 2), m: the height field interpolated linearly between its grid
-        points (MuJoCo's height field is linear between them too); beyond the field, the floor plane under it."""
+        """The ground's height under points (n, 2), m: the height field interpolated bilinearly between its grid
+        points (MuJoCo collides with two triangles per cell: the two differ inside a cell by a fraction of its
+        twist, tests/test_ground_rules.py); beyond the field, the floor plane under it."""
         cached = self.__dict__.get("_interpolator")  # built once (a frozen dataclass: set past its fields)
         if cached is None:
             x, y = self.grid()

@@ -125,7 +125,7 @@ class SkitterVectorEnv(VectorEnv):
         readings = self.robot.read(self.rngs, stepped if any_reset else True)
         if any_reset:
             self.task.reset(reset_ids, [self.rngs[i] for i in reset_ids], None, readings)
-        state = self.task.update(readings)
+        state = self.task.update(readings, stepped if any_reset else None)
         terms = self.task.reward_terms(state)
         reward = sum(terms.values())
         terminated = self.task.terminated(state)

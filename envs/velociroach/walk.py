@@ -90,9 +90,9 @@ class RoachWalkEnv(SkitterEnv):
     ``sim_unstable``, the reward terms, and the episode's running sums ``distance`` (along the heading, m),
     ``energy`` (J), ``progress_x`` (m), ``elapsed`` (s), ``yaw_travel`` (rad, unwrapped) and
     ``yaw_travel_warmup`` (its value at 1 s, where rate metrics start).
-    The ground rules' values: ``body_height`` (m above the ground), ``ground_contact`` (1 if anything but the
+    The ground rules' values: ``body_height`` (m above the ground), ``non_foot_touch`` (1 if anything but the
     feet touched the ground in the step), their leaky counts ``contact_time`` and ``band_time`` (s), and the
-    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``ground_contact`` (fraction
+    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``non_foot_contact`` (fraction
     of steps) and ``body_height`` (mean, m).
 
     ## Arguments

@@ -174,7 +174,6 @@ class XjusRoughEnv(SkitterEnv):
             terminate_when_unhealthy=terminate_when_unhealthy,
             height_band=height_band,
             grace_time=grace_time,
-            ground_height=terrain.height_at,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -93,9 +93,9 @@ class XjusWalkEnv(SkitterEnv):
     ``speed``, ``yaw``, ``yaw_rate``, ``up_z``, ``power`` (W), ``heading_error``, ``time``, ``fallen``,
     ``sim_unstable``, the reward terms and the running sums ``distance``, ``energy`` (J), ``progress_x``,
     ``elapsed``, ``yaw_travel``, ``yaw_travel_warmup``.
-    The ground rules' values: ``body_height`` (m above the ground), ``ground_contact`` (1 if anything but the
+    The ground rules' values: ``body_height`` (m above the ground), ``non_foot_touch`` (1 if anything but the
     feet touched the ground in the step), their leaky counts ``contact_time`` and ``band_time`` (s), and the
-    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``ground_contact`` (fraction
+    sums ``contact_steps``, ``height_sum``, ``steps`` behind the episode metrics ``non_foot_contact`` (fraction
     of steps) and ``body_height`` (mean, m).
 
     ## Arguments
