@@ -55,17 +55,23 @@ def test_standing_height_and_belly_clearance_come_from_the_model(env_id):
 
 
 @pytest.mark.parametrize("env_id", WALKS)
-def test_every_colliding_body_but_the_feet_has_a_ground_sensor(env_id):
+def test_every_colliding_part_but_the_feet_has_a_ground_sensor(env_id):
+    """A sensor per colliding body without a foot geom, a sensor per other colliding geom of a body with one."""
     robot = gym.make(env_id).unwrapped.robot
     model = robot.model
     root = model.body(robot.root_body).id
-    colliding = {
-        model.body(model.geom_bodyid[g]).name
-        for g in range(model.ngeom)
-        if model.body_rootid[model.geom_bodyid[g]] == root and (model.geom_contype[g] or model.geom_conaffinity[g])
-    }
+    colliding: dict[str, list[str]] = {}
+    for g in range(model.ngeom):
+        body = model.geom_bodyid[g]
+        if model.body_rootid[body] == root and (model.geom_contype[g] or model.geom_conaffinity[g]):
+            colliding.setdefault(model.body(body).name, []).append(model.geom(g).name)
+    expected = set()
+    for body, geoms in colliding.items():
+        if body not in robot.feet:
+            feet_here = [g for g in geoms if g in robot.feet]
+            expected |= {g for g in geoms if g not in robot.feet} if feet_here else {body}
     sensed = {name.removeprefix(GROUND_SENSOR) for name in robot.sensors if name.startswith(GROUND_SENSOR)}
-    assert set(robot.feet) <= colliding and sensed == colliding - set(robot.feet)
+    assert sensed == expected and set(robot.feet) <= set(colliding) | {g for gs in colliding.values() for g in gs}
     assert not robot.non_foot_contact()[0]  # standing at reset, only its feet touch
 
 

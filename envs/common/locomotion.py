@@ -6,7 +6,7 @@ does with its healthy z range, when anything of it but its feet has touched the 
 band (the robot's :attr:`~envs.common.robot.Robot.feet` and :attr:`~envs.common.robot.Robot.height_band`) for longer
 than a grace time. The grace is a leaky count: each control step that breaks a rule adds its duration, each that keeps
 it takes a quarter of its duration away (down to zero), and the episode ends when the count passes ``grace_time``; a
-knee that grazes the floor now and then costs nothing, a body that rests on the ground more than a fifth of the time
+part that brushes the floor now and then costs nothing, a body that rests on the ground more than a fifth of the time
 ends its episode however it alternates. The heading error is the robot's own estimate of its heading (integrating its
 gyro, as firmware can, so that it drifts with the gyro's bias) against the commanded heading: +x for walking, a heading
 that turns at the commanded rate for turning. Running sums of distance, progress, energy and yaw give the episode
@@ -29,8 +29,7 @@ METRIC_WARMUP = 1.0  # s: left out of rate metrics, while the gait settles
 GRACE_TIME = 1.0  # s: how long in all a walker may break its ground rules before its episode ends
 # how fast a ground rule's count drains while the rule is kept, per second of its filling: a gait that breaks a rule
 # more than DRAIN / (1 + DRAIN) of the time (a fifth) fills it for good. With an even drain (1) PPO learned to crawl
-# with its thighs on the ground just under half the time; the reference gaits' knee grazes come in short bursts far
-# apart and leave the same largest counts at 1 and at 1/4 (benchmarks/ground_rules.py)
+# on BioloidWalk with something other than its feet on the ground in just under half of its steps
 DRAIN = 0.25
 _TWO_PI = 2.0 * np.pi
 # the keys of LocomotionTask.update's state, in its order

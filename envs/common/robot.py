@@ -124,31 +124,46 @@ GROUND_SENSOR = "ground_contact_"  # prefix of the contact sensors add_ground_co
 
 
 def add_ground_contact_sensors(spec: mujoco.MjSpec, root_body: str, feet: Sequence[str]) -> list[str]:
-    """Add to ``spec`` a contact sensor (MuJoCo's ``contact``, ``data="found"``: the number of contacts) between each
-    body of the robot under ``root_body`` that has a colliding geom and is not one of ``feet``, and the world body
-    (the floor, a terrain); the sensors' names, in body order. ValueError if a foot is not a body of the robot."""
+    """Add to ``spec`` contact sensors (MuJoCo's ``contact``, ``data="found"``: the number of contacts) between the
+    world body (the floor, a terrain) and every colliding part of the robot under ``root_body`` that is not a foot:
+    one per body, or, on a body that carries a foot geom, one per other colliding geom. ``feet`` names bodies (all
+    their geoms) and geoms. The sensors' names, in body order; ValueError if a foot is neither a body nor a geom of
+    the robot, or a geom beside a foot geom has no name."""
     root = spec.body(root_body)
     if root is None:
         raise ValueError(f"the model has no body {root_body!r}")
     bodies = [root, *root.find_all(mujoco.mjtObj.mjOBJ_BODY)]
-    unknown = sorted(set(feet) - {b.name for b in bodies})
+    known = {b.name for b in bodies} | {g.name for b in bodies for g in b.geoms}
+    unknown = sorted(set(feet) - known)
     if unknown:
-        raise ValueError(f"feet {unknown} are not bodies of the robot under {root_body!r}")
+        raise ValueError(f"feet {unknown} are neither bodies nor geoms of the robot under {root_body!r}")
     names = []
-    for body in bodies:
-        if body.name in feet or not any(g.contype or g.conaffinity for g in body.geoms):
-            continue
-        name = GROUND_SENSOR + body.name
+
+    def add(name: str, objtype: mujoco.mjtObj, objname: str) -> None:
         spec.add_sensor(
-            name=name,
+            name=GROUND_SENSOR + name,
             type=mujoco.mjtSensor.mjSENS_CONTACT,
-            objtype=mujoco.mjtObj.mjOBJ_BODY,
-            objname=body.name,
+            objtype=objtype,
+            objname=objname,
             reftype=mujoco.mjtObj.mjOBJ_BODY,
             refname=spec.worldbody.name,
             intprm=[1, 0, 1],  # data "found", no reduction, one match (MuJoCo's contact sensor)
         )
-        names.append(name)
+        names.append(GROUND_SENSOR + name)
+
+    for body in bodies:
+        colliding = [g for g in body.geoms if g.contype or g.conaffinity]
+        if body.name in feet or not colliding:
+            continue
+        if not any(g.name in feet for g in colliding):
+            add(body.name, mujoco.mjtObj.mjOBJ_BODY, body.name)
+            continue
+        for geom in colliding:
+            if geom.name in feet:
+                continue
+            if not geom.name:
+                raise ValueError(f"body {body.name!r} carries a foot geom and an unnamed colliding geom: name it")
+            add(geom.name, mujoco.mjtObj.mjOBJ_GEOM, geom.name)
     return names
 
 
@@ -211,7 +226,7 @@ class Robot(ABC):
     name: ClassVar[str]
     action_modes: ClassVar[Mapping[str, ActionMode]]
     root_body: ClassVar[str]
-    # the bodies whose geoms may touch the ground when the robot walks (None: the robot declares no feet and
+    # the bodies (all their geoms) and geoms that may touch the ground when the robot walks (None: no feet, and
     # :meth:`non_foot_contact` is always False, as for a bench rig); every other colliding body of the robot gets a
     # contact sensor against the ground (the world body's geoms: the floor, a terrain)
     feet: ClassVar[tuple[str, ...] | None] = None
