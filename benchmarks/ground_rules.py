@@ -32,15 +32,16 @@ def skitter_ids() -> list[str]:
     return [env_id for env_id in gym.registry if env_id.startswith("skitter/")]
 
 
-def run(env_id: str, seeds: list[int]) -> dict:
-    """The reference gait of ``env_id``'s robot on ``seeds``, one batched env: per episode, whether the ground rules
-    or a tilt ended it, the largest leaky counts and the ground metrics."""
+def run(env_id: str, seeds: list[int], yaw_rate: float | None = None) -> dict:
+    """The reference gait of ``env_id``'s robot on ``seeds``, one batched env (on a turning task, each episode's
+    command drawn, or ``yaw_rate`` for all): per episode, whether the ground rules or a tilt ended it, the largest
+    leaky counts and the ground metrics."""
     venv = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point")
     base = venv.unwrapped
     task = base.task
     name = reference_policy(base.robot.name)
     policy = load_policy(name, venv)
-    obs, info = venv.reset(seed=seeds)
+    obs, info = venv.reset(seed=seeds, options=None if yaw_rate is None else {"yaw_rate": yaw_rate})
     n = len(seeds)
     running = np.ones(n, dtype=bool)
     most_contact, most_band = np.zeros(n), np.zeros(n)
@@ -69,6 +70,7 @@ def run(env_id: str, seeds: list[int]) -> dict:
     venv.close()
     return {
         "env_id": env_id,
+        "yaw_rate": yaw_rate,
         "policy": name,
         "episodes": n,
         "ended_by_ground_rules": int(by_rule.sum()),
@@ -100,14 +102,20 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--ids: not registered skitter ids: {', '.join(unknown)}")
     output = resolve_output(parser, args, "ground_rules", CONFIGURATIONS)
     started = time.perf_counter()
-    rows = [run(env_id, SEEDS) for env_id in ids]
+    rows = []
+    for env_id in ids:
+        rows.append(run(env_id, SEEDS))
+        turn = getattr(gym.make(env_id).unwrapped.task, "yaw_rate_range", None)
+        if turn:  # a turning task also at its hardest commands, either way
+            rows += [run(env_id, SEEDS, sign * turn) for sign in (-1.0, 1.0)]
     wall = time.perf_counter() - started
     missed = [r["env_id"] for r in rows if r["ended_by_ground_rules"]]
     table = md_table(
         ["env id", "reference", "episodes", "ended by the ground rules", "ended by a tilt",
          "largest contact count / grace, s", "largest band count / grace, s", "non-foot contact, fraction of steps",
          "body height mean (lowest-highest), m", "band, m"],
-        [[r["env_id"], r["policy"], r["episodes"], r["ended_by_ground_rules"], r["ended_by_tilt"],
+        [[r["env_id"] + ("" if r["yaw_rate"] is None else f", command {r['yaw_rate']:+g} rad/s"), r["policy"],
+          r["episodes"], r["ended_by_ground_rules"], r["ended_by_tilt"],
           f"{r['max_contact_time']:.2f} / {r['grace_time']:g}", f"{r['max_band_time']:.2f} / {r['grace_time']:g}",
           f"{r['non_foot_contact']:.2g}",
           f"{r['body_height']:.4f} ({r['lowest_height']:.4f}-{r['highest_height']:.4f})",
@@ -119,7 +127,8 @@ def main(argv: list[str] | None = None) -> None:
     )
     md = (
         "# The ground rules against the reference gaits\n\n"
-        f"Seeds {SEEDS[0]}-{SEEDS[9]} and {SEEDS[10]}-{SEEDS[-1]} on every id, the robot's reference gait, batched. "
+        f"Seeds {SEEDS[0]}-{SEEDS[9]} and {SEEDS[10]}-{SEEDS[-1]} on every id, the robot's reference gait, batched; "
+        "turning ids with commands drawn per episode, then at their hardest command either way. "
         "A count is the leaky time (s) a rule was broken; an episode ends when it passes the grace time.\n\n"
         + table
         + f"\n{verdict}. Wall time {wall:.0f} s.\n"

@@ -36,11 +36,12 @@ ROOT_JOINT = "root"
 FLOOR_GEOM = "floor"
 FOOT_GEOM = {leg: f"{leg}_foot" for leg in LEGS}
 
-# what may touch the ground when the robot walks: each leg from its knee down, the knee servo (its case, on the thigh
-# where the shank turns), the shank's crutch and its sole. The seed's IK gaits set their front knees down at the back
-# of the stroke (ik-trot: in about 12% of its steps, at up to a body weight of load); the thighs, hips, body and head
-# never touch (the seed warns against gaits where the dog is "almost swimming" on the ground [bioloid-webots, IV.A])
-FEET = (*KNEE.values(), *(f"{leg}_3_case" for leg in LEGS))
+# what may touch the ground when the robot walks: each leg's shank below the knee, its crutch and sole. Not the knee
+# servo (on the thigh, where the shank turns): a body lowered onto its knees is a crawl, though the seed's IK gaits set
+# their front knees down at the back of the stroke (ik-trot: 12% of its steps, up to 16% turning hardest; the grace
+# of envs/common/locomotion.py absorbs it). The seed warns against gaits where the dog is "almost swimming" on the
+# ground [bioloid-webots, IV.A]
+FEET = tuple(KNEE.values())
 # the body's origin above level ground in the gaits' ready posture (lowest sole on the ground), and the lowest point
 # of the body's own geoms (CM-5 and its servo cases) then, m; from the model (assets/bioloid/);
 # tests/test_ground_rules.py recomputes them

@@ -66,7 +66,7 @@ class BioloidWalkEnv(SkitterEnv):
     ## Episode End
     - terminated also (``info["fallen"]``) when anything but its feet (each leg from the knee down: the knee servo's
       case, the crutch and its sole) has touched the ground, or its body's origin has been outside its height band
-      (0.083 to 0.281 m above the ground under it), for longer than ``grace_time`` (1 s) in a leaky count: a step that
+      (0.083 to 0.281 m above the ground under it), for longer than ``grace_time`` (1.5 s) in a leaky count: a step that
       breaks the rule adds its duration, one that keeps it takes a quarter of that away (``info["contact_time"]``,
       ``info["band_time"]``; see envs/common/locomotion.py). Off with ``terminate_when_unhealthy=False``;
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
@@ -96,7 +96,7 @@ class BioloidWalkEnv(SkitterEnv):
     calibration file from ``calibrate.py --robot bioloid``, docs/calibration.md), ``episode_seconds`` (the time
     limit, s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.
     The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
-    ``grace_time`` (1.0 s).
+    ``grace_time`` (1.5 s).
 
     ## Version History
     - v2: the episode also ends when anything but the feet touches the ground, or the body leaves its height

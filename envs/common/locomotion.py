@@ -26,7 +26,10 @@ from envs.common.task import Task
 
 GRAVITY = 9.81
 METRIC_WARMUP = 1.0  # s: left out of rate metrics, while the gait settles
-GRACE_TIME = 1.0  # s: how long in all a walker may break its ground rules before its episode ends
+# s: how long in all a walker may break its ground rules before its episode ends: sized by the reference gait that
+# breaks them most, ik-trot turning hardest (its front knees set down in 16% of its steps, bursts whose largest count
+# is 1.14 s over 20 seeds at -0.2 rad/s; benchmarks/results/ground_rules.md)
+GRACE_TIME = 1.5
 # how fast a ground rule's count drains while the rule is kept, per second of its filling: a gait that breaks a rule
 # more than DRAIN / (1 + DRAIN) of the time (a fifth) fills it for good. With an even drain (1) PPO learned to crawl
 # on BioloidWalk with something other than its feet on the ground in just under half of its steps

@@ -75,7 +75,7 @@ class RoachWalkEnv(SkitterEnv):
     ## Episode End
     - terminated also (``info["fallen"]``) when anything but its feet (its six C-legs) has touched the ground, or its
       body's origin has been outside its height band (0.0084 to 0.0312 m above the ground under it), for longer than
-      ``grace_time`` (1 s) in a leaky count: a step that breaks the rule adds its duration, one that keeps it takes a
+      ``grace_time`` (1.5 s) in a leaky count: a step that breaks the rule adds its duration, one that keeps it takes a
       quarter of that away (``info["contact_time"]``, ``info["band_time"]``; see envs/common/locomotion.py). Off with
       ``terminate_when_unhealthy=False``;
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
@@ -105,7 +105,7 @@ class RoachWalkEnv(SkitterEnv):
     ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode`` (``"human"``, ``"rgb_array"``),
     ``width``, ``height``.
     The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
-    ``grace_time`` (1.0 s).
+    ``grace_time`` (1.5 s).
 
     ## Version History
     - v2: the episode also ends when anything but the feet touches the ground, or the body leaves its height

@@ -91,7 +91,7 @@ class XjusRoughEnv(SkitterEnv):
     ## Episode End
     - terminated also (``info["fallen"]``) when anything but its feet (its six legs) has touched the ground, or its
       body's origin has been outside its height band (0.103 to 0.364 m above the ground under it), for longer than
-      ``grace_time`` (1 s), the ground's height taken from the terrain under the body, in a leaky count: a step that
+      ``grace_time`` (1.5 s), the ground's height taken from the terrain under the body, in a leaky count: a step that
       breaks the rule adds its duration, one that keeps it takes a quarter of that away (``info["contact_time"]``,
       ``info["band_time"]``; see envs/common/locomotion.py). Off with ``terminate_when_unhealthy=False``;
     - terminated when the robot flips (the middle segment tilts ``max_tilt`` from upright, default pi/2) or the

@@ -79,7 +79,7 @@ class XjusWalkEnv(SkitterEnv):
     ## Episode End
     - terminated also (``info["fallen"]``) when anything but its feet (its six legs) has touched the ground, or its
       body's origin has been outside its height band (0.103 to 0.364 m above the ground under it), for longer than
-      ``grace_time`` (1 s) in a leaky count: a step that breaks the rule adds its duration, one that keeps it takes a
+      ``grace_time`` (1.5 s) in a leaky count: a step that breaks the rule adds its duration, one that keeps it takes a
       quarter of that away (``info["contact_time"]``, ``info["band_time"]``; see envs/common/locomotion.py). Off with
       ``terminate_when_unhealthy=False``;
     - terminated when the middle segment tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or
@@ -109,7 +109,7 @@ class XjusWalkEnv(SkitterEnv):
     calibration file from ``calibrate.py --robot xjus``, docs/calibration.md), ``episode_seconds`` (the time limit,
     s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.
     The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
-    ``grace_time`` (1.0 s).
+    ``grace_time`` (1.5 s).
 
     ## Version History
     - v1: the episode also ends when anything but the feet touches the ground, or the body leaves its height
