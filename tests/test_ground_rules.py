@@ -244,3 +244,31 @@ def test_the_optimizer_scores_a_rule_break_as_a_fall():
     ruled, free = scores({}), scores({"terminate_when_unhealthy": False})
     assert ruled["fallen"].all() and ruled["fall_time"] == pytest.approx([0.12, 0.12])  # 0.1 s grace, 50 Hz steps
     assert (free["fall_time"] > 0.3).all() and (free["forward"] > ruled["forward"]).all()
+
+
+def test_a_foot_geom_leaves_the_other_geoms_of_its_body_sensed():
+    """Feet may be geoms: a body that carries one gets a sensor per other colliding geom (named), not one for the
+    body; an unknown foot or an unnamed geom beside a foot is refused by name."""
+    from envs.common.robot import add_ground_contact_sensors
+
+    def spec(knee_name: str = ' name="knee"') -> mujoco.MjSpec:
+        return mujoco.MjSpec.from_string(
+            '<mujoco><worldbody><geom name="floor" type="plane" size="1 1 .1"/>'
+            '<body name="torso" pos="0 0 .3"><freejoint/><geom type="box" size=".1 .05 .02"/>'
+            f'<body name="leg"><geom name="shin" type="capsule" fromto="0 0 0 0 0 -.25" size=".01"/>'
+            f'<geom{knee_name} type="sphere" size=".02"/><geom name="visual" type="sphere" size=".01" contype="0" '
+            'conaffinity="0"/></body></body></worldbody></mujoco>'
+        )
+
+    model_spec = spec()
+    names = add_ground_contact_sensors(model_spec, "torso", ("shin",))
+    assert names == [GROUND_SENSOR + "torso", GROUND_SENSOR + "knee"]
+    model = model_spec.compile()
+    data = mujoco.MjData(model)
+    data.qpos[2] = 0.02  # the leg through the floor, the torso just above it: the knee and the torso touch
+    mujoco.mj_forward(model, data)
+    assert (data.sensordata > 0).all()  # "found": how many contacts (the box corners: four)
+    with pytest.raises(ValueError, match="toe"):
+        add_ground_contact_sensors(spec(), "torso", ("toe",))
+    with pytest.raises(ValueError, match="unnamed"):
+        add_ground_contact_sensors(spec(""), "torso", ("shin",))
