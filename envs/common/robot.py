@@ -128,7 +128,8 @@ def add_ground_contact_sensors(spec: mujoco.MjSpec, root_body: str, feet: Sequen
     world body (the floor, a terrain) and every colliding part of the robot under ``root_body`` that is not a foot:
     one per body, or, on a body that carries a foot geom, one per other colliding geom. ``feet`` names bodies (all
     their geoms) and geoms. The sensors' names, in body order; ValueError if a foot is neither a body nor a geom of
-    the robot, or a geom beside a foot geom has no name."""
+    the robot, or a geom beside a foot geom has no name. Everything of the world body counts as ground: a scene
+    with walls or goals that a robot may touch without breaking a rule puts them in a body of their own."""
     root = spec.body(root_body)
     if root is None:
         raise ValueError(f"the model has no body {root_body!r}")
