@@ -82,7 +82,7 @@ def time_raw(venv, start: np.ndarray, blocks: np.ndarray) -> float:
 
 
 def time_single(env_id: str, actions: np.ndarray) -> float:
-    env = gym.make(env_id, episode_seconds=None, max_tilt=np.pi)  # no time limit
+    env = gym.make(env_id, episode_seconds=None, max_tilt=np.pi, terminate_when_unhealthy=False)  # no time limit
     env.reset(seed=0)
     t0 = time.perf_counter()
     for a in actions:
@@ -95,7 +95,10 @@ def time_subproc(env_id: str, actions: np.ndarray) -> float:
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
     vec = make_vec_env(
-        env_id, n_envs=2, vec_env_cls=SubprocVecEnv, env_kwargs={"episode_seconds": None, "max_tilt": np.pi}
+        env_id,
+        n_envs=2,
+        vec_env_cls=SubprocVecEnv,
+        env_kwargs={"episode_seconds": None, "max_tilt": np.pi, "terminate_when_unhealthy": False},
     )
     vec.reset()
     t0 = time.perf_counter()
@@ -107,9 +110,11 @@ def time_subproc(env_id: str, actions: np.ndarray) -> float:
 
 
 def measure(env_id: str, n: int, threads: int, steps: int, rounds: int, compare_single: bool) -> dict:
-    # no episode ends during the run (max_tilt pi: a fallen robot runs on), so the raw replay needs no resets
+    # no episode ends during the run (max_tilt pi: a fallen robot runs on; the ground rules are computed but end
+    # nothing), so the raw replay needs no resets
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads,
-                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi)  # fmt: skip
+                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi,
+                        terminate_when_unhealthy=False)  # fmt: skip
     gait = venv.unwrapped.robot.action_mode == "gait"
     actions = random_actions(venv.single_action_space, steps, n, gait)
     start, blocks = record(venv, actions)

@@ -94,7 +94,8 @@ def single_ratio(rounds: int) -> dict:
 
 def batched_ratio(n: int, threads: int, rounds: int) -> dict:
     venv = gym.make_vec(WALK, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads,
-                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi)  # fmt: skip
+                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi,
+                        terminate_when_unhealthy=False)  # fmt: skip
     single = gym.make(WALK)
     actions = np.repeat(trot_actions(single, EPISODE // 2)[:, None, :], n, axis=1)
     sim = venv.unwrapped.robot.sim

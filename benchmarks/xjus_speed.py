@@ -121,7 +121,8 @@ def _native_call_rate(env, blocks: np.ndarray, resets: np.ndarray) -> float:
 
 def batched_ratio(env_id: str, n: int, threads: int, rounds: int, **kwargs) -> dict:
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", nthread=threads,
-                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi, **kwargs)  # fmt: skip
+                        max_episode_steps=10**9, episode_seconds=None, max_tilt=np.pi,
+                        terminate_when_unhealthy=False, **kwargs)  # fmt: skip
     single = gym.make(env_id, **kwargs)
     action = walk_actions(single, 1)[0]  # the walk's gait-mode action is constant
     actions = np.broadcast_to(action, (EPISODE // 2, n, action.shape[0])).copy()
