@@ -248,7 +248,7 @@ class LocomotionTask(Task):
         finite (``round`` takes no NaN): :meth:`update` takes those."""
         dt = self._dt
         pos = readings["position"]
-        px, py, _ = pos[0].tolist()
+        px, py, pz = pos[0].tolist()
         w, x, y, z = readings["quaternion"][0].tolist()
         yy = y * y
         yaw = np.arctan2(np.array([2.0 * (w * z + x * y)]), np.array([1.0 - 2.0 * (yy + z * z)]))
@@ -265,9 +265,8 @@ class LocomotionTask(Task):
         speed = np.cos(yaw).item() * x_velocity + np.sin(yaw).item() * y_velocity
         yaw_travel = self._yaw_travel.item() + yaw_step
         yaw_warmup = yaw_travel if elapsed <= METRIC_WARMUP + 1e-9 else self._yaw_warmup.item()
-        ground = self.ground_height(pos)
-        height = pos[0, 2].item() - (ground if isinstance(ground, float) else ground.item())
-        contact = bool(self.robot.non_foot_contact()[0])
+        height = pz - (0.0 if self._ground_height is None else self._ground_height(pos[:, :2]).item())
+        contact = self.robot.non_foot_contact_of(0)
         low, high = self.height_band
         drain = -DRAIN * dt
         contact_time = max(self._contact_time.item() + (dt if contact else drain), 0.0)
@@ -315,10 +314,15 @@ class LocomotionTask(Task):
         """The body tilted past ``max_tilt``; or, unless ``terminate_when_unhealthy`` is off, the leaky count of
         steps with a non-foot ground contact, or of steps with the body outside its height band, passed
         ``grace_time``."""
+        limit = self.grace_time + 1e-9
+        if self._single:  # the same comparisons on Python floats (a tenth of the cost on arrays of one)
+            ended = state["up_z"].item() < self._min_up
+            if self.terminate_when_unhealthy:
+                ended = ended or state["contact_time"].item() > limit or state["band_time"].item() > limit
+            return np.array([ended])
         tilted = state["up_z"] < self._min_up
         if not self.terminate_when_unhealthy:
             return tilted
-        limit = self.grace_time + 1e-9
         return tilted | (state["contact_time"] > limit) | (state["band_time"] > limit)
 
     def ground_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:

@@ -431,6 +431,12 @@ class Robot(ABC):
             return np.zeros(self.num_sims, dtype=bool)
         return self.sim.substep_sensordata[:, :, self._ground_sensors].max(axis=(1, 2)) > 0.0
 
+    def non_foot_contact_of(self, sim: int) -> bool:
+        """:meth:`non_foot_contact` of one simulation, as a bool (the single env's step asks for it)."""
+        if self._ground_sensors is None:
+            return False
+        return bool(self.sim.substep_sensordata[sim, :, self._ground_sensors].max() > 0.0)
+
     def sensor(self, name: str, sensordata: np.ndarray | None = None) -> np.ndarray:
         """Values of the named sensor in every simulation, (num_sims, dim)."""
         sd = self.sim.sensordata if sensordata is None else sensordata
