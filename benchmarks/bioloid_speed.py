@@ -169,9 +169,9 @@ class _Timed:
         self.backend, self.times = backend, times
         self.dimension, self.controller = backend.dimension, backend.controller
 
-    def evaluate(self, parameters):
+    def evaluate(self, parameters, draw: tuple[int, ...] = ()):
         t0 = time.perf_counter()
-        out = self.backend.evaluate(parameters)
+        out = self.backend.evaluate(parameters, draw)
         self.times.append(time.perf_counter() - t0)
         return out
 
