@@ -64,11 +64,12 @@ class BioloidWalkEnv(SkitterEnv):
     ``randomize``, the named physical parameters (``env.unwrapped.robot.parameters``) are drawn at every reset.
 
     ## Episode End
-    - terminated also (``info["fallen"]``) when anything but its feet (each leg from the knee down: the knee servo's
-      case, the crutch and its sole) has touched the ground, or its body's origin has been outside its height band
-      (0.083 to 0.281 m above the ground under it), for longer than ``grace_time`` (1.5 s) in a leaky count: a step that
-      breaks the rule adds its duration, one that keeps it takes a quarter of that away (``info["contact_time"]``,
-      ``info["band_time"]``; see envs/common/locomotion.py). Off with ``terminate_when_unhealthy=False``;
+    - terminated also (``info["fallen"]``) when anything but its feet (each leg's shank below the knee, crutch and sole;
+      not the knee servo, which ik-trot sets down in 12% of its steps) has touched the ground, or its body's origin has
+      been outside its height band (0.083 to 0.281 m above the ground under it), for longer than ``grace_time`` (1.5 s)
+      in a leaky count: a step that breaks the rule adds its duration, one that keeps it takes a quarter of that away
+      (``info["contact_time"]``, ``info["band_time"]``; see envs/common/locomotion.py). Off with
+      ``terminate_when_unhealthy=False``;
     - terminated when the body tilts more than ``max_tilt`` (rad) from upright (``info["fallen"]``), or when the
       simulation goes numerically unstable (``info["sim_unstable"]``: MuJoCo has reset the state; the last good
       step's observation and info are returned, with reward 0);
