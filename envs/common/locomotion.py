@@ -32,7 +32,7 @@ METRIC_WARMUP = 1.0  # s: left out of rate metrics, while the gait settles
 GRACE_TIME = 1.5
 # how fast a ground rule's count drains while the rule is kept, per second of its filling: a gait that breaks a rule
 # more than DRAIN / (1 + DRAIN) of the time (a fifth) fills it for good. With an even drain (1) PPO learned to crawl
-# on BioloidWalk with something other than its feet on the ground in just under half of its steps
+# on BioloidWalk with something other than its feet on the ground in about half of its steps (48-51%)
 DRAIN = 0.25
 _TWO_PI = 2.0 * np.pi
 # the keys of LocomotionTask.update's state, in its order
