@@ -219,7 +219,9 @@ RECOVERY = [
     # the xJüs's case takes half a minute: the calibration matrix runs it (python -m benchmarks.calibration_matrix
     # --robots xjus ..., its configuration in benchmarks/results/calibration_matrix_xjus.md), make test-slow too
     pytest.param("xjus", "viscous_friction_left", 5, False, marks=pytest.mark.slow),
-    ("bioloid", "servo_gain", 3, True),
+    # the Bioloid's case takes a quarter of a minute: the matrix runs it too (--robots bioloid,
+    # benchmarks/results/calibration_matrix_bioloid.md), make test-slow as well
+    pytest.param("bioloid", "servo_gain", 3, True, marks=pytest.mark.slow),
 ]
 
 

@@ -238,7 +238,7 @@ def test_a_killed_run_never_leaves_a_model_without_its_statistics(tmp_path):
     """SIGKILL at several moments after checkpoints begin (timed from the first one, not from the start, so a busy
     machine cannot make the test vacuous): every model file present is whole (weights, statistics and manifest)."""
     found = 0
-    for delay in (0.0, 0.7, 2.0):
+    for delay in (0.0, 1.5):  # at the first checkpoint, and some checkpoints later
         runs = tmp_path / f"runs{delay}"
         command = [sys.executable, str(ROOT / "train.py"), "--env", WALK, "--algo", "ppo", "--timesteps", "100000",
                    "--checkpoint-freq", "2048", "--runs-dir", str(runs), "--no-progress"]  # fmt: skip
