@@ -49,7 +49,6 @@ def run(env_id: str, seeds: list[int], yaw_rate: float | None = None) -> dict:
     low_height, high_height = np.full(n, np.inf), np.full(n, -np.inf)
     by_rule, by_tilt = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     state, start = None, np.ones(n, dtype=bool)
-    limit = task.grace_time + 1e-9
     while running.any():
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         start = np.zeros(n, dtype=bool)
@@ -63,7 +62,7 @@ def run(env_id: str, seeds: list[int], yaw_rate: float | None = None) -> dict:
         low_height = np.where(live, np.minimum(low_height, info["body_height"]), low_height)
         high_height = np.where(live, np.maximum(high_height, info["body_height"]), high_height)
         ended = running & terminated
-        rule = (info["contact_time"] > limit) | (info["band_time"] > limit)
+        rule = task.rules_broken(info["contact_time"], info["band_time"])
         by_rule |= ended & rule
         by_tilt |= ended & ~rule & info["fallen"]
         running &= ~(terminated | truncated)

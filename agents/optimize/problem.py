@@ -281,8 +281,7 @@ class Evaluator:
                 height = readings["position"][:, 2] - self.task.ground_height(readings["position"])
                 contact_time = leaky_count(contact_time, robot.non_foot_contact(), robot.control_dt)
                 band_time = leaky_count(band_time, (height < low) | (height > high), robot.control_dt)
-                limit = self.task.grace_time + 1e-9
-                down |= (contact_time > limit) | (band_time > limit)
+                down |= self.task.rules_broken(contact_time, band_time)
             down &= ~fallen
             if down.any():
                 fall_x[down] = readings["position"][down, 0]

@@ -116,6 +116,7 @@ class LocomotionTask(Task):
         # a robot that declares no band (and no band given) has none: the band rule never fires
         self.height_band = (-math.inf, math.inf) if band is None else check_band(band)
         self.grace_time = check_number("grace_time", grace_time, 0)
+        self._count_limit = self.grace_time + 1e-9  # a count past it ends the episode (the sum of steps may round)
         self._ground_height = ground_height
         n = robot.num_sims
         self.length = robot.facts.length
@@ -128,6 +129,7 @@ class LocomotionTask(Task):
         self._contact_time, self._band_time = np.zeros(n), np.zeros(n)
         self._contact_steps, self._height_sum, self._steps = np.zeros(n), np.zeros(n), np.zeros(n)
         self._dt = robot.control_dt
+        self._drain_step = -DRAIN * robot.control_dt  # what a step that keeps a rule takes from its count
         self._rate = 1.0 / robot.control_dt
         self._single = n == 1
         super().__init__(robot)
@@ -268,7 +270,7 @@ class LocomotionTask(Task):
         height = pz - (0.0 if self._ground_height is None else self._ground_height(pos[:, :2]).item())
         contact = self.robot.non_foot_contact_of(0)
         low, high = self.height_band
-        drain = -DRAIN * dt
+        drain = self._drain_step
         contact_time = max(self._contact_time.item() + (dt if contact else drain), 0.0)
         band_time = max(self._band_time.item() + (dt if height < low or height > high else drain), 0.0)
         values = [
@@ -314,16 +316,20 @@ class LocomotionTask(Task):
         """The body tilted past ``max_tilt``; or, unless ``terminate_when_unhealthy`` is off, the leaky count of
         steps with a non-foot ground contact, or of steps with the body outside its height band, passed
         ``grace_time``."""
-        limit = self.grace_time + 1e-9
         if self._single:  # the same comparisons on Python floats (a tenth of the cost on arrays of one)
             ended = state["up_z"].item() < self._min_up
             if self.terminate_when_unhealthy:
+                limit = self._count_limit
                 ended = ended or state["contact_time"].item() > limit or state["band_time"].item() > limit
             return np.array([ended])
         tilted = state["up_z"] < self._min_up
         if not self.terminate_when_unhealthy:
             return tilted
-        return tilted | (state["contact_time"] > limit) | (state["band_time"] > limit)
+        return tilted | self.rules_broken(state["contact_time"], state["band_time"])
+
+    def rules_broken(self, contact_time: np.ndarray, band_time: np.ndarray) -> np.ndarray:
+        """Where a ground rule's leaky count has passed the grace (whether or not the rules end episodes)."""
+        return (contact_time > self._count_limit) | (band_time > self._count_limit)
 
     def ground_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
         """The episode's fraction of steps with a non-foot ground contact and mean body height (NaN before a step)."""
