@@ -424,7 +424,10 @@ def test_null_noise_only_chooses_nothing(robot: str, seed: int):
     assert result.after.error < result.threshold and not result.unexplained, result.after.error
 
 
-@pytest.mark.parametrize(("robot", "seed"), [("servo", 14), pytest.param("motor", 14, marks=SLOW),
+# every out-of-catalog case is slow (the servo rig's takes a quarter of a minute): the matrix runs them all
+# (--kinds ooc; benchmarks/results/calibration_matrix_roach_motor_servo.md), make test-slow too
+@pytest.mark.parametrize(("robot", "seed"), [pytest.param("servo", 14, marks=SLOW),
+                                             pytest.param("motor", 14, marks=SLOW),
                                              pytest.param("xjus", 22, marks=SLOW),
                                              pytest.param("bioloid", 22, marks=SLOW)])  # fmt: skip
 def test_out_of_catalog_disturbance_is_unexplained(robot: str, seed: int):
