@@ -11,6 +11,7 @@ batch's expanded model fields.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 
 import mujoco
 import numpy as np
@@ -90,6 +91,16 @@ class BatchSimulation:
         b.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         for name, value in state.items():
             b.bind(name)[ids] = value
+        b.forward(ids)
+        self.substep_sensordata[ids] = self._sensordata[ids][:, None, :]
+
+    def write(self, ids: np.ndarray, columns: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+        """Write some entries of the state of simulations ``ids``, keep the rest, and compute their derived
+        quantities: name (qpos, qvel, act, ctrl) -> (indices, values), each (len(ids), count)."""
+        b = self.batch
+        rows = np.asarray(ids)[:, None]
+        for name, (cols, values) in columns.items():
+            b.bind(name)[rows, cols] = values
         b.forward(ids)
         self.substep_sensordata[ids] = self._sensordata[ids][:, None, :]
 

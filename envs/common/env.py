@@ -97,6 +97,7 @@ class SkitterEnv(gym.Env):
         if self.randomize:
             self.parameter_values = sample(self.randomize, self.np_random)
             self.robot.set_parameters(self._ids, self.parameter_values)
+        self.task.prepare_reset(self._ids, rngs, options)
         self.robot.reset(self._ids, rngs, self.reset_noise_scale, options)
         readings = self.robot.read(rngs, stepped=False)
         self.task.reset(self._ids, rngs, options, readings)
@@ -137,7 +138,8 @@ class SkitterEnv(gym.Env):
             self.recorder.record(self.robot.telemetry(readings)[0])
         if self.render_mode == "human":
             self.render()
-        info = self._info(readings, self.task.info(readings, state), terms, terminated)
+        fallen = bool(self.task.fell(state, np.array([terminated]))[0]) if terminated else False
+        info = self._info(readings, self.task.info(readings, state), terms, fallen)
         self._last_info = info.copy()
         return obs.copy(), reward, terminated, False, info
 
@@ -163,7 +165,7 @@ class SkitterEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        body = self.model.body(self.robot.root_body).id
+        body = self.model.body(self.tracked_body()).id
         if self._renderer is None and self.render_mode == "human":
             from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
 
@@ -175,6 +177,10 @@ class SkitterEnv(gym.Env):
         if self.render_mode == "human":
             return self._renderer.render(self.render_mode)
         return self._renderer.render(self.data)
+
+    def tracked_body(self) -> str:
+        """The body the camera follows: the robot's root."""
+        return self.robot.root_body
 
     def camera_config(self) -> dict[str, Any]:
         """The tracking camera, scaled to the robot's length (``MjvCamera`` fields)."""

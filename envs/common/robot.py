@@ -59,6 +59,21 @@ def batched_robots(num_sims: int, nthread: int | None = None) -> Iterator[None]:
         _BATCH.reset(token)
 
 
+# the shared scene (envs/common/match.py) that robots built inside `hosted_robots` run on, as its players
+_HOST: ContextVar[Any] = ContextVar("skitter_host", default=None)
+
+
+@contextmanager
+def hosted_robots(scene: Any) -> Iterator[None]:
+    """Robots built inside this block are the players of ``scene`` (a :class:`envs.common.match.SharedScene`): one
+    robot object for its ``num_sims`` players, whose simulation is the scene's view of them."""
+    token = _HOST.set(scene)
+    try:
+        yield
+    finally:
+        _HOST.reset(token)
+
+
 @dataclass(frozen=True)
 class ActionMode:
     """One way to command a robot: named command entries with their physical bounds.
@@ -246,7 +261,10 @@ class Robot(ABC):
         calibration: str | Path | Calibration | None = None,
     ):
         self.calibration = None if calibration is None else self.load_calibration(calibration)
+        host = _HOST.get()
         context = _BATCH.get()
+        if host is not None:  # a scene's players: their count and batching are the scene's
+            num_sims, batched, context = host.num_sims, host.batched, None
         if num_sims is None:
             num_sims, nthread = context if context is not None else (1, nthread)
             batched = context is not None if batched is None else batched
@@ -278,6 +296,7 @@ class Robot(ABC):
                 edit(spec)
         for edit in spec_edits:
             edit(spec)
+        player_spec = spec.copy() if host is not None else None  # a scene adds each player's own ground sensors
         ground_sensors = add_ground_contact_sensors(spec, self.root_body, self.feet) if self.feet is not None else []
         # the spec as it compiles, kept uncompiled: the base of compile_with and the source of model_hash (writing
         # the MJCF out to hash it takes longer than compiling it, so only a record that asks for the hash pays)
@@ -292,7 +311,8 @@ class Robot(ABC):
         self._ground_sensors = slice(starts[0], starts[-1] + 1) if starts else None
         if starts and starts != list(range(starts[0], starts[-1] + 1)):
             raise RuntimeError(f"{self.name}: the ground contact sensors are not one run of sensordata")
-        self.sim = self.make_simulation()
+        self.hosted = host is not None
+        self.sim = host.host(self, player_spec) if host is not None else self.make_simulation()
         self.setup()
         self.parameters = self.build_parameters(self.model)
         self.parameters.remember_nominal(self.model)
@@ -444,6 +464,8 @@ class Robot(ABC):
 
     def set_parameters(self, ids: np.ndarray, values: Mapping[str, float]) -> None:
         """Set named physical parameters for simulations ``ids``; parameters not named return to nominal."""
+        if self.hosted:
+            raise ValueError(f"{self.name}: robots on a shared scene take no per-robot physical parameters")
         unknown = set(values) - set(self.parameters.names())
         if unknown:
             raise ValueError(f"{self.name}: unknown parameters {sorted(unknown)}; known: {self.parameters.names()}")

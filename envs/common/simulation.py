@@ -11,6 +11,8 @@ robots and tasks on ``mujoco.batch.Batch``; both give arrays with a leading simu
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import mujoco
 import numpy as np
 from mujoco import rollout
@@ -91,6 +93,14 @@ class Simulation:
             getattr(d, name)[:] = value[0]
         mujoco.mj_forward(m, d)
         self.substep_sensordata[:] = d.sensordata
+
+    def write(self, ids: np.ndarray, columns: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+        """Write some entries of the state of simulations ``ids`` (here [0]), keep the rest, and compute the derived
+        quantities: name (qpos, qvel, act, ctrl) -> (indices, values), each (len(ids), count)."""
+        for name, (cols, values) in columns.items():
+            getattr(self.data, name)[cols[0]] = values[0]
+        mujoco.mj_forward(self.model, self.data)
+        self.substep_sensordata[:] = self.data.sensordata
 
     def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control block in ``ctrl``. Returns, per simulation, whether it stayed numerically stable; an

@@ -72,6 +72,12 @@ class Task(ABC):
     def observation_structure(self) -> dict[str, int]:
         """name -> size of every part of the observation, in order (the robot's senses first)."""
 
+    def prepare_reset(  # noqa: B027 (an optional hook)
+        self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None
+    ) -> None:
+        """Before the robot resets in simulations ``ids``: draw what its reset depends on (where a soccer task puts
+        the robot and the ball). Nothing by default."""
+
     @abstractmethod
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
         """Start episodes in simulations ``ids``: draw their commands, zero their running sums."""
@@ -92,7 +98,12 @@ class Task(ABC):
 
     @abstractmethod
     def terminated(self, state: dict[str, np.ndarray]) -> np.ndarray:
-        """(n,) bool: the episode ends (the robot fell)."""
+        """(n,) bool: the episode ends (the robot fell, or the task ended it)."""
+
+    def fell(self, state: dict[str, np.ndarray], terminated: np.ndarray) -> np.ndarray:
+        """(n,) bool: which of the ``terminated`` episodes ended in a fall (``info["fallen"]``): all of them, unless
+        the task also ends episodes on success."""
+        return terminated
 
     def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per-simulation values for ``info`` (beside the reward terms)."""

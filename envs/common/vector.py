@@ -144,7 +144,8 @@ class SkitterVectorEnv(VectorEnv):
         self._obs = obs
         if self.recorders is not None:
             self._record(readings, unstable, reset_ids)
-        infos = self._infos(readings, self.task.info(readings, state), terms, terminated & stable, reset_ids, unstable)
+        fallen = self.task.fell(state, terminated & stable) & terminated & stable
+        infos = self._infos(readings, self.task.info(readings, state), terms, fallen, reset_ids, unstable)
         if unstable.any():  # MuJoCo has reset those simulations: their pose is the last good one
             for key, last in self._pose.items():
                 infos[key] = np.where(unstable.reshape(-1, *[1] * (last.ndim - 1)), last, infos[key])
@@ -175,6 +176,7 @@ class SkitterVectorEnv(VectorEnv):
             for i in ids:
                 self.parameter_values[i] = sample(self.env.randomize, self.rngs[i])
                 self.robot.set_parameters(np.array([i]), self.parameter_values[i])
+        self.task.prepare_reset(ids, [self.rngs[i] for i in ids], options)
         self.robot.reset(ids, [self.rngs[i] for i in ids], self.env.reset_noise_scale, options)
 
     def _mask(self, ids: np.ndarray, value: bool) -> np.ndarray:
@@ -250,7 +252,7 @@ class SkitterVectorEnv(VectorEnv):
         if self._renderer is None:
             model = self._render_model = sim.batch.get_model(self.render_sim)
             self._render_data = mujoco.MjData(model)
-            camera = tracking_camera(model, self.env.camera_config(), model.body(self.robot.root_body).id)
+            camera = tracking_camera(model, self.env.camera_config(), model.body(self.env.tracked_body()).id)
             self._renderer = FrameRenderer(model, camera, self.env._width, self.env._height)
         sim.batch.get_data(self.render_sim, self._render_data)
         mujoco.mj_forward(self._render_model, self._render_data)

@@ -1,0 +1,343 @@
+"""The soccer academy: one robot on its soccer field, with a ball, learning the game's first skills.
+
+``<Robot>GoToBall``: reach the ball and touch it. ``<Robot>ScoreEmptyGoal``: put the ball into the empty goal at +x.
+Both run the robot's own action modes and keep the walking tasks' ground rules and falls (a crawler or a faller ends
+its episode), on the robot's field (envs/soccer/field.py) in a :class:`~envs.common.match.SharedScene` of one player.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from envs.common.env import SkitterEnv, entry_point
+from envs.common.imu import ImuNoise
+from envs.common.locomotion import GRACE_TIME, LocomotionTask
+from envs.common.match import SharedScene
+from envs.common.robot import Robot, check_flag, check_number
+from envs.common.vector import vector_entry_point
+from envs.soccer.field import BALL, BALL_POS, BALL_VEL, TOUCH, Field, field_edit
+
+PLAYER = "home_0"  # the academy's one player: the home team's, attacking the goal at +x
+EPISODE_SECONDS = 20.0
+APPROACH_WEIGHT = 0.1  # per body length closed: 10 lengths nearer the ball are worth a goal
+PROGRESS_WEIGHT = 0.2  # per body length the ball moves nearer the goal's centre
+BALL_NOISE = 0.05  # the ball's observed position: N(0, 5% of its distance) per axis, as a camera's range error grows
+
+
+class SoccerTask(LocomotionTask):
+    """A robot and a ball on a field: what the academy's tasks share (observations, the ball, goals, placement).
+
+    Observations: the robot's senses, its heading against the attacked goal's direction (+x: its integrated gyro from
+    its known heading at kickoff), then the ball's position and velocity in the robot's frame (noisy), whether it sees
+    the ball, and the centres of the goal it attacks and of its own goal in its frame.
+    """
+
+    metrics: ClassVar[dict[str, str]] = {
+        **LocomotionTask.metrics,
+        "success": "1 if the episode ended in the task's success (the ball touched, a goal scored), else 0",
+        "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
+    }
+
+    def __init__(
+        self,
+        robot: Robot,
+        scene: SharedScene,
+        field: Field,
+        sparse: bool = False,
+        ball_noise: float = BALL_NOISE,
+        field_of_view: float | None = None,
+        max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+    ):
+        self.scene, self.field = scene, field
+        self.sparse = check_flag("sparse", sparse)
+        self.ball_noise = check_number("ball_noise", ball_noise, 0)
+        self.field_of_view = (
+            None if field_of_view is None else check_number("field_of_view", field_of_view, 0, 2 * math.pi, True)
+        )
+        n = robot.num_sims
+        self._ball_obs = np.zeros((n, 5))
+        self._start_yaw = np.zeros(n)
+        self._ball_distance = np.zeros(n)
+        self._goal_distance = np.zeros(n)
+        self._touch = f"{TOUCH}{PLAYER}"
+        super().__init__(robot, False, 0.0, max_tilt, terminate_when_unhealthy, height_band, grace_time)
+        self._generators: list[np.random.Generator | None] = [None] * n
+        self._goals_obs = np.zeros((n, 4))
+
+    # --- layout ---------------------------------------------------------------------------------------------------
+    def _command_structure(self) -> dict[str, int]:
+        return {"ball": 2, "ball_velocity": 2, "ball_visible": 1, "goal": 2, "own_goal": 2}
+
+    def _command_obs(self) -> list[np.ndarray]:
+        return [self._ball_obs, self._goals_obs]
+
+    def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
+        # the heading error is the field heading (gyro heading + heading at kickoff) against +x
+        return -self._start_yaw
+
+    # --- placing --------------------------------------------------------------------------------------------------
+    def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
+        """Draw (or take from ``options``: ``robot`` (x, y, heading), ``ball`` (x, y)) the robot's and the ball's
+        places for the episodes starting in ``ids``, before the robot resets."""
+        options = options or {}
+        length = self.robot.facts.length
+        radius = self.field.ball.radius
+        for i, rng in zip(ids, rngs, strict=True):
+            robot_place, ball_xy = self.draw_places(rng, length)
+            if "robot" in options:
+                robot_place = self._option_place(options["robot"], 3, "robot")
+            if "ball" in options:
+                ball_xy = self._option_place(options["ball"], 2, "ball")
+            self.scene.placement[i] = robot_place
+            self._start_yaw[i] = robot_place[2]
+            self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
+
+    def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
+        """((x, y, heading) of the robot, (x, y) of the ball) for one episode."""
+        raise NotImplementedError
+
+    def _option_place(self, value: Any, size: int, name: str) -> np.ndarray:
+        place = np.asarray(value, dtype=np.float64) if not isinstance(value, str | bytes) else np.zeros(0)
+        hl, hw = self.field.half_length, self.field.half_width
+        if place.shape != (size,) or not np.isfinite(place).all() or abs(place[0]) > hl or abs(place[1]) > hw:
+            raise ValueError(
+                f"options[{name!r}] must be {size} finite numbers with x, y inside the field "
+                f"(|x| <= {hl:g}, |y| <= {hw:g} m), got {value!r}"
+            )
+        return place
+
+    def _inside(self, xy: np.ndarray, margin: float) -> np.ndarray:
+        """``xy`` moved inside the field's lines by at least ``margin``."""
+        hl, hw = self.field.half_length - margin, self.field.half_width - margin
+        return np.array([np.clip(xy[0], -hl, hl), np.clip(xy[1], -hw, hw)])
+
+    # --- the contract ---------------------------------------------------------------------------------------------
+    def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
+        super().reset(ids, rngs, options, readings)
+        for i, rng in zip(ids, rngs, strict=True):  # each simulation's stream, for the ball's noise at every step
+            self._generators[i] = rng
+        ball, to_goal = self._ball_state(readings)
+        self._ball_distance[ids] = ball["distance"][ids]
+        self._goal_distance[ids] = to_goal[ids]
+        self._observe_ball(readings, ball, ids)
+
+    def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        state = super().update(readings, stepped)
+        ball, to_goal = self._ball_state(readings)
+        length = self.length
+        ids = np.arange(self.robot.num_sims) if stepped is None else np.flatnonzero(stepped)
+        approach = (self._ball_distance - ball["distance"]) / length
+        progress = (self._goal_distance - to_goal) / length
+        self._ball_distance, self._goal_distance = ball["distance"], to_goal
+        scored, conceded = self._goals()
+        touched = self.scene.scene_sensor(self._touch, substeps=True).max(axis=(1, 2)) > 0
+        self._observe_ball(readings, ball, ids)
+        return {
+            **state,
+            "ball_x": ball["position"][:, 0].copy(),
+            "ball_y": ball["position"][:, 1].copy(),
+            "ball_distance": ball["distance"] / length,
+            "approach": approach,
+            "ball_progress": progress,
+            "scored": scored.astype(np.float64),
+            "conceded": conceded.astype(np.float64),
+            "touched": touched.astype(np.float64),
+        }
+
+    def _ball_state(self, readings: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        position = self.scene.scene_sensor(BALL_POS)
+        velocity = self.scene.scene_sensor(BALL_VEL)
+        offset = position[:, :2] - readings["position"][:, :2]
+        goal = np.array([self.field.half_length, 0.0])
+        to_goal = np.hypot(*(goal - position[:, :2]).T)
+        return {"position": position, "velocity": velocity, "offset": offset,
+                "distance": np.hypot(offset[:, 0], offset[:, 1])}, to_goal  # fmt: skip
+
+    def _goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """(scored, conceded) per simulation: whether the whole ball was past a goal line, between the posts and
+        under the crossbar, at any physics step of the last control step."""
+        f = self.field
+        path = self.scene.scene_sensor(BALL_POS, substeps=True)
+        x, y, z = path[..., 0], path[..., 1], path[..., 2]
+        mouth = (np.abs(y) < 0.5 * f.goal_width) & (z < f.goal_height)
+        line = f.half_length + f.ball.radius
+        return ((x > line) & mouth).any(axis=1), ((x < -line) & mouth).any(axis=1)
+
+    def _observe_ball(self, readings, ball, ids: np.ndarray) -> None:
+        """The ball as the robot sees it, in its own frame, and the goals' centres."""
+        quat = readings["quaternion"]
+        w, z = quat[:, 0], quat[:, 3]
+        yaw = np.arctan2(2.0 * (w * z + quat[:, 1] * quat[:, 2]), 1.0 - 2.0 * (quat[:, 2] ** 2 + z * z))
+        c, s = np.cos(yaw), np.sin(yaw)
+
+        def frame(vec: np.ndarray) -> np.ndarray:
+            return np.stack([c * vec[:, 0] + s * vec[:, 1], -s * vec[:, 0] + c * vec[:, 1]], axis=1)
+
+        seen = frame(ball["offset"])
+        velocity = frame(ball["velocity"][:, :2])
+        for i in ids:
+            sigma = self.ball_noise * ball["distance"][i]
+            if sigma > 0:
+                seen[i] += self._generators[i].normal(0.0, sigma, 2)
+                velocity[i] += self._generators[i].normal(0.0, sigma, 2)
+        visible = np.ones(len(yaw))
+        if self.field_of_view is not None:
+            visible = (np.abs(np.arctan2(seen[:, 1], seen[:, 0])) <= 0.5 * self.field_of_view).astype(np.float64)
+        self._ball_obs[ids] = np.concatenate([seen * visible[:, None], velocity * visible[:, None],
+                                              visible[:, None]], axis=1)[ids]  # fmt: skip
+        pos = readings["position"][:, :2]
+        hl = self.field.half_length
+        self._goals_obs = np.concatenate([frame(np.array([hl, 0.0]) - pos), frame(np.array([-hl, 0.0]) - pos)], axis=1)
+
+    def terminated(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        return super().terminated(state) | self.success(state).astype(bool) | (state["conceded"] > 0)
+
+    def success(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        raise NotImplementedError
+
+    def fell(self, state: dict[str, np.ndarray], terminated: np.ndarray) -> np.ndarray:
+        return terminated & ~self.success(state) & ~(state["conceded"] > 0)
+
+    def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {**state, "success": self.success(state).astype(np.float64)}
+
+    def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
+        return {**self.ground_metrics(info), "success": float(info.get("success", 0.0)),
+                "ball_distance": float(info.get("ball_distance", float("nan")))}  # fmt: skip
+
+
+class GoToBallTask(SoccerTask):
+    """Reach the ball and touch it: +1 on the touch (the episode ends), and the distance closed as shaping."""
+
+    name = "go_to_ball"
+
+    def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
+        margin = 2.0 * length
+        ball = self._inside(rng.uniform(-1.0, 1.0, 2) * [self.field.half_length, self.field.half_width], margin)
+        bearing = rng.uniform(-np.pi, np.pi)
+        robot = self._inside(ball + rng.uniform(2.0, 8.0) * length * np.array([np.cos(bearing), np.sin(bearing)]),
+                             margin)  # fmt: skip
+        return np.array([*robot, rng.uniform(-np.pi, np.pi)]), ball
+
+    def success(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        return state["touched"] > 0
+
+    def reward_terms(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        terms = {"touch": state["touched"].copy(), "conceded": -state["conceded"]}
+        if not self.sparse:
+            terms["approach"] = APPROACH_WEIGHT * state["approach"]
+        return terms
+
+
+class ScoreEmptyGoalTask(SoccerTask):
+    """Score into the empty goal at +x: +1 on a goal (the episode ends; -1 for an own goal), and the distance closed
+    to the ball and the ball's progress toward the goal as shaping."""
+
+    name = "score_empty_goal"
+
+    def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
+        f = self.field
+        ball = np.array([f.half_length - rng.uniform(1.5, 5.0) * length,
+                         rng.uniform(-1.0, 1.0) * (0.5 * f.goal_width + 1.5 * length)])  # fmt: skip
+        ball = self._inside(ball, length)
+        away = ball - np.array([f.half_length, 0.0])
+        bearing = math.atan2(away[1], away[0]) + rng.uniform(-1.0, 1.0)  # behind the ball, seen from the goal
+        robot = self._inside(ball + rng.uniform(1.5, 3.0) * length * np.array([np.cos(bearing), np.sin(bearing)]),
+                             0.5 * length)  # fmt: skip
+        facing = math.atan2(*(ball - robot)[::-1]) + rng.uniform(-0.8, 0.8)
+        return np.array([*robot, facing]), ball
+
+    def success(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        return state["scored"] > 0
+
+    def reward_terms(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        terms = {"goal": state["scored"] - state["conceded"]}
+        if not self.sparse:
+            terms["approach"] = APPROACH_WEIGHT * state["approach"]
+            terms["ball_progress"] = PROGRESS_WEIGHT * state["ball_progress"]
+        return terms
+
+
+class AcademyEnv(SkitterEnv):
+    """A robot alone on its soccer field with a ball (see :class:`SoccerTask`); subclasses name the robot and task."""
+
+    task_class: ClassVar[type[SoccerTask]]
+    field: ClassVar[Field]
+
+    def __init__(
+        self,
+        make_robot: Callable[..., Robot],
+        robot_args: Mapping[str, Any],
+        sparse: bool = False,
+        ball_noise: float = BALL_NOISE,
+        field_of_view: float | None = None,
+        max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+        reset_noise_scale: float = 0.1,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+    ):
+        robot_class = make_robot
+        scene = SharedScene(
+            lambda: robot_class(**robot_args), [PLAYER], [field_edit(self.field, [PLAYER], robot_class.root_body)]
+        )
+        self.scene = scene
+        task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
+                               terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
+        super().__init__(scene.robot, task, reset_noise_scale, None, False, render_mode, width, height)
+
+    @property
+    def model(self):
+        return self.scene.model
+
+    def tracked_body(self) -> str:
+        return f"{PLAYER}/{self.robot.root_body}"
+
+
+def make_academy(robot_class: type[Robot], field: Field, task_class: type[SoccerTask], title: str) -> type[AcademyEnv]:
+    """The academy env of a robot and a task (its docstring: :class:`AcademyEnv`'s sections, filled in)."""
+
+    def __init__(
+        self,
+        action_mode: str | None = None,
+        control_freq: float | None = None,
+        sensor_noise: bool = True,
+        sparse: bool = False,
+        ball_noise: float = BALL_NOISE,
+        field_of_view: float | None = None,
+        max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+        reset_noise_scale: float = 0.1,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+    ):
+        mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
+        args = {"action_mode": mode, "control_freq": control_freq,
+                "imu_noise": ImuNoise() if check_flag("sensor_noise", sensor_noise) else None}  # fmt: skip
+        AcademyEnv.__init__(self, robot_class, args, sparse, ball_noise, field_of_view, max_tilt,
+                            terminate_when_unhealthy, height_band, grace_time, reset_noise_scale, render_mode, width,
+                            height)  # fmt: skip
+
+    name = f"{title}Env"
+    attributes = {"__init__": __init__, "task_class": task_class, "field": field, "__module__": __name__,
+                  "__qualname__": name, "__doc__": f"{title}: {task_class.__doc__}"}  # fmt: skip
+    env_class = type(name, (AcademyEnv,), attributes)
+    # the class and its entry points are attributes of this module: registered by name, pickled by name
+    env_class.make_env_name, env_class.make_batched_name = f"make_{name}", f"make_batched_{name}"
+    globals()[name] = env_class
+    globals()[env_class.make_env_name] = entry_point(env_class)
+    globals()[env_class.make_batched_name] = vector_entry_point(env_class)
+    return env_class

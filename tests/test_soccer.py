@@ -1,0 +1,173 @@
+"""Soccer: robots sharing a scene, the fields and balls, and the academy tasks."""
+
+import math
+import pickle
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+from envs.bioloid.robot import Bioloid
+from envs.common.match import SharedScene
+from envs.common.vector import SkitterVectorEnv
+from envs.soccer import ACADEMY, FIELDS, academy
+from envs.soccer.field import BALL, FOUR_LEGGED, field_edit, measure_bounce, measure_deceleration
+from envs.velociroach.robot import VelociRoach
+from envs.xjus.robot import Xjus
+
+ROBOTS = {"Roach": VelociRoach, "Xjus": Xjus, "Bioloid": Bioloid}
+
+
+def run(robot, actions: np.ndarray, seed: int = 1) -> np.ndarray:
+    rngs = [np.random.default_rng(seed + i) for i in range(robot.num_sims)]
+    robot.reset(np.arange(robot.num_sims), rngs, 0.1, None)
+    for action in actions:
+        robot.command(robot.mode.to_command(np.broadcast_to(action, (robot.num_sims, robot.mode.size))))
+        robot.step()
+        robot.read(rngs)
+    return robot.sim.substep_sensordata.copy()
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_a_robot_alone_on_a_shared_scene_is_the_robot_bit_for_bit(name):
+    """The scene's view gives the robot its own rows: its firmware, senses and physics run unchanged."""
+    robot_class = ROBOTS[name]
+    alone = robot_class()
+    actions = np.random.default_rng(0).uniform(-1, 1, (25, alone.mode.size))
+    scene = SharedScene(robot_class, ["p"])
+    np.testing.assert_array_equal(run(alone, actions), run(scene.robot, actions))
+
+
+def test_players_are_placed_and_the_scene_batches_bit_for_bit():
+    """Two players, the second placed turned by 90 degrees, run as a turned copy of the first; two scenes on a batch
+    give the same numbers as one scene each."""
+    actions = np.random.default_rng(1).uniform(-1, 1, (20, 16))
+    scenes = []
+    for num_scenes, batched in ((2, True), (1, False)):
+        scene = SharedScene(Bioloid, ["a", "b"], num_scenes=num_scenes, batched=batched)
+        scene.placement[:] = np.tile([[0.0, 0.0, 0.0], [3.0, 1.0, math.pi / 2]], (num_scenes, 1))
+        rngs = [np.random.default_rng(7) for _ in range(scene.num_sims)]
+        scene.robot.reset(np.arange(scene.num_sims), rngs, 0.0, None)
+        for action in actions:
+            scene.robot.command(scene.robot.mode.to_command(np.broadcast_to(action, (scene.num_sims, 16))))
+            scene.robot.step()
+        scenes.append(scene.robot.read(rngs))
+    batched, single = scenes
+    np.testing.assert_array_equal(batched["position"][:2], single["position"])
+    np.testing.assert_array_equal(batched["position"][:2], batched["position"][2:])
+    a, b = single["position"]
+    np.testing.assert_allclose(b, [3.0 - a[1], 1.0 + a[0], a[2]], atol=1e-9)
+
+
+def test_a_player_reset_alone_leaves_the_others_and_the_ball():
+    scene = SharedScene(Bioloid, ["a", "b"], [field_edit(FOUR_LEGGED, ["a", "b"], "BODY")])
+    scene.placement[:] = [[-1.0, 0.0, 0.0], [1.0, 0.0, math.pi]]
+    scene.place_object(np.array([0]), BALL, np.array([[0.0, 0.5, 0.2]]), np.array([[0.3, 0.0, 0.0]]))
+    robot = scene.robot
+    rngs = [np.random.default_rng(i) for i in range(2)]
+    robot.reset(np.arange(2), rngs, 0.1, None)
+    for _ in range(10):
+        robot.command(np.tile(robot.ready_counts, (2, 1)))
+        robot.step()
+    data = scene.sim.data
+    before = data.qpos.copy()
+    scene.placement[1] = [2.0, -1.0, 0.0]
+    robot.reset(np.array([1]), rngs[1:], 0.0, None)
+    nq = robot.model.nq  # each player's block
+    np.testing.assert_array_equal(data.qpos[:nq], before[:nq])  # the other player
+    np.testing.assert_array_equal(data.qpos[2 * nq :], before[2 * nq :])  # the ball
+    np.testing.assert_allclose(robot.read(rngs, False)["position"][1, :2], [2.0, -1.0])
+
+
+@pytest.mark.parametrize("name", sorted(FIELDS))
+def test_each_ball_bounces_and_rolls_as_its_numbers_say(name):
+    """In the robot's own scene and physics options: the restitution (table-tennis rules' drop test) within 0.05
+    and the rolling deceleration within 10% of C_rr g / (1 + I / (m r^2))."""
+    field = FIELDS[name]
+    scene = SharedScene(ROBOTS[name], ["p"], [field_edit(field, ["p"], ROBOTS[name].root_body)])
+    ball = field.ball
+    at = (-0.25 * field.length, 0.25 * field.width)  # clear of the player at the centre spot
+    bounces = [measure_bounce(scene.model, k * ball.radius, BALL, at) for k in (5, 10, 20)]
+    assert abs(np.mean(bounces) - ball.restitution) < 0.05, bounces
+    rate = measure_deceleration(scene.model, 2.0 * ball.deceleration(), 0.5, BALL, at)
+    assert rate == pytest.approx(ball.deceleration(), rel=0.1)
+
+
+def test_the_fields_scale_with_the_robots():
+    bioloid, xjus, roach = FIELDS["Bioloid"], FIELDS["Xjus"], FIELDS["Roach"]
+    assert (bioloid.length, bioloid.width, bioloid.goal_width) == (5.4, 3.6, 0.8)
+    assert xjus.length == pytest.approx(5.4 * 0.53 / 0.30) and roach.goal_width == pytest.approx(0.8 / 3)
+    assert roach.ball.radius == 0.020 and roach.ball.mass == 0.0027
+
+
+def make(env_id: str, **kwargs):
+    (entry,) = [e for e in ACADEMY if e["id"] == env_id]
+    name = entry["entry_point"].split(":")[1]
+    return getattr(academy, name)(**kwargs)
+
+
+def test_a_goal_is_seen_between_control_steps_and_ends_the_episode():
+    """The ball rolled fast at the goal: a goal at the physics rate, +1, success and no fall; the other way an own
+    goal, -1."""
+    env = make("skitter/RoachScoreEmptyGoal-v1")
+    field = FIELDS["Roach"]
+    hl = field.half_length
+    for side, key, reward in ((1, "scored", 1.0), (-1, "conceded", -1.0)):
+        env.reset(seed=0, options={"robot": [0.0, 0.3, 0.0], "ball": [side * (hl - 0.05), 0.0]})
+        env.unwrapped.scene.sim.data.qvel[env.unwrapped.scene.objects[BALL][1]] = side * 3.0
+        ended = None
+        for _ in range(20):
+            *_, terminated, _, info = env.step(np.zeros(env.action_space.shape))
+            if terminated:
+                ended = info
+                break
+        assert ended is not None and ended[key] == 1.0 and ended["reward_goal"] == reward
+        assert ended["fallen"] is False and ended["success"] == (1.0 if side > 0 else 0.0)
+
+
+def test_the_academy_envs_step_reset_and_pickle():
+    for entry in ACADEMY:
+        env = make(entry["id"])
+        obs, _ = env.reset(seed=3)
+        assert obs.shape == env.observation_space.shape and np.isfinite(obs).all()
+        layout = env.unwrapped.task.layout
+        assert {"ball", "goal", "own_goal", "heading_error"} <= set(layout.slices)
+        obs, reward, *_ = env.step(env.action_space.sample())
+        assert np.isfinite(obs).all() and np.isfinite(reward)
+    again = pickle.loads(pickle.dumps(env))
+    np.testing.assert_array_equal(again.reset(seed=5)[0], env.reset(seed=5)[0])
+
+
+def test_batched_academy_envs_are_the_single_ones():
+    name = "skitter/BioloidScoreEmptyGoal-v1"
+    (entry,) = [e for e in ACADEMY if e["id"] == name]
+    venv = getattr(academy, entry["vector_entry_point"].split(":")[1])(num_envs=2)
+    assert isinstance(venv, SkitterVectorEnv)
+    singles = [make(name) for _ in range(2)]
+    obs = venv.reset(seed=4)[0]
+    np.testing.assert_array_equal(obs, [env.reset(seed=4 + i)[0] for i, env in enumerate(singles)])
+    actions = np.random.default_rng(2).uniform(-1, 1, (15, 2, 16))
+    for a in actions:
+        obs, reward, *_ = venv.step(a)
+        steps = [env.step(a[i]) for i, env in enumerate(singles)]
+        np.testing.assert_array_equal(obs, [s[0] for s in steps])
+        np.testing.assert_array_equal(reward, [s[1] for s in steps])
+
+
+@pytest.mark.parametrize(
+    ("options", "word"),
+    [({"ball": [99.0, 0.0]}, "ball"), ({"robot": [0.0, 0.0]}, "robot"), ({"robot": "here"}, "robot")],
+)
+def test_bad_places_are_refused_by_name(options, word):
+    env = make("skitter/BioloidGoToBall-v1")
+    with pytest.raises(ValueError, match=f"options\\['{word}'\\]"):
+        env.reset(seed=0, options=options)
+
+
+def test_robots_on_a_shared_scene_refuse_per_robot_parameters():
+    scene = SharedScene(Bioloid, ["a"])
+    with pytest.raises(ValueError, match="shared scene"):
+        scene.robot.set_parameters(np.array([0]), {"foot_friction": 0.5})
+    assert mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, "a/BODY") >= 0
+    assert not gym.registry.keys() & {e["id"] for e in ACADEMY}
