@@ -94,15 +94,17 @@ class BatchSimulation:
         b.forward(ids)
         self.substep_sensordata[ids] = self._sensordata[ids][:, None, :]
 
-    def write(self, ids: np.ndarray, columns: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    def write(self, ids: np.ndarray, columns: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         """Write some entries of the state of simulations ``ids``, keep the rest, and compute their derived
-        quantities: name (qpos, qvel, act, ctrl) -> (indices, values), each (len(ids), count)."""
+        quantities: name (qpos, qvel, act, ctrl) -> (indices, values), each (len(ids), count). Returns the sensor
+        values of the new states, (len(ids), nsensordata); the last block's record (``substep_sensordata``) is
+        kept."""
         b = self.batch
         rows = np.asarray(ids)[:, None]
         for name, (cols, values) in columns.items():
             b.bind(name)[rows, cols] = values
         b.forward(ids)
-        self.substep_sensordata[ids] = self._sensordata[ids][:, None, :]
+        return self._sensordata[ids].copy()
 
     def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control blocks of simulations ``ids`` (default all). (num_sims,) bool: False where one went

@@ -308,7 +308,8 @@ class PlayerSimulation:
         """Reset players ``ids`` to ``state`` (their robot's rows: qpos, qvel, act, ctrl), each at its place. A scene
         all of whose players reset starts over (a kickoff): the model's defaults, its objects at their pending
         places (:meth:`SharedScene.place_object`), then its players; a player reset alone (put back after a fall)
-        is written into its running scene, which keeps everything else."""
+        is written into its running scene, which keeps everything else (the other players' and the scene's sensor
+        records of the last step among them)."""
         ids = np.asarray(ids, dtype=np.int64)
         state = self._place(ids, state)
         k = self._k
@@ -325,16 +326,19 @@ class PlayerSimulation:
                     mine = np.flatnonzero(scenes == s)
                     full[name][row, cols[players[mine]].reshape(-1)] = state[name][mine].reshape(-1)
             sim.reset(kickoff, full)
+        self._refresh(kickoff)
+        size = self._block["sensordata"]
         for s in touched[~whole]:
             mine = np.flatnonzero(scenes == s)
-            sim.write(
-                np.array([s]),
-                {
-                    name: (self._columns(name)[players[mine]].reshape(1, -1), state[name][mine].reshape(1, -1))
-                    for name in state
-                },
-            )
-        self._refresh(touched)
+            columns = {
+                name: (self._columns(name)[players[mine]].reshape(1, -1), state[name][mine].reshape(1, -1))
+                for name in state
+            }
+            sensordata = sim.write(np.array([s]), columns)[0]
+            # the players written read their new state at every physics step of the record; the others, and the
+            # scene's own sensors (the ball's path), keep the last step's record
+            for i, p in zip(ids[mine], players[mine], strict=True):
+                self.substep_sensordata[i] = sensordata[p * size : (p + 1) * size]
 
     def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control blocks of every player, one scene step each (of the scenes of players ``ids``; a scene is

@@ -94,13 +94,14 @@ class Simulation:
         mujoco.mj_forward(m, d)
         self.substep_sensordata[:] = d.sensordata
 
-    def write(self, ids: np.ndarray, columns: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    def write(self, ids: np.ndarray, columns: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         """Write some entries of the state of simulations ``ids`` (here [0]), keep the rest, and compute the derived
-        quantities: name (qpos, qvel, act, ctrl) -> (indices, values), each (len(ids), count)."""
+        quantities: name (qpos, qvel, act, ctrl) -> (indices, values), each (len(ids), count). Returns the sensor
+        values of the new state, (len(ids), nsensordata); the last block's record (``substep_sensordata``) is kept."""
         for name, (cols, values) in columns.items():
             getattr(self.data, name)[cols[0]] = values[0]
         mujoco.mj_forward(self.model, self.data)
-        self.substep_sensordata[:] = self.data.sensordata
+        return self.data.sensordata[None].copy()
 
     def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control block in ``ctrl``. Returns, per simulation, whether it stayed numerically stable; an

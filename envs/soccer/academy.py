@@ -15,72 +15,28 @@ import numpy as np
 
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
-from envs.common.locomotion import GRACE_TIME, LocomotionTask
+from envs.common.locomotion import GRACE_TIME
 from envs.common.match import SharedScene
-from envs.common.robot import Robot, check_flag, check_number
+from envs.common.robot import Robot, check_flag
 from envs.common.vector import vector_entry_point
-from envs.soccer.field import BALL, BALL_POS, BALL_VEL, TOUCH, Field, field_edit
+from envs.soccer.field import BALL, Field, field_edit
+from envs.soccer.task import BALL_NOISE, SoccerTask
 
 PLAYER = "home_0"  # the academy's one player: the home team's, attacking the goal at +x
 EPISODE_SECONDS = 20.0
 APPROACH_WEIGHT = 0.1  # per body length closed: 10 lengths nearer the ball are worth a goal
 PROGRESS_WEIGHT = 0.2  # per body length the ball moves nearer the goal's centre
-BALL_NOISE = 0.05  # the ball's observed position: N(0, 5% of its distance) per axis, as a camera's range error grows
 
 
-class SoccerTask(LocomotionTask):
-    """A robot and a ball on a field: what the academy's tasks share (observations, the ball, goals, placement).
-
-    Observations: the robot's senses, its heading against the attacked goal's direction (+x: its integrated gyro from
-    its known heading at kickoff), then the ball's position and velocity in the robot's frame (noisy), whether it sees
-    the ball, and the centres of the goal it attacks and of its own goal in its frame.
-    """
+class AcademyTask(SoccerTask):
+    """One robot of the home team and the ball on its field: what the academy's tasks share (placing the robot and
+    the ball, ending the episode on the task's success or an own goal). Observations: :class:`SoccerTask`'s."""
 
     metrics: ClassVar[dict[str, str]] = {
-        **LocomotionTask.metrics,
+        **SoccerTask.metrics,
         "success": "1 if the episode ended in the task's success (the ball touched, a goal scored), else 0",
         "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
     }
-
-    def __init__(
-        self,
-        robot: Robot,
-        scene: SharedScene,
-        field: Field,
-        sparse: bool = False,
-        ball_noise: float = BALL_NOISE,
-        field_of_view: float | None = None,
-        max_tilt: float = 1.4,
-        terminate_when_unhealthy: bool = True,
-        height_band: Sequence[float] | None = None,
-        grace_time: float = GRACE_TIME,
-    ):
-        self.scene, self.field = scene, field
-        self.sparse = check_flag("sparse", sparse)
-        self.ball_noise = check_number("ball_noise", ball_noise, 0)
-        self.field_of_view = (
-            None if field_of_view is None else check_number("field_of_view", field_of_view, 0, 2 * math.pi, True)
-        )
-        n = robot.num_sims
-        self._ball_obs = np.zeros((n, 5))
-        self._start_yaw = np.zeros(n)
-        self._ball_distance = np.zeros(n)
-        self._goal_distance = np.zeros(n)
-        self._touch = f"{TOUCH}{PLAYER}"
-        super().__init__(robot, False, 0.0, max_tilt, terminate_when_unhealthy, height_band, grace_time)
-        self._generators: list[np.random.Generator | None] = [None] * n
-        self._goals_obs = np.zeros((n, 4))
-
-    # --- layout ---------------------------------------------------------------------------------------------------
-    def _command_structure(self) -> dict[str, int]:
-        return {"ball": 2, "ball_velocity": 2, "ball_visible": 1, "goal": 2, "own_goal": 2}
-
-    def _command_obs(self) -> list[np.ndarray]:
-        return [self._ball_obs, self._goals_obs]
-
-    def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
-        # the heading error is the field heading (gyro heading + heading at kickoff) against +x
-        return -self._start_yaw
 
     # --- placing --------------------------------------------------------------------------------------------------
     def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
@@ -96,7 +52,6 @@ class SoccerTask(LocomotionTask):
             if "ball" in options:
                 ball_xy = self._option_place(options["ball"], 2, "ball")
             self.scene.placement[i] = robot_place
-            self._start_yaw[i] = robot_place[2]
             self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
 
     def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -118,84 +73,7 @@ class SoccerTask(LocomotionTask):
         hl, hw = self.field.half_length - margin, self.field.half_width - margin
         return np.array([np.clip(xy[0], -hl, hl), np.clip(xy[1], -hw, hw)])
 
-    # --- the contract ---------------------------------------------------------------------------------------------
-    def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
-        super().reset(ids, rngs, options, readings)
-        for i, rng in zip(ids, rngs, strict=True):  # each simulation's stream, for the ball's noise at every step
-            self._generators[i] = rng
-        ball, to_goal = self._ball_state(readings)
-        self._ball_distance[ids] = ball["distance"][ids]
-        self._goal_distance[ids] = to_goal[ids]
-        self._observe_ball(readings, ball, ids)
-
-    def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        state = super().update(readings, stepped)
-        ball, to_goal = self._ball_state(readings)
-        length = self.length
-        ids = np.arange(self.robot.num_sims) if stepped is None else np.flatnonzero(stepped)
-        approach = (self._ball_distance - ball["distance"]) / length
-        progress = (self._goal_distance - to_goal) / length
-        self._ball_distance, self._goal_distance = ball["distance"], to_goal
-        scored, conceded = self._goals()
-        touched = self.scene.scene_sensor(self._touch, substeps=True).max(axis=(1, 2)) > 0
-        self._observe_ball(readings, ball, ids)
-        return {
-            **state,
-            "ball_x": ball["position"][:, 0].copy(),
-            "ball_y": ball["position"][:, 1].copy(),
-            "ball_distance": ball["distance"] / length,
-            "approach": approach,
-            "ball_progress": progress,
-            "scored": scored.astype(np.float64),
-            "conceded": conceded.astype(np.float64),
-            "touched": touched.astype(np.float64),
-        }
-
-    def _ball_state(self, readings: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        position = self.scene.scene_sensor(BALL_POS)
-        velocity = self.scene.scene_sensor(BALL_VEL)
-        offset = position[:, :2] - readings["position"][:, :2]
-        goal = np.array([self.field.half_length, 0.0])
-        to_goal = np.hypot(*(goal - position[:, :2]).T)
-        return {"position": position, "velocity": velocity, "offset": offset,
-                "distance": np.hypot(offset[:, 0], offset[:, 1])}, to_goal  # fmt: skip
-
-    def _goals(self) -> tuple[np.ndarray, np.ndarray]:
-        """(scored, conceded) per simulation: whether the whole ball was past a goal line, between the posts and
-        under the crossbar, at any physics step of the last control step."""
-        f = self.field
-        path = self.scene.scene_sensor(BALL_POS, substeps=True)
-        x, y, z = path[..., 0], path[..., 1], path[..., 2]
-        mouth = (np.abs(y) < 0.5 * f.goal_width) & (z < f.goal_height)
-        line = f.half_length + f.ball.radius
-        return ((x > line) & mouth).any(axis=1), ((x < -line) & mouth).any(axis=1)
-
-    def _observe_ball(self, readings, ball, ids: np.ndarray) -> None:
-        """The ball as the robot sees it, in its own frame, and the goals' centres."""
-        quat = readings["quaternion"]
-        w, z = quat[:, 0], quat[:, 3]
-        yaw = np.arctan2(2.0 * (w * z + quat[:, 1] * quat[:, 2]), 1.0 - 2.0 * (quat[:, 2] ** 2 + z * z))
-        c, s = np.cos(yaw), np.sin(yaw)
-
-        def frame(vec: np.ndarray) -> np.ndarray:
-            return np.stack([c * vec[:, 0] + s * vec[:, 1], -s * vec[:, 0] + c * vec[:, 1]], axis=1)
-
-        seen = frame(ball["offset"])
-        velocity = frame(ball["velocity"][:, :2])
-        for i in ids:
-            sigma = self.ball_noise * ball["distance"][i]
-            if sigma > 0:
-                seen[i] += self._generators[i].normal(0.0, sigma, 2)
-                velocity[i] += self._generators[i].normal(0.0, sigma, 2)
-        visible = np.ones(len(yaw))
-        if self.field_of_view is not None:
-            visible = (np.abs(np.arctan2(seen[:, 1], seen[:, 0])) <= 0.5 * self.field_of_view).astype(np.float64)
-        self._ball_obs[ids] = np.concatenate([seen * visible[:, None], velocity * visible[:, None],
-                                              visible[:, None]], axis=1)[ids]  # fmt: skip
-        pos = readings["position"][:, :2]
-        hl = self.field.half_length
-        self._goals_obs = np.concatenate([frame(np.array([hl, 0.0]) - pos), frame(np.array([-hl, 0.0]) - pos)], axis=1)
-
+    # --- ending ---------------------------------------------------------------------------------------------------
     def terminated(self, state: dict[str, np.ndarray]) -> np.ndarray:
         return super().terminated(state) | self.success(state).astype(bool) | (state["conceded"] > 0)
 
@@ -213,7 +91,7 @@ class SoccerTask(LocomotionTask):
                 "ball_distance": float(info.get("ball_distance", float("nan")))}  # fmt: skip
 
 
-class GoToBallTask(SoccerTask):
+class GoToBallTask(AcademyTask):
     """Reach the ball and touch it: +1 on the touch (the episode ends), and the distance closed as shaping."""
 
     name = "go_to_ball"
@@ -236,7 +114,7 @@ class GoToBallTask(SoccerTask):
         return terms
 
 
-class ScoreEmptyGoalTask(SoccerTask):
+class ScoreEmptyGoalTask(AcademyTask):
     """Score into the empty goal at +x: +1 on a goal (the episode ends; -1 for an own goal), and the distance closed
     to the ball and the ball's progress toward the goal as shaping."""
 
@@ -266,9 +144,9 @@ class ScoreEmptyGoalTask(SoccerTask):
 
 
 class AcademyEnv(SkitterEnv):
-    """A robot alone on its soccer field with a ball (see :class:`SoccerTask`); subclasses name the robot and task."""
+    """A robot alone on its soccer field with a ball (see :class:`AcademyTask`); subclasses name the robot and task."""
 
-    task_class: ClassVar[type[SoccerTask]]
+    task_class: ClassVar[type[AcademyTask]]
     field: ClassVar[Field]
 
     def __init__(
@@ -304,7 +182,7 @@ class AcademyEnv(SkitterEnv):
         return f"{PLAYER}/{self.robot.root_body}"
 
 
-def make_academy(robot_class: type[Robot], field: Field, task_class: type[SoccerTask], title: str) -> type[AcademyEnv]:
+def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], title: str) -> type[AcademyEnv]:
     """The academy env of a robot and a task (its docstring: :class:`AcademyEnv`'s sections, filled in)."""
 
     def __init__(

@@ -1,0 +1,23 @@
+"""Which robots play soccer, on which field: name -> (robot class, field)."""
+
+from __future__ import annotations
+
+from envs.bioloid import constants as bioloid
+from envs.bioloid.robot import Bioloid
+from envs.common.robot import Robot
+from envs.soccer.field import BIOLOID_LENGTH, FOUR_LEGGED, SPL_BALL, TABLE_TENNIS_BALL, Field, field_for
+from envs.velociroach import constants as roach
+from envs.velociroach.robot import VelociRoach
+from envs.xjus import constants as xjus
+from envs.xjus.robot import Xjus
+
+if abs(bioloid.LENGTH - BIOLOID_LENGTH) > 1e-9:  # the Four-Legged field's scale is the Bioloid's length
+    raise RuntimeError(f"the Bioloid's length is {bioloid.LENGTH} m, the fields' scale {BIOLOID_LENGTH} m")
+
+# the robot's name in ids (RoachGoToBall) and in the match's ``robot`` argument (lower case)
+ROBOTS: dict[str, type[Robot]] = {"Bioloid": Bioloid, "Xjus": Xjus, "Roach": VelociRoach}
+FIELDS: dict[str, Field] = {
+    "Bioloid": FOUR_LEGGED,
+    "Xjus": field_for(xjus.LENGTH, SPL_BALL, "Four-Legged League field x 1.77 (xJüs)"),
+    "Roach": field_for(roach.LENGTH, TABLE_TENNIS_BALL, "Four-Legged League field x 0.33 (VelociRoACH)"),
+}

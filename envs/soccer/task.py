@@ -1,0 +1,213 @@
+"""What every soccer task computes for its players: the ball and the goals as each player sees them, goals scored.
+
+A :class:`SoccerTask` runs on a robot built on a :class:`~envs.common.match.SharedScene` whose players are named
+``home_<i>`` and ``away_<i>``: the home team attacks the goal at +x, the away team the one at -x. Every observation is
+egocentric (in the player's own frame, its heading measured against the direction it attacks), so a player's view
+does not depend on its side: turning the field by half a turn and swapping the teams swaps their observations.
+
+It keeps the walking tasks' ground rules and falls (envs/common/locomotion.py): a fall ends a single robot's episode
+and takes a player off the field in a match.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from envs.common.locomotion import GRACE_TIME, LocomotionTask
+from envs.common.match import SharedScene
+from envs.common.robot import Robot, check_flag, check_number
+from envs.soccer.field import BALL_POS, BALL_VEL, TOUCH, Field
+
+BALL_NOISE = 0.05  # what a player sees of the ball and the others: N(0, 5% of their distance) per axis
+HOME, AWAY = "home", "away"
+
+
+def team_of(player: str) -> str:
+    """``home`` or ``away``, from a player's name (``home_0``, ``away_2``)."""
+    team = player.split("_")[0]
+    if team not in (HOME, AWAY):
+        raise ValueError(f"a player's name starts with home_ or away_, got {player!r}")
+    return team
+
+
+class SoccerTask(LocomotionTask):
+    """The ball, the goals and the other players as each player sees them; goals scored; the ground rules.
+
+    Observations, after the robot's senses (see ``observation_structure``): ``heading_error`` (sin, cos of the
+    player's heading, integrated from its gyro and its known heading at kickoff, against the direction it attacks),
+    ``ball`` and ``ball_velocity`` (x, y in the player's frame, with noise of ``ball_noise`` times the ball's
+    distance), ``ball_visible`` (1, or 0 outside ``field_of_view`` where the ball reads as zeros), ``goal`` and
+    ``own_goal`` (the centres of the goal it attacks and of its own, in its frame) and, in a match, ``teammates`` and
+    ``opponents`` (their positions in its frame, noisy as the ball, in the order of their names).
+    """
+
+    metrics: ClassVar[dict[str, str]] = {**LocomotionTask.metrics}
+
+    def __init__(
+        self,
+        robot: Robot,
+        scene: SharedScene,
+        field: Field,
+        sparse: bool = False,
+        ball_noise: float = BALL_NOISE,
+        field_of_view: float | None = None,
+        max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: Sequence[float] | None = None,
+        grace_time: float = GRACE_TIME,
+    ):
+        self.scene, self.field = scene, field
+        self.sparse = check_flag("sparse", sparse)
+        self.ball_noise = check_number("ball_noise", ball_noise, 0)
+        self.field_of_view = (
+            None if field_of_view is None else check_number("field_of_view", field_of_view, 0, 2 * math.pi, True)
+        )
+        players = scene.players
+        k, n = len(players), robot.num_sims
+        teams = [team_of(p) for p in players]
+        self._home = [p for p, t in zip(players, teams, strict=True) if t == HOME]
+        self._away = [p for p, t in zip(players, teams, strict=True) if t == AWAY]
+        self.team_size = max(len(self._home), len(self._away))
+        if self._away and len(self._home) != len(self._away):
+            raise ValueError(f"the teams must be of one size, got {len(self._home)} and {len(self._away)}")
+        self._k = k
+        self._scene_of = np.arange(n) // k
+        self._side = np.tile([1.0 if t == HOME else -1.0 for t in teams], n // k)  # the x each player attacks
+        # for each player: the indices (in its scene) of its teammates and of its opponents, in name order
+        self._mates = [[j for j in range(k) if j != i and teams[j] == teams[i]] for i in range(k)]
+        self._opponents = [[j for j in range(k) if teams[j] != teams[i]] for i in range(k)]
+        self._touch_sensors = [f"{TOUCH}{p}" for p in players]
+        self._ball_obs = np.zeros((n, 5))
+        self._goals_obs = np.zeros((n, 4))
+        self._others_obs = np.zeros((n, 2 * (k - 1)))
+        self._start_yaw = np.zeros(n)
+        self._ball_distance = np.zeros(n)
+        self._goal_distance = np.zeros(n)
+        super().__init__(robot, False, 0.0, max_tilt, terminate_when_unhealthy, height_band, grace_time)
+        self._generators: list[np.random.Generator | None] = [None] * n
+
+    # --- layout ---------------------------------------------------------------------------------------------------
+    def _command_structure(self) -> dict[str, int]:
+        structure = {"ball": 2, "ball_velocity": 2, "ball_visible": 1, "goal": 2, "own_goal": 2}
+        if self._k > 1:
+            structure.update({"teammates": 2 * (self.team_size - 1), "opponents": 2 * len(self._opponents[0])})
+        return {name: size for name, size in structure.items() if size}
+
+    def _command_obs(self) -> list[np.ndarray]:
+        return [self._ball_obs, self._goals_obs, self._others_obs]
+
+    def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
+        # the heading error is the field heading (gyro heading + heading at kickoff) against the attacked direction
+        return np.where(self._side > 0, 0.0, math.pi) - self._start_yaw
+
+    # --- the contract ---------------------------------------------------------------------------------------------
+    def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
+        self._start_yaw[ids] = self.scene.placement[ids, 2]
+        super().reset(ids, rngs, options, readings)
+        for i, rng in zip(ids, rngs, strict=True):  # each player's stream, for what it sees at every step
+            self._generators[i] = rng
+        ball, to_goal = self._ball_state(readings)
+        self._ball_distance[ids] = ball["distance"][ids]
+        self._goal_distance[ids] = to_goal[ids]
+        self._observe(readings, ball, ids)
+
+    def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        state = super().update(readings, stepped)
+        ball, to_goal = self._ball_state(readings)
+        length = self.length
+        ids = np.arange(self.robot.num_sims) if stepped is None else np.flatnonzero(stepped)
+        approach = (self._ball_distance - ball["distance"]) / length
+        progress = (self._goal_distance - to_goal) / length
+        self._ball_distance, self._goal_distance = ball["distance"], to_goal
+        scored, conceded = self.goals()
+        touches = np.stack([self.scene.scene_sensor(s, substeps=True).max(axis=(1, 2)) for s in self._touch_sensors])
+        self._observe(readings, ball, ids)
+        return {
+            **state,
+            "ball_x": ball["position"][:, 0].copy(),
+            "ball_y": ball["position"][:, 1].copy(),
+            "ball_distance": ball["distance"] / length,
+            "approach": approach,
+            "ball_progress": progress,
+            "scored": scored.astype(np.float64),
+            "conceded": conceded.astype(np.float64),
+            "touched": (touches.T.reshape(-1) > 0).astype(np.float64),
+        }
+
+    def _ball_state(self, readings: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        position = self.scene.scene_sensor(BALL_POS)[self._scene_of]
+        velocity = self.scene.scene_sensor(BALL_VEL)[self._scene_of]
+        offset = position[:, :2] - readings["position"][:, :2]
+        to_goal = np.hypot(self._side * self.field.half_length - position[:, 0], position[:, 1])
+        return {"position": position, "velocity": velocity, "offset": offset,
+                "distance": np.hypot(offset[:, 0], offset[:, 1])}, to_goal  # fmt: skip
+
+    def scene_goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """(into the goal at +x, into the goal at -x) per scene: whether the whole ball was past that goal line,
+        between the posts and under the crossbar, at any physics step of the last control step."""
+        f = self.field
+        path = self.scene.scene_sensor(BALL_POS, substeps=True)
+        x, y, z = path[..., 0], path[..., 1], path[..., 2]
+        mouth = (np.abs(y) < 0.5 * f.goal_width) & (z < f.goal_height)
+        line = f.half_length + f.ball.radius
+        return ((x > line) & mouth).any(axis=1), ((x < -line) & mouth).any(axis=1)
+
+    def goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """(scored, conceded) per player: its team's goal, its own goal."""
+        plus, minus = self.scene_goals()
+        plus, minus = plus[self._scene_of], minus[self._scene_of]
+        home = self._side > 0
+        return np.where(home, plus, minus), np.where(home, minus, plus)
+
+    def _observe(self, readings, ball, ids: np.ndarray) -> None:
+        """The ball, the goals and the others as each player sees them, in its own frame."""
+        quat = readings["quaternion"]
+        w, z = quat[:, 0], quat[:, 3]
+        yaw = np.arctan2(2.0 * (w * z + quat[:, 1] * quat[:, 2]), 1.0 - 2.0 * (quat[:, 2] ** 2 + z * z))
+        c, s = np.cos(yaw), np.sin(yaw)
+
+        def frame(vec: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+            return np.stack([c[rows] * vec[:, 0] + s[rows] * vec[:, 1], -s[rows] * vec[:, 0] + c[rows] * vec[:, 1]],
+                            axis=1)  # fmt: skip
+
+        seen = frame(ball["offset"])
+        velocity = frame(ball["velocity"][:, :2])
+        pos = readings["position"][:, :2]
+        k = self._k
+        others = np.zeros_like(self._others_obs)
+        if k > 1:
+            in_scene = pos.reshape(-1, k, 2)
+            for i in range(k):
+                order = self._mates[i] + self._opponents[i]
+                rows = np.arange(i, len(pos), k)
+                for j, other in enumerate(order):
+                    others[rows, 2 * j : 2 * j + 2] = frame(in_scene[:, other] - pos[rows], rows)
+        for i in ids:
+            rng = self._generators[i]
+            sigma = self.ball_noise * ball["distance"][i]
+            if sigma > 0:
+                seen[i] += rng.normal(0.0, sigma, 2)
+                velocity[i] += rng.normal(0.0, sigma, 2)
+            if k > 1 and self.ball_noise > 0:
+                distances = np.hypot(others[i, 0::2], others[i, 1::2])
+                others[i] += rng.normal(0.0, 1.0, others.shape[1]) * np.repeat(self.ball_noise * distances, 2)
+        visible = np.ones(len(yaw))
+        if self.field_of_view is not None:
+            visible = (np.abs(np.arctan2(seen[:, 1], seen[:, 0])) <= 0.5 * self.field_of_view).astype(np.float64)
+        self._ball_obs[ids] = np.concatenate([seen * visible[:, None], velocity * visible[:, None],
+                                              visible[:, None]], axis=1)[ids]  # fmt: skip
+        self._others_obs[ids] = others[ids]
+        hl = self.field.half_length * self._side[:, None]
+        self._goals_obs = np.concatenate(
+            [frame(np.hstack([hl, np.zeros_like(hl)]) - pos), frame(np.hstack([-hl, np.zeros_like(hl)]) - pos)], axis=1
+        )
+
+    def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return dict(state)
+
+    def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
+        return self.ground_metrics(info)

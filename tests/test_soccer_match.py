@@ -1,0 +1,172 @@
+"""Multi-robot soccer: PettingZoo's own tests, mirror symmetry, goals and kickoffs, the referee, rendering."""
+
+import functools
+import types
+
+import imageio.v2 as imageio
+import numpy as np
+import pytest
+from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test, seed_test
+
+from envs.soccer import match
+from envs.soccer.field import BALL
+
+
+def pettingzoo_battery(robot: str, k: int, cycles: int) -> None:
+    """Every PettingZoo test the suite promises, on one robot and team size."""
+    parallel = functools.partial(match.parallel_env, robot=robot, players_per_team=k)
+    aec = functools.partial(match.env, robot=robot, players_per_team=k)
+    parallel_api_test(parallel(), num_cycles=cycles)
+    api_test(aec(), num_cycles=cycles)
+    parallel_seed_test(parallel, num_cycles=cycles)
+    seed_test(aec, num_cycles=cycles)
+    max_cycles_test(types.SimpleNamespace(parallel_env=parallel, env=aec))
+    render_test(functools.partial(aec, render_mode="rgb_array"))
+
+
+def test_pettingzoo_tests_pass_on_a_three_a_side_bioloid_match():
+    """The full matrix (every robot, 1 to 3 a side and 4 for the Bioloid) is benchmarks/soccer_api.py's."""
+    pettingzoo_battery("bioloid", 3, 40)
+
+
+@pytest.mark.parametrize("robot", ["roach", "xjus"])
+def test_the_parallel_api_holds_for_the_other_robots(robot):
+    parallel_api_test(match.parallel_env(robot=robot, players_per_team=2), num_cycles=20)
+
+
+def quiet(**kwargs):
+    return match.parallel_env(ball_noise=0.0, sensor_noise=False, reset_noise_scale=0.0, **kwargs)
+
+
+def test_turning_the_field_and_swapping_the_teams_swaps_observations_and_rewards():
+    """The kickoff is symmetric by half a turn: a home player and its away counterpart, sent the same actions, see
+    the same (to rounding) and are rewarded the same."""
+    env = quiet(robot="bioloid", players_per_team=2)
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        for i in range(2):
+            np.testing.assert_allclose(obs[f"home_{i}"], obs[f"away_{i}"], atol=1e-9)
+        home = {f"home_{i}": rng.uniform(-0.3, 0.3, 16) for i in range(2)}
+        obs, rewards, *_ = env.step({**home, **{f"away_{i}": home[f"home_{i}"] for i in range(2)}})
+        assert rewards["home_0"] == rewards["away_0"] == 0.0
+
+
+def roll_ball(env, x: float, speed: float) -> None:
+    """The ball at (x, 0), rolling along x (written into the running match)."""
+    data = env.scene.sim.data
+    q, v = env.scene.objects[BALL]
+    data.qpos[q : q + 3] = [x, 0.0, env.field.ball.radius]
+    data.qvel[v : v + 6] = [speed, 0, 0, 0, 0, 0]
+
+
+def test_a_goal_rewards_both_teams_and_the_next_step_kicks_off():
+    env = quiet(robot="roach", players_per_team=1)
+    env.reset(seed=0)
+    hl = env.field.half_length
+    still = {a: np.zeros(3) for a in env.possible_agents}
+    roll_ball(env, -(hl - 0.03), -3.0)  # into the home team's goal
+    for _ in range(10):
+        _, rewards, terminations, _, infos = env.step(still)
+        if rewards["away_0"]:
+            break
+    assert (rewards["away_0"], rewards["home_0"]) == (1.0, -1.0)
+    assert infos["home_0"]["score"] == {"home": 0, "away": 1} and not any(terminations.values())
+    env.step(still)
+    ball = env.scene.scene_sensor("ball_pos")[0]
+    assert abs(ball[0]) < 1e-3 and abs(ball[1]) < 1e-3, "the kickoff puts the ball on the centre spot"
+
+
+def test_a_match_to_one_goal_ends_by_rule():
+    env = quiet(robot="roach", players_per_team=1, max_goals=1)
+    env.reset(seed=0)
+    roll_ball(env, env.field.half_length - 0.03, 3.0)
+    for _ in range(10):
+        _, rewards, terminations, truncations, _ = env.step({a: np.zeros(3) for a in env.agents})
+        if any(terminations.values()):
+            break
+    assert all(terminations.values()) and not any(truncations.values()) and rewards["home_0"] == 1.0
+    assert env.agents == []
+
+
+def test_a_fallen_player_is_taken_off_and_put_back_at_its_own_half():
+    env = match.parallel_env(robot="bioloid", players_per_team=1, penalty_seconds=0.5)
+    env.reset(seed=1)
+    rng = np.random.default_rng(1)
+    seen = []
+    for _ in range(400):
+        _, _, _, _, infos = env.step({a: rng.uniform(-1, 1, 16) for a in env.agents})
+        seen.append(
+            (infos["home_0"]["fallen"], infos["home_0"]["off"], env.robot.read(env._rngs, False)["position"][0])
+        )
+        if len(seen) > 2 and seen[-2][1] and not seen[-1][1]:
+            break
+    fell = next(i for i, s in enumerate(seen) if s[0])
+    off = seen[fell + 2][2]
+    assert off[1] < -(env.field.half_width + env.field.side_border), "off the field, beyond the wall"
+    back = seen[-1][2]
+    assert back[0] < 0 and abs(back[1]) < env.field.half_width, "back on its own half, inside the touch line"
+
+
+def test_without_a_referee_a_fallen_player_stays():
+    env = match.parallel_env(robot="bioloid", players_per_team=1, referee=False)
+    env.reset(seed=1)
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        _, _, _, _, infos = env.step({a: rng.uniform(-1, 1, 16) for a in env.agents})
+        assert not infos["home_0"]["off"] and not infos["away_0"]["off"]
+
+
+def test_a_three_a_side_bioloid_match_renders_to_mp4_headless(tmp_path):
+    env = match.parallel_env(robot="bioloid", players_per_team=3, render_mode="rgb_array", width=320, height=240)
+    env.reset(seed=0)
+    path = tmp_path / "match.mp4"
+    with imageio.get_writer(path, fps=env.metadata["render_fps"]) as writer:
+        for _ in range(10):
+            env.step({a: env.action_space(a).sample() for a in env.agents})
+            frame = env.render()
+            assert frame.shape == (240, 320, 3) and frame.std() > 5
+            writer.append_data(frame)
+    with imageio.get_reader(path) as reader:
+        assert reader.count_frames() == 10
+
+
+def test_supersuits_path_gives_an_sb3_vec_env_of_every_player():
+    import supersuit as ss
+
+    vec = ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(match.parallel_env(players_per_team=2)), 2,
+                                base_class="stable_baselines3")  # fmt: skip
+    obs = vec.reset()
+    assert obs.shape[0] == 8
+    obs, *_ = vec.step(np.zeros((8, 16), dtype=np.float32))
+    assert obs.shape[0] == 8 and np.isfinite(obs).all()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "word"),
+    [({"robot": "aibo"}, "robot"), ({"players_per_team": 5}, "players_per_team"), ({"camera": "away_9"}, "camera"),
+     ({"max_goals": 0}, "max_goals"), ({"render_mode": "ansi"}, "render_mode"), ({"penalty_seconds": -1}, "penalty"),
+     ({"max_cycles": 0}, "max_cycles"), ({"action_mode": "kick"}, "action_mode")],
+)  # fmt: skip
+def test_bad_arguments_are_refused_by_name(kwargs, word):
+    with pytest.raises(ValueError, match=word):
+        match.parallel_env(**kwargs)
+
+
+def test_a_bad_action_is_refused_by_agent():
+    env = match.parallel_env(robot="roach", players_per_team=1)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="away_0"):
+        env.step({"home_0": np.zeros(3), "away_0": np.array([np.nan, 0.0, 0.0])})
+
+
+def test_the_benchmark_ran_every_robot_and_team_size_and_every_test_passed():
+    """benchmarks/results/soccer_api.json (``python -m benchmarks.soccer_api``)."""
+    import json
+    from pathlib import Path
+
+    from benchmarks.soccer_api import TESTS, matrix
+
+    result = json.loads((Path(__file__).resolve().parents[1] / "benchmarks/results/soccer_api.json").read_text())
+    assert sorted((r["robot"], r["players_per_team"]) for r in result["rows"]) == sorted(matrix())
+    assert result["passed"] and all(r["errors"] == dict.fromkeys(TESTS) for r in result["rows"])
