@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs.bioloid import constants
-from envs.bioloid.kinematics import Ellipse, LegGeometry
+from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals, side_strides
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
 
@@ -46,7 +46,7 @@ class Gait:
 GAITS: dict[str, Gait] = {
     g.name: g
     for g in (
-        Gait("trot", (0.0, 0.5, 0.5, 0.0), "about 0.5"),
+        Gait("trot", TROT, "about 0.5"),
         Gait("walk", (0.0, 0.5, 0.75, 0.25), "above 0.5"),
         Gait("gallop", (0.0, 0.1, 0.5, 0.6), "below 0.5"),
         Gait("canter", (0.0, 0.3, 0.7, 0.0), "below 0.5"),
@@ -55,11 +55,10 @@ GAITS: dict[str, Gait] = {
         Gait("pronk", (0.0, 0.0, 0.0, 0.0), "below 0.5"),
     )
 }
-DEFAULT_FREQUENCY = 1.5  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
+DEFAULT_FREQUENCY = TROT_FREQUENCY  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
 TURN_GAIN = 0.2  # rad/s of yaw rate with one side's stride at 0 (measured at 1.5 Hz: 0.13-0.28, docs/bioloid.md)
 HEADING_GAIN = 1.0  # stride reduction per rad of heading error
-SIDE = np.array([0.0 if constants.LEG_SIDE[leg] == "left" else 1.0 for leg in constants.LEGS])  # 0 left, 1 right
 
 
 def touchdown_fraction(gait: Gait) -> np.ndarray:
@@ -99,15 +98,7 @@ class IKGait:
         self.steer = "yaw_rate_command" in layout if steer is None else bool(steer)
         if self.steer and "yaw_rate_command" not in layout:
             raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn-v2)")
-        self.geometry = [LegGeometry.of(leg, wedge) for leg in constants.LEGS]
-        self.ellipses = [Ellipse.seed_rules(g) for g in self.geometry]
-        stand = np.array([constants.STAND_ANGLES[s] for s in constants.SERVOS])
-        self.stand_counts = constants.CENTER + stand / constants.RAD_PER_COUNT
-        self._hips = np.array([constants.SERVO_INDEX[constants.HIP[leg]] for leg in constants.LEGS])
-        self._knees = np.array([constants.SERVO_INDEX[constants.KNEE[leg]] for leg in constants.LEGS])
-        self._phases = np.asarray(self.gait.phases)
-        # every leg in one numpy call (the same arithmetic as leg by leg)
-        self._legs, self._ellipses = LegGeometry.stack(self.geometry), Ellipse.stack(self.ellipses)
+        self.goals = IKGoals(self.gait.phases, self.frequency, wedge)
         self._clock: np.ndarray | None = None  # the clock after the last call, per row
 
     def __repr__(self) -> str:
@@ -124,23 +115,16 @@ class IKGait:
         turn = command / TURN_GAIN - HEADING_GAIN * np.arctan2(s, c)  # > 0: turn left
         right = 1.0 - np.clip(turn, 0.0, 1.0)
         left = 1.0 - np.clip(-turn, 0.0, 1.0)
-        return np.where(SIDE[None, :] == 0.0, left[:, None], right[:, None])
+        return side_strides(left, right)
 
     def lead_in(self, t: np.ndarray) -> np.ndarray:
-        """Stride scale over the first cycle, from 0 to 1: the gait starts from the ready posture (every sole at the
-        ellipse's centre) instead of jumping to its phases (as the roach firmware leads in its strides)."""
-        return np.minimum(1.0, self.frequency * t)
+        """Stride scale over the first cycle, from 0 to 1 (see :meth:`envs.bioloid.gait.IKGoals.lead_in`)."""
+        return self.goals.lead_in(t)
 
     def counts(self, t: np.ndarray, strides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Goal counts (n, 16) at clock times ``t`` (n,) with stride factors (n, 4), and where the knee limit held a
-        leg back (n, 4)."""
-        phase = 2.0 * np.pi * (self.frequency * t[:, None] + self._phases[None, :])
-        goal = np.tile(self.stand_counts, (len(t), 1))
-        x, z = self._ellipses.point(phase, strides)
-        hip, knee, limited = self._legs.inverse(x, z)
-        goal[:, self._hips] = constants.CENTER + hip / constants.RAD_PER_COUNT
-        goal[:, self._knees] = constants.CENTER + knee / constants.RAD_PER_COUNT
-        return goal, limited
+        leg back (n, 4) (envs/bioloid/gait.py)."""
+        return self.goals.counts(t, strides)
 
     def predict(
         self,

@@ -320,6 +320,13 @@ SPL_BALL = Ball("Standard Platform League ball", radius=0.050, mass=0.044, shell
                 rolling_resistance=0.05, restitution=0.4)  # fmt: skip
 
 
+# a size-3 soccer ball, the smallest of the youth sizes: 23-24 in (58-61 cm) round, 11-12 oz (310-340 g) (youth
+# leagues' ball-size tables); the xJüs plays with it because the SPL's 100 mm ball rolls under its 0.157 m belly,
+# between its legs, untouched (measured: it walked over it); its bounce on turf and its roll are assumed as the others'
+SIZE_3_BALL = Ball("size-3 soccer ball", radius=0.094, mass=0.31, shell=True, friction=0.5, rolling_resistance=0.05,
+                   restitution=0.6)  # fmt: skip
+
+
 def field_for(length: float, ball: Ball, name: str) -> Field:
     """The Four-Legged League's field scaled to a robot of body length ``length`` (m), with its ball."""
     return FOUR_LEGGED.scaled(length / BIOLOID_LENGTH, name, ball)

@@ -37,6 +37,7 @@ from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import check_flag, check_number
 from envs.soccer.field import BALL, TOP_CAMERA, field_edit
 from envs.soccer.robots import FIELDS, ROBOTS
+from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
 
 MAX_PLAYERS = 4  # a team: 1 to 4 (the Four-Legged League played 4 a side; the report's six Bioloids are 3 vs 3)
@@ -69,7 +70,8 @@ class SoccerParallelEnv(ParallelEnv):
     Args:
         robot: ``"bioloid"``, ``"xjus"`` or ``"roach"``.
         players_per_team: 1 to 4.
-        action_mode: the robot's action mode (default its first: the Bioloid's ``goal``, the others' ``gait``).
+        action_mode: the robot's own action mode (default its first: the Bioloid's ``goal``, the others' ``gait``),
+            or ``"commands"``: forward speed and turn rate, run by its reference gait (envs/soccer/steering.py).
         max_cycles: steps before the match is truncated (default: ``MATCH_SECONDS`` of play at the control rate).
         max_goals: the match ends (terminated) when a team has scored this many (None: it runs to its time limit).
         referee: take fallen players off for ``penalty_seconds`` and put them back standing (False: they stay and
@@ -140,13 +142,20 @@ class SoccerParallelEnv(ParallelEnv):
             raise ValueError(f"max_goals must be a whole number >= 1 or None, got {max_goals!r}")
         self.max_goals = max_goals
         mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
+        if mode not in (*robot_class.action_modes, COMMANDS):
+            raise ValueError(f"action_mode must be one of {[*robot_class.action_modes, COMMANDS]}, got {mode!r}")
+        self.action_mode = mode
+        native = next(iter(robot_class.action_modes)) if mode == COMMANDS else mode
         imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
         self.scene = SharedScene(
-            lambda: robot_class(action_mode=mode, imu_noise=imu),
+            lambda: robot_class(action_mode=native, imu_noise=imu),
             self.possible_agents,
             [field_edit(self.field, self.possible_agents, robot_class.root_body)],
         )
         self.robot = self.scene.robot
+        # the commands mode: forward speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
+        self.commands = Commands(self.robot) if mode == COMMANDS else None
+        self.mode = self.robot.mode if self.commands is None else self.commands.mode
         self.task = MatchTask(self.robot, self.scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
                               terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
         self.dt = self.robot.control_dt
@@ -162,8 +171,9 @@ class SoccerParallelEnv(ParallelEnv):
         self._renderer: Any = None
         n = len(self.possible_agents)
         self._observation_space = spaces.Box(-np.inf, np.inf, shape=(self.task.layout.size,), dtype=np.float64)
-        self._action_space = spaces.Box(-1.0, 1.0, shape=(self.robot.mode.size,), dtype=np.float32)
-        self._rest = self.robot.mode.to_command(np.zeros(self.robot.mode.size))  # what a player off the field is sent
+        self._action_space = spaces.Box(-1.0, 1.0, shape=(self.mode.size,), dtype=np.float32)
+        # what a player off the field is sent: standing still in the commands mode, mid-range commands otherwise
+        self._rest = np.array([-1.0, 0.0]) if self.commands is not None else np.zeros(self.mode.size)
         self._seed_sequence = np.random.SeedSequence()
         self._rng = np.random.default_rng(self._seed_sequence.spawn(1)[0])
         self._rngs = [np.random.default_rng(s) for s in self._seed_sequence.spawn(n)]
@@ -230,12 +240,49 @@ class SoccerParallelEnv(ParallelEnv):
         self._kickoff = False
         ids = np.arange(n)
         self._place_kickoff()
+        self._place_options(options)
         self.robot.reset(ids, self._rngs, self.reset_noise_scale, None)
+        if self.commands is not None:
+            self.commands.reset(ids)
         readings = self.robot.read(self._rngs, False)
         self.task.reset(ids, self._rngs, None, readings)
         self._obs = self.task.observe(readings)
         infos = {agent: {"score": dict(self.score), "off": False} for agent in self.agents}
         return self._by_agent(self._obs), infos
+
+    def _place_options(self, options: dict | None) -> None:
+        """A reset's set piece: ``options["places"]`` (agent -> (x, y, heading)) and ``options["ball"]`` ((x, y)),
+        each inside the field's walls; the next kickoffs are the formation's again."""
+        options = options or {}
+        unknown = sorted(set(options) - {"places", "ball"})
+        if unknown:
+            raise ValueError(f"options: unknown keys {unknown} (known: 'places', 'ball')")
+        f = self.field
+        reach = (f.half_length + f.end_border, f.half_width + f.side_border)
+        places = options.get("places", {})
+        if not isinstance(places, dict) or not set(places) <= set(self.possible_agents):
+            raise ValueError(f"options['places'] must map agents {self.possible_agents} to (x, y, heading), "
+                             f"got {places!r}")  # fmt: skip
+        for agent, value in places.items():
+            self.scene.placement[self.possible_agents.index(agent)] = self._check_place(
+                value, 3, f"places'][{agent!r}", reach
+            )
+        if "ball" in options:
+            x, y = self._check_place(options["ball"], 2, "ball", reach)
+            self.scene.place_object(np.array([0]), BALL, np.array([[x, y, f.ball.radius]]), np.zeros((1, 3)))
+
+    @staticmethod
+    def _check_place(value: Any, size: int, name: str, reach: tuple[float, float]) -> np.ndarray:
+        place = np.zeros(0) if isinstance(value, str | bytes) else np.asarray(value, dtype=np.float64).reshape(-1)
+        if (
+            place.shape != (size,)
+            or not np.isfinite(place).all()
+            or abs(place[0]) > reach[0]
+            or abs(place[1]) > reach[1]
+        ):
+            raise ValueError(f"options['{name}'] must be {size} finite numbers with |x| <= {reach[0]:g} and "
+                             f"|y| <= {reach[1]:g} m (inside the walls), got {value!r}")  # fmt: skip
+        return place
 
     def _place_kickoff(self) -> None:
         self.scene.placement[:] = self.kickoff_places()
@@ -245,15 +292,18 @@ class SoccerParallelEnv(ParallelEnv):
         if not self.agents:
             raise RuntimeError("the match is over: call reset()")
         n = len(self.possible_agents)
-        commands = np.tile(self._rest, (n, 1))
+        chosen = np.tile(self._rest, (n, 1))
         for i, agent in enumerate(self.possible_agents):
             if agent in actions and actions[agent] is not None and np.isnan(self._off_until[i]):
                 action = np.asarray(actions[agent], dtype=np.float64).reshape(-1)
                 if action.shape != self._action_space.shape or not np.isfinite(action).all():
                     raise ValueError(f"{agent}'s action must be {self._action_space.shape[0]} finite numbers, "
                                      f"got {actions[agent]!r}")  # fmt: skip
-                commands[i] = self.robot.mode.to_command(action)
-        self.robot.command(commands)
+                chosen[i] = action
+        if self.commands is None:
+            self.robot.command(self.robot.mode.to_command(chosen))
+        else:
+            self.robot.command(self.commands.robot_commands(chosen))
         self.robot.step()
         placed = self._place_pending()
         stepped = ~placed
@@ -321,6 +371,8 @@ class SoccerParallelEnv(ParallelEnv):
         if placed.any():
             ids = np.flatnonzero(placed)
             self.robot.reset(ids, [self._rngs[i] for i in ids], self.reset_noise_scale, None)
+            if self.commands is not None:
+                self.commands.reset(ids)
         return placed
 
     def _by_agent(self, rows: np.ndarray) -> dict[str, np.ndarray]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from envs.bioloid import constants as bioloid
 from envs.bioloid.robot import Bioloid
 from envs.common.robot import Robot
-from envs.soccer.field import BIOLOID_LENGTH, FOUR_LEGGED, SPL_BALL, TABLE_TENNIS_BALL, Field, field_for
+from envs.soccer.field import BIOLOID_LENGTH, FOUR_LEGGED, SIZE_3_BALL, TABLE_TENNIS_BALL, Field, field_for
 from envs.velociroach import constants as roach
 from envs.velociroach.robot import VelociRoach
 from envs.xjus import constants as xjus
@@ -18,6 +18,6 @@ if abs(bioloid.LENGTH - BIOLOID_LENGTH) > 1e-9:  # the Four-Legged field's scale
 ROBOTS: dict[str, type[Robot]] = {"Bioloid": Bioloid, "Xjus": Xjus, "Roach": VelociRoach}
 FIELDS: dict[str, Field] = {
     "Bioloid": FOUR_LEGGED,
-    "Xjus": field_for(xjus.LENGTH, SPL_BALL, "Four-Legged League field x 1.77 (xJüs)"),
+    "Xjus": field_for(xjus.LENGTH, SIZE_3_BALL, "Four-Legged League field x 1.77 (xJüs)"),
     "Roach": field_for(roach.LENGTH, TABLE_TENNIS_BALL, "Four-Legged League field x 0.33 (VelociRoACH)"),
 }

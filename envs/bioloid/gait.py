@@ -1,0 +1,58 @@
+"""The seed's inverse-kinematics gait as goal positions [bioloid-webots, VI.A]: what the IK gait library
+(agents/bioloid/ik.py) and the soccer envs' ``commands`` mode drive the Bioloid with.
+
+Each foot follows the seed's ellipse (eqs. 7-8) under its hip, at the gait's phase offset; the hip and knee servos
+come from the leg's inverse kinematics (eqs. 3-6, envs/bioloid/kinematics.py). A stride factor per leg scales the
+ellipse's x radius: 1 walks straight, a shorter stride on one side turns the robot toward the other.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from envs.bioloid import constants
+from envs.bioloid.kinematics import Ellipse, LegGeometry
+
+TROT = (0.0, 0.5, 0.5, 0.0)  # phase offsets, legs F_L, F_R, B_L, B_R: diagonal pairs together
+TROT_FREQUENCY = 1.5  # Hz: the reference trot (the seed's trot scored best at 1.5 Hz, Figure 30)
+SIDE = np.array([0.0 if constants.LEG_SIDE[leg] == "left" else 1.0 for leg in constants.LEGS])  # 0 left, 1 right
+
+
+class IKGoals:
+    """Goal counts of the IK gait with phase offsets ``phases`` (LEGS order) at ``frequency`` Hz, for a robot with
+    knee wedge ``wedge`` (rad)."""
+
+    def __init__(self, phases: Sequence[float], frequency: float, wedge: float = 0.0):
+        self.frequency = float(frequency)
+        self.geometry = [LegGeometry.of(leg, wedge) for leg in constants.LEGS]
+        self.ellipses = [Ellipse.seed_rules(g) for g in self.geometry]
+        stand = np.array([constants.STAND_ANGLES[s] for s in constants.SERVOS])
+        self.stand_counts = constants.CENTER + stand / constants.RAD_PER_COUNT
+        self._hips = np.array([constants.SERVO_INDEX[constants.HIP[leg]] for leg in constants.LEGS])
+        self._knees = np.array([constants.SERVO_INDEX[constants.KNEE[leg]] for leg in constants.LEGS])
+        self._phases = np.asarray(phases, dtype=np.float64)
+        # every leg in one numpy call (the same arithmetic as leg by leg)
+        self._legs, self._ellipses = LegGeometry.stack(self.geometry), Ellipse.stack(self.ellipses)
+
+    def lead_in(self, t: np.ndarray) -> np.ndarray:
+        """Stride scale over the first cycle, from 0 to 1: the gait starts from the ready posture (every sole at the
+        ellipse's centre) instead of jumping to its phases."""
+        return np.minimum(1.0, self.frequency * t)
+
+    def counts(self, t: np.ndarray, strides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Goal counts (n, 16) at clock times ``t`` (n,) with stride factors (n, 4), and where the knee limit held a
+        leg back (n, 4)."""
+        phase = 2.0 * np.pi * (self.frequency * t[:, None] + self._phases[None, :])
+        goal = np.tile(self.stand_counts, (len(t), 1))
+        x, z = self._ellipses.point(phase, strides)
+        hip, knee, limited = self._legs.inverse(x, z)
+        goal[:, self._hips] = constants.CENTER + hip / constants.RAD_PER_COUNT
+        goal[:, self._knees] = constants.CENTER + knee / constants.RAD_PER_COUNT
+        return goal, limited
+
+
+def side_strides(left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """Stride factors per leg (n, 4) from one factor per side (n,)."""
+    return np.where(SIDE[None, :] == 0.0, np.asarray(left)[:, None], np.asarray(right)[:, None])

@@ -1,0 +1,171 @@
+"""The ``commands`` action mode: forward speed and turn rate, run by each robot's reference gait.
+
+A :class:`Steering` turns two numbers per player, a drive and a turn, into the robot's own commands at every control
+step: the VelociRoACH's tripod (stride frequency, and the phase between its sides, by which the real robot turns),
+the xJüs's Buehler clock (stride frequency, and a different ground sweep per side) and the Bioloid's IK trot at
+1.5 Hz (stride length, and one side's stride shortened). What speed and turn rate each (drive, turn) gives was
+measured on the model over a grid (``python -m benchmarks.gait_maps``, written to ``envs/soccer/gait_maps/``), and a
+:class:`GaitMap` inverts it: a commanded (speed, turn rate) goes to the measured (drive, turn) whose speed and turn
+rate were nearest to it.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+from scipy.interpolate import NearestNDInterpolator
+
+from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals, side_strides
+from envs.common.robot import ActionMode, Robot
+from envs.xjus import constants as xjus
+
+MAPS = Path(__file__).resolve().parent / "gait_maps"
+COMMANDS = "commands"
+
+
+class Steering(ABC):
+    """(drive, turn) per player -> the robot's own commands, at every control step.
+
+    Attributes:
+        drives, turns: the grid of drives and turns the gait map measures (their ends bound both).
+    """
+
+    robot_name: ClassVar[str]
+    drives: ClassVar[tuple[float, ...]]
+    turns: ClassVar[tuple[float, ...]]
+
+    def __init__(self, robot: Robot):
+        if robot.name != self.robot_name:
+            raise ValueError(f"{type(self).__name__} steers a {self.robot_name}, not a {robot.name}")
+        self.robot = robot
+        self.dt = robot.control_dt
+
+    def reset(self, ids: np.ndarray) -> None:  # noqa: B027 (an optional hook)
+        """Players ``ids`` start again (a gait with a clock of its own starts it at 0)."""
+
+    @abstractmethod
+    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        """The robot's commands (n, its mode's size) for the next control step, in its physical units."""
+
+
+class RoachSteering(Steering):
+    """The tripod: drive = stride frequency (Hz, both sides), turn = how far the right legs trail the left (rad; pi
+    runs straight, less turns left) [roach-sim]. The firmware runs the clocks and moves the phase."""
+
+    robot_name = "velociroach"
+    drives = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
+    turns = tuple(np.radians(np.arange(130.0, 231.0, 10.0)).tolist())
+
+    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        return np.column_stack([drive, drive, turn])
+
+
+class XjusSteering(Steering):
+    """The Buehler clock: drive = stride frequency (1 / period, Hz), turn = right sweep less left sweep (rad) around
+    the walking sweep (a larger sweep on the right turns left) [xjus-report, 2.5]."""
+
+    robot_name = "xjus"
+    drives = (1.0 / 1.5, 0.8, 1.0, 1.25, 1.5, 1.75, 2.0)
+    turns = tuple(np.radians(np.arange(-60.0, 61.0, 15.0)).tolist())
+
+    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        half = 0.5 * turn
+        low, high = xjus.SWEEP_RANGE
+        sweeps = np.clip(np.column_stack([xjus.WALK_SWEEP - half, xjus.WALK_SWEEP + half]), low, high)
+        return np.column_stack([1.0 / drive, sweeps])
+
+
+class BioloidSteering(Steering):
+    """The IK trot at 1.5 Hz [bioloid-webots, VI.A]: drive = stride factor (0 marks time, 1 the full ellipse), turn
+    in [-1, 1] shortens one side's stride (> 0 the right side's: the trot turns toward the longer stride, left).
+    Each player's clock starts at 0 when it resets, with the gait's lead-in."""
+
+    robot_name = "bioloid"
+    drives = (0.0, 0.25, 0.5, 0.75, 1.0)
+    turns = (-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0)
+
+    def __init__(self, robot: Robot):
+        super().__init__(robot)
+        self.goals = IKGoals(TROT, TROT_FREQUENCY, robot.wedge)
+        self.clock = np.zeros(robot.num_sims)
+
+    def reset(self, ids: np.ndarray) -> None:
+        self.clock[ids] = 0.0
+
+    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
+        scale = drive * self.goals.lead_in(self.clock)
+        left = scale * (1.0 - np.clip(-turn, 0.0, 1.0))
+        right = scale * (1.0 - np.clip(turn, 0.0, 1.0))
+        goal, _ = self.goals.counts(self.clock, side_strides(left, right))
+        self.clock = self.clock + self.dt
+        return goal
+
+
+STEERING: dict[str, type[Steering]] = {s.robot_name: s for s in (RoachSteering, XjusSteering, BioloidSteering)}
+
+
+@dataclass(frozen=True)
+class GaitMap:
+    """What speed (m/s, along the heading) and turn rate (rad/s, + to the left) each (drive, turn) of a robot's
+    steering gave on the model, averaged over seeds, and its inverse."""
+
+    robot: str
+    drive: np.ndarray  # (points,)
+    turn: np.ndarray
+    speed: np.ndarray
+    yaw_rate: np.ndarray
+    max_speed: float  # the fastest straight run
+    max_yaw_rate: float  # the largest turn rate either way that every drive above the slowest reaches
+
+    @classmethod
+    def read(cls, robot: str) -> GaitMap:
+        path = MAPS / f"{robot}.json"
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no gait map for the {robot} (python -m benchmarks.gait_maps writes it)")
+        data = json.loads(path.read_text())
+        points = [p for p in data["points"] if p["falls"] == 0]  # the map holds what runs without a fall
+        return cls(robot, *(np.array([p[k] for p in points], dtype=np.float64)
+                            for k in ("drive", "turn", "speed", "yaw_rate")),
+                   float(data["max_speed"]), float(data["max_yaw_rate"]))  # fmt: skip
+
+    @functools.cached_property
+    def _inverse(self) -> NearestNDInterpolator:
+        scaled = np.column_stack([self.speed / self.max_speed, self.yaw_rate / self.max_yaw_rate])
+        return NearestNDInterpolator(scaled, np.column_stack([self.drive, self.turn]))
+
+    def controls(self, speed: np.ndarray, yaw_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(drive, turn) per row: the measured point nearest to (speed, yaw rate), each scaled by the map's largest.
+        Nearest, not interpolated: several (drive, turn) can give much the same speed and turn rate (the Bioloid's
+        trot turns by shortening a stride and slows with it), so a blend of neighbours in that space could be a
+        setting nobody measured."""
+        query = np.column_stack([np.asarray(speed) / self.max_speed, np.asarray(yaw_rate) / self.max_yaw_rate])
+        found = self._inverse(query)
+        return found[:, 0], found[:, 1]
+
+
+class Commands:
+    """The ``commands`` mode of a robot: a normalized action (forward speed, turn rate) in [-1, 1] per player, run by
+    its steering gait through its gait map. Speed from 0 (-1) to the map's fastest straight run (+1); turn rate up to
+    the map's ``max_yaw_rate`` either way (+ to the left)."""
+
+    def __init__(self, robot: Robot):
+        self.steering = STEERING[robot.name](robot)
+        self.map = GaitMap.read(robot.name)
+        self.mode = ActionMode(COMMANDS, ("speed", "yaw_rate"), ("m/s", "rad/s"), (0.0, -self.map.max_yaw_rate),
+                               (self.map.max_speed, self.map.max_yaw_rate), 1.0 / robot.control_dt,
+                               "forward speed and turn rate, run by the robot's reference gait")  # fmt: skip
+
+    def reset(self, ids: np.ndarray) -> None:
+        self.steering.reset(ids)
+
+    def robot_commands(self, actions: np.ndarray) -> np.ndarray:
+        """The robot's own commands (n, its mode's size) for normalized actions (n, 2)."""
+        wanted = self.mode.to_command(actions)
+        drive, turn = self.map.controls(wanted[:, 0], wanted[:, 1])
+        return self.steering.commands(drive, turn)

@@ -1,0 +1,107 @@
+"""The commands mode (speed and turn rate through each robot's gait map) and the scripted team."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.soccer.scripted import ScriptedPlayer, scripted_team
+from envs.common.task import ObservationLayout
+from envs.soccer import match
+from envs.soccer.steering import MAPS, STEERING, Commands, GaitMap
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("robot", sorted(STEERING))
+def test_every_gait_map_is_the_benchmarks_and_covers_its_grid(robot):
+    """envs/soccer/gait_maps/ as ``python -m benchmarks.gait_maps`` wrote it, every grid point measured."""
+    data = json.loads((MAPS / f"{robot}.json").read_text())
+    steering = STEERING[robot]
+    assert data["generated_by"] == "python -m benchmarks.gait_maps"
+    grid = {(round(p["drive"], 9), round(p["turn"], 9)) for p in data["points"]}
+    assert grid == {(round(d, 9), round(t, 9)) for d in steering.drives for t in steering.turns}
+    result = json.loads((ROOT / "benchmarks/results/gait_maps.json").read_text())
+    assert any(m["points"] == data["points"] for m in result["maps"].values())
+
+
+@pytest.mark.parametrize("robot", sorted(STEERING))
+def test_a_measured_speed_and_turn_rate_go_back_to_their_own_setting(robot):
+    """The inverse is the nearest measured point: asked for exactly what a setting gave, it returns that setting
+    (where no other setting gave the same)."""
+    gait = GaitMap.read(robot)
+    drive, turn = gait.controls(gait.speed, gait.yaw_rate)
+    unique = np.array([np.count_nonzero((gait.speed == s) & (gait.yaw_rate == w)) == 1
+                       for s, w in zip(gait.speed, gait.yaw_rate, strict=True)])  # fmt: skip
+    np.testing.assert_array_equal(drive[unique], gait.drive[unique])
+    np.testing.assert_array_equal(turn[unique], gait.turn[unique])
+    assert gait.max_speed == gait.speed.max() and gait.max_yaw_rate == np.abs(gait.yaw_rate).max()
+
+
+def test_the_xjus_walks_at_the_commanded_speed_in_the_commands_mode():
+    """Half its fastest straight run, for 4 s from a standstill: within 15%, its heading within 10 deg."""
+    env = match.parallel_env(robot="xjus", players_per_team=1, action_mode="commands", reset_noise_scale=0.0)
+    speed = 0.5 * env.commands.map.max_speed
+    env.reset(seed=0, options={"places": {"home_0": [-3.8, 1.6, 0.0]}})
+    action = env.mode.to_action(np.array([[speed, 0.0]]))[0]
+    data = env.scene.sim.data
+    start, steps = data.qpos[:2].copy(), round(4.0 / env.dt)
+    for _ in range(steps):
+        env.step({"home_0": action, "away_0": np.array([-1.0, 0.0])})
+    moved = (data.qpos[:2] - start) / (steps * env.dt)
+    assert moved[0] == pytest.approx(speed, rel=0.15) and abs(moved[1]) < 0.2 * speed
+    w, z = data.qpos[3], data.qpos[6]
+    assert abs(np.degrees(2 * np.arctan2(z, w))) < 10
+
+
+def test_the_bioloids_commands_run_the_ik_trot_from_its_own_clock():
+    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+    env.reset(seed=0)
+    commands: Commands = env.commands
+    first = commands.robot_commands(np.zeros((2, 2)))
+    second = commands.robot_commands(np.zeros((2, 2)))
+    assert first.shape == (2, 16) and not np.array_equal(first, second), "the trot's clock runs"
+    commands.reset(np.array([0, 1]))
+    np.testing.assert_array_equal(commands.robot_commands(np.zeros((2, 2))), first)
+
+
+LAYOUT = ObservationLayout.from_structure({"ball": 2, "goal": 2, "own_goal": 2})
+
+
+def player(keeper: bool = False) -> ScriptedPlayer:
+    env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands")
+    return ScriptedPlayer(LAYOUT, env.mode, 0.1, 0.02, keeper)
+
+
+def obs(ball, goal, own=(-5.0, 0.0)) -> np.ndarray:
+    return np.array([[*ball, *goal, *own]], dtype=np.float64)
+
+
+def test_a_scripted_player_behind_the_ball_pushes_it_toward_the_goal():
+    target, pushing = player().targets(obs((0.3, 0.0), (2.0, 0.0)))
+    assert pushing[0] and target[0, 0] > 0.3 and abs(target[0, 1]) < 1e-9
+    action, _ = player().predict(obs((0.3, 0.0), (2.0, 0.0))[0])
+    assert action[0] > -1.0 and abs(action[1]) < 1e-6, "straight at it"
+
+
+def test_a_scripted_player_in_front_of_the_ball_goes_round_it():
+    """The ball behind the player, the goal ahead: its target is behind the ball and to the side it stands on."""
+    target, pushing = player().targets(obs((-0.3, 0.05), (2.0, 0.0)))
+    assert not pushing[0] and target[0, 0] < -0.3 and abs(target[0, 1]) > 0.05
+
+
+def test_the_scripted_keeper_stands_between_the_ball_and_its_goal():
+    target, _ = player(keeper=True).targets(obs((1.0, 1.0), (5.0, 0.0), own=(-1.0, 0.0)))
+    ball, own = np.array([1.0, 1.0]), np.array([-1.0, 0.0])
+    along = (target[0] - own) / np.linalg.norm(target[0] - own)
+    np.testing.assert_allclose(along, (ball - own) / np.linalg.norm(ball - own))
+    assert np.linalg.norm(target[0] - own) == pytest.approx(0.15)
+
+
+def test_the_scripted_team_plays_in_the_commands_mode_only():
+    env = match.parallel_env(robot="bioloid", players_per_team=3, action_mode="commands")
+    team = scripted_team(env, "away")
+    assert [p.keeper for p in team.values()] == [False, False, True]
+    with pytest.raises(ValueError, match="commands mode"):
+        scripted_team(match.parallel_env(robot="bioloid", players_per_team=1), "home")
