@@ -170,3 +170,16 @@ def test_the_benchmark_ran_every_robot_and_team_size_and_every_test_passed():
     result = json.loads((Path(__file__).resolve().parents[1] / "benchmarks/results/soccer_api.json").read_text())
     assert sorted((r["robot"], r["players_per_team"]) for r in result["rows"]) == sorted(matrix())
     assert result["passed"] and all(r["errors"] == dict.fromkeys(TESTS) for r in result["rows"])
+
+
+def test_a_set_piece_places_players_and_ball_and_refuses_places_outside_the_walls():
+    env = quiet(robot="roach", players_per_team=1)
+    env.reset(seed=0, options={"places": {"away_0": [0.5, -0.2, 1.0]}, "ball": [0.3, 0.1]})
+    data = env.scene.sim.data
+    nq = env.robot.model.nq
+    np.testing.assert_allclose(data.qpos[nq : nq + 2], [0.5, -0.2], atol=1e-9)
+    np.testing.assert_allclose(env.scene.scene_sensor("ball_pos")[0, :2], [0.3, 0.1], atol=1e-9)
+    for options, word in (({"ball": [5.0, 0.0]}, "ball"), ({"places": {"home_9": [0, 0, 0]}}, "places"),
+                          ({"places": {"home_0": [0.0, 0.0]}}, "home_0")):  # fmt: skip
+        with pytest.raises(ValueError, match=word):
+            env.reset(seed=0, options=options)
