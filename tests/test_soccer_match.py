@@ -96,9 +96,8 @@ def test_a_fallen_player_is_taken_off_and_put_back_at_its_own_half():
     seen = []
     for _ in range(400):
         _, _, _, _, infos = env.step({a: rng.uniform(-1, 1, 16) for a in env.agents})
-        seen.append(
-            (infos["home_0"]["fallen"], infos["home_0"]["off"], env.robot.read(env._rngs, False)["position"][0])
-        )
+        where = env.scene.sim.data.qpos[:2].copy()  # home_0's root: the first block of the scene's qpos
+        seen.append((infos["home_0"]["fallen"], infos["home_0"]["off"], where))
         if len(seen) > 2 and seen[-2][1] and not seen[-1][1]:
             break
     fell = next(i for i, s in enumerate(seen) if s[0])
@@ -183,3 +182,34 @@ def test_a_set_piece_places_players_and_ball_and_refuses_places_outside_the_wall
                           ({"places": {"home_0": [0.0, 0.0]}}, "home_0")):  # fmt: skip
         with pytest.raises(ValueError, match=word):
             env.reset(seed=0, options=options)
+
+
+def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
+    """Two Bioloid matches (2 a side) on one mujoco.batch, as an SB3 VecEnv of 8 players, against two PettingZoo
+    matches seeded as SB3 seeds them: the same observations and rewards at every step, across the time limit (SB3
+    starts a match again in the same step, with its last observation in the info)."""
+    from agents.soccer.vec_env import SoccerVecEnv
+
+    vec = SoccerVecEnv(2, robot="bioloid", players_per_team=2, max_cycles=12)
+    vec.seed(10)
+    singles = [match.parallel_env(robot="bioloid", players_per_team=2, max_cycles=12) for _ in range(2)]
+
+    def rows(observations, env):
+        return [observations[a] for a in env.possible_agents]
+
+    obs = vec.reset()
+    np.testing.assert_array_equal(obs, np.vstack([rows(env.reset(seed=10 + 4 * m)[0], env)
+                                                  for m, env in enumerate(singles)]))  # fmt: skip
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        actions = rng.uniform(-1, 1, (8, 16)).astype(np.float32)
+        obs, rewards, dones, infos = vec.step(actions)
+        for m, env in enumerate(singles):
+            o, r, term, trunc, _ = env.step({a: actions[4 * m + i] for i, a in enumerate(env.possible_agents)})
+            mine = slice(4 * m, 4 * m + 4)
+            np.testing.assert_array_equal(rewards[mine], [r[a] for a in env.possible_agents])
+            assert dones[4 * m] == (term["home_0"] or trunc["home_0"])
+            if dones[4 * m]:
+                np.testing.assert_array_equal([info["terminal_observation"] for info in infos[mine]], rows(o, env))
+                o = env.reset()[0]
+            np.testing.assert_array_equal(obs[mine], rows(o, env))

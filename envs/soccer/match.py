@@ -63,9 +63,274 @@ class MatchTask(SoccerTask):
         return {"goal": state["scored"] - state["conceded"]}
 
 
+class Matches:
+    """``num_matches`` soccer matches of one configuration, stepped together: the engine behind
+    :class:`SoccerParallelEnv` (one match) and :class:`envs.soccer.vec_env.SoccerVecEnv` (many, on one
+    ``mujoco.batch``). Every array has a row per player of every match (match-major: row ``m * players + p``); the
+    bookkeeping (score, clock, referee) is per match, in arrays, with no Python loop over matches in a step.
+
+    Arguments: :class:`SoccerParallelEnv`'s, and ``num_matches``, ``nthread`` and ``batched`` (run on
+    ``mujoco.batch.Batch``; default: when there is more than one match).
+    """
+
+    def __init__(
+        self,
+        robot: str = "bioloid",
+        players_per_team: int = 3,
+        action_mode: str | None = None,
+        max_cycles: int | None = None,
+        max_goals: int | None = None,
+        referee: bool = True,
+        penalty_seconds: float = PENALTY_SECONDS,
+        sparse: bool = False,
+        ball_noise: float = BALL_NOISE,
+        field_of_view: float | None = None,
+        max_tilt: float = 1.4,
+        terminate_when_unhealthy: bool = True,
+        height_band: tuple[float, float] | None = None,
+        grace_time: float = GRACE_TIME,
+        reset_noise_scale: float = 0.1,
+        sensor_noise: bool = True,
+        num_matches: int = 1,
+        nthread: int | None = None,
+        batched: bool | None = None,
+    ):
+        names = {name.lower(): name for name in ROBOTS}
+        if robot not in names:
+            raise ValueError(f"robot must be one of {sorted(names)}, got {robot!r}")
+        if isinstance(players_per_team, bool) or players_per_team not in range(1, MAX_PLAYERS + 1):
+            raise ValueError(
+                f"players_per_team must be a whole number from 1 to {MAX_PLAYERS}, got {players_per_team!r}"
+            )
+        if isinstance(num_matches, bool) or not isinstance(num_matches, int | np.integer) or num_matches < 1:
+            raise ValueError(f"num_matches must be a whole number >= 1, got {num_matches!r}")
+        robot_class, self.field = ROBOTS[names[robot]], FIELDS[names[robot]]
+        self.robot_name = robot
+        k = int(players_per_team)
+        self.possible_agents = [f"home_{i}" for i in range(k)] + [f"away_{i}" for i in range(k)]
+        self.referee = check_flag("referee", referee)
+        self.penalty_seconds = check_number("penalty_seconds", penalty_seconds, 0)
+        self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
+        if max_goals is not None and (isinstance(max_goals, bool) or not isinstance(max_goals, int) or max_goals < 1):
+            raise ValueError(f"max_goals must be a whole number >= 1 or None, got {max_goals!r}")
+        self.max_goals = max_goals
+        mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
+        if mode not in (*robot_class.action_modes, COMMANDS):
+            raise ValueError(f"action_mode must be one of {[*robot_class.action_modes, COMMANDS]}, got {mode!r}")
+        if max_cycles is not None and (
+            isinstance(max_cycles, bool) or not isinstance(max_cycles, int) or max_cycles < 1
+        ):
+            raise ValueError(f"max_cycles must be a whole number >= 1, got {max_cycles!r}")
+        self.action_mode = mode
+        native = next(iter(robot_class.action_modes)) if mode == COMMANDS else mode
+        imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
+        self.num_matches = int(num_matches)
+        self.scene = SharedScene(
+            lambda: robot_class(action_mode=native, imu_noise=imu),
+            self.possible_agents,
+            [field_edit(self.field, self.possible_agents, robot_class.root_body)],
+            num_scenes=self.num_matches,
+            nthread=nthread,
+            batched=batched,
+        )
+        self.robot = self.scene.robot
+        # the commands mode: forward speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
+        self.commands = Commands(self.robot) if mode == COMMANDS else None
+        self.mode = self.robot.mode if self.commands is None else self.commands.mode
+        self.task = MatchTask(self.robot, self.scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
+                              terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
+        self.dt = self.robot.control_dt
+        self.max_cycles = round(MATCH_SECONDS / self.dt) if max_cycles is None else int(max_cycles)
+        n, rows = len(self.possible_agents), self.robot.num_sims
+        self.players = n
+        self._match_of = np.arange(rows) // n
+        self._home = np.tile([agent.startswith("home") for agent in self.possible_agents], self.num_matches)
+        # what a player off the field is sent: standing still in the commands mode, mid-range commands otherwise
+        self.rest = np.array([-1.0, 0.0]) if self.commands is not None else np.zeros(self.mode.size)
+        self._match_rngs = [np.random.default_rng() for _ in range(self.num_matches)]
+        self.rngs = [np.random.default_rng() for _ in range(rows)]
+        self.off_until = np.full(rows, np.nan)  # a player off the field: the time it comes back
+        self._pending = np.zeros(rows, dtype=bool)  # players to place at the next step (taken off, put back)
+        self._kickoff = np.zeros(self.num_matches, dtype=bool)
+        self.scores = np.zeros((self.num_matches, 2), dtype=np.int64)  # home, away
+        self.cycles = np.zeros(self.num_matches, dtype=np.int64)
+        self.obs = np.zeros((rows, self.task.layout.size))
+
+    def rows_of(self, matches: np.ndarray) -> np.ndarray:
+        """The rows of every player of ``matches``."""
+        return (np.asarray(matches)[:, None] * self.players + np.arange(self.players)).reshape(-1)
+
+    # --- places -------------------------------------------------------------------------------------------------
+    def kickoff_places(self, match: int) -> np.ndarray:
+        """(x, y, heading) of every player of ``match`` at kickoff, each perturbed by the match's random stream."""
+        k = self.players // 2
+        hl, hw = self.field.half_length, self.field.half_width
+        noise, length = self.reset_noise_scale, self.robot.facts.length
+        home = np.array([[x * hl, y * hw, 0.0] for x, y in FORMATIONS[k]])
+        places = np.vstack([home, home * [-1.0, -1.0, 1.0] + [0.0, 0.0, math.pi]])
+        rng = self._match_rngs[match]
+        places[:, :2] += rng.uniform(-noise, noise, (len(places), 2)) * length
+        places[:, 2] += rng.uniform(-noise, noise, len(places))
+        return places
+
+    def _off_place(self, row: int) -> np.ndarray:
+        """Where a player waits while it is off: beyond the wall on its own side, clear of the others."""
+        f, length = self.field, self.robot.facts.length
+        side, i = (1.0 if self._home[row] else -1.0), row % self.players
+        y = f.half_width + f.side_border + 3.0 * length
+        return np.array([-side * (0.5 + 2.0 * i) * length, -side * y, 0.0])
+
+    def _return_place(self, row: int) -> np.ndarray:
+        """Where a player comes back: at the touch line of its own half, facing into the field."""
+        f, length = self.field, self.robot.facts.length
+        side = 1.0 if self._home[row] else -1.0
+        y = -side * (f.half_width - 0.5 * length)
+        return np.array([-side * 0.5 * f.half_length, y, side * math.pi / 2])
+
+    def _place_kickoff(self, match: int) -> None:
+        self.scene.placement[self.rows_of(np.array([match]))] = self.kickoff_places(match)
+        self.scene.place_object(np.array([match]), BALL, np.array([[0.0, 0.0, self.field.ball.radius]]),
+                                np.zeros((1, 3)))  # fmt: skip
+
+    def _place_options(self, match: int, options: dict | None) -> None:
+        """A reset's set piece: ``options["places"]`` (agent -> (x, y, heading)) and ``options["ball"]`` ((x, y)),
+        each inside the field's walls; the next kickoffs are the formation's again. Other keys are ignored
+        (PettingZoo's API test passes one of its own)."""
+        options = options or {}
+        f = self.field
+        reach = (f.half_length + f.end_border, f.half_width + f.side_border)
+        places = options.get("places", {})
+        if not isinstance(places, dict) or not set(places) <= set(self.possible_agents):
+            raise ValueError(f"options['places'] must map agents {self.possible_agents} to (x, y, heading), "
+                             f"got {places!r}")  # fmt: skip
+        for agent, value in places.items():
+            row = match * self.players + self.possible_agents.index(agent)
+            self.scene.placement[row] = self._check_place(value, 3, f"places'][{agent!r}", reach)
+        if "ball" in options:
+            x, y = self._check_place(options["ball"], 2, "ball", reach)
+            self.scene.place_object(np.array([match]), BALL, np.array([[x, y, f.ball.radius]]), np.zeros((1, 3)))
+
+    @staticmethod
+    def _check_place(value: Any, size: int, name: str, reach: tuple[float, float]) -> np.ndarray:
+        place = np.zeros(0) if isinstance(value, str | bytes) else np.asarray(value, dtype=np.float64).reshape(-1)
+        inside = place.shape == (size,) and np.isfinite(place).all()
+        if not inside or abs(place[0]) > reach[0] or abs(place[1]) > reach[1]:
+            raise ValueError(f"options['{name}'] must be {size} finite numbers with |x| <= {reach[0]:g} and "
+                             f"|y| <= {reach[1]:g} m (inside the walls), got {value!r}")  # fmt: skip
+        return place
+
+    # --- reset and step -------------------------------------------------------------------------------------------
+    def seed(self, match: int, seed: int | None) -> None:
+        """Seed a match's streams: its kickoff places' and each player's (as one match seeded with ``seed``)."""
+        sequence = np.random.SeedSequence(seed)
+        self._match_rngs[match] = np.random.default_rng(sequence.spawn(1)[0])
+        for row, child in zip(self.rows_of(np.array([match])), sequence.spawn(self.players), strict=True):
+            self.rngs[row] = np.random.default_rng(child)
+
+    def reset(self, matches: np.ndarray, options: dict | None = None) -> None:
+        """Start ``matches`` again (their kickoff, or the set piece of ``options``); their rows of :attr:`obs` are
+        their first observations. The other matches go on untouched."""
+        matches = np.asarray(matches, dtype=np.int64)
+        rows = self.rows_of(matches)
+        self.scores[matches] = 0
+        self.cycles[matches] = 0
+        self._kickoff[matches] = False
+        self.off_until[rows] = np.nan
+        self._pending[rows] = False
+        for m in matches:
+            self._place_kickoff(int(m))
+            self._place_options(int(m), options)
+        self._reset_rows(rows)
+        # a reset's reading: no step to integrate, and the players not reset draw nothing
+        reset = np.zeros(len(self.rngs), dtype=bool)
+        reset[rows] = True
+        readings = self.robot.read([rng if r else None for rng, r in zip(self.rngs, reset, strict=True)], False)
+        self.task.reset(rows, [self.rngs[i] for i in rows], None, readings)
+        self.obs[rows] = self.task.observe(readings)[rows]
+
+    def _reset_rows(self, rows: np.ndarray) -> None:
+        self.robot.reset(rows, [self.rngs[i] for i in rows], self.reset_noise_scale, None)
+        if self.commands is not None:
+            self.commands.reset(rows)
+
+    def step(self, actions: np.ndarray) -> dict[str, np.ndarray]:
+        """One control step of every match from normalized actions (rows, action size) (a player off the field is
+        sent :attr:`rest`). Returns per row ``reward``, ``fallen``, ``off`` and the shaping terms, and per match
+        ``goal_home``, ``goal_away``, ``ended`` (by ``max_goals``) and ``truncated`` (by ``max_cycles``)."""
+        chosen = np.where(np.isnan(self.off_until)[:, None], actions, self.rest)
+        if self.commands is None:
+            self.robot.command(self.robot.mode.to_command(chosen))
+        else:
+            self.robot.command(self.commands.robot_commands(chosen))
+        self.robot.step()
+        placed = self._place_pending()
+        stepped = ~placed
+        any_placed = bool(placed.any())
+        readings = self.robot.read(self.rngs, stepped if any_placed else True)
+        if any_placed:
+            ids = np.flatnonzero(placed)
+            self.task.reset(ids, [self.rngs[i] for i in ids], None, readings)
+        state = self.task.update(readings, stepped if any_placed else None)
+        self.obs = self.task.observe(readings)
+        self.cycles += 1
+        plus, minus = self.task.scene_goals()
+        self.scores[:, 0] += plus
+        self.scores[:, 1] += minus
+        self._kickoff |= plus | minus
+        fell = self.task.terminated(state) & stepped
+        if self.referee:
+            taken = fell & np.isnan(self.off_until)
+            self.off_until[taken] = self.scene.time[self._match_of[taken]] + self.penalty_seconds
+            self._pending |= taken
+        ended = np.zeros(self.num_matches, dtype=bool)
+        if self.max_goals is not None:
+            ended = self.scores.max(axis=1) >= self.max_goals
+        return {
+            "reward": self.task.reward_terms(state)["goal"],
+            "fallen": fell,
+            "off": ~np.isnan(self.off_until),
+            "approach": state["approach"],
+            "ball_progress": state["ball_progress"],
+            "touched": state["touched"],
+            "ball_distance": state["ball_distance"],
+            "goal_home": plus,
+            "goal_away": minus,
+            "ended": ended,
+            "truncated": (self.cycles >= self.max_cycles) & ~ended,
+        }
+
+    def _place_pending(self) -> np.ndarray:
+        """After the step's physics: the kickoffs called for (every player of those matches), the players taken off
+        and those whose penalty is over put back. (rows,) bool: who was placed."""
+        placed = np.zeros(len(self.rngs), dtype=bool)
+        if self._kickoff.any():
+            matches = np.flatnonzero(self._kickoff)
+            rows = self.rows_of(matches)
+            self._kickoff[matches] = False
+            self.off_until[rows] = np.nan
+            self._pending[rows] = False
+            for m in matches:
+                self._place_kickoff(int(m))
+            placed[rows] = True
+        now = self.scene.time[self._match_of]
+        off = ~np.isnan(self.off_until)
+        back = off & (np.where(off, self.off_until, np.inf) <= now + 1e-9) & ~self._pending & ~placed
+        for row in np.flatnonzero(back):
+            self.off_until[row] = np.nan
+            self.scene.placement[row] = self._return_place(row)
+        going = self._pending & ~placed
+        for row in np.flatnonzero(going):
+            self.scene.placement[row] = self._off_place(row)
+        self._pending[:] = False
+        placed |= back | going
+        if placed.any():
+            self._reset_rows(np.flatnonzero(placed))
+        return placed
+
+
 class SoccerParallelEnv(ParallelEnv):
     """A soccer match of ``players_per_team`` against ``players_per_team`` robots of one kind (see the module
-    docstring).
+    docstring): PettingZoo's ``ParallelEnv`` over one :class:`Matches`.
 
     Args:
         robot: ``"bioloid"``, ``"xjus"`` or ``"roach"``.
@@ -95,97 +360,52 @@ class SoccerParallelEnv(ParallelEnv):
         "render_fps": 50,
     }
 
-    def __init__(
-        self,
-        robot: str = "bioloid",
-        players_per_team: int = 3,
-        action_mode: str | None = None,
-        max_cycles: int | None = None,
-        max_goals: int | None = None,
-        referee: bool = True,
-        penalty_seconds: float = PENALTY_SECONDS,
-        sparse: bool = False,
-        ball_noise: float = BALL_NOISE,
-        field_of_view: float | None = None,
-        max_tilt: float = 1.4,
-        terminate_when_unhealthy: bool = True,
-        height_band: tuple[float, float] | None = None,
-        grace_time: float = GRACE_TIME,
-        reset_noise_scale: float = 0.1,
-        sensor_noise: bool = True,
-        render_mode: str | None = None,
-        camera: str = TOP_CAMERA,
-        width: int = 480,
-        height: int = 360,
-    ):
-        names = {name.lower(): name for name in ROBOTS}
-        if robot not in names:
-            raise ValueError(f"robot must be one of {sorted(names)}, got {robot!r}")
-        if isinstance(players_per_team, bool) or players_per_team not in range(1, MAX_PLAYERS + 1):
-            raise ValueError(
-                f"players_per_team must be a whole number from 1 to {MAX_PLAYERS}, got {players_per_team!r}"
-            )
+    def __init__(self, render_mode: str | None = None, camera: str = TOP_CAMERA, width: int = 480, height: int = 360,
+                 **kwargs: Any):  # fmt: skip
         if render_mode is not None and render_mode not in (*self.metadata["render_modes"], "human"):
             raise ValueError(f"render_mode must be 'rgb_array' or 'human', got {render_mode!r}")
         for name, value in (("width", width), ("height", height)):
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= 4096:
                 raise ValueError(f"{name} must be a whole number of pixels in [1, 4096], got {value!r}")
-        robot_class, self.field = ROBOTS[names[robot]], FIELDS[names[robot]]
-        k = int(players_per_team)
-        self.possible_agents = [f"home_{i}" for i in range(k)] + [f"away_{i}" for i in range(k)]
+        self.engine = Matches(**kwargs, num_matches=1, batched=False)
+        self.possible_agents = list(self.engine.possible_agents)
         if camera != TOP_CAMERA and camera not in self.possible_agents:
             raise ValueError(f"camera must be {TOP_CAMERA!r} or an agent's name {self.possible_agents}, got {camera!r}")
-        self.referee = check_flag("referee", referee)
-        self.penalty_seconds = check_number("penalty_seconds", penalty_seconds, 0)
-        self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
-        if max_goals is not None and (isinstance(max_goals, bool) or not isinstance(max_goals, int) or max_goals < 1):
-            raise ValueError(f"max_goals must be a whole number >= 1 or None, got {max_goals!r}")
-        self.max_goals = max_goals
-        mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
-        if mode not in (*robot_class.action_modes, COMMANDS):
-            raise ValueError(f"action_mode must be one of {[*robot_class.action_modes, COMMANDS]}, got {mode!r}")
-        self.action_mode = mode
-        native = next(iter(robot_class.action_modes)) if mode == COMMANDS else mode
-        imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
-        self.scene = SharedScene(
-            lambda: robot_class(action_mode=native, imu_noise=imu),
-            self.possible_agents,
-            [field_edit(self.field, self.possible_agents, robot_class.root_body)],
-        )
-        self.robot = self.scene.robot
-        # the commands mode: forward speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
-        self.commands = Commands(self.robot) if mode == COMMANDS else None
-        self.mode = self.robot.mode if self.commands is None else self.commands.mode
-        self.task = MatchTask(self.robot, self.scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
-                              terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
-        self.dt = self.robot.control_dt
-        default = round(MATCH_SECONDS / self.dt)
-        if max_cycles is not None and (
-            isinstance(max_cycles, bool) or not isinstance(max_cycles, int) or max_cycles < 1
-        ):
-            raise ValueError(f"max_cycles must be a whole number >= 1, got {max_cycles!r}")
-        self.max_cycles = default if max_cycles is None else int(max_cycles)
-        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.dt)}
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.engine.dt)}
         self.render_mode, self.camera = render_mode, camera
         self._size = (int(width), int(height))
         self._renderer: Any = None
-        n = len(self.possible_agents)
         self._observation_space = spaces.Box(-np.inf, np.inf, shape=(self.task.layout.size,), dtype=np.float64)
         self._action_space = spaces.Box(-1.0, 1.0, shape=(self.mode.size,), dtype=np.float32)
-        # what a player off the field is sent: standing still in the commands mode, mid-range commands otherwise
-        self._rest = np.array([-1.0, 0.0]) if self.commands is not None else np.zeros(self.mode.size)
-        self._seed_sequence = np.random.SeedSequence()
-        self._rng = np.random.default_rng(self._seed_sequence.spawn(1)[0])
-        self._rngs = [np.random.default_rng(s) for s in self._seed_sequence.spawn(n)]
-        self._off_until = np.full(n, np.nan)  # a player off the field: the time it comes back
-        self._pending = np.zeros(n, dtype=bool)  # players to place at the next step (taken off, put back)
-        self._kickoff = False
-        self.score = {"home": 0, "away": 0}
-        self.cycles = 0
         self.agents: list[str] = []
-        self._obs = np.zeros((n, self.task.layout.size))
 
-    # --- spaces -------------------------------------------------------------------------------------------------
+    # --- the engine's parts, by name --------------------------------------------------------------------------------
+    scene = property(lambda self: self.engine.scene)
+    robot = property(lambda self: self.engine.robot)
+    task = property(lambda self: self.engine.task)
+    field = property(lambda self: self.engine.field)
+    mode = property(lambda self: self.engine.mode)
+    commands = property(lambda self: self.engine.commands)
+    dt = property(lambda self: self.engine.dt)
+
+    @property
+    def max_cycles(self) -> int:
+        return self.engine.max_cycles
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        self.engine.max_cycles = int(value)
+
+    @property
+    def score(self) -> dict[str, int]:
+        """Goals so far: ``{"home": .., "away": ..}``."""
+        return {"home": int(self.engine.scores[0, 0]), "away": int(self.engine.scores[0, 1])}
+
+    @property
+    def observation_structure(self) -> dict[str, int]:
+        """name -> size of every part of a player's observation, in order."""
+        return self.task.observation_structure
+
     @functools.cache  # noqa: B019 (one space object per agent, as PettingZoo's envs give)
     def observation_space(self, agent: str) -> spaces.Box:
         return self._observation_space
@@ -194,183 +414,47 @@ class SoccerParallelEnv(ParallelEnv):
     def action_space(self, agent: str) -> spaces.Box:
         return self._action_space
 
-    @property
-    def observation_structure(self) -> dict[str, int]:
-        """name -> size of every part of a player's observation, in order."""
-        return self.task.observation_structure
-
-    # --- places -------------------------------------------------------------------------------------------------
-    def kickoff_places(self) -> np.ndarray:
-        """(x, y, heading) of every player at kickoff, each perturbed by the match's random stream."""
-        k = len(self.possible_agents) // 2
-        hl, hw = self.field.half_length, self.field.half_width
-        noise, length = self.reset_noise_scale, self.robot.facts.length
-        home = np.array([[x * hl, y * hw, 0.0] for x, y in FORMATIONS[k]])
-        places = np.vstack([home, home * [-1.0, -1.0, 1.0] + [0.0, 0.0, math.pi]])
-        places[:, :2] += self._rng.uniform(-noise, noise, (len(places), 2)) * length
-        places[:, 2] += self._rng.uniform(-noise, noise, len(places))
-        return places
-
-    def _off_place(self, i: int) -> np.ndarray:
-        """Where player ``i`` waits while it is off: beyond the wall on its own side, clear of the others."""
-        f, length = self.field, self.robot.facts.length
-        side = 1.0 if self.possible_agents[i].startswith("home") else -1.0
-        y = f.half_width + f.side_border + 3.0 * length
-        return np.array([-side * (0.5 + 2.0 * i) * length, -side * y, 0.0])
-
-    def _return_place(self, i: int) -> np.ndarray:
-        """Where player ``i`` comes back: at the touch line of its own half, facing into the field."""
-        f, length = self.field, self.robot.facts.length
-        side = 1.0 if self.possible_agents[i].startswith("home") else -1.0
-        y = -side * (f.half_width - 0.5 * length)
-        return np.array([-side * 0.5 * f.half_length, y, side * math.pi / 2])
-
     # --- PettingZoo API ---------------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
-        n = len(self.possible_agents)
         if seed is not None:
-            self._seed_sequence = np.random.SeedSequence(seed)
-            self._rng = np.random.default_rng(self._seed_sequence.spawn(1)[0])
-            self._rngs = [np.random.default_rng(s) for s in self._seed_sequence.spawn(n)]
+            self.engine.seed(0, seed)
         self.agents = list(self.possible_agents)
-        self.score = {"home": 0, "away": 0}
-        self.cycles = 0
-        self._off_until[:] = np.nan
-        self._pending[:] = False
-        self._kickoff = False
-        ids = np.arange(n)
-        self._place_kickoff()
-        self._place_options(options)
-        self.robot.reset(ids, self._rngs, self.reset_noise_scale, None)
-        if self.commands is not None:
-            self.commands.reset(ids)
-        readings = self.robot.read(self._rngs, False)
-        self.task.reset(ids, self._rngs, None, readings)
-        self._obs = self.task.observe(readings)
-        infos = {agent: {"score": dict(self.score), "off": False} for agent in self.agents}
-        return self._by_agent(self._obs), infos
-
-    def _place_options(self, options: dict | None) -> None:
-        """A reset's set piece: ``options["places"]`` (agent -> (x, y, heading)) and ``options["ball"]`` ((x, y)),
-        each inside the field's walls; the next kickoffs are the formation's again. Other keys are ignored."""
-        options = options or {}  # other keys are left alone (PettingZoo's API test passes one of its own)
-        f = self.field
-        reach = (f.half_length + f.end_border, f.half_width + f.side_border)
-        places = options.get("places", {})
-        if not isinstance(places, dict) or not set(places) <= set(self.possible_agents):
-            raise ValueError(f"options['places'] must map agents {self.possible_agents} to (x, y, heading), "
-                             f"got {places!r}")  # fmt: skip
-        for agent, value in places.items():
-            self.scene.placement[self.possible_agents.index(agent)] = self._check_place(
-                value, 3, f"places'][{agent!r}", reach
-            )
-        if "ball" in options:
-            x, y = self._check_place(options["ball"], 2, "ball", reach)
-            self.scene.place_object(np.array([0]), BALL, np.array([[x, y, f.ball.radius]]), np.zeros((1, 3)))
-
-    @staticmethod
-    def _check_place(value: Any, size: int, name: str, reach: tuple[float, float]) -> np.ndarray:
-        place = np.zeros(0) if isinstance(value, str | bytes) else np.asarray(value, dtype=np.float64).reshape(-1)
-        if (
-            place.shape != (size,)
-            or not np.isfinite(place).all()
-            or abs(place[0]) > reach[0]
-            or abs(place[1]) > reach[1]
-        ):
-            raise ValueError(f"options['{name}'] must be {size} finite numbers with |x| <= {reach[0]:g} and "
-                             f"|y| <= {reach[1]:g} m (inside the walls), got {value!r}")  # fmt: skip
-        return place
-
-    def _place_kickoff(self) -> None:
-        self.scene.placement[:] = self.kickoff_places()
-        self.scene.place_object(np.array([0]), BALL, np.array([[0.0, 0.0, self.field.ball.radius]]), np.zeros((1, 3)))
+        self.engine.reset(np.array([0]), options)
+        infos = {agent: {"score": self.score, "off": False} for agent in self.agents}
+        return self._by_agent(self.engine.obs), infos
 
     def step(self, actions: dict[str, np.ndarray]):
         if not self.agents:
             raise RuntimeError("the match is over: call reset()")
-        n = len(self.possible_agents)
-        chosen = np.tile(self._rest, (n, 1))
+        engine = self.engine
+        chosen = np.tile(engine.rest, (len(self.possible_agents), 1))
         for i, agent in enumerate(self.possible_agents):
-            if agent in actions and actions[agent] is not None and np.isnan(self._off_until[i]):
+            if agent in actions and actions[agent] is not None:
                 action = np.asarray(actions[agent], dtype=np.float64).reshape(-1)
                 if action.shape != self._action_space.shape or not np.isfinite(action).all():
-                    raise ValueError(f"{agent}'s action must be {self._action_space.shape[0]} finite numbers, "
-                                     f"got {actions[agent]!r}")  # fmt: skip
+                    raise ValueError(
+                        f"{agent}'s action must be {self._action_space.shape[0]} finite numbers, got {actions[agent]!r}"
+                    )  # fmt: skip
                 chosen[i] = action
-        if self.commands is None:
-            self.robot.command(self.robot.mode.to_command(chosen))
-        else:
-            self.robot.command(self.commands.robot_commands(chosen))
-        self.robot.step()
-        placed = self._place_pending()
-        stepped = ~placed
-        readings = self.robot.read(self._rngs, stepped if placed.any() else True)
-        if placed.any():
-            self.task.reset(np.flatnonzero(placed), [self._rngs[i] for i in np.flatnonzero(placed)], None, readings)
-        state = self.task.update(readings, stepped if placed.any() else None)
-        self._obs = self.task.observe(readings)
-        self.cycles += 1
-        plus, minus = (g[0] for g in self.task.scene_goals())
-        goal = state["scored"] - state["conceded"]
-        if plus or minus:
-            self.score["home" if plus else "away"] += 1
-            self._kickoff = True
-        self._take_off(self.task.terminated(state) & stepped)
-        ended = self.max_goals is not None and max(self.score.values()) >= self.max_goals
-        truncated = self.cycles >= self.max_cycles
-        rewards = {agent: float(goal[i]) for i, agent in enumerate(self.possible_agents)}
+        out = engine.step(chosen)
+        ended, truncated = bool(out["ended"][0]), bool(out["truncated"][0])
+        rewards = {agent: float(out["reward"][i]) for i, agent in enumerate(self.possible_agents)}
         infos = {
             agent: {
-                "score": dict(self.score),
-                "off": bool(not np.isnan(self._off_until[i])),
-                "fallen": bool(self.task.terminated(state)[i] and stepped[i]),
-                **{f"reward_{key}": float(value[i]) for key, value in self.task.reward_terms(state).items()},
-                **{key: float(state[key][i]) for key in ("approach", "ball_progress", "touched", "ball_distance")},
+                "score": self.score,
+                "off": bool(out["off"][i]),
+                "fallen": bool(out["fallen"][i]),
+                "reward_goal": float(out["reward"][i]),
+                **{key: float(out[key][i]) for key in ("approach", "ball_progress", "touched", "ball_distance")},
             }
             for i, agent in enumerate(self.possible_agents)
         }
-        terminations = dict.fromkeys(self.possible_agents, bool(ended))
-        truncations = dict.fromkeys(self.possible_agents, bool(truncated and not ended))
-        observations = self._by_agent(self._obs)
+        terminations = dict.fromkeys(self.possible_agents, ended)
+        truncations = dict.fromkeys(self.possible_agents, truncated)
+        observations = self._by_agent(engine.obs)
         if ended or truncated:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
-
-    def _take_off(self, fallen: np.ndarray) -> None:
-        """Mark the fallen players (a referee takes them off at the next step)."""
-        if not self.referee:
-            return
-        for i in np.flatnonzero(fallen & np.isnan(self._off_until)):
-            self._off_until[i] = float(self.scene.time[0]) + self.penalty_seconds
-            self._pending[i] = True
-
-    def _place_pending(self) -> np.ndarray:
-        """After the step's physics: a kickoff (everyone), or the players taken off or put back. (players,) bool:
-        who was placed."""
-        n = len(self.possible_agents)
-        now = float(self.scene.time[0])
-        placed = np.zeros(n, dtype=bool)
-        if self._kickoff:
-            self._kickoff = False
-            self._off_until[:] = np.nan
-            self._pending[:] = False
-            self._place_kickoff()
-            placed[:] = True
-        else:
-            back = ~np.isnan(self._off_until) & (self._off_until <= now + 1e-9) & ~self._pending
-            for i in np.flatnonzero(back):
-                self._off_until[i] = np.nan
-                self.scene.placement[i] = self._return_place(i)
-            for i in np.flatnonzero(self._pending):
-                self.scene.placement[i] = self._off_place(i)
-            placed = back | self._pending
-            self._pending[:] = False
-        if placed.any():
-            ids = np.flatnonzero(placed)
-            self.robot.reset(ids, [self._rngs[i] for i in ids], self.reset_noise_scale, None)
-            if self.commands is not None:
-                self.commands.reset(ids)
-        return placed
 
     def _by_agent(self, rows: np.ndarray) -> dict[str, np.ndarray]:
         return {agent: rows[i].copy() for i, agent in enumerate(self.possible_agents) if agent in self.agents}

@@ -1,0 +1,108 @@
+"""Batched soccer matches as one Stable-Baselines3 ``VecEnv``: every player of ``num_matches`` matches is one of its
+envs, all driven by one shared policy, all matches stepped by one ``mujoco.batch`` call.
+
+It gives what SuperSuit's ``pettingzoo_env_to_vec_env_v1`` and ``concat_vec_envs_v1`` give over the PettingZoo env
+(envs/soccer/match.py), without a process or a Python env per match: the same :class:`~envs.soccer.match.Matches`
+engine runs them all, and match ``m`` is bit for bit the PettingZoo match seeded with the seed of its first player's
+env (SB3's ``seed(s)`` gives env ``i`` the seed ``s + i``; match ``m``'s first player is env ``m * players``). A match
+that ends (``max_goals``) or runs out of time (``max_cycles``) starts again in the same step, its players' last
+observations in ``info["terminal_observation"]``, as SB3 expects.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import VecEnv
+
+from envs.soccer.match import Matches
+
+
+class SoccerVecEnv(VecEnv):
+    """``num_matches`` matches (arguments: :class:`envs.soccer.match.SoccerParallelEnv`'s, without rendering) as an
+    SB3 VecEnv of ``num_matches x players`` envs, match-major (env ``m * players + p`` is agent ``p`` of match ``m``,
+    agents in ``possible_agents`` order: the home team, then the away team)."""
+
+    def __init__(self, num_matches: int, nthread: int | None = None, **kwargs: Any):
+        self.engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
+        engine = self.engine
+        observation_space = spaces.Box(-np.inf, np.inf, shape=(engine.task.layout.size,), dtype=np.float64)
+        action_space = spaces.Box(-1.0, 1.0, shape=(engine.mode.size,), dtype=np.float32)
+        super().__init__(engine.robot.num_sims, observation_space, action_space)
+        self.possible_agents = engine.possible_agents
+        self._actions: np.ndarray | None = None
+
+    @property
+    def observation_structure(self) -> dict[str, int]:
+        return self.engine.task.observation_structure
+
+    def reset(self) -> np.ndarray:
+        engine = self.engine
+        for m in range(engine.num_matches):
+            seed = self._seeds[m * engine.players] if self._seeds else None
+            if seed is not None:
+                engine.seed(m, seed)
+        engine.reset(np.arange(engine.num_matches))
+        self._reset_seeds()
+        self._reset_options()
+        return engine.obs.copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        actions = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
+        if not np.isfinite(actions).all():
+            bad = int(np.flatnonzero(~np.isfinite(actions).all(axis=1))[0])
+            raise ValueError(f"actions must be finite; env {bad} got {actions[bad]}")
+        self._actions = actions
+
+    def step_wait(self):
+        engine = self.engine
+        out = engine.step(self._actions)
+        match_of = np.arange(self.num_envs) // engine.players
+        ended, truncated = out["ended"][match_of], out["truncated"][match_of]
+        done = ended | truncated
+        obs = engine.obs.copy()
+        infos: list[dict[str, Any]] = [
+            {"reward_goal": float(out["reward"][i]), "fallen": bool(out["fallen"][i]), "off": bool(out["off"][i]),
+             "approach": float(out["approach"][i]), "ball_progress": float(out["ball_progress"][i])}
+            for i in range(self.num_envs)
+        ]  # fmt: skip
+        finished = np.flatnonzero(out["ended"] | out["truncated"])
+        if len(finished):
+            for i in np.flatnonzero(done):
+                infos[i]["terminal_observation"] = obs[i].copy()
+                infos[i]["TimeLimit.truncated"] = bool(truncated[i])
+                infos[i]["score"] = engine.scores[match_of[i]].tolist()
+            engine.reset(finished)
+            rows = engine.rows_of(finished)
+            obs[rows] = engine.obs[rows]
+        return obs, out["reward"].astype(np.float32), done, infos
+
+    def close(self) -> None:
+        pass
+
+    # --- attributes: one engine, shared by its envs ----------------------------------------------------------------
+    def _indices(self, indices) -> list[int]:
+        if indices is None:
+            return list(range(self.num_envs))
+        return [indices] if isinstance(indices, int) else list(indices)
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        value = self.engine if attr_name == "unwrapped" else getattr(self.engine, attr_name)
+        return [value for _ in self._indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        setattr(self.engine, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        result = getattr(self.engine, method_name)(*method_args, **method_kwargs)
+        return [result for _ in self._indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
+        return [False for _ in self._indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in range(self.num_envs)]
