@@ -117,17 +117,17 @@ def test_without_a_referee_a_fallen_player_stays():
 
 
 def test_a_three_a_side_bioloid_match_renders_to_mp4_headless(tmp_path):
-    env = match.parallel_env(robot="bioloid", players_per_team=3, render_mode="rgb_array", width=320, height=240)
+    env = match.parallel_env(robot="bioloid", players_per_team=3, render_mode="rgb_array", width=160, height=120)
     env.reset(seed=0)
     path = tmp_path / "match.mp4"
     with imageio.get_writer(path, fps=env.metadata["render_fps"]) as writer:
-        for _ in range(10):
+        for _ in range(6):
             env.step({a: env.action_space(a).sample() for a in env.agents})
             frame = env.render()
-            assert frame.shape == (240, 320, 3) and frame.std() > 5
+            assert frame.shape == (120, 160, 3) and frame.std() > 5
             writer.append_data(frame)
     with imageio.get_reader(path) as reader:
-        assert reader.count_frames() == 10
+        assert reader.count_frames() == 6
 
 
 def test_supersuits_path_gives_an_sb3_vec_env_of_every_player():
@@ -190,9 +190,9 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
     starts a match again in the same step, with its last observation in the info)."""
     from agents.soccer.vec_env import SoccerVecEnv
 
-    vec = SoccerVecEnv(2, robot="bioloid", players_per_team=2, max_cycles=12)
+    vec = SoccerVecEnv(2, robot="bioloid", players_per_team=2, max_cycles=8)
     vec.seed(10)
-    singles = [match.parallel_env(robot="bioloid", players_per_team=2, max_cycles=12) for _ in range(2)]
+    singles = [match.parallel_env(robot="bioloid", players_per_team=2, max_cycles=8) for _ in range(2)]
 
     def rows(observations, env):
         return [observations[a] for a in env.possible_agents]
@@ -201,7 +201,7 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
     np.testing.assert_array_equal(obs, np.vstack([rows(env.reset(seed=10 + 4 * m)[0], env)
                                                   for m, env in enumerate(singles)]))  # fmt: skip
     rng = np.random.default_rng(0)
-    for _ in range(20):
+    for _ in range(12):
         actions = rng.uniform(-1, 1, (8, 16)).astype(np.float32)
         obs, rewards, dones, infos = vec.step(actions)
         for m, env in enumerate(singles):

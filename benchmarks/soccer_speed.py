@@ -1,0 +1,146 @@
+"""How fast soccer runs: batched matches against raw ``mujoco.batch`` on the same controls, a match's reset, and the
+real-time factor of a three-a-side Bioloid match with the scripted team on both sides.
+
+For each robot, ``--matches`` two-a-side matches in the robot's own action mode run as one
+:class:`~agents.soccer.vec_env.SoccerVecEnv` on one thread, from random actions, for ``--steps`` control steps:
+
+- agent-steps per second (players x steps / wall time, one core);
+- the same physics replayed raw: one ``mujoco.batch.Batch`` of the same model, from the same start, run through the
+  very control blocks the env gave the physics (``Batch.rollout``, one call per control step); the ratio of the
+  env's speed to the raw replay's is the share of a step that is physics (goal: 0.9 or more);
+- a reset of every match at once, per match (goal: under 1 ms).
+
+Then a three-a-side Bioloid match in the ``commands`` mode, the scripted team on both sides, one PettingZoo env on
+one thread: simulated seconds per wall second, the players' ``predict`` included (goal: 5 or more).
+
+Run: ``python -m benchmarks.soccer_speed`` (about 2 minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+from mujoco import batch
+
+from agents.soccer.scripted import scripted_team
+from agents.soccer.vec_env import SoccerVecEnv
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
+from envs.common.simulation import CTRL_SPEC
+from envs.soccer import match
+
+CONFIGURATIONS: dict[str, list[str]] = {"soccer_speed": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+GOALS = {"raw_share": 0.9, "reset_ms": 1.0, "realtime": 5.0}
+
+
+def batched(robot: str, matches: int, steps: int, seed: int) -> dict:
+    """The batched matches and their raw replay, one thread."""
+    vec = SoccerVecEnv(matches, nthread=1, robot=robot, players_per_team=2, max_cycles=10 * steps)
+    vec.seed(seed)
+    vec.reset()
+    engine = vec.engine
+    sim = engine.scene.sim
+    model = engine.scene.model
+    start = {name: sim.batch.bind(name).copy() for name in ("time", "qpos", "qvel", "act")}
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(-1, 1, (steps, vec.num_envs, vec.action_space.shape[0])).astype(np.float32)
+    blocks = np.empty((steps, *sim.ctrl.shape))
+    began = time.perf_counter()
+    for t in range(steps):
+        vec.step(actions[t])
+        blocks[t] = sim.ctrl
+    env_seconds = time.perf_counter() - began
+    # the same physics, raw: the same model, start and control blocks, one Batch.rollout call a step, recording the
+    # sensor values the env needs (and reads its players' senses, the ball and the goals from)
+    raw = batch.Batch(model, matches, 1)
+    for name, value in start.items():
+        raw.bind(name)[:] = value
+    raw.forward(np.arange(matches))
+    record = {"sensordata": np.empty((matches, sim.n_substeps, model.nsensordata))}
+    began = time.perf_counter()
+    for t in range(steps):
+        raw.rollout(sim.n_substeps, blocks[t], CTRL_SPEC, record=("sensordata",), out=record)
+    raw_seconds = time.perf_counter() - began
+    resets = []
+    for _ in range(5):
+        began = time.perf_counter()
+        engine.reset(np.arange(matches))
+        resets.append((time.perf_counter() - began) / matches)
+    agent_steps = vec.num_envs * steps
+    return {
+        "robot": robot,
+        "matches": matches,
+        "players": engine.players,
+        "steps": steps,
+        "agent_steps_per_second": agent_steps / env_seconds,
+        "raw_agent_steps_per_second": agent_steps / raw_seconds,
+        "raw_share": raw_seconds / env_seconds,
+        "reset_ms_per_match": 1e3 * float(np.median(resets)),
+        "simulated_seconds_per_wall_second": steps * engine.dt / env_seconds * matches,
+    }
+
+
+def realtime(seconds: float, seed: int) -> dict:
+    """A three-a-side Bioloid match, commands mode, the scripted team on both sides, one thread."""
+    env = match.parallel_env(robot="bioloid", players_per_team=3, action_mode="commands")
+    obs, _ = env.reset(seed=seed)
+    teams = {**scripted_team(env, "home"), **scripted_team(env, "away")}
+    steps = round(seconds / env.dt)
+    began = time.perf_counter()
+    for _ in range(steps):
+        obs, *_ = env.step({agent: player.predict(obs[agent])[0] for agent, player in teams.items()})
+    wall = time.perf_counter() - began
+    return {"seconds": seconds, "wall": wall, "realtime": seconds / wall, "score": env.score}
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--matches", type=int, default=8, help="two-a-side matches per robot, batched")
+    parser.add_argument("--steps", type=int, default=200, help="control steps of the batched matches")
+    parser.add_argument("--match-seconds", type=float, default=20.0, help="simulated seconds of the Bioloid match")
+    parser.add_argument("--seed", type=int, default=0)
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    if args.matches < 1 or args.steps < 1 or not args.match_seconds > 0:
+        parser.error("--matches and --steps must be at least 1, --match-seconds more than 0")
+    output = resolve_output(parser, args, "soccer_speed", CONFIGURATIONS)
+    os.environ.setdefault("SKITTER_THREADS", "1")
+    rows = [batched(robot, args.matches, args.steps, args.seed) for robot in ("roach", "xjus", "bioloid")]
+    match_run = realtime(args.match_seconds, args.seed)
+    missed = [f"{r['robot']} raw share" for r in rows if r["raw_share"] < GOALS["raw_share"]]
+    missed += [f"{r['robot']} reset" for r in rows if r["reset_ms_per_match"] > GOALS["reset_ms"]]
+    if match_run["realtime"] < GOALS["realtime"]:
+        missed.append("Bioloid 3 vs 3 real time")
+    table = md_table(
+        ["robot", "matches x players", "agent-steps/s (one core)", "raw batch, agent-steps/s", "env / raw",
+         "reset per match, ms", "simulated s per wall s"],
+        [[r["robot"], f"{r['matches']} x {r['players']}", f"{r['agent_steps_per_second']:.0f}",
+          f"{r['raw_agent_steps_per_second']:.0f}", f"{r['raw_share']:.3f}", f"{r['reset_ms_per_match']:.3f}",
+          f"{r['simulated_seconds_per_wall_second']:.1f}"] for r in rows],
+    )  # fmt: skip
+    verdict = "all goals met" if not missed else "MISSED: " + ", ".join(missed)
+    md = (
+        "# Soccer speed\n\n"
+        f"Two-a-side matches of each robot in its own action mode, {args.matches} batched on one thread, "
+        f"{args.steps} control steps of random actions; the raw replay runs the same model from the same start "
+        "through the same control blocks. Goals: env / raw at least "
+        f"{GOALS['raw_share']}, a reset under {GOALS['reset_ms']:g} ms a match.\n\n"
+        + table
+        + f"\nA three-a-side Bioloid match in the commands mode, the scripted team on both sides, one thread: "
+        f"{match_run['realtime']:.1f} simulated seconds per wall second over {args.match_seconds:g} s "
+        f"(goal {GOALS['realtime']:g}).\n\n{verdict}.\n"
+    )
+    output.save({"rows": rows, "bioloid_3v3": match_run, "goals": GOALS, "met": not missed}, md)
+
+
+if __name__ == "__main__":
+    main()
