@@ -313,7 +313,9 @@ class Bioloid(Robot):
         """Height of the body's origin (m) at which the lowest sole of a level robot in posture ``angles`` (rad, in
         ``SERVOS`` order) touches the ground."""
         m = self.model
-        data = mujoco.MjData(m)
+        data = getattr(self, "_kinematics", None)
+        if data is None:  # one scratch MjData for the kinematics (making one per reset took most of a reset's time)
+            data = self._kinematics = mujoco.MjData(m)
         data.qpos[:] = m.qpos0
         data.qpos[self._servo_qpos] = angles
         if self._root_qpos is not None:

@@ -80,6 +80,9 @@ class SoccerTask(LocomotionTask):
         # for each player: the indices (in its scene) of its teammates and of its opponents, in name order
         self._mates = [[j for j in range(k) if j != i and teams[j] == teams[i]] for i in range(k)]
         self._opponents = [[j for j in range(k) if teams[j] != teams[i]] for i in range(k)]
+        self._order = np.array([self._mates[i] + self._opponents[i] for i in range(k)], dtype=np.int64).reshape(
+            k, k - 1
+        )
         self._touch_sensors = [f"{TOUCH}{p}" for p in players]
         self._ball_obs = np.zeros((n, 5))
         self._goals_obs = np.zeros((n, 4))
@@ -164,47 +167,42 @@ class SoccerTask(LocomotionTask):
         return np.where(home, plus, minus), np.where(home, minus, plus)
 
     def _observe(self, readings, ball, ids: np.ndarray) -> None:
-        """The ball, the goals and the others as each player sees them, in its own frame."""
+        """The ball, the goals and the others as each player sees them, in its own frame; the noise of row ``i`` is
+        one draw from its own stream (the ball's position and velocity, then the others)."""
         quat = readings["quaternion"]
         w, z = quat[:, 0], quat[:, 3]
         yaw = np.arctan2(2.0 * (w * z + quat[:, 1] * quat[:, 2]), 1.0 - 2.0 * (quat[:, 2] ** 2 + z * z))
-        c, s = np.cos(yaw), np.sin(yaw)
+        c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
 
-        def frame(vec: np.ndarray, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
-            return np.stack([c[rows] * vec[:, 0] + s[rows] * vec[:, 1], -s[rows] * vec[:, 0] + c[rows] * vec[:, 1]],
-                            axis=1)  # fmt: skip
+        def frame(vec: np.ndarray) -> np.ndarray:
+            """World-frame vectors (n, m, 2) in each row's own frame."""
+            x, y = vec[..., 0], vec[..., 1]
+            return np.stack([c * x + s * y, -s * x + c * y], axis=-1)
 
-        seen = frame(ball["offset"])
-        velocity = frame(ball["velocity"][:, :2])
         pos = readings["position"][:, :2]
-        k = self._k
-        others = np.zeros_like(self._others_obs)
+        n, k = len(pos), self._k
+        seen = frame(np.stack([ball["offset"], ball["velocity"][:, :2]], axis=1))  # (n, 2, 2): position, velocity
+        others = np.zeros((n, k - 1, 2))
         if k > 1:
             in_scene = pos.reshape(-1, k, 2)
-            for i in range(k):
-                order = self._mates[i] + self._opponents[i]
-                rows = np.arange(i, len(pos), k)
-                for j, other in enumerate(order):
-                    others[rows, 2 * j : 2 * j + 2] = frame(in_scene[:, other] - pos[rows], rows)
-        for i in ids:
-            rng = self._generators[i]
-            sigma = self.ball_noise * ball["distance"][i]
-            if sigma > 0:
-                seen[i] += rng.normal(0.0, sigma, 2)
-                velocity[i] += rng.normal(0.0, sigma, 2)
-            if k > 1 and self.ball_noise > 0:
-                distances = np.hypot(others[i, 0::2], others[i, 1::2])
-                others[i] += rng.normal(0.0, 1.0, others.shape[1]) * np.repeat(self.ball_noise * distances, 2)
-        visible = np.ones(len(yaw))
+            rel = in_scene[:, self._order, :] - in_scene[:, :, None, :]  # (scenes, k, k - 1, 2)
+            others = frame(rel.reshape(n, k - 1, 2))
+        if self.ball_noise > 0 and len(ids):
+            draws = np.stack([self._generators[i].normal(0.0, 1.0, 2 * (k + 1)) for i in ids])
+            sigma = self.ball_noise * np.column_stack(
+                [ball["distance"][ids], np.hypot(*others[ids].transpose(2, 0, 1))]
+            )
+            seen[ids] += draws[:, :4].reshape(-1, 2, 2) * sigma[:, :1, None]
+            if k > 1:
+                others[ids] += draws[:, 4:].reshape(-1, k - 1, 2) * sigma[:, 1:, None]
+        visible = np.ones(n)
         if self.field_of_view is not None:
-            visible = (np.abs(np.arctan2(seen[:, 1], seen[:, 0])) <= 0.5 * self.field_of_view).astype(np.float64)
-        self._ball_obs[ids] = np.concatenate([seen * visible[:, None], velocity * visible[:, None],
-                                              visible[:, None]], axis=1)[ids]  # fmt: skip
-        self._others_obs[ids] = others[ids]
-        hl = self.field.half_length * self._side[:, None]
-        self._goals_obs = np.concatenate(
-            [frame(np.hstack([hl, np.zeros_like(hl)]) - pos), frame(np.hstack([-hl, np.zeros_like(hl)]) - pos)], axis=1
-        )
+            visible = (np.abs(np.arctan2(seen[:, 0, 1], seen[:, 0, 0])) <= 0.5 * self.field_of_view).astype(np.float64)
+        ball_obs = np.concatenate([seen.reshape(n, 4) * visible[:, None], visible[:, None]], axis=1)
+        self._ball_obs[ids] = ball_obs[ids]
+        self._others_obs[ids] = others.reshape(n, -1)[ids]
+        goals = (self._side * self.field.half_length)[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
+        self._goals_obs = frame(goals - pos[:, None, :]).reshape(n, 4)
 
     def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         return dict(state)
