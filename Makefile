@@ -58,7 +58,9 @@ bench: setup
 	$(BIN)/python -m benchmarks.bioloid_figure30
 	$(BIN)/python -m benchmarks.bioloid_figure30 --knee-wedge
 	$(BIN)/python -m benchmarks.bioloid_static
+	$(BIN)/python -m benchmarks.gait_maps
 	$(BIN)/python -m benchmarks.soccer_api
+	$(BIN)/python -m benchmarks.soccer_speed
 	$(BIN)/python -m benchmarks.ground_rules
 	$(BIN)/python -m benchmarks.bioloid_cpg_experiments
 
