@@ -667,6 +667,7 @@ def test_a_scale_over_decades_is_ranked_on_a_geometric_grid():
         make("spine_stiffness", scale=(1.0, 0.0, 10.0), log=True)
 
 
+@pytest.mark.slow  # a Ray head's start-up is most of it; make bench runs the matrix as Ray tasks (--workers 2)
 def test_the_matrix_gives_the_same_cases_on_ray_as_in_turn():
     """benchmarks/calibration_matrix.py --workers K runs its cases as Ray tasks, each on its share of the cores: same
     seeds, same results as one after another (the wall time of a case aside)."""
