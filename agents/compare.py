@@ -4,6 +4,8 @@ of the ``evaluate.py`` command.
     python evaluate.py --env skitter/RoachWalk-v2 --policy tripod --policy runs/.../model.zip \
         --episodes 10 --seed 0 --out results/walk [--video] [--telemetry]
 
+With ``--soccer ROBOT`` it plays matches between two teams' policies instead (agents/soccer/play.py).
+
 Prints a side-by-side table (mean and 95% CI per metric: bootstrap from 10 episodes, Student's t below), and writes
 DIR/results.json (every episode and the summaries), DIR/results.md, a plot of one episode per policy (trajectory, body
 angles and the robot's own channel groups) and, with --video, an mp4 of each policy's first episode and one of them
@@ -336,6 +338,11 @@ def report(
 
 
 def main(argv: list[str] | None = None) -> int:
+    given = sys.argv[1:] if argv is None else list(argv)
+    if any(a == "--soccer" or a.startswith("--soccer=") for a in given):  # matches between two teams' policies
+        from agents.soccer.play import main as play_matches
+
+        return play_matches(given)
     args = parse_args(argv)
     return run_interruptibly("evaluate.py", args.out, lambda: _run(args))
 

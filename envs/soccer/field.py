@@ -281,6 +281,13 @@ def field_edit(field: Field, players: Sequence[str] = (), root_body: str | None 
                         objname=BALL)  # fmt: skip
         spec.add_sensor(name=BALL_VEL, type=mujoco.mjtSensor.mjSENS_FRAMELINVEL, objtype=mujoco.mjtObj.mjOBJ_BODY,
                         objname=BALL)  # fmt: skip
+        for player in players:  # each team in its goal's colour (the home team defends the yellow goal)
+            body = spec.body(f"{player}/{root_body}") if root_body else None
+            if body is not None:
+                colour = GOAL_COLOURS[0] if player.startswith("home") else GOAL_COLOURS[1]
+                for geom in [*body.geoms, *body.find_all(mujoco.mjtObj.mjOBJ_GEOM)]:
+                    if geom.contype or geom.conaffinity or geom.group < 3:
+                        geom.material, geom.rgba = "", list(colour)
         for player in players:
             spec.add_sensor(
                 name=TOUCH + player,

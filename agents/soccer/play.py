@@ -1,0 +1,227 @@
+"""Matches between two teams' policies with honest statistics: the soccer half of ``evaluate.py``.
+
+    python evaluate.py --soccer bioloid --players 3 --home scripted --away random --matches 20 --seed 0 \\
+        --out results/scripted_vs_random [--video] [--match-seconds 60] [--action-mode commands]
+
+Match ``i`` runs with seed ``SEED + i`` (the PettingZoo match ``envs.soccer.match.parallel_env(...)`` reset with that
+seed, bit for bit; all matches are stepped together on one ``mujoco.batch``). A team's policy is ``scripted`` (the
+scripted team, commands mode) or ``random`` (uniform actions, its own stream per match). Printed and written to
+DIR/results.json and DIR/results.md: the home team's wins, draws and losses with 95% Wilson intervals, and the mean
+goal difference (home minus away) with a 95% bootstrap interval; with --video, DIR/videos/match.mp4 of the first
+match from the top camera. The results are written as one unit (a temporary folder that takes DIR's place), and bad
+arguments are refused in one line before any match runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from agents.soccer.scripted import scripted_team
+from envs.common.io import (
+    ToolParser,
+    publish_folder,
+    published_exit_code,
+    replace_problem,
+    results_folder_problem,
+    run_interruptibly,
+    unpublished_exit_code,
+    write_json,
+    write_text,
+)
+from envs.soccer.match import MATCH_SECONDS, MAX_PLAYERS, Matches
+from envs.soccer.robots import ROBOTS
+from envs.soccer.steering import COMMANDS
+
+TEAMS = ("scripted", "random")
+RESULT_FILES = ("results.json", "results.md")
+
+
+class TeamPolicy:
+    """One team's actions for every match at once: ``act(obs) -> actions`` for the team's rows."""
+
+    def __init__(self, spec: str, engine: Matches, team: str, seed: int):
+        self.spec, self.team = spec, team
+        agents = [a for a in engine.possible_agents if a.startswith(team)]
+        self.agent_index = [engine.possible_agents.index(a) for a in agents]
+        self.rows = [engine.rows_of(np.arange(engine.num_matches)).reshape(engine.num_matches, -1)[:, i]
+                     for i in self.agent_index]  # fmt: skip
+        if spec == "scripted":
+            players = scripted_team(engine, team)
+            self.players = [players[a] for a in agents]
+        else:
+            self.rngs = [np.random.default_rng([seed, m, 0 if team == "home" else 1])
+                         for m in range(engine.num_matches)]  # fmt: skip
+        self.size = engine.mode.size
+
+    def act(self, obs: np.ndarray, actions: np.ndarray) -> None:
+        """Write the team's actions into ``actions`` (rows, size) from the observations (rows, size)."""
+        if self.spec == "scripted":
+            for rows, player in zip(self.rows, self.players, strict=True):
+                actions[rows] = player.predict(obs[rows])[0]
+            return
+        for m, rng in enumerate(self.rngs):
+            actions[[rows[m] for rows in self.rows]] = rng.uniform(-1.0, 1.0, (len(self.rows), self.size))
+
+
+def play(robot: str, players: int, home: str, away: str, matches: int, seed: int, match_seconds: float,
+         action_mode: str | None = None, video: Path | None = None) -> dict[str, Any]:  # fmt: skip
+    """Play ``matches`` seeded matches; returns every match's score and the statistics."""
+    mode = COMMANDS if action_mode is None and "scripted" in (home, away) else action_mode
+    engine = Matches(robot=robot, players_per_team=players, action_mode=mode, num_matches=matches, batched=True,
+                     max_cycles=1)  # fmt: skip
+    engine.max_cycles = max(1, round(match_seconds / engine.dt))
+    for m in range(matches):
+        engine.seed(m, seed + m)
+    engine.reset(np.arange(matches))
+    teams = [TeamPolicy(home, engine, "home", seed), TeamPolicy(away, engine, "away", seed)]
+    actions = np.zeros((engine.robot.num_sims, engine.mode.size))
+    frames, renderer = [], None
+    if video is not None:
+        renderer = _renderer(engine)
+    for _ in range(engine.max_cycles):
+        for team in teams:
+            team.act(engine.obs, actions)
+        engine.step(actions)
+        if renderer is not None:
+            frames.append(renderer.render(engine.scene.sim.get_data(0)))
+    if renderer is not None:
+        from agents.compare import write_video
+
+        renderer.close()
+        write_video(frames, video, fps=1.0 / engine.dt)
+    scores = engine.scores.tolist()
+    return {"scores": scores, **statistics(np.array(scores))}
+
+
+def _renderer(engine: Matches):
+    import mujoco
+
+    from envs.common.rendering import FrameRenderer
+    from envs.soccer.field import TOP_CAMERA
+
+    camera = mujoco.MjvCamera()
+    camera.type, camera.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, engine.scene.model.camera(TOP_CAMERA).id
+    return FrameRenderer(engine.scene.model, camera, 480, 360)
+
+
+def statistics(scores: np.ndarray) -> dict[str, Any]:
+    """The home team's wins, draws and losses (counts, fractions and 95% Wilson intervals) and the mean goal
+    difference with a 95% bootstrap interval (percentile; the interval is the mean itself when every match had the
+    same difference)."""
+    diff = scores[:, 0] - scores[:, 1]
+    n = len(diff)
+    out: dict[str, Any] = {"matches": n}
+    for name, count in (("wins", int((diff > 0).sum())), ("draws", int((diff == 0).sum())),
+                        ("losses", int((diff < 0).sum()))):  # fmt: skip
+        interval = stats.binomtest(count, n).proportion_ci(confidence_level=0.95, method="wilson")
+        out[name] = {"count": count, "fraction": count / n, "ci_low": interval.low, "ci_high": interval.high}
+    mean = float(diff.mean())
+    if n > 1 and np.ptp(diff) > 0:
+        boot = stats.bootstrap((diff,), np.mean, confidence_level=0.95, method="percentile", random_state=0)
+        low, high = float(boot.confidence_interval.low), float(boot.confidence_interval.high)
+    else:
+        low = high = mean
+    out["goal_difference"] = {"mean": mean, "ci_low": low, "ci_high": high}
+    out["goals"] = {"home": int(scores[:, 0].sum()), "away": int(scores[:, 1].sum())}
+    return out
+
+
+def report(args: argparse.Namespace, result: dict[str, Any]) -> str:
+    row = [f"{result[k]['count']} ({100 * result[k]['fraction']:.0f}% [{100 * result[k]['ci_low']:.0f}, "
+           f"{100 * result[k]['ci_high']:.0f}])" for k in ("wins", "draws", "losses")]  # fmt: skip
+    gd = result["goal_difference"]
+    return (
+        f"# {args.soccer}, {args.players} a side: {args.home} (home) against {args.away} (away)\n\n"
+        f"{result['matches']} matches of {args.match_seconds:g} s, seeds {args.seed}-{args.seed + args.matches - 1}; "
+        "the home team's record, 95% Wilson intervals; goal difference home minus away, 95% bootstrap interval.\n\n"
+        "| wins | draws | losses | goal difference | goals (home-away) |\n|---|---|---|---|---|\n"
+        f"| {' | '.join(row)} | {gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}] | "
+        f"{result['goals']['home']}-{result['goals']['away']} |\n"
+    )
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    p = ToolParser(prog="evaluate.py --soccer", description="Play matches between two teams' policies.")
+    p.add_argument("--soccer", required=True, choices=sorted(name.lower() for name in ROBOTS), help="the robot")
+    p.add_argument("--players", type=int, default=3, help=f"players a side, 1 to {MAX_PLAYERS}")
+    p.add_argument("--home", required=True, choices=TEAMS, help="the home team's policy")
+    p.add_argument("--away", required=True, choices=TEAMS, help="the away team's policy")
+    p.add_argument("--matches", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0, help="match i runs with seed SEED + i")
+    p.add_argument("--match-seconds", type=float, default=MATCH_SECONDS, help="each match's length, s")
+    p.add_argument("--action-mode", help="the robots' action mode (default: commands where a team is scripted)")
+    p.add_argument("--out", required=True, type=Path, help="output directory")
+    p.add_argument("--video", action="store_true", help="write an mp4 of the first match")
+    p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
+    args = p.parse_args(argv)
+    if not 1 <= args.players <= MAX_PLAYERS:
+        p.error(f"--players must be from 1 to {MAX_PLAYERS}, got {args.players}")
+    if args.matches < 1:
+        p.error(f"--matches must be at least 1, got {args.matches}")
+    if args.seed < 0:
+        p.error(f"--seed must be >= 0, got {args.seed}")
+    if not 0 < args.match_seconds <= 3600:
+        p.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
+    if "scripted" in (args.home, args.away) and args.action_mode not in (None, COMMANDS):
+        p.error(f"--action-mode {args.action_mode!r}: the scripted team plays in the {COMMANDS!r} mode")
+    problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign(args.out))
+    problem = problem or replace_problem(args.out)
+    if problem:
+        p.error(problem)
+    args.out_existed = args.out.exists()
+    return args
+
+
+def _foreign(out: Path):
+    earlier = (out / "results.json").is_file()
+
+    def foreign(entry: Path) -> list[str]:
+        if earlier and entry.name in RESULT_FILES and entry.is_file():
+            return []
+        if earlier and entry.name == "videos" and entry.is_dir():
+            return [f"videos/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == ".mp4")]
+        return [entry.name + "/" * entry.is_dir()]
+
+    return foreign
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    return run_interruptibly("evaluate.py", args.out, lambda: _run(args))
+
+
+def _run(args: argparse.Namespace) -> int:
+    out: Path = args.out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f".{out.name}.", dir=out.parent) as tmp:
+        staging = Path(tmp) / "results"
+        staging.mkdir()
+        video = staging / "videos" / "match.mp4" if args.video else None
+        if video is not None:
+            video.parent.mkdir()
+        try:
+            result = play(args.soccer, args.players, args.home, args.away, args.matches, args.seed,
+                          args.match_seconds, args.action_mode, video)  # fmt: skip
+        except ValueError as exc:
+            print(f"evaluate.py: error: {exc}", file=sys.stderr)
+            return 2
+        text = report(args, result)
+        record = {"robot": args.soccer, "players_per_team": args.players, "home": args.home, "away": args.away,
+                  "seeds": [args.seed + i for i in range(args.matches)], "match_seconds": args.match_seconds,
+                  **result}  # fmt: skip
+        write_json(staging / "results.json", record, strict=True)
+        write_text(staging / "results.md", text)
+        try:
+            where = publish_folder(staging, out, args.out_existed, _foreign(out))
+        except OSError as exc:
+            return unpublished_exit_code("evaluate.py", staging, out, exc)
+    print(text)
+    print(f"results in {where}/ (results.json, results.md{', videos/' if args.video else ''})")
+    return published_exit_code("evaluate.py", out, where)

@@ -1,0 +1,61 @@
+"""Matches between two teams' policies (``evaluate.py --soccer``): statistics, results, bad input."""
+
+import json
+
+import numpy as np
+import pytest
+
+import evaluate
+from agents.soccer.play import play, statistics
+from envs.soccer import match
+
+
+def test_the_record_and_its_intervals():
+    result = statistics(np.array([[2, 0], [1, 1], [0, 1], [3, 0]]))
+    assert (result["wins"]["count"], result["draws"]["count"], result["losses"]["count"]) == (2, 1, 1)
+    assert result["wins"]["ci_low"] < 0.5 < result["wins"]["ci_high"]
+    gd = result["goal_difference"]
+    assert gd["mean"] == pytest.approx(1.0) and gd["ci_low"] <= 1.0 <= gd["ci_high"] and gd["ci_low"] < gd["ci_high"]
+    assert result["goals"] == {"home": 6, "away": 2}
+    even = statistics(np.zeros((5, 2), dtype=int))
+    assert even["draws"]["count"] == 5 and even["goal_difference"] == {"mean": 0.0, "ci_low": 0.0, "ci_high": 0.0}
+
+
+def test_matches_played_together_are_the_pettingzoo_matches_of_their_seeds():
+    """Match i of a batch is the PettingZoo match reset with seed SEED + i, the same teams playing."""
+    from agents.soccer.scripted import scripted_team
+
+    played = play("bioloid", 1, "scripted", "scripted", 2, 5, 0.4)
+    for i in range(2):
+        env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+        obs, _ = env.reset(seed=5 + i)
+        team = {**scripted_team(env, "home"), **scripted_team(env, "away")}
+        for _ in range(round(0.4 / env.dt)):
+            obs, *_ = env.step({a: p.predict(obs[a])[0] for a, p in team.items()})
+        assert played["scores"][i] == [env.score["home"], env.score["away"]]
+
+
+def test_evaluate_plays_matches_and_writes_one_folder(tmp_path, capsys):
+    out = tmp_path / "m"
+    assert evaluate.main(["--soccer", "bioloid", "--players", "1", "--home", "scripted", "--away", "random",
+                          "--matches", "2", "--match-seconds", "0.4", "--out", str(out)]) == 0  # fmt: skip
+    record = json.loads((out / "results.json").read_text())
+    assert record["seeds"] == [0, 1] and len(record["scores"]) == 2 and record["home"] == "scripted"
+    assert "| wins | draws | losses |" in (out / "results.md").read_text() and "wins" in capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["results.json", "results.md"]
+
+
+@pytest.mark.parametrize(
+    ("args", "word"),
+    [(["--soccer", "aibo"], "--soccer"), (["--players", "5"], "--players"), (["--home", "ppo"], "--home"),
+     (["--matches", "0"], "--matches"), (["--match-seconds", "-1"], "--match-seconds"),
+     (["--action-mode", "goal"], "commands")],
+)  # fmt: skip
+def test_bad_arguments_are_one_line_errors_before_any_match(args, word, tmp_path, capsys):
+    base = {"--soccer": "bioloid", "--home": "scripted", "--away": "random", "--out": str(tmp_path / "x")}
+    for flag, value in zip(args[::2], args[1::2], strict=True):
+        base[flag] = value
+    with pytest.raises(SystemExit) as stop:
+        evaluate.main([item for pair in base.items() for item in pair])
+    assert stop.value.code == 2 and word in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
