@@ -41,6 +41,7 @@ from agents.evaluation import (
     paired_difference,
     run_episodes,
     summarize,
+    write_video,
 )
 from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
@@ -222,17 +223,6 @@ def side_by_side(episodes: list[list[np.ndarray]]) -> list[np.ndarray]:
     frame (the robot stays where its episode ended)."""
     length = max(len(frames) for frames in episodes)
     return [np.concatenate([f[min(i, len(f) - 1)] for f in episodes], axis=1) for i in range(length)]
-
-
-def write_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
-    import imageio.v2 as imageio
-
-    def write(tmp: Path) -> None:
-        with imageio.get_writer(tmp, format="FFMPEG", fps=fps, codec="libx264", macro_block_size=8) as w:
-            for frame in frames:
-                w.append_data(frame)
-
-    atomic_write(path, write)
 
 
 def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:

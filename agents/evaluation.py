@@ -14,12 +14,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
 from agents import Policy
+from envs.common.io import atomic_write
 
 GRAVITY = 9.81
 GENERIC_METRICS = {
@@ -199,3 +201,15 @@ def episode_record(e: Episode) -> dict[str, Any]:
     d = asdict(e)
     d.pop("frames")
     return d
+
+
+def write_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
+    """An mp4 of ``frames`` at ``fps``, written atomically (evaluate.py's videos, walking and soccer)."""
+    import imageio.v2 as imageio
+
+    def write(tmp: Path) -> None:
+        with imageio.get_writer(tmp, format="FFMPEG", fps=fps, codec="libx264", macro_block_size=8) as w:
+            for frame in frames:
+                w.append_data(frame)
+
+    atomic_write(path, write)

@@ -24,6 +24,20 @@ def run(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+def run_here(capsys, *args: str) -> subprocess.CompletedProcess:
+    """evaluate.py's ``main`` in this process (its exit code, what it printed): what the command line does, without
+    a new process loading torch (the tests that need the command line itself use :func:`run`)."""
+    import evaluate
+
+    capsys.readouterr()
+    try:
+        code = evaluate.main(list(args))
+    except SystemExit as stop:
+        code = stop.code
+    printed = capsys.readouterr()
+    return subprocess.CompletedProcess(list(args), code, printed.out, printed.err)
+
+
 @pytest.fixture(scope="module")
 def model_zip(tmp_path_factory) -> Path:
     runs = tmp_path_factory.mktemp("runs")
@@ -162,19 +176,22 @@ def test_a_model_of_another_env_is_refused(model_zip, tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("args", "message"),
+    ("args", "message", "command_line"),
     [
-        (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "not registered"),
-        (["--env", "skitter/RoachWalk-v2", "--policy", "no/such/model.zip"], "no trained model"),
-        (["--env", "skitter/RoachWalk-v2", "--policy", "moonwalk"], "unknown policy"),
-        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "0"], "--episodes"),
-        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--seed", "-1"], "--seed"),
-        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--policy", "tripod"], "given twice"),
-        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod:fast"], "not a number"),
+        (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "not registered", True),
+        (["--env", "skitter/RoachWalk-v2", "--policy", "no/such/model.zip"], "no trained model", True),
+        (["--env", "skitter/RoachWalk-v2", "--policy", "moonwalk"], "unknown policy", False),
+        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "0"], "--episodes", False),
+        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--seed", "-1"], "--seed", False),
+        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--policy", "tripod"], "given twice", False),
+        (["--env", "skitter/RoachWalk-v2", "--policy", "tripod:fast"], "not a number", False),
     ],
 )
-def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, args, message):
-    done = run(*args, "--out", str(tmp_path / "out"))
+def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, capsys, args, message, command_line):
+    """Two cases from the command line itself (a new process: no traceback reaches the user), the others through
+    its ``main`` in this process (where a traceback would fail the test)."""
+    where = [*args, "--out", str(tmp_path / "out")]
+    done = run(*where) if command_line else run_here(capsys, *where)
     assert done.returncode == 2
     assert message in done.stderr
     assert "Traceback" not in done.stderr
@@ -207,20 +224,20 @@ def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path):
     assert (tmp_path / "somefile.txt").read_text() == "a user's file"
 
 
-def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path):
+def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path, capsys):
     out = tmp_path / "out"
     (out / "plots").mkdir(parents=True)
     (out / "results.json").write_text("{}")
     (out / "plots" / "old.png").write_bytes(b"an earlier plot")
     args = ("--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "1", "--max-episode-steps", "10")
     # without --overwrite: only what is there is named
-    done = run(*args, "--out", str(out))
+    done = run_here(capsys, *args, "--out", str(out))
     assert done.returncode == 2 and "already holds plots/, results.json of an earlier run" in done.stderr
     assert "results.md" not in done.stderr and "Traceback" not in done.stderr
     # files evaluate.py does not write are never deleted, not even with --overwrite
     (out / "notes.txt").write_text("the user's notes")
     (out / "plots" / "sketch.svg").write_text("the user's sketch")
-    done = run(*args, "--out", str(out), "--overwrite")
+    done = run_here(capsys, *args, "--out", str(out), "--overwrite")
     assert done.returncode == 2 and "notes.txt, plots/sketch.svg" in done.stderr and "--overwrite" in done.stderr
     assert "Traceback" not in done.stderr
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
@@ -229,7 +246,7 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path):
     # a folder of its own results is replaced
     (out / "notes.txt").unlink()
     (out / "plots" / "sketch.svg").unlink()
-    done = run(*args, "--out", str(out), "--overwrite")
+    done = run_here(capsys, *args, "--out", str(out), "--overwrite")
     assert done.returncode == 0, done.stderr
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
         "plots", "plots/tripod.png", "results.json", "results.md"

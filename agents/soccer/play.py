@@ -92,7 +92,7 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
         if renderer is not None:
             frames.append(renderer.render(engine.scene.sim.get_data(0)))
     if renderer is not None:
-        from agents.compare import write_video
+        from agents.evaluation import write_video
 
         renderer.close()
         write_video(frames, video, fps=1.0 / engine.dt)
