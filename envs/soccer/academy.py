@@ -8,7 +8,7 @@ its episode), on the robot's field (envs/soccer/field.py) in a :class:`~envs.com
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -144,46 +144,20 @@ class ScoreEmptyGoalTask(AcademyTask):
 
 
 class AcademyEnv(SkitterEnv):
-    """A robot alone on its soccer field with a ball (see :class:`AcademyTask`); subclasses name the robot and task."""
+    """A robot alone on its soccer field with a ball (see :class:`AcademyTask`); subclasses (:func:`make_academy`)
+    name the robot, the field and the task.
 
+    Args:
+        action_mode, control_freq: the robot's (default its first mode, at its rate).
+        sensor_noise: the IMU's noise and bias.
+        sparse, ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: the task's
+            (:class:`envs.soccer.task.SoccerTask`).
+        reset_noise_scale, render_mode, width, height: as every env's.
+    """
+
+    robot_class: ClassVar[type[Robot]]
     task_class: ClassVar[type[AcademyTask]]
     field: ClassVar[Field]
-
-    def __init__(
-        self,
-        make_robot: Callable[..., Robot],
-        robot_args: Mapping[str, Any],
-        sparse: bool = False,
-        ball_noise: float = BALL_NOISE,
-        field_of_view: float | None = None,
-        max_tilt: float = 1.4,
-        terminate_when_unhealthy: bool = True,
-        height_band: Sequence[float] | None = None,
-        grace_time: float = GRACE_TIME,
-        reset_noise_scale: float = 0.1,
-        render_mode: str | None = None,
-        width: int = 480,
-        height: int = 360,
-    ):
-        robot_class = make_robot
-        scene = SharedScene(
-            lambda: robot_class(**robot_args), [PLAYER], [field_edit(self.field, [PLAYER], robot_class.root_body)]
-        )
-        self.scene = scene
-        task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
-                               terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
-        super().__init__(scene.robot, task, reset_noise_scale, None, False, render_mode, width, height)
-
-    @property
-    def model(self):
-        return self.scene.model
-
-    def tracked_body(self) -> str:
-        return f"{PLAYER}/{self.robot.root_body}"
-
-
-def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], title: str) -> type[AcademyEnv]:
-    """The academy env of a robot and a task (its docstring: :class:`AcademyEnv`'s sections, filled in)."""
 
     def __init__(
         self,
@@ -202,15 +176,31 @@ def make_academy(robot_class: type[Robot], field: Field, task_class: type[Academ
         width: int = 480,
         height: int = 360,
     ):
+        robot_class = self.robot_class
         mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
-        args = {"action_mode": mode, "control_freq": control_freq,
-                "imu_noise": ImuNoise() if check_flag("sensor_noise", sensor_noise) else None}  # fmt: skip
-        AcademyEnv.__init__(self, robot_class, args, sparse, ball_noise, field_of_view, max_tilt,
-                            terminate_when_unhealthy, height_band, grace_time, reset_noise_scale, render_mode, width,
-                            height)  # fmt: skip
+        imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
+        scene = SharedScene(
+            lambda: robot_class(action_mode=mode, control_freq=control_freq, imu_noise=imu),
+            [PLAYER],
+            [field_edit(self.field, [PLAYER], robot_class.root_body)],
+        )
+        self.scene = scene
+        task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
+                               terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
+        super().__init__(scene.robot, task, reset_noise_scale, None, False, render_mode, width, height)
 
+    @property
+    def model(self):
+        return self.scene.model
+
+    def tracked_body(self) -> str:
+        return f"{PLAYER}/{self.robot.root_body}"
+
+
+def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], title: str) -> type[AcademyEnv]:
+    """The academy env class of a robot and a task, with its entry points, as attributes of this module."""
     name = f"{title}Env"
-    attributes = {"__init__": __init__, "task_class": task_class, "field": field, "__module__": __name__,
+    attributes = {"robot_class": robot_class, "task_class": task_class, "field": field, "__module__": __name__,
                   "__qualname__": name, "__doc__": f"{title}: {task_class.__doc__}"}  # fmt: skip
     env_class = type(name, (AcademyEnv,), attributes)
     # the class and its entry points are attributes of this module: registered by name, pickled by name
