@@ -171,3 +171,24 @@ def test_robots_on_a_shared_scene_refuse_per_robot_parameters():
         scene.robot.set_parameters(np.array([0]), {"foot_friction": 0.5})
     assert mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, "a/BODY") >= 0
     assert not gym.registry.keys() & {e["id"] for e in ACADEMY}
+
+
+def test_players_collide_with_each_other_but_not_with_themselves():
+    """Each player has a contact bit of its own: two Bioloids set down overlapping push each other apart, and no
+    contact is ever between two parts of one robot (as alone)."""
+    scene = SharedScene(Bioloid, ["a", "b"])
+    scene.placement[:] = [[0.0, 0.0, 0.0], [0.12, 0.0, np.pi]]
+    robot = scene.robot
+    rngs = [np.random.default_rng(i) for i in range(2)]
+    robot.reset(np.arange(2), rngs, 0.0, None)
+    model, data = scene.model, scene.sim.data
+    owner = np.array([model.body(model.geom_bodyid[g]).name.split("/")[0] for g in range(model.ngeom)])
+    between = 0
+    for _ in range(5):
+        robot.command(np.tile(robot.ready_counts, (2, 1)))
+        robot.step()
+        pairs = data.contact.geom[: data.ncon]
+        mine = owner[pairs]
+        assert not any(a == b and a in ("a", "b") for a, b in mine), "a robot touched itself"
+        between += sum({a, b} == {"a", "b"} for a, b in mine)
+    assert between > 0

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
     from envs.common.robot import Robot
 
 SceneEdit = Callable[[mujoco.MjSpec], None]
+MAX_PLAYERS = 30  # players of a scene: contact bits 1 to 30 of MuJoCo's 32-bit contype (bit 0 is the world's)
 # the model's arrays with one block per player, and the MjModel sizes of their blocks
 _BLOCKS = {"qpos": "nq", "qvel": "nv", "act": "na", "ctrl": "nu", "sensordata": "nsensordata"}
 
@@ -123,9 +124,10 @@ class SharedScene:
         for kind in ("actuators", "sensors"):  # attach orders unnamed elements apart: each gets a name
             for i, element in enumerate(getattr(spec, kind)):
                 element.name = element.name or _unnamed(kind, i)
-        for player in self.players:
+        for p, player in enumerate(self.players):
             frame = scene.worldbody.add_frame()
             frame.attach_body(spec.copy().body(robot.root_body), f"{player}/", "")
+            self._collide_with_the_others(scene.body(f"{player}/{robot.root_body}"), p)
             if robot.feet is not None:
                 add_ground_contact_sensors(scene, f"{player}/{robot.root_body}", [f"{player}/{f}" for f in robot.feet])
         for edit in self._edits:
@@ -145,6 +147,23 @@ class SharedScene:
             raise ValueError(f"one MjData runs one scene, not {self.num_scenes}: pass batched=True")
         self.view = PlayerSimulation(self, robot)
         return self.view
+
+    def _collide_with_the_others(self, root: mujoco.MjsBody, p: int) -> None:
+        """Player ``p``'s colliding geoms meet the other players' as well as what they met alone (the world's:
+        floor, walls, ball), and still not each other: each player has a contact bit of its own (bit ``p + 1``) in its
+        ``contype``, and the others' bits beside the world's (bit 0) in its ``conaffinity``."""
+        if len(self.players) > MAX_PLAYERS:
+            raise ValueError(
+                f"a scene holds at most {MAX_PLAYERS} players (a contact bit each), not {len(self.players)}"
+            )
+        others = sum(1 << (q + 1) for q in range(len(self.players)) if q != p)
+        for geom in root.find_all(mujoco.mjtObj.mjOBJ_GEOM):  # the root's own geoms among them
+            if geom.contype or geom.conaffinity:
+                if geom.contype & ~1 or geom.conaffinity & ~1:
+                    raise ValueError(
+                        f"{geom.name or 'a geom'} uses contact bits beyond the world's: the scene needs them"
+                    )
+                geom.contype, geom.conaffinity = 1 << (p + 1), geom.conaffinity | others
 
     def _check_blocks(self, single: mujoco.MjModel, model: mujoco.MjModel) -> None:
         """Every player's qpos, qvel, act, ctrl and sensordata form one block of the robot's size at a fixed stride,

@@ -285,7 +285,7 @@ def field_edit(field: Field, players: Sequence[str] = (), root_body: str | None 
             body = spec.body(f"{player}/{root_body}") if root_body else None
             if body is not None:
                 colour = GOAL_COLOURS[0] if player.startswith("home") else GOAL_COLOURS[1]
-                for geom in [*body.geoms, *body.find_all(mujoco.mjtObj.mjOBJ_GEOM)]:
+                for geom in body.find_all(mujoco.mjtObj.mjOBJ_GEOM):  # the root's own geoms among them
                     if geom.contype or geom.conaffinity or geom.group < 3:
                         geom.material, geom.rgba = "", list(colour)
         for player in players:
