@@ -61,6 +61,7 @@ bench: setup
 	$(BIN)/python -m benchmarks.gait_maps
 	$(BIN)/python -m benchmarks.soccer_api
 	$(BIN)/python -m benchmarks.soccer_speed
+	$(BIN)/python -m benchmarks.soccer_dm_control
 	$(BIN)/python -m benchmarks.ground_rules
 	$(BIN)/python -m benchmarks.bioloid_cpg_experiments
 
