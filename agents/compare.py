@@ -51,6 +51,7 @@ from envs.common.io import (
     published_exit_code,
     replace_problem,
     results_folder_problem,
+    results_foreign,
     run_interruptibly,
     unpublished_exit_code,
     write_json,
@@ -138,19 +139,8 @@ RESULT_FOLDERS = {"plots": ".png", "videos": ".mp4", "telemetry": ".parquet"}
 
 
 def _foreign(out: Path):
-    """What in an entry of ``out`` evaluate.py does not write (as paths within --out): a folder without
-    ``results.json`` holds no earlier run, so all of it is the user's."""
-    earlier = (out / "results.json").is_file()
-
-    def foreign(entry: Path) -> list[str]:
-        if earlier and entry.name in RESULT_FILES and entry.is_file():
-            return []
-        suffix = RESULT_FOLDERS.get(entry.name)
-        if not earlier or suffix is None or not entry.is_dir():
-            return [entry.name + "/" * entry.is_dir()]
-        return [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == suffix)]
-
-    return foreign
+    """What in an entry of ``out`` evaluate.py does not write."""
+    return results_foreign(out, RESULT_FILES, RESULT_FOLDERS)
 
 
 def slugs(specs: list[str]) -> dict[str, str]:

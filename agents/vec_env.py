@@ -21,7 +21,28 @@ from stable_baselines3.common.vec_env import VecEnv
 from envs.common.vector import SkitterVectorEnv
 
 
-class SkitterVecEnv(VecEnv):
+class OneObjectAttributes:
+    """SB3's attribute methods of a VecEnv whose envs are all one object, ``self.shared`` (a batched env, a batch of
+    matches): each env's attribute is that object's, and ``unwrapped`` is the object itself."""
+
+    shared: Any
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        value = self.shared if attr_name == "unwrapped" else getattr(self.shared, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        setattr(self.shared, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        result = getattr(self.shared, method_name)(*method_args, **method_kwargs)
+        return [result for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+
+class SkitterVecEnv(OneObjectAttributes, VecEnv):
     """SB3's VecEnv over :class:`SkitterVectorEnv`.
 
     Args:
@@ -33,7 +54,7 @@ class SkitterVecEnv(VecEnv):
         base = venv.unwrapped
         if not isinstance(base, SkitterVectorEnv):
             raise TypeError(f"SkitterVecEnv needs a batched skitter env, got {type(base).__name__}")
-        self.base = base
+        self.base = self.shared = base
         super().__init__(base.num_envs, base.single_observation_space, base.single_action_space)
         self._actions: np.ndarray | None = None
 
@@ -72,21 +93,6 @@ class SkitterVecEnv(VecEnv):
 
     def close(self) -> None:
         self.venv.close()
-
-    # --- attributes: the batched env has one of each, shared by its simulations -----------------------------------
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        value = self.base if attr_name == "unwrapped" else getattr(self.base, attr_name)
-        return [value for _ in self._get_indices(indices)]
-
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        setattr(self.base, attr_name, value)
-
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        result = getattr(self.base, method_name)(*method_args, **method_kwargs)
-        return [result for _ in self._get_indices(indices)]
-
-    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
-        return [False for _ in self._get_indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [self.base.render()]

@@ -30,6 +30,7 @@ from envs.common.io import (
     published_exit_code,
     replace_problem,
     results_folder_problem,
+    results_foreign,
     run_interruptibly,
     unpublished_exit_code,
     write_json,
@@ -180,16 +181,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def _foreign(out: Path):
-    earlier = (out / "results.json").is_file()
-
-    def foreign(entry: Path) -> list[str]:
-        if earlier and entry.name in RESULT_FILES and entry.is_file():
-            return []
-        if earlier and entry.name == "videos" and entry.is_dir():
-            return [f"videos/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == ".mp4")]
-        return [entry.name + "/" * entry.is_dir()]
-
-    return foreign
+    """What in an entry of ``out`` evaluate.py --soccer does not write."""
+    return results_foreign(out, RESULT_FILES, {"videos": ".mp4"})
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -14,21 +14,21 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv
 
+from agents.vec_env import OneObjectAttributes
 from envs.soccer.match import Matches
 
 
-class SoccerVecEnv(VecEnv):
+class SoccerVecEnv(OneObjectAttributes, VecEnv):
     """``num_matches`` matches (arguments: :class:`envs.soccer.match.SoccerParallelEnv`'s, without rendering) as an
     SB3 VecEnv of ``num_matches x players`` envs, match-major (env ``m * players + p`` is agent ``p`` of match ``m``,
     agents in ``possible_agents`` order: the home team, then the away team)."""
 
     def __init__(self, num_matches: int, nthread: int | None = None, **kwargs: Any):
-        self.engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
+        self.engine = self.shared = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
         engine = self.engine
         observation_space = spaces.Box(-np.inf, np.inf, shape=(engine.task.layout.size,), dtype=np.float64)
         action_space = spaces.Box(-1.0, 1.0, shape=(engine.mode.size,), dtype=np.float32)
@@ -83,26 +83,6 @@ class SoccerVecEnv(VecEnv):
 
     def close(self) -> None:
         pass
-
-    # --- attributes: one engine, shared by its envs ----------------------------------------------------------------
-    def _indices(self, indices) -> list[int]:
-        if indices is None:
-            return list(range(self.num_envs))
-        return [indices] if isinstance(indices, int) else list(indices)
-
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        value = self.engine if attr_name == "unwrapped" else getattr(self.engine, attr_name)
-        return [value for _ in self._indices(indices)]
-
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        setattr(self.engine, attr_name, value)
-
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        result = getattr(self.engine, method_name)(*method_args, **method_kwargs)
-        return [result for _ in self._indices(indices)]
-
-    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
-        return [False for _ in self._indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         return [None for _ in range(self.num_envs)]

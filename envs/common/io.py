@@ -10,7 +10,7 @@ import re
 import signal
 import sys
 import tempfile
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -179,6 +179,25 @@ def parent_problem(path: str | Path, probe: str = ".probe-") -> str | None:
     except OSError as exc:
         return f"cannot create folders in {parent} ({exc.strerror})"
     return None
+
+
+def results_foreign(out: str | Path, files: Sequence[str], folders: Mapping[str, str]) -> Callable[[Path], list[str]]:
+    """What in an entry of ``out`` a results tool does not write (as paths within ``out``), for
+    :func:`results_folder_problem` and :func:`publish_folder`: the tool writes ``files`` and, in each of
+    ``folders``, files of its suffix (folder -> suffix). A folder without the tool's ``files[0]`` holds no earlier
+    run, so all of it is the user's."""
+    out = Path(out)
+    earlier = (out / files[0]).is_file()
+
+    def foreign(entry: Path) -> list[str]:
+        if earlier and entry.name in files and entry.is_file():
+            return []
+        suffix = folders.get(entry.name)
+        if not earlier or suffix is None or not entry.is_dir():
+            return [entry.name + "/" * entry.is_dir()]
+        return [f"{entry.name}/{f.name}" for f in sorted(entry.iterdir()) if not (f.is_file() and f.suffix == suffix)]
+
+    return foreign
 
 
 def results_folder_problem(

@@ -106,6 +106,8 @@ class SharedScene:
         self.placement = np.zeros((self.num_sims, 3))
         self.model: mujoco.MjModel | None = None
         self.spec: mujoco.MjSpec | None = None
+        # the objects' places for the scenes' next kickoff: full qpos and qvel rows (made with the model)
+        self._pending: dict[str, np.ndarray] = {}
         with hosted_robots(self):
             self.robot = make_robot()
         if self.model is None:
@@ -217,8 +219,6 @@ class SharedScene:
         if body not in self.objects:
             raise KeyError(f"the scene has no free body {body!r} (it has {sorted(self.objects)})")
         qadr, vadr = self.objects[body]
-        if not hasattr(self, "_pending"):
-            self._pending: dict[str, np.ndarray] = {}
         qpos = self._pending.setdefault("qpos", np.tile(self.model.qpos0, (self.num_scenes, 1)))
         qvel = self._pending.setdefault("qvel", np.zeros((self.num_scenes, self.model.nv)))
         qpos[scenes, qadr : qadr + 3] = position
@@ -229,7 +229,7 @@ class SharedScene:
     def pending_state(self, scenes: np.ndarray) -> dict[str, np.ndarray]:
         """The full state rows that a kickoff of ``scenes`` starts from: the model's defaults with the objects at
         their pending places (the players' blocks are written over them)."""
-        pending = getattr(self, "_pending", {})
+        pending = self._pending
         m = self.model
         qpos = pending["qpos"][scenes] if "qpos" in pending else np.tile(m.qpos0, (len(scenes), 1))
         qvel = pending["qvel"][scenes] if "qvel" in pending else np.zeros((len(scenes), m.nv))

@@ -8,6 +8,7 @@ its episode), on the robot's field (envs/soccer/field.py) in a :class:`~envs.com
 from __future__ import annotations
 
 import math
+from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
@@ -54,9 +55,9 @@ class AcademyTask(SoccerTask):
             self.scene.placement[i] = robot_place
             self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
 
+    @abstractmethod
     def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
         """((x, y, heading) of the robot, (x, y) of the ball) for one episode."""
-        raise NotImplementedError
 
     def _option_place(self, value: Any, size: int, name: str) -> np.ndarray:
         place = np.asarray(value, dtype=np.float64) if not isinstance(value, str | bytes) else np.zeros(0)
@@ -77,8 +78,9 @@ class AcademyTask(SoccerTask):
     def terminated(self, state: dict[str, np.ndarray]) -> np.ndarray:
         return super().terminated(state) | self.success(state).astype(bool) | (state["conceded"] > 0)
 
+    @abstractmethod
     def success(self, state: dict[str, np.ndarray]) -> np.ndarray:
-        raise NotImplementedError
+        """(n,) bool: the episode ended in the task's success."""
 
     def fell(self, state: dict[str, np.ndarray], terminated: np.ndarray) -> np.ndarray:
         return terminated & ~self.success(state) & ~(state["conceded"] > 0)

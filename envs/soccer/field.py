@@ -199,10 +199,6 @@ class Field:
     def half_width(self) -> float:
         return 0.5 * self.width
 
-    def goal_mouth(self, side: int) -> tuple[float, float]:
-        """(x of the goal line, sign) of the goal at ``side`` (-1: at -x, the home team's; +1: the away team's)."""
-        return side * self.half_length, float(side)
-
 
 def _box(body: mujoco.MjsBody, name: str, centre, half, rgba, collide: bool = True) -> None:
     body.add_geom(
@@ -322,10 +318,6 @@ BIOLOID_LENGTH = 0.30  # m, the Bioloid's body length (envs/bioloid/constants.py
 # at 250 mm), the roach's pitch being a hard, smooth floor; its rolling resistance is assumed as the other balls'
 TABLE_TENNIS_BALL = Ball("table-tennis ball", radius=0.020, mass=0.0027, shell=True, friction=0.5,
                          rolling_resistance=0.05, restitution=0.905)  # fmt: skip
-# the Standard Platform League's ball since 2016: soft foam, 100 mm, 44 g (the SPL rules); its bounce on turf assumed
-SPL_BALL = Ball("Standard Platform League ball", radius=0.050, mass=0.044, shell=False, friction=0.5,
-                rolling_resistance=0.05, restitution=0.4)  # fmt: skip
-
 
 # a size-3 soccer ball, the smallest of the youth sizes: 23-24 in (58-61 cm) round, 11-12 oz (310-340 g) (youth
 # leagues' ball-size tables); the xJüs plays with it because the SPL's 100 mm ball rolls under its 0.157 m belly,

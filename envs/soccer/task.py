@@ -204,8 +204,5 @@ class SoccerTask(LocomotionTask):
         goals = (self._side * self.field.half_length)[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
         self._goals_obs = frame(goals - pos[:, None, :]).reshape(n, 4)
 
-    def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return dict(state)
-
     def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
         return self.ground_metrics(info)
