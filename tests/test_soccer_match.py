@@ -163,7 +163,7 @@ def test_the_benchmark_ran_every_robot_and_team_size_and_every_test_passed():
     from benchmarks.soccer_api import TESTS, matrix
 
     result = json.loads((Path(__file__).resolve().parents[1] / "benchmarks/results/soccer_api.json").read_text())
-    assert sorted((r["robot"], r["players_per_team"]) for r in result["rows"]) == sorted(matrix())
+    assert sorted((r["robot"], r["players_per_team"], r["action_mode"]) for r in result["rows"]) == sorted(matrix())
     assert result["passed"] and all(r["errors"] == dict.fromkeys(TESTS) for r in result["rows"])
 
 
