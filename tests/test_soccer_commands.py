@@ -55,6 +55,23 @@ def test_the_xjus_walks_at_the_commanded_speed_in_the_commands_mode():
     assert abs(np.degrees(2 * np.arctan2(z, w))) < 10
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_roach_turns_the_way_it_is_commanded(sign):
+    """Differential drive: asked for 1.5 rad/s either way at 0.8 m/s, for 2 s from a standstill, it turns that way
+    by at least half the commanded angle."""
+    env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands", reset_noise_scale=0.0)
+    env.reset(seed=0, options={"places": {"home_0": [-0.3, 0.0, 0.0]}})
+    action = env.mode.to_action(np.array([[0.8, sign * 1.5]]))[0]
+    data = env.scene.sim.data
+    steps = round(2.0 / env.dt)
+    turned = 0.0
+    for _ in range(steps):
+        before = 2 * np.arctan2(data.qpos[6], data.qpos[3])
+        env.step({"home_0": action, "away_0": np.array([-1.0, 0.0])})
+        turned += np.angle(np.exp(1j * (2 * np.arctan2(data.qpos[6], data.qpos[3]) - before)))
+    assert sign * turned > 0.5 * 1.5 * 2.0
+
+
 def test_the_bioloids_commands_run_the_ik_trot_from_its_own_clock():
     env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
     env.reset(seed=0)
@@ -71,29 +88,45 @@ LAYOUT = ObservationLayout.from_structure({"ball": 2, "goal": 2, "own_goal": 2})
 
 def player(keeper: bool = False) -> ScriptedPlayer:
     env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands")
-    return ScriptedPlayer(LAYOUT, env.mode, 0.1, 0.02, keeper)
+    return ScriptedPlayer(LAYOUT, env.mode, 0.1, env.field, keeper)
 
 
-def obs(ball, goal, own=(-5.0, 0.0)) -> np.ndarray:
+def obs(ball, goal=(0.9, 0.0), own=(-0.9, 0.0)) -> np.ndarray:
+    """A player on the roach's 1.8 m field (at the centre spot, facing the goal it attacks, by default)."""
     return np.array([[*ball, *goal, *own]], dtype=np.float64)
 
 
 def test_a_scripted_player_behind_the_ball_pushes_it_toward_the_goal():
-    target, pushing = player().targets(obs((0.3, 0.0), (2.0, 0.0)))
+    target, pushing = player().targets(obs((0.3, 0.0)))
     assert pushing[0] and target[0, 0] > 0.3 and abs(target[0, 1]) < 1e-9
-    action, _ = player().predict(obs((0.3, 0.0), (2.0, 0.0))[0])
+    action, _ = player().predict(obs((0.3, 0.0))[0])
     assert action[0] > -1.0 and abs(action[1]) < 1e-6, "straight at it"
 
 
-def test_a_scripted_player_in_front_of_the_ball_goes_round_it():
-    """The ball behind the player, the goal ahead: its target is behind the ball and to the side it stands on."""
-    target, pushing = player().targets(obs((-0.3, 0.05), (2.0, 0.0)))
-    assert not pushing[0] and target[0, 0] < -0.3 and abs(target[0, 1]) > 0.05
+def test_a_scripted_player_in_front_of_the_ball_goes_round_it_on_its_own_side():
+    """The ball behind the player and a little to its left, the goal ahead: its target is behind the ball, on the
+    player's (right) side of the line from the ball to the goal."""
+    target, pushing = player().targets(obs((-0.3, 0.05)))
+    assert not pushing[0] and target[0, 0] < -0.3 and target[0, 1] < -0.03
+
+
+def test_a_scripted_player_is_never_sent_beyond_a_wall():
+    """The ball against the wall at +y, the player ahead of it on the wall's side: the way round is on the field's
+    side, and every target lies inside the walls."""
+    env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands")
+    wall = 0.5 * env.field.width + env.field.side_border
+    scripted = player()
+    for ball_y in np.linspace(0.0, wall - 0.02, 7):
+        for ball_x in (-0.5, 0.0, 0.4):
+            target, _ = scripted.targets(obs((ball_x, ball_y)))
+            assert abs(target[0, 1]) <= wall - 0.1 + 1e-9 and abs(target[0, 0]) < 0.9 + env.field.end_border
+    target, pushing = scripted.targets(obs((-0.2, wall - 0.03), own=(-0.9, 0.0)))
+    assert not pushing[0] and target[0, 1] < wall - 0.03, "round the ball on the field's side"
 
 
 def test_the_scripted_keeper_stands_between_the_ball_and_its_goal():
-    target, _ = player(keeper=True).targets(obs((1.0, 1.0), (5.0, 0.0), own=(-1.0, 0.0)))
-    ball, own = np.array([1.0, 1.0]), np.array([-1.0, 0.0])
+    target, _ = player(keeper=True).targets(obs((0.2, 0.3), (0.9, 0.0), own=(-0.5, 0.0)))
+    ball, own = np.array([0.2, 0.3]), np.array([-0.5, 0.0])
     along = (target[0] - own) / np.linalg.norm(target[0] - own)
     np.testing.assert_allclose(along, (ball - own) / np.linalg.norm(ball - own))
     assert np.linalg.norm(target[0] - own) == pytest.approx(0.15)

@@ -16,6 +16,7 @@ import numpy as np
 
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
+from envs.soccer.field import Field
 
 BEHIND = 0.6  # body lengths behind the ball (beyond its radius) where a field player lines up
 LINED_UP = 0.35  # body lengths off the line (and behind the ball) within which it pushes
@@ -32,15 +33,19 @@ class ScriptedPlayer:
     Args:
         layout: the match's observation layout (``env.observation_structure``).
         mode: the commands mode (``env.mode``: speed and turn rate with their bounds).
-        length: the robot's body length, m; ``ball_radius``: the ball's, m.
+        length: the robot's body length, m.
+        field: the match's field (its walls and ball).
         keeper: keep goal instead of chasing the ball.
     """
 
-    def __init__(self, layout: ObservationLayout, mode: ActionMode, length: float, ball_radius: float,
+    def __init__(self, layout: ObservationLayout, mode: ActionMode, length: float, field: Field,
                  keeper: bool = False):  # fmt: skip
         if mode.commands != ("speed", "yaw_rate"):
             raise ValueError(f"the scripted team plays in the commands mode, not {mode.name!r}")
-        self.layout, self.mode, self.length, self.ball_radius, self.keeper = layout, mode, length, ball_radius, keeper
+        self.layout, self.mode, self.length, self.keeper = layout, mode, length, keeper
+        self.ball_radius = field.ball.radius
+        # how far from the centre spot a player's target may lie: a body length inside the walls
+        self.inside = (0.5 * field.length + field.end_border - length, 0.5 * field.width + field.side_border - length)
 
     def __repr__(self) -> str:
         return f"ScriptedPlayer({'keeper' if self.keeper else 'field player'})"
@@ -55,15 +60,38 @@ class ScriptedPlayer:
             return own + toward / np.maximum(reach, 1e-9) * keep, np.zeros(len(obs), dtype=bool)
         line = goal - ball
         u = line / np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-9)
-        behind = np.sum(ball * u, axis=1)  # how far the player (the origin) is behind the ball along the line
-        off_line = np.abs(-ball[:, 0] * u[:, 1] + ball[:, 1] * u[:, 0])
-        pushing = (behind > 0.0) & (off_line < LINED_UP * self.length)
-        spot = ball - u * (self.ball_radius + BEHIND * self.length)
+        reach = self.ball_radius + BEHIND * self.length  # from the ball's centre to the player's, lined up behind it
+        # where the player stands relative to the ball, along the line to the goal and across it
+        along = -np.sum(ball * u, axis=1)  # < 0: behind the ball
+        across = ball[:, 0] * u[:, 1] - ball[:, 1] * u[:, 0]
+        # the approach point slides behind the ball along the line, the further the more the player is off it: lined
+        # up it aims through the ball; beside or ahead of the ball it aims at a point behind the ball on its own side
+        misaligned = np.clip((along + reach) / reach, 0.0, None) + np.abs(across) / reach
+        pushing = (along < 0.0) & (np.abs(across) < LINED_UP * self.length)
+        back = np.clip(misaligned, 0.0, 1.0)[:, None]
+        normal = np.column_stack([-u[:, 1], u[:, 0]])
+        side = np.where(across >= 0.0, 1.0, -1.0)[:, None]  # the player's side of the line (the normal points left)
+        ahead = (along > -0.5 * reach)[:, None]  # beside or ahead of the ball: round it on its own side
+        behind = ball - u * reach * back
+        detour = normal * (reach + self.ball_radius)
+        target = np.where(ahead, behind + side * detour, behind)
+        # by a wall, the way round on the player's own side can lie beyond it: then it goes round the other side
+        walled = ahead & (np.linalg.norm(self.on_field(target, goal, own) - target, axis=1) > 0.5 * reach)[:, None]
+        target = np.where(walled, behind - side * detour, target)
         through = ball + u * self.length
-        # a player in front of the ball goes round it: to the spot behind, past the ball's side
-        side = np.sign(-ball[:, 0] * u[:, 1] + ball[:, 1] * u[:, 0])[:, None] * np.column_stack([-u[:, 1], u[:, 0]])
-        around = np.where((behind < 0.0)[:, None], spot + side * (self.ball_radius + self.length), spot)
-        return np.where(pushing[:, None], through, around), pushing
+        return self.on_field(np.where(pushing[:, None], through, target), goal, own), pushing
+
+    def on_field(self, points: np.ndarray, goal: np.ndarray, own: np.ndarray) -> np.ndarray:
+        """Points (n, 2) in each player's frame, moved inside the walls by a body length: a ball against a wall has
+        its approach point beyond it, and a player sent there would walk into the wall. The field's frame comes from
+        the two goals the player sees (their midpoint the centre spot, the line through them the x axis)."""
+        centre = 0.5 * (goal + own)
+        ex = (goal - own) / np.maximum(np.linalg.norm(goal - own, axis=1, keepdims=True), 1e-9)
+        ey = np.column_stack([-ex[:, 1], ex[:, 0]])
+        rel = points - centre
+        x = np.clip(np.sum(rel * ex, axis=1), -self.inside[0], self.inside[0])
+        y = np.clip(np.sum(rel * ey, axis=1), -self.inside[1], self.inside[1])
+        return centre + x[:, None] * ex + y[:, None] * ey
 
     def predict(self, observation: np.ndarray, state: Any = None, episode_start: np.ndarray | None = None,
                 deterministic: bool = True) -> tuple[np.ndarray, None]:  # fmt: skip
@@ -95,6 +123,7 @@ def scripted_team(env, team: str) -> dict[str, ScriptedPlayer]:
         raise ValueError(f"team must be 'home' or 'away', got {team!r}")
     players = [agent for agent in base.possible_agents if agent.startswith(team)]
     layout = base.task.layout
-    length, radius = base.robot.facts.length, base.field.ball.radius
-    return {agent: ScriptedPlayer(layout, base.mode, length, radius, keeper=len(players) >= 3 and i == len(players) - 1)
+    length = base.robot.facts.length
+    keeper = len(players) - 1 if len(players) >= 3 else None
+    return {agent: ScriptedPlayer(layout, base.mode, length, base.field, keeper=i == keeper)
             for i, agent in enumerate(players)}  # fmt: skip

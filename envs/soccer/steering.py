@@ -1,7 +1,7 @@
 """The ``commands`` action mode: forward speed and turn rate, run by each robot's reference gait.
 
 A :class:`Steering` turns two numbers per player, a drive and a turn, into the robot's own commands at every control
-step: the VelociRoACH's tripod (stride frequency, and the phase between its sides, by which the real robot turns),
+step: the VelociRoACH's tripod (stride frequency, and a different one per side: differential drive),
 the xJüs's Buehler clock (stride frequency, and a different ground sweep per side) and the Bioloid's IK trot at
 1.5 Hz (stride length, and one side's stride shortened). What speed and turn rate each (drive, turn) gives was
 measured on the model over a grid (``python -m benchmarks.gait_maps``, written to ``envs/soccer/gait_maps/``), and a
@@ -55,15 +55,21 @@ class Steering(ABC):
 
 
 class RoachSteering(Steering):
-    """The tripod: drive = stride frequency (Hz, both sides), turn = how far the right legs trail the left (rad; pi
-    runs straight, less turns left) [roach-sim]. The firmware runs the clocks and moves the phase."""
+    """The tripod as a differential drive: drive = mean stride frequency (Hz), turn = right side's frequency less
+    the left's (Hz; > 0 turns left), the sides 180 deg apart when equal. Two motors, one per side, make the
+    VelociRoACH and its kin differential-drive robots (Pullin, Kohut, Zarrouk, Fearing, "Dynamic turning of 13 cm
+    robot comparing tail and differential drive", ICRA 2012). The phase offset by which the real robot also turns
+    [roach-sim] steers the model weakly and, above 10 Hz, with no consistent sign (gait map of 2026-11-28: at most
+    1 rad/s); a 2 Hz difference turns it 1.0-2.4 rad/s at every drive."""
 
     robot_name = "velociroach"
     drives = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
-    turns = tuple(np.radians(np.arange(130.0, 231.0, 10.0)).tolist())
+    turns = (-8.0, -4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0, 8.0)
 
     def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
-        return np.column_stack([drive, drive, turn])
+        half = 0.5 * np.asarray(turn)
+        left, right = np.maximum(drive - half, 0.0), np.maximum(drive + half, 0.0)
+        return np.column_stack([left, right, np.full_like(left, np.pi)])
 
 
 class XjusSteering(Steering):
