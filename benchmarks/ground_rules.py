@@ -3,7 +3,9 @@ evaluation seeds (0-9, as ``evaluate.py`` uses by default, and 1000-1009, as ``m
 how often the rules would end its episodes, how close it came (the largest leaky counts, against the grace time), its
 fraction of steps with a non-foot ground contact and its body height against its band.
 
-A reference gait that trips a rule means a rule is wrong, not the gait: the benchmark prints ``MISSED`` for it.
+A reference gait that trips a rule means a rule is wrong, not the gait: the benchmark prints ``MISSED`` for it. The
+soccer academy's ids are reported apart and do not count toward the verdict: there the walking gait, which heads for
++x and knows no walls, walks into the field's wall and climbs or tips at it, which the rules rightly end.
 
 Run: ``python -m benchmarks.ground_rules`` (a few minutes on 2 cores).
 """
@@ -82,6 +84,7 @@ def run(env_id: str, seeds: list[int], yaw_rate: float | None = None) -> dict:
         "lowest_height": float(low_height.min()),
         "highest_height": float(high_height.max()),
         "height_band": list(task.height_band),
+        "walled_field": hasattr(task, "field"),  # a soccer task: on its robot's walled field
     }
 
 
@@ -108,7 +111,7 @@ def main(argv: list[str] | None = None) -> None:
         if turn:  # a turning task also at its hardest commands, either way
             rows += [run(env_id, SEEDS, sign * turn) for sign in (-1.0, 1.0)]
     wall = time.perf_counter() - started
-    missed = [r["env_id"] for r in rows if r["ended_by_ground_rules"]]
+    missed = [r["env_id"] for r in rows if r["ended_by_ground_rules"] and not r["walled_field"]]
     table = md_table(
         ["env id", "reference", "episodes", "ended by the ground rules", "ended by a tilt",
          "largest contact count / grace, s", "largest band count / grace, s", "non-foot contact, fraction of steps",
@@ -120,10 +123,19 @@ def main(argv: list[str] | None = None) -> None:
           f"{r['body_height']:.4f} ({r['lowest_height']:.4f}-{r['highest_height']:.4f})",
           f"{r['height_band'][0]:.4f}-{r['height_band'][1]:.4f}"] for r in rows],
     )  # fmt: skip
-    ended = sum(r["ended_by_ground_rules"] for r in rows)
-    verdict = f"{ended} of {sum(r['episodes'] for r in rows)} reference episodes ended by the ground rules: " + (
-        f"MISSED (on {', '.join(missed)})" if missed else "met"
+    open_ground = [r for r in rows if not r["walled_field"]]
+    walled = [r for r in rows if r["walled_field"]]
+    ended = sum(r["ended_by_ground_rules"] for r in open_ground)
+    verdict = (
+        f"{ended} of {sum(r['episodes'] for r in open_ground)} reference episodes on open ground ended by the ground "
+        "rules: " + (f"MISSED (on {', '.join(missed)})" if missed else "met")
     )
+    if walled:
+        verdict += (
+            f". On the soccer fields (not in the verdict; the walking gait walks into the wall): "
+            f"{sum(r['ended_by_ground_rules'] for r in walled)} of {sum(r['episodes'] for r in walled)} ended by the "
+            f"rules, {sum(r['ended_by_tilt'] for r in walled)} by a tilt"
+        )
     md = (
         "# The ground rules against the reference gaits\n\n"
         f"Seeds {SEEDS[0]}-{SEEDS[9]} and {SEEDS[10]}-{SEEDS[-1]} on every id, the robot's reference gait, batched; "

@@ -40,10 +40,13 @@ def run(venv, actions: np.ndarray, seed: int):
 def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_resets(env_id, nthread):
     duty = "Duty" in env_id
     steps, limit = (150, 60) if duty else (40, 15)
-    # every robot's own parameters, each drawn from 90-100% of its nominal value
-    parameters = gym.make(env_id).unwrapped.robot.parameters
-    randomize = {k: (0.9 * parameters[k].nominal, parameters[k].nominal) for k in ("foot_friction", "battery_voltage")}
-    kwargs = {"max_episode_steps": limit, "randomize": randomize}
+    kwargs = {"max_episode_steps": limit}
+    robot = gym.make(env_id).unwrapped.robot
+    if not robot.hosted:  # every robot's own parameters, each drawn from 90-100% of its nominal value (the academy's
+        # robots share a scene with the field and take no per-robot parameters: tests/test_soccer.py)
+        parameters = robot.parameters
+        kwargs["randomize"] = {k: (0.9 * parameters[k].nominal, parameters[k].nominal)
+                               for k in ("foot_friction", "battery_voltage")}  # fmt: skip
     singles, batched = make_singles(env_id, **kwargs), make_batched(env_id, nthread=nthread, **kwargs)
     rng = np.random.default_rng(7)
     actions = rng.uniform(-1, 1, (steps, N, singles.single_action_space.shape[0]))

@@ -1,7 +1,6 @@
 """Soccer: robots sharing a scene, the fields and balls, and the academy tasks."""
 
 import math
-import pickle
 
 import gymnasium as gym
 import mujoco
@@ -10,7 +9,6 @@ import pytest
 
 from envs.bioloid.robot import Bioloid
 from envs.common.match import SharedScene
-from envs.common.vector import SkitterVectorEnv
 from envs.soccer import ACADEMY, FIELDS, academy
 from envs.soccer.field import BALL, FOUR_LEGGED, field_edit, measure_bounce, measure_deceleration
 from envs.velociroach.robot import VelociRoach
@@ -126,35 +124,6 @@ def test_a_goal_is_seen_between_control_steps_and_ends_the_episode():
         assert ended["fallen"] is False and ended["success"] == (1.0 if side > 0 else 0.0)
 
 
-def test_the_academy_envs_step_reset_and_pickle():
-    for entry in ACADEMY:
-        env = make(entry["id"])
-        obs, _ = env.reset(seed=3)
-        assert obs.shape == env.observation_space.shape and np.isfinite(obs).all()
-        layout = env.unwrapped.task.layout
-        assert {"ball", "goal", "own_goal", "heading_error"} <= set(layout.slices)
-        obs, reward, *_ = env.step(env.action_space.sample())
-        assert np.isfinite(obs).all() and np.isfinite(reward)
-    again = pickle.loads(pickle.dumps(env))
-    np.testing.assert_array_equal(again.reset(seed=5)[0], env.reset(seed=5)[0])
-
-
-def test_batched_academy_envs_are_the_single_ones():
-    name = "skitter/BioloidScoreEmptyGoal-v1"
-    (entry,) = [e for e in ACADEMY if e["id"] == name]
-    venv = getattr(academy, entry["vector_entry_point"].split(":")[1])(num_envs=2)
-    assert isinstance(venv, SkitterVectorEnv)
-    singles = [make(name) for _ in range(2)]
-    obs = venv.reset(seed=4)[0]
-    np.testing.assert_array_equal(obs, [env.reset(seed=4 + i)[0] for i, env in enumerate(singles)])
-    actions = np.random.default_rng(2).uniform(-1, 1, (15, 2, 16))
-    for a in actions:
-        obs, reward, *_ = venv.step(a)
-        steps = [env.step(a[i]) for i, env in enumerate(singles)]
-        np.testing.assert_array_equal(obs, [s[0] for s in steps])
-        np.testing.assert_array_equal(reward, [s[1] for s in steps])
-
-
 @pytest.mark.parametrize(
     ("options", "word"),
     [({"ball": [99.0, 0.0]}, "ball"), ({"robot": [0.0, 0.0]}, "robot"), ({"robot": "here"}, "robot")],
@@ -170,7 +139,7 @@ def test_robots_on_a_shared_scene_refuse_per_robot_parameters():
     with pytest.raises(ValueError, match="shared scene"):
         scene.robot.set_parameters(np.array([0]), {"foot_friction": 0.5})
     assert mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_BODY, "a/BODY") >= 0
-    assert not gym.registry.keys() & {e["id"] for e in ACADEMY}
+    assert {e["id"] for e in ACADEMY} <= gym.registry.keys(), "the academy is registered"
 
 
 def test_players_collide_with_each_other_but_not_with_themselves():

@@ -159,6 +159,7 @@ class LocomotionTask(Task):
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
         self._draw_command(ids, rngs, options)
         pos, quat = readings["position"][ids], readings["quaternion"][ids]
+        target = np.broadcast_to(self._target_heading(np.zeros(self.robot.num_sims)), (self.robot.num_sims,))[ids]
         for name, value in (
             ("_xy", pos[:, :2]),
             ("_yaw", quat_yaw(quat)),
@@ -168,7 +169,7 @@ class LocomotionTask(Task):
             ("_energy_used", 0.0),
             ("_yaw_travel", 0.0),
             ("_yaw_warmup", 0.0),
-            ("_heading_error", wrap(readings["heading"][ids])),
+            ("_heading_error", wrap(readings["heading"][ids] - target)),
             ("_contact_time", 0.0),
             ("_band_time", 0.0),
             ("_contact_steps", 0.0),

@@ -1,9 +1,8 @@
 """Soccer: each robot's field and ball (field.py, robots.py), what a soccer task computes for its players (task.py),
 the academy's single-robot tasks (academy.py) and multi-robot matches as a PettingZoo environment (match.py).
 
-``ACADEMY`` holds the academy's registrations, one per robot and task, made with ``gymnasium.register(**entry)``.
-They join ``ENVS`` (what envs/__init__.py registers) once the shared tools (hyperparameters, the ground-rules
-benchmark, the reference gaits' steering) take them; until then register them from here (docs/soccer.md).
+``ENVS`` holds the academy's registrations, one per robot and task, which envs/__init__.py registers as every
+robot's (``ACADEMY`` is the same list).
 """
 
 from envs.soccer import academy
@@ -23,3 +22,4 @@ for _robot, _robot_class in ROBOTS.items():
                 "kwargs": {"episode_seconds": academy.EPISODE_SECONDS},
             }
         )
+ENVS = ACADEMY

@@ -154,7 +154,8 @@ class AcademyEnv(SkitterEnv):
         sensor_noise: the IMU's noise and bias.
         sparse, ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: the task's
             (:class:`envs.soccer.task.SoccerTask`).
-        reset_noise_scale, render_mode, width, height: as every env's.
+        reset_noise_scale, telemetry, render_mode, width, height: as every env's. ``randomize`` is not taken: the
+            robot shares its scene with the field, and per-robot parameters are refused there.
     """
 
     robot_class: ClassVar[type[Robot]]
@@ -174,6 +175,7 @@ class AcademyEnv(SkitterEnv):
         height_band: Sequence[float] | None = None,
         grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
+        telemetry: bool = False,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -189,7 +191,7 @@ class AcademyEnv(SkitterEnv):
         self.scene = scene
         task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
                                terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
-        super().__init__(scene.robot, task, reset_noise_scale, None, False, render_mode, width, height)
+        super().__init__(scene.robot, task, reset_noise_scale, None, telemetry, render_mode, width, height)
 
     @property
     def model(self):
@@ -199,11 +201,45 @@ class AcademyEnv(SkitterEnv):
         return f"{PLAYER}/{self.robot.root_body}"
 
 
+MANUAL = """{title}: {task}
+
+    ## Description
+    The {robot} alone on its soccer field ({field}, envs/soccer/field.py) with its ball, the first rung of the
+    soccer academy (docs/soccer.md). The robot and the ball are placed at random each episode.
+
+    ## Action Space
+    The robot's own, as in its walking env (``action_mode``: its modes, default the first), normalized to [-1, 1].
+
+    ## Observation Space
+    The robot's proprioception, then the soccer task's egocentric view (``observation_structure`` names every
+    slice): ``heading_error`` against the +x goal, ``ball`` and ``ball_velocity`` in its frame with noise of
+    ``ball_noise`` times the ball's distance, ``ball_visible`` (``field_of_view``), ``goal`` and ``own_goal``.
+
+    ## Rewards
+    Named terms in ``info`` (``reward_<term>``), summed: the task's +1 (above), -1 for an own goal, and the
+    shaping terms (differences of distance, so a detour costs what it gains back); ``sparse=True`` keeps the +1 and
+    -1 only.
+
+    ## Starting State
+    The task draws the robot's place and heading and the ball's; ``reset(options={{"robot": (x, y, heading),
+    "ball": (x, y)}})`` sets them.
+
+    ## Episode End
+    Terminated on the task's success, an own goal, or a fall or a ground rule broken (as in the walking tasks;
+    ``info["fallen"]`` says which); truncated at ``episode_seconds`` ({seconds} s by default at any control rate).
+
+    ## Version History
+    - v1: first version.
+"""
+
+
 def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], title: str) -> type[AcademyEnv]:
     """The academy env class of a robot and a task, with its entry points, as attributes of this module."""
     name = f"{title}Env"
+    doc = MANUAL.format(title=title, task=task_class.__doc__, robot=robot_class.__name__, field=field.name,
+                        seconds=f"{EPISODE_SECONDS:g}")  # fmt: skip
     attributes = {"robot_class": robot_class, "task_class": task_class, "field": field, "__module__": __name__,
-                  "__qualname__": name, "__doc__": f"{title}: {task_class.__doc__}"}  # fmt: skip
+                  "__qualname__": name, "__doc__": doc}  # fmt: skip
     env_class = type(name, (AcademyEnv,), attributes)
     # the class and its entry points are attributes of this module: registered by name, pickled by name
     env_class.make_env_name, env_class.make_batched_name = f"make_{name}", f"make_batched_{name}"
