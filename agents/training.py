@@ -55,6 +55,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import dataclass
 from datetime import datetime
 from importlib import metadata
@@ -117,6 +118,7 @@ TRAIN_DEFAULTS: dict[str, Any] = {
     "vec_env": "batched",
     "nthread": None,
 }
+SOCCER_ROBOTS = ("bioloid", "roach", "xjus")  # train.py --soccer (envs/soccer/robots.py, by its lower-case names)
 VEC_ENVS = ("batched", "dummy")  # the batched env on mujoco.batch (one process, every core), or SB3's DummyVecEnv
 NOISE_DEFAULTS: dict[str, Any] = {"noise_type": None, "noise_std": 0.1}  # SAC and TD3 only; None: no noise
 NOISE_TYPES = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
@@ -791,6 +793,25 @@ class EpisodeMetricsCallback(BaseCallback):
             self.logger.record_mean("episode/length", info["episode"]["l"])
 
 
+class TimeBudgetCallback(BaseCallback):
+    """Stop training (as finished: the final model is saved) once ``minutes`` of wall time have passed since this
+    process started learning."""
+
+    def __init__(self, minutes: float):
+        super().__init__()
+        self.seconds = 60.0 * minutes
+
+    def _on_training_start(self) -> None:
+        self._start = time.monotonic()
+
+    def _on_step(self) -> bool:
+        if time.monotonic() - self._start < self.seconds:
+            return True
+        print(f"train.py: the time budget of {self.seconds / 60:g} min is spent at {self.num_timesteps} steps",
+              file=sys.stderr)  # fmt: skip
+        return False
+
+
 class RunCheckpointCallback(BaseCallback):
     """Save a checkpoint folder of the run (:func:`save_checkpoint`) every ``freq`` env steps (all envs together)
     and at the end of training."""
@@ -832,10 +853,18 @@ class ResumedTensorBoard(TensorBoardOutputFormat):
         self._is_closed = False
 
 
-def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool) -> Path:
+def run_manifest(config: dict[str, Any]) -> dict[str, Any]:
+    """What a run's model files record about it (a soccer run also its match configuration)."""
+    manifest = {"algo": config["algo"], "env_id": config["env_id"], "seed": config["seed"]}
+    return {**manifest, "soccer": config["soccer"]} if "soccer" in config else manifest
+
+
+def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool,
+          callbacks: list[BaseCallback] | None = None) -> Path:  # fmt: skip
     """Train ``model`` until it has taken ``config["timesteps"]`` env steps in all, logging and checkpointing into
     ``run_dir``. Returns the path of the final ``model.zip``. On Ctrl-C, saves a checkpoint and re-raises. A resumed
-    model (``num_timesteps`` > 0) hides the TensorBoard events the run logged after its checkpoint."""
+    model (``num_timesteps`` > 0) hides the TensorBoard events the run logged after its checkpoint. ``callbacks``
+    log the episodes (default :class:`EpisodeMetricsCallback`)."""
     torch.set_num_threads(TORCH_THREADS)
     folder = str(run_dir / "tb")
     tensorboard = (
@@ -843,12 +872,15 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
     )
     model.set_logger(Logger(folder, [tensorboard]))
     checkpoints_dir = run_dir / "checkpoints"
-    manifest = {"algo": config["algo"], "env_id": config["env_id"], "seed": config["seed"]}
+    manifest = run_manifest(config)
     checkpointing = RunCheckpointCallback(checkpoints_dir, config["checkpoint_freq"], manifest)
+    logging = [EpisodeMetricsCallback()] if callbacks is None else callbacks
+    if config.get("minutes"):
+        logging = [*logging, TimeBudgetCallback(config["minutes"])]
     try:
         model.learn(
             config["timesteps"] - model.num_timesteps,
-            callback=CallbackList([EpisodeMetricsCallback(), checkpointing]),
+            callback=CallbackList([*logging, checkpointing]),
             reset_num_timesteps=False,
             progress_bar=progress,
         )
@@ -864,6 +896,10 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
 
 def start_run(args: argparse.Namespace) -> Path:
     """A new run from the command line's settings; returns the final model's path."""
+    if args.soccer is not None:
+        from agents.soccer.selfplay import start_selfplay
+
+        return start_selfplay(args)
     for flag, value in (("--env", args.env), ("--algo", args.algo), ("--timesteps", args.timesteps)):
         if value is None:
             raise ConfigError(f"{flag} is required (unless you --resume a run)")
@@ -887,6 +923,7 @@ def start_run(args: argparse.Namespace) -> Path:
             "n_envs": hp.n_envs,
             "normalize": hp.normalize is not None,
             "checkpoint_freq": args.checkpoint_freq,
+            "minutes": args.minutes,
             "hyperparams_file": str(hyperparams_file),
             "hyperparams": hp.raw,
             "versions": versions(),
@@ -992,6 +1029,7 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     remove_unfinished_saves(run_dir)
     config["timesteps"] = timesteps
     config["checkpoint_freq"] = args.checkpoint_freq or config.get("checkpoint_freq", DEFAULT_CHECKPOINT_FREQ)
+    config["minutes"] = args.minutes  # a budget for this process's training, not the run's
     config.setdefault("resumed", []).append({"from_timesteps": done, "timesteps": timesteps, "time": _now()})
     write_json(config_path, config)
     command_file = run_dir / "command.txt"
@@ -1071,7 +1109,38 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help=f"env steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ})",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--minutes", type=float,
+                        help="stop after this much wall time (the model is saved as at --timesteps)")  # fmt: skip
+    soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
+    soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
+    soccer.add_argument("--players", type=_positive_int, default=3, help="players a side, 1 to 4 (default 3)")
+    soccer.add_argument("--match-seconds", type=float, default=60.0, help="each match's length, s (default 60)")
+    soccer.add_argument(
+        "--scripted-share",
+        type=float,
+        default=0.5,
+        help="the share of matches against the scripted team (default 0.5; else past snapshots)",
+    )
+    soccer.add_argument(
+        "--snapshot-freq",
+        type=_positive_int,
+        help="env steps between the learner's snapshots into its pool (default --checkpoint-freq)",
+    )
     args = parser.parse_args(argv)
+    if args.soccer is not None:
+        if args.env is not None:
+            parser.error("give --env (one robot's env) or --soccer (a team by self-play), not both")
+        if args.resume:
+            parser.error("--resume of a soccer self-play run is not built yet: start a new run")
+        if args.algo not in (None, "ppo"):
+            parser.error(f"--soccer trains with PPO, not {args.algo}")
+        args.algo = "ppo"
+        if args.players > 4:
+            parser.error(f"--players must be from 1 to 4, got {args.players}")
+        if not 0 < args.match_seconds <= 3600:
+            parser.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
+        if not 0.0 <= args.scripted_share <= 1.0:
+            parser.error(f"--scripted-share must be in [0, 1], got {args.scripted_share}")
     for flag, value in (("--runs-dir", args.runs_dir), ("--resume", args.resume)):
         if value is not None and not value.strip():
             parser.error(f"argument {flag}: expected a folder, got an empty path {value!r}")
@@ -1079,6 +1148,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         not args.run_name or Path(args.run_name).name != args.run_name or args.run_name in (".", "..")
     ):
         parser.error(f"argument --run-name: expected a new folder's name (no '/', not . or ..), got {args.run_name!r}")
+    if args.minutes is not None and not 0 < args.minutes < 10**6:
+        parser.error(f"argument --minutes: expected a positive number of minutes, got {args.minutes}")
     if args.checkpoint_freq is None and not args.resume:
         args.checkpoint_freq = DEFAULT_CHECKPOINT_FREQ
     return args

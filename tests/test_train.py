@@ -767,3 +767,18 @@ def test_one_config_error_and_no_callback_under_sb3s_name():
     assert issubclass(ConfigError, ValueError)
     assert not hasattr(training, "CheckpointCallback") and not hasattr(callbacks, "RunCheckpointCallback")
     assert issubclass(training.RunCheckpointCallback, callbacks.BaseCallback)
+
+
+def test_a_time_budget_ends_training_as_finished(tmp_path):
+    """--minutes: past the budget, training stops and the run ends as at --timesteps (its model saved), short of the
+    timesteps asked for; a budget that is no number of minutes is refused."""
+    done = train_in_process("--env", WALK, "--algo", "ppo", "--timesteps", 10**7, "--n-envs", 2, "--minutes", "0.0001",
+                            "--runs-dir", tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "time budget" in done.stderr
+    (run_dir,) = tmp_path.iterdir()
+    manifest, _ = read_model_file(run_dir / "model.zip")
+    assert 0 < manifest["num_timesteps"] < 10**7
+    refused = train_in_process("--env", WALK, "--algo", "ppo", "--timesteps", 10, "--minutes", "-1",
+                               "--runs-dir", tmp_path / "x")  # fmt: skip
+    assert refused.returncode == 2 and "--minutes" in refused.stderr

@@ -56,6 +56,8 @@ class TeamPolicy:
         if spec == "scripted":
             players = scripted_team(engine, team)
             self.players = [players[a] for a in agents]
+        elif spec not in TEAMS:
+            self.model = trained_team(spec, engine)
         else:
             self.rngs = [np.random.default_rng([seed, m, 0 if team == "home" else 1])
                          for m in range(engine.num_matches)]  # fmt: skip
@@ -67,14 +69,56 @@ class TeamPolicy:
             for rows, player in zip(self.rows, self.players, strict=True):
                 actions[rows] = player.predict(obs[rows])[0]
             return
+        if self.spec not in TEAMS:  # one shared policy for every player of the team, every match in one call
+            rows = np.concatenate(self.rows)
+            actions[rows] = np.clip(self.model.predict(obs[rows], deterministic=True)[0], -1.0, 1.0)
+            return
         for m, rng in enumerate(self.rngs):
             actions[[rows[m] for rows in self.rows]] = rng.uniform(-1.0, 1.0, (len(self.rows), self.size))
 
 
+def trained_team(path: str, engine: Matches):
+    """A team policy trained by ``train.py --soccer`` (or any SB3 model of the match's observation and action
+    sizes), as an :class:`agents.sb3.SB3Policy`; ValueError if it was trained for another match."""
+    from agents.sb3 import SB3Policy
+
+    policy = SB3Policy(path)
+    soccer = policy.manifest.get("soccer")
+    if soccer is not None:
+        want = {"robot": engine.robot_name, "players_per_team": engine.players // 2, "action_mode": engine.action_mode}
+        wrong = {k: soccer.get(k) for k, v in want.items() if soccer.get(k) != v}
+        if wrong:
+            raise ValueError(f"{path}: the team was trained with {wrong}, this match has {want}")
+    size, actions = policy.model.observation_space.shape, policy.model.action_space.shape
+    if size != (engine.task.layout.size,) or actions != (engine.mode.size,):
+        raise ValueError(f"{path}: the model takes {size} observations and gives {actions} actions; this match's "
+                         f"players have {engine.task.layout.size} and {engine.mode.size}")  # fmt: skip
+    return policy
+
+
+def team_mode(spec: str) -> str | None:
+    """The action mode a team's policy plays in: the scripted team's and a self-play model's is ``commands``."""
+    if spec == "scripted":
+        return COMMANDS
+    if spec in TEAMS:
+        return None
+    from agents.sb3 import read_model_file
+
+    manifest, _ = read_model_file(spec)
+    soccer = (manifest or {}).get("soccer") or {}
+    return soccer.get("action_mode")
+
+
 def play(robot: str, players: int, home: str, away: str, matches: int, seed: int, match_seconds: float,
          action_mode: str | None = None, video: Path | None = None) -> dict[str, Any]:  # fmt: skip
-    """Play ``matches`` seeded matches; returns every match's score and the statistics."""
-    mode = COMMANDS if action_mode is None and "scripted" in (home, away) else action_mode
+    """Play ``matches`` seeded matches; returns every match's score and the statistics. A team is ``scripted``,
+    ``random`` or the path of a model trained by ``train.py --soccer``."""
+    modes = {m for m in (team_mode(home), team_mode(away)) if m is not None}
+    if len(modes) > 1:
+        raise ValueError(f"the two teams play in different action modes: {sorted(modes)}")
+    if action_mode is not None and modes and action_mode not in modes:
+        raise ValueError(f"--action-mode {action_mode!r}: the teams play in {modes.pop()!r}")
+    mode = action_mode if action_mode is not None else (modes.pop() if modes else None)
     engine = Matches(robot=robot, players_per_team=players, action_mode=mode, num_matches=matches, batched=True,
                      max_cycles=1)  # fmt: skip
     engine.max_cycles = max(1, round(match_seconds / engine.dt))
@@ -152,8 +196,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = ToolParser(prog="evaluate.py --soccer", description="Play matches between two teams' policies.")
     p.add_argument("--soccer", required=True, choices=sorted(name.lower() for name in ROBOTS), help="the robot")
     p.add_argument("--players", type=int, default=3, help=f"players a side, 1 to {MAX_PLAYERS}")
-    p.add_argument("--home", required=True, choices=TEAMS, help="the home team's policy")
-    p.add_argument("--away", required=True, choices=TEAMS, help="the away team's policy")
+    p.add_argument("--home", required=True, help="the home team's policy: scripted, random or a model.zip")
+    p.add_argument("--away", required=True, help="the away team's policy: scripted, random or a model.zip")
     p.add_argument("--matches", type=int, default=20)
     p.add_argument("--seed", type=int, default=0, help="match i runs with seed SEED + i")
     p.add_argument("--match-seconds", type=float, default=MATCH_SECONDS, help="each match's length, s")
@@ -172,12 +216,28 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         p.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
     if "scripted" in (args.home, args.away) and args.action_mode not in (None, COMMANDS):
         p.error(f"--action-mode {args.action_mode!r}: the scripted team plays in the {COMMANDS!r} mode")
+    for flag, spec in (("--home", args.home), ("--away", args.away)):
+        if spec not in TEAMS:
+            problem = model_file_problem(spec)
+            if problem:
+                p.error(f"{flag} {spec!r}: {problem} (a team is scripted, random or a model.zip of train.py --soccer)")
     problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign(args.out))
     problem = problem or replace_problem(args.out)
     if problem:
         p.error(problem)
     args.out_existed = args.out.exists()
     return args
+
+
+def model_file_problem(spec: str) -> str | None:
+    """Why ``spec`` is not a readable model file, or None."""
+    from agents.sb3 import ModelFileError, read_model_file
+
+    try:
+        read_model_file(spec)
+    except ModelFileError as exc:
+        return str(exc)
+    return None
 
 
 def _foreign(out: Path):

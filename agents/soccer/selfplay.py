@@ -1,0 +1,324 @@
+"""Self-play: one shared policy learns soccer against a pool of its own past checkpoints and the scripted team.
+
+    python train.py --soccer bioloid --players 3 --timesteps 3000000 --seed 0 [--scripted-share 0.5]
+
+The learner plays the home team of ``n_envs`` matches at once (its hyperparameters are ``hyperparams/ppo.yml``'s
+``soccer/<robot>`` entry; ``n_envs`` there counts matches). Every match's away team is an opponent drawn from the
+pool when the match starts: the scripted team (``agents/soccer/scripted.py``) with probability ``scripted_share``,
+otherwise one of the learner's last ``pool_size`` snapshots, taken every ``snapshot_freq`` steps (each a frozen
+copy of the policy and of its observation normalization, saved in the run folder's ``pool/`` as a model file that
+``evaluate.py --soccer --home FILE`` plays). Observations do not depend on the side (envs/soccer/task.py), so one
+policy plays either.
+
+The learner's reward per player: +1 / -1 for each goal its team scores / concedes, plus the academy's potential-based
+shaping (0.1 per body length closed toward the ball, 0.2 per body length the ball moves toward the goal attacked), each
+a ``reward_<term>`` in ``info``.
+
+Ratings: Elo, updated after every match (a win 1, a draw 0.5, a loss 0; K = 16), of the learner, of each snapshot
+(which starts at the learner's rating when taken) and of the scripted team, which is the anchor: it stays at 1000, so
+a rating reads as strength against the scripted team (400 points: 10 to 1 odds). They are logged to TensorBoard
+(``selfplay/``) with each opponent's record, and written with the run to ``ratings.json``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import pickle
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+
+from agents.soccer.scripted import ScriptedPlayer
+from agents.vec_env import OneObjectAttributes
+from envs.common.io import write_json
+from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
+from envs.soccer.match import MATCH_SECONDS, Matches
+from envs.soccer.steering import COMMANDS
+
+SCRIPTED = "scripted"
+ANCHOR_RATING = 1000.0
+ELO_K = 16.0
+POOL_SIZE = 10  # the snapshots kept as opponents (the oldest is dropped)
+SCRIPTED_SHARE = 0.5
+RATINGS_FILE = "ratings.json"
+POOL_DIR = "pool"
+
+
+class ScriptedOpponent:
+    """The scripted team as an away team: ``act(obs)`` on its players' rows of any number of matches (match-major)."""
+
+    def __init__(self, engine: Matches):
+        k = engine.players // 2
+        length = engine.robot.facts.length
+        layout, mode, field = engine.task.layout, engine.mode, engine.field
+        self.players = [ScriptedPlayer(layout, mode, length, field, keeper=k >= 3 and i == k - 1) for i in range(k)]
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        k = len(self.players)
+        by_player = obs.reshape(-1, k, obs.shape[-1])
+        actions = np.stack([p.predict(by_player[:, i])[0] for i, p in enumerate(self.players)], axis=1)
+        return actions.reshape(len(obs), -1)
+
+
+class SnapshotOpponent:
+    """A frozen copy of the learner: its policy network and its observation normalization at the time taken."""
+
+    def __init__(self, policy: Any, normalizer: VecNormalize | None):
+        self.policy = policy
+        self.policy.set_training_mode(False)
+        self.normalizer = normalizer
+
+    @classmethod
+    def of(cls, model: Any) -> SnapshotOpponent:
+        stats = model.get_vec_normalize_env()
+        normalizer = pickle.loads(pickle.dumps(stats)) if stats is not None else None  # SB3 pickles it without env
+        return cls(copy.deepcopy(model.policy), normalizer)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        if self.normalizer is not None:
+            obs = self.normalizer.normalize_obs(obs)
+        actions, _ = self.policy.predict(obs, deterministic=False)
+        return np.clip(actions, -1.0, 1.0)
+
+
+class Pool:
+    """The opponents and everyone's Elo rating; the scripted team is the anchor (its rating never moves)."""
+
+    def __init__(self, scripted: ScriptedOpponent, rng: np.random.Generator, scripted_share: float = SCRIPTED_SHARE,
+                 pool_size: int = POOL_SIZE):  # fmt: skip
+        self.opponents: dict[str, Any] = {SCRIPTED: scripted}
+        self.rng, self.scripted_share, self.pool_size = rng, scripted_share, pool_size
+        self.ratings = {"learner": ANCHOR_RATING, SCRIPTED: ANCHOR_RATING}
+        self.records: dict[str, list[int]] = {SCRIPTED: [0, 0, 0]}  # the learner's wins, draws, losses against each
+
+    def add(self, name: str, opponent: Any) -> None:
+        """A snapshot joins the pool at the learner's current rating; beyond ``pool_size`` the oldest leaves."""
+        self.opponents[name] = opponent
+        self.ratings[name] = self.ratings["learner"]
+        self.records.setdefault(name, [0, 0, 0])
+        snapshots = [n for n in self.opponents if n != SCRIPTED]
+        for old in snapshots[: max(0, len(snapshots) - self.pool_size)]:
+            del self.opponents[old]
+
+    def draw(self) -> str:
+        snapshots = [n for n in self.opponents if n != SCRIPTED]
+        if not snapshots or self.rng.random() < self.scripted_share:
+            return SCRIPTED
+        return snapshots[int(self.rng.integers(len(snapshots)))]
+
+    def record(self, opponent: str, goals_for: int, goals_against: int) -> None:
+        """One finished match of the learner against ``opponent``: Elo for both (the anchor stays)."""
+        score = 1.0 if goals_for > goals_against else 0.5 if goals_for == goals_against else 0.0
+        self.records[opponent][0 if score == 1.0 else 1 if score == 0.5 else 2] += 1
+        expected = 1.0 / (1.0 + 10.0 ** ((self.ratings[opponent] - self.ratings["learner"]) / 400.0))
+        change = ELO_K * (score - expected)
+        self.ratings["learner"] += change
+        if opponent != SCRIPTED:
+            self.ratings[opponent] -= change
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "anchor": SCRIPTED,
+            "anchor_rating": ANCHOR_RATING,
+            "k": ELO_K,
+            "ratings": dict(self.ratings),
+            "learner_record": {
+                n: dict(zip(("wins", "draws", "losses"), r, strict=True)) for n, r in self.records.items()
+            },
+            "in_pool": list(self.opponents),
+        }
+
+
+class SelfPlayVecEnv(OneObjectAttributes, VecEnv):
+    """The home team of ``num_matches`` matches as an SB3 VecEnv (``num_matches x players`` envs, match-major), with
+    every away team played by an opponent from ``pool`` (drawn as its match starts). Match ``m`` is seeded with its
+    first player's env seed, as :class:`agents.soccer.vec_env.SoccerVecEnv` does; the pool draws from its own
+    stream. Arguments: :class:`envs.soccer.match.Matches`'s."""
+
+    def __init__(self, num_matches: int, pool_seed: int = 0, scripted_share: float = SCRIPTED_SHARE,
+                 match_seconds: float = MATCH_SECONDS, nthread: int | None = None, **kwargs: Any):  # fmt: skip
+        engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
+        engine.max_cycles = max(1, round(match_seconds / engine.dt))
+        engine.render_mode = None  # what SB3's VecEnv reads from its envs: these render nothing
+        self.engine = self.shared = engine
+        if engine.commands is None:
+            raise ValueError(f"self-play draws the scripted team as an opponent: it plays in the {COMMANDS!r} mode")
+        self.k = engine.players // 2
+        rows = engine.rows_of(np.arange(num_matches)).reshape(num_matches, 2, self.k)
+        self.home, self.away = rows[:, 0].reshape(-1), rows[:, 1].reshape(-1)
+        self.pool = Pool(ScriptedOpponent(engine), np.random.default_rng(pool_seed), scripted_share)
+        self.opponent_of = [SCRIPTED] * num_matches
+        observation_space = spaces.Box(-np.inf, np.inf, shape=(engine.task.layout.size,), dtype=np.float64)
+        action_space = spaces.Box(-1.0, 1.0, shape=(engine.mode.size,), dtype=np.float32)
+        super().__init__(num_matches * self.k, observation_space, action_space)
+        self._actions: np.ndarray | None = None
+
+    @property
+    def observation_structure(self) -> dict[str, int]:
+        return self.engine.task.observation_structure
+
+    def reset(self) -> np.ndarray:
+        engine = self.engine
+        for m in range(engine.num_matches):
+            seed = self._seeds[m * self.k] if self._seeds else None
+            if seed is not None:
+                engine.seed(m, seed)
+            self.opponent_of[m] = self.pool.draw()
+        engine.reset(np.arange(engine.num_matches))
+        self._reset_seeds()
+        self._reset_options()
+        return engine.obs[self.home].copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
+
+    def _opponents_act(self, actions: np.ndarray) -> None:
+        obs = self.engine.obs
+        names = np.array(self.opponent_of)
+        for name in dict.fromkeys(self.opponent_of):
+            matches = np.flatnonzero(names == name)
+            rows = self.away.reshape(-1, self.k)[matches].reshape(-1)
+            actions[rows] = self.pool.opponents[name].act(obs[rows])
+
+    def step_wait(self):
+        engine = self.engine
+        actions = np.tile(engine.rest, (engine.robot.num_sims, 1))
+        actions[self.home] = self._actions
+        self._opponents_act(actions)
+        out = engine.step(actions)
+        terms = {
+            "goal": out["reward"][self.home],
+            "approach": APPROACH_WEIGHT * out["approach"][self.home],
+            "ball_progress": PROGRESS_WEIGHT * out["ball_progress"][self.home],
+        }
+        reward = sum(terms.values())
+        match_of = np.arange(self.num_envs) // self.k
+        done_match = out["ended"] | out["truncated"]
+        obs = engine.obs[self.home].copy()
+        infos: list[dict[str, Any]] = [{f"reward_{t}": float(v[i]) for t, v in terms.items()}
+                                       for i in range(self.num_envs)]  # fmt: skip
+        finished = np.flatnonzero(done_match)
+        for m in finished:
+            home, away = (int(g) for g in engine.scores[m])
+            self.pool.record(self.opponent_of[m], home, away)
+            for i in range(m * self.k, (m + 1) * self.k):
+                infos[i]["terminal_observation"] = obs[i].copy()
+                infos[i]["TimeLimit.truncated"] = bool(out["truncated"][m])
+            infos[m * self.k]["match"] = {"opponent": self.opponent_of[m], "score": [home, away]}
+            self.opponent_of[m] = self.pool.draw()
+        if len(finished):
+            engine.reset(finished)
+            obs = engine.obs[self.home].copy()
+        return obs, reward.astype(np.float32), done_match[match_of], infos
+
+    def close(self) -> None:
+        pass
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in range(self.num_envs)]
+
+
+class SelfPlayCallback(BaseCallback):
+    """Takes a snapshot of the learner into the pool every ``snapshot_freq`` steps (saved as ``pool/<name>.zip`` in
+    the run folder), logs the matches and the ratings to TensorBoard, and writes ``ratings.json``."""
+
+    def __init__(self, pool: Pool, run_dir: Path, snapshot_freq: int, manifest: dict[str, Any]):
+        super().__init__()
+        self.pool, self.run_dir, self.snapshot_freq, self.manifest = pool, run_dir, snapshot_freq, manifest
+
+    def _on_training_start(self) -> None:
+        self._last = self.num_timesteps
+        self._returns = np.zeros(self.training_env.num_envs)
+
+    def _on_step(self) -> bool:
+        infos, dones = self.locals["infos"], self.locals["dones"]
+        self._returns += self.locals["rewards"]
+        for i, (info, done) in enumerate(zip(infos, dones, strict=True)):
+            match = info.get("match")
+            if match is not None:
+                home, away = match["score"]
+                against = "scripted" if match["opponent"] == SCRIPTED else "snapshots"
+                self.logger.record_mean(f"selfplay/goal_difference_vs_{against}", home - away)
+                self.logger.record_mean(f"selfplay/win_rate_vs_{against}", float(home > away))
+            if done:
+                self.logger.record_mean("selfplay/player_return", float(self._returns[i]))
+                self._returns[i] = 0.0
+        if self.num_timesteps - self._last >= self.snapshot_freq:
+            self.snapshot()
+        return True
+
+    def _on_rollout_end(self) -> None:
+        self.logger.record("selfplay/elo_learner", self.pool.ratings["learner"])
+        snapshots = [self.pool.ratings[n] for n in self.pool.opponents if n != SCRIPTED]
+        if snapshots:
+            self.logger.record("selfplay/elo_best_snapshot", max(snapshots))
+        self.logger.record("selfplay/pool_size", len(self.pool.opponents) - 1)
+
+    def _on_training_end(self) -> None:
+        self.write_ratings()
+
+    def snapshot(self) -> None:
+        from agents.sb3 import save_model
+
+        name = f"step_{self.num_timesteps:010d}"  # as the run's checkpoints are named
+        self.pool.add(name, SnapshotOpponent.of(self.model))
+        save_model(self.model, self.run_dir / POOL_DIR / f"{name}.zip", {**self.manifest, "snapshot": name})
+        self._last = self.num_timesteps
+        self.write_ratings()
+
+    def write_ratings(self) -> None:
+        write_json(self.run_dir / RATINGS_FILE, {**self.pool.summary(), "num_timesteps": int(self.num_timesteps)})
+
+
+def start_selfplay(args: Any) -> Path:
+    """A new self-play run from train.py's command line (``--soccer``); returns the final model's path."""
+    from stable_baselines3.common.utils import set_random_seed
+
+    from agents import training
+
+    training.check_runs_dir(Path(args.runs_dir))
+    key = f"soccer/{args.soccer}"
+    hyperparams_file = Path(args.hyperparams) if args.hyperparams else training.HYPERPARAMS_DIR / "ppo.yml"
+    overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    hp = training.load_hyperparams(hyperparams_file, key, "ppo", overrides)
+    seed = 0 if args.seed is None else args.seed
+    set_random_seed(seed)
+    soccer = {"robot": args.soccer, "players_per_team": args.players, "action_mode": COMMANDS,
+              "match_seconds": args.match_seconds, "scripted_share": args.scripted_share, **hp.env_kwargs}  # fmt: skip
+    try:
+        venv = SelfPlayVecEnv(hp.n_envs, pool_seed=seed, nthread=hp.nthread, **soccer)
+    except (TypeError, ValueError) as exc:
+        raise training.ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
+    pool = venv.pool
+    learner_env: VecEnv = VecNormalize(venv, **hp.normalize) if hp.normalize is not None else venv
+    model = training.build_model("ppo", hp, learner_env, seed)
+    run_dir = training.make_run_dir(Path(args.runs_dir), args.run_name or training.run_name(key, "ppo", seed))
+    with contextlib.ExitStack() as stack:
+        training.lock_run(run_dir, stack)
+        config = {
+            "env_id": key,
+            "algo": "ppo",
+            "seed": seed,
+            "timesteps": args.timesteps,
+            "n_envs": hp.n_envs,
+            "normalize": hp.normalize is not None,
+            "checkpoint_freq": args.checkpoint_freq,
+            "snapshot_freq": args.snapshot_freq or args.checkpoint_freq,
+            "minutes": args.minutes,
+            "soccer": soccer,
+            "hyperparams_file": str(hyperparams_file),
+            "hyperparams": hp.raw,
+            "versions": training.versions(),
+            "created": training._now(),
+        }
+        write_json(run_dir / "config.json", config)
+        training.write_text(run_dir / "command.txt", training.command_line() + "\n")
+        print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
+        callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], training.run_manifest(config))
+        return training.train(model, run_dir, config, progress=not args.no_progress, callbacks=[callback])

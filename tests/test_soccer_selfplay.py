@@ -1,0 +1,104 @@
+"""Self-play (agents/soccer/selfplay.py, ``train.py --soccer``) and trained teams in ``evaluate.py --soccer``."""
+
+import json
+
+import numpy as np
+import pytest
+
+from agents.soccer.play import play
+from agents.soccer.scripted import scripted_team
+from agents.soccer.selfplay import ANCHOR_RATING, ELO_K, SCRIPTED, Pool, SelfPlayVecEnv
+from envs.soccer import match
+from tests.conftest import ENV_IDS  # noqa: F401  (registers the envs)
+from tests.test_train import scalars, train_in_process
+
+
+class Dummy:
+    def act(self, obs):
+        return np.zeros((len(obs), 2))
+
+
+def test_elo_moves_the_learner_and_its_snapshots_but_not_the_anchor():
+    pool = Pool(Dummy(), np.random.default_rng(0), scripted_share=0.0, pool_size=2)
+    pool.record(SCRIPTED, 2, 0)  # a win against an equal rating: K / 2
+    assert pool.ratings["learner"] == pytest.approx(ANCHOR_RATING + ELO_K / 2)
+    assert pool.ratings[SCRIPTED] == ANCHOR_RATING
+    pool.add("a", Dummy())
+    assert pool.ratings["a"] == pool.ratings["learner"]
+    before = pool.ratings["learner"]
+    pool.record("a", 0, 0)  # a draw between equals moves nothing
+    assert pool.ratings["learner"] == before and pool.ratings["a"] == before
+    pool.record("a", 0, 1)
+    assert pool.ratings["learner"] + pool.ratings["a"] == pytest.approx(2 * before), "zero-sum between snapshots"
+    assert pool.records["a"] == [0, 1, 1] and pool.records[SCRIPTED] == [1, 0, 0]
+    pool.add("b", Dummy())
+    pool.add("c", Dummy())
+    assert list(pool.opponents) == [SCRIPTED, "b", "c"], "the oldest snapshot leaves beyond pool_size"
+    assert {pool.draw() for _ in range(50)} == {"b", "c"}, "scripted_share 0: snapshots only"
+
+
+def test_a_pool_with_no_snapshot_draws_the_scripted_team():
+    pool = Pool(Dummy(), np.random.default_rng(0), scripted_share=0.0)
+    assert {pool.draw() for _ in range(10)} == {SCRIPTED}
+
+
+def test_the_learners_matches_are_the_pettingzoo_matches_against_the_scripted_team():
+    """Scripted share 1: each learner match is, bit for bit, the PettingZoo match seeded alike in which the home team
+    takes the learner's actions and the away team is the scripted team; a finished match reports its score and
+    starts again."""
+    venv = SelfPlayVecEnv(2, robot="roach", players_per_team=1, action_mode="commands", scripted_share=1.0,
+                          match_seconds=0.3)  # fmt: skip
+    venv.seed(5)
+    obs = venv.reset()
+    envs = [match.parallel_env(robot="roach", players_per_team=1, action_mode="commands", max_cycles=10**6)
+            for _ in range(2)]  # fmt: skip
+    away = [scripted_team(e, "away")["away_0"] for e in envs]
+    firsts = [e.reset(seed=5 + i)[0] for i, e in enumerate(envs)]
+    np.testing.assert_array_equal(obs, [f["home_0"] for f in firsts])
+    seen = list(firsts)
+    rng = np.random.default_rng(1)
+    steps = round(0.3 / envs[0].engine.dt)
+    for step in range(steps):
+        actions = rng.uniform(-1, 1, (2, 2))
+        obs, _, done, infos = venv.step(actions)
+        for i, e in enumerate(envs):
+            moves = {"home_0": actions[i], "away_0": away[i].predict(seen[i]["away_0"])[0]}
+            seen[i], rewards, *_ = e.step(moves)
+            if step < steps - 1:
+                np.testing.assert_array_equal(obs[i], seen[i]["home_0"])
+            else:
+                np.testing.assert_array_equal(infos[i]["terminal_observation"], seen[i]["home_0"])
+            assert infos[i]["reward_goal"] == rewards["home_0"]
+    assert done.all() and all(info["match"]["opponent"] == SCRIPTED for info in infos)
+    assert all(info["match"]["score"] == [0, 0] for info in infos)
+
+
+def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
+    """A short self-play run: checkpoints, snapshots in pool/, ratings.json, the self-play scalars in TensorBoard;
+    then evaluate.py's matches take the trained model as a team, and refuse it for another team size."""
+    done = train_in_process("--soccer", "roach", "--players", "1", "--timesteps", "2048", "--n-envs", "4",
+                            "--match-seconds", "2", "--checkpoint-freq", "1024", "--runs-dir", tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (run_dir,) = tmp_path.iterdir()
+    config = json.loads((run_dir / "config.json").read_text())
+    assert config["soccer"]["robot"] == "roach" and config["env_id"] == "soccer/roach"
+    ratings = json.loads((run_dir / "ratings.json").read_text())
+    assert ratings["ratings"][SCRIPTED] == ANCHOR_RATING and ratings["num_timesteps"] >= 2048
+    played = sum(sum(r.values()) for r in ratings["learner_record"].values())
+    assert played == 4 * (2048 // 4 // 100), "every finished 2 s match (100 steps) of the 4 counted"
+    assert sorted(p.name for p in (run_dir / "pool").iterdir()) == ["step_0000001024.zip", "step_0000002048.zip"]
+    tags = scalars(run_dir / "tb")
+    assert {"selfplay/elo_learner", "selfplay/win_rate_vs_scripted", "selfplay/player_return"} <= set(tags)
+    result = play("roach", 1, str(run_dir / "model.zip"), "scripted", 2, 0, 1.0)
+    assert result["matches"] == 2
+    with pytest.raises(ValueError, match="players_per_team"):
+        play("roach", 2, str(run_dir / "pool" / "step_0000001024.zip"), "random", 1, 0, 1.0)
+
+
+def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
+    for args, word in ((("--env", "skitter/RoachWalk-v2"), "not both"), (("--algo", "sac"), "PPO"),
+                       (("--players", "5"), "--players"), (("--scripted-share", "2"), "--scripted-share"),
+                       (("--resume", "x"), "not built")):  # fmt: skip
+        done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
+        assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
+    assert not any(tmp_path.iterdir())
