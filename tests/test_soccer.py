@@ -161,3 +161,43 @@ def test_players_collide_with_each_other_but_not_with_themselves():
         assert not any(a == b and a in ("a", "b") for a, b in mine), "a robot touched itself"
         between += sum({a, b} == {"a", "b"} for a, b in mine)
     assert between > 0
+
+
+@pytest.mark.parametrize("env_id", ["skitter/BioloidGoToBall-v1", "skitter/RoachScoreEmptyGoal-v1"])
+def test_the_academy_in_the_commands_mode_is_batched_like_single_across_resets(env_id):
+    """Speed and turn rate through the gait map: two actions, the same results single and batched, the Bioloid's
+    trot clock restarting with each episode."""
+    kwargs = {"action_mode": "commands", "max_episode_steps": 12}
+    singles = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **kwargs)
+    batched = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    assert singles.single_action_space.shape == batched.single_action_space.shape == (2,)
+    actions = np.random.default_rng(3).uniform(-1, 1, (30, 2, 2))
+    outs = []
+    for venv in (singles, batched):
+        obs, _ = venv.reset(seed=9)
+        steps = [obs]
+        for a in actions:
+            obs, reward, terminated, truncated, _ = venv.step(a)
+            steps += [obs, reward, terminated, truncated]
+        outs.append(steps)
+    for a, b in zip(*outs, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_the_bioloids_field_of_view_follows_its_neck():
+    """A 60 deg field of view on the Bioloid's head: the ball straight ahead is seen with the head forward and lost
+    with the head panned 0.8 rad either way by the neck's roll servo (N_2, about the raised neck)."""
+    from envs.bioloid import constants as bc
+
+    env = gym.make("skitter/BioloidGoToBall-v1", field_of_view=np.radians(60), reset_noise_scale=0.0)
+    layout = env.unwrapped.task.layout
+    stand = bc.CENTER + np.array([bc.STAND_ANGLES[s] for s in bc.SERVOS]) / bc.RAD_PER_COUNT
+    for pan, seen in ((0.0, 1.0), (0.8, 0.0), (-0.8, 0.0)):
+        counts = stand.copy()
+        counts[bc.SERVO_INDEX["N_2"]] += pan / bc.RAD_PER_COUNT
+        action = env.unwrapped.robot.mode.to_action(counts[None])[0]
+        obs, _ = env.reset(seed=0, options={"robot": [0.0, 0.0, 0.0], "ball": [0.5, 0.0]})
+        assert layout.get(obs[None], "ball_visible")[0, 0] == 1.0, "at reset the head looks ahead"
+        for _ in range(40):
+            obs, *_ = env.step(action)
+        assert layout.get(obs[None], "ball_visible")[0, 0] == seen, pan

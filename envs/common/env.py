@@ -71,6 +71,9 @@ class SkitterEnv(gym.Env):
         self._width, self._height = int(width), int(height)
         self._renderer = None
         self.action_space = spaces.Box(-1.0, 1.0, shape=(robot.mode.size,), dtype=np.float32)
+        # an action mode of the env's own over the robot's (the soccer envs' speed and turn rate): it turns actions
+        # (n, size) into the robot's commands (``robot_commands``) and restarts for reset simulations (``reset``)
+        self.commands: Any = None
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.layout.size,), dtype=np.float64)
         self.recorder = TelemetryRecorder(self.telemetry_metadata(), robot.telemetry_channels) if telemetry else None
         self._ids = np.array([0])
@@ -99,6 +102,8 @@ class SkitterEnv(gym.Env):
             self.robot.set_parameters(self._ids, self.parameter_values)
         self.task.prepare_reset(self._ids, rngs, options)
         self.robot.reset(self._ids, rngs, self.reset_noise_scale, options)
+        if self.commands is not None:
+            self.commands.reset(self._ids)
         readings = self.robot.read(rngs, stepped=False)
         self.task.reset(self._ids, rngs, options, readings)
         obs = self.task.observe(readings)[0]
@@ -118,7 +123,12 @@ class SkitterEnv(gym.Env):
             raise ValueError(f"action must have shape {self.action_space.shape}, got {action.shape}")
         if not math.isfinite(sum(action.tolist())) and not np.isfinite(action).all():  # the first test is the cheapest
             raise ValueError(f"action must be finite, got {action}")
-        self.robot.command(self.robot.mode.to_command(action)[None])  # mapped in the action's shape: no broadcasting
+        if self.commands is None:
+            self.robot.command(
+                self.robot.mode.to_command(action)[None]
+            )  # mapped in the action's shape: no broadcasting
+        else:
+            self.robot.command(self.commands.robot_commands(action[None]))
         if not self.robot.step()[0]:
             # MuJoCo has reset the data; end the episode with the last good observation and info, and no reward
             info = {

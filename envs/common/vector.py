@@ -117,7 +117,10 @@ class SkitterVectorEnv(VectorEnv):
         resetting = self._needs_reset.copy()
         any_reset = bool(resetting.any())
         stepped = ~resetting
-        self.robot.command(self.robot.mode.to_command(actions))
+        commands = self.env.commands
+        self.robot.command(
+            self.robot.mode.to_command(actions) if commands is None else commands.robot_commands(actions)
+        )
         stable = self.robot.step(np.flatnonzero(stepped) if any_reset else None)
         reset_ids = np.flatnonzero(resetting) if any_reset else self._no_ids
         if any_reset:
@@ -178,6 +181,8 @@ class SkitterVectorEnv(VectorEnv):
                 self.robot.set_parameters(np.array([i]), self.parameter_values[i])
         self.task.prepare_reset(ids, [self.rngs[i] for i in ids], options)
         self.robot.reset(ids, [self.rngs[i] for i in ids], self.env.reset_noise_scale, options)
+        if self.env.commands is not None:
+            self.env.commands.reset(ids)
 
     def _mask(self, ids: np.ndarray, value: bool) -> np.ndarray:
         mask = np.full(self.num_envs, not value)

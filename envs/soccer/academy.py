@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
+from gymnasium import spaces
 
 from envs.common.env import SkitterEnv, entry_point
 from envs.common.imu import ImuNoise
@@ -21,6 +22,8 @@ from envs.common.match import SharedScene
 from envs.common.robot import Robot, check_flag
 from envs.common.vector import vector_entry_point
 from envs.soccer.field import BALL, Field, field_edit
+from envs.soccer.robots import HEADS
+from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
 
 PLAYER = "home_0"  # the academy's one player: the home team's, attacking the goal at +x
@@ -150,7 +153,9 @@ class AcademyEnv(SkitterEnv):
     name the robot, the field and the task.
 
     Args:
-        action_mode, control_freq: the robot's (default its first mode, at its rate).
+        action_mode, control_freq: the robot's (default its first mode, at its rate), or ``"commands"``: forward
+            speed and turn rate, run by the robot's reference gait through its gait map, as in matches
+            (envs/soccer/steering.py).
         sensor_noise: the IMU's noise and bias.
         sparse, ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: the task's
             (:class:`envs.soccer.task.SoccerTask`).
@@ -181,17 +186,22 @@ class AcademyEnv(SkitterEnv):
         height: int = 360,
     ):
         robot_class = self.robot_class
-        mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
+        first = next(iter(robot_class.action_modes))
+        mode = first if action_mode in (None, COMMANDS) else action_mode
         imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
         scene = SharedScene(
             lambda: robot_class(action_mode=mode, control_freq=control_freq, imu_noise=imu),
             [PLAYER],
-            [field_edit(self.field, [PLAYER], robot_class.root_body)],
+            [field_edit(self.field, [PLAYER], robot_class.root_body, HEADS.get(robot_class.name))],
         )
         self.scene = scene
+        head = HEADS.get(robot_class.name)
         task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
-                               terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
+                               terminate_when_unhealthy, height_band, grace_time, head)  # fmt: skip
         super().__init__(scene.robot, task, reset_noise_scale, None, telemetry, render_mode, width, height)
+        if action_mode == COMMANDS:  # speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
+            self.commands = Commands(scene.robot)
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(self.commands.mode.size,), dtype=np.float32)
 
     @property
     def model(self):
@@ -208,7 +218,8 @@ MANUAL = """{title}: {task}
     soccer academy (docs/soccer.md). The robot and the ball are placed at random each episode.
 
     ## Action Space
-    The robot's own, as in its walking env (``action_mode``: its modes, default the first), normalized to [-1, 1].
+    The robot's own, as in its walking env (``action_mode``: its modes, default the first), normalized to [-1, 1];
+    or ``action_mode="commands"``: forward speed and turn rate (2), run by its reference gait as in matches.
 
     ## Observation Space
     The robot's proprioception, then the soccer task's egocentric view (``observation_structure`` names every

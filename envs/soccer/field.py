@@ -32,6 +32,7 @@ GOALS = ("goal_home", "goal_away")  # the goal the home team defends (at -x) and
 TOP_CAMERA = "top"
 BALL_POS, BALL_VEL = "ball_pos", "ball_vel"  # the ball's sensors: world position and velocity
 TOUCH = "touch_ball_"  # prefix of each player's contact sensor with the ball
+HEAD_AXIS = "head_axis_"  # prefix of each player's head direction sensor (robots with a head that looks along -z)
 GREEN = (0.18, 0.45, 0.2, 1.0)
 WHITE = (0.95, 0.95, 0.95, 1.0)
 GOAL_COLOURS = ((0.95, 0.8, 0.1, 1.0), (0.15, 0.35, 0.9, 1.0))  # yellow and sky-blue goals, as the league's
@@ -213,10 +214,11 @@ def _box(body: mujoco.MjsBody, name: str, centre, half, rgba, collide: bool = Tr
     )
 
 
-def field_edit(field: Field, players: Sequence[str] = (), root_body: str | None = None):
+def field_edit(field: Field, players: Sequence[str] = (), root_body: str | None = None, head: str | None = None):
     """A scene edit that builds ``field`` into a robot's scene: the pitch colour, lines, walls, two goals, the ball
-    at the centre spot, a top-down camera, the ball's sensors (world position and velocity) and a contact sensor
-    between each player's subtree (``<player>/<root_body>``) and the ball."""
+    at the centre spot, a top-down camera, the ball's sensors (world position and velocity), a contact sensor
+    between each player's subtree (``<player>/<root_body>``) and the ball and, for a robot with a ``head`` body, the
+    direction of each player's head (its z axis in the world, ``head_axis_<player>``)."""
 
     def edit(spec: mujoco.MjSpec) -> None:
         f, b = field, field.ball
@@ -294,6 +296,9 @@ def field_edit(field: Field, players: Sequence[str] = (), root_body: str | None 
                 refname=BALL,
                 intprm=[1, 0, 1],  # data "found", no reduction, one match
             )
+        for player in players if head else ():
+            spec.add_sensor(name=HEAD_AXIS + player, type=mujoco.mjtSensor.mjSENS_FRAMEZAXIS,
+                            objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=f"{player}/{head}")  # fmt: skip
         # a camera above the centre spot that sees the whole field and its walls (45 deg field of view)
         reach = max(xw + wt, (yw + wt) * 4.0 / 3.0)
         world.add_camera(name=TOP_CAMERA, pos=[0, 0, 1.1 * reach / math.tan(math.radians(22.5))], fovy=45.0)

@@ -36,7 +36,7 @@ from envs.common.match import SharedScene
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import check_flag, check_number
 from envs.soccer.field import BALL, TOP_CAMERA, field_edit
-from envs.soccer.robots import FIELDS, ROBOTS
+from envs.soccer.robots import FIELDS, HEADS, ROBOTS
 from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
 
@@ -128,7 +128,7 @@ class Matches:
         self.scene = SharedScene(
             lambda: robot_class(action_mode=native, imu_noise=imu),
             self.possible_agents,
-            [field_edit(self.field, self.possible_agents, robot_class.root_body)],
+            [field_edit(self.field, self.possible_agents, robot_class.root_body, HEADS.get(robot_class.name))],
             num_scenes=self.num_matches,
             nthread=nthread,
             batched=batched,
@@ -137,8 +137,9 @@ class Matches:
         # the commands mode: forward speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
         self.commands = Commands(self.robot) if mode == COMMANDS else None
         self.mode = self.robot.mode if self.commands is None else self.commands.mode
+        head = HEADS.get(robot_class.name)
         self.task = MatchTask(self.robot, self.scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
-                              terminate_when_unhealthy, height_band, grace_time)  # fmt: skip
+                              terminate_when_unhealthy, height_band, grace_time, head)  # fmt: skip
         self.dt = self.robot.control_dt
         self.max_cycles = round(MATCH_SECONDS / self.dt) if max_cycles is None else int(max_cycles)
         n, rows = len(self.possible_agents), self.robot.num_sims

@@ -20,7 +20,7 @@ import numpy as np
 from envs.common.locomotion import GRACE_TIME, LocomotionTask
 from envs.common.match import SharedScene
 from envs.common.robot import Robot, check_flag, check_number
-from envs.soccer.field import BALL_POS, BALL_VEL, TOUCH, Field
+from envs.soccer.field import BALL_POS, BALL_VEL, HEAD_AXIS, TOUCH, Field
 
 BALL_NOISE = 0.05  # what a player sees of the ball and the others: N(0, 5% of their distance) per axis
 HOME, AWAY = "home", "away"
@@ -40,7 +40,8 @@ class SoccerTask(LocomotionTask):
     Observations, after the robot's senses (see ``observation_structure``): ``heading_error`` (sin, cos of the
     player's heading, integrated from its gyro and its known heading at kickoff, against the direction it attacks),
     ``ball`` and ``ball_velocity`` (x, y in the player's frame, with noise of ``ball_noise`` times the ball's
-    distance), ``ball_visible`` (1, or 0 outside ``field_of_view`` where the ball reads as zeros), ``goal`` and
+    distance), ``ball_visible`` (1, or 0 outside ``field_of_view`` where the ball reads as zeros; the field of view
+    is centred on the ``head``'s view where the robot has one, the Bioloid's), ``goal`` and
     ``own_goal`` (the centres of the goal it attacks and of its own, in its frame) and, in a match, ``teammates`` and
     ``opponents`` (their positions in its frame, noisy as the ball, in the order of their names).
     """
@@ -59,6 +60,7 @@ class SoccerTask(LocomotionTask):
         terminate_when_unhealthy: bool = True,
         height_band: Sequence[float] | None = None,
         grace_time: float = GRACE_TIME,
+        head: str | None = None,
     ):
         self.scene, self.field = scene, field
         self.sparse = check_flag("sparse", sparse)
@@ -84,6 +86,7 @@ class SoccerTask(LocomotionTask):
             k, k - 1
         )
         self._touch_sensors = [f"{TOUCH}{p}" for p in players]
+        self._head_sensors = [f"{HEAD_AXIS}{p}" for p in players] if head is not None else None
         self._ball_obs = np.zeros((n, 5))
         self._goals_obs = np.zeros((n, 4))
         self._others_obs = np.zeros((n, 2 * (k - 1)))
@@ -197,7 +200,11 @@ class SoccerTask(LocomotionTask):
                 others[ids] += draws[:, 4:].reshape(-1, k - 1, 2) * sigma[:, 1:, None]
         visible = np.ones(n)
         if self.field_of_view is not None:
-            visible = (np.abs(np.arctan2(seen[:, 0, 1], seen[:, 0, 0])) <= 0.5 * self.field_of_view).astype(np.float64)
+            bearing = np.arctan2(seen[:, 0, 1], seen[:, 0, 0])  # of the ball, in the body's frame
+            if self._head_sensors is not None:  # the head's view, panned and tilted by the neck, against the body
+                axis = np.stack([self.scene.scene_sensor(s) for s in self._head_sensors], axis=1).reshape(n, 3)
+                bearing = np.angle(np.exp(1j * (bearing - (np.arctan2(-axis[:, 1], -axis[:, 0]) - yaw))))
+            visible = (np.abs(bearing) <= 0.5 * self.field_of_view).astype(np.float64)
         ball_obs = np.concatenate([seen.reshape(n, 4) * visible[:, None], visible[:, None]], axis=1)
         self._ball_obs[ids] = ball_obs[ids]
         self._others_obs[ids] = others.reshape(n, -1)[ids]

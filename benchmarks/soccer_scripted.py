@@ -1,0 +1,117 @@
+"""The scripted soccer team, measured: what one scripted player does on the academy's tasks in the commands mode,
+and its record in one-a-side matches against a random team (the goal: 18 wins in 20 for every robot) and against
+itself (even within the interval).
+
+Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal}-v1`` with ``action_mode="commands"``, seeds 1000-1019 (one
+batched env of 20), the scripted field player (agents/soccer/scripted.py) on each episode: successes, falls and the
+mean time of a success. Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library call, 20 matches of 60 s on
+seeds 0-19, home scripted against away random and against away scripted.
+
+Run: ``python -m benchmarks.soccer_scripted`` (about 8 minutes on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import envs  # noqa: F401 (registers the ids)
+from agents.soccer.play import play
+from agents.soccer.scripted import ScriptedPlayer
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser
+
+CONFIGURATIONS: dict[str, list[str]] = {"soccer_scripted": []}
+"""The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
+ROBOTS = {"roach": "Roach", "xjus": "Xjus", "bioloid": "Bioloid"}
+TASKS = ("GoToBall", "ScoreEmptyGoal")
+EPISODE_SEEDS = list(range(1000, 1020))
+MATCHES, MATCH_SECONDS = 20, 60.0
+WINS_WANTED = 18  # of 20, against a random team
+
+
+def academy(robot: str, task: str) -> dict:
+    """The scripted player on one academy task in the commands mode, one episode per seed."""
+    env_id = f"skitter/{ROBOTS[robot]}{task}-v1"
+    venv = gym.make_vec(env_id, num_envs=len(EPISODE_SEEDS), vectorization_mode="vector_entry_point",
+                        action_mode="commands")  # fmt: skip
+    base = venv.unwrapped
+    player = ScriptedPlayer(base.task.layout, base.env.commands.mode, base.robot.facts.length, base.task.field)
+    obs, _ = venv.reset(seed=EPISODE_SEEDS)
+    n = len(EPISODE_SEEDS)
+    done, success, fell, ended_at = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
+    for step in range(base.max_episode_steps):
+        obs, _, terminated, truncated, info = venv.step(player.predict(obs)[0])
+        new = (terminated | truncated) & ~done
+        success[new], fell[new] = info["success"][new] > 0, info["fallen"][new]
+        ended_at[new] = (step + 1) * base.dt
+        done |= new
+        if done.all():
+            break
+    venv.close()
+    return {"env_id": env_id, "episodes": n, "successes": int(success.sum()), "falls": int(fell.sum()),
+            "mean_success_seconds": float(ended_at[success].mean()) if success.any() else None}  # fmt: skip
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = ToolParser(description=__doc__.splitlines()[0])
+    add_output_options(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    output = resolve_output(parser, args, "soccer_scripted", CONFIGURATIONS)
+    started = time.perf_counter()
+    episodes = [academy(robot, task) for robot in ROBOTS for task in TASKS]
+    matches = []
+    for robot in ROBOTS:
+        for away in ("random", "scripted"):
+            result = play(robot, 1, "scripted", away, MATCHES, 0, MATCH_SECONDS)
+            matches.append({"robot": robot, "away": away, **{k: v for k, v in result.items() if k != "scores"},
+                            "scores": result["scores"]})  # fmt: skip
+    wall = time.perf_counter() - started
+    academy_table = md_table(
+        ["env id (commands mode)", "episodes", "successes", "falls", "mean time of a success, s"],
+        [[e["env_id"], e["episodes"], e["successes"], e["falls"],
+          "-" if e["mean_success_seconds"] is None else f"{e['mean_success_seconds']:.1f}"] for e in episodes],
+    )  # fmt: skip
+
+    def record(m: dict) -> list:
+        gd = m["goal_difference"]
+        return [m["robot"], m["away"], m["wins"]["count"], m["draws"]["count"], m["losses"]["count"],
+                f"{gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}]",
+                f"{m['goals']['home']}-{m['goals']['away']}"]  # fmt: skip
+
+    match_table = md_table(["robot", "away team", "wins", "draws", "losses", "goal difference [95% CI]", "goals"],
+                           [record(m) for m in matches])  # fmt: skip
+    verdicts = []
+    for m in matches:
+        if m["away"] == "random":
+            wins = m["wins"]["count"]
+            verdicts.append(f"{m['robot']} against random: {wins} wins of {MATCHES} "
+                            + ("(met)" if wins >= WINS_WANTED else f"(MISSED: the goal is {WINS_WANTED})"))  # fmt: skip
+        else:
+            gd = m["goal_difference"]
+            even = gd["ci_low"] <= 0.0 <= gd["ci_high"]
+            verdicts.append(f"{m['robot']} against itself: {'even (met)' if even else 'NOT even (MISSED)'}")
+    met = all(v.endswith("(met)") for v in verdicts)
+    md = (
+        "# The scripted soccer team\n\n"
+        f"## The academy in the commands mode\n\nSeeds {EPISODE_SEEDS[0]}-{EPISODE_SEEDS[-1]}, one scripted field "
+        "player per episode.\n\n" + academy_table + "\n## One-a-side matches\n\n"
+        f"{MATCHES} matches of {MATCH_SECONDS:g} s on seeds 0-{MATCHES - 1}, home scripted; the home team's record.\n\n"
+        + match_table
+        + "\n"
+        + "\n".join(f"- {v}" for v in verdicts)
+        + f"\n\nWall time {wall:.0f} s.\n"
+    )
+    output.save({"academy": episodes, "matches": matches, "verdicts": verdicts, "met": met, "wall_seconds": wall}, md)
+
+
+if __name__ == "__main__":
+    main()
