@@ -72,8 +72,7 @@ def main(argv: list[str] | None = None) -> None:
     for robot in ROBOTS:
         for away in ("random", "scripted"):
             result = play(robot, 1, "scripted", away, MATCHES, 0, MATCH_SECONDS)
-            matches.append({"robot": robot, "away": away, **{k: v for k, v in result.items() if k != "scores"},
-                            "scores": result["scores"]})  # fmt: skip
+            matches.append({"robot": robot, "away": away, **result})
     wall = time.perf_counter() - started
     academy_table = md_table(
         ["env id (commands mode)", "episodes", "successes", "falls", "mean time of a success, s"],

@@ -25,17 +25,15 @@ from __future__ import annotations
 import contextlib
 import copy
 import pickle
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.soccer.scripted import ScriptedPlayer
-from agents.vec_env import OneObjectAttributes
+from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
 from envs.soccer.match import MATCH_SECONDS, Matches
@@ -135,7 +133,7 @@ class Pool:
         }
 
 
-class SelfPlayVecEnv(OneObjectAttributes, VecEnv):
+class SelfPlayVecEnv(MatchesVecEnv):
     """The home team of ``num_matches`` matches as an SB3 VecEnv (``num_matches x players`` envs, match-major), with
     every away team played by an opponent from ``pool`` (drawn as its match starts). Match ``m`` is seeded with its
     first player's env seed, as :class:`agents.soccer.vec_env.SoccerVecEnv` does; the pool draws from its own
@@ -145,35 +143,19 @@ class SelfPlayVecEnv(OneObjectAttributes, VecEnv):
                  match_seconds: float = MATCH_SECONDS, nthread: int | None = None, **kwargs: Any):  # fmt: skip
         engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
         engine.max_cycles = max(1, round(match_seconds / engine.dt))
-        engine.render_mode = None  # what SB3's VecEnv reads from its envs: these render nothing
-        self.engine = self.shared = engine
         if engine.commands is None:
             raise ValueError(f"self-play draws the scripted team as an opponent: it plays in the {COMMANDS!r} mode")
         self.k = engine.players // 2
+        super().__init__(engine, self.k)
         rows = engine.rows_of(np.arange(num_matches)).reshape(num_matches, 2, self.k)
         self.home, self.away = rows[:, 0].reshape(-1), rows[:, 1].reshape(-1)
         self.pool = Pool(ScriptedOpponent(engine), np.random.default_rng(pool_seed), scripted_share)
         self.opponent_of = [SCRIPTED] * num_matches
-        observation_space = spaces.Box(-np.inf, np.inf, shape=(engine.task.layout.size,), dtype=np.float64)
-        action_space = spaces.Box(-1.0, 1.0, shape=(engine.mode.size,), dtype=np.float32)
-        super().__init__(num_matches * self.k, observation_space, action_space)
-        self._actions: np.ndarray | None = None
-
-    @property
-    def observation_structure(self) -> dict[str, int]:
-        return self.engine.task.observation_structure
 
     def reset(self) -> np.ndarray:
-        engine = self.engine
-        for m in range(engine.num_matches):
-            seed = self._seeds[m * self.k] if self._seeds else None
-            if seed is not None:
-                engine.seed(m, seed)
-            self.opponent_of[m] = self.pool.draw()
-        engine.reset(np.arange(engine.num_matches))
-        self._reset_seeds()
-        self._reset_options()
-        return engine.obs[self.home].copy()
+        self.opponent_of = [self.pool.draw() for _ in range(self.engine.num_matches)]
+        self._reset_matches()
+        return self.engine.obs[self.home].copy()
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
@@ -216,12 +198,6 @@ class SelfPlayVecEnv(OneObjectAttributes, VecEnv):
             engine.reset(finished)
             obs = engine.obs[self.home].copy()
         return obs, reward.astype(np.float32), done_match[match_of], infos
-
-    def close(self) -> None:
-        pass
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        return [None for _ in range(self.num_envs)]
 
 
 class SelfPlayCallback(BaseCallback):

@@ -22,34 +22,54 @@ from agents.vec_env import OneObjectAttributes
 from envs.soccer.match import Matches
 
 
-class SoccerVecEnv(OneObjectAttributes, VecEnv):
-    """``num_matches`` matches (arguments: :class:`envs.soccer.match.SoccerParallelEnv`'s, without rendering) as an
-    SB3 VecEnv of ``num_matches x players`` envs, match-major (env ``m * players + p`` is agent ``p`` of match ``m``,
-    agents in ``possible_agents`` order: the home team, then the away team)."""
+class MatchesVecEnv(OneObjectAttributes, VecEnv):
+    """What the SB3 VecEnvs over a :class:`~envs.soccer.match.Matches` engine share: its spaces, ``per_match`` envs a
+    match (match ``m`` seeded with env ``m * per_match``'s seed), no rendering."""
 
-    def __init__(self, num_matches: int, nthread: int | None = None, **kwargs: Any):
-        self.engine = self.shared = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
-        engine = self.engine
+    def __init__(self, engine: Matches, per_match: int):
+        self.engine = self.shared = engine
+        engine.render_mode = None  # what SB3's VecEnv reads from its envs: these render nothing
         observation_space = spaces.Box(-np.inf, np.inf, shape=(engine.task.layout.size,), dtype=np.float64)
         action_space = spaces.Box(-1.0, 1.0, shape=(engine.mode.size,), dtype=np.float32)
-        super().__init__(engine.robot.num_sims, observation_space, action_space)
-        self.possible_agents = engine.possible_agents
+        super().__init__(engine.num_matches * per_match, observation_space, action_space)
+        self.per_match = per_match
         self._actions: np.ndarray | None = None
 
     @property
     def observation_structure(self) -> dict[str, int]:
         return self.engine.task.observation_structure
 
-    def reset(self) -> np.ndarray:
+    def _reset_matches(self) -> None:
+        """Every match from its kickoff, each seeded with its first env's seed (when one was set)."""
         engine = self.engine
         for m in range(engine.num_matches):
-            seed = self._seeds[m * engine.players] if self._seeds else None
+            seed = self._seeds[m * self.per_match] if self._seeds else None
             if seed is not None:
                 engine.seed(m, seed)
         engine.reset(np.arange(engine.num_matches))
         self._reset_seeds()
         self._reset_options()
-        return engine.obs.copy()
+
+    def close(self) -> None:
+        pass
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [None for _ in range(self.num_envs)]
+
+
+class SoccerVecEnv(MatchesVecEnv):
+    """``num_matches`` matches (arguments: :class:`envs.soccer.match.SoccerParallelEnv`'s, without rendering) as an
+    SB3 VecEnv of ``num_matches x players`` envs, match-major (env ``m * players + p`` is agent ``p`` of match ``m``,
+    agents in ``possible_agents`` order: the home team, then the away team)."""
+
+    def __init__(self, num_matches: int, nthread: int | None = None, **kwargs: Any):
+        engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
+        super().__init__(engine, engine.players)
+        self.possible_agents = engine.possible_agents
+
+    def reset(self) -> np.ndarray:
+        self._reset_matches()
+        return self.engine.obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
@@ -80,9 +100,3 @@ class SoccerVecEnv(OneObjectAttributes, VecEnv):
             rows = engine.rows_of(finished)
             obs[rows] = engine.obs[rows]
         return obs, out["reward"].astype(np.float32), done, infos
-
-    def close(self) -> None:
-        pass
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        return [None for _ in range(self.num_envs)]
