@@ -998,7 +998,8 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     if algo not in ALGOS:
         raise ConfigError(f"{config_path}: unknown algo {algo!r}")
     check_resume_flags(args, config)
-    check_env_id(env_id)
+    if "soccer" not in config:
+        check_env_id(env_id)
     hp = resolve_hyperparams(hyperparams, algo, where=str(config_path))
     checkpoint = latest_checkpoint(run_dir, algo, hp.model_kwargs.get("device", "cpu"))
     done = checkpoint.num_timesteps
@@ -1008,7 +1009,13 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     if hp.normalize is not None and checkpoint.stats is None:
         raise ConfigError(f"{checkpoint.folder}: the run normalizes observations but the checkpoint has no statistics")
     set_random_seed(seed + done)  # not the first run's seeds: the resumed episodes should differ from its first ones
-    venv = make_env(env_id, hp, seed + done, checkpoint)
+    callbacks = None
+    if "soccer" in config:  # a self-play run: its matches, and its pool and ratings as the checkpoint left them
+        from agents.soccer.selfplay import resumed_selfplay
+
+        venv, callbacks = resumed_selfplay(config, hp, seed + done, checkpoint, run_dir)
+    else:
+        venv = make_env(env_id, hp, seed + done, checkpoint)
     model = checkpoint.model
     model.set_env(venv)
     replay_buffer = checkpoint.folder / "replay_buffer.pkl"
@@ -1036,7 +1043,7 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     previous = command_file.read_text() if command_file.is_file() else ""
     write_text(command_file, previous + command_line() + "\n")
     print(f"resuming {run_dir} from {checkpoint.folder.name} ({done} steps) to {timesteps} steps")
-    return train(model, run_dir, config, progress=not args.no_progress)
+    return train(model, run_dir, config, progress=not args.no_progress, callbacks=callbacks)
 
 
 def check_env_id(env_id: str) -> None:
@@ -1131,7 +1138,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         if args.env is not None:
             parser.error("give --env (one robot's env) or --soccer (a team by self-play), not both")
         if args.resume:
-            parser.error("--resume of a soccer self-play run is not built yet: start a new run")
+            parser.error("--resume takes the run's settings from its folder: give --resume alone, without --soccer")
         if args.algo not in (None, "ppo"):
             parser.error(f"--soccer trains with PPO, not {args.algo}")
         args.algo = "ppo"

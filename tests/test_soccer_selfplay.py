@@ -93,12 +93,21 @@ def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
     assert result["matches"] == 2
     with pytest.raises(ValueError, match="players_per_team"):
         play("roach", 2, str(run_dir / "pool" / "step_0000001024.zip"), "random", 1, 0, 1.0)
+    # resumed from its last checkpoint: the pool and the ratings carry on
+    (run_dir / "pool" / "step_0000009999.zip").write_bytes(b"left by a killed run, after its checkpoint")
+    resumed = train_in_process("--resume", run_dir, "--timesteps", "3072")
+    assert resumed.returncode == 0, resumed.stderr
+    assert sorted(p.name for p in (run_dir / "pool").iterdir()) == [
+        "step_0000001024.zip", "step_0000002048.zip", "step_0000003072.zip"]  # fmt: skip
+    again = json.loads((run_dir / "ratings.json").read_text())
+    assert again["num_timesteps"] == 3072
+    assert sum(sum(r.values()) for r in again["learner_record"].values()) == played + 4 * (1024 // 4 // 100)
 
 
 def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
     for args, word in ((("--env", "skitter/RoachWalk-v2"), "not both"), (("--algo", "sac"), "PPO"),
                        (("--players", "5"), "--players"), (("--scripted-share", "2"), "--scripted-share"),
-                       (("--resume", "x"), "not built")):  # fmt: skip
+                       (("--resume", "x"), "without --soccer")):  # fmt: skip
         done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
         assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
     assert not any(tmp_path.iterdir())

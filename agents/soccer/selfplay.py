@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import json
 import pickle
 from pathlib import Path
 from typing import Any
@@ -298,3 +299,50 @@ def start_selfplay(args: Any) -> Path:
         print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
         callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], training.run_manifest(config))
         return training.train(model, run_dir, config, progress=not args.no_progress, callbacks=[callback])
+
+
+def resumed_selfplay(config: dict[str, Any], hp: Any, seed: int, checkpoint: Any, run_dir: Path):
+    """The learner's env and callbacks for ``train.py --resume`` of a self-play run: its matches as ``config`` made
+    them, its pool of the snapshots taken up to the checkpoint (later ones, which a killed run may leave, are
+    removed) and the ratings as last written. Returns (env, callbacks)."""
+    from agents import training
+    from agents.sb3 import SB3Policy
+
+    soccer = dict(config["soccer"])
+    try:
+        venv = SelfPlayVecEnv(hp.n_envs, pool_seed=seed, nthread=hp.nthread, **soccer)
+    except (TypeError, ValueError) as exc:
+        raise training.ConfigError(f"{run_dir / 'config.json'}: field 'soccer' = {soccer!r}: {exc}") from None
+    training.check_fits(checkpoint, venv, config["env_id"])
+    pool = venv.pool
+    snapshots = sorted((run_dir / POOL_DIR).glob("step_*.zip"))
+    for path in snapshots:
+        if int(path.stem.split("_")[1]) > checkpoint.num_timesteps:
+            path.unlink()
+    kept = [p for p in snapshots if p.exists()][-pool.pool_size :]
+    for path in kept:
+        policy = SB3Policy(path)
+        pool.opponents[path.stem] = SnapshotOpponent(policy.model.policy, policy.normalizer)
+    ratings_file = run_dir / RATINGS_FILE
+    if ratings_file.is_file():
+        try:
+            saved = json.loads(ratings_file.read_text())
+            pool.ratings.update(
+                {k: float(v) for k, v in saved["ratings"].items() if k in pool.opponents or k == "learner"}
+            )
+            for name, record in saved["learner_record"].items():
+                if name in pool.opponents:
+                    pool.records[name] = [int(record[k]) for k in ("wins", "draws", "losses")]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise training.ConfigError(f"{ratings_file}: cannot read the ratings ({exc})") from None
+    for name in pool.opponents:
+        pool.ratings.setdefault(name, pool.ratings["learner"])
+        pool.records.setdefault(name, [0, 0, 0])
+    learner_env: VecEnv = venv
+    if hp.normalize is not None:
+        checkpoint.stats.set_venv(venv)
+        checkpoint.stats.training = True
+        learner_env = checkpoint.stats
+    callback = SelfPlayCallback(pool, run_dir, config.get("snapshot_freq") or config["checkpoint_freq"],
+                                training.run_manifest(config))  # fmt: skip
+    return learner_env, [callback]
