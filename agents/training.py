@@ -235,8 +235,10 @@ def read_yaml(path: Path) -> Any:
         raise ConfigError(f"{path}:{line}: not valid YAML ({problem})") from None
 
 
-def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None) -> Hyperparams:
-    """The checked hyperparameters for ``env_id`` in the YAML file ``path``, with ``overrides`` (e.g. n_envs)."""
+def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, Any] | None = None,
+                     players: int = 1) -> Hyperparams:  # fmt: skip
+    """The checked hyperparameters for ``env_id`` in the YAML file ``path``, with ``overrides`` (e.g. n_envs);
+    ``players``: the learner's envs per ``n_envs`` (a soccer team's players per match)."""
     table = read_yaml(path)
     if not isinstance(table, dict):
         raise ConfigError(f"{path}: expected a mapping from env ids to hyperparameters")
@@ -246,10 +248,10 @@ def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, An
     entry = table[env_id]
     if not isinstance(entry, dict):
         raise ConfigError(f"{path}: {env_id}: expected a mapping of hyperparameters, got {entry!r}")
-    return resolve_hyperparams({**entry, **(overrides or {})}, algo, where=f"{path}: {env_id}")
+    return resolve_hyperparams({**entry, **(overrides or {})}, algo, where=f"{path}: {env_id}", players=players)
 
 
-def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperparams:
+def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: int = 1) -> Hyperparams:
     """Check every field of ``entry`` for ``algo`` and parse the values; errors name ``where``, the field and value."""
     defaults = algo_defaults(algo)
     own_defaults = {**TRAIN_DEFAULTS, **(NOISE_DEFAULTS if "action_noise" in defaults else {})}
@@ -277,7 +279,7 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperpa
     n_envs = check("n_envs", lambda v: _number("n_envs", v, int))
     if isinstance(model_kwargs.get("train_freq"), tuple) and model_kwargs["train_freq"][1] == "episode" and n_envs > 1:
         raise ConfigError(f"{where}: field 'train_freq' = {raw['train_freq']!r}: needs n_envs 1, not {n_envs}")
-    _check_batch_size(model_kwargs, defaults, n_envs, algo, where)
+    _check_batch_size(model_kwargs, defaults, n_envs, algo, where, players)
     return Hyperparams(
         where=where,
         raw=raw,
@@ -292,7 +294,7 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str) -> Hyperpa
 
 
 def _check_batch_size(
-    model_kwargs: dict[str, Any], defaults: dict[str, Any], n_envs: int, algo: str, where: str
+    model_kwargs: dict[str, Any], defaults: dict[str, Any], n_envs: int, algo: str, where: str, players: int = 1
 ) -> None:
     """A minibatch no larger than what it is drawn from: an on-policy rollout (``n_steps`` x ``n_envs``) or an
     off-policy replay buffer. SB3 only warns (PPO) or samples with repeats (SAC, TD3), and trains on a mistake."""
@@ -301,10 +303,12 @@ def _check_batch_size(
         return
     if not issubclass(ALGOS[algo], OffPolicyAlgorithm):
         n_steps = model_kwargs.get("n_steps", defaults["n_steps"])
-        if batch_size > n_steps * n_envs:
+        if batch_size > n_steps * n_envs * players:
+            rollout = "n_steps x n_envs" if players == 1 else "n_steps x n_envs (matches) x players"
+            sizes = f"{n_steps} x {n_envs}" + ("" if players == 1 else f" x {players}")
             raise ConfigError(
-                f"{where}: field 'batch_size' = {batch_size}: larger than a rollout, n_steps x n_envs = "
-                f"{n_steps} x {n_envs} = {n_steps * n_envs}"
+                f"{where}: field 'batch_size' = {batch_size}: larger than a rollout, {rollout} = {sizes} = "
+                f"{n_steps * n_envs * players}"
             )
     else:
         buffer_size = model_kwargs.get("buffer_size", defaults["buffer_size"])
@@ -1000,7 +1004,8 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     check_resume_flags(args, config)
     if "soccer" not in config:
         check_env_id(env_id)
-    hp = resolve_hyperparams(hyperparams, algo, where=str(config_path))
+    players = config["soccer"].get("players_per_team", 1) if isinstance(config.get("soccer"), dict) else 1
+    hp = resolve_hyperparams(hyperparams, algo, where=str(config_path), players=players)
     checkpoint = latest_checkpoint(run_dir, algo, hp.model_kwargs.get("device", "cpu"))
     done = checkpoint.num_timesteps
     timesteps = args.timesteps or config["timesteps"]

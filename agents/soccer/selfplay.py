@@ -263,7 +263,7 @@ def start_selfplay(args: Any) -> Path:
     key = f"soccer/{args.soccer}"
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else training.HYPERPARAMS_DIR / "ppo.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
-    hp = training.load_hyperparams(hyperparams_file, key, "ppo", overrides)
+    hp = training.load_hyperparams(hyperparams_file, key, "ppo", overrides, players=args.players)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
     soccer = {"robot": args.soccer, "players_per_team": args.players, "action_mode": COMMANDS,
