@@ -108,7 +108,7 @@ def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
     for args, word in ((("--env", "skitter/RoachWalk-v2"), "not both"), (("--algo", "sac"), "PPO"),
                        (("--players", "5"), "--players"), (("--scripted-share", "2"), "--scripted-share"),
                        (("--resume", "x"), "without --soccer"),
-                       (("--players", "3", "--n-envs", "1"), "n_steps x n_envs (matches) x players = 256 x 1 x 3")):  # fmt: skip
+                       (("--players", "3", "--n-envs", "1"), "(matches) x players = 256 x 1 x 3")):  # fmt: skip
         done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
         assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
     assert not any(tmp_path.iterdir())
