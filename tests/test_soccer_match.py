@@ -209,3 +209,18 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
                 np.testing.assert_array_equal([info["terminal_observation"] for info in infos[mine]], rows(o, env))
                 o = env.reset()[0]
             np.testing.assert_array_equal(obs[mine], rows(o, env))
+
+
+def test_a_scene_that_goes_unstable_ends_its_match_with_nothing_counted():
+    """The ball sent off at an absurd speed: MuJoCo resets the scene's data, and the match is truncated for every
+    player, with no reward and no goal; the next reset starts it again."""
+    env = match.parallel_env(robot="roach", players_per_team=1)
+    env.reset(seed=0)
+    ball = env.engine.scene.objects["ball"][1]
+    env.engine.scene.sim.data.qvel[ball : ball + 3] = 1e200
+    _, rewards, terminations, truncations, infos = env.step({a: np.zeros(3) for a in env.agents})
+    assert all(truncations.values()) and not any(terminations.values())
+    assert all(info["sim_unstable"] for info in infos.values()) and set(rewards.values()) == {0.0}
+    assert env.score == {"home": 0, "away": 0} and env.agents == []
+    obs, _ = env.reset(seed=1)
+    assert all(np.isfinite(o).all() for o in obs.values())

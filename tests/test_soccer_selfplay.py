@@ -33,8 +33,12 @@ def test_elo_moves_the_learner_and_its_snapshots_but_not_the_anchor():
     assert pool.records["a"] == [0, 1, 1] and pool.records[SCRIPTED] == [1, 0, 0]
     pool.add("b", Dummy())
     pool.add("c", Dummy())
-    assert list(pool.opponents) == [SCRIPTED, "b", "c"], "the oldest snapshot leaves beyond pool_size"
+    assert pool.drawable == ["b", "c"], "beyond pool_size the oldest snapshot is no longer drawn"
     assert {pool.draw() for _ in range(50)} == {"b", "c"}, "scripted_share 0: snapshots only"
+    pool.release(["a", "b"])
+    assert "a" in pool.opponents, "a match still plays it"
+    pool.release(["b"])
+    assert list(pool.opponents) == [SCRIPTED, "b", "c"]
 
 
 def test_a_pool_with_no_snapshot_draws_the_scripted_team():

@@ -26,6 +26,7 @@ import contextlib
 import copy
 import json
 import pickle
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -97,16 +98,26 @@ class Pool:
         self.records: dict[str, list[int]] = {SCRIPTED: [0, 0, 0]}  # the learner's wins, draws, losses against each
 
     def add(self, name: str, opponent: Any) -> None:
-        """A snapshot joins the pool at the learner's current rating; beyond ``pool_size`` the oldest leaves."""
+        """A snapshot joins the pool at the learner's current rating; beyond ``pool_size`` the oldest is no longer
+        drawn (a match that drew it plays it to its end)."""
         self.opponents[name] = opponent
         self.ratings[name] = self.ratings["learner"]
         self.records.setdefault(name, [0, 0, 0])
+
+    @property
+    def drawable(self) -> list[str]:
+        """The snapshots a new match may draw: the last ``pool_size``."""
         snapshots = [n for n in self.opponents if n != SCRIPTED]
-        for old in snapshots[: max(0, len(snapshots) - self.pool_size)]:
-            del self.opponents[old]
+        return snapshots[max(0, len(snapshots) - self.pool_size) :]
+
+    def release(self, playing: Sequence[str]) -> None:
+        """Let go of the snapshots no longer drawn that no match in ``playing`` plays."""
+        keep = set(self.drawable) | set(playing) | {SCRIPTED}
+        for name in [n for n in self.opponents if n not in keep]:
+            del self.opponents[name]
 
     def draw(self) -> str:
-        snapshots = [n for n in self.opponents if n != SCRIPTED]
+        snapshots = self.drawable
         if not snapshots or self.rng.random() < self.scripted_share:
             return SCRIPTED
         return snapshots[int(self.rng.integers(len(snapshots)))]
@@ -130,7 +141,7 @@ class Pool:
             "learner_record": {
                 n: dict(zip(("wins", "draws", "losses"), r, strict=True)) for n, r in self.records.items()
             },
-            "in_pool": list(self.opponents),
+            "in_pool": [SCRIPTED, *self.drawable],
         }
 
 
@@ -196,6 +207,7 @@ class SelfPlayVecEnv(MatchesVecEnv):
             infos[m * self.k]["match"] = {"opponent": self.opponent_of[m], "score": [home, away]}
             self.opponent_of[m] = self.pool.draw()
         if len(finished):
+            self.pool.release(self.opponent_of)
             engine.reset(finished)
             obs = engine.obs[self.home].copy()
         return obs, reward.astype(np.float32), done_match[match_of], infos
@@ -232,10 +244,10 @@ class SelfPlayCallback(BaseCallback):
 
     def _on_rollout_end(self) -> None:
         self.logger.record("selfplay/elo_learner", self.pool.ratings["learner"])
-        snapshots = [self.pool.ratings[n] for n in self.pool.opponents if n != SCRIPTED]
+        snapshots = [self.pool.ratings[n] for n in self.pool.drawable]
         if snapshots:
             self.logger.record("selfplay/elo_best_snapshot", max(snapshots))
-        self.logger.record("selfplay/pool_size", len(self.pool.opponents) - 1)
+        self.logger.record("selfplay/pool_size", len(self.pool.drawable))
 
     def _on_training_end(self) -> None:
         self.write_ratings()

@@ -257,13 +257,16 @@ class Matches:
     def step(self, actions: np.ndarray) -> dict[str, np.ndarray]:
         """One control step of every match from normalized actions (rows, action size) (a player off the field is
         sent :attr:`rest`). Returns per row ``reward``, ``fallen``, ``off`` and the shaping terms, and per match
-        ``goal_home``, ``goal_away``, ``ended`` (by ``max_goals``) and ``truncated`` (by ``max_cycles``)."""
+        ``goal_home``, ``goal_away``, ``ended`` (by ``max_goals``), ``truncated`` (by ``max_cycles``, or by the
+        scene going unstable, when MuJoCo resets its data: then its rewards are 0) and ``unstable``."""
         chosen = np.where(np.isnan(self.off_until)[:, None], actions, self.rest)
         if self.commands is None:
             self.robot.command(self.robot.mode.to_command(chosen))
         else:
             self.robot.command(self.commands.robot_commands(chosen))
-        self.robot.step()
+        stable = self.robot.step()
+        # a scene that went unstable (MuJoCo reset its data) ends its match: nothing after it counts
+        unstable = ~np.asarray(stable, dtype=bool).reshape(self.num_matches, -1).all(axis=1)
         placed = self._place_pending()
         stepped = ~placed
         any_placed = bool(placed.any())
@@ -275,6 +278,7 @@ class Matches:
         self.obs = self.task.observe(readings)
         self.cycles += 1
         plus, minus = self.task.scene_goals()
+        plus, minus = plus & ~unstable, minus & ~unstable
         self.scores[:, 0] += plus
         self.scores[:, 1] += minus
         self._kickoff |= plus | minus
@@ -286,18 +290,20 @@ class Matches:
         ended = np.zeros(self.num_matches, dtype=bool)
         if self.max_goals is not None:
             ended = self.scores.max(axis=1) >= self.max_goals
+        quiet = unstable[self._match_of]
         return {
-            "reward": self.task.reward_terms(state)["goal"],
+            "reward": np.where(quiet, 0.0, self.task.reward_terms(state)["goal"]),
             "fallen": fell,
             "off": ~np.isnan(self.off_until),
-            "approach": state["approach"],
-            "ball_progress": state["ball_progress"],
+            "approach": np.where(quiet, 0.0, state["approach"]),
+            "ball_progress": np.where(quiet, 0.0, state["ball_progress"]),
             "touched": state["touched"],
             "ball_distance": state["ball_distance"],
             "goal_home": plus,
             "goal_away": minus,
             "ended": ended,
-            "truncated": (self.cycles >= self.max_cycles) & ~ended,
+            "truncated": ((self.cycles >= self.max_cycles) | unstable) & ~ended,
+            "unstable": unstable,
         }
 
     def _place_pending(self) -> np.ndarray:
@@ -446,6 +452,7 @@ class SoccerParallelEnv(ParallelEnv):
                 "off": bool(out["off"][i]),
                 "fallen": bool(out["fallen"][i]),
                 "reward_goal": float(out["reward"][i]),
+                "sim_unstable": bool(out["unstable"][0]),
                 **{key: float(out[key][i]) for key in ("approach", "ball_progress", "touched", "ball_distance")},
             }
             for i, agent in enumerate(self.possible_agents)
