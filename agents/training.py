@@ -101,6 +101,7 @@ from envs.common.io import (
     write_json,
     write_text,
 )
+from envs.soccer.steering import COMMANDS
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository (an editable install's source tree)
 HYPERPARAMS_DIR = ROOT / "hyperparams"
@@ -901,8 +902,6 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
 def start_run(args: argparse.Namespace) -> Path:
     """A new run from the command line's settings; returns the final model's path."""
     if args.soccer is not None:
-        from agents.soccer.selfplay import start_selfplay
-
         return start_selfplay(args)
     for flag, value in (("--env", args.env), ("--algo", args.algo), ("--timesteps", args.timesteps)):
         if value is None:
@@ -937,6 +936,99 @@ def start_run(args: argparse.Namespace) -> Path:
         write_text(run_dir / "command.txt", command_line() + "\n")
         print(f"run folder: {run_dir}")
         return train(model, run_dir, config, progress=not args.no_progress)
+
+
+def start_selfplay(args: Any) -> Path:
+    """A new self-play run from train.py's command line (``--soccer``); returns the final model's path."""
+    from agents.soccer.selfplay import SelfPlayCallback, SelfPlayVecEnv
+
+    check_runs_dir(Path(args.runs_dir))
+    key = f"soccer/{args.soccer}"
+    hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / "ppo.yml"
+    overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    hp = load_hyperparams(hyperparams_file, key, "ppo", overrides, players=args.players)
+    seed = 0 if args.seed is None else args.seed
+    set_random_seed(seed)
+    soccer = {"robot": args.soccer, "players_per_team": args.players, "action_mode": COMMANDS,
+              "match_seconds": args.match_seconds, "scripted_share": args.scripted_share, **hp.env_kwargs}  # fmt: skip
+    try:
+        venv = SelfPlayVecEnv(hp.n_envs, pool_seed=seed, nthread=hp.nthread, **soccer)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
+    pool = venv.pool
+    learner_env: VecEnv = VecNormalize(venv, **hp.normalize) if hp.normalize is not None else venv
+    model = build_model("ppo", hp, learner_env, seed)
+    run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(key, "ppo", seed))
+    with contextlib.ExitStack() as stack:
+        lock_run(run_dir, stack)
+        config = {
+            "env_id": key,
+            "algo": "ppo",
+            "seed": seed,
+            "timesteps": args.timesteps,
+            "n_envs": hp.n_envs,
+            "normalize": hp.normalize is not None,
+            "checkpoint_freq": args.checkpoint_freq,
+            "snapshot_freq": args.snapshot_freq or args.checkpoint_freq,
+            "minutes": args.minutes,
+            "soccer": soccer,
+            "hyperparams_file": str(hyperparams_file),
+            "hyperparams": hp.raw,
+            "versions": versions(),
+            "created": _now(),
+        }
+        write_json(run_dir / "config.json", config)
+        write_text(run_dir / "command.txt", command_line() + "\n")
+        print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
+        callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], run_manifest(config))
+        return train(model, run_dir, config, progress=not args.no_progress, callbacks=[callback])
+
+
+def resumed_selfplay(config: dict[str, Any], hp: Any, seed: int, checkpoint: Any, run_dir: Path):
+    """The learner's env and callbacks for ``train.py --resume`` of a self-play run: its matches as ``config`` made
+    them, its pool of the snapshots taken up to the checkpoint (later ones, which a killed run may leave, are
+    removed) and the ratings as last written. Returns (env, callbacks)."""
+    from agents.sb3 import SB3Policy
+    from agents.soccer.selfplay import POOL_DIR, RATINGS_FILE, SelfPlayCallback, SelfPlayVecEnv, SnapshotOpponent
+
+    soccer = dict(config["soccer"])
+    try:
+        venv = SelfPlayVecEnv(hp.n_envs, pool_seed=seed, nthread=hp.nthread, **soccer)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{run_dir / 'config.json'}: field 'soccer' = {soccer!r}: {exc}") from None
+    check_fits(checkpoint, venv, config["env_id"])
+    pool = venv.pool
+    snapshots = sorted((run_dir / POOL_DIR).glob("step_*.zip"))
+    for path in snapshots:
+        if int(path.stem.split("_")[1]) > checkpoint.num_timesteps:
+            path.unlink()
+    kept = [p for p in snapshots if p.exists()][-pool.pool_size :]
+    for path in kept:
+        policy = SB3Policy(path)
+        pool.opponents[path.stem] = SnapshotOpponent(policy.model.policy, policy.normalizer)
+    ratings_file = run_dir / RATINGS_FILE
+    if ratings_file.is_file():
+        try:
+            saved = json.loads(ratings_file.read_text())
+            pool.ratings.update(
+                {k: float(v) for k, v in saved["ratings"].items() if k in pool.opponents or k == "learner"}
+            )
+            for name, record in saved["learner_record"].items():
+                if name in pool.opponents:
+                    pool.records[name] = [int(record[k]) for k in ("wins", "draws", "losses")]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ConfigError(f"{ratings_file}: cannot read the ratings ({exc})") from None
+    for name in pool.opponents:
+        pool.ratings.setdefault(name, pool.ratings["learner"])
+        pool.records.setdefault(name, [0, 0, 0])
+    learner_env: VecEnv = venv
+    if hp.normalize is not None:
+        checkpoint.stats.set_venv(venv)
+        checkpoint.stats.training = True
+        learner_env = checkpoint.stats
+    callback = SelfPlayCallback(pool, run_dir, config.get("snapshot_freq") or config["checkpoint_freq"],
+                                run_manifest(config))  # fmt: skip
+    return learner_env, [callback]
 
 
 RUN_LOCK = "train.lock"  # in the run folder: held while a train.py process writes it (envs.common.io.folder_lock)
@@ -1016,8 +1108,6 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     set_random_seed(seed + done)  # not the first run's seeds: the resumed episodes should differ from its first ones
     callbacks = None
     if "soccer" in config:  # a self-play run: its matches, and its pool and ratings as the checkpoint left them
-        from agents.soccer.selfplay import resumed_selfplay
-
         venv, callbacks = resumed_selfplay(config, hp, seed + done, checkpoint, run_dir)
     else:
         venv = make_env(env_id, hp, seed + done, checkpoint)
