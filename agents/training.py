@@ -899,6 +899,29 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
     return save_model(model, run_dir / "model.zip", manifest)
 
 
+def new_run_config(args: argparse.Namespace, env_id: str, seed: int, hp: Hyperparams, hyperparams_file: Path,
+                   run_dir: Path, extra: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """A new run's ``config.json`` (with ``extra`` entries) and ``command.txt``, written into ``run_dir``."""
+    config = {
+        "env_id": env_id,
+        "algo": args.algo,
+        "seed": seed,
+        "timesteps": args.timesteps,
+        "n_envs": hp.n_envs,
+        "normalize": hp.normalize is not None,
+        "checkpoint_freq": args.checkpoint_freq,
+        "minutes": args.minutes,
+        **(extra or {}),
+        "hyperparams_file": str(hyperparams_file),
+        "hyperparams": hp.raw,
+        "versions": versions(),
+        "created": _now(),
+    }
+    write_json(run_dir / "config.json", config)
+    write_text(run_dir / "command.txt", command_line() + "\n")
+    return config
+
+
 def start_run(args: argparse.Namespace) -> Path:
     """A new run from the command line's settings; returns the final model's path."""
     if args.soccer is not None:
@@ -918,22 +941,7 @@ def start_run(args: argparse.Namespace) -> Path:
     run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(args.env, args.algo, seed))
     with contextlib.ExitStack() as stack:
         lock_run(run_dir, stack)
-        config = {
-            "env_id": args.env,
-            "algo": args.algo,
-            "seed": seed,
-            "timesteps": args.timesteps,
-            "n_envs": hp.n_envs,
-            "normalize": hp.normalize is not None,
-            "checkpoint_freq": args.checkpoint_freq,
-            "minutes": args.minutes,
-            "hyperparams_file": str(hyperparams_file),
-            "hyperparams": hp.raw,
-            "versions": versions(),
-            "created": _now(),
-        }
-        write_json(run_dir / "config.json", config)
-        write_text(run_dir / "command.txt", command_line() + "\n")
+        config = new_run_config(args, args.env, seed, hp, hyperparams_file, run_dir)
         print(f"run folder: {run_dir}")
         return train(model, run_dir, config, progress=not args.no_progress)
 
@@ -961,24 +969,8 @@ def start_selfplay(args: Any) -> Path:
     run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(key, "ppo", seed))
     with contextlib.ExitStack() as stack:
         lock_run(run_dir, stack)
-        config = {
-            "env_id": key,
-            "algo": "ppo",
-            "seed": seed,
-            "timesteps": args.timesteps,
-            "n_envs": hp.n_envs,
-            "normalize": hp.normalize is not None,
-            "checkpoint_freq": args.checkpoint_freq,
-            "snapshot_freq": args.snapshot_freq or args.checkpoint_freq,
-            "minutes": args.minutes,
-            "soccer": soccer,
-            "hyperparams_file": str(hyperparams_file),
-            "hyperparams": hp.raw,
-            "versions": versions(),
-            "created": _now(),
-        }
-        write_json(run_dir / "config.json", config)
-        write_text(run_dir / "command.txt", command_line() + "\n")
+        extra = {"snapshot_freq": args.snapshot_freq or args.checkpoint_freq, "soccer": soccer}
+        config = new_run_config(args, key, seed, hp, hyperparams_file, run_dir, extra)
         print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
         callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], run_manifest(config))
         return train(model, run_dir, config, progress=not args.no_progress, callbacks=[callback])
