@@ -32,7 +32,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.soccer.scripted import ScriptedPlayer
+from agents.soccer.scripted import scripted_team
 from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
@@ -52,10 +52,7 @@ class ScriptedOpponent:
     """The scripted team as an away team: ``act(obs)`` on its players' rows of any number of matches (match-major)."""
 
     def __init__(self, engine: Matches):
-        k = engine.players // 2
-        length = engine.robot.facts.length
-        layout, mode, field = engine.task.layout, engine.mode, engine.field
-        self.players = [ScriptedPlayer(layout, mode, length, field, keeper=k >= 3 and i == k - 1) for i in range(k)]
+        self.players = list(scripted_team(engine, "away").values())
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         k = len(self.players)
