@@ -146,7 +146,7 @@ def test_resume_continues_the_run_in_its_folder(ppo_run, tmp_path):
 
 def test_resume_without_checkpoint_is_a_clear_error(ppo_run, tmp_path):
     shutil.copy(ppo_run / "config.json", tmp_path / "config.json")
-    result = run_train("--resume", tmp_path, "--timesteps", 4096)
+    result = train_in_process("--resume", tmp_path, "--timesteps", 4096)
     assert result.returncode != 0
     assert "Traceback" not in result.stderr
     assert "no checkpoint" in result.stderr and len(result.stderr.strip().splitlines()) == 1
@@ -188,7 +188,7 @@ def test_a_hyperparameter_file_that_is_not_utf8_is_a_one_line_error(tmp_path):
     hyperparams = tmp_path / "latin1.yml"
     hyperparams.write_bytes(f"{WALK}:\n  n_steps: 64 # caf\xe9\n".encode("latin-1"))
     args = ["--env", WALK, "--algo", "ppo", "--timesteps", 100, "--runs-dir", tmp_path / "runs"]
-    result = run_train(*args, "--hyperparams", hyperparams)
+    result = train_in_process(*args, "--hyperparams", hyperparams)
     assert result.returncode == 2 and "not UTF-8" in result.stderr and "latin1.yml" in result.stderr
     assert "Traceback" not in result.stderr and not (tmp_path / "runs").exists()
 
@@ -364,7 +364,7 @@ def test_resume_refuses_a_checkpoint_of_another_env(tiny_run, tmp_path):
     config = run_dir / "config.json"
     config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v2"))  # 22 observations, not 21
     before = files(run_dir)
-    result = run_train("--resume", run_dir, "--timesteps", 256)
+    result = train_in_process("--resume", run_dir, "--timesteps", 256)
     model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"
     assert_one_line_error(result, f"checkpoint {model}", "observation space", "(21,)", "(22,)")
     assert files(run_dir) == before
@@ -376,7 +376,7 @@ def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_pat
     break_weights(run_dir / "checkpoints" / "step_0000000128")
     model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"
     before = files(run_dir)
-    result = run_train("--resume", run_dir, "--timesteps", 256)
+    result = train_in_process("--resume", run_dir, "--timesteps", 256)
     assert_one_line_error(result, "no checkpoint to resume from", f"cannot read checkpoint {model}: corrupt contents")
     assert files(run_dir) == before
 
@@ -423,7 +423,7 @@ def test_resume_refuses_a_corrupt_replay_buffer(tmp_path):
 def test_a_runs_dir_where_no_folder_can_be_made_is_refused_up_front(tmp_path, where, problem):
     (tmp_path / "notes.txt").write_text("a user's file")
     before = files(tmp_path)
-    result = run_train("--env", WALK, "--algo", "ppo", "--timesteps", 128, "--runs-dir", tmp_path / where)
+    result = train_in_process("--env", WALK, "--algo", "ppo", "--timesteps", 128, "--runs-dir", tmp_path / where)
     assert_one_line_error(result, f"--runs-dir {tmp_path / where}", problem)
     assert files(tmp_path) == before
 
@@ -522,7 +522,7 @@ def test_resume_names_a_bad_field_of_config_json(ppo_run, tmp_path, key, value):
     else:
         config[key] = value
     (tmp_path / "config.json").write_text(json.dumps(config))
-    result = run_train("--resume", tmp_path)
+    result = train_in_process("--resume", tmp_path)
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert f"config.json: field '{key}' = {value!r}" in result.stderr
 
