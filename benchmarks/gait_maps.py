@@ -3,7 +3,9 @@ gait maps (envs/soccer/steering.py).
 
 Every grid point runs on flat ground from the robot's reset pose, ``--seeds`` seeds each, batched; its speed (along
 the heading, m/s) and turn rate (rad/s, + to the left) are averaged over the run after its first second. A run that
-tips over (the body past 1.4 rad from upright) is a fall; a point with a fall is left out of the map. The maps are
+tips over (the body past 1.4 rad from upright) is a fall; a point with a fall is left out of the map, and so is a
+point whose speed or turn rate varies between seeds by more than a quarter of the largest (``usable`` in
+envs/soccer/steering.py). The maps are
 written to ``envs/soccer/gait_maps/<robot>.json`` (for this configuration only) and the table here.
 
 Run: ``python -m benchmarks.gait_maps`` (about 3 minutes on 2 cores).
@@ -21,7 +23,7 @@ import numpy as np
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser, write_json
 from envs.soccer.robots import ROBOTS
-from envs.soccer.steering import MAPS, STEERING
+from envs.soccer.steering import MAPS, STEERING, usable
 
 CONFIGURATIONS: dict[str, list[str]] = {"gait_maps": []}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
@@ -69,7 +71,9 @@ def measure(robot_key: str, seconds: float, seeds: int) -> dict:
          "yaw_rate": float(rate[i].mean()), "yaw_rate_sd": float(rate[i].std()), "falls": int(falls[i])}
         for i, (d, t) in enumerate(grid)
     ]  # fmt: skip
-    safe = [p for p in points if p["falls"] == 0]
+    safe = usable(points)
+    for p in points:
+        p["used"] = p in safe
     return {
         "robot": robot_key,
         "points": points,
@@ -110,11 +114,12 @@ def main(argv: list[str] | None = None) -> None:
     sections = []
     for robot, result in maps.items():
         rows = [[f"{p['drive']:.3g}", f"{p['turn']:.3g}", f"{p['speed']:.3f} ± {p['speed_sd']:.3f}",
-                 f"{p['yaw_rate']:+.3f} ± {p['yaw_rate_sd']:.3f}", p["falls"]] for p in result["points"]]  # fmt: skip
+                 f"{p['yaw_rate']:+.3f} ± {p['yaw_rate_sd']:.3f}", p["falls"], "yes" if p["used"] else "no"]
+                for p in result["points"]]  # fmt: skip
         sections.append(
             f"## {robot}\n\nFastest straight run {result['max_speed']:.3f} m/s; largest turn rate "
-            f"{result['max_yaw_rate']:.3f} rad/s (points without a fall).\n\n"
-            + md_table(["drive", "turn", "speed, m/s", "turn rate, rad/s", "falls"], rows)
+            f"{result['max_yaw_rate']:.3f} rad/s (over the points the map uses).\n\n"
+            + md_table(["drive", "turn", "speed, m/s", "turn rate, rad/s", "falls", "in the map"], rows)
         )
     md = (
         "# Gait maps of the commands mode\n\n"

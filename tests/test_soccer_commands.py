@@ -59,17 +59,29 @@ def test_the_xjus_walks_at_the_commanded_speed_in_the_commands_mode():
 def test_the_roach_turns_the_way_it_is_commanded(sign):
     """Differential drive: asked for 1.5 rad/s either way at 0.8 m/s, for 2 s from a standstill, it turns that way
     by at least half the commanded angle."""
-    env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands", reset_noise_scale=0.0)
-    env.reset(seed=0, options={"places": {"home_0": [-0.3, 0.0, 0.0]}})
-    action = env.mode.to_action(np.array([[0.8, sign * 1.5]]))[0]
+    assert sign * turned_by("roach", 0.8, sign * 1.5, 2.0) > 0.5 * 1.5 * 2.0
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_bioloid_turns_the_way_it_is_commanded(sign):
+    """The trot steered by sideways steps: asked for 0.4 rad/s either way while walking, for 8 s from a standstill
+    (the gait's first cycle is its lead-in), it turns that way by at least half the commanded angle."""
+    assert sign * turned_by("bioloid", 0.04, sign * 0.4, 8.0) > 0.5 * 0.4 * 8.0
+
+
+def turned_by(robot: str, speed: float, yaw_rate: float, seconds: float) -> float:
+    """How far (rad) a player commanded ``(speed, yaw_rate)`` turns in ``seconds``, from the home half's centre."""
+    env = match.parallel_env(robot=robot, players_per_team=1, action_mode="commands", reset_noise_scale=0.0)
+    env.reset(seed=0, options={"places": {"home_0": [-0.25 * env.field.length, 0.0, 0.0]}})
+    action = env.mode.to_action(np.array([[speed, yaw_rate]]))[0]
     data = env.scene.sim.data
-    steps = round(2.0 / env.dt)
+    steps = round(seconds / env.dt)
     turned = 0.0
     for _ in range(steps):
         before = 2 * np.arctan2(data.qpos[6], data.qpos[3])
         env.step({"home_0": action, "away_0": np.array([-1.0, 0.0])})
         turned += np.angle(np.exp(1j * (2 * np.arctan2(data.qpos[6], data.qpos[3]) - before)))
-    assert sign * turned > 0.5 * 1.5 * 2.0
+    return turned
 
 
 def test_the_bioloids_commands_run_the_ik_trot_from_its_own_clock():

@@ -41,10 +41,15 @@ class IKGoals:
         ellipse's centre) instead of jumping to its phases."""
         return np.minimum(1.0, self.frequency * t)
 
+    def phase(self, t: np.ndarray) -> np.ndarray:
+        """Each leg's phase on its ellipse (n, 4), rad, at clock times ``t`` (n,): the stance is where its sine is
+        negative, from touch-down at pi to lift-off at 2 pi."""
+        return 2.0 * np.pi * (self.frequency * t[:, None] + self._phases[None, :])
+
     def counts(self, t: np.ndarray, strides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Goal counts (n, 16) at clock times ``t`` (n,) with stride factors (n, 4), and where the knee limit held a
         leg back (n, 4)."""
-        phase = 2.0 * np.pi * (self.frequency * t[:, None] + self._phases[None, :])
+        phase = self.phase(t)
         goal = np.tile(self.stand_counts, (len(t), 1))
         x, z = self._ellipses.point(phase, strides)
         hip, knee, limited = self._legs.inverse(x, z)

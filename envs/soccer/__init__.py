@@ -13,10 +13,10 @@ TASKS = {"GoToBall": academy.GoToBallTask, "ScoreEmptyGoal": academy.ScoreEmptyG
 ACADEMY = []
 for _robot, _robot_class in ROBOTS.items():
     for _task, _task_class in TASKS.items():
-        _env = academy.make_academy(_robot_class, FIELDS[_robot], _task_class, f"{_robot}{_task}")
+        _env = academy.make_academy(_robot_class, FIELDS[_robot], _task_class, _robot, f"{_robot}{_task}")
         ACADEMY.append(
             {
-                "id": f"skitter/{_robot}{_task}-v1",
+                "id": f"skitter/{_robot}{_task}-v{academy.version(_robot)}",
                 "entry_point": f"envs.soccer.academy:{_env.make_env_name}",
                 "vector_entry_point": f"envs.soccer.academy:{_env.make_batched_name}",
                 "kwargs": {"episode_seconds": academy.EPISODE_SECONDS},

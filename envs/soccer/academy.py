@@ -240,15 +240,32 @@ MANUAL = """{title}: {task}
     ``info["fallen"]`` says which); truncated at ``episode_seconds`` ({seconds} s by default at any control rate).
 
     ## Version History
-    - v1: first version.
-"""
+{history}"""
+
+# each robot's academy versions: the ids carry the last
+HISTORY = {
+    "Roach": ["first version."],
+    "Xjus": ["first version."],
+    "Bioloid": ["first version.",
+                "the commands mode turns the trot by sideways steps of the feet (front and back opposite, through the "
+                "abduction servos) instead of a shortened stride, with a new gait map; the joints mode is "
+                "unchanged."],
+}  # fmt: skip
 
 
-def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], title: str) -> type[AcademyEnv]:
-    """The academy env class of a robot and a task, with its entry points, as attributes of this module."""
+def version(robot: str) -> int:
+    """The academy ids' version for a robot (its name in ids, as ``Bioloid``)."""
+    return len(HISTORY[robot])
+
+
+def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], robot: str,
+                 title: str) -> type[AcademyEnv]:  # fmt: skip
+    """The academy env class of a robot (``robot``: its name in ids) and a task, with its entry points, as attributes
+    of this module."""
     name = f"{title}Env"
+    history = "".join(f"    - v{i}: {entry}\n" for i, entry in enumerate(HISTORY[robot], start=1))
     doc = MANUAL.format(title=title, task=task_class.__doc__, robot=robot_class.__name__, field=field.name,
-                        seconds=f"{EPISODE_SECONDS:g}")  # fmt: skip
+                        seconds=f"{EPISODE_SECONDS:g}", history=history)  # fmt: skip
     attributes = {"robot_class": robot_class, "task_class": task_class, "field": field, "__module__": __name__,
                   "__qualname__": name, "__doc__": doc}  # fmt: skip
     env_class = type(name, (AcademyEnv,), attributes)

@@ -21,7 +21,8 @@ from typing import ClassVar
 import numpy as np
 from scipy.interpolate import NearestNDInterpolator
 
-from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals, side_strides
+from envs.bioloid import constants as bioloid
+from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals
 from envs.common.robot import ActionMode, Robot
 from envs.xjus import constants as xjus
 
@@ -88,13 +89,24 @@ class XjusSteering(Steering):
 
 
 class BioloidSteering(Steering):
-    """The IK trot at 1.5 Hz [bioloid-webots, VI.A]: drive = stride factor (0 marks time, 1 the full ellipse), turn
-    in [-1, 1] shortens one side's stride (> 0 the right side's: the trot turns toward the longer stride, left).
-    Each player's clock starts at 0 when it resets, with the gait's lead-in."""
+    """The IK trot at 1.5 Hz [bioloid-webots, VI.A] steered as the Four-Legged League's quadrupeds turned: each foot's
+    path turned in the ground plane about the body's centre, so that in its stance a front foot steps to one side
+    and a back foot to the other (Hengst, Ibbotson, Pham, Sammut, "Omnidirectional locomotion for quadruped robots",
+    RoboCup 2001, LNAI 2377). Here the abduction servos (servo 2 of each leg) move the foot sideways in step with its
+    ellipse. Drive = stride factor (0 marks time, 1 the full ellipse); turn in [-1, 1] (> 0 turns left) scales the
+    sideways swing up to ``TURN_ABDUCTION``. The report's gait only walks straight; the stride-shortening turn that
+    steered it before turned less than the trot drifts (gait map of 2026-11-28), while this one turns 0.2-0.4 rad/s
+    with a spread of 0.01 rad/s between seeds (``python -m benchmarks.gait_maps``). Each player's clock starts at 0
+    when it resets, with the gait's lead-in."""
 
     robot_name = "bioloid"
-    drives = (0.0, 0.25, 0.5, 0.75, 1.0)
+    drives = (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0)
     turns = (-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0)
+    # rad of abduction swing either way at |turn| = 1 (the foot about 5 cm sideways at the sole, 0.16 m below the
+    # abduction axis; assets/bioloid/bioloid.xml): chosen on the gait map, where larger swings turned no faster
+    TURN_ABDUCTION = 0.3
+    _FRONT = np.array([1.0 if leg.startswith("F") else -1.0 for leg in bioloid.LEGS])
+    _ABDUCTION = np.array([bioloid.SERVO_INDEX[bioloid.ABDUCTION[leg]] for leg in bioloid.LEGS])
 
     def __init__(self, robot: Robot):
         super().__init__(robot)
@@ -105,15 +117,30 @@ class BioloidSteering(Steering):
         self.clock[ids] = 0.0
 
     def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
-        scale = drive * self.goals.lead_in(self.clock)
-        left = scale * (1.0 - np.clip(-turn, 0.0, 1.0))
-        right = scale * (1.0 - np.clip(turn, 0.0, 1.0))
-        goal, _ = self.goals.counts(self.clock, side_strides(left, right))
+        lead = self.goals.lead_in(self.clock)
+        stride = np.asarray(drive) * lead
+        goal, _ = self.goals.counts(self.clock, np.repeat(stride[:, None], len(bioloid.LEGS), axis=1))
+        # the sole's place along its stride, +1 at touch-down to -1 at lift-off; turning left, a front foot steps
+        # from its left to its right in the stance (it pushes the body's front to the left) and a back foot the
+        # other way; an abduction of +0.1 rad moves a sole 1.6 cm to the robot's right on every leg
+        along = -np.cos(self.goals.phase(self.clock))
+        leftward = (np.asarray(turn) * lead)[:, None] * self.TURN_ABDUCTION * self._FRONT[None, :] * along
+        goal[:, self._ABDUCTION] -= leftward / bioloid.RAD_PER_COUNT
         self.clock = self.clock + self.dt
         return goal
 
 
 STEERING: dict[str, type[Steering]] = {s.robot_name: s for s in (RoachSteering, XjusSteering, BioloidSteering)}
+SPREAD = 0.25  # the most a point's speed or turn rate may vary between seeds, as a share of the map's largest
+
+
+def usable(points: list[dict]) -> list[dict]:
+    """The measured points a gait map holds: those that ran without a fall on every seed and that repeat, their
+    speed and turn rate varying between seeds by at most ``SPREAD`` of the largest speed and turn rate among the
+    points without a fall. A setting whose turn rate changes sign from seed to seed would steer a player at random."""
+    safe = [p for p in points if p["falls"] == 0]
+    speed, rate = max(abs(p["speed"]) for p in safe), max(abs(p["yaw_rate"]) for p in safe)
+    return [p for p in safe if p["speed_sd"] <= SPREAD * speed and p["yaw_rate_sd"] <= SPREAD * rate]
 
 
 @dataclass(frozen=True)
@@ -135,7 +162,7 @@ class GaitMap:
         if not path.is_file():
             raise FileNotFoundError(f"{path}: no gait map for the {robot} (python -m benchmarks.gait_maps writes it)")
         data = json.loads(path.read_text())
-        points = [p for p in data["points"] if p["falls"] == 0]  # the map holds what runs without a fall
+        points = usable(data["points"])
         return cls(robot, *(np.array([p[k] for p in points], dtype=np.float64)
                             for k in ("drive", "turn", "speed", "yaw_rate")),
                    float(data["max_speed"]), float(data["max_yaw_rate"]))  # fmt: skip
