@@ -69,6 +69,19 @@ def test_the_bioloid_turns_the_way_it_is_commanded(sign):
     assert sign * turned_by("bioloid", 0.04, sign * 0.4, 8.0) > 0.5 * 0.4 * 8.0
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_xjus_turns_on_the_spot_the_way_it_is_commanded(sign):
+    """One side's legs backward: asked for 1 rad/s either way at 0.1 m/s, for 3 s from a standstill, it turns that way
+    by at least half the commanded angle, and its legs run forward again once it walks straight."""
+    assert sign * turned_by("xjus", 0.1, sign * 1.0, 3.0) > 0.5 * 1.0 * 3.0
+    env = match.parallel_env(robot="xjus", players_per_team=1, action_mode="commands")
+    env.reset(seed=0)
+    env.step({"home_0": env.mode.to_action(np.array([[0.1, sign]]))[0], "away_0": np.array([1.0, 0.0])})
+    assert env.robot.backward[0].tolist() == [sign > 0, sign < 0] and not env.robot.backward[1].any()
+    env.step({"home_0": np.array([1.0, 0.0]), "away_0": np.array([1.0, 0.0])})
+    assert not env.robot.backward.any()
+
+
 def turned_by(robot: str, speed: float, yaw_rate: float, seconds: float) -> float:
     """How far (rad) a player commanded ``(speed, yaw_rate)`` turns in ``seconds``, from the home half's centre."""
     env = match.parallel_env(robot=robot, players_per_team=1, action_mode="commands", reset_noise_scale=0.0)

@@ -245,7 +245,10 @@ MANUAL = """{title}: {task}
 # each robot's academy versions: the ids carry the last
 HISTORY = {
     "Roach": ["first version."],
-    "Xjus": ["first version."],
+    "Xjus": ["first version.",
+             "the commands mode turns on the spot, one side's legs running the Buehler clock backward (as RHex turns "
+             "in place), where the sweep difference turned it only at speed; its gait map is new. The joints mode is "
+             "unchanged."],
     "Bioloid": ["first version.",
                 "the commands mode turns the trot by sideways steps of the feet (front and back opposite, through the "
                 "abduction servos) instead of a shortened stride, with a new gait map; the joints mode is "

@@ -75,14 +75,19 @@ class RoachSteering(Steering):
 
 class XjusSteering(Steering):
     """The Buehler clock: drive = stride frequency (1 / period, Hz), turn = right sweep less left sweep (rad) around
-    the walking sweep (a larger sweep on the right turns left) [xjus-report, 2.5]."""
+    the walking sweep (a larger sweep on the right turns left) [xjus-report, 2.5]. That turns the model only while it
+    runs fast (above 1.5 Hz, at 0.5 m/s and more), so a turn of +-``SPIN`` turns it on the spot as RHex turns in
+    place: one side's legs run the clock backward (``Xjus.backward``), the left side's to turn left."""
 
     robot_name = "xjus"
     drives = (1.0 / 1.5, 0.8, 1.0, 1.25, 1.5, 1.75, 2.0)
-    turns = tuple(np.radians(np.arange(-60.0, 61.0, 15.0)).tolist())
+    SPIN = np.pi  # the turn that runs a side backward (beyond any sweep difference: the sweeps span pi / 2)
+    turns = (-SPIN, *np.radians(np.arange(-60.0, 61.0, 15.0)).tolist(), SPIN)
 
     def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
-        half = 0.5 * turn
+        spin = np.abs(turn) >= self.SPIN
+        self.robot.backward[:] = np.column_stack([spin & (turn > 0), spin & (turn < 0)])
+        half = np.where(spin, 0.0, 0.5 * turn)
         low, high = xjus.SWEEP_RANGE
         sweeps = np.clip(np.column_stack([xjus.WALK_SWEEP - half, xjus.WALK_SWEEP + half]), low, high)
         return np.column_stack([1.0 / drive, sweeps])

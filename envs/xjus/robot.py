@@ -93,7 +93,10 @@ class Xjus(Robot):
       cycle apart) and PD ([xjus-report, sections 2.4 and 2.5]; envs/xjus/controller.py) run once per control step, at
       the control rate, which must be at least 120 Hz. Equal sweeps walk straight; a larger sweep on one side makes
       that side's legs sweep the ground faster over the same period, and the robot turns away from it. The duty the PD
-      gives is held over the control step, as the seed's logic step held it.
+      gives is held over the control step, as the seed's logic step held it. ``backward`` (n, 2), False unless a
+      caller sets it (the soccer steering), runs a side's legs through the same clock backward: one side backward
+      and the other forward turns the robot on the spot, as RHex turns in place (Saranli, Buehler, Koditschek,
+      "RHex: a simple and highly mobile hexapod robot", IJRR 2001).
     - ``duty``: the duty ``d`` per leg in [-1, 1], held over the control step (the seed's simulation input).
 
     The motor model acts at every physics step natively (its back-EMF at the present speed): every input to the
@@ -304,6 +307,7 @@ class Xjus(Robot):
         self.phase = np.zeros(n)  # the Buehler clock, cycles since tripod A began its stance
         self.period = np.full(n, np.nan)
         self.sweep = np.full((n, 2), np.nan)
+        self.backward = np.zeros((n, 2), dtype=bool)  # per side (left, right): its legs run the clock backward
         self.last_duty = np.zeros((n, len(legs)))
         self.target = np.full((n, len(legs)), np.nan)  # the last clock target (gait mode), near the measured angle
         self.start_index = np.zeros(n, dtype=np.int64)
@@ -481,6 +485,7 @@ class Xjus(Robot):
         self.phase[ids] = 0.25  # the middle of tripod A's stance
         self.period[ids] = np.nan
         self.sweep[ids] = np.nan
+        self.backward[ids] = False
         self.target[ids] = np.nan
         self.last_duty[ids] = 0.0
         state = {"qpos": qpos, "qvel": qvel, "act": np.zeros((k, m.na)), "ctrl": np.zeros((k, m.nu))}
@@ -506,7 +511,8 @@ class Xjus(Robot):
                 return
             self._hold_array(np.minimum(np.maximum(command, -1.0), 1.0))  # the float path declined: not again
             return
-        if self.num_sims == 1 and self._command_one(command[0].tolist()):
+        backward = self.backward.any()
+        if self.num_sims == 1 and not backward and self._command_one(command[0].tolist()):
             return
         bounded = np.minimum(np.maximum(command, self._gait_low), self._gait_high)
         period, sweep = bounded[:, 0], bounded[:, 1:3]
@@ -514,6 +520,9 @@ class Xjus(Robot):
         sd = self.sim.sensordata
         angle, speed = sd[:, self._at_angle], sd[:, self._at_speed]
         target, rate, accel = self.gait.targets(self.phase, period, sweep)
+        if backward:  # the clock's angle mirrored: the slow stance still crosses the bottom, the legs turn backward
+            sign = np.where(self.backward[:, self.gait.side], -1.0, 1.0)
+            target, rate, accel = sign * target, sign * rate, sign * accel
         error = wrap_angle(target - angle)
         self.target = angle + error
         torque = pd_torque(error, rate - speed, accel, self.hip_inertia, constants.PD_KP, constants.PD_KD)
