@@ -4,16 +4,19 @@ itself (even within the interval).
 
 Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal}-v1`` with ``action_mode="commands"``, seeds 1000-1019 (one
 batched env of 20), the scripted field player (agents/soccer/scripted.py) on each episode: successes, falls and the
-mean time of a success. Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library call, 20 matches of 60 s on
-seeds 0-19, home scripted against away random and against away scripted.
+mean time of a success. Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library call, 20 matches of 10
+minutes (one half of a Four-Legged League match, RoboCup 2005 rules) on seeds 0-19, home scripted against away random
+and against away scripted, two robots' sets at a time (one process per core).
 
-Run: ``python -m benchmarks.soccer_scripted`` (about 8 minutes on 2 cores).
+Run: ``python -m benchmarks.soccer_scripted`` (about 30 minutes on 2 cores).
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import gymnasium as gym
 import numpy as np
@@ -23,19 +26,21 @@ from agents.soccer.play import play
 from agents.soccer.scripted import ScriptedPlayer
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
+from envs.soccer.academy import version
 
 CONFIGURATIONS: dict[str, list[str]] = {"soccer_scripted": []}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
 ROBOTS = {"roach": "Roach", "xjus": "Xjus", "bioloid": "Bioloid"}
 TASKS = ("GoToBall", "ScoreEmptyGoal")
 EPISODE_SEEDS = list(range(1000, 1020))
-MATCHES, MATCH_SECONDS = 20, 60.0
+MATCHES = 20
+MATCH_SECONDS = 600.0  # one half of a Four-Legged League match (two halves of 10 minutes, RoboCup 2005 rules)
 WINS_WANTED = 18  # of 20, against a random team
 
 
 def academy(robot: str, task: str) -> dict:
     """The scripted player on one academy task in the commands mode, one episode per seed."""
-    env_id = f"skitter/{ROBOTS[robot]}{task}-v1"
+    env_id = f"skitter/{ROBOTS[robot]}{task}-v{version(ROBOTS[robot])}"
     venv = gym.make_vec(env_id, num_envs=len(EPISODE_SEEDS), vectorization_mode="vector_entry_point",
                         action_mode="commands")  # fmt: skip
     base = venv.unwrapped
@@ -56,6 +61,12 @@ def academy(robot: str, task: str) -> dict:
             "mean_success_seconds": float(ended_at[success].mean()) if success.any() else None}  # fmt: skip
 
 
+def match_set(job: tuple[str, str]) -> dict:
+    """The scripted team's record in one-a-side matches against ``away`` on ``robot``."""
+    robot, away = job
+    return play(robot, 1, "scripted", away, MATCHES, 0, MATCH_SECONDS)
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__.splitlines()[0])
     add_output_options(parser)
@@ -68,11 +79,12 @@ def main(argv: list[str] | None = None) -> None:
     output = resolve_output(parser, args, "soccer_scripted", CONFIGURATIONS)
     started = time.perf_counter()
     episodes = [academy(robot, task) for robot in ROBOTS for task in TASKS]
-    matches = []
-    for robot in ROBOTS:
-        for away in ("random", "scripted"):
-            result = play(robot, 1, "scripted", away, MATCHES, 0, MATCH_SECONDS)
-            matches.append({"robot": robot, "away": away, **result})
+    jobs = [(robot, away) for robot in ROBOTS for away in ("random", "scripted")]
+    # each set is seeded on its own (the same numbers serially); fresh interpreters, not forks of this one, whose
+    # simulations' worker threads a fork would not carry over
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        results = list(pool.map(match_set, jobs))
+    matches = [{"robot": robot, "away": away, **result} for (robot, away), result in zip(jobs, results, strict=True)]
     wall = time.perf_counter() - started
     academy_table = md_table(
         ["env id (commands mode)", "episodes", "successes", "falls", "mean time of a success, s"],
@@ -103,7 +115,8 @@ def main(argv: list[str] | None = None) -> None:
         "# The scripted soccer team\n\n"
         f"## The academy in the commands mode\n\nSeeds {EPISODE_SEEDS[0]}-{EPISODE_SEEDS[-1]}, one scripted field "
         "player per episode.\n\n" + academy_table + "\n## One-a-side matches\n\n"
-        f"{MATCHES} matches of {MATCH_SECONDS:g} s on seeds 0-{MATCHES - 1}, home scripted; the home team's record.\n\n"
+        f"{MATCHES} matches of {MATCH_SECONDS:g} s (a Four-Legged League half) on seeds 0-{MATCHES - 1}, home "
+        "scripted; the home team's record.\n\n"
         + match_table
         + "\n"
         + "\n".join(f"- {v}" for v in verdicts)
