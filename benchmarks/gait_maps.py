@@ -72,8 +72,9 @@ def measure(robot_key: str, seconds: float, seeds: int) -> dict:
         for i, (d, t) in enumerate(grid)
     ]  # fmt: skip
     safe = usable(points)
+    kept = {id(p) for p in safe}
     for p in points:
-        p["used"] = p in safe
+        p["used"] = id(p) in kept
     return {
         "robot": robot_key,
         "points": points,

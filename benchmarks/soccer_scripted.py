@@ -2,13 +2,13 @@
 and its record in one-a-side matches against a random team (the goal: 18 wins in 20 for every robot) and against
 itself (even within the interval).
 
-Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal}-v1`` with ``action_mode="commands"``, seeds 1000-1019 (one
-batched env of 20), the scripted field player (agents/soccer/scripted.py) on each episode: successes, falls and the
-mean time of a success. Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library call, 20 matches of 10
-minutes (one half of a Four-Legged League match, RoboCup 2005 rules) on seeds 0-19, home scripted against away random
-and against away scripted, two robots' sets at a time (one process per core).
+Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal}`` at each robot's current version, ``action_mode="commands"``,
+seeds 1000-1019 (one batched env of 20), the scripted field player (agents/soccer/scripted.py) on each episode:
+successes, falls and the mean time of a success. Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library
+call, 20 matches of 10 minutes (one half of a Four-Legged League match, RoboCup 2005 rules) on seeds 0-19, home
+scripted against away random and against away scripted, two robots' sets at a time (one process per core).
 
-Run: ``python -m benchmarks.soccer_scripted`` (about 30 minutes on 2 cores).
+Run: ``python -m benchmarks.soccer_scripted`` (51 minutes on 2 cores, 2026-11-29; the roach's sets are the longest).
 """
 
 from __future__ import annotations

@@ -100,9 +100,9 @@ class BioloidSteering(Steering):
     RoboCup 2001, LNAI 2377). Here the abduction servos (servo 2 of each leg) move the foot sideways in step with its
     ellipse. Drive = stride factor (0 marks time, 1 the full ellipse); turn in [-1, 1] (> 0 turns left) scales the
     sideways swing up to ``TURN_ABDUCTION``. The report's gait only walks straight; the stride-shortening turn that
-    steered it before turned less than the trot drifts (gait map of 2026-11-28), while this one turns 0.2-0.4 rad/s
-    with a spread of 0.01 rad/s between seeds (``python -m benchmarks.gait_maps``). Each player's clock starts at 0
-    when it resets, with the gait's lead-in."""
+    steered it before turned less than the trot drifts (gait map of 2026-11-28), while this one turns 0.2-0.46 rad/s
+    with a spread of about 0.01 rad/s between seeds (``python -m benchmarks.gait_maps``). Each player's clock starts at
+    0 when it resets, with the gait's lead-in."""
 
     robot_name = "bioloid"
     drives = (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0)
