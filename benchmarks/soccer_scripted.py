@@ -48,8 +48,10 @@ def academy(robot: str, task: str) -> dict:
     obs, _ = venv.reset(seed=EPISODE_SEEDS)
     n = len(EPISODE_SEEDS)
     done, success, fell, ended_at = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
+    memory = None
     for step in range(base.max_episode_steps):
-        obs, _, terminated, truncated, info = venv.step(player.predict(obs)[0])
+        action, memory = player.predict(obs, memory)
+        obs, _, terminated, truncated, info = venv.step(action)
         new = (terminated | truncated) & ~done
         success[new], fell[new] = info["success"][new] > 0, info["fallen"][new]
         ended_at[new] = (step + 1) * base.dt

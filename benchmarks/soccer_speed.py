@@ -89,10 +89,14 @@ def realtime(seconds: float, seed: int) -> dict:
     env = match.parallel_env(robot="bioloid", players_per_team=3, action_mode="commands")
     obs, _ = env.reset(seed=seed)
     teams = {**scripted_team(env, "home"), **scripted_team(env, "away")}
+    memory = dict.fromkeys(teams)
     steps = round(seconds / env.dt)
     began = time.perf_counter()
     for _ in range(steps):
-        obs, *_ = env.step({agent: player.predict(obs[agent])[0] for agent, player in teams.items()})
+        moves = {}
+        for agent, player in teams.items():
+            moves[agent], memory[agent] = player.predict(obs[agent], memory[agent])
+        obs, *_ = env.step(moves)
     wall = time.perf_counter() - began
     return {"seconds": seconds, "wall": wall, "realtime": seconds / wall, "score": env.score}
 

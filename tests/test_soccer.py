@@ -108,7 +108,7 @@ def make(env_id: str, **kwargs):
 def test_a_goal_is_seen_between_control_steps_and_ends_the_episode():
     """The ball rolled fast at the goal: a goal at the physics rate, +1, success and no fall; the other way an own
     goal, -1."""
-    env = make("skitter/RoachScoreEmptyGoal-v1")
+    env = make("skitter/RoachScoreEmptyGoal-v2")
     field = FIELDS["Roach"]
     hl = field.half_length
     for side, key, reward in ((1, "scored", 1.0), (-1, "conceded", -1.0)):
@@ -163,7 +163,7 @@ def test_players_collide_with_each_other_but_not_with_themselves():
     assert between > 0
 
 
-@pytest.mark.parametrize("env_id", ["skitter/BioloidGoToBall-v2", "skitter/RoachScoreEmptyGoal-v1"])
+@pytest.mark.parametrize("env_id", ["skitter/BioloidGoToBall-v2", "skitter/RoachScoreEmptyGoal-v2"])
 def test_the_academy_in_the_commands_mode_is_batched_like_single_across_resets(env_id):
     """Speed and turn rate through the gait map: two actions, the same results single and batched, the Bioloid's
     trot clock restarting with each episode."""

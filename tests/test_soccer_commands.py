@@ -1,12 +1,13 @@
 """The commands mode (speed and turn rate through each robot's gait map) and the scripted team."""
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from agents.soccer.scripted import ScriptedPlayer, scripted_team
+from agents.soccer.scripted import MEMORY, ScriptedPlayer, scripted_team
 from envs.common.task import ObservationLayout
 from envs.soccer import match
 from envs.soccer.steering import MAPS, STEERING, Commands, GaitMap
@@ -147,6 +148,59 @@ def test_a_scripted_player_is_never_sent_beyond_a_wall():
             assert abs(target[0, 1]) <= wall - 0.1 + 1e-9 and abs(target[0, 0]) < 0.9 + env.field.end_border
     target, pushing = scripted.targets(obs((-0.2, wall - 0.03), own=(-0.9, 0.0)))
     assert not pushing[0] and target[0, 1] < wall - 0.03, "round the ball on the field's side"
+
+
+def test_a_scripted_player_that_cannot_move_escapes_toward_the_centre_spot():
+    """Pressed into the wall beside its own goal (its view never changes): after stuck_seconds (2 s for the roach)
+    of wanting to walk to the ball behind it, it turns to the centre spot and walks there for the escape's length,
+    then plays on; without its memory it never escapes, and a new match (episode_start) clears the memory."""
+    scripted = player()
+    # at (-0.95, 0.15) facing -x (toward the end wall); the ball at (-0.6, 0.4): behind it and to its right
+    seen = obs((-0.35, -0.25), goal=(-1.85, 0.15), own=(-0.05, 0.15))
+    place, heading = scripted.pose(seen)
+    np.testing.assert_allclose(place[0], [-0.95, 0.15], atol=1e-12)
+    assert abs(abs(heading[0]) - np.pi) < 1e-12
+    steps = round(scripted.stuck_seconds * scripted.mode.control_freq)
+    memory, plays = None, []
+    for _ in range(steps):
+        action, memory = scripted.predict(seen[0], memory)
+        plays.append(action)
+    assert all(np.array_equal(a, plays[0]) for a in plays[:-1]), "plays on while it waits"
+    centre = scripted.mode.to_action(np.column_stack(scripted.steer(0.5 * (seen[:, 2:4] + seen[:, 4:6]),
+                                                                      np.zeros(1, bool))))[0]  # fmt: skip
+    np.testing.assert_array_equal(plays[-1], centre)
+    assert plays[-1][1] < plays[0][1] or np.sign(plays[-1][1]) != np.sign(plays[0][1]), "turns to the centre"
+    escape = math.ceil(scripted.escape_seconds * scripted.mode.control_freq)
+    for _ in range(escape - 1):
+        action, memory = scripted.predict(seen[0], memory)
+        np.testing.assert_array_equal(action, centre)
+    action, memory = scripted.predict(seen[0], memory)
+    np.testing.assert_array_equal(action, plays[0])
+    assert all(np.array_equal(scripted.predict(seen[0])[0], plays[0]) for _ in range(steps + 2)), "no memory"
+    stuck = memory
+    for _ in range(steps - 1):
+        _, stuck = scripted.predict(seen[0], stuck)
+    action, _ = scripted.predict(seen[0], stuck, np.array([True]))
+    np.testing.assert_array_equal(action, plays[0])
+
+
+def test_a_scripted_player_that_moves_or_is_placed_starts_its_watch_again():
+    """Moving a third of a body length, turning half a radian or being placed (a kickoff) resets the time it has
+    waited; a wrongly shaped memory is refused."""
+    scripted = player()
+    steps = round(scripted.stuck_seconds * scripted.mode.control_freq)
+    memory = None
+    for step in range(3 * steps):
+        x = 0.04 * (step // (steps // 2))  # 0.4 body lengths every half of the stuck time
+        _, memory = scripted.predict(obs((0.3, 0.0), goal=(0.9 - x, 0.0), own=(-0.9 - x, 0.0))[0], memory)
+        assert memory[MEMORY.index("escape")] == 0.0
+    assert memory[MEMORY.index("waiting")] < scripted.stuck_seconds
+    far = obs((0.3, 0.0), goal=(0.4, 0.0), own=(-1.4, 0.0))[0]  # half a metre on: placed
+    _, placed = scripted.predict(far, memory)
+    assert placed[MEMORY.index("waiting")] == pytest.approx(1.0 / scripted.mode.control_freq)
+    assert placed[MEMORY.index("anchor_x")] == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="state"):
+        scripted.predict(far, np.zeros(3))
 
 
 def test_the_scripted_keeper_stands_between_the_ball_and_its_goal():

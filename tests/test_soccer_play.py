@@ -30,8 +30,12 @@ def test_matches_played_together_are_the_pettingzoo_matches_of_their_seeds():
         env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
         obs, _ = env.reset(seed=5 + i)
         team = {**scripted_team(env, "home"), **scripted_team(env, "away")}
+        memory = dict.fromkeys(team)
         for _ in range(round(0.4 / env.dt)):
-            obs, *_ = env.step({a: p.predict(obs[a])[0] for a, p in team.items()})
+            moves = {}
+            for a, p in team.items():
+                moves[a], memory[a] = p.predict(obs[a], memory[a])
+            obs, *_ = env.step(moves)
         assert played["scores"][i] == [env.score["home"], env.score["away"]]
 
 

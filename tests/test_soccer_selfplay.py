@@ -14,7 +14,7 @@ from tests.test_train import scalars, train_in_process
 
 
 class Dummy:
-    def act(self, obs):
+    def act(self, obs, matches):
         return np.zeros((len(obs), 2))
 
 
@@ -57,6 +57,7 @@ def test_the_learners_matches_are_the_pettingzoo_matches_against_the_scripted_te
     envs = [match.parallel_env(robot="roach", players_per_team=1, action_mode="commands", max_cycles=10**6)
             for _ in range(2)]  # fmt: skip
     away = [scripted_team(e, "away")["away_0"] for e in envs]
+    memory = [None, None]
     firsts = [e.reset(seed=5 + i)[0] for i, e in enumerate(envs)]
     np.testing.assert_array_equal(obs, [f["home_0"] for f in firsts])
     seen = list(firsts)
@@ -66,7 +67,8 @@ def test_the_learners_matches_are_the_pettingzoo_matches_against_the_scripted_te
         actions = rng.uniform(-1, 1, (2, 2))
         obs, _, done, infos = venv.step(actions)
         for i, e in enumerate(envs):
-            moves = {"home_0": actions[i], "away_0": away[i].predict(seen[i]["away_0"])[0]}
+            scripted, memory[i] = away[i].predict(seen[i]["away_0"], memory[i])
+            moves = {"home_0": actions[i], "away_0": scripted}
             seen[i], rewards, *_ = e.step(moves)
             if step < steps - 1:
                 np.testing.assert_array_equal(obs[i], seen[i]["home_0"])

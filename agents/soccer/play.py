@@ -56,6 +56,7 @@ class TeamPolicy:
         if spec == "scripted":
             players = scripted_team(engine, team)
             self.players = [players[a] for a in agents]
+            self.memory: list[np.ndarray | None] = [None] * len(agents)  # each player's, over every match
         elif spec not in TEAMS:
             self.model = trained_team(spec, engine)
         else:
@@ -66,8 +67,8 @@ class TeamPolicy:
     def act(self, obs: np.ndarray, actions: np.ndarray) -> None:
         """Write the team's actions into ``actions`` (rows, size) from the observations (rows, size)."""
         if self.spec == "scripted":
-            for rows, player in zip(self.rows, self.players, strict=True):
-                actions[rows] = player.predict(obs[rows])[0]
+            for i, (rows, player) in enumerate(zip(self.rows, self.players, strict=True)):
+                actions[rows], self.memory[i] = player.predict(obs[rows], self.memory[i])
             return
         if self.spec not in TEAMS:  # one shared policy for every player of the team, every match in one call
             rows = np.concatenate(self.rows)

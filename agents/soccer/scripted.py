@@ -5,12 +5,16 @@ Each field player walks to the point behind the ball on the line from the goal i
 there pushes the ball along that line; from three a side the last player keeps goal, staying between the ball and the
 centre of its own goal. Every player reads its own observation by name (``ball``, ``goal``, ``own_goal``: positions in
 its frame) and steers on the bearing of its target: it turns toward it and walks faster the more it faces it.
-Players follow Stable-Baselines3's ``predict(observation, state, episode_start, deterministic)``, batched or not.
+
+A player that has neither moved nor turned for ``stuck_seconds`` while it wants to (pressed into a goal's net, wedged
+between a post and the wall, pushing a ball against the wall) escapes, as the Four-Legged League's players did when
+their stuck detectors fired: it turns to the centre spot and walks toward it for ``ESCAPE_WALK`` body lengths, then
+plays on. Its memory is the recurrent state of Stable-Baselines3's ``predict(observation, state, episode_start,
+deterministic) -> (action, state)``: pass back the state it returned, with ``episode_start`` for rows that start a new
+match; without a state each call starts afresh and a player never escapes.
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 
@@ -25,6 +29,15 @@ TURN_GAIN = 2.0  # rad/s of commanded turn rate per rad of bearing
 SLOW_WITHIN = 2.0  # body lengths from its target within which a player slows down
 CRUISE = 10.0  # body lengths per second: the fastest a player runs (the roach's tripod runs 24; it overshoots)
 PUSH = 0.5  # of its cruising speed, with which a player pushes the ball (and the least it slows to)
+STUCK_SECONDS = 2.0  # a player that has neither moved nor turned for this long, wanting to, is stuck, or
+STUCK_LENGTHS = 2.0  # for as long as it takes to walk this many body lengths at cruise, if longer (a slow robot)
+STUCK_MOVE = 0.3  # body lengths: less than this from where it was is not moving
+STUCK_TURN = 0.5  # rad: less than this from the heading it had is not turning
+ESCAPE_WALK = 3.0  # body lengths a stuck player walks toward the centre spot after turning to it
+JUMP = 1.0  # body lengths between two steps: the player was placed (a kickoff, a penalty), and starts afresh
+# the memory of each row (``predict``'s state): where it is and its heading on the field; where it was and its heading
+# when it last moved or turned, and how long ago; the seconds left of an escape
+MEMORY = ("x", "y", "heading", "anchor_x", "anchor_y", "anchor_heading", "waiting", "escape")
 
 
 class ScriptedPlayer:
@@ -93,26 +106,81 @@ class ScriptedPlayer:
         y = np.clip(np.sum(rel * ey, axis=1), -self.inside[1], self.inside[1])
         return centre + x[:, None] * ex + y[:, None] * ey
 
-    def predict(self, observation: np.ndarray, state: Any = None, episode_start: np.ndarray | None = None,
-                deterministic: bool = True) -> tuple[np.ndarray, None]:  # fmt: skip
-        obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
-        target, pushing = self.targets(obs)
+    def pose(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each row's place on the field (n, 2) and heading (n,), in the frame of the goal it attacks (+x), from where
+        it sees the two goals."""
+        goal, own = self.layout.get(obs, "goal"), self.layout.get(obs, "own_goal")
+        along = goal - own  # the field's +x in the player's frame
+        heading = -np.arctan2(along[:, 1], along[:, 0])
+        centre = 0.5 * (goal + own)  # the centre spot in the player's frame: -R(heading)^T p
+        c, s = np.cos(heading), np.sin(heading)
+        place = -np.column_stack([c * centre[:, 0] - s * centre[:, 1], s * centre[:, 0] + c * centre[:, 1]])
+        return place, heading
+
+    def steer(self, target: np.ndarray, pushing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Speed and turn rate (n,) toward each row's target point in its own frame."""
         bearing = np.arctan2(target[:, 1], target[:, 0])
         distance = np.linalg.norm(target, axis=1)
-        low, high = self.mode.low[1], self.mode.high[1]
-        yaw_rate = np.clip(TURN_GAIN * bearing, low, high)
+        yaw_rate = np.clip(TURN_GAIN * bearing, self.mode.low[1], self.mode.high[1])
         facing = np.maximum(np.cos(bearing), 0.0) ** 2
-        cruise = min(self.mode.high[0], CRUISE * self.length)
         near = np.where(pushing, PUSH, np.clip(distance / (SLOW_WITHIN * self.length), PUSH, 1.0))
-        speed = cruise * facing * near
+        return self.cruise * facing * near, yaw_rate
+
+    @property
+    def cruise(self) -> float:
+        return min(self.mode.high[0], CRUISE * self.length)
+
+    @property
+    def stuck_seconds(self) -> float:
+        """How long a player waits, neither moving nor turning, before it escapes."""
+        return max(STUCK_SECONDS, STUCK_LENGTHS * self.length / self.cruise)
+
+    @property
+    def escape_seconds(self) -> float:
+        """How long an escape lasts: a half turn at the mode's largest turn rate, then ``ESCAPE_WALK`` at cruise."""
+        return np.pi / self.mode.high[1] + ESCAPE_WALK * self.length / self.cruise
+
+    def predict(self, observation: np.ndarray, state: np.ndarray | None = None,
+                episode_start: np.ndarray | None = None,
+                deterministic: bool = True) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        obs = np.atleast_2d(np.asarray(observation, dtype=np.float64))
+        n, dt = len(obs), 1.0 / self.mode.control_freq
+        place, heading = self.pose(obs)
+        fresh = np.column_stack([place, heading, place, heading, np.zeros((n, 2))])
+        memory = fresh if state is None else np.array(np.atleast_2d(state), dtype=np.float64)
+        if memory.shape != (n, len(MEMORY)):
+            raise ValueError(f"state: expected ({n}, {len(MEMORY)}) as predict returned it, got {memory.shape}")
+        restart = np.linalg.norm(place - memory[:, 0:2], axis=1) > JUMP * self.length
+        if episode_start is not None:
+            restart |= np.asarray(episode_start, dtype=bool).reshape(-1)
+        memory[restart] = fresh[restart]
+        target, pushing = self.targets(obs)
+        speed, yaw_rate = self.steer(target, pushing)
+        idle = np.zeros(n, dtype=bool)
         if self.keeper:  # at its place, it faces the ball
             ball = self.layout.get(obs, "ball")
-            settled = distance < 0.3 * self.length
-            yaw_rate = np.where(settled, np.clip(TURN_GAIN * np.arctan2(ball[:, 1], ball[:, 0]), low, high), yaw_rate)
-            speed = np.where(settled, 0.0, speed)
+            idle = np.linalg.norm(target, axis=1) < 0.3 * self.length
+            low, high = self.mode.low[1], self.mode.high[1]
+            yaw_rate = np.where(idle, np.clip(TURN_GAIN * np.arctan2(ball[:, 1], ball[:, 0]), low, high), yaw_rate)
+            speed = np.where(idle, 0.0, speed)
+        # stuck: neither moved nor turned for stuck_seconds, wanting to; then the escape to the centre spot
+        turned = np.abs(np.angle(np.exp(1j * (heading - memory[:, 5])))) > STUCK_TURN
+        moved = np.linalg.norm(place - memory[:, 3:5], axis=1) > STUCK_MOVE * self.length
+        anchor = moved | turned | idle | (memory[:, 7] > 0.0)
+        memory[anchor, 3:6] = np.column_stack([place, heading])[anchor]
+        memory[:, 6] = np.where(anchor, 0.0, memory[:, 6] + dt)
+        stuck = memory[:, 6] >= self.stuck_seconds - 0.5 * dt  # on the step that completes it, sums of dt aside
+        memory[stuck, 6], memory[stuck, 7] = 0.0, self.escape_seconds
+        escaping = memory[:, 7] > 0.0
+        if escaping.any():
+            centre = 0.5 * (self.layout.get(obs, "goal") + self.layout.get(obs, "own_goal"))
+            run_speed, run_yaw = self.steer(centre, np.zeros(n, dtype=bool))
+            speed, yaw_rate = np.where(escaping, run_speed, speed), np.where(escaping, run_yaw, yaw_rate)
+            memory[:, 7] = np.maximum(memory[:, 7] - dt, 0.0)
+        memory[:, 0:3] = np.column_stack([place, heading])
         action = self.mode.to_action(np.column_stack([speed, yaw_rate]))
         single = np.asarray(observation).ndim == 1
-        return (action[0], None) if single else (action, None)
+        return (action[0], memory[0]) if single else (action, memory)
 
 
 def scripted_team(env, team: str) -> dict[str, ScriptedPlayer]:

@@ -32,7 +32,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.soccer.scripted import scripted_team
+from agents.soccer.scripted import MEMORY, scripted_team
 from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
@@ -49,16 +49,28 @@ POOL_DIR = "pool"
 
 
 class ScriptedOpponent:
-    """The scripted team as an away team: ``act(obs)`` on its players' rows of any number of matches (match-major)."""
+    """The scripted team as an away team: ``act(obs, matches)`` on its players' rows of those matches (match-major),
+    each player with its memory of each match (``ScriptedPlayer.predict``'s state), which ``restart`` clears."""
 
     def __init__(self, engine: Matches):
         self.players = list(scripted_team(engine, "away").values())
+        self.memory = np.zeros((engine.num_matches, len(self.players), len(MEMORY)))
+        self.fresh = np.ones(engine.num_matches, dtype=bool)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def restart(self, matches: np.ndarray) -> None:
+        """Matches that start again: their players' memories start afresh."""
+        self.fresh[matches] = True
+
+    def act(self, obs: np.ndarray, matches: np.ndarray) -> np.ndarray:
         k = len(self.players)
         by_player = obs.reshape(-1, k, obs.shape[-1])
-        actions = np.stack([p.predict(by_player[:, i])[0] for i, p in enumerate(self.players)], axis=1)
-        return actions.reshape(len(obs), -1)
+        start = self.fresh[matches]
+        actions = []
+        for i, player in enumerate(self.players):
+            action, self.memory[matches, i] = player.predict(by_player[:, i], self.memory[matches, i], start)
+            actions.append(action)
+        self.fresh[matches] = False
+        return np.stack(actions, axis=1).reshape(len(obs), -1)
 
 
 class SnapshotOpponent:
@@ -75,7 +87,7 @@ class SnapshotOpponent:
         normalizer = pickle.loads(pickle.dumps(stats)) if stats is not None else None  # SB3 pickles it without env
         return cls(copy.deepcopy(model.policy), normalizer)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def act(self, obs: np.ndarray, matches: np.ndarray) -> np.ndarray:
         if self.normalizer is not None:
             obs = self.normalizer.normalize_obs(obs)
         actions, _ = self.policy.predict(obs, deterministic=False)
@@ -161,6 +173,7 @@ class SelfPlayVecEnv(MatchesVecEnv):
 
     def reset(self) -> np.ndarray:
         self.opponent_of = [self.pool.draw() for _ in range(self.engine.num_matches)]
+        self.pool.opponents[SCRIPTED].restart(np.arange(self.engine.num_matches))
         self._reset_matches()
         return self.engine.obs[self.home].copy()
 
@@ -173,7 +186,7 @@ class SelfPlayVecEnv(MatchesVecEnv):
         for name in dict.fromkeys(self.opponent_of):
             matches = np.flatnonzero(names == name)
             rows = self.away.reshape(-1, self.k)[matches].reshape(-1)
-            actions[rows] = self.pool.opponents[name].act(obs[rows])
+            actions[rows] = self.pool.opponents[name].act(obs[rows], matches)
 
     def step_wait(self):
         engine = self.engine
@@ -204,6 +217,7 @@ class SelfPlayVecEnv(MatchesVecEnv):
         if len(finished):
             self.pool.release(self.opponent_of)
             engine.reset(finished)
+            self.pool.opponents[SCRIPTED].restart(finished)
             obs = engine.obs[self.home].copy()
         return obs, reward.astype(np.float32), done_match[match_of], infos
 

@@ -244,7 +244,9 @@ MANUAL = """{title}: {task}
 
 # each robot's academy versions: the ids carry the last
 HISTORY = {
-    "Roach": ["first version."],
+    "Roach": ["first version.",
+              "the commands mode spins the robot on the spot, its sides' clocks running opposite ways, where one side "
+              "running alone pivoted it about the other; its gait map is new. The joints mode is unchanged."],
     "Xjus": ["first version.",
              "the commands mode turns on the spot, one side's legs running the Buehler clock backward (as RHex turns "
              "in place), where the sweep difference turned it only at speed; its gait map is new. The joints mode is "

@@ -361,7 +361,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v2",
+        "name": "skitter_soccer_v3",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,

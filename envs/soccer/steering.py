@@ -1,12 +1,12 @@
 """The ``commands`` action mode: forward speed and turn rate, run by each robot's reference gait.
 
 A :class:`Steering` turns two numbers per player, a drive and a turn, into the robot's own commands at every control
-step: the VelociRoACH's tripod (stride frequency, and a different one per side: differential drive),
-the xJüs's Buehler clock (stride frequency, and a different ground sweep per side) and the Bioloid's IK trot at
-1.5 Hz (stride length, and one side's stride shortened). What speed and turn rate each (drive, turn) gives was
-measured on the model over a grid (``python -m benchmarks.gait_maps``, written to ``envs/soccer/gait_maps/``), and a
-:class:`GaitMap` inverts it: a commanded (speed, turn rate) goes to the measured (drive, turn) whose speed and turn
-rate were nearest to it.
+step: the VelociRoACH's tripod (stride frequency, and a different one per side: differential drive), the xJüs's
+Buehler clock (stride frequency, and a different ground sweep per side, or one side backward) and the Bioloid's IK
+trot at 1.5 Hz (stride length, and each foot stepping sideways in its stance). What speed and turn rate each (drive,
+turn) gives was measured on the model over a grid (``python -m benchmarks.gait_maps``, written to
+``envs/soccer/gait_maps/``), and a :class:`GaitMap` inverts it: a commanded (speed, turn rate) goes to the measured
+(drive, turn) whose speed and turn rate were nearest to it.
 """
 
 from __future__ import annotations
@@ -61,7 +61,10 @@ class RoachSteering(Steering):
     VelociRoACH and its kin differential-drive robots (Pullin, Kohut, Zarrouk, Fearing, "Dynamic turning of 13 cm
     robot comparing tail and differential drive", ICRA 2012). The phase offset by which the real robot also turns
     [roach-sim] steers the model weakly and, above 10 Hz, with no consistent sign (gait map of 2026-11-28: at most
-    1 rad/s); a 2 Hz difference turns it 1.0-2.4 rad/s at every drive."""
+    1 rad/s); a 2 Hz difference turns it 1.0-2.4 rad/s at every drive. A turn of more than twice the drive runs one
+    side's clock backward (a negative frequency; the motors run either way, as the duty mode's [-1, 1] does), so at
+    drive 0 the robot spins on the spot: +-1 Hz a side turns the model 1.2 rad/s, +-4 Hz 5.9 rad/s, where one side
+    running alone pivots the robot about its other side and presses that side into whatever it is against."""
 
     robot_name = "velociroach"
     drives = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
@@ -69,7 +72,7 @@ class RoachSteering(Steering):
 
     def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
         half = 0.5 * np.asarray(turn)
-        left, right = np.maximum(drive - half, 0.0), np.maximum(drive + half, 0.0)
+        left, right = drive - half, drive + half
         return np.column_stack([left, right, np.full_like(left, np.pi)])
 
 
