@@ -85,11 +85,11 @@ class SoccerVecEnv(MatchesVecEnv):
         ended, truncated = out["ended"][match_of], out["truncated"][match_of]
         done = ended | truncated
         obs = engine.obs.copy()
+        columns = [out[k].tolist() for k in ("reward", "fallen", "off", "approach", "ball_progress")]
         infos: list[dict[str, Any]] = [
-            {"reward_goal": float(out["reward"][i]), "fallen": bool(out["fallen"][i]), "off": bool(out["off"][i]),
-             "approach": float(out["approach"][i]), "ball_progress": float(out["ball_progress"][i])}
-            for i in range(self.num_envs)
-        ]  # fmt: skip
+            {"reward_goal": r, "fallen": f, "off": o, "approach": a, "ball_progress": b}
+            for r, f, o, a, b in zip(*columns, strict=True)
+        ]
         finished = np.flatnonzero(out["ended"] | out["truncated"])
         if len(finished):
             for i in np.flatnonzero(done):

@@ -310,6 +310,8 @@ class Matches:
         """After the step's physics: the kickoffs called for (every player of those matches), the players taken off
         and those whose penalty is over put back. (rows,) bool: who was placed."""
         placed = np.zeros(len(self.rngs), dtype=bool)
+        if not (self._kickoff.any() or self._pending.any()) and np.isnan(self.off_until).all():
+            return placed  # nobody to place: most steps
         if self._kickoff.any():
             matches = np.flatnonzero(self._kickoff)
             rows = self.rows_of(matches)

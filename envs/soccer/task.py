@@ -86,6 +86,7 @@ class SoccerTask(LocomotionTask):
             k, k - 1
         )
         self._touch_sensors = [f"{TOUCH}{p}" for p in players]
+        self._touch_columns: np.ndarray | None = None  # their columns in the scene's sensor values, on first use
         self._head_sensors = [f"{HEAD_AXIS}{p}" for p in players] if head is not None else None
         self._ball_obs = np.zeros((n, 5))
         self._goals_obs = np.zeros((n, 4))
@@ -130,7 +131,7 @@ class SoccerTask(LocomotionTask):
         progress = (self._goal_distance - to_goal) / length
         self._ball_distance, self._goal_distance = ball["distance"], to_goal
         scored, conceded = self.goals()
-        touches = np.stack([self.scene.scene_sensor(s, substeps=True).max(axis=(1, 2)) for s in self._touch_sensors])
+        touches = self._touches()
         self._observe(readings, ball, ids)
         return {
             **state,
@@ -141,8 +142,17 @@ class SoccerTask(LocomotionTask):
             "ball_progress": progress,
             "scored": scored.astype(np.float64),
             "conceded": conceded.astype(np.float64),
-            "touched": (touches.T.reshape(-1) > 0).astype(np.float64),
+            "touched": (touches > 0).astype(np.float64),
         }
+
+    def _touches(self) -> np.ndarray:
+        """(n,) each player's largest contact force with the ball over the last step's physics steps (one gather of
+        every player's touch sensor)."""
+        if self._touch_columns is None:
+            slices = [self.scene.sensors[s] for s in self._touch_sensors]
+            self._touch_columns = np.concatenate([np.arange(sl.start, sl.stop) for sl in slices])
+        values = self.scene.sim.substep_sensordata[..., self._touch_columns]  # (scenes, substeps, players x size)
+        return values.reshape(*values.shape[:2], self._k, -1).max(axis=(1, 3)).reshape(-1)
 
     def _ball_state(self, readings: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
         position = self.scene.scene_sensor(BALL_POS)[self._scene_of]
