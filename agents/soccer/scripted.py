@@ -7,11 +7,11 @@ centre of its own goal. Every player reads its own observation by name (``ball``
 its frame) and steers on the bearing of its target: it turns toward it and walks faster the more it faces it.
 
 A player that has neither moved nor turned for ``stuck_seconds`` while it wants to (pressed into a goal's net, wedged
-between a post and the wall, pushing a ball against the wall) escapes, as the Four-Legged League's players did when
-their stuck detectors fired: it turns to the centre spot and walks toward it for ``ESCAPE_WALK`` body lengths, then
-plays on. Its memory is the recurrent state of Stable-Baselines3's ``predict(observation, state, episode_start,
-deterministic) -> (action, state)``: pass back the state it returned, with ``episode_start`` for rows that start a new
-match; without a state each call starts afresh and a player never escapes.
+between a post and the wall, pushing a ball against the wall) escapes: it turns to the centre spot and walks toward
+it for ``ESCAPE_WALK`` body lengths, then plays on. Its memory is the recurrent state of Stable-Baselines3's
+``predict(observation, state, episode_start, deterministic) -> (action, state)``: pass back the state it returned,
+with ``episode_start`` for rows that start a new match; without a state each call starts afresh and a player never
+escapes.
 """
 
 from __future__ import annotations
