@@ -64,6 +64,17 @@ def test_the_roach_turns_the_way_it_is_commanded(sign):
 
 
 @pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_roach_spins_on_the_spot_its_sides_running_opposite_ways(sign):
+    """Asked to turn 3 rad/s either way without walking: one side's clock runs backward, and in 1 s it turns that way
+    by at least half the commanded angle."""
+    env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands")
+    env.reset(seed=0)
+    left, right, _ = env.commands.robot_commands(env.mode.to_action(np.array([[0.0, sign * 3.0]])))[0]
+    assert sign * right > 0 > sign * left, "the sides run opposite ways"
+    assert sign * turned_by("roach", 0.0, sign * 3.0, 1.0) > 0.5 * 3.0 * 1.0
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_bioloid_turns_the_way_it_is_commanded(sign):
     """The trot steered by sideways steps: asked for 0.4 rad/s either way while walking, for 8 s from a standstill
     (the gait's first cycle is its lead-in), it turns that way by at least half the commanded angle."""
