@@ -85,8 +85,9 @@ class SoccerTask(LocomotionTask):
         self._order = np.array([self._mates[i] + self._opponents[i] for i in range(k)], dtype=np.int64).reshape(
             k, k - 1
         )
-        self._touch_sensors = [f"{TOUCH}{p}" for p in players]
-        self._touch_columns: np.ndarray | None = None  # their columns in the scene's sensor values, on first use
+        # every player's contact sensor with the ball: their columns in the scene's sensor values, read in one gather
+        touches = [scene.sensors[f"{TOUCH}{p}"] for p in players]
+        self._touch_columns = np.concatenate([np.arange(sl.start, sl.stop) for sl in touches])
         self._head_sensors = [f"{HEAD_AXIS}{p}" for p in players] if head is not None else None
         self._ball_obs = np.zeros((n, 5))
         self._goals_obs = np.zeros((n, 4))
@@ -148,9 +149,6 @@ class SoccerTask(LocomotionTask):
     def _touches(self) -> np.ndarray:
         """(n,) each player's largest contact force with the ball over the last step's physics steps (one gather of
         every player's touch sensor)."""
-        if self._touch_columns is None:
-            slices = [self.scene.sensors[s] for s in self._touch_sensors]
-            self._touch_columns = np.concatenate([np.arange(sl.start, sl.stop) for sl in slices])
         values = self.scene.sim.substep_sensordata[..., self._touch_columns]  # (scenes, substeps, players x size)
         return values.reshape(*values.shape[:2], self._k, -1).max(axis=(1, 3)).reshape(-1)
 
