@@ -186,6 +186,7 @@ def test_the_generator_measures_visibility_on_all_runs_together(monkeypatch):
     assert truth["nominal_error"] == measure(make_adapter("motor"), logs) >= synth.MIN_NOMINAL_ERROR
 
 
+@pytest.mark.slow  # the calibration matrix measures every drawn effect's visibility (benchmarks/calibration_matrix.py)
 def test_a_drawn_effect_shows_against_both_replay_floors():
     """A legged robot's visibility is measured against two replay floors: the true model's (as the held-out
     evaluation judges a calibrated model) and the nominal model's (as the loop, starting from it, first sees the
@@ -339,6 +340,7 @@ def test_a_chain_left_partly_at_nominal_is_tried_without_those_members():
     _check_pair("motor", {"coulomb_friction": None, "back_emf_constant": None}, seed=2)
 
 
+@pytest.mark.slow  # the matrix's motor cases draw the torque constant too (python -m benchmarks.calibration_matrix)
 def test_the_motors_torque_constant_below_nominal_is_one_effect_with_a_rotor_inertia():
     """On the motor rig the torque constant scales the drive and the back-EMF brake alike, and the shaft has no
     friction of its own: a torque constant s moves the load as an inertia 1/s does. A torque constant
@@ -404,6 +406,7 @@ def test_roach_calibration_from_its_logs_brings_the_tripod_closer_to_the_measure
     _roach_calibration_walks_closer(tmp_path)
 
 
+@pytest.mark.slow  # half a minute; the matrix's roach cases run calibrate.py on the roach's logs of every effect
 def test_a_roach_effect_fitted_from_its_logs_brings_the_tripod_closer_to_the_measured_robot(tmp_path):
     """The same chain with the effect named (``calibrate.py --fit``), without the search over the catalog, on logs
     of 4 s (a case's are 10 s)."""
