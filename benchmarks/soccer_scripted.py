@@ -2,9 +2,11 @@
 and its record in one-a-side matches against a random team (the goal: 18 wins in 20 for every robot) and against
 itself (even within the interval).
 
-Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal}`` at each robot's current version, ``action_mode="commands"``,
-seeds 1000-1019 (one batched env of 20), the scripted field player (agents/soccer/scripted.py) on each episode:
-successes, falls and the mean time of a success. Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library
+Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal,ScoreVsKeeper}`` at their current versions,
+``action_mode="commands"``, seeds 1000-1019 (one batched env of 20), the scripted field player
+(envs/soccer/scripted.py) on each episode (against the scripted keeper on ScoreVsKeeper): successes, falls and the
+mean time of a success. ``--academy-only`` runs this part alone (a few minutes; results in
+``soccer_scripted_academy``). Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library
 call, 20 matches of 10 minutes (one half of a Four-Legged League match, RoboCup 2005 rules) on seeds 0-19, home
 scripted against away random and against away scripted, two robots' sets at a time (one process per core).
 
@@ -23,15 +25,16 @@ import numpy as np
 
 import envs  # noqa: F401 (registers the ids)
 from agents.soccer.play import play
-from agents.soccer.scripted import ScriptedPlayer
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
+from envs.soccer import TASKS as ACADEMY_TASKS
 from envs.soccer.academy import version
+from envs.soccer.scripted import ScriptedPlayer
 
-CONFIGURATIONS: dict[str, list[str]] = {"soccer_scripted": []}
+CONFIGURATIONS: dict[str, list[str]] = {"soccer_scripted": [], "soccer_scripted_academy": ["--academy-only"]}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
 ROBOTS = {"roach": "Roach", "xjus": "Xjus", "bioloid": "Bioloid"}
-TASKS = ("GoToBall", "ScoreEmptyGoal")
+TASKS = ("GoToBall", "ScoreEmptyGoal", "ScoreVsKeeper")
 EPISODE_SEEDS = list(range(1000, 1020))
 MATCHES = 20
 MATCH_SECONDS = 600.0  # one half of a Four-Legged League match (two halves of 10 minutes, RoboCup 2005 rules)
@@ -40,7 +43,7 @@ WINS_WANTED = 18  # of 20, against a random team
 
 def academy(robot: str, task: str) -> dict:
     """The scripted player on one academy task in the commands mode, one episode per seed."""
-    env_id = f"skitter/{ROBOTS[robot]}{task}-v{version(ROBOTS[robot])}"
+    env_id = f"skitter/{ROBOTS[robot]}{task}-v{version(ROBOTS[robot], ACADEMY_TASKS[task])}"
     venv = gym.make_vec(env_id, num_envs=len(EPISODE_SEEDS), vectorization_mode="vector_entry_point",
                         action_mode="commands")  # fmt: skip
     base = venv.unwrapped
@@ -71,6 +74,7 @@ def match_set(job: tuple[str, str]) -> dict:
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--academy-only", action="store_true", help="run the academy's episodes, not the matches")
     add_output_options(parser)
     return parser
 
@@ -81,7 +85,7 @@ def main(argv: list[str] | None = None) -> None:
     output = resolve_output(parser, args, "soccer_scripted", CONFIGURATIONS)
     started = time.perf_counter()
     episodes = [academy(robot, task) for robot in ROBOTS for task in TASKS]
-    jobs = [(robot, away) for robot in ROBOTS for away in ("random", "scripted")]
+    jobs = [] if args.academy_only else [(robot, away) for robot in ROBOTS for away in ("random", "scripted")]
     # each set is seeded on its own (the same numbers serially); fresh interpreters, not forks of this one, whose
     # simulations' worker threads a fork would not carry over
     with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
@@ -112,17 +116,21 @@ def main(argv: list[str] | None = None) -> None:
             gd = m["goal_difference"]
             even = gd["ci_low"] <= 0.0 <= gd["ci_high"]
             verdicts.append(f"{m['robot']} against itself: {'even (met)' if even else 'NOT even (MISSED)'}")
-    met = all(v.endswith("(met)") for v in verdicts)
+    met = all(v.endswith("(met)") for v in verdicts) if jobs else None  # the academy alone has no goal
+    match_part = (
+        "\n## One-a-side matches\n\n"
+        f"{MATCHES} matches of {MATCH_SECONDS:g} s (a Four-Legged League half) on seeds 0-{MATCHES - 1}, home "
+        "scripted; the home team's record.\n\n" + match_table + "\n" + "\n".join(f"- {v}" for v in verdicts) + "\n"
+        if jobs
+        else "\nThe matches were not run (``--academy-only``).\n"
+    )
     md = (
         "# The scripted soccer team\n\n"
         f"## The academy in the commands mode\n\nSeeds {EPISODE_SEEDS[0]}-{EPISODE_SEEDS[-1]}, one scripted field "
-        "player per episode.\n\n" + academy_table + "\n## One-a-side matches\n\n"
-        f"{MATCHES} matches of {MATCH_SECONDS:g} s (a Four-Legged League half) on seeds 0-{MATCHES - 1}, home "
-        "scripted; the home team's record.\n\n"
-        + match_table
-        + "\n"
-        + "\n".join(f"- {v}" for v in verdicts)
-        + f"\n\nWall time {wall:.0f} s.\n"
+        "player per episode (against the scripted keeper on ScoreVsKeeper).\n\n"
+        + academy_table
+        + match_part
+        + f"\nWall time {wall:.0f} s.\n"
     )
     output.save({"academy": episodes, "matches": matches, "verdicts": verdicts, "met": met, "wall_seconds": wall}, md)
 

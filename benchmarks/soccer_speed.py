@@ -25,12 +25,12 @@ import time
 import numpy as np
 from mujoco import batch
 
-from agents.soccer.scripted import scripted_team
 from agents.soccer.vec_env import SoccerVecEnv
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC
 from envs.soccer import match
+from envs.soccer.scripted import scripted_team
 
 CONFIGURATIONS: dict[str, list[str]] = {"soccer_speed": []}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""

@@ -163,10 +163,14 @@ def test_players_collide_with_each_other_but_not_with_themselves():
     assert between > 0
 
 
-@pytest.mark.parametrize("env_id", ["skitter/BioloidGoToBall-v2", "skitter/RoachScoreEmptyGoal-v2"])
+@pytest.mark.parametrize(
+    "env_id",
+    ["skitter/BioloidGoToBall-v2", "skitter/RoachScoreEmptyGoal-v2", "skitter/XjusScoreVsKeeper-v1",
+     "skitter/BioloidScoreVsKeeper-v1"],
+)  # fmt: skip
 def test_the_academy_in_the_commands_mode_is_batched_like_single_across_resets(env_id):
     """Speed and turn rate through the gait map: two actions, the same results single and batched, the Bioloid's
-    trot clock restarting with each episode."""
+    trot clock restarting with each episode (the keeper's and the learner's, each on its own rows)."""
     kwargs = {"action_mode": "commands", "max_episode_steps": 12}
     singles = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **kwargs)
     batched = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
@@ -201,3 +205,74 @@ def test_the_bioloids_field_of_view_follows_its_neck():
         for _ in range(40):
             obs, *_ = env.step(action)
         assert layout.get(obs[None], "ball_visible")[0, 0] == seen, pan
+
+
+def keeper_pose(env) -> np.ndarray:
+    """The scripted keeper's (x, y, up_z) in a single ScoreVsKeeper env."""
+    base = env.unwrapped
+    data = base.data
+    body = data.body(f"{academy.KEEPER}/{base.robot.root_body}")
+    return np.array([*body.xpos[:2], body.xmat[8]])
+
+
+@pytest.mark.parametrize("robot", ["Roach", "Xjus", "Bioloid"])
+def test_the_keeper_stands_between_the_ball_and_its_goal(robot):
+    """Placed off its line at a post, the scripted keeper walks to its place between the ball and its goal's centre
+    (``KEEP`` body lengths out) while the learner stands still; the learner sees it as an opponent."""
+    env = gym.make(f"skitter/{robot}ScoreVsKeeper-v1", action_mode="commands")
+    base = env.unwrapped
+    field, length = base.field, base.robot.facts.length
+    ball = np.array([field.half_length - 5.0 * length, 0.4 * field.goal_width])
+    post = [field.half_length - 0.5 * length, -0.5 * field.goal_width, math.pi]
+    obs, _ = env.reset(seed=0, options={"ball": ball, "keeper": post, "robot": [0.0, 0.0, 0.0]})
+    start = keeper_pose(env)
+    goal = np.array([field.half_length, 0.0])
+    wanted = goal + (ball - goal) / np.linalg.norm(ball - goal) * academy.KEEP * length
+    assert np.linalg.norm(start[:2] - wanted) > 1.0 * length
+    still = np.array([-1.0, 0.0])  # no speed, no turn
+    steps, last = round(19.0 / base.dt), round(3.0 / base.dt)
+    off = []
+    for step in range(steps):
+        obs, _, terminated, truncated, _ = env.step(still)
+        assert not (terminated or truncated)
+        if step >= steps - last:
+            off.append(np.linalg.norm(keeper_pose(env)[:2] - wanted) / length)
+    end = keeper_pose(env)
+    # within a body length of its place over the last 3 s (the Bioloid walks there at 5 cm/s; the xJus's turns on
+    # the spot shift it a little)
+    assert np.mean(off) < 0.9, (robot, off, wanted)
+    assert end[2] > 0.8, "the keeper stays upright"
+    seen = base.task.layout.get(obs[None], "opponents")[0]
+    assert np.linalg.norm(seen) == pytest.approx(np.linalg.norm(end[:2] - base.data.body(
+        f"home_0/{base.robot.root_body}").xpos[:2]), rel=0.3)  # fmt: skip
+
+
+def test_a_fallen_keeper_is_put_back_beside_its_goal_and_the_episode_goes_on():
+    env = gym.make("skitter/XjusScoreVsKeeper-v1")
+    base = env.unwrapped
+    env.reset(seed=1)
+    action = np.zeros(env.action_space.shape, dtype=np.float32)
+    env.step(action)
+    qadr = base.model.jnt_qposadr[base.model.body(f"{academy.KEEPER}/{base.robot.root_body}").jntadr[0]]
+    base.data.qpos[qadr + 2] += 0.3  # lifted and turned upside down
+    base.data.qpos[qadr + 3 : qadr + 7] = [0.0, 1.0, 0.0, 0.0]
+    ended = False
+    put_back = None
+    for _ in range(round(2.0 / base.dt)):
+        _, _, terminated, truncated, _ = env.step(action)
+        ended |= terminated or truncated
+        pose = keeper_pose(env)
+        if pose[2] > 0.9 and abs(pose[0] - (base.field.half_length - 0.5 * base.robot.facts.length)) < 0.05:
+            put_back = pose
+            break
+    assert not ended, "the learner's episode goes on"
+    assert put_back is not None, "the keeper stands again beside its goal"
+    assert abs(put_back[1]) >= 0.5 * base.field.goal_width
+
+
+def test_a_scripted_keeper_takes_only_the_gaits_mode_or_commands():
+    with pytest.raises(ValueError, match="action_mode must be 'gait' or 'commands'"):
+        gym.make("skitter/RoachScoreVsKeeper-v1", action_mode="duty")
+    env = gym.make("skitter/RoachScoreVsKeeper-v1")
+    with pytest.raises(ValueError, match=r"options\['keeper'\]"):
+        env.reset(seed=0, options={"keeper": [0.0, 0.0]})

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.soccer.scripted import MEMORY, ScriptedPlayer, scripted_team
 from envs.common.task import ObservationLayout
 from envs.soccer import match
+from envs.soccer.scripted import MEMORY, ScriptedPlayer, scripted_team
 from envs.soccer.steering import MAPS, STEERING, Commands, GaitMap
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -23,7 +23,7 @@ def test_the_record_and_its_intervals():
 
 def test_matches_played_together_are_the_pettingzoo_matches_of_their_seeds():
     """Match i of a batch is the PettingZoo match reset with seed SEED + i, the same teams playing."""
-    from agents.soccer.scripted import scripted_team
+    from envs.soccer.scripted import scripted_team
 
     played = play("bioloid", 1, "scripted", "scripted", 2, 5, 0.4)
     for i in range(2):

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from agents.soccer.play import play
-from agents.soccer.scripted import scripted_team
 from agents.soccer.selfplay import ANCHOR_RATING, ELO_K, SCRIPTED, Pool, SelfPlayVecEnv
 from envs.soccer import match
+from envs.soccer.scripted import scripted_team
 from tests.conftest import ENV_IDS  # noqa: F401  (registers the envs)
 from tests.test_train import scalars, train_in_process
 

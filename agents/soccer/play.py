@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from agents.soccer.scripted import scripted_team
 from envs.common.io import (
     ToolParser,
     publish_folder,
@@ -38,6 +37,7 @@ from envs.common.io import (
 )
 from envs.soccer.match import MATCH_SECONDS, MAX_PLAYERS, Matches
 from envs.soccer.robots import ROBOTS
+from envs.soccer.scripted import scripted_team
 from envs.soccer.steering import COMMANDS
 
 TEAMS = ("scripted", "random")

@@ -4,7 +4,7 @@
 
 The learner plays the home team of ``n_envs`` matches at once (its hyperparameters are ``hyperparams/ppo.yml``'s
 ``soccer/<robot>`` entry; ``n_envs`` there counts matches). Every match's away team is an opponent drawn from the
-pool when the match starts: the scripted team (``agents/soccer/scripted.py``) with probability ``scripted_share``,
+pool when the match starts: the scripted team (``envs/soccer/scripted.py``) with probability ``scripted_share``,
 otherwise one of the learner's last ``pool_size`` snapshots, taken every ``snapshot_freq`` steps (each a frozen
 copy of the policy and of its observation normalization, saved in the run folder's ``pool/`` as a model file that
 ``evaluate.py --soccer --home FILE`` plays). Observations do not depend on the side (envs/soccer/task.py), so one
@@ -32,11 +32,11 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.soccer.scripted import MEMORY, scripted_team
 from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
 from envs.soccer.match import MATCH_SECONDS, Matches
+from envs.soccer.scripted import MEMORY, scripted_team
 from envs.soccer.steering import COMMANDS
 
 SCRIPTED = "scripted"

@@ -8,7 +8,11 @@ robot's (``ACADEMY`` is the same list).
 from envs.soccer import academy
 from envs.soccer.robots import FIELDS, ROBOTS
 
-TASKS = {"GoToBall": academy.GoToBallTask, "ScoreEmptyGoal": academy.ScoreEmptyGoalTask}
+TASKS = {
+    "GoToBall": academy.GoToBallTask,
+    "ScoreEmptyGoal": academy.ScoreEmptyGoalTask,
+    "ScoreVsKeeper": academy.ScoreVsKeeperTask,
+}
 
 ACADEMY = []
 for _robot, _robot_class in ROBOTS.items():
@@ -16,7 +20,7 @@ for _robot, _robot_class in ROBOTS.items():
         _env = academy.make_academy(_robot_class, FIELDS[_robot], _task_class, _robot, f"{_robot}{_task}")
         ACADEMY.append(
             {
-                "id": f"skitter/{_robot}{_task}-v{academy.version(_robot)}",
+                "id": f"skitter/{_robot}{_task}-v{academy.version(_robot, _task_class)}",
                 "entry_point": f"envs.soccer.academy:{_env.make_env_name}",
                 "vector_entry_point": f"envs.soccer.academy:{_env.make_batched_name}",
                 "kwargs": {"episode_seconds": academy.EPISODE_SECONDS},

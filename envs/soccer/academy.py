@@ -1,8 +1,10 @@
 """The soccer academy: one robot on its soccer field, with a ball, learning the game's first skills.
 
 ``<Robot>GoToBall``: reach the ball and touch it. ``<Robot>ScoreEmptyGoal``: put the ball into the empty goal at +x.
-Both run the robot's own action modes and keep the walking tasks' ground rules and falls (a crawler or a faller ends
-its episode), on the robot's field (envs/soccer/field.py) in a :class:`~envs.common.match.SharedScene` of one player.
+``<Robot>ScoreVsKeeper``: score past the scripted team's keeper, a second robot of the same kind
+(envs/soccer/keeper.py). All run the robot's own action modes and keep the walking tasks' ground rules and falls (a
+crawler or a faller ends its episode), on the robot's field (envs/soccer/field.py) in a
+:class:`~envs.common.match.SharedScene` of one player (two with the keeper).
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ from envs.common.match import SharedScene
 from envs.common.robot import Robot, check_flag
 from envs.common.vector import vector_entry_point
 from envs.soccer.field import BALL, Field, field_edit
+from envs.soccer.keeper import KEEPER, KeeperMatch
 from envs.soccer.robots import HEADS
+from envs.soccer.scripted import KEEP
 from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
 
@@ -41,6 +45,8 @@ class AcademyTask(SoccerTask):
         "success": "1 if the episode ended in the task's success (the ball touched, a goal scored), else 0",
         "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
     }
+    players: ClassVar[tuple[str, ...]] = (PLAYER,)  # the scene's players: the learner's first
+    history: ClassVar[tuple[str, ...] | None] = None  # the task's own version history (None: the robot's academy's)
 
     # --- placing --------------------------------------------------------------------------------------------------
     def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
@@ -148,6 +154,63 @@ class ScoreEmptyGoalTask(AcademyTask):
         return terms
 
 
+class ScoreVsKeeperTask(ScoreEmptyGoalTask):
+    """Score past the scripted keeper (a second robot of the same kind, ``away_0``, keeping the goal at +x): +1 on a
+    goal (the episode ends; -1 for an own goal), and the distance closed to the ball and the ball's progress toward
+    the goal as shaping. The robot sees the keeper (``opponents``) as it sees the ball. A keeper that falls is put
+    back standing beside its goal (envs/soccer/keeper.py); the episode goes on."""
+
+    name = "score_vs_keeper"
+    players = (PLAYER, KEEPER)
+    history = ("first version.",)
+
+    def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
+        """Draw (or take from ``options``: ``robot`` (x, y, heading), ``ball`` (x, y), ``keeper`` (x, y, heading))
+        the places of scenes ``ids``: the robot behind the ball, the keeper between the ball and its goal."""
+        options = options or {}
+        length = self.robot.facts.length
+        radius = self.field.ball.radius
+        for i, rng in zip(ids, rngs, strict=True):
+            robot_place, ball_xy = self.draw_places(rng, length)
+            if "robot" in options:
+                robot_place = self._option_place(options["robot"], 3, "robot")
+            if "ball" in options:
+                ball_xy = self._option_place(options["ball"], 2, "ball")
+            keeper_place = self.keeper_place(rng, ball_xy, length)
+            if "keeper" in options:
+                keeper_place = self._option_place(options["keeper"], 3, "keeper")
+            self.scene.placement[2 * i] = robot_place
+            self.scene.placement[2 * i + 1] = keeper_place
+            self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
+
+    def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
+        f = self.field
+        ball = np.array([f.half_length - rng.uniform(3.0, 6.0) * length,
+                         rng.uniform(-1.0, 1.0) * (0.5 * f.goal_width + 1.5 * length)])  # fmt: skip
+        ball = self._inside(ball, length)
+        away = ball - np.array([f.half_length, 0.0])
+        bearing = math.atan2(away[1], away[0]) + rng.uniform(-1.0, 1.0)  # behind the ball, seen from the goal
+        robot = self._inside(ball + rng.uniform(1.5, 3.0) * length * np.array([np.cos(bearing), np.sin(bearing)]),
+                             0.5 * length)  # fmt: skip
+        facing = math.atan2(*(ball - robot)[::-1]) + rng.uniform(-0.8, 0.8)
+        return np.array([*robot, facing]), ball
+
+    def keeper_place(self, rng: np.random.Generator, ball: np.ndarray, length: float) -> np.ndarray:
+        """Where the scripted keeper stands at the start: as it plays, ``KEEP`` body lengths out from its goal's
+        centre toward the ball, facing the ball, within a tenth of a body length and 0.1 rad."""
+        goal = np.array([self.field.half_length, 0.0])
+        toward = ball - goal
+        reach = min(KEEP * length, float(np.hypot(*toward)))
+        place = goal + toward / max(float(np.hypot(*toward)), 1e-9) * reach
+        place = place + rng.uniform(-0.1, 0.1, 2) * length
+        facing = math.atan2(*(ball - place)[::-1]) + rng.uniform(-0.1, 0.1)
+        return np.array([*place, facing])
+
+    def fallen(self, state: dict[str, np.ndarray]) -> np.ndarray:
+        """(rows,) bool: which rows fell or broke the ground rules (the keeper's decide when it is put back)."""
+        return SoccerTask.terminated(self, state)
+
+
 class AcademyEnv(SkitterEnv):
     """A robot alone on its soccer field with a ball (see :class:`AcademyTask`); subclasses (:func:`make_academy`)
     name the robot, the field and the task.
@@ -188,20 +251,30 @@ class AcademyEnv(SkitterEnv):
         robot_class = self.robot_class
         first = next(iter(robot_class.action_modes))
         mode = first if action_mode in (None, COMMANDS) else action_mode
+        players = self.task_class.players
+        if len(players) > 1 and mode != first:  # the others play through the reference gait, which runs that mode
+            raise ValueError(f"action_mode must be {first!r} or {COMMANDS!r} with a scripted player on the field "
+                             f"(its gait runs the robot's {first!r} mode), got {action_mode!r}")  # fmt: skip
         imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
         scene = SharedScene(
             lambda: robot_class(action_mode=mode, control_freq=control_freq, imu_noise=imu),
-            [PLAYER],
-            [field_edit(self.field, [PLAYER], robot_class.root_body, HEADS.get(robot_class.name))],
+            players,
+            [field_edit(self.field, players, robot_class.root_body, HEADS.get(robot_class.name))],
         )
         self.scene = scene
         head = HEADS.get(robot_class.name)
         task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
                                terminate_when_unhealthy, height_band, grace_time, head)  # fmt: skip
-        super().__init__(scene.robot, task, reset_noise_scale, None, telemetry, render_mode, width, height)
-        if action_mode == COMMANDS:  # speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
-            self.commands = Commands(scene.robot)
-            self.action_space = spaces.Box(-1.0, 1.0, shape=(self.commands.mode.size,), dtype=np.float32)
+        # speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
+        commands = Commands(scene.robot) if action_mode == COMMANDS else None
+        robot: Any = scene.robot
+        if len(players) > 1:  # the learner's rows of a scene with a scripted keeper (envs/soccer/keeper.py)
+            self.keeper = KeeperMatch(scene, task, commands)
+            robot, task, commands = self.keeper.robot, self.keeper.task, self.keeper.commands
+        super().__init__(robot, task, reset_noise_scale, None, telemetry, render_mode, width, height)
+        if commands is not None:
+            self.commands = commands
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(commands.mode.size,), dtype=np.float32)
 
     @property
     def model(self):
@@ -258,9 +331,16 @@ HISTORY = {
 }  # fmt: skip
 
 
-def version(robot: str) -> int:
-    """The academy ids' version for a robot (its name in ids, as ``Bioloid``)."""
-    return len(HISTORY[robot])
+def history(robot: str, task_class: type[AcademyTask] | None = None) -> tuple[str, ...]:
+    """The version history of a robot's academy id (its name in ids, as ``Bioloid``): the task's own where it has one
+    (a task added after the others starts at v1), else the robot's academy's."""
+    own = None if task_class is None else task_class.history
+    return tuple(HISTORY[robot]) if own is None else own
+
+
+def version(robot: str, task_class: type[AcademyTask] | None = None) -> int:
+    """The academy id's version for a robot (its name in ids, as ``Bioloid``) and task (default: GoToBall's)."""
+    return len(history(robot, task_class))
 
 
 def make_academy(robot_class: type[Robot], field: Field, task_class: type[AcademyTask], robot: str,
@@ -268,9 +348,9 @@ def make_academy(robot_class: type[Robot], field: Field, task_class: type[Academ
     """The academy env class of a robot (``robot``: its name in ids) and a task, with its entry points, as attributes
     of this module."""
     name = f"{title}Env"
-    history = "".join(f"    - v{i}: {entry}\n" for i, entry in enumerate(HISTORY[robot], start=1))
+    versions = "".join(f"    - v{i}: {entry}\n" for i, entry in enumerate(history(robot, task_class), start=1))
     doc = MANUAL.format(title=title, task=task_class.__doc__, robot=robot_class.__name__, field=field.name,
-                        seconds=f"{EPISODE_SECONDS:g}", history=history)  # fmt: skip
+                        seconds=f"{EPISODE_SECONDS:g}", history=versions)  # fmt: skip
     attributes = {"robot_class": robot_class, "task_class": task_class, "field": field, "__module__": __name__,
                   "__qualname__": name, "__doc__": doc}  # fmt: skip
     env_class = type(name, (AcademyEnv,), attributes)

@@ -51,8 +51,10 @@ class Steering(ABC):
         """Players ``ids`` start again (a gait with a clock of its own starts it at 0)."""
 
     @abstractmethod
-    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
-        """The robot's commands (n, its mode's size) for the next control step, in its physical units."""
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """The robot's commands (n, its mode's size) for the next control step, in its physical units, of the
+        robot's simulations ``rows`` (default: all of them, in order; a gait with a state of its own keeps it per
+        simulation)."""
 
 
 class RoachSteering(Steering):
@@ -70,7 +72,7 @@ class RoachSteering(Steering):
     drives = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
     turns = (-8.0, -4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0, 8.0)
 
-    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         half = 0.5 * np.asarray(turn)
         left, right = drive - half, drive + half
         return np.column_stack([left, right, np.full_like(left, np.pi)])
@@ -87,9 +89,11 @@ class XjusSteering(Steering):
     SPIN = np.pi  # the turn that runs a side backward (beyond any sweep difference: the sweeps span pi / 2)
     turns = (-SPIN, *np.radians(np.arange(-60.0, 61.0, 15.0)).tolist(), SPIN)
 
-    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         spin = np.abs(turn) >= self.SPIN
-        self.robot.backward[:] = np.column_stack([spin & (turn > 0), spin & (turn < 0)])
+        self.robot.backward[slice(None) if rows is None else rows] = np.column_stack(
+            [spin & (turn > 0), spin & (turn < 0)]
+        )
         half = np.where(spin, 0.0, 0.5 * turn)
         low, high = xjus.SWEEP_RANGE
         sweeps = np.clip(np.column_stack([xjus.WALK_SWEEP - half, xjus.WALK_SWEEP + half]), low, high)
@@ -124,17 +128,21 @@ class BioloidSteering(Steering):
     def reset(self, ids: np.ndarray) -> None:
         self.clock[ids] = 0.0
 
-    def commands(self, drive: np.ndarray, turn: np.ndarray) -> np.ndarray:
-        lead = self.goals.lead_in(self.clock)
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        clock = self.clock if rows is None else self.clock[rows]
+        lead = self.goals.lead_in(clock)
         stride = np.asarray(drive) * lead
-        goal, _ = self.goals.counts(self.clock, np.repeat(stride[:, None], len(bioloid.LEGS), axis=1))
+        goal, _ = self.goals.counts(clock, np.repeat(stride[:, None], len(bioloid.LEGS), axis=1))
         # the sole's place along its stride, +1 at touch-down to -1 at lift-off; turning left, a front foot steps
         # from its left to its right in the stance (it pushes the body's front to the left) and a back foot the
         # other way; an abduction of +0.1 rad moves a sole 1.6 cm to the robot's right on every leg
-        along = -np.cos(self.goals.phase(self.clock))
+        along = -np.cos(self.goals.phase(clock))
         leftward = (np.asarray(turn) * lead)[:, None] * self.TURN_ABDUCTION * self._FRONT[None, :] * along
         goal[:, self._ABDUCTION] -= leftward / bioloid.RAD_PER_COUNT
-        self.clock = self.clock + self.dt
+        if rows is None:
+            self.clock = self.clock + self.dt
+        else:
+            self.clock[rows] += self.dt
         return goal
 
 
@@ -205,8 +213,9 @@ class Commands:
     def reset(self, ids: np.ndarray) -> None:
         self.steering.reset(ids)
 
-    def robot_commands(self, actions: np.ndarray) -> np.ndarray:
-        """The robot's own commands (n, its mode's size) for normalized actions (n, 2)."""
+    def robot_commands(self, actions: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """The robot's own commands (n, its mode's size) for normalized actions (n, 2) of its simulations ``rows``
+        (default: all of them)."""
         wanted = self.mode.to_command(actions)
         drive, turn = self.map.controls(wanted[:, 0], wanted[:, 1])
-        return self.steering.commands(drive, turn)
+        return self.steering.commands(drive, turn, rows)

@@ -25,10 +25,11 @@ from envs.soccer.field import Field
 BEHIND = 0.6  # body lengths behind the ball (beyond its radius) where a field player lines up
 LINED_UP = 0.35  # body lengths off the line (and behind the ball) within which it pushes
 KEEP = 1.5  # body lengths in front of its goal's centre where the keeper stands, toward the ball
+AT_PLACE = 0.5  # body lengths from its place within which the keeper stands and faces the ball
 TURN_GAIN = 2.0  # rad/s of commanded turn rate per rad of bearing
 SLOW_WITHIN = 2.0  # body lengths from its target within which a player slows down
 CRUISE = 10.0  # body lengths per second: the fastest a player runs (the roach's tripod runs 24; it overshoots)
-PUSH = 0.5  # of its cruising speed, with which a player pushes the ball (and the least it slows to)
+PUSH = 0.5  # of its cruising speed, with which a player pushes the ball (and the least a field player slows to)
 STUCK_SECONDS = 2.0  # a player that has neither moved nor turned for this long, wanting to, is stuck, or
 STUCK_LENGTHS = 2.0  # for as long as it takes to walk this many body lengths at cruise, if longer (a slow robot)
 STUCK_MOVE = 0.3  # body lengths: less than this from where it was is not moving
@@ -123,7 +124,8 @@ class ScriptedPlayer:
         distance = np.linalg.norm(target, axis=1)
         yaw_rate = np.clip(TURN_GAIN * bearing, self.mode.low[1], self.mode.high[1])
         facing = np.maximum(np.cos(bearing), 0.0) ** 2
-        near = np.where(pushing, PUSH, np.clip(distance / (SLOW_WITHIN * self.length), PUSH, 1.0))
+        least = 0.0 if self.keeper else PUSH  # the keeper comes to rest at its place; a field player keeps pace
+        near = np.where(pushing, PUSH, np.clip(distance / (SLOW_WITHIN * self.length), least, 1.0))
         return self.cruise * facing * near, yaw_rate
 
     @property
@@ -159,7 +161,7 @@ class ScriptedPlayer:
         idle = np.zeros(n, dtype=bool)
         if self.keeper:  # at its place, it faces the ball
             ball = self.layout.get(obs, "ball")
-            idle = np.linalg.norm(target, axis=1) < 0.3 * self.length
+            idle = np.linalg.norm(target, axis=1) < AT_PLACE * self.length
             low, high = self.mode.low[1], self.mode.high[1]
             yaw_rate = np.where(idle, np.clip(TURN_GAIN * np.arctan2(ball[:, 1], ball[:, 0]), low, high), yaw_rate)
             speed = np.where(idle, 0.0, speed)
