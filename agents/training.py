@@ -85,6 +85,7 @@ import envs  # noqa: F401  (registers the skitter envs)
 from agents.config import ConfigError
 from agents.evaluation import episode_metrics
 from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
+from agents.tuning import RunCode, tune
 from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
 from envs.common.io import (
@@ -573,6 +574,10 @@ def build_model(algo: str, hp: Hyperparams, venv: VecEnv, seed: int) -> BaseAlgo
 # --- run folders, checkpoints, saving ---------------------------------------------------------------------------
 
 
+RUN_CODE = RunCode(resolve_hyperparams, make_env, build_model, TORCH_THREADS)
+"""The functions a tuning trial trains with (agents/tuning.py): a run's own."""
+
+
 def run_name(env_id: str, algo: str, seed: int) -> str:
     stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
     return f"{env_id.replace('/', '_')}__{algo}__{seed}__{stamp}"
@@ -946,6 +951,21 @@ def start_run(args: argparse.Namespace) -> Path:
         return train(model, run_dir, config, progress=not args.no_progress)
 
 
+def start_tuning(args: argparse.Namespace) -> Path:
+    """An Optuna study from the command line (``--tune``; agents/tuning.py); returns its folder."""
+    check_runs_dir(Path(args.runs_dir))
+    check_env_id(args.env)
+    hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
+    table = read_yaml(hyperparams_file)
+    entry = table.get(args.env) if isinstance(table, dict) else None
+    if not isinstance(entry, dict):
+        raise ConfigError(f"{hyperparams_file}: no entry (a mapping of hyperparameters) for env {args.env!r}")
+    base = {**entry, **({"n_envs": args.n_envs} if args.n_envs is not None else {})}
+    return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {args.env}", args.tune, args.timesteps,
+                Path(args.runs_dir), args.storage, args.study, 0 if args.seed is None else args.seed,
+                args.evaluations, args.eval_episodes, args.minutes, command_line())  # fmt: skip
+
+
 def start_selfplay(args: Any) -> Path:
     """A new self-play run from train.py's command line (``--soccer``); returns the final model's path."""
     from agents.soccer.selfplay import SelfPlayCallback, SelfPlayVecEnv
@@ -1205,6 +1225,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--minutes", type=float,
                         help="stop after this much wall time (the model is saved as at --timesteps)")  # fmt: skip
+    tuning = parser.add_argument_group("hyperparameter tuning (agents/tuning.py; Optuna, PPO and SAC)")
+    tuning.add_argument("--tune", type=_positive_int, metavar="TRIALS",
+                        help="run this many Optuna trials of --timesteps each instead of one run")  # fmt: skip
+    tuning.add_argument("--storage", help="the study's database URL (default sqlite:///<runs-dir>/tuning.db)")
+    tuning.add_argument("--study", help="the study's name (default <env>__<algo>); processes sharing it share trials")
+    tuning.add_argument("--evaluations", type=_positive_int, default=4,
+                        help="evaluations per trial, each reported to the pruner (default 4)")  # fmt: skip
+    tuning.add_argument("--eval-episodes", type=_positive_int, default=5,
+                        help="episodes per evaluation (default 5)")  # fmt: skip
     soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
     soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
     soccer.add_argument("--players", type=_positive_int, default=3, help="players a side, 1 to 4 (default 3)")
@@ -1235,6 +1264,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
         if not 0.0 <= args.scripted_share <= 1.0:
             parser.error(f"--scripted-share must be in [0, 1], got {args.scripted_share}")
+    if args.tune is not None:
+        if args.resume or args.soccer is not None:
+            parser.error("--tune runs a study of one env's training: not with --resume or --soccer")
+        for flag, value in (("--env", args.env), ("--algo", args.algo), ("--timesteps", args.timesteps)):
+            if value is None:
+                parser.error(f"--tune needs {flag}")
+        if args.algo not in ("ppo", "sac"):
+            parser.error(f"--tune tunes ppo and sac, not {args.algo}")
+    elif args.storage is not None or args.study is not None:
+        parser.error("--storage and --study go with --tune")
     for flag, value in (("--runs-dir", args.runs_dir), ("--resume", args.resume)):
         if value is not None and not value.strip():
             parser.error(f"argument {flag}: expected a folder, got an empty path {value!r}")
@@ -1257,6 +1296,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"train.py: error: {exc}", file=sys.stderr)
         return 2
     try:
+        if args.tune is not None:
+            with sigterm_as_interrupt():
+                folder = start_tuning(args)
+            print(f"study: {folder} (best.yml, trials.csv, study.json)")
+            return 0
         with sigterm_as_interrupt():  # SIGTERM too: train() saves a checkpoint first
             model_path = resume_run(args) if args.resume else start_run(args)
     except ConfigError as exc:

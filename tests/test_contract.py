@@ -128,11 +128,13 @@ def test_an_episode_replays_exactly_from_its_controls_through_mujoco_rollout(env
     start = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
     mujoco.mj_getState(model, data, start, STATE_SPEC)
     warmstart = data.qacc_warmstart.copy()
+    # the model's simulation: a soccer env's scene (every player's controls), else the robot's
+    sim = base.scene.sim if hasattr(base, "scene") else base.robot.sim
     env.action_space.seed(3)
     blocks, qpos = [], []
     for _ in range(40 if "Duty" not in env_id else 400):
         env.step(env.action_space.sample())
-        blocks.append(base.robot.sim.ctrl[0].copy())
+        blocks.append(sim.ctrl[0].copy())
         qpos.append(data.qpos.copy())
     control = np.concatenate(blocks)[None]
     state, _ = mujoco.rollout.rollout(

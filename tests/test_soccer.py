@@ -247,10 +247,15 @@ def test_the_keeper_stands_between_the_ball_and_its_goal(robot):
         f"home_0/{base.robot.root_body}").xpos[:2]), rel=0.3)  # fmt: skip
 
 
-def test_a_fallen_keeper_is_put_back_beside_its_goal_and_the_episode_goes_on():
+@pytest.mark.parametrize("on_a_spot", [False, True])
+def test_a_fallen_keeper_is_put_back_beside_its_goal_and_the_episode_goes_on(on_a_spot):
+    """Flipped over, the keeper stands again beside its goal in the next step, away from the learner even when the
+    learner stands on one of its places; the learner's episode goes on and ``info`` counts the put-back."""
     env = gym.make("skitter/XjusScoreVsKeeper-v1")
     base = env.unwrapped
-    env.reset(seed=1)
+    field, length = base.field, base.robot.facts.length
+    spot = [field.half_length - 0.5 * length, 0.5 * field.goal_width + length, math.pi]
+    env.reset(seed=1, options={"robot": spot, "ball": [field.half_length - 4 * length, 0.3]} if on_a_spot else None)
     action = np.zeros(env.action_space.shape, dtype=np.float32)
     env.step(action)
     qadr = base.model.jnt_qposadr[base.model.body(f"{academy.KEEPER}/{base.robot.root_body}").jntadr[0]]
@@ -268,11 +273,20 @@ def test_a_fallen_keeper_is_put_back_beside_its_goal_and_the_episode_goes_on():
     assert not ended, "the learner's episode goes on"
     assert put_back is not None, "the keeper stands again beside its goal"
     assert abs(put_back[1]) >= 0.5 * base.field.goal_width
+    learner = base.data.body(f"home_0/{base.robot.root_body}").xpos[:2]
+    assert np.linalg.norm(put_back[:2] - learner) > 1.5 * length
+    _, _, _, _, info = env.step(action)
+    assert info["keeper_put_back"] == 1.0 and info["keeper_x"] == pytest.approx(put_back[0], abs=0.05)
 
 
 def test_a_scripted_keeper_takes_only_the_gaits_mode_or_commands():
     with pytest.raises(ValueError, match="action_mode must be 'gait' or 'commands'"):
         gym.make("skitter/RoachScoreVsKeeper-v1", action_mode="duty")
     env = gym.make("skitter/RoachScoreVsKeeper-v1")
-    with pytest.raises(ValueError, match=r"options\['keeper'\]"):
-        env.reset(seed=0, options={"keeper": [0.0, 0.0]})
+    for bad in ([0.0, 0.0], {"x": 1.0}, [1.0, "a", 0.0]):
+        with pytest.raises(ValueError, match=r"options\['keeper'\]"):
+            env.reset(seed=0, options={"keeper": bad})
+    with pytest.raises(ValueError, match="a body length"):
+        env.reset(seed=0, options={"robot": [0.0, 0.0, 0.0], "keeper": [0.05, 0.0, 0.0]})
+    with pytest.raises(ValueError, match="options must be a dict"):
+        env.reset(seed=0, options=[1, 2])

@@ -95,6 +95,7 @@ class SkitterEnv(gym.Env):
 
     # --- gymnasium API --------------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        check_options(options)
         super().reset(seed=seed)
         rngs = [self.np_random]
         if self.randomize:
@@ -223,6 +224,12 @@ class SkitterEnv(gym.Env):
         """What evaluation needs to turn an episode's last ``info`` into metrics: the robot's mass and length, the
         task's own metrics."""
         return {"mass": self.robot.facts.mass, "length": self.robot.facts.length, "task": self.task}
+
+
+def check_options(options: Any) -> None:
+    """A reset's ``options``: None or a mapping of names (ValueError otherwise)."""
+    if options is not None and not isinstance(options, Mapping):
+        raise ValueError(f"options must be a dict of named options or None, got {type(options).__name__} {options!r}")
 
 
 def episode_steps(seconds: float | None, dt: float) -> int | None:

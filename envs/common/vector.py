@@ -24,7 +24,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.common.env import EPISODE_SECONDS, SkitterEnv, episode_steps
+from envs.common.env import EPISODE_SECONDS, SkitterEnv, check_options, episode_steps
 from envs.common.parameters import sample
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import batched_robots
@@ -90,6 +90,7 @@ class SkitterVectorEnv(VectorEnv):
 
     # --- reset and step -------------------------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        check_options(options)
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
         ids = np.arange(self.num_envs) if mask is None else np.flatnonzero(self._check_mask(mask))

@@ -69,7 +69,10 @@ class AcademyTask(SoccerTask):
         """((x, y, heading) of the robot, (x, y) of the ball) for one episode."""
 
     def _option_place(self, value: Any, size: int, name: str) -> np.ndarray:
-        place = np.asarray(value, dtype=np.float64) if not isinstance(value, str | bytes) else np.zeros(0)
+        try:
+            place = np.asarray(value, dtype=np.float64) if not isinstance(value, str | bytes) else np.zeros(0)
+        except (TypeError, ValueError):  # a mapping, a ragged list: not numbers
+            place = np.zeros(0)
         hl, hw = self.field.half_length, self.field.half_width
         if place.shape != (size,) or not np.isfinite(place).all() or abs(place[0]) > hl or abs(place[1]) > hw:
             raise ValueError(
@@ -179,6 +182,10 @@ class ScoreVsKeeperTask(ScoreEmptyGoalTask):
             keeper_place = self.keeper_place(rng, ball_xy, length)
             if "keeper" in options:
                 keeper_place = self._option_place(options["keeper"], 3, "keeper")
+            placed = "keeper" in options or "robot" in options  # the draws keep them apart themselves
+            if placed and np.hypot(*(keeper_place[:2] - robot_place[:2])) < length:
+                raise ValueError(f"options: the keeper {keeper_place.tolist()} and the robot {robot_place.tolist()} "
+                                 f"must stand a body length ({length:g} m) apart or more")  # fmt: skip
             self.scene.placement[2 * i] = robot_place
             self.scene.placement[2 * i + 1] = keeper_place
             self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
@@ -287,17 +294,17 @@ class AcademyEnv(SkitterEnv):
 MANUAL = """{title}: {task}
 
     ## Description
-    The {robot} alone on its soccer field ({field}, envs/soccer/field.py) with its ball, the first rung of the
-    soccer academy (docs/soccer.md). The robot and the ball are placed at random each episode.
+    The {robot} {company} on its soccer field ({field}, envs/soccer/field.py) with its ball, a rung of the soccer
+    academy (docs/soccer.md). The robot and the ball are placed at random each episode.
 
     ## Action Space
-    The robot's own, as in its walking env (``action_mode``: its modes, default the first), normalized to [-1, 1];
-    or ``action_mode="commands"``: forward speed and turn rate (2), run by its reference gait as in matches.
+    {modes}, normalized to [-1, 1]; or ``action_mode="commands"``: forward speed and turn rate (2), run by its
+    reference gait as in matches.
 
     ## Observation Space
     The robot's proprioception, then the soccer task's egocentric view (``observation_structure`` names every
     slice): ``heading_error`` against the +x goal, ``ball`` and ``ball_velocity`` in its frame with noise of
-    ``ball_noise`` times the ball's distance, ``ball_visible`` (``field_of_view``), ``goal`` and ``own_goal``.
+    ``ball_noise`` times the ball's distance, ``ball_visible`` (``field_of_view``), ``goal`` and ``own_goal``{seen}.
 
     ## Rewards
     Named terms in ``info`` (``reward_<term>``), summed: the task's +1 (above), -1 for an own goal, and the
@@ -306,7 +313,7 @@ MANUAL = """{title}: {task}
 
     ## Starting State
     The task draws the robot's place and heading and the ball's; ``reset(options={{"robot": (x, y, heading),
-    "ball": (x, y)}})`` sets them.
+    "ball": (x, y){keeper_option}}})`` sets them.
 
     ## Episode End
     Terminated on the task's success, an own goal, or a fall or a ground rule broken (as in the walking tasks;
@@ -349,8 +356,19 @@ def make_academy(robot_class: type[Robot], field: Field, task_class: type[Academ
     of this module."""
     name = f"{title}Env"
     versions = "".join(f"    - v{i}: {entry}\n" for i, entry in enumerate(history(robot, task_class), start=1))
+    keeper = KEEPER in task_class.players
+    first = next(iter(robot_class.action_modes))
+    modes = (f"The robot's {first!r} mode, as in its walking env (its other modes are refused: the keeper's gait "
+             f"runs that one)" if keeper else
+             "The robot's own, as in its walking env (``action_mode``: its modes, default the first)")  # fmt: skip
     doc = MANUAL.format(title=title, task=task_class.__doc__, robot=robot_class.__name__, field=field.name,
-                        seconds=f"{EPISODE_SECONDS:g}", history=versions)  # fmt: skip
+                        seconds=f"{EPISODE_SECONDS:g}", history=versions, modes=modes,
+                        company="with the scripted team's keeper (a second one, in the goal at +x)" if keeper
+                        else "alone",
+                        seen=(", and ``opponents``: the keeper's place in its frame, noisy as the ball (not limited "
+                              "by ``field_of_view``); ``info`` has ``keeper_x``, ``keeper_y`` and ``keeper_put_back``"
+                              if keeper else ""),
+                        keeper_option=', "keeper": (x, y, heading)' if keeper else "")  # fmt: skip
     attributes = {"robot_class": robot_class, "task_class": task_class, "field": field, "__module__": __name__,
                   "__qualname__": name, "__doc__": doc}  # fmt: skip
     env_class = type(name, (AcademyEnv,), attributes)

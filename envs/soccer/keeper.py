@@ -66,6 +66,7 @@ class KeeperMatch:
         self.full: dict[str, np.ndarray] = {}  # the last readings of every row
         self.down = np.zeros(n, dtype=bool)  # keepers that fell in the last step
         self.placed = np.zeros(n * k, dtype=bool)  # rows put back after the last step's physics
+        self.put_backs = np.zeros(n)  # each episode's keeper put-backs so far
         self.robot = LearnerRobot(self)
         self.task = LearnerTask(self)
         self.commands = LearnerCommands(self) if commands is not None else None
@@ -98,19 +99,29 @@ class KeeperMatch:
         return self.steering.robot_commands(action, self.keeper)
 
     def put_back(self, scenes: np.ndarray) -> None:
-        """Stand the fallen keepers of ``scenes`` beside their goal, on the side away from the ball, facing the
-        field; their rows are not stepped in this step's readings (:meth:`expand`)."""
-        field, length = self.inner_task.field, self.inner_robot.facts.length
-        ball_y = self.scene.scene_sensor(BALL_POS)[scenes, 1]
-        side = np.where(ball_y > 0.0, -1.0, 1.0)
+        """Stand the fallen keepers of ``scenes`` beside their goal, facing the field, at whichever of
+        :meth:`return_places` lies furthest from the ball and the learner; their rows are not stepped in this step's
+        readings (:meth:`expand`)."""
+        places = self.return_places()
+        ball = self.scene.scene_sensor(BALL_POS)[scenes, :2]
+        learner = self.full["position"][self.learner[scenes], :2]
+        clearance = np.minimum(np.linalg.norm(places[None, :, :2] - ball[:, None], axis=2),
+                               np.linalg.norm(places[None, :, :2] - learner[:, None], axis=2))  # fmt: skip
         rows = self.keeper[scenes]
-        self.scene.placement[rows, 0] = field.half_length - 0.5 * length
-        self.scene.placement[rows, 1] = side * (0.5 * field.goal_width + length)
-        self.scene.placement[rows, 2] = math.pi
+        self.scene.placement[rows] = places[np.argmax(clearance, axis=1)]
         self.inner_robot.reset(rows, [self.keeper_rngs[s] for s in scenes], self.noise, None)
         self.steering.reset(rows)
         self.fresh[scenes] = True
         self.placed[rows] = True
+        self.put_backs[scenes] += 1
+
+    def return_places(self) -> np.ndarray:
+        """Where a fallen keeper may come back, (4, 3) (x, y, heading): beside either post, a body length out, and
+        three body lengths out, half a body length in from the goal line, facing the field."""
+        field, length = self.inner_task.field, self.inner_robot.facts.length
+        x = field.half_length - 0.5 * length
+        ys = [side * (0.5 * field.goal_width + out * length) for out in (1.0, 3.0) for side in (1.0, -1.0)]
+        return np.array([[x, y, math.pi] for y in ys])
 
 
 class _View:
@@ -128,7 +139,9 @@ class _View:
 
 
 class LearnerRobot(_View):
-    """The robot as the env sees it: the learner's rows (``num_sims``: one per scene)."""
+    """The robot as the env sees it: the learner's rows (``num_sims``: one per scene) of what the env calls (reset,
+    command, step, read, telemetry). Whatever else it is asked comes from the robot underneath, whose arrays and
+    methods (``sim``, ``sensor``, ``battery``, ...) hold both players' rows: learner ``2 i``, keeper ``2 i + 1``."""
 
     _target = "inner_robot"
 
@@ -148,7 +161,7 @@ class LearnerRobot(_View):
         rows = m.rows(ids)
         m.inner_robot.reset(rows, m.row_rngs(ids, rngs), noise, options)
         m.steering.reset(rows)
-        m.fresh[ids], m.down[ids], m.placed[rows] = True, False, False
+        m.fresh[ids], m.down[ids], m.placed[rows], m.put_backs[ids] = True, False, False, 0.0
 
     def command(self, command: np.ndarray) -> None:
         m = self._match
@@ -201,6 +214,14 @@ class LearnerTask(_View):
         fell = m.inner_task.fallen(state)[m.keeper]
         m.down = fell if stepped is None else fell & stepped
         return {key: value[m.learner] for key, value in state.items()}
+
+    def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The task's info of the learner, and where the keeper is (``keeper_x``, ``keeper_y``, m) and how often it
+        was put back in the episode (``keeper_put_back``)."""
+        m = self._match
+        keeper = m.full["position"][m.keeper]
+        return {**m.inner_task.info(readings, state), "keeper_x": keeper[:, 0].copy(), "keeper_y": keeper[:, 1].copy(),
+                "keeper_put_back": m.put_backs.copy()}  # fmt: skip
 
     def observe(self, readings: dict[str, np.ndarray]) -> np.ndarray:
         m = self._match

@@ -1,0 +1,248 @@
+"""Hyperparameter tuning with Optuna: ``python train.py --tune N --env ID --algo ppo|sac --timesteps T``.
+
+Each trial draws hyperparameters (:data:`SPACES`) on top of the id's entry in the hyperparameter file (its ``n_envs``,
+``normalize``, ``env_kwargs`` and ``policy`` stay), trains a model for ``--timesteps`` env steps with a run's own code
+(agents/training.py: the same envs, normalization and model building), and evaluates it ``--evaluations`` times on
+the way, each time on ``--eval-episodes`` deterministic episodes of an env of its own (seeded :data:`EVAL_SEED`, the
+same episodes for every trial). Each evaluation's mean return goes to Optuna, whose median pruner stops a trial whose
+return lies below the median of the earlier trials' at the same step (after :data:`STARTUP_TRIALS` trials and the
+first third of a trial's steps). A trial's value is its last evaluation's mean return; the study maximizes it.
+
+Storage: an SQLite file by default (``sqlite:///<runs-dir>/tuning.db``) or any database URL that SQLAlchemy takes,
+such as ``postgresql://user@host:5432/db`` (the ``psycopg`` driver ships with skitter): every process that names the
+same ``--study`` there shares the study, each running its own trials (on several machines at once). A study is
+resumable: run the command again and it adds its trials to those done (a trial cut short by Ctrl-C is recorded as
+failed and not counted). The sampler is Optuna's TPE, seeded with ``--seed`` (processes sharing a study should use
+different seeds).
+
+Writes ``<runs-dir>/tuning/<study>/`` (each file written whole, or not at all): ``best.yml``, the id's
+hyperparameter entry with the best trial's values, ready to go into ``hyperparams/<algo>.yml``; ``trials.csv``,
+every trial of the study with its values, state and return; ``study.json``, the best trial, the counts and the
+command. Nothing in ``hyperparams/`` is changed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.utils import set_random_seed
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+
+from agents.config import ConfigError
+from envs.common.io import write_json, write_text
+
+if TYPE_CHECKING:
+    import optuna
+
+
+@dataclasses.dataclass(frozen=True)
+class RunCode:
+    """What a trial trains with: a run's own functions (agents/training.py's ``RUN_CODE``), so that a trial builds its
+    hyperparameters, envs and model exactly as ``train.py`` does."""
+
+    resolve_hyperparams: Callable[..., Any]
+    make_env: Callable[..., VecEnv]
+    build_model: Callable[..., Any]
+    torch_threads: int
+
+
+EVAL_SEED = 10**6  # the evaluation episodes' seed: away from the training seeds (0, 1, ...) of any run
+STARTUP_TRIALS = 5  # trials that run to the end before the pruner compares
+TUNABLE = ("ppo", "sac")
+GAMMAS = (0.98, 0.99, 0.995, 0.998, 0.999)
+WIDTHS = (64, 128, 256)  # hidden units of the two layers of the policy and value networks
+
+
+def _net(trial: optuna.Trial) -> str:
+    width = trial.suggest_categorical("net_width", WIDTHS)
+    return f"dict(net_arch=[{width}, {width}])"
+
+
+def sample_ppo(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, Any]:
+    """PPO's hyperparameters for a trial: a rollout no longer than the trial's budget, a minibatch no larger than a
+    rollout."""
+    steps = [n for n in (128, 256, 512, 1024, 2048) if n * n_envs <= max(timesteps, 128 * n_envs)]
+    n_steps = trial.suggest_categorical("n_steps", steps)
+    batch = trial.suggest_categorical("batch_size", (64, 128, 256, 512))
+    return {
+        "n_steps": n_steps,
+        "batch_size": min(batch, n_steps * n_envs),
+        "n_epochs": trial.suggest_categorical("n_epochs", (5, 10, 20)),
+        "learning_rate": trial.suggest_float("learning_rate", 1e-5, 3e-3, log=True),
+        "gamma": trial.suggest_categorical("gamma", GAMMAS),
+        "gae_lambda": trial.suggest_categorical("gae_lambda", (0.9, 0.95, 0.98, 0.99)),
+        "clip_range": trial.suggest_categorical("clip_range", (0.1, 0.2, 0.3)),
+        "ent_coef": trial.suggest_float("ent_coef", 1e-8, 1e-2, log=True),
+        "max_grad_norm": trial.suggest_categorical("max_grad_norm", (0.3, 0.5, 1.0, 2.0)),
+        "policy_kwargs": _net(trial),
+    }
+
+
+def sample_sac(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, Any]:
+    """SAC's hyperparameters for a trial: learning starts within the first quarter of the trial's budget."""
+    train_freq = trial.suggest_categorical("train_freq", (1, 4, 8))
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 1e-5, 3e-3, log=True),
+        "batch_size": trial.suggest_categorical("batch_size", (64, 128, 256, 512)),
+        "buffer_size": trial.suggest_categorical("buffer_size", (100_000, 300_000, 1_000_000)),
+        "learning_starts": min(trial.suggest_categorical("learning_starts", (1000, 5000, 10000)), timesteps // 4),
+        "tau": trial.suggest_categorical("tau", (0.005, 0.01, 0.02)),
+        "gamma": trial.suggest_categorical("gamma", GAMMAS),
+        "train_freq": train_freq,
+        "gradient_steps": train_freq,
+        "policy_kwargs": _net(trial),
+    }
+
+
+SPACES: dict[str, Callable[[Any, int, int], dict[str, Any]]] = {"ppo": sample_ppo, "sac": sample_sac}
+
+
+class TrialEvalCallback(EvalCallback):
+    """SB3's evaluation every ``eval_freq`` calls, each result reported to the trial; a trial the pruner stops ends
+    its training (``pruned``)."""
+
+    def __init__(self, trial: optuna.Trial, eval_env: VecEnv, eval_freq: int, n_eval_episodes: int):
+        super().__init__(eval_env, n_eval_episodes=n_eval_episodes, eval_freq=eval_freq, deterministic=True,
+                         verbose=0, warn=False)  # fmt: skip
+        self.trial = trial
+        self.pruned = False
+        self.reported = 0
+
+    def _on_step(self) -> bool:
+        going = super()._on_step()
+        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            self.reported += 1
+            self.trial.report(float(self.last_mean_reward), self.num_timesteps)
+            if self.trial.should_prune():
+                self.pruned = True
+                return False
+        return going
+
+
+def eval_env(env_id: str, hp: Any, code: RunCode) -> VecEnv:
+    """One env of ``env_id`` made as the training envs are (the same wrappers, ``env_kwargs`` and normalization, whose
+    statistics SB3 copies from training at each evaluation, frozen here), seeded :data:`EVAL_SEED`."""
+    venv = code.make_env(env_id, dataclasses.replace(hp, n_envs=1), EVAL_SEED)
+    if isinstance(venv, VecNormalize):
+        venv.training, venv.norm_reward = False, False
+    return venv
+
+
+def storage_url(storage: str | None, runs_dir: Path) -> str:
+    """The study's database: ``storage`` as given, or an SQLite file in ``runs_dir``."""
+    if storage is None:
+        return f"sqlite:///{(runs_dir / 'tuning.db').resolve()}"
+    if not storage.strip() or "://" not in storage:
+        raise ConfigError(f"--storage {storage!r}: expected a database URL (sqlite:///file.db, postgresql://...)")
+    return storage
+
+
+def study_name(env_id: str, algo: str) -> str:
+    return f"{env_id.replace('/', '_')}__{algo}"
+
+
+def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str, trials: int, timesteps: int,
+         runs_dir: Path, storage: str | None = None, study: str | None = None, seed: int = 0, evaluations: int = 4,
+         eval_episodes: int = 5, minutes: float | None = None, command: str = "") -> Path:  # fmt: skip
+    """Run ``trials`` trials of the study (see the module docstring) and write its files; returns their folder.
+
+    Args:
+        code: the run's functions the trials train with.
+        base: the id's entry in the hyperparameter file (``where`` names it in messages); each trial's draws
+            replace its fields.
+        minutes: stop starting trials after this much wall time (a running trial finishes).
+    """
+    import optuna
+    import torch
+
+    if algo not in TUNABLE:
+        raise ConfigError(f"--tune tunes {' and '.join(TUNABLE)}, not {algo}")
+    if evaluations < 1 or eval_episodes < 1:
+        raise ConfigError("--evaluations and --eval-episodes must be at least 1")
+    torch.set_num_threads(code.torch_threads)  # as a run trains
+    hp0 = code.resolve_hyperparams(base, algo, where)  # the entry itself must hold before any trial runs
+    code.make_env(env_id, hp0, seed).close()  # and its env_kwargs
+    name = study or study_name(env_id, algo)
+    url = storage_url(storage, runs_dir)
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    pruner = optuna.pruners.MedianPruner(n_startup_trials=STARTUP_TRIALS, n_warmup_steps=timesteps // 3)
+    sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS)
+    try:
+        the_study = optuna.create_study(storage=url, study_name=name, direction="maximize", sampler=sampler,
+                                        pruner=pruner, load_if_exists=True)  # fmt: skip
+    except ImportError as exc:
+        raise ConfigError(f"--storage {url}: {exc}") from None
+    except Exception as exc:  # SQLAlchemy's errors: a server that does not answer, a bad URL, a locked file
+        raise ConfigError(f"--storage {url}: cannot open the study ({type(exc).__name__}: {exc})") from None
+    the_study.set_user_attr("env_id", env_id)
+    the_study.set_user_attr("algo", algo)
+
+    def objective(trial: optuna.Trial) -> float:
+        drawn = SPACES[algo](trial, hp0.n_envs, timesteps)
+        hp = code.resolve_hyperparams({**base, **drawn}, algo, f"{where} (trial {trial.number})")
+        trial.set_user_attr("hyperparams", drawn)
+        set_random_seed(seed + trial.number)
+        venv = code.make_env(env_id, hp, seed + 1000 * trial.number)
+        evaluation = eval_env(env_id, hp, code)
+        try:
+            model = code.build_model(algo, hp, venv, seed + trial.number)
+            every = max(1, timesteps // (evaluations * hp.n_envs))
+            callback = TrialEvalCallback(trial, evaluation, every, eval_episodes)
+            model.learn(timesteps, callback=callback)
+            if callback.pruned:
+                raise optuna.TrialPruned()
+            value = float(callback.last_mean_reward)
+            if not math.isfinite(value):
+                raise optuna.TrialPruned()
+            return value
+        finally:
+            venv.close()
+            evaluation.close()
+
+    try:
+        the_study.optimize(
+            objective, n_trials=trials, timeout=None if minutes is None else 60.0 * minutes, catch=(ValueError,)
+        )  # fmt: skip (a diverged trial: NaN in the policy; recorded, not fatal)
+    finally:
+        folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command)
+    return folder
+
+
+def _as_entry(base: dict[str, Any], hyperparams: dict[str, Any]) -> dict[str, Any]:
+    """The id's entry with a trial's drawn values, as the YAML file holds them (plain numbers and strings)."""
+    entry = {**base, **hyperparams}
+    return {k: (float(v) if isinstance(v, float) else v) for k, v in entry.items()}
+
+
+def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder: Path, url: str,
+                command: str) -> Path:  # fmt: skip
+    """The study's files (see the module docstring) in ``folder``."""
+    import optuna
+
+    folder.mkdir(parents=True, exist_ok=True)
+    frame = study.trials_dataframe(attrs=("number", "value", "state", "params", "duration", "user_attrs"))
+    write_text(folder / "trials.csv", frame.to_csv(index=False))
+    states = [t.state for t in study.trials]
+    counts = {s.name.lower(): states.count(s) for s in optuna.trial.TrialState}
+    from sqlalchemy.engine import make_url
+
+    summary: dict[str, Any] = {"study": study.study_name, "env_id": env_id, "algo": algo,
+                               "storage": make_url(url).render_as_string(hide_password=True),
+                               "trials": counts, "command": command}  # fmt: skip
+    complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    if complete:
+        best = study.best_trial
+        entry = _as_entry(base, best.user_attrs.get("hyperparams", {}))
+        summary["best"] = {"trial": best.number, "value": best.value, "hyperparams": entry}
+        header = (f"# {algo} for {env_id}: the best of {len(complete)} complete trials of study {study.study_name} "
+                  f"(trial {best.number}, mean return {best.value:.4g}).\n# Made by: {command}\n")  # fmt: skip
+        write_text(folder / "best.yml", header + yaml.safe_dump({env_id: entry}, sort_keys=False))
+    write_json(folder / "study.json", summary)
+    return folder

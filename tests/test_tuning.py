@@ -1,0 +1,161 @@
+"""Hyperparameter tuning (agents/tuning.py): Optuna studies from train.py, in SQLite and in a real PostgreSQL."""
+
+import contextlib
+import csv
+import glob
+import json
+import os
+import pwd
+import shutil
+import socket
+import subprocess
+import tempfile
+from pathlib import Path
+
+import optuna
+import pytest
+import yaml
+from stable_baselines3 import PPO
+
+from agents.training import RUN_CODE, load_hyperparams, main, make_env, resolve_hyperparams
+from agents.tuning import TrialEvalCallback, eval_env, tune
+
+WALK = "skitter/RoachWalk-v2"
+# a tiny entry: 2 envs, episodes of 50 steps (1 s), so that a trial of 256 steps evaluates in a blink
+TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 50},
+        "n_steps": 128, "batch_size": 64}  # fmt: skip
+
+
+def train_py(*args, cwd: Path, monkeypatch) -> int:
+    """train.py's exit status for ``args``, run in this process from ``cwd``."""
+    monkeypatch.chdir(cwd)
+    return main([str(a) for a in args])
+
+
+def trials_csv(folder: Path) -> list[dict]:
+    with (folder / "trials.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_path, monkeypatch):
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({WALK: TINY}))
+    common = ("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs",
+              "--evaluations", 2, "--eval-episodes", 1)  # fmt: skip
+    assert train_py("--tune", 2, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
+    folder = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v2__ppo"
+    assert [row["state"] for row in trials_csv(folder)] == ["COMPLETE", "COMPLETE"]
+    assert (tmp_path / "runs" / "tuning.db").is_file(), "SQLite by default"
+    # best.yml is an entry train.py takes as it is, with the drawn values over the file's own
+    hp = load_hyperparams(folder / "best.yml", WALK, "ppo")
+    study = json.loads((folder / "study.json").read_text())
+    assert hp.n_envs == 2 and hp.env_kwargs == {"max_episode_steps": 50}
+    assert study["best"]["value"] == max(float(row["value"]) for row in trials_csv(folder))
+    assert hp.model_kwargs["learning_rate"] == study["best"]["hyperparams"]["learning_rate"]
+    assert train_py("--tune", 1, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
+    assert [int(row["number"]) for row in trials_csv(folder)] == [0, 1, 2], "the study goes on, keeping its trials"
+    assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
+
+
+def test_a_trial_below_the_pruners_bar_stops_training():
+    hp = resolve_hyperparams(TINY, "ppo", "tiny")
+    study = optuna.create_study(direction="maximize", pruner=optuna.pruners.ThresholdPruner(lower=1e12))
+    trial = study.ask()
+    venv, evaluation = make_env(WALK, hp, 0), eval_env(WALK, hp, RUN_CODE)
+    model = PPO(env=venv, seed=0, device="cpu", **hp.model_kwargs)
+    callback = TrialEvalCallback(trial, evaluation, eval_freq=64, n_eval_episodes=1)
+    model.learn(1024, callback=callback)
+    assert callback.pruned and callback.reported == 1
+    assert model.num_timesteps < 1024, "training stops at the first evaluation"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--algo", "td3"), "--tune tunes ppo and sac, not td3"),
+        (("--algo", "ppo", "--storage", "no-url"), "--storage 'no-url': expected a database URL"),
+        (("--algo", "ppo", "--storage", "postgresql://nobody@127.0.0.1:9/none"), "cannot open the study"),
+    ],
+)
+def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, args, message):
+    argv = ("--tune", 1, "--env", WALK, "--timesteps", 128, "--runs-dir", "runs", *args)
+    try:
+        status = train_py(*argv, cwd=tmp_path, monkeypatch=monkeypatch)
+    except SystemExit as exc:  # refused by the argument parser
+        status = exc.code
+    err = capsys.readouterr().err
+    assert status == 2 and message in err and "Traceback" not in err, err
+    assert not (tmp_path / "runs" / "tuning").exists(), "nothing written"
+
+
+def test_storage_and_study_need_tune(tmp_path, monkeypatch, capsys):
+    with pytest.raises(SystemExit) as exited:
+        train_py("--env", WALK, "--algo", "ppo", "--timesteps", 128, "--study", "x", cwd=tmp_path,
+                 monkeypatch=monkeypatch)  # fmt: skip
+    assert exited.value.code == 2 and "--storage and --study go with --tune" in capsys.readouterr().err
+
+
+def _server_binaries() -> tuple[str, str] | None:
+    """initdb and pg_ctl of this machine's PostgreSQL, if it has one."""
+    for folder in [os.path.dirname(shutil.which("initdb") or ""), *sorted(glob.glob("/usr/lib/postgresql/*/bin"))]:
+        initdb, pg_ctl = Path(folder, "initdb"), Path(folder, "pg_ctl")
+        if folder and initdb.is_file() and pg_ctl.is_file():
+            return str(initdb), str(pg_ctl)
+    return None
+
+
+@contextlib.contextmanager
+def postgresql_server():
+    """A PostgreSQL server of its own on loopback, in a temporary folder, stopped and removed after: yields its URL.
+    As root, the server runs as the ``postgres`` user (PostgreSQL refuses to run as root)."""
+    binaries = _server_binaries()
+    if binaries is None:
+        pytest.skip("no PostgreSQL server binary (initdb, pg_ctl) on this machine: apt install postgresql")
+    initdb, pg_ctl = binaries
+    user = None
+    if os.geteuid() == 0:
+        user = next((name for name in ("postgres", "nobody") if _has_user(name)), None)
+        if user is None:
+            pytest.skip("running as root with no unprivileged user for the PostgreSQL server")
+    folder = Path(tempfile.mkdtemp(prefix="skitter-pg-"))
+    if user is not None:
+        os.chown(folder, pwd.getpwnam(user).pw_uid, -1)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    data = folder / "data"
+
+    def run(*args: str) -> None:
+        subprocess.run(args, user=user, check=True, capture_output=True, timeout=120)
+
+    try:
+        run(initdb, "-D", str(data), "-U", "skitter", "--auth=trust", "-E", "UTF8")
+        run(pg_ctl, "-D", str(data), "-l", str(folder / "log"), "-w", "start",
+            "-o", f"-p {port} -h 127.0.0.1 -k {folder} -c fsync=off")  # fmt: skip
+        try:
+            yield f"postgresql://skitter@127.0.0.1:{port}/postgres"
+        finally:
+            run(pg_ctl, "-D", str(data), "-m", "immediate", "-w", "stop")
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _has_user(name: str) -> bool:
+    try:
+        pwd.getpwnam(name)
+    except KeyError:
+        return False
+    return True
+
+
+def test_two_workers_share_one_study_in_postgresql(tmp_path):
+    """Two processes' worth of trials (two seeds) go into one study on a real PostgreSQL server; the study holds
+    both, and a third reader sees them."""
+    with postgresql_server() as url:
+        for seed in (0, 1):
+            tune(RUN_CODE, WALK, "ppo", TINY, "tiny", 1, 256, tmp_path / "runs", storage=url, study="shared", seed=seed,
+                 evaluations=1, eval_episodes=1)  # fmt: skip
+        study = optuna.load_study(study_name="shared", storage=url)
+        assert [t.state.name for t in study.trials] == ["COMPLETE", "COMPLETE"]
+        summary = json.loads((tmp_path / "runs" / "tuning" / "shared" / "study.json").read_text())
+        assert summary["storage"].startswith("postgresql://skitter@127.0.0.1")
+        assert summary["trials"]["complete"] == 2
