@@ -14,7 +14,7 @@ DEMO_STEPS ?= 500000
 DEMO_EPISODES ?= 10
 DEMO_ID := demo-$(shell date +%Y%m%d-%H%M%S)
 
-.PHONY: setup test test-slow lint demo bench cpg-experiments clean
+.PHONY: setup test test-slow lint demo bench leaderboard cpg-experiments clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -41,6 +41,16 @@ demo: setup
 	$(BIN)/python train.py --env skitter/RoachWalk-v2 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
 	$(BIN)/python evaluate.py --env skitter/RoachWalk-v2 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
 		--episodes $(DEMO_EPISODES) --seed 1000 --out results/$(DEMO_ID)
+
+# the leaderboard (agents/leaderboard.py): PPO on each robot's walk, 3 seeds, an hour of 2 cores a row (9 hours in
+# all; rows already done are kept, a killed row resumes); writes results/leaderboard/ and docs/results.md
+LEADERBOARD_TASKS ?= skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2
+LEADERBOARD_SEEDS ?= 0 1 2
+LEADERBOARD_MINUTES ?= 60
+leaderboard: setup
+	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_TASKS) --algos ppo --seeds $(LEADERBOARD_SEEDS) \
+		--timesteps 100000000 --minutes $(LEADERBOARD_MINUTES) --episodes 20 --eval-seed 1000 \
+		--out results/leaderboard --docs docs/results.md
 
 bench: setup
 	$(BIN)/python -m benchmarks.env_speed

@@ -59,13 +59,33 @@ def reference_policy(robot: str) -> str:
     raise ValueError(f"no reference gait for the {robot}: its agents/<robot>/__init__.py names none (REFERENCE)")
 
 
+class RandomPolicy:
+    """Uniform actions over the env's action space, from a generator of its own (``random:SEED``, default seed 0):
+    the zero of a normalized score (the leaderboard's), on every robot."""
+
+    def __init__(self, env, arg: str = ""):
+        try:
+            seed = int(arg) if arg else 0
+        except ValueError:
+            raise ValueError(f"random:{arg}: the seed must be a whole number") from None
+        space = env.unwrapped.single_action_space if hasattr(env.unwrapped, "single_action_space") else env.action_space
+        self.low, self.high = np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
+        self.rng = np.random.default_rng(seed)
+
+    def predict(self, observation: np.ndarray, state: Any = None, episode_start: np.ndarray | None = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]:  # fmt: skip
+        obs = np.asarray(observation)
+        rows = () if obs.ndim == 1 else (len(obs),)
+        action = self.rng.uniform(self.low, self.high, (*rows, len(self.low))).astype(np.float32)
+        return action, state
+
+
 def describe_policies() -> str:
     """One line per scripted policy, for --help texts."""
     return "; ".join(
-        f"{name} ({', '.join(e.robots)}): {e.description}"
-        for name, entries in scripted_policies().items()
-        for e in entries
-    )
+        [f"{name} ({', '.join(e.robots)}): {e.description}" for name, entries in scripted_policies().items()
+         for e in entries] + ["random (every robot): uniform actions, random:SEED (default 0)"]
+    )  # fmt: skip
 
 
 def load_policy(spec: str, env) -> Policy:
@@ -75,6 +95,8 @@ def load_policy(spec: str, env) -> Policy:
 
         return SB3Policy(spec, env)
     name, _, arg = spec.partition(":")
+    if name == "random":
+        return RandomPolicy(env, arg)
     robot = env.unwrapped.robot.name
     policies = scripted_policies()
     for entry in policies.get(name, []):

@@ -1,0 +1,544 @@
+"""The leaderboard: learning on every task against its reference gait, in one command that anyone can rerun.
+
+    python -m agents.leaderboard --tasks skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
+        --algos ppo --seeds 0 1 2 --timesteps 5000000 --minutes 60 --out results/leaderboard --docs docs/results.md
+
+**Rows.** A row is one task, algorithm and seed. ``train.py`` trains it into ``OUT/runs/<row>/`` with the
+hyperparameter file's entry (``--hyperparams``, default ``hyperparams/<algo>.yml``); ``evaluate.py`` then plays the
+trained model and the task's reference gait on the evaluation seeds (``--eval-seed``, the same for every row of a
+task) into ``OUT/rows/<row>/``. For each task, ``evaluate.py`` also plays a random policy and the reference once
+(``OUT/tasks/<task>/``). A row is done when its ``row.json`` is written: another command skips it. A row whose
+training was killed continues from its last checkpoint (``train.py --resume``). ``--rerun`` computes the named rows
+again from nothing. Rows run in a local pool of ``--workers`` processes (each with an equal share of the cores), or
+as Ray tasks on the cluster at ``--address``.
+
+**Budget.** Every row trains ``--timesteps`` env steps, and stops sooner at ``--minutes`` of wall time. That is a
+cap, and the row says when it bit: a row cut short by the cap trained fewer steps than another machine would. The
+command prints its plan and its worst-case time before it starts.
+
+**Scores.** A row's score is its model's mean return over the evaluation episodes, normalized per task so that the
+random policy scores 0 and the reference gait 1. For each task and algorithm: the interquartile mean (IQM) over
+seeds, with a 95% stratified-bootstrap interval (``rliable``). Over all tasks: the same across tasks and seeds, and
+performance profiles. Learning curves are each run's TensorBoard episode return, averaged over seeds. The model's
+speed and cost of transport beside the reference's come from ``evaluate.py``'s paired comparison.
+
+Writes ``OUT/results.md``, ``OUT/results.json`` and ``OUT/plots/`` (each file whole, or not at all); with ``--docs
+PATH``, the page also goes to ``PATH``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from envs.common.batch import THREADS_VARIABLE
+from envs.common.io import ToolParser, atomic_write, write_json, write_text
+
+ROOT = Path(__file__).resolve().parents[1]
+RETURN = "return"
+CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw reward: VecMonitor is innermost)
+BOOTSTRAP_REPS = 2000
+
+
+@dataclass(frozen=True)
+class Row:
+    task: str
+    algo: str
+    seed: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.task.replace('/', '_')}__{self.algo}__{self.seed}"
+
+
+@dataclass(frozen=True)
+class Plan:
+    tasks: tuple[str, ...]
+    algos: tuple[str, ...]
+    seeds: tuple[int, ...]
+    timesteps: int
+    minutes: float | None
+    episodes: int
+    eval_seed: int
+    hyperparams: str | None
+    max_episode_steps: int | None = None  # cut evaluation episodes short (a smoke test's budget), else the task's
+
+    @property
+    def rows(self) -> list[Row]:
+        return [Row(t, a, s) for t in self.tasks for a in self.algos for s in self.seeds]
+
+    @property
+    def row_settings(self) -> dict[str, Any]:
+        """What a row's numbers depend on besides its task, algorithm and seed."""
+        return {"timesteps": self.timesteps, "minutes": self.minutes, "hyperparams": self.hyperparams,
+                **self.eval_settings}  # fmt: skip
+
+    @property
+    def eval_settings(self) -> dict[str, Any]:
+        """What a task's evaluation episodes depend on."""
+        return {"episodes": self.episodes, "eval_seed": self.eval_seed, "max_episode_steps": self.max_episode_steps}
+
+
+class StaleResult(RuntimeError):
+    """A finished row or task in the folder was made with other settings than the command's."""
+
+
+def _load_done(path: Path, settings: dict[str, Any], what: str) -> dict[str, Any] | None:
+    """A finished record, if it was made with ``settings`` (StaleResult otherwise); None if there is none."""
+    if not path.is_file():
+        return None
+    record = json.loads(path.read_text())
+    if record.get("settings") != settings:
+        raise StaleResult(f"{path}: {what} was made with {record.get('settings')}, not {settings}: give --rerun for "
+                          "it, or another --out")  # fmt: skip
+    return record
+
+
+def python() -> str:
+    return sys.executable
+
+
+def _tool(script: str, *args: Any) -> list[str]:
+    return [python(), str(ROOT / script), *map(str, args)]
+
+
+def _run(command: list[str], threads: int, log: Path) -> None:
+    """Run a tool with ``threads`` threads of simulation, its output in ``log``; RuntimeError naming the log if it
+    fails."""
+    env = {**os.environ, THREADS_VARIABLE: str(threads), "PYTHONPATH": str(ROOT)}
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with log.open("a") as out:
+        out.write(f"$ {shlex.join(command)}\n")
+        out.flush()
+        done = subprocess.run(command, stdout=out, stderr=subprocess.STDOUT, env=env, cwd=ROOT)
+    if done.returncode != 0:
+        raise RuntimeError(f"{shlex.join(command[1:3])} ... failed (exit {done.returncode}); see {log}")
+
+
+def reference_name(task: str) -> str:
+    """The reference gait of a task's robot (agents: each robot's ``REFERENCE``)."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401  (registers the ids)
+    from agents import reference_policy
+
+    env = gym.make(task)
+    try:
+        return reference_policy(env.unwrapped.robot.name)
+    finally:
+        env.close()
+
+
+def _episodes(plan: Plan) -> list[Any]:
+    """evaluate.py's options that choose the evaluation episodes (the same for every policy of a task)."""
+    cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", plan.max_episode_steps]
+    return ["--episodes", plan.episodes, "--seed", plan.eval_seed, *cut]
+
+
+def task_baselines(plan: Plan, task: str, out: Path, threads: int) -> dict[str, Any]:
+    """The task's reference gait and a random policy on the evaluation seeds (once per task)."""
+    folder = out / "tasks" / task.replace("/", "_")
+    record = folder / "baselines.json"
+    done = _load_done(record, plan.eval_settings, f"the baselines of {task}")
+    if done is not None:
+        return done
+    reference = reference_name(task)
+    evaluation = folder / "eval"
+    _run(_tool("evaluate.py", "--env", task, "--policy", reference, "--policy", "random", *_episodes(plan), "--out",
+               evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+    results = json.loads((evaluation / "results.json").read_text())
+    returns = {spec: _returns(results, spec) for spec in (reference, "random")}
+    baselines = {"task": task, "reference": reference, "reference_return": float(np.mean(returns[reference])),
+                 "random_return": float(np.mean(returns["random"])), "returns": returns,
+                 "reference_summary": results["policies"][reference]["summary"],
+                 "settings": plan.eval_settings}  # fmt: skip
+    write_json(record, baselines)
+    return baselines
+
+
+def _returns(results: dict[str, Any], spec: str) -> list[float]:
+    return [float(e["metrics"][RETURN]) for e in results["policies"][spec]["episodes"]]
+
+
+def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
+    """Train and evaluate one row (resuming a killed training); returns its record, also written as row.json."""
+    folder = out / "rows" / row.name
+    record_path = folder / "row.json"
+    done = _load_done(record_path, plan.row_settings, f"row {row.name}")
+    if done is not None:
+        return done
+    runs = out / "runs"
+    run_dir = runs / row.name
+    log = folder / "log.txt"
+    started = time.time()
+    if not (run_dir / "model.zip").is_file():
+        budget = [] if plan.minutes is None else ["--minutes", plan.minutes]
+        if (run_dir / "config.json").is_file():
+            command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
+        else:
+            if run_dir.exists():  # a run killed before its config was written: nothing to continue
+                shutil.rmtree(run_dir)
+            hyper = [] if plan.hyperparams is None else ["--hyperparams", _hyperparams(plan.hyperparams, row.algo)]
+            command = _tool("train.py", "--env", row.task, "--algo", row.algo, "--seed", row.seed, "--timesteps",
+                            plan.timesteps, "--runs-dir", runs, "--run-name", row.name, "--no-progress", *hyper,
+                            *budget)  # fmt: skip
+        _run(command, threads, log)
+    trained = _trained_steps(run_dir)
+    reference = reference_name(row.task)
+    evaluation = folder / "eval"
+    _run(_tool("evaluate.py", "--env", row.task, "--policy", reference, "--policy", run_dir / "model.zip",
+               *_episodes(plan), "--out", evaluation, "--overwrite"), threads, log)  # fmt: skip
+    results = json.loads((evaluation / "results.json").read_text())
+    model_spec = next(s for s in results["policies"] if s != reference)
+    returns = _returns(results, model_spec)
+    record = {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.timesteps,
+              "capped": trained < plan.timesteps, "returns": returns, "mean_return": float(np.mean(returns)),
+              "summary": results["policies"][model_spec]["summary"],
+              "paired_differences": results["paired_differences"]["policies"][model_spec],
+              "reference": reference, "wall_seconds": time.time() - started,
+              "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
+                                     f"{row.task}:{row.algo}:{row.seed}"]),
+              "reproduce": reproduce(plan, row, trained, reference), "settings": plan.row_settings}  # fmt: skip
+    write_json(record_path, record)
+    return record
+
+
+def reproduce(plan: Plan, row: Row, trained: int, reference: str) -> list[str]:
+    """The two commands that give a row's numbers again on any machine: its training for the steps it took (no
+    time cap), then its evaluation."""
+    hyper = [] if plan.hyperparams is None else ["--hyperparams", _hyperparams(plan.hyperparams, row.algo)]
+    run = f"runs/{row.name}"
+    cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", str(plan.max_episode_steps)]
+    return [
+        shlex.join(["python", "train.py", "--env", row.task, "--algo", row.algo, "--seed", str(row.seed), "--timesteps",
+                    str(trained), "--run-name", row.name, *hyper]),
+        shlex.join(["python", "evaluate.py", "--env", row.task, "--policy", reference, "--policy", f"{run}/model.zip",
+                    "--episodes", str(plan.episodes), "--seed", str(plan.eval_seed), *cut, "--out",
+                    f"results/{row.name}"]),
+    ]  # fmt: skip
+
+
+def _hyperparams(given: str, algo: str) -> str:
+    """``--hyperparams``: a file, or a folder of ``<algo>.yml`` files."""
+    path = Path(given)
+    return str(path / f"{algo}.yml" if path.is_dir() else path)
+
+
+def _trained_steps(run_dir: Path) -> int:
+    """The env steps the run's final model took (SB3's record of the model, the ``data`` entry of model.zip)."""
+    import zipfile
+
+    with zipfile.ZipFile(run_dir / "model.zip") as archive:
+        return int(json.loads(archive.read("data"))["num_timesteps"])
+
+
+def plan_arguments(plan: Plan) -> list[str]:
+    """The command-line options that reproduce ``plan``."""
+    args = ["--tasks", *plan.tasks, "--algos", *plan.algos, "--seeds", *map(str, plan.seeds), "--timesteps",
+            str(plan.timesteps), "--episodes", str(plan.episodes), "--eval-seed", str(plan.eval_seed)]  # fmt: skip
+    if plan.minutes is not None:
+        args += ["--minutes", f"{plan.minutes:g}"]
+    if plan.hyperparams is not None:
+        args += ["--hyperparams", plan.hyperparams]
+    if plan.max_episode_steps is not None:
+        args += ["--max-episode-steps", str(plan.max_episode_steps)]
+    return args
+
+
+# --- the table --------------------------------------------------------------------------------------------------
+def normalized(score: np.ndarray, baselines: dict[str, Any]) -> np.ndarray:
+    """Scores with the random policy at 0 and the reference at 1."""
+    low, high = baselines["random_return"], baselines["reference_return"]
+    return (np.asarray(score, dtype=np.float64) - low) / (high - low if high != low else 1.0)
+
+
+def aggregate(scores: dict[str, np.ndarray], seed: int = 0) -> dict[str, dict[str, float]]:
+    """IQM and its 95% stratified-bootstrap interval per algorithm, ``scores[algo]`` (runs, tasks) (rliable)."""
+    from rliable import library, metrics
+
+    def iqm(x: np.ndarray) -> np.ndarray:
+        return np.array([metrics.aggregate_iqm(x)])
+
+    points, intervals = library.get_interval_estimates(scores, iqm, reps=BOOTSTRAP_REPS,
+                                                       random_state=np.random.RandomState(seed))  # fmt: skip
+    return {a: {"iqm": float(points[a][0]), "low": float(intervals[a][0, 0]), "high": float(intervals[a][1, 0])}
+            for a in scores}  # fmt: skip
+
+
+def learning_curve(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(env steps, mean episode return) from a run's TensorBoard log."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    if not (run_dir / "tb").is_dir():  # a row whose run folder is gone: no curve
+        return np.zeros(0), np.zeros(0)
+    acc = EventAccumulator(str(run_dir / "tb"), size_guidance={"scalars": 0})
+    acc.Reload()
+    if CURVE_TAG not in acc.Tags().get("scalars", []):
+        return np.zeros(0), np.zeros(0)
+    events = acc.Scalars(CURVE_TAG)
+    return np.array([e.step for e in events], dtype=np.float64), np.array([e.value for e in events])
+
+
+def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Row, dict | None],
+                docs: Path | None) -> dict[str, Any]:  # fmt: skip
+    """results.md, results.json and the plots from the rows done (rows not done are listed as such)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    done = {row: rec for row, rec in rows.items() if rec is not None}
+    per_task: dict[str, dict[str, dict[str, float]]] = {}
+    matrix: dict[str, np.ndarray] = {}
+    for algo in plan.algos:
+        columns = []
+        for task in plan.tasks:
+            scores = [normalized(done[r]["mean_return"], baselines[task]) for r in done if
+                      r.task == task and r.algo == algo]  # fmt: skip
+            if scores:
+                per_task.setdefault(task, {})[algo] = aggregate({algo: np.array(scores)[:, None]})[algo]
+            columns.append(scores)
+        if columns and all(len(c) == len(plan.seeds) for c in columns):  # every row of the algorithm done
+            matrix[algo] = np.array(columns, dtype=np.float64).T  # (seeds, tasks)
+    overall = aggregate(matrix) if matrix else {}
+    plots = out / "plots"
+    plots.mkdir(parents=True, exist_ok=True)
+    if matrix:
+        from rliable import library, plot_utils
+
+        taus = np.linspace(-0.5, 2.0, 101)
+        np.random.seed(0)  # noqa: NPY002 (rliable's profiles take no generator: they draw from numpy's global one)
+        profiles, cis = library.create_performance_profile(matrix, taus, reps=BOOTSTRAP_REPS)
+        fig, ax = plt.subplots(figsize=(6, 4))
+        plot_utils.plot_performance_profiles(profiles, taus, performance_profile_cis=cis, ax=ax,
+                                             xlabel=r"normalized score $\tau$ (random 0, reference 1)")  # fmt: skip
+        _save(fig, plots / "performance_profiles.png")
+    for task in plan.tasks:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for algo in plan.algos:
+            curves = [learning_curve(out / "runs" / r.name) for r in done if r.task == task and r.algo == algo]
+            curves = [c for c in curves if len(c[0])]
+            if curves:
+                grid = np.linspace(0, max(c[0][-1] for c in curves), 50)
+                mean = np.mean([np.interp(grid, s, v) for s, v in curves], axis=0)
+                ax.plot(grid, mean, label=f"{algo} ({len(curves)} seeds)")
+        ax.axhline(baselines[task]["reference_return"], color="k", ls="--", label=baselines[task]["reference"])
+        ax.axhline(baselines[task]["random_return"], color="grey", ls=":", label="random")
+        ax.set_xlabel("env steps")
+        ax.set_ylabel("episode return (training)")
+        ax.set_title(task)
+        ax.legend()
+        _save(fig, plots / f"curve_{task.replace('/', '_')}.png")
+    summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
+               "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
+                   ["python", "-m", "agents.leaderboard", *plan_arguments(plan)])}  # fmt: skip
+    text = render(plan, baselines, done, rows, per_task, overall, summary["command"])
+    write_json(out / "results.json", summary, strict=True)
+    write_text(out / "results.md", text)
+    if docs is not None:
+        write_text(docs, text.replace("](plots/", f"]({os.path.relpath(plots, docs.parent)}/"))
+    return summary
+
+
+def _save(fig: Any, path: Path) -> None:
+    atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=100, bbox_inches="tight"))
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def _interval(a: dict[str, float]) -> str:
+    return f"{a['iqm']:.2f} [{a['low']:.2f}, {a['high']:.2f}]"
+
+
+def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
+           overall: dict, command: str) -> str:  # fmt: skip
+    budget = f"{plan.timesteps:,} env steps a row" + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
+    lines = [
+        "# Results",
+        "",
+        f"Learning against each task's reference gait: {', '.join(plan.algos)} on {len(plan.tasks)} tasks, seeds "
+        f"{', '.join(map(str, plan.seeds))}; {budget}; {plan.episodes} evaluation episodes per row on seeds "
+        f"{plan.eval_seed}-{plan.eval_seed + plan.episodes - 1}. Scores are normalized per task: a random policy 0, "
+        "the reference gait 1. IQM over seeds with 95% stratified-bootstrap intervals (rliable).",
+        "",
+        f"Reproduce the table: `{command}`; each row's own command is in results.json.",
+        "",
+        "| task | reference | reference return | random return | " + " | ".join(plan.algos) + " |",
+        "|---|---|---|---|" + "---|" * len(plan.algos),
+    ]
+    for task in plan.tasks:
+        b = baselines[task]
+        cells = [_interval(per_task[task][a]) if a in per_task.get(task, {}) else "not run" for a in plan.algos]
+        lines.append(f"| `{task}` | {b['reference']} | {b['reference_return']:.1f} | {b['random_return']:.1f} | "
+                     + " | ".join(cells) + " |")  # fmt: skip
+    if overall:
+        lines += ["", "Over all tasks: " + "; ".join(f"{a} {_interval(v)}" for a, v in overall.items()) + ".", "",
+                  "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
+    lines += ["", "## Rows", "", "| row | steps trained | mean return | normalized | speed vs reference (m/s) | "
+              "cost of transport vs reference |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for row, rec in rows.items():
+        if rec is None:
+            lines.append(f"| {row.name} | not run | | | | |")
+            continue
+        diff = rec["paired_differences"]
+
+        def paired(metric: str, diff: dict = diff) -> str:
+            d = diff.get(metric)
+            if not d or d.get("mean") is None or d.get("ci_low") is None:
+                return "-"
+            return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
+
+        capped = " (capped by --minutes)" if rec["capped"] else ""
+        score = float(normalized(rec["mean_return"], baselines[row.task]))
+        lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {rec['mean_return']:.1f} | {score:.2f} | "
+                     f"{paired('speed')} | {paired('cost_of_transport')} |")  # fmt: skip
+    lines += ["", "## Learning curves", ""]
+    lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
+    return "\n".join(lines) + "\n"
+
+
+# --- command line -----------------------------------------------------------------------------------------------
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = ToolParser(prog="python -m agents.leaderboard", description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", nargs="+", required=True, help="env ids")
+    parser.add_argument("--algos", nargs="+", default=["ppo"], choices=["ppo", "sac", "td3"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    parser.add_argument("--timesteps", type=int, required=True, help="env steps a row trains")
+    parser.add_argument("--minutes", type=float, help="wall-time cap of a row's training")
+    parser.add_argument("--episodes", type=int, default=20, help="evaluation episodes per row (default 20)")
+    parser.add_argument("--eval-seed", type=int, default=1000, help="the first evaluation seed (default 1000)")
+    parser.add_argument("--max-episode-steps", type=int, help="cut evaluation episodes short (default: the task's)")
+    parser.add_argument("--hyperparams", help="a hyperparameter file, or a folder of <algo>.yml (default hyperparams/)")
+    parser.add_argument("--out", default="results/leaderboard", help="the leaderboard's folder")
+    parser.add_argument("--docs", help="also write the page here (docs/results.md)")
+    parser.add_argument("--workers", type=int, default=1, help="rows at a time in the local pool (default 1)")
+    parser.add_argument("--address", help="run rows as Ray tasks on the cluster at HOST:PORT")
+    parser.add_argument("--rerun", nargs="+", default=[], metavar="TASK:ALGO:SEED", help="compute these rows again")
+    args = parser.parse_args(argv)
+    import gymnasium as gym
+
+    import envs  # noqa: F401
+
+    for task in args.tasks:
+        if task not in gym.registry:
+            parser.error(f"--tasks: unknown env {task!r}")
+    checks = (
+        ("--timesteps", args.timesteps, 1),
+        ("--episodes", args.episodes, 2),
+        ("--workers", args.workers, 1),
+        ("--max-episode-steps", args.max_episode_steps, 1),
+    )
+    for name, value, least in checks:
+        if value is not None and value < least:
+            parser.error(f"{name} must be at least {least}, got {value}")
+    if args.minutes is not None and not args.minutes > 0:
+        parser.error(f"--minutes must be positive, got {args.minutes}")
+    if min(args.seeds) < 0 or args.eval_seed < 0:
+        parser.error("seeds must be whole numbers >= 0")
+    if args.hyperparams is not None and not Path(args.hyperparams).exists():
+        parser.error(f"--hyperparams {args.hyperparams}: no such file or folder")
+    reruns = []
+    for text in args.rerun:
+        parts = text.rsplit(":", 2)
+        if len(parts) != 3 or not parts[2].isdigit():
+            parser.error(f"--rerun {text!r}: expected TASK:ALGO:SEED")
+        reruns.append(Row(parts[0], parts[1], int(parts[2])))
+    args.rerun = reruns
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    plan = Plan(tuple(args.tasks), tuple(args.algos), tuple(args.seeds), args.timesteps, args.minutes,
+                args.episodes, args.eval_seed, args.hyperparams, args.max_episode_steps)  # fmt: skip
+    unknown = [r for r in args.rerun if r not in plan.rows]
+    if unknown:
+        print(f"leaderboard: error: --rerun {unknown[0].name}: not a row of this plan", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    cores = os.cpu_count() or 1
+    threads = max(1, cores // args.workers)
+    for row in args.rerun:
+        shutil.rmtree(out / "rows" / row.name, ignore_errors=True)
+        shutil.rmtree(out / "runs" / row.name, ignore_errors=True)
+    try:  # finished rows and baselines made with other settings are refused before anything runs
+        for task in plan.tasks:
+            _load_done(out / "tasks" / task.replace("/", "_") / "baselines.json", plan.eval_settings, task)
+        for row in plan.rows:
+            _load_done(out / "rows" / row.name / "row.json", plan.row_settings, f"row {row.name}")
+    except StaleResult as exc:
+        print(f"leaderboard: error: {exc}", file=sys.stderr)
+        return 2
+    todo = [r for r in plan.rows if not (out / "rows" / r.name / "row.json").is_file()]
+    worst = "" if plan.minutes is None else f"; at most {len(todo) * plan.minutes / args.workers:.0f} min of training"
+    print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {plan.timesteps:,} steps each{worst}, "
+          f"{args.workers} at a time on {threads} threads each" + (f" on Ray at {args.address}" if args.address
+                                                                    else ""))  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)
+    baselines = {task: task_baselines(plan, task, out, cores) for task in plan.tasks}
+    results: dict[Row, dict | None] = {r: None for r in plan.rows}
+    failures = []
+    for row, record, error in _run_rows(plan, todo, out, threads, args.workers, args.address):
+        results[row] = record
+        if error:
+            failures.append(error)
+            print(f"leaderboard: {row.name}: {error}", file=sys.stderr)
+        else:
+            print(f"leaderboard: {row.name}: mean return {record['mean_return']:.1f}")
+    for row in plan.rows:
+        path = out / "rows" / row.name / "row.json"
+        if results[row] is None and path.is_file():
+            results[row] = json.loads(path.read_text())
+    build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None)
+    print(f"leaderboard: {out / 'results.md'}" + (f" and {args.docs}" if args.docs else ""))
+    return 1 if failures else 0
+
+
+def _row_job(plan: Plan, row: Row, out: Path, threads: int) -> tuple[Row, dict | None, str | None]:
+    try:
+        return row, run_row(plan, row, out, threads), None
+    except RuntimeError as exc:
+        return row, None, str(exc)
+
+
+def _run_rows(plan: Plan, rows: list[Row], out: Path, threads: int, workers: int, address: str | None):
+    """Each row's (row, record, error), as they finish: in this process, a local pool or Ray."""
+    if not rows:
+        return
+    if address is not None:
+        import ray
+
+        from envs.common.cluster import init_ray
+
+        init_ray(address)
+        job = ray.remote(num_cpus=threads)(_row_job)
+        pending = [job.remote(plan, row, out.resolve(), threads) for row in rows]
+        while pending:
+            ready, pending = ray.wait(pending)
+            yield ray.get(ready[0])
+        return
+    if workers == 1:
+        for row in rows:
+            yield _row_job(plan, row, out, threads)
+        return
+    import multiprocessing
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield from pool.map(_row_job, [plan] * len(rows), rows, [out] * len(rows), [threads] * len(rows))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

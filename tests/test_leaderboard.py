@@ -1,0 +1,102 @@
+"""The leaderboard (agents/leaderboard.py), end to end on a tiny budget: tune, train, evaluate, table."""
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from agents import leaderboard
+from agents.training import main as train_main
+
+WALK = "skitter/RoachWalk-v2"
+TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 50},
+        "n_steps": 128, "batch_size": 64}  # fmt: skip
+
+
+@pytest.mark.slow  # a minute: seven starts of train.py and evaluate.py; make leaderboard runs the same code
+def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
+    """Two tuning trials write a best entry; the leaderboard trains two seeds with it, evaluates them and the
+    reference and a random policy on the same seeds, and writes the table; a second command reruns nothing, and
+    --rerun computes one row again."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({WALK: TINY}))
+    tuning = ["--tune", "2", "--env", WALK, "--algo", "ppo", "--timesteps", "256", "--hyperparams", "tiny.yml",
+              "--runs-dir", "runs", "--evaluations", "1", "--eval-episodes", "1"]  # fmt: skip
+    assert train_main(tuning) == 0
+    best = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v2__ppo" / "best.yml"
+    out, docs = tmp_path / "board", tmp_path / "docs" / "results.md"
+    argv = ["--tasks", WALK, "--algos", "ppo", "--seeds", "0", "1", "--timesteps", "256", "--episodes", "2",
+            "--max-episode-steps", "50", "--hyperparams", str(best), "--out", str(out), "--docs",
+            str(docs)]  # fmt: skip
+    assert leaderboard.main(argv) == 0
+    summary = json.loads((out / "results.json").read_text())
+    rows = summary["rows"]
+    assert sorted(rows) == ["skitter_RoachWalk-v2__ppo__0", "skitter_RoachWalk-v2__ppo__1"]
+    base = summary["baselines"][WALK]
+    assert base["reference"] == "tripod" and base["reference_return"] > base["random_return"]
+    for record in rows.values():
+        assert record["timesteps"] >= 256 and len(record["returns"]) == 2
+        score = (record["mean_return"] - base["random_return"]) / (base["reference_return"] - base["random_return"])
+        assert np.isfinite(score)
+    cell = summary["per_task"][WALK]["ppo"]
+    assert cell["low"] <= cell["iqm"] <= cell["high"]
+    assert set(summary["overall"]) == {"ppo"}
+    text = docs.read_text()
+    assert "| `skitter/RoachWalk-v2` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
+    for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v2.png"):
+        assert (out / "plots" / plot).stat().st_size > 5_000
+    capsys.readouterr()
+    # again: every row is done, nothing trains
+    assert leaderboard.main(argv) == 0
+    assert "(0 to run)" in capsys.readouterr().out
+    # one row again, from nothing, with the same seeds: the same model, so the same evaluation
+    kept = rows["skitter_RoachWalk-v2__ppo__1"]["returns"]
+    assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
+    again = json.loads((out / "rows" / "skitter_RoachWalk-v2__ppo__1" / "row.json").read_text())
+    assert "(1 to run)" in capsys.readouterr().out
+    assert again["returns"] == pytest.approx(kept)
+    # the same folder with another budget: refused, naming the row, before anything runs
+    other = [*argv]
+    other[other.index("--timesteps") + 1] = "512"
+    assert leaderboard.main(other) == 2
+    assert "was made with" in capsys.readouterr().err
+
+
+def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys):
+    for argv, message in (
+        (["--tasks", "skitter/Nope-v1", "--timesteps", "10"], "unknown env"),
+        (["--tasks", WALK, "--timesteps", "0"], "--timesteps must be at least 1"),
+        (["--tasks", WALK, "--timesteps", "10", "--rerun", "x"], "expected TASK:ALGO:SEED"),
+        (["--tasks", WALK, "--timesteps", "10", "--hyperparams", str(tmp_path / "none.yml")], "no such file"),
+    ):
+        with pytest.raises(SystemExit) as exited:
+            leaderboard.main([*argv, "--out", str(tmp_path / "b")])
+        assert exited.value.code == 2 and message in capsys.readouterr().err
+    assert leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--rerun", f"{WALK}:sac:0", "--out",
+                             str(tmp_path / "b")]) == 2  # fmt: skip
+    assert "not a row of this plan" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()
+
+
+def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp_path):
+    """Rows made up of returns: a task's score is 0 at the random policy's return and 1 at the reference's; the IQM
+    of three seeds lies in its interval; a row not run says so, and its algorithm gets no overall score."""
+    plan = leaderboard.Plan((WALK, "skitter/XjusWalk-v1"), ("ppo", "sac"), (0, 1, 2), 100, None, 5, 1000, None)
+    baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
+    rows = {}
+    for row in plan.rows:
+        if row.algo == "sac" and row.seed == 2 and row.task == WALK:
+            rows[row] = None
+            continue
+        ret = 10.0 + 100.0 * (0.5 + 0.25 * row.seed)  # normalized 0.5, 0.75, 1.0
+        rows[row] = {"mean_return": ret, "timesteps": 100, "capped": False, "paired_differences": {}}
+    summary = leaderboard.build_table(plan, tmp_path, baselines, rows, tmp_path / "results.md")
+    cell = summary["per_task"][WALK]["ppo"]
+    assert cell["iqm"] == pytest.approx(0.75) and cell["low"] <= 0.75 <= cell["high"]
+    assert set(summary["overall"]) == {"ppo"}, "sac misses a row: no score over all tasks"
+    text = (tmp_path / "results.md").read_text()
+    assert "| skitter_RoachWalk-v2__sac__2 | not run |" in text
+    assert (
+        leaderboard.normalized(10.0, baselines[WALK]) == 0.0 and leaderboard.normalized(110.0, baselines[WALK]) == 1.0
+    )
