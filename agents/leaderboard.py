@@ -184,12 +184,15 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     log = folder / "log.txt"
     started = time.time()
     if not (run_dir / "model.zip").is_file():
-        budget = [] if plan.minutes is None else ["--minutes", plan.minutes]
-        if (run_dir / "config.json").is_file():
+        resuming = (run_dir / "config.json").is_file() and any((run_dir / "checkpoints").glob("step_*"))
+        if not resuming and run_dir.exists():  # killed before its first checkpoint: nothing to continue
+            shutil.rmtree(run_dir)
+            (folder / ATTEMPTS).unlink(missing_ok=True)
+        credit = _begin_attempt(folder, run_dir)
+        budget = [] if plan.minutes is None else ["--minutes", f"{max(plan.minutes - credit / 60.0, 0.01):.4f}"]
+        if resuming:
             command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
         else:
-            if run_dir.exists():  # a run killed before its config was written: nothing to continue
-                shutil.rmtree(run_dir)
             hyper = [] if plan.hyperparams is None else ["--hyperparams", _hyperparams(plan.hyperparams, row.algo)]
             command = _tool("train.py", "--env", row.task, "--algo", row.algo, "--seed", row.seed, "--timesteps",
                             plan.timesteps, "--runs-dir", runs, "--run-name", row.name, "--no-progress", *hyper,
@@ -213,6 +216,28 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
               "reproduce": reproduce(plan, row, trained, reference), "settings": plan.row_settings}  # fmt: skip
     write_json(record_path, record)
     return record
+
+
+ATTEMPTS = "attempts.json"  # in a row's folder: when each training process started, and the time it was credited
+
+
+def _begin_attempt(folder: Path, run_dir: Path) -> float:
+    """Record a training process starting now; returns the training time (s) already behind the checkpoint it
+    resumes from, so that a row killed and resumed trains ``--minutes`` in all. That is the time of the attempt that
+    wrote the newest checkpoint, from its start to the checkpoint, plus what that attempt was credited itself; what
+    a killed process did after its last checkpoint is lost, and not counted."""
+    path = folder / ATTEMPTS
+    attempts = json.loads(path.read_text()) if path.is_file() else []
+    credit = 0.0
+    saved = [p.stat().st_mtime for p in (run_dir / "checkpoints").glob("step_*")]
+    if saved and attempts:
+        newest = max(saved)
+        mine = [a for a in attempts if a["start"] <= newest]
+        if mine:
+            credit = mine[-1]["credit"] + newest - mine[-1]["start"]
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(path, [*attempts, {"start": time.time(), "credit": credit}])
+    return credit
 
 
 def reproduce(plan: Plan, row: Row, trained: int, reference: str) -> list[str]:

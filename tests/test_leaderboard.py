@@ -100,3 +100,25 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     assert (
         leaderboard.normalized(10.0, baselines[WALK]) == 0.0 and leaderboard.normalized(110.0, baselines[WALK]) == 1.0
     )
+
+
+def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
+    """Killed and resumed, a row trains --minutes in all: each attempt is credited the time from its start to the
+    newest checkpoint it wrote, plus its own credit; what it did after that checkpoint is not counted."""
+    import os
+
+    folder, run = tmp_path / "row", tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    assert leaderboard._begin_attempt(folder, run) == 0.0  # a fresh row
+    start = json.loads((folder / leaderboard.ATTEMPTS).read_text())[0]["start"]
+    first = run / "checkpoints" / "step_0000100000"
+    first.mkdir()
+    os.utime(first, (start + 30.0, start + 30.0))
+    assert leaderboard._begin_attempt(folder, run) == pytest.approx(30.0)
+    attempts = json.loads((folder / leaderboard.ATTEMPTS).read_text())
+    second = run / "checkpoints" / "step_0000200000"
+    second.mkdir()
+    first.rmdir()  # train.py keeps the newest checkpoint only
+    when = attempts[1]["start"] + 45.0
+    os.utime(second, (when, when))
+    assert leaderboard._begin_attempt(folder, run) == pytest.approx(75.0)
