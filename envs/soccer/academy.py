@@ -61,8 +61,13 @@ class AcademyTask(SoccerTask):
                 robot_place = self._option_place(options["robot"], 3, "robot")
             if "ball" in options:
                 ball_xy = self._option_place(options["ball"], 2, "ball")
-            self.scene.placement[i] = robot_place
+            self.place_players(i, rng, robot_place, ball_xy, options)
             self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
+
+    def place_players(self, scene: int, rng: np.random.Generator, robot: np.ndarray, ball: np.ndarray,
+                      options: Mapping) -> None:  # fmt: skip
+        """Set the places of scene ``scene``'s players for its next reset: the robot's (the scene's only player)."""
+        self.scene.placement[scene] = robot
 
     @abstractmethod
     def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -133,10 +138,11 @@ class ScoreEmptyGoalTask(AcademyTask):
     to the ball and the ball's progress toward the goal as shaping."""
 
     name = "score_empty_goal"
+    ball_out = (1.5, 5.0)  # body lengths between the ball and the goal line
 
     def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
         f = self.field
-        ball = np.array([f.half_length - rng.uniform(1.5, 5.0) * length,
+        ball = np.array([f.half_length - rng.uniform(*self.ball_out) * length,
                          rng.uniform(-1.0, 1.0) * (0.5 * f.goal_width + 1.5 * length)])  # fmt: skip
         ball = self._inside(ball, length)
         away = ball - np.array([f.half_length, 0.0])
@@ -166,41 +172,22 @@ class ScoreVsKeeperTask(ScoreEmptyGoalTask):
     name = "score_vs_keeper"
     players = (PLAYER, KEEPER)
     history = ("first version.",)
+    ball_out = (3.0, 6.0)
 
-    def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
-        """Draw (or take from ``options``: ``robot`` (x, y, heading), ``ball`` (x, y), ``keeper`` (x, y, heading))
-        the places of scenes ``ids``: the robot behind the ball, the keeper between the ball and its goal."""
-        options = options or {}
+    def place_players(self, scene: int, rng: np.random.Generator, robot: np.ndarray, ball: np.ndarray,
+                      options: Mapping) -> None:  # fmt: skip
+        """The robot's place and the keeper's, between the ball and its goal (or ``options["keeper"]``: (x, y,
+        heading)); a robot and a keeper placed by ``options`` less than a body length apart are refused."""
         length = self.robot.facts.length
-        radius = self.field.ball.radius
-        for i, rng in zip(ids, rngs, strict=True):
-            robot_place, ball_xy = self.draw_places(rng, length)
-            if "robot" in options:
-                robot_place = self._option_place(options["robot"], 3, "robot")
-            if "ball" in options:
-                ball_xy = self._option_place(options["ball"], 2, "ball")
-            keeper_place = self.keeper_place(rng, ball_xy, length)
-            if "keeper" in options:
-                keeper_place = self._option_place(options["keeper"], 3, "keeper")
-            placed = "keeper" in options or "robot" in options  # the draws keep them apart themselves
-            if placed and np.hypot(*(keeper_place[:2] - robot_place[:2])) < length:
-                raise ValueError(f"options: the keeper {keeper_place.tolist()} and the robot {robot_place.tolist()} "
-                                 f"must stand a body length ({length:g} m) apart or more")  # fmt: skip
-            self.scene.placement[2 * i] = robot_place
-            self.scene.placement[2 * i + 1] = keeper_place
-            self.scene.place_object(np.array([i]), BALL, np.array([[*ball_xy, radius]]), np.zeros((1, 3)))
-
-    def draw_places(self, rng: np.random.Generator, length: float) -> tuple[np.ndarray, np.ndarray]:
-        f = self.field
-        ball = np.array([f.half_length - rng.uniform(3.0, 6.0) * length,
-                         rng.uniform(-1.0, 1.0) * (0.5 * f.goal_width + 1.5 * length)])  # fmt: skip
-        ball = self._inside(ball, length)
-        away = ball - np.array([f.half_length, 0.0])
-        bearing = math.atan2(away[1], away[0]) + rng.uniform(-1.0, 1.0)  # behind the ball, seen from the goal
-        robot = self._inside(ball + rng.uniform(1.5, 3.0) * length * np.array([np.cos(bearing), np.sin(bearing)]),
-                             0.5 * length)  # fmt: skip
-        facing = math.atan2(*(ball - robot)[::-1]) + rng.uniform(-0.8, 0.8)
-        return np.array([*robot, facing]), ball
+        keeper = self.keeper_place(rng, ball, length)
+        if "keeper" in options:
+            keeper = self._option_place(options["keeper"], 3, "keeper")
+        placed = "keeper" in options or "robot" in options  # the draws keep them apart themselves
+        if placed and np.hypot(*(keeper[:2] - robot[:2])) < length:
+            raise ValueError(f"options: the keeper {keeper.tolist()} and the robot {robot.tolist()} must stand a body "
+                             f"length ({length:g} m) apart or more")  # fmt: skip
+        self.scene.placement[2 * scene] = robot
+        self.scene.placement[2 * scene + 1] = keeper
 
     def keeper_place(self, rng: np.random.Generator, ball: np.ndarray, length: float) -> np.ndarray:
         """Where the scripted keeper stands at the start: as it plays, ``KEEP`` body lengths out from its goal's
