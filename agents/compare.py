@@ -75,6 +75,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="write an mp4 of the first episode of each policy, and one of them side by side",
     )
     p.add_argument("--telemetry", action="store_true", help="write the telemetry of every episode as Parquet")
+    p.add_argument("--telemetry-rate", choices=("control", "physics"), default="control",
+                   help="record telemetry (and plot it) at every control step (default) or every physics step, "
+                        "whose leg angles resolve a stride faster than half the control rate")  # fmt: skip
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
     p.add_argument(
         "--overwrite",
@@ -168,7 +171,7 @@ def make_env(args, render: bool):
         args.env,
         num_envs=args.episodes,
         vectorization_mode="vector_entry_point",
-        telemetry=True,
+        telemetry=args.telemetry_rate,
         render_mode="rgb_array" if render else None,
         **limit,
         **args.env_kwargs,

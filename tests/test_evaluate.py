@@ -423,3 +423,16 @@ def test_results_are_strict_json_and_a_mean_over_some_episodes_says_how_many(tmp
         "A value marked (n of 3 episodes) is the mean over the n episodes that have the metric"
         in capsys.readouterr().out
     )
+
+
+def test_telemetry_at_the_physics_rate(tmp_path):
+    """``--telemetry-rate physics``: a row per physics step of every control step, the rate in the file's record."""
+    import evaluate
+    from envs.common.telemetry import read_telemetry
+
+    assert evaluate.main(["--env", "skitter/RoachWalk-v2", "--policy", "tripod", "--episodes", "2", "--out",
+                          str(tmp_path / "r"), "--max-episode-steps", "20", "--telemetry", "--telemetry-rate",
+                          "physics"]) == 0  # fmt: skip
+    df, meta = read_telemetry(tmp_path / "r" / "telemetry" / "tripod.parquet")
+    assert meta["rate_hz"] == 2000.0
+    assert df.groupby("episode").size().tolist() == [1 + 20 * 40] * 2

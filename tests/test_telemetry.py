@@ -384,3 +384,53 @@ def test_missing_file_and_bad_header_values_raise(tmp_path):
 def test_real_columns_match_schema():
     assert len(REAL_COLUMNS) == 16
     assert set(SHARED_COLUMNS) <= set(TELEMETRY_COLUMNS)
+
+
+def _stride_peak(df: pd.DataFrame) -> float:
+    """The frequency (Hz) of the strongest line in sin(left leg angle), as the table's sampling shows it."""
+    t = df["time"].to_numpy()
+    signal = np.sin(df["leg_angle_left"].to_numpy())
+    spectrum = np.abs(np.fft.rfft(signal - signal.mean()))
+    return float(np.fft.rfftfreq(len(signal), t[1] - t[0])[np.argmax(spectrum)])
+
+
+def test_physics_rate_telemetry_resolves_a_45_hz_stride_that_control_rate_aliases():
+    """The tripod at 45 Hz under 50 Hz control: at the control rate the legs seem to turn at 5 Hz (aliased); at the
+    physics rate (2 kHz) the stride shows at 45 Hz. The last physics step of each control step is the control-rate
+    row, bit for bit."""
+    from agents import load_policy
+
+    tables = {}
+    for rate in ("control", "physics"):
+        env = gym.make("skitter/RoachWalk-v2", telemetry=rate)
+        policy = load_policy("tripod", env)
+        obs, _ = env.reset(seed=0)
+        for _ in range(100):
+            obs, *_ = env.step(policy.predict(obs)[0])
+        tables[rate] = env.unwrapped.recorder.frame().iloc[1:]  # the steps, not the reset state
+        assert env.unwrapped.recorder.meta["rate_hz"] == (50.0 if rate == "control" else 2000.0)
+    control, physics = tables["control"], tables["physics"]
+    assert len(physics) == 40 * len(control)
+    assert np.allclose(np.diff(physics["time"]), 0.0005)
+    pd.testing.assert_frame_equal(physics.iloc[39::40].reset_index(drop=True), control.reset_index(drop=True))
+    assert abs(_stride_peak(physics) - 45.0) < 1.0
+    assert _stride_peak(control) < 10.0, "the control rate cannot show a 45 Hz stride"
+
+
+def test_physics_rate_telemetry_is_the_same_batched_and_single():
+    single = gym.make("skitter/XjusWalk-v1", telemetry="physics", max_episode_steps=12)
+    batched = gym.make_vec("skitter/XjusWalk-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                           telemetry="physics", max_episode_steps=12)  # fmt: skip
+    actions = np.random.default_rng(0).uniform(-1, 1, (15, 2, 3))
+    batched.reset(seed=5)
+    single.reset(seed=6)
+    for a in actions:
+        batched.step(a)
+        _, _, terminated, truncated, _ = single.step(a[1])
+        if terminated or truncated:
+            single.reset()
+    mine = single.unwrapped.recorder.frame()
+    theirs = batched.unwrapped.recorders[1].frame()
+    pd.testing.assert_frame_equal(mine.query("episode == 0"), theirs.query("episode == 0"))
+    with pytest.raises(ValueError, match="telemetry must be"):
+        gym.make("skitter/XjusWalk-v1", telemetry="fast")

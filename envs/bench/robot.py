@@ -140,8 +140,8 @@ class BenchRig(Robot):
             "senses": np.column_stack([angle, speed]),
         }
 
-    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
-        channels = self.actuator_readings(self.sim.sensordata)
+    def telemetry(self, readings: dict[str, np.ndarray], sensordata: np.ndarray | None = None) -> np.ndarray:
+        channels = self.actuator_readings(self.sim.sensordata if sensordata is None else sensordata)
         return np.column_stack(
             [readings["time"], *channels, readings["position"], readings["quaternion"], readings["power"]]
         )

@@ -411,8 +411,8 @@ class Bioloid(Robot):
         load = sensordata[:, self._i_torque] * self.servo.motors.gear * scale[:, None]
         return np.rint(np.clip(load, -LOAD_FULL_SCALE, LOAD_FULL_SCALE, out=load), out=load)
 
-    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
-        sd = self.sim.sensordata
+    def telemetry(self, readings: dict[str, np.ndarray], sensordata: np.ndarray | None = None) -> np.ndarray:
+        sd = self.sim.sensordata if sensordata is None else sensordata
         s = self.servo
         present = s.present_position(sd)
         columns = [

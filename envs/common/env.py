@@ -19,7 +19,7 @@ from gymnasium.wrappers import TimeLimit
 
 from envs.common.parameters import check_randomize, sample
 from envs.common.rendering import FrameRenderer, tracking_camera
-from envs.common.robot import Robot, check_flag, check_number
+from envs.common.robot import Robot, check_number
 from envs.common.task import Task
 from envs.common.telemetry import TelemetryRecorder
 
@@ -36,7 +36,9 @@ class SkitterEnv(gym.Env):
         reset_noise_scale: how much the robot's reset pose and velocity are perturbed (see the robot's ``reset``).
         randomize: physical parameters to draw at every reset, name -> (low, high), uniform; names from
             ``robot.parameters`` (off by default).
-        telemetry: record the robot's telemetry channels at every control step (``env.unwrapped.recorder``).
+        telemetry: record the robot's telemetry channels (``env.unwrapped.recorder``): True or ``"control"`` at every
+            control step, ``"physics"`` at every physics step (its sensor channels then resolve what happens within
+            a control step, such as a stride faster than half the control rate; see ``Robot.physics_telemetry``).
         render_mode: ``"human"`` or ``"rgb_array"``.
         width, height: size of rendered frames, pixels.
     """
@@ -49,7 +51,7 @@ class SkitterEnv(gym.Env):
         task: Task,
         reset_noise_scale: float = 0.1,
         randomize: Mapping[str, Sequence[float]] | None = None,
-        telemetry: bool = False,
+        telemetry: bool | str = False,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -60,7 +62,7 @@ class SkitterEnv(gym.Env):
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 1 <= value <= most:
                 raise ValueError(f"{name} must be a whole number of pixels in [1, {most}], got {value!r}")
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
-        telemetry = check_flag("telemetry", telemetry)
+        self.telemetry_rate = telemetry_rate(telemetry)
         self.robot = robot
         self.task = task
         self.randomize = check_randomize(randomize, robot.parameters)
@@ -75,7 +77,9 @@ class SkitterEnv(gym.Env):
         # (n, size) into the robot's commands (``robot_commands``) and restarts for reset simulations (``reset``)
         self.commands: Any = None
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.layout.size,), dtype=np.float64)
-        self.recorder = TelemetryRecorder(self.telemetry_metadata(), robot.telemetry_channels) if telemetry else None
+        self.recorder = (
+            TelemetryRecorder(self.telemetry_metadata(), robot.telemetry_channels) if self.telemetry_rate else None
+        )
         self._ids = np.array([0])
         self._last_obs = np.zeros(task.layout.size)
         self._last_info: dict[str, Any] = {}
@@ -146,7 +150,11 @@ class SkitterEnv(gym.Env):
         obs = self.task.observe(readings)[0]
         self._last_obs = obs
         if self.recorder is not None:
-            self.recorder.record(self.robot.telemetry(readings)[0])
+            if self.telemetry_rate == PHYSICS:
+                for row in self.robot.physics_telemetry(readings)[0]:
+                    self.recorder.record(row)
+            else:
+                self.recorder.record(self.robot.telemetry(readings)[0])
         if self.render_mode == "human":
             self.render()
         fallen = bool(self.task.fell(state, np.array([terminated]))[0]) if terminated else False
@@ -217,13 +225,27 @@ class SkitterEnv(gym.Env):
             **self.robot.metadata(),
             "task": self.task.name,
             "controller": f"{self.robot.action_mode} mode",
-            "rate_hz": 1.0 / self.dt,
+            "rate_hz": 1.0 / (self.model.opt.timestep if self.telemetry_rate == PHYSICS else self.dt),
         }
 
     def metrics_context(self) -> dict[str, Any]:
         """What evaluation needs to turn an episode's last ``info`` into metrics: the robot's mass and length, the
         task's own metrics."""
         return {"mass": self.robot.facts.mass, "length": self.robot.facts.length, "task": self.task}
+
+
+CONTROL, PHYSICS = "control", "physics"  # the rates telemetry is recorded at
+
+
+def telemetry_rate(value: Any) -> str | None:
+    """``telemetry``: False (None: not recorded), True or ``"control"`` (every control step), ``"physics"``."""
+    if value is True or value == CONTROL:
+        return CONTROL
+    if value is False or value is None:
+        return None
+    if value == PHYSICS:
+        return PHYSICS
+    raise ValueError(f"telemetry must be True, False, {CONTROL!r} or {PHYSICS!r}, got {value!r}")
 
 
 def check_options(options: Any) -> None:

@@ -440,8 +440,24 @@ class Robot(ABC):
         integrate or draw power over."""
 
     @abstractmethod
-    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
-        """Telemetry channels (num_sims, channels) after the step that gave ``readings``."""
+    def telemetry(self, readings: dict[str, np.ndarray], sensordata: np.ndarray | None = None) -> np.ndarray:
+        """Telemetry channels (num_sims, channels) after the step that gave ``readings``; the channels the robot
+        reads from its sensors are read from ``sensordata`` (num_sims, nsensordata) where given (default: the last
+        physics step's)."""
+
+    def physics_telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        """Telemetry at every physics step of the last control step, (num_sims, n_substeps, channels): what the robot
+        reads from its sensors at that physics step (leg angles, motor speeds and torques, contact forces), with the
+        physics step's time, and its other channels (clock, commands, battery, IMU, pose, power) at their control-step
+        values. The last physics step's row is :meth:`telemetry`'s. A loop over the physics steps of one control step,
+        for recording only (``telemetry="physics"``), never in stepping."""
+        sub = self.sim.substep_sensordata
+        steps = sub.shape[1]
+        rows = np.stack([self.telemetry(readings, sub[:, j]) for j in range(steps)], axis=1)
+        time = list(self.telemetry_channels).index("time")
+        back = float(self.model.opt.timestep) * np.arange(steps - 1, -1, -1)
+        rows[:, :, time] = readings["time"][:, None] - back[None, :]
+        return rows
 
     def non_foot_contact(self) -> np.ndarray:
         """(num_sims,) bool: whether anything of the robot but its :attr:`feet` touched the ground in any physics step

@@ -24,7 +24,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.common.env import EPISODE_SECONDS, SkitterEnv, check_options, episode_steps
+from envs.common.env import EPISODE_SECONDS, PHYSICS, SkitterEnv, check_options, episode_steps
 from envs.common.parameters import sample
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import batched_robots
@@ -191,12 +191,21 @@ class SkitterVectorEnv(VectorEnv):
         return mask
 
     def _record(self, readings: dict[str, np.ndarray], unstable: np.ndarray, reset_ids: np.ndarray) -> None:
+        """A step's telemetry: a row per simulation, or one per physics step (``telemetry="physics"``) of those that
+        stepped (one that reset in this step records its reset state once, as at every reset)."""
         rows = self.robot.telemetry(readings)
+        physics = self.robot.physics_telemetry(readings) if self.env.telemetry_rate == PHYSICS else None
         for i in range(self.num_envs):
-            if i in reset_ids:
+            reset = i in reset_ids
+            if reset:
                 self.recorders[i].start_episode()
-            if not unstable[i]:
+            if unstable[i]:
+                continue
+            if physics is None or reset:
                 self.recorders[i].record(rows[i])
+            else:
+                for row in physics[i]:
+                    self.recorders[i].record(row)
 
     def _infos(self, readings, state, terms, fallen, reset_ids, unstable=None) -> dict[str, np.ndarray]:
         """Gymnasium's vector info: an array per key, and ``_key`` marking the simulations that have it. The step's

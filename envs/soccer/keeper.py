@@ -184,10 +184,16 @@ class LearnerRobot(_View):
         m.full = m.inner_robot.read(m.row_rngs(np.arange(m.num_sims), rngs), m.expand(stepped))
         return {key: value[m.learner] for key, value in m.full.items()}
 
-    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+    def telemetry(self, readings: dict[str, np.ndarray], sensordata: np.ndarray | None = None) -> np.ndarray:
         """The learner's telemetry rows after the step that gave ``readings`` (read from every row's)."""
         m = self._match
+        if sensordata is not None:
+            raise ValueError("the learner's view reads its own sensors: no sensordata")
         return m.inner_robot.telemetry(m.full)[m.learner]
+
+    def physics_telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
+        m = self._match
+        return m.inner_robot.physics_telemetry(m.full)[m.learner]
 
 
 class LearnerTask(_View):

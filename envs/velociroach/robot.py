@@ -381,8 +381,8 @@ class VelociRoach(Robot):
             "senses": senses,  # the robot's buffer: valid until the next read
         }
 
-    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
-        sd = self.sim.sensordata
+    def telemetry(self, readings: dict[str, np.ndarray], sensordata: np.ndarray | None = None) -> np.ndarray:
+        sd = self.sim.sensordata if sensordata is None else sensordata
         torque, speed = sd[:, self._i_torque], sd[:, self._i_speed]
         n = len(sd)
         clock = self.clock if self.action_mode == GAIT else np.full((n, 2), np.nan)

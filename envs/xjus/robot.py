@@ -647,8 +647,8 @@ class Xjus(Robot):
         disc = np.maximum(vs * vs - 4.0 * current * ramp * c, 0.0)
         return np.clip(2.0 * c / (vs + np.sqrt(disc)), -1.0, 1.0)
 
-    def telemetry(self, readings: dict[str, np.ndarray]) -> np.ndarray:
-        sd = self.sim.sensordata
+    def telemetry(self, readings: dict[str, np.ndarray], sensordata: np.ndarray | None = None) -> np.ndarray:
+        sd = self.sim.sensordata if sensordata is None else sensordata
         n = len(sd)
         angle, speed, torque = sd[:, self._i_angle], sd[:, self._i_speed], sd[:, self._i_torque]
         gait = self.action_mode == GAIT
