@@ -88,12 +88,25 @@ def describe_policies() -> str:
     )  # fmt: skip
 
 
+def residual_reference(name: str, env) -> Policy:
+    """The scripted gait a residual policy adds to (agents/residual.py): any scripted policy of the robot."""
+    if name.endswith(".zip") or Path(name).is_file():
+        raise ValueError(f"policy {name!r}: a residual adds to a scripted gait, not to a model")
+    return load_policy(name, env)
+
+
 def load_policy(spec: str, env) -> Policy:
     """A policy for ``env`` from a scripted gait's name (see :func:`scripted_policies`) or a trained ``model.zip``."""
     if spec.endswith(".zip") or Path(spec).is_file():
+        from agents.residual import ResidualPolicy, parse_residual
         from agents.sb3 import SB3Policy
 
-        return SB3Policy(spec, env)
+        model = SB3Policy(spec, env)
+        residual = model.manifest.get("residual")  # a residual policy plays on top of its reference gait
+        if residual is None:
+            return model
+        residual = parse_residual(residual)
+        return ResidualPolicy(model, residual, residual_reference(residual.policy, env), env)
     name, _, arg = spec.partition(":")
     if name == "random":
         return RandomPolicy(env, arg)

@@ -48,6 +48,7 @@ from envs.common.io import ToolParser, atomic_write, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RETURN = "return"
+RESIDUAL = "+residual"  # an algorithm's suffix: learn a correction on top of the task's reference gait
 CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw reward: VecMonitor is innermost)
 BOOTSTRAP_REPS = 2000
 
@@ -193,10 +194,9 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
         if resuming:
             command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
         else:
-            hyper = [] if plan.hyperparams is None else ["--hyperparams", _hyperparams(plan.hyperparams, row.algo)]
-            command = _tool("train.py", "--env", row.task, "--algo", row.algo, "--seed", row.seed, "--timesteps",
-                            plan.timesteps, "--runs-dir", runs, "--run-name", row.name, "--no-progress", *hyper,
-                            *budget)  # fmt: skip
+            command = _tool("train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", row.seed,
+                            "--timesteps", plan.timesteps, "--runs-dir", runs, "--run-name", row.name,
+                            "--no-progress", *budget)  # fmt: skip
         _run(command, threads, log)
     trained = _trained_steps(run_dir)
     reference = reference_name(row.task)
@@ -240,15 +240,22 @@ def _begin_attempt(folder: Path, run_dir: Path) -> float:
     return credit
 
 
+def _algo_options(plan: Plan, algo: str) -> list[str]:
+    """train.py's options for a row's algorithm: ``--algo``, its hyperparameter file, and ``--residual`` for a
+    residual variant."""
+    base, residual = algo.removesuffix(RESIDUAL), algo.endswith(RESIDUAL)
+    hyper = [] if plan.hyperparams is None else ["--hyperparams", _hyperparams(plan.hyperparams, base)]
+    return ["--algo", base, *hyper, *(["--residual", "reference"] if residual else [])]
+
+
 def reproduce(plan: Plan, row: Row, trained: int, reference: str) -> list[str]:
     """The two commands that give a row's numbers again on any machine: its training for the steps it took (no
     time cap), then its evaluation."""
-    hyper = [] if plan.hyperparams is None else ["--hyperparams", _hyperparams(plan.hyperparams, row.algo)]
     run = f"runs/{row.name}"
     cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", str(plan.max_episode_steps)]
     return [
-        shlex.join(["python", "train.py", "--env", row.task, "--algo", row.algo, "--seed", str(row.seed), "--timesteps",
-                    str(trained), "--run-name", row.name, *hyper]),
+        shlex.join(["python", "train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", str(row.seed),
+                    "--timesteps", str(trained), "--run-name", row.name]),
         shlex.join(["python", "evaluate.py", "--env", row.task, "--policy", reference, "--policy", f"{run}/model.zip",
                     "--episodes", str(plan.episodes), "--seed", str(plan.eval_seed), *cut, "--out",
                     f"results/{row.name}"]),
@@ -439,7 +446,10 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = ToolParser(prog="python -m agents.leaderboard", description=__doc__.splitlines()[0])
     parser.add_argument("--tasks", nargs="+", required=True, help="env ids")
-    parser.add_argument("--algos", nargs="+", default=["ppo"], choices=["ppo", "sac", "td3"])
+    parser.add_argument("--algos", nargs="+", default=["ppo"], metavar="ALGO",
+                        choices=[f"{a}{v}" for a in ("ppo", "sac", "td3") for v in ("", RESIDUAL)],
+                        help=f"ppo, sac, td3, or one of them with {RESIDUAL} (a residual policy on the task's "
+                             "reference gait, agents/residual.py): ppo+residual")  # fmt: skip
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--timesteps", type=int, required=True, help="env steps a row trains")
     parser.add_argument("--minutes", type=float, help="wall-time cap of a row's training")

@@ -82,8 +82,10 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 from torch.utils.tensorboard import SummaryWriter
 
 import envs  # noqa: F401  (registers the skitter envs)
+from agents import residual_reference
 from agents.config import ConfigError
 from agents.evaluation import episode_metrics
+from agents.residual import Residual, ResidualVecEnv, gym_env, parse_residual
 from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
 from agents.tuning import RunCode, tune
 from agents.vec_env import make_batched_vec_env
@@ -187,6 +189,7 @@ class Hyperparams:
     noise: tuple[str, float] | None  # (noise_type, noise_std)
     vec_env: str = "batched"
     nthread: int | None = None
+    residual: Residual | None = None  # a residual policy's reference gait (agents/residual.py)
 
 
 class DuplicateKeyError(yaml.constructor.ConstructorError):
@@ -257,7 +260,7 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: i
     """Check every field of ``entry`` for ``algo`` and parse the values; errors name ``where``, the field and value."""
     defaults = algo_defaults(algo)
     own_defaults = {**TRAIN_DEFAULTS, **(NOISE_DEFAULTS if "action_noise" in defaults else {})}
-    allowed = (set(defaults) - set(SET_BY_TRAIN)) | set(own_defaults)
+    allowed = (set(defaults) - set(SET_BY_TRAIN)) | set(own_defaults) | {"residual"}
     for key in entry:
         if key not in allowed:
             raise ConfigError(f"{where}: {_unknown_field_message(key, allowed, algo)}")
@@ -292,6 +295,7 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: i
         noise=noise,
         vec_env=check("vec_env", _vec_env),
         nthread=check("nthread", lambda v: None if v is None else _number("nthread", v, int)),
+        residual=check("residual", parse_residual) if "residual" in raw else None,
     )
 
 
@@ -525,6 +529,11 @@ def make_env(env_id: str, hp: Hyperparams, seed: int, checkpoint: Checkpoint | N
             venv = make_vec_env(env_id, hp.n_envs, seed=seed, env_kwargs=hp.env_kwargs, vec_env_cls=DummyVecEnv)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{hp.where}: field 'env_kwargs' = {hp.env_kwargs!r}: {exc}") from None
+    if hp.residual is not None:  # inside the normalization: the reference reads the env's own observations
+        try:
+            venv = ResidualVecEnv(venv, hp.residual, residual_reference(hp.residual.policy, gym_env(venv)))
+        except ValueError as exc:
+            raise ConfigError(f"{hp.where}: field 'residual' = {hp.raw['residual']!r}: {exc}") from None
     if checkpoint is not None:
         check_fits(checkpoint, venv, env_id)
     if hp.normalize is None:
@@ -864,8 +873,12 @@ class ResumedTensorBoard(TensorBoardOutputFormat):
 
 
 def run_manifest(config: dict[str, Any]) -> dict[str, Any]:
-    """What a run's model files record about it (a soccer run also its match configuration)."""
+    """What a run's model files record about it (a soccer run also its match configuration, a residual policy its
+    reference gait and scale)."""
     manifest = {"algo": config["algo"], "env_id": config["env_id"], "seed": config["seed"]}
+    residual = config.get("hyperparams", {}).get("residual")
+    if residual is not None:
+        manifest["residual"] = parse_residual(residual).record()
     return {**manifest, "soccer": config["soccer"]} if "soccer" in config else manifest
 
 
@@ -938,6 +951,8 @@ def start_run(args: argparse.Namespace) -> Path:
     check_env_id(args.env)
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    if args.residual is not None:
+        overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file)
     hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
@@ -951,6 +966,23 @@ def start_run(args: argparse.Namespace) -> Path:
         return train(model, run_dir, config, progress=not args.no_progress)
 
 
+def residual_override(name: str, env_id: str, hyperparams_file: Path) -> dict[str, Any]:
+    """``--residual NAME``: the entry's residual with its gait replaced (``reference``: the robot's reference gait),
+    keeping the entry's scale if it sets one."""
+    if name == "reference":
+        from agents import reference_policy
+
+        env = gym.make(env_id)
+        try:
+            name = reference_policy(env.unwrapped.robot.name)
+        finally:
+            env.close()
+    table = read_yaml(hyperparams_file)
+    given = table.get(env_id, {}).get("residual") if isinstance(table, dict) else None
+    scale = given.get("scale") if isinstance(given, dict) else None
+    return {"policy": name} if scale is None else {"policy": name, "scale": scale}
+
+
 def start_tuning(args: argparse.Namespace) -> Path:
     """An Optuna study from the command line (``--tune``; agents/tuning.py); returns its folder."""
     check_runs_dir(Path(args.runs_dir))
@@ -961,6 +993,8 @@ def start_tuning(args: argparse.Namespace) -> Path:
     if not isinstance(entry, dict):
         raise ConfigError(f"{hyperparams_file}: no entry (a mapping of hyperparameters) for env {args.env!r}")
     base = {**entry, **({"n_envs": args.n_envs} if args.n_envs is not None else {})}
+    if args.residual is not None:
+        base["residual"] = residual_override(args.residual, args.env, hyperparams_file)
     return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {args.env}", args.tune, args.timesteps,
                 Path(args.runs_dir), args.storage, args.study, 0 if args.seed is None else args.seed,
                 args.evaluations, args.eval_episodes, args.minutes, command_line())  # fmt: skip
@@ -975,6 +1009,9 @@ def start_selfplay(args: Any) -> Path:
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / "ppo.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
     hp = load_hyperparams(hyperparams_file, key, "ppo", overrides, players=args.players)
+    if hp.residual is not None:
+        raise ConfigError(f"{hp.where}: field 'residual': self-play trains in the commands mode, where the gait is the "
+                          "mode itself; a residual policy is for one robot's env")  # fmt: skip
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
     soccer = {"robot": args.soccer, "players_per_team": args.players, "action_mode": COMMANDS,
@@ -1223,6 +1260,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help=f"env steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ})",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--residual", metavar="GAIT",
+                        help="train a residual policy on top of this scripted gait ('reference': the robot's own; "
+                             "agents/residual.py), whatever the hyperparameter entry says")  # fmt: skip
     parser.add_argument("--minutes", type=float,
                         help="stop after this much wall time (the model is saved as at --timesteps)")  # fmt: skip
     tuning = parser.add_argument_group("hyperparameter tuning (agents/tuning.py; Optuna, PPO and SAC)")
@@ -1264,6 +1304,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
         if not 0.0 <= args.scripted_share <= 1.0:
             parser.error(f"--scripted-share must be in [0, 1], got {args.scripted_share}")
+    if args.residual is not None and (args.resume or args.soccer is not None):
+        parser.error("--residual starts a new run of one env: not with --resume (the run keeps its own) or --soccer")
     if args.tune is not None:
         if args.resume or args.soccer is not None:
             parser.error("--tune runs a study of one env's training: not with --resume or --soccer")

@@ -1,0 +1,90 @@
+"""Residual policies (agents/residual.py): a learned correction on top of the reference gait."""
+
+import numpy as np
+import pytest
+import yaml
+
+from agents import load_policy
+from agents.config import ConfigError
+from agents.residual import ResidualPolicy, ResidualVecEnv, gym_env
+from agents.training import main as train_main
+from agents.training import make_env, resolve_hyperparams
+
+TURN = "skitter/RoachTurn-v2"
+TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 40},
+        "n_steps": 64, "batch_size": 64}  # fmt: skip
+
+
+def test_a_zero_correction_plays_the_reference_gait_exactly():
+    """With no correction the residual env is driven by the tripod's turning table itself: the same observations
+    as the plain env stepped by the tripod, across an episode's end and its reset."""
+    residual = make_env(TURN, resolve_hyperparams({**TINY, "residual": "tripod"}, "ppo", "test"), 3)
+    plain = make_env(TURN, resolve_hyperparams({**TINY, "normalize": False}, "ppo", "test"), 3)
+    inner = residual.venv
+    assert isinstance(inner, ResidualVecEnv) and inner.residual.scale == 0.25
+    tripod = load_policy("tripod", gym_env(plain))
+    inner.reset()
+    obs = plain.reset()
+    state, start = None, np.ones(2, dtype=bool)
+    for _ in range(60):  # past the 40-step episodes
+        inner.step_async(np.zeros((2, 3), dtype=np.float32))
+        got, _, done_r, _ = inner.step_wait()
+        action, state = tripod.predict(obs, state=state, episode_start=start)
+        obs, _, done, _ = plain.step(action)
+        start = done
+        np.testing.assert_array_equal(got, obs)
+        np.testing.assert_array_equal(done_r, done)
+
+
+def test_a_residual_model_records_its_gait_and_plays_on_top_of_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    entry = {**TINY, "residual": {"policy": "tripod", "scale": 0.5}}
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: entry}))
+    assert train_main(["--env", TURN, "--algo", "ppo", "--timesteps", "128", "--hyperparams", "tiny.yml",
+                       "--runs-dir", "runs", "--run-name", "r", "--no-progress"]) == 0  # fmt: skip
+    import gymnasium as gym
+
+    env = gym.make(TURN)
+    policy = load_policy("runs/r/model.zip", env)
+    assert isinstance(policy, ResidualPolicy) and policy.residual.scale == 0.5
+    tripod = load_policy("tripod", env)
+    obs, _ = env.reset(seed=0)
+    for _ in range(5):
+        action, _ = policy.predict(obs)
+        correction, _ = policy.model.predict(obs)
+        expected = np.clip(tripod.predict(obs)[0] + 0.5 * correction, -1.0, 1.0)
+        np.testing.assert_allclose(action, expected, rtol=0, atol=1e-6)
+        obs, *_ = env.step(action)
+
+
+@pytest.mark.parametrize(
+    ("residual", "message"),
+    [
+        ("nope", "unknown policy 'nope'"),
+        ({"policy": "tripod", "scale": 5}, "scale must be a number in (0, 2]"),
+        ({"policy": "tripod", "gain": 1}, "expected a scripted policy's name"),
+        ("runs/x/model.zip", "a residual adds to a scripted gait"),
+    ],
+)
+def test_a_bad_residual_is_named_in_one_line(residual, message):
+    with pytest.raises(ConfigError, match="field 'residual'") as error:
+        make_env(TURN, resolve_hyperparams({**TINY, "residual": residual}, "ppo", "tiny.yml: " + TURN), 0)
+    assert message in str(error.value)
+
+
+def test_residual_reference_takes_the_robots_reference_gait(tmp_path, monkeypatch, capsys):
+    """``train.py --residual reference`` trains on the robot's own reference gait (the tripod) with the entry's
+    scale; with --resume it is refused, since a run keeps its own."""
+    monkeypatch.chdir(tmp_path)
+    entry = {**TINY, "residual": {"policy": "tripod:20", "scale": 0.4}}
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: entry}))
+    argv = ["--env", TURN, "--algo", "ppo", "--timesteps", "64", "--hyperparams", "tiny.yml", "--runs-dir", "runs",
+            "--run-name", "r", "--no-progress", "--residual", "reference"]  # fmt: skip
+    assert train_main(argv) == 0
+    from agents.sb3 import read_model_file
+
+    manifest, _ = read_model_file(tmp_path / "runs" / "r" / "model.zip")
+    assert manifest["residual"] == {"policy": "tripod", "scale": 0.4}
+    with pytest.raises(SystemExit):
+        train_main(["--resume", "runs/r", "--residual", "tripod"])
+    assert "--residual starts a new run" in capsys.readouterr().err
