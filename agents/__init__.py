@@ -67,7 +67,9 @@ class RandomPolicy:
         try:
             seed = int(arg) if arg else 0
         except ValueError:
-            raise ValueError(f"random:{arg}: the seed must be a whole number") from None
+            seed = -1
+        if seed < 0:
+            raise ValueError(f"random:{arg}: the seed after 'random:' must be a whole number >= 0")
         space = env.unwrapped.single_action_space if hasattr(env.unwrapped, "single_action_space") else env.action_space
         self.low, self.high = np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
         self.rng = np.random.default_rng(seed)

@@ -76,8 +76,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     p.add_argument("--telemetry", action="store_true", help="write the telemetry of every episode as Parquet")
     p.add_argument("--telemetry-rate", choices=("control", "physics"), default="control",
-                   help="record telemetry (and plot it) at every control step (default) or every physics step, "
-                        "whose leg angles resolve a stride faster than half the control rate")  # fmt: skip
+                   help="the rate of the telemetry behind the plots and --telemetry's files: every control step "
+                        "(default) or every physics step, whose leg angles resolve a stride faster than half the "
+                        "control rate")  # fmt: skip
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of taking the mode")
     p.add_argument(
         "--overwrite",

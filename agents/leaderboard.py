@@ -33,6 +33,7 @@ import json
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -51,6 +52,7 @@ RETURN = "return"
 RESIDUAL = "+residual"  # an algorithm's suffix: learn a correction on top of the task's reference gait
 CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw reward: VecMonitor is innermost)
 BOOTSTRAP_REPS = 2000
+CHILD_GRACE = 120.0  # s a stopped train.py or evaluate.py may take to save its checkpoint and end
 
 
 @dataclass(frozen=True)
@@ -123,9 +125,19 @@ def _run(command: list[str], threads: int, log: Path) -> None:
     with log.open("a") as out:
         out.write(f"$ {shlex.join(command)}\n")
         out.flush()
-        done = subprocess.run(command, stdout=out, stderr=subprocess.STDOUT, env=env, cwd=ROOT)
-    if done.returncode != 0:
-        raise RuntimeError(f"{shlex.join(command[1:3])} ... failed (exit {done.returncode}); see {log}")
+        child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, env=env, cwd=ROOT)
+        try:
+            code = child.wait()
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the child stops as on its own Ctrl-C (train.py checkpoints)
+            child.send_signal(signal.SIGINT)
+            try:
+                child.wait(timeout=CHILD_GRACE)
+            except subprocess.TimeoutExpired:
+                child.kill()
+                child.wait()
+            raise
+    if code != 0:
+        raise RuntimeError(f"{shlex.join(command[1:3])} ... failed (exit {code}); see {log}")
 
 
 def reference_name(task: str) -> str:
@@ -186,8 +198,10 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     started = time.time()
     if not (run_dir / "model.zip").is_file():
         resuming = (run_dir / "config.json").is_file() and any((run_dir / "checkpoints").glob("step_*"))
+        if resuming:
+            _check_run_plan(run_dir, plan, row)
         if not resuming and run_dir.exists():  # killed before its first checkpoint: nothing to continue
-            shutil.rmtree(run_dir)
+            _remove_run(run_dir)
             (folder / ATTEMPTS).unlink(missing_ok=True)
         credit = _begin_attempt(folder, run_dir)
         budget = [] if plan.minutes is None else ["--minutes", f"{max(plan.minutes - credit / 60.0, 0.01):.4f}"]
@@ -216,6 +230,29 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
               "reproduce": reproduce(plan, row, trained, reference), "settings": plan.row_settings}  # fmt: skip
     write_json(record_path, record)
     return record
+
+
+def _check_run_plan(run_dir: Path, plan: Plan, row: Row) -> None:
+    """A killed row's run goes on only under the plan it started with (StaleResult otherwise)."""
+    config = json.loads((run_dir / "config.json").read_text())
+    algo, residual = row.algo.removesuffix(RESIDUAL), row.algo.endswith(RESIDUAL)
+    started = {"timesteps": config.get("timesteps"), "algo": config.get("algo"),
+               "residual": "residual" in config.get("hyperparams", {})}  # fmt: skip
+    wanted = {"timesteps": plan.timesteps, "algo": algo, "residual": residual}
+    if started != wanted:
+        raise StaleResult(f"{run_dir}: a killed row's run started with {started}, not {wanted}: give --rerun for it, "
+                          "or another --out")  # fmt: skip
+
+
+def _remove_run(run_dir: Path) -> None:
+    """Remove a row's run folder, unless a train.py still writes it (a leaderboard killed without its child)."""
+    from agents.training import RUN_LOCK
+    from envs.common.io import folder_lock
+
+    if (run_dir / RUN_LOCK).is_file():
+        with folder_lock(run_dir, "train.py", RUN_LOCK):  # Busy if one still runs
+            pass
+    shutil.rmtree(run_dir)
 
 
 ATTEMPTS = "attempts.json"  # in a row's folder: when each training process started, and the time it was credited
@@ -291,9 +328,18 @@ def plan_arguments(plan: Plan) -> list[str]:
 
 # --- the table --------------------------------------------------------------------------------------------------
 def normalized(score: np.ndarray, baselines: dict[str, Any]) -> np.ndarray:
-    """Scores with the random policy at 0 and the reference at 1."""
+    """Scores with the random policy at 0 and the reference at 1; NaN where the task's reference scores no better
+    than random (no scale to normalize by: :func:`comparable`)."""
     low, high = baselines["random_return"], baselines["reference_return"]
-    return (np.asarray(score, dtype=np.float64) - low) / (high - low if high != low else 1.0)
+    if not comparable(baselines):
+        return np.full(np.shape(score), np.nan)
+    return (np.asarray(score, dtype=np.float64) - low) / (high - low)
+
+
+def comparable(baselines: dict[str, Any]) -> bool:
+    """Whether a task's reference beats its random policy, so that its scores can be normalized."""
+    low, high = baselines["random_return"], baselines["reference_return"]
+    return bool(np.isfinite(low) and np.isfinite(high) and high > low)
 
 
 def aggregate(scores: dict[str, np.ndarray], seed: int = 0) -> dict[str, dict[str, float]]:
@@ -334,15 +380,18 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     done = {row: rec for row, rec in rows.items() if rec is not None}
     per_task: dict[str, dict[str, dict[str, float]]] = {}
     matrix: dict[str, np.ndarray] = {}
+    ranked = [t for t in plan.tasks if comparable(baselines[t])]  # tasks whose scores normalize
     for algo in plan.algos:
         columns = []
-        for task in plan.tasks:
-            scores = [normalized(done[r]["mean_return"], baselines[task]) for r in done if
+        for task in ranked:
+            scores = [float(normalized(done[r]["mean_return"], baselines[task])) for r in done if
                       r.task == task and r.algo == algo]  # fmt: skip
+            scores = [x for x in scores if np.isfinite(x)]  # a row with no finite return has no score
             if scores:
-                per_task.setdefault(task, {})[algo] = aggregate({algo: np.array(scores)[:, None]})[algo]
+                cell = aggregate({algo: np.array(scores)[:, None]})[algo]
+                per_task.setdefault(task, {})[algo] = {**cell, "seeds": len(scores)}
             columns.append(scores)
-        if columns and all(len(c) == len(plan.seeds) for c in columns):  # every row of the algorithm done
+        if ranked and all(len(c) == len(plan.seeds) for c in columns):  # every row of the algorithm scored
             matrix[algo] = np.array(columns, dtype=np.float64).T  # (seeds, tasks)
     overall = aggregate(matrix) if matrix else {}
     plots = out / "plots"
@@ -391,6 +440,14 @@ def _save(fig: Any, path: Path) -> None:
     plt.close(fig)
 
 
+def _cell(cell: dict[str, float] | None, seeds: int, comparable: bool) -> str:
+    """A task's cell: the IQM and interval, and how many seeds if not all; "not run", or "-" where no score
+    normalizes."""
+    if cell is None:
+        return "not run" if comparable else "-"
+    return _interval(cell) + ("" if cell["seeds"] == seeds else f" ({cell['seeds']} of {seeds} seeds)")
+
+
 def _interval(a: dict[str, float]) -> str:
     return f"{a['iqm']:.2f} [{a['low']:.2f}, {a['high']:.2f}]"
 
@@ -411,14 +468,24 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         "| task | reference | reference return | random return | " + " | ".join(plan.algos) + " |",
         "|---|---|---|---|" + "---|" * len(plan.algos),
     ]
+    seeds = len(plan.seeds)
     for task in plan.tasks:
         b = baselines[task]
-        cells = [_interval(per_task[task][a]) if a in per_task.get(task, {}) else "not run" for a in plan.algos]
+        cells = [_cell(per_task.get(task, {}).get(a), seeds, comparable(b)) for a in plan.algos]
         lines.append(f"| `{task}` | {b['reference']} | {b['reference_return']:.1f} | {b['random_return']:.1f} | "
                      + " | ".join(cells) + " |")  # fmt: skip
+    unranked = [t for t in plan.tasks if not comparable(baselines[t])]
+    if unranked:
+        lines += ["", "Not normalized (the reference scores no better than random there): "
+                  + ", ".join(f"`{t}`" for t in unranked) + "."]  # fmt: skip
+    if seeds < 4:
+        lines += ["", f"With {seeds} seeds the interquartile mean trims nothing: it is the mean."]
+    missing = [a for a in plan.algos if a not in overall]
     if overall:
         lines += ["", "Over all tasks: " + "; ".join(f"{a} {_interval(v)}" for a, v in overall.items()) + ".", "",
                   "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
+    if missing:
+        lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
     lines += ["", "## Rows", "", "| row | steps trained | mean return | normalized | speed vs reference (m/s) | "
               "cost of transport vs reference |", "|---|---|---|---|---|---|"]  # fmt: skip
     for row, rec in rows.items():
@@ -483,8 +550,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error(f"--minutes must be positive, got {args.minutes}")
     if min(args.seeds) < 0 or args.eval_seed < 0:
         parser.error("seeds must be whole numbers >= 0")
+    if len(set(args.seeds)) != len(args.seeds) or len(set(args.algos)) != len(args.algos):
+        parser.error("--seeds and --algos must not repeat themselves")
     if args.hyperparams is not None and not Path(args.hyperparams).exists():
         parser.error(f"--hyperparams {args.hyperparams}: no such file or folder")
+    if args.hyperparams is not None and Path(args.hyperparams).resolve() == (ROOT / "hyperparams").resolve():
+        args.hyperparams = None  # the shipped files, however named: the same rows as without the option
+    if Path(args.out).exists() and not Path(args.out).is_dir():
+        parser.error(f"--out {args.out}: exists and is not a folder")
     reruns = []
     for text in args.rerun:
         parts = text.rsplit(":", 2)
@@ -496,33 +569,62 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from envs.common.io import Busy, folder_lock, interrupted_exit_code, sigterm_as_interrupt
+
     args = parse_args(argv)
     plan = Plan(tuple(args.tasks), tuple(args.algos), tuple(args.seeds), args.timesteps, args.minutes,
                 args.episodes, args.eval_seed, args.hyperparams, args.max_episode_steps)  # fmt: skip
-    unknown = [r for r in args.rerun if r not in plan.rows]
-    if unknown:
-        print(f"leaderboard: error: --rerun {unknown[0].name}: not a row of this plan", file=sys.stderr)
-        return 2
     out = Path(args.out)
+    try:
+        _check_plan(plan, args.rerun, out)
+    except (StaleResult, ValueError) as exc:
+        print(f"leaderboard: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        with sigterm_as_interrupt(), folder_lock(out, "leaderboard", ".leaderboard.lock"):
+            return _run_plan(plan, args, out)
+    except Busy as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    except KeyboardInterrupt as exc:
+        print(f"leaderboard: interrupted; finished rows are kept in {out}, and a killed row's training resumes from "
+              "its last checkpoint when the command runs again", file=sys.stderr)  # fmt: skip
+        return interrupted_exit_code(exc)
+
+
+def _check_plan(plan: Plan, reruns: list[Row], out: Path) -> None:
+    """Everything a command can be refused for, before anything runs or is removed: rows to rerun that are not in
+    the plan, hyperparameter files without an entry for a task, finished rows and baselines of other settings."""
+    from agents.training import read_yaml
+
+    for row in reruns:
+        if row not in plan.rows:
+            raise ValueError(f"--rerun {row.task}:{row.algo}:{row.seed}: not a row of this plan")
+    for algo in {a.removesuffix(RESIDUAL) for a in plan.algos}:
+        path = Path(_hyperparams(plan.hyperparams, algo)) if plan.hyperparams else ROOT / "hyperparams" / f"{algo}.yml"
+        table = read_yaml(path)
+        missing = [t for t in plan.tasks if not isinstance(table, dict) or not isinstance(table.get(t), dict)]
+        if missing:
+            raise ValueError(f"{path}: no entry for {', '.join(missing)}")
+    for task in plan.tasks:
+        _load_done(out / "tasks" / task.replace("/", "_") / "baselines.json", plan.eval_settings, task)
+    for row in plan.rows:
+        if row not in reruns:
+            _load_done(out / "rows" / row.name / "row.json", plan.row_settings, f"row {row.name}")
+
+
+def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
     for row in args.rerun:
         shutil.rmtree(out / "rows" / row.name, ignore_errors=True)
-        shutil.rmtree(out / "runs" / row.name, ignore_errors=True)
-    try:  # finished rows and baselines made with other settings are refused before anything runs
-        for task in plan.tasks:
-            _load_done(out / "tasks" / task.replace("/", "_") / "baselines.json", plan.eval_settings, task)
-        for row in plan.rows:
-            _load_done(out / "rows" / row.name / "row.json", plan.row_settings, f"row {row.name}")
-    except StaleResult as exc:
-        print(f"leaderboard: error: {exc}", file=sys.stderr)
-        return 2
+        if (out / "runs" / row.name).exists():
+            _remove_run(out / "runs" / row.name)
     todo = [r for r in plan.rows if not (out / "rows" / r.name / "row.json").is_file()]
-    worst = "" if plan.minutes is None else f"; at most {len(todo) * plan.minutes / args.workers:.0f} min of training"
+    worst = "" if plan.minutes is None else f"; at most {len(todo) * plan.minutes / args.workers:.1f} min of training"
     print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {plan.timesteps:,} steps each{worst}, "
           f"{args.workers} at a time on {threads} threads each" + (f" on Ray at {args.address}" if args.address
                                                                     else ""))  # fmt: skip
-    out.mkdir(parents=True, exist_ok=True)
     baselines = {task: task_baselines(plan, task, out, cores) for task in plan.tasks}
     results: dict[Row, dict | None] = {r: None for r in plan.rows}
     failures = []
@@ -545,8 +647,10 @@ def main(argv: list[str] | None = None) -> int:
 def _row_job(plan: Plan, row: Row, out: Path, threads: int) -> tuple[Row, dict | None, str | None]:
     try:
         return row, run_row(plan, row, out, threads), None
-    except RuntimeError as exc:
-        return row, None, str(exc)
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # a failed tool, a stale run, a busy folder: the row fails, the others go on
+        return row, None, f"{type(exc).__name__}: {exc}" if not isinstance(exc, RuntimeError) else str(exc)
 
 
 def _run_rows(plan: Plan, rows: list[Row], out: Path, threads: int, workers: int, address: str | None):
@@ -570,9 +674,12 @@ def _run_rows(plan: Plan, rows: list[Row], out: Path, threads: int, workers: int
             yield _row_job(plan, row, out, threads)
         return
     import multiprocessing
+    from concurrent.futures import as_completed
 
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        yield from pool.map(_row_job, [plan] * len(rows), rows, [out] * len(rows), [threads] * len(rows))
+        futures = [pool.submit(_row_job, plan, row, out, threads) for row in rows]
+        for future in as_completed(futures):
+            yield future.result()
 
 
 if __name__ == "__main__":

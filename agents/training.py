@@ -969,16 +969,21 @@ def start_run(args: argparse.Namespace) -> Path:
 def residual_override(name: str, env_id: str, hyperparams_file: Path) -> dict[str, Any]:
     """``--residual NAME``: the entry's residual with its gait replaced (``reference``: the robot's reference gait),
     keeping the entry's scale if it sets one."""
-    if name == "reference":
-        from agents import reference_policy
+    from agents import reference_policy
 
-        env = gym.make(env_id)
-        try:
+    given_name = name
+    env = gym.make(env_id)
+    try:
+        if name == "reference":
             name = reference_policy(env.unwrapped.robot.name)
-        finally:
-            env.close()
+        residual_reference(name, env)  # a gait of this robot, named on the command line
+    except ValueError as exc:
+        raise ConfigError(f"--residual {given_name}: {exc}") from None
+    finally:
+        env.close()
     table = read_yaml(hyperparams_file)
-    given = table.get(env_id, {}).get("residual") if isinstance(table, dict) else None
+    entry = table.get(env_id) if isinstance(table, dict) else None
+    given = entry.get("residual") if isinstance(entry, dict) else None
     scale = given.get("scale") if isinstance(given, dict) else None
     return {"policy": name} if scale is None else {"policy": name, "scale": scale}
 

@@ -52,6 +52,10 @@ class RunCode:
     torch_threads: int
 
 
+class Diverged(RuntimeError):
+    """A trial whose training broke down (NaN in the policy): recorded as failed, and the study goes on."""
+
+
 EVAL_SEED = 10**6  # the evaluation episodes' seed: away from the training seeds (0, 1, ...) of any run
 STARTUP_TRIALS = 5  # trials that run to the end before the pruner compares
 TUNABLE = ("ppo", "sac")
@@ -65,10 +69,11 @@ def _net(trial: optuna.Trial) -> str:
 
 
 def sample_ppo(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, Any]:
-    """PPO's hyperparameters for a trial: a rollout no longer than the trial's budget, a minibatch no larger than a
-    rollout."""
-    steps = [n for n in (128, 256, 512, 1024, 2048) if n * n_envs <= max(timesteps, 128 * n_envs)]
-    n_steps = trial.suggest_categorical("n_steps", steps)
+    """PPO's hyperparameters for a trial: a rollout cut to the trial's budget (at least 128 steps an env), a minibatch
+    no larger than a rollout. The draws' choices are fixed (a study keeps them whatever the budget); the values used
+    are in each trial's ``hyperparams``."""
+    drawn = trial.suggest_categorical("n_steps", (128, 256, 512, 1024, 2048))
+    n_steps = max(128, min(drawn, timesteps // n_envs))
     batch = trial.suggest_categorical("batch_size", (64, 128, 256, 512))
     return {
         "n_steps": n_steps,
@@ -143,6 +148,21 @@ def storage_url(storage: str | None, runs_dir: Path) -> str:
     return storage
 
 
+def _shown(url: str) -> str:
+    """A database URL as messages and files show it: without its password."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:  # not a URL SQLAlchemy parses: shown as given (it holds no password to hide)
+        return url
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else ""
+
+
 def study_name(env_id: str, algo: str) -> str:
     return f"{env_id.replace('/', '_')}__{algo}"
 
@@ -178,9 +198,10 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
         the_study = optuna.create_study(storage=url, study_name=name, direction="maximize", sampler=sampler,
                                         pruner=pruner, load_if_exists=True)  # fmt: skip
     except ImportError as exc:
-        raise ConfigError(f"--storage {url}: {exc}") from None
+        raise ConfigError(f"--storage {_shown(url)}: {_first_line(exc)}") from None
     except Exception as exc:  # SQLAlchemy's errors: a server that does not answer, a bad URL, a locked file
-        raise ConfigError(f"--storage {url}: cannot open the study ({type(exc).__name__}: {exc})") from None
+        raise ConfigError(f"--storage {_shown(url)}: cannot open the study ({type(exc).__name__}: "
+                          f"{_first_line(exc)})") from None  # fmt: skip
     the_study.set_user_attr("env_id", env_id)
     the_study.set_user_attr("algo", algo)
 
@@ -188,6 +209,7 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
         drawn = SPACES[algo](trial, hp0.n_envs, timesteps)
         hp = code.resolve_hyperparams({**base, **drawn}, algo, f"{where} (trial {trial.number})")
         trial.set_user_attr("hyperparams", drawn)
+        trial.set_user_attr("command", command)
         set_random_seed(seed + trial.number)
         venv = code.make_env(env_id, hp, seed + 1000 * trial.number)
         evaluation = eval_env(env_id, hp, code)
@@ -195,7 +217,12 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
             model = code.build_model(algo, hp, venv, seed + trial.number)
             every = max(1, timesteps // (evaluations * hp.n_envs))
             callback = TrialEvalCallback(trial, evaluation, every, eval_episodes)
-            model.learn(timesteps, callback=callback)
+            try:
+                model.learn(timesteps, callback=callback)
+            except ConfigError:
+                raise
+            except ValueError as exc:  # torch's distributions refuse NaN parameters: the trial diverged
+                raise Diverged(str(exc).splitlines()[0]) from None
             if callback.pruned:
                 raise optuna.TrialPruned()
             value = float(callback.last_mean_reward)
@@ -208,8 +235,8 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
 
     try:
         the_study.optimize(
-            objective, n_trials=trials, timeout=None if minutes is None else 60.0 * minutes, catch=(ValueError,)
-        )  # fmt: skip (a diverged trial: NaN in the policy; recorded, not fatal)
+            objective, n_trials=trials, timeout=None if minutes is None else 60.0 * minutes, catch=(Diverged,)
+        )
     finally:
         folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command)
     return folder
@@ -231,10 +258,7 @@ def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder
     write_text(folder / "trials.csv", frame.to_csv(index=False))
     states = [t.state for t in study.trials]
     counts = {s.name.lower(): states.count(s) for s in optuna.trial.TrialState}
-    from sqlalchemy.engine import make_url
-
-    summary: dict[str, Any] = {"study": study.study_name, "env_id": env_id, "algo": algo,
-                               "storage": make_url(url).render_as_string(hide_password=True),
+    summary: dict[str, Any] = {"study": study.study_name, "env_id": env_id, "algo": algo, "storage": _shown(url),
                                "trials": counts, "command": command}  # fmt: skip
     complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
     if complete:
@@ -242,7 +266,8 @@ def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder
         entry = _as_entry(base, best.user_attrs.get("hyperparams", {}))
         summary["best"] = {"trial": best.number, "value": best.value, "hyperparams": entry}
         header = (f"# {algo} for {env_id}: the best of {len(complete)} complete trials of study {study.study_name} "
-                  f"(trial {best.number}, mean return {best.value:.4g}).\n# Made by: {command}\n")  # fmt: skip
+                  f"(trial {best.number}, mean return {best.value:.4g}).\n# Its trial was run by: "
+                  f"{best.user_attrs.get('command', command)}\n")  # fmt: skip
         write_text(folder / "best.yml", header + yaml.safe_dump({env_id: entry}, sort_keys=False))
     write_json(folder / "study.json", summary)
     return folder

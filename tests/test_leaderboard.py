@@ -97,9 +97,15 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     assert set(summary["overall"]) == {"ppo"}, "sac misses a row: no score over all tasks"
     text = (tmp_path / "results.md").read_text()
     assert "| skitter_RoachWalk-v2__sac__2 | not run |" in text
-    assert (
-        leaderboard.normalized(10.0, baselines[WALK]) == 0.0 and leaderboard.normalized(110.0, baselines[WALK]) == 1.0
-    )
+    assert leaderboard.normalized(10.0, baselines[WALK]) == 0.0
+    assert leaderboard.normalized(110.0, baselines[WALK]) == 1.0
+    assert "(2 of 3 seeds)" in text
+    # a task whose reference is no better than random: not normalized, and said so
+    xjus = "skitter/XjusWalk-v1"
+    flat = {**baselines, xjus: {"reference": "gait", "reference_return": 5.0, "random_return": 5.0}}
+    summary = leaderboard.build_table(plan, tmp_path, flat, rows, None)
+    assert xjus not in summary["per_task"] and np.isnan(leaderboard.normalized(7.0, flat[xjus]))
+    assert f"no better than random there): `{xjus}`" in (tmp_path / "results.md").read_text()
 
 
 def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):

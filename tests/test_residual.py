@@ -88,3 +88,32 @@ def test_residual_reference_takes_the_robots_reference_gait(tmp_path, monkeypatc
     with pytest.raises(SystemExit):
         train_main(["--resume", "runs/r", "--residual", "tripod"])
     assert "--residual starts a new run" in capsys.readouterr().err
+
+
+def test_a_bad_residual_on_the_command_line_is_named_as_itself(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: TINY}))
+    status = train_main(["--env", TURN, "--algo", "ppo", "--timesteps", "64", "--hyperparams", "tiny.yml",
+                         "--runs-dir", "runs", "--residual", "nope"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert status == 2 and "--residual nope: unknown policy 'nope'" in err and not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize(("env_id", "gait"), [("skitter/BioloidWalk-v2", "ik-trot"), ("skitter/RoachWalkDuty-v2",
+                                                                                    "tripod")])  # fmt: skip
+def test_a_gait_with_a_state_of_its_own_restarts_with_each_episode(env_id, gait):
+    """The IK trot's clock and the duty-mode tripod's firmware state: with no correction, the residual env plays
+    the gait exactly, across episode ends, as the plain env stepped by the gait with its episode starts."""
+    entry = {**TINY, "env_kwargs": {"max_episode_steps": 30}}
+    residual = make_env(env_id, resolve_hyperparams({**entry, "residual": gait}, "ppo", "test"), 1).venv
+    plain = make_env(env_id, resolve_hyperparams({**entry, "normalize": False}, "ppo", "test"), 1)
+    reference = load_policy(gait, gym_env(plain))
+    residual.reset()
+    obs = plain.reset()
+    state, start = None, np.ones(2, dtype=bool)
+    for _ in range(70):
+        residual.step_async(np.zeros((2, plain.action_space.shape[0]), dtype=np.float32))
+        got, *_ = residual.step_wait()
+        action, state = reference.predict(obs, state=state, episode_start=start)
+        obs, _, start, _ = plain.step(action)
+        np.testing.assert_array_equal(got, obs)

@@ -51,7 +51,9 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     assert hp.n_envs == 2 and hp.env_kwargs == {"max_episode_steps": 50}
     assert study["best"]["value"] == max(float(row["value"]) for row in trials_csv(folder))
     assert hp.model_kwargs["learning_rate"] == study["best"]["hyperparams"]["learning_rate"]
-    assert train_py("--tune", 1, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
+    longer = [str(a) for a in common]
+    longer[longer.index("--timesteps") + 1] = "384"  # another budget: the study's draws keep their choices
+    assert train_py("--tune", 1, *longer, cwd=tmp_path, monkeypatch=monkeypatch) == 0
     assert [int(row["number"]) for row in trials_csv(folder)] == [0, 1, 2], "the study goes on, keeping its trials"
     assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
 
@@ -73,7 +75,7 @@ def test_a_trial_below_the_pruners_bar_stops_training():
     [
         (("--algo", "td3"), "--tune tunes ppo and sac, not td3"),
         (("--algo", "ppo", "--storage", "no-url"), "--storage 'no-url': expected a database URL"),
-        (("--algo", "ppo", "--storage", "postgresql://nobody@127.0.0.1:9/none"), "cannot open the study"),
+        (("--algo", "ppo", "--storage", "postgresql://nobody:s3cret@127.0.0.1:9/none"), "cannot open the study"),
     ],
 )
 def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, args, message):
@@ -84,6 +86,7 @@ def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, arg
         status = exc.code
     err = capsys.readouterr().err
     assert status == 2 and message in err and "Traceback" not in err, err
+    assert "s3cret" not in err and len(err.strip().splitlines()) == 1, "one line, and no password"
     assert not (tmp_path / "runs" / "tuning").exists(), "nothing written"
 
 
