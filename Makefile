@@ -50,7 +50,7 @@ LEADERBOARD_MINUTES ?= 60
 leaderboard: setup
 	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_TASKS) --algos ppo --seeds $(LEADERBOARD_SEEDS) \
 		--timesteps 100000000 --minutes $(LEADERBOARD_MINUTES) --episodes 20 --eval-seed 1000 \
-		--out results/leaderboard --docs docs/results.md
+		--videos --out results/leaderboard --docs docs/results.md
 
 bench: setup
 	$(BIN)/python -m benchmarks.env_speed

@@ -181,6 +181,25 @@ def task_baselines(plan: Plan, task: str, out: Path, threads: int) -> dict[str, 
     return baselines
 
 
+def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], threads: int) -> Path | None:
+    """A side-by-side video of the task's reference gait and its best row's model, on the first evaluation seed
+    (``OUT/videos/<task>/``); made again when the best row changes."""
+    done = [(rec["mean_return"], row) for row, rec in rows.items() if rec is not None and row.task == task]
+    if not done:
+        return None
+    _, best = max(done, key=lambda pair: pair[0])
+    folder = out / "videos" / task.replace("/", "_")
+    marker = folder / "row.txt"
+    if marker.is_file() and marker.read_text().strip() == best.name:
+        return folder
+    cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", plan.max_episode_steps]
+    _run(_tool("evaluate.py", "--env", task, "--policy", reference_name(task), "--policy",
+               out / "runs" / best.name / "model.zip", "--episodes", 2, "--seed", plan.eval_seed, *cut, "--video",
+               "--out", folder / "eval", "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+    write_text(marker, best.name + "\n")
+    return folder
+
+
 def _returns(results: dict[str, Any], spec: str) -> list[float]:
     return [float(e["metrics"][RETURN]) for e in results["policies"][spec]["episodes"]]
 
@@ -425,11 +444,12 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
                "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
                    ["python", "-m", "agents.leaderboard", *plan_arguments(plan)])}  # fmt: skip
-    text = render(plan, baselines, done, rows, per_task, overall, summary["command"])
+    text = render(plan, baselines, done, rows, per_task, overall, summary["command"], out)
     write_json(out / "results.json", summary, strict=True)
     write_text(out / "results.md", text)
     if docs is not None:
-        write_text(docs, text.replace("](plots/", f"]({os.path.relpath(plots, docs.parent)}/"))
+        there = os.path.relpath(out, docs.parent)
+        write_text(docs, text.replace("](plots/", f"]({there}/plots/").replace("](videos/", f"]({there}/videos/"))
     return summary
 
 
@@ -453,7 +473,7 @@ def _interval(a: dict[str, float]) -> str:
 
 
 def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
-           overall: dict, command: str) -> str:  # fmt: skip
+           overall: dict, command: str, out_folder: Path) -> str:  # fmt: skip
     budget = f"{plan.timesteps:,} env steps a row" + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
     lines = [
         "# Results",
@@ -506,6 +526,15 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                      f"{paired('speed')} | {paired('cost_of_transport')} |")  # fmt: skip
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
+    videos = [t for t in plan.tasks if (Path(out_folder) / "videos" / t.replace("/", "_") / "row.txt").is_file()]
+    if videos:
+        lines += ["", "## Videos", "", "The reference gait and the best row's model side by side, on the first "
+                  "evaluation seed:", ""]  # fmt: skip
+        lines += [
+            f"- `{t}`: [videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4]"
+            f"(videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4)"
+            for t in videos
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -528,6 +557,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--docs", help="also write the page here (docs/results.md)")
     parser.add_argument("--workers", type=int, default=1, help="rows at a time in the local pool (default 1)")
     parser.add_argument("--address", help="run rows as Ray tasks on the cluster at HOST:PORT")
+    parser.add_argument("--videos", action="store_true",
+                        help="a video per task: its reference and its best row side by side")  # fmt: skip
     parser.add_argument("--rerun", nargs="+", default=[], metavar="TASK:ALGO:SEED", help="compute these rows again")
     args = parser.parse_args(argv)
     import gymnasium as gym
@@ -639,6 +670,12 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
         path = out / "rows" / row.name / "row.json"
         if results[row] is None and path.is_file():
             results[row] = json.loads(path.read_text())
+    if args.videos:
+        for task in plan.tasks:
+            try:
+                task_video(plan, task, out, results, cores)
+            except RuntimeError as exc:  # a video is a picture of the table, not part of it
+                print(f"leaderboard: {task}: no video ({exc})", file=sys.stderr)
     build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None)
     print(f"leaderboard: {out / 'results.md'}" + (f" and {args.docs}" if args.docs else ""))
     return 1 if failures else 0

@@ -27,7 +27,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     best = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v2__ppo" / "best.yml"
     out, docs = tmp_path / "board", tmp_path / "docs" / "results.md"
     argv = ["--tasks", WALK, "--algos", "ppo", "--seeds", "0", "1", "--timesteps", "256", "--episodes", "2",
-            "--max-episode-steps", "50", "--hyperparams", str(best), "--out", str(out), "--docs",
+            "--max-episode-steps", "50", "--hyperparams", str(best), "--videos", "--out", str(out), "--docs",
             str(docs)]  # fmt: skip
     assert leaderboard.main(argv) == 0
     summary = json.loads((out / "results.json").read_text())
@@ -46,6 +46,8 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert "| `skitter/RoachWalk-v2` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
     for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v2.png"):
         assert (out / "plots" / plot).stat().st_size > 5_000
+    video = out / "videos" / "skitter_RoachWalk-v2" / "eval" / "videos" / "side_by_side.mp4"
+    assert video.stat().st_size > 10_000 and "side_by_side.mp4" in text
     capsys.readouterr()
     # again: every row is done, nothing trains
     assert leaderboard.main(argv) == 0
