@@ -258,7 +258,8 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
         # a string would read as true ("false" too): a switch takes True or False only
         ({"sensor_noise": "false"}, "sensor_noise must be True or False, got 'false'"),
         ({"privileged_obs": "no"}, "privileged_obs must be True or False, got 'no'"),
-        ({"telemetry": 1}, "telemetry must be True or False, got 1"),
+        ({"telemetry": 1}, "telemetry must be True, False, 'control' or 'physics', got 1"),
+        ({"telemetry": "false"}, "telemetry must be True, False, 'control' or 'physics', got 'false'"),
     ],
 )
 def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
