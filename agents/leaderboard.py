@@ -215,6 +215,8 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     run_dir = runs / row.name
     log = folder / "log.txt"
     started = time.time()
+    if (run_dir / "model.zip").is_file() and (run_dir / "config.json").is_file():
+        _check_run_plan(run_dir, plan, row)  # trained, not yet evaluated: under this plan only
     if not (run_dir / "model.zip").is_file():
         resuming = (run_dir / "config.json").is_file() and any((run_dir / "checkpoints").glob("step_*"))
         if resuming:
