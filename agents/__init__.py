@@ -70,8 +70,9 @@ class RandomPolicy:
             seed = -1
         if seed < 0:
             raise ValueError(f"random:{arg}: the seed after 'random:' must be a whole number >= 0")
-        space = env.unwrapped.single_action_space if hasattr(env.unwrapped, "single_action_space") else env.action_space
-        self.low, self.high = np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
+        from agents.residual import action_bounds
+
+        self.low, self.high = action_bounds(env)
         self.rng = np.random.default_rng(seed)
 
     def predict(self, observation: np.ndarray, state: Any = None, episode_start: np.ndarray | None = None,

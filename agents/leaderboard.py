@@ -29,6 +29,7 @@ PATH``, the page also goes to ``PATH``.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import shlex
@@ -109,12 +110,8 @@ def _load_done(path: Path, settings: dict[str, Any], what: str) -> dict[str, Any
     return record
 
 
-def python() -> str:
-    return sys.executable
-
-
 def _tool(script: str, *args: Any) -> list[str]:
-    return [python(), str(ROOT / script), *map(str, args)]
+    return [sys.executable, str(ROOT / script), *map(str, args)]
 
 
 def _run(command: list[str], threads: int, log: Path) -> None:
@@ -140,6 +137,7 @@ def _run(command: list[str], threads: int, log: Path) -> None:
         raise RuntimeError(f"{shlex.join(command[1:3])} ... failed (exit {code}); see {log}")
 
 
+@functools.cache
 def reference_name(task: str) -> str:
     """The reference gait of a task's robot (agents: each robot's ``REFERENCE``)."""
     import gymnasium as gym
@@ -154,10 +152,14 @@ def reference_name(task: str) -> str:
         env.close()
 
 
+def _cut(plan: Plan) -> list[Any]:
+    """evaluate.py's option that cuts evaluation episodes short, if the plan does."""
+    return [] if plan.max_episode_steps is None else ["--max-episode-steps", plan.max_episode_steps]
+
+
 def _episodes(plan: Plan) -> list[Any]:
     """evaluate.py's options that choose the evaluation episodes (the same for every policy of a task)."""
-    cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", plan.max_episode_steps]
-    return ["--episodes", plan.episodes, "--seed", plan.eval_seed, *cut]
+    return ["--episodes", plan.episodes, "--seed", plan.eval_seed, *_cut(plan)]
 
 
 def task_baselines(plan: Plan, task: str, out: Path, threads: int) -> dict[str, Any]:
@@ -192,10 +194,9 @@ def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], t
     marker = folder / "row.txt"
     if marker.is_file() and marker.read_text().strip() == best.name:
         return folder
-    cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", plan.max_episode_steps]
     _run(_tool("evaluate.py", "--env", task, "--policy", reference_name(task), "--policy",
-               out / "runs" / best.name / "model.zip", "--episodes", 2, "--seed", plan.eval_seed, *cut, "--video",
-               "--out", folder / "eval", "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+               out / "runs" / best.name / "model.zip", "--episodes", 2, "--seed", plan.eval_seed, *_cut(plan),
+               "--video", "--out", folder / "eval", "--overwrite"), threads, folder / "log.txt")  # fmt: skip
     write_text(marker, best.name + "\n")
     return folder
 
@@ -215,12 +216,11 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     run_dir = runs / row.name
     log = folder / "log.txt"
     started = time.time()
-    if (run_dir / "model.zip").is_file() and (run_dir / "config.json").is_file():
-        _check_run_plan(run_dir, plan, row)  # trained, not yet evaluated: under this plan only
-    if not (run_dir / "model.zip").is_file():
-        resuming = (run_dir / "config.json").is_file() and any((run_dir / "checkpoints").glob("step_*"))
-        if resuming:
-            _check_run_plan(run_dir, plan, row)
+    trained_before = (run_dir / "model.zip").is_file()
+    resuming = (run_dir / "config.json").is_file() and any((run_dir / "checkpoints").glob("step_*"))
+    if (run_dir / "config.json").is_file() and (trained_before or resuming):
+        _check_run_plan(run_dir, plan, row)  # a run left by an earlier command goes on under this plan only
+    if not trained_before:
         if not resuming and run_dir.exists():  # killed before its first checkpoint: nothing to continue
             _remove_run(run_dir)
             (folder / ATTEMPTS).unlink(missing_ok=True)
@@ -310,12 +310,11 @@ def reproduce(plan: Plan, row: Row, trained: int, reference: str) -> list[str]:
     """The two commands that give a row's numbers again on any machine: its training for the steps it took (no
     time cap), then its evaluation."""
     run = f"runs/{row.name}"
-    cut = [] if plan.max_episode_steps is None else ["--max-episode-steps", str(plan.max_episode_steps)]
     return [
         shlex.join(["python", "train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", str(row.seed),
                     "--timesteps", str(trained), "--run-name", row.name]),
         shlex.join(["python", "evaluate.py", "--env", row.task, "--policy", reference, "--policy", f"{run}/model.zip",
-                    "--episodes", str(plan.episodes), "--seed", str(plan.eval_seed), *cut, "--out",
+                    "--episodes", str(plan.episodes), "--seed", str(plan.eval_seed), *map(str, _cut(plan)), "--out",
                     f"results/{row.name}"]),
     ]  # fmt: skip
 

@@ -24,6 +24,13 @@ DEFAULT_SCALE = 0.25  # of the action range: a correction up to a quarter of eac
 MAX_SCALE = 2.0
 
 
+def action_bounds(env: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) of one simulation's action in ``env``: a gym env, a batched gym env or an SB3 VecEnv."""
+    base = getattr(env, "unwrapped", env)
+    space = getattr(base, "single_action_space", None) or env.action_space
+    return np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
+
+
 @dataclass(frozen=True)
 class Residual:
     """What a residual policy adds to: the reference's name and the correction's scale."""
@@ -68,8 +75,7 @@ class ResidualVecEnv(VecEnvWrapper):
         super().__init__(venv)
         self.residual = residual
         self.reference = reference
-        space = venv.action_space
-        self.low, self.high = np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
+        self.low, self.high = action_bounds(venv)
         self._obs: np.ndarray | None = None
         self._state: Any = None
         self._start = np.ones(venv.num_envs, dtype=bool)
@@ -97,9 +103,7 @@ class ResidualPolicy:
 
     def __init__(self, model: Any, residual: Residual, reference: Any, env: Any):
         self.model, self.residual, self.reference = model, residual, reference
-        base = getattr(env, "unwrapped", env)
-        space = getattr(base, "single_action_space", None) or env.action_space
-        self.low, self.high = np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
+        self.low, self.high = action_bounds(env)
 
     def __repr__(self) -> str:
         return f"ResidualPolicy({self.model!r} on {self.residual.policy}, scale {self.residual.scale:g})"
