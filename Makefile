@@ -42,14 +42,15 @@ demo: setup
 	$(BIN)/python evaluate.py --env skitter/RoachWalk-v2 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
 		--episodes $(DEMO_EPISODES) --seed 1000 --out results/$(DEMO_ID)
 
-# the leaderboard (agents/leaderboard.py): PPO on each robot's walk, 3 seeds, an hour of 2 cores a row (9 hours in
-# all; rows already done are kept, a killed row resumes); writes results/leaderboard/ and docs/results.md
+# the leaderboard (agents/leaderboard.py): PPO on each robot's walk, 3 seeds, an hour of 2 cores a row as env steps
+# (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach 1,140, Bioloid 2,100, xJüs 3,000 steps/s),
+# 9 hours in all; rows already done are kept, a killed row resumes; writes results/leaderboard/ and docs/results.md
 LEADERBOARD_TASKS ?= skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2
+LEADERBOARD_STEPS ?= skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000
 LEADERBOARD_SEEDS ?= 0 1 2
-LEADERBOARD_MINUTES ?= 60
 leaderboard: setup
 	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_TASKS) --algos ppo --seeds $(LEADERBOARD_SEEDS) \
-		--timesteps 100000000 --minutes $(LEADERBOARD_MINUTES) --episodes 20 --eval-seed 1000 \
+		--timesteps $(LEADERBOARD_STEPS) --episodes 20 --eval-seed 1000 \
 		--videos --out results/leaderboard --docs docs/results.md
 
 bench: setup

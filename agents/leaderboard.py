@@ -1,7 +1,8 @@
 """The leaderboard: learning on every task against its reference gait, in one command that anyone can rerun.
 
     python -m agents.leaderboard --tasks skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
-        --algos ppo --seeds 0 1 2 --timesteps 5000000 --minutes 60 --out results/leaderboard --docs docs/results.md
+        --algos ppo --seeds 0 1 2 --timesteps skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 \\
+        skitter/BioloidWalk-v2=7000000 --out results/leaderboard --docs docs/results.md
 
 **Rows.** A row is one task, algorithm and seed. ``train.py`` trains it into ``OUT/runs/<row>/`` with the
 hyperparameter file's entry (``--hyperparams``, default ``hyperparams/<algo>.yml``); ``evaluate.py`` then plays the
@@ -12,9 +13,10 @@ training was killed continues from its last checkpoint (``train.py --resume``). 
 again from nothing. Rows run in a local pool of ``--workers`` processes (each with an equal share of the cores), or
 as Ray tasks on the cluster at ``--address``.
 
-**Budget.** Every row trains ``--timesteps`` env steps, and stops sooner at ``--minutes`` of wall time. That is a
-cap, and the row says when it bit: a row cut short by the cap trained fewer steps than another machine would. The
-command prints its plan and its worst-case time before it starts.
+**Budget.** Every row trains ``--timesteps`` env steps: one number for every task, or ``TASK=N`` for each, so that
+a budget of time on a given machine becomes a number of steps per task that any machine can train again. A row
+records its wall time. ``--minutes`` adds a cap of wall time; the row says when it bit, since a row cut short by
+the cap trained fewer steps than another machine would. The command prints its plan before it starts.
 
 **Scores.** A row's score is its model's mean return over the evaluation episodes, normalized per task so that the
 random policy scores 0 and the reference gait 1. For each task and algorithm: the interquartile mean (IQM) over
@@ -72,7 +74,7 @@ class Plan:
     tasks: tuple[str, ...]
     algos: tuple[str, ...]
     seeds: tuple[int, ...]
-    timesteps: int
+    timesteps: tuple[tuple[str, int], ...]  # (task, env steps a row of it trains)
     minutes: float | None
     episodes: int
     eval_seed: int
@@ -83,10 +85,13 @@ class Plan:
     def rows(self) -> list[Row]:
         return [Row(t, a, s) for t in self.tasks for a in self.algos for s in self.seeds]
 
-    @property
-    def row_settings(self) -> dict[str, Any]:
+    def steps(self, task: str) -> int:
+        """The env steps a row of ``task`` trains."""
+        return dict(self.timesteps)[task]
+
+    def row_settings(self, task: str) -> dict[str, Any]:
         """What a row's numbers depend on besides its task, algorithm and seed."""
-        return {"timesteps": self.timesteps, "minutes": self.minutes, "hyperparams": self.hyperparams,
+        return {"timesteps": self.steps(task), "minutes": self.minutes, "hyperparams": self.hyperparams,
                 **self.eval_settings}  # fmt: skip
 
     @property
@@ -209,7 +214,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     """Train and evaluate one row (resuming a killed training); returns its record, also written as row.json."""
     folder = out / "rows" / row.name
     record_path = folder / "row.json"
-    done = _load_done(record_path, plan.row_settings, f"row {row.name}")
+    done = _load_done(record_path, plan.row_settings(row.task), f"row {row.name}")
     if done is not None:
         return done
     runs = out / "runs"
@@ -230,7 +235,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
             command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
         else:
             command = _tool("train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", row.seed,
-                            "--timesteps", plan.timesteps, "--runs-dir", runs, "--run-name", row.name,
+                            "--timesteps", plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name,
                             "--no-progress", *budget)  # fmt: skip
         _run(command, threads, log)
     trained = _trained_steps(run_dir)
@@ -241,14 +246,15 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     results = json.loads((evaluation / "results.json").read_text())
     model_spec = next(s for s in results["policies"] if s != reference)
     returns = _returns(results, model_spec)
-    record = {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.timesteps,
-              "capped": trained < plan.timesteps, "returns": returns, "mean_return": float(np.mean(returns)),
+    record = {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.steps(row.task),
+              "capped": trained < plan.steps(row.task), "returns": returns, "mean_return": float(np.mean(returns)),
               "summary": results["policies"][model_spec]["summary"],
               "paired_differences": results["paired_differences"]["policies"][model_spec],
               "reference": reference, "wall_seconds": time.time() - started,
               "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
                                      f"{row.task}:{row.algo}:{row.seed}"]),
-              "reproduce": reproduce(plan, row, trained, reference), "settings": plan.row_settings}  # fmt: skip
+              "reproduce": reproduce(plan, row, trained, reference),
+              "settings": plan.row_settings(row.task)}  # fmt: skip
     write_json(record_path, record)
     return record
 
@@ -259,7 +265,7 @@ def _check_run_plan(run_dir: Path, plan: Plan, row: Row) -> None:
     algo, residual = row.algo.removesuffix(RESIDUAL), row.algo.endswith(RESIDUAL)
     started = {"timesteps": config.get("timesteps"), "algo": config.get("algo"),
                "residual": "residual" in config.get("hyperparams", {})}  # fmt: skip
-    wanted = {"timesteps": plan.timesteps, "algo": algo, "residual": residual}
+    wanted = {"timesteps": plan.steps(row.task), "algo": algo, "residual": residual}
     if started != wanted:
         raise StaleResult(f"{run_dir}: a killed row's run started with {started}, not {wanted}: give --rerun for it, "
                           "or another --out")  # fmt: skip
@@ -335,8 +341,10 @@ def _trained_steps(run_dir: Path) -> int:
 
 def plan_arguments(plan: Plan) -> list[str]:
     """The command-line options that reproduce ``plan``."""
-    args = ["--tasks", *plan.tasks, "--algos", *plan.algos, "--seeds", *map(str, plan.seeds), "--timesteps",
-            str(plan.timesteps), "--episodes", str(plan.episodes), "--eval-seed", str(plan.eval_seed)]  # fmt: skip
+    budgets = {n for _, n in plan.timesteps}
+    steps = [str(*budgets)] if len(budgets) == 1 else [f"{t}={n}" for t, n in plan.timesteps]
+    args = ["--tasks", *plan.tasks, "--algos", *plan.algos, "--seeds", *map(str, plan.seeds), "--timesteps", *steps,
+            "--episodes", str(plan.episodes), "--eval-seed", str(plan.eval_seed)]  # fmt: skip
     if plan.minutes is not None:
         args += ["--minutes", f"{plan.minutes:g}"]
     if plan.hyperparams is not None:
@@ -469,13 +477,21 @@ def _cell(cell: dict[str, float] | None, seeds: int, comparable: bool) -> str:
     return _interval(cell) + ("" if cell["seeds"] == seeds else f" ({cell['seeds']} of {seeds} seeds)")
 
 
+def _budget(plan: Plan) -> str:
+    """The steps a row trains, in words: one number, or one per task."""
+    budgets = {n for _, n in plan.timesteps}
+    if len(budgets) == 1:
+        return f"{budgets.pop():,} env steps a row"
+    return "env steps a row: " + ", ".join(f"{t} {n:,}" for t, n in plan.timesteps)
+
+
 def _interval(a: dict[str, float]) -> str:
     return f"{a['iqm']:.2f} [{a['low']:.2f}, {a['high']:.2f}]"
 
 
 def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
            overall: dict, command: str, out_folder: Path) -> str:  # fmt: skip
-    budget = f"{plan.timesteps:,} env steps a row" + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
+    budget = _budget(plan) + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
     lines = [
         "# Results",
         "",
@@ -507,11 +523,11 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
-    lines += ["", "## Rows", "", "| row | steps trained | mean return | normalized | speed vs reference (m/s) | "
-              "cost of transport vs reference |", "|---|---|---|---|---|---|"]  # fmt: skip
+    lines += ["", "## Rows", "", "| row | steps trained | wall time (min) | mean return | normalized | "
+              "speed vs reference (m/s) | cost of transport vs reference |", "|---" * 7 + "|"]  # fmt: skip
     for row, rec in rows.items():
         if rec is None:
-            lines.append(f"| {row.name} | not run | | | | |")
+            lines.append(f"| {row.name} | not run | | | | | |")
             continue
         diff = rec["paired_differences"]
 
@@ -523,7 +539,8 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
 
         capped = " (capped by --minutes)" if rec["capped"] else ""
         score = float(normalized(rec["mean_return"], baselines[row.task]))
-        lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {rec['mean_return']:.1f} | {score:.2f} | "
+        wall = f"{rec['wall_seconds'] / 60:.0f}" if "wall_seconds" in rec else "-"
+        lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {wall} | {rec['mean_return']:.1f} | {score:.2f} | "
                      f"{paired('speed')} | {paired('cost_of_transport')} |")  # fmt: skip
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
@@ -548,7 +565,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help=f"ppo, sac, td3, or one of them with {RESIDUAL} (a residual policy on the task's "
                              "reference gait, agents/residual.py): ppo+residual")  # fmt: skip
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    parser.add_argument("--timesteps", type=int, required=True, help="env steps a row trains")
+    parser.add_argument(
+        "--timesteps",
+        nargs="+",
+        required=True,
+        metavar="N|TASK=N",
+        help="env steps a row trains: one number for every task, or TASK=N for each task",
+    )
     parser.add_argument("--minutes", type=float, help="wall-time cap of a row's training")
     parser.add_argument("--episodes", type=int, default=20, help="evaluation episodes per row (default 20)")
     parser.add_argument("--eval-seed", type=int, default=1000, help="the first evaluation seed (default 1000)")
@@ -569,8 +592,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     for task in args.tasks:
         if task not in gym.registry:
             parser.error(f"--tasks: unknown env {task!r}")
+    args.timesteps = _task_budgets(parser, args.tasks, args.timesteps)
     checks = (
-        ("--timesteps", args.timesteps, 1),
         ("--episodes", args.episodes, 2),
         ("--workers", args.workers, 1),
         ("--max-episode-steps", args.max_episode_steps, 1),
@@ -598,6 +621,36 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         reruns.append(Row(parts[0], parts[1], int(parts[2])))
     args.rerun = reruns
     return args
+
+
+def _task_budgets(parser: argparse.ArgumentParser, tasks: list[str], given: list[str]) -> tuple[tuple[str, int], ...]:
+    """``--timesteps``: N for every task, or TASK=N for each; errors name the item at fault."""
+
+    def count(text: str) -> int:
+        try:
+            value = int(text.replace("_", ""))
+        except ValueError:
+            parser.error(f"--timesteps {text!r}: expected a whole number of env steps")
+        if value < 1:
+            parser.error(f"--timesteps must be at least 1, got {value}")
+        return value
+
+    if len(given) == 1 and "=" not in given[0]:
+        return tuple((t, count(given[0])) for t in tasks)
+    budgets: dict[str, int] = {}
+    for item in given:
+        task, sep, steps = item.rpartition("=")
+        if not sep:
+            parser.error(f"--timesteps {item!r}: give one number, or TASK=N for every task")
+        if task not in tasks:
+            parser.error(f"--timesteps {item!r}: {task!r} is not one of --tasks")
+        if task in budgets:
+            parser.error(f"--timesteps {item!r}: {task} is given twice")
+        budgets[task] = count(steps)
+    missing = [t for t in tasks if t not in budgets]
+    if missing:
+        parser.error(f"--timesteps: no budget for {', '.join(missing)}")
+    return tuple((t, budgets[t]) for t in tasks)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -642,7 +695,7 @@ def _check_plan(plan: Plan, reruns: list[Row], out: Path) -> None:
         _load_done(out / "tasks" / task.replace("/", "_") / "baselines.json", plan.eval_settings, task)
     for row in plan.rows:
         if row not in reruns:
-            _load_done(out / "rows" / row.name / "row.json", plan.row_settings, f"row {row.name}")
+            _load_done(out / "rows" / row.name / "row.json", plan.row_settings(row.task), f"row {row.name}")
 
 
 def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
@@ -652,9 +705,11 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
         shutil.rmtree(out / "rows" / row.name, ignore_errors=True)
         if (out / "runs" / row.name).exists():
             _remove_run(out / "runs" / row.name)
-    todo = [r for r in plan.rows if not (out / "rows" / r.name / "row.json").is_file()]
+    # seed by seed, so that a table built over several runs has every task and algorithm early
+    todo = sorted((r for r in plan.rows if not (out / "rows" / r.name / "row.json").is_file()),
+                  key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
     worst = "" if plan.minutes is None else f"; at most {len(todo) * plan.minutes / args.workers:.1f} min of training"
-    print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {plan.timesteps:,} steps each{worst}, "
+    print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {_budget(plan)}{worst}, "
           f"{args.workers} at a time on {threads} threads each" + (f" on Ray at {args.address}" if args.address
                                                                     else ""))  # fmt: skip
     baselines = {task: task_baselines(plan, task, out, cores) for task in plan.tasks}

@@ -1,5 +1,6 @@
 """The leaderboard (agents/leaderboard.py), end to end on a tiny budget: tune, train, evaluate, table."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -10,6 +11,7 @@ from agents import leaderboard
 from agents.training import main as train_main
 
 WALK = "skitter/RoachWalk-v2"
+XJUS = "skitter/XjusWalk-v1"
 TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 50},
         "n_steps": 128, "batch_size": 64}  # fmt: skip
 
@@ -69,6 +71,11 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
     for argv, message in (
         (["--tasks", "skitter/Nope-v1", "--timesteps", "10"], "unknown env"),
         (["--tasks", WALK, "--timesteps", "0"], "--timesteps must be at least 1"),
+        (["--tasks", WALK, "--timesteps", "ten"], "expected a whole number"),
+        (["--tasks", WALK, XJUS, "--timesteps", f"{WALK}=10"], f"no budget for {XJUS}"),
+        (["--tasks", WALK, "--timesteps", f"{XJUS}=10"], "is not one of --tasks"),
+        (["--tasks", WALK, "--timesteps", f"{WALK}=10", f"{WALK}=20"], "given twice"),
+        (["--tasks", WALK, XJUS, "--timesteps", "10", "20"], "TASK=N for every task"),
         (["--tasks", WALK, "--timesteps", "10", "--rerun", "x"], "expected TASK:ALGO:SEED"),
         (["--tasks", WALK, "--timesteps", "10", "--hyperparams", str(tmp_path / "none.yml")], "no such file"),
     ):
@@ -81,10 +88,24 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
     assert not (tmp_path / "b").exists()
 
 
+def test_a_budget_per_task_reaches_its_rows_and_the_command_that_reproduces_them():
+    args = leaderboard.parse_args(["--tasks", WALK, XJUS, "--timesteps", f"{XJUS}=3_000", f"{WALK}=1000"])
+    assert args.timesteps == ((WALK, 1000), (XJUS, 3000))
+    plan = leaderboard.Plan(tuple(args.tasks), ("ppo",), (0,), args.timesteps, None, 5, 1000, None)
+    assert plan.row_settings(XJUS)["timesteps"] == 3000 and plan.row_settings(WALK)["timesteps"] == 1000
+    again = leaderboard.parse_args(leaderboard.plan_arguments(plan))
+    assert again.timesteps == args.timesteps
+    same = leaderboard.parse_args(["--tasks", WALK, XJUS, "--timesteps", "500"])
+    assert same.timesteps == ((WALK, 500), (XJUS, 500))
+    assert "--timesteps 500 " in " ".join(
+        leaderboard.plan_arguments(dataclasses.replace(plan, timesteps=same.timesteps))
+    )
+
+
 def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp_path):
     """Rows made up of returns: a task's score is 0 at the random policy's return and 1 at the reference's; the IQM
     of three seeds lies in its interval; a row not run says so, and its algorithm gets no overall score."""
-    plan = leaderboard.Plan((WALK, "skitter/XjusWalk-v1"), ("ppo", "sac"), (0, 1, 2), 100, None, 5, 1000, None)
+    plan = leaderboard.Plan((WALK, XJUS), ("ppo", "sac"), (0, 1, 2), ((WALK, 100), (XJUS, 100)), None, 5, 1000, None)
     baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
     rows = {}
     for row in plan.rows:
