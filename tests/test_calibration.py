@@ -563,10 +563,13 @@ def test_roach_report_compares_tracking_and_body_rates():
     (log,) = calibrate.read_logs([Path("data/real/velociroach_behavior4_2Hz.txt@0:4")], adapter.required(), None)
     nominal = adapter.catalog_nominal()
     stronger = {**nominal, "torque_constant_left.scale": 2.0, "torque_constant_right.scale": 2.0}
-    result = SimpleNamespace(test=[log], outcome=SimpleNamespace(nominal=nominal, setting=stronger))
+    result = SimpleNamespace(train=[], test=[log], outcome=SimpleNamespace(nominal=nominal, setting=stronger))
     extra = adapter.report_extra(result)
-    assert set(extra["sections"]) == {"Tracking on the held-out logs",
-                                      "Body rates compared as distributions"}  # fmt: skip
+    assert set(extra["sections"]) == {"Tracking on the held-out logs", "Body rates compared as distributions",
+                                      "Measured directly (no simulator)"}  # fmt: skip
+    measured = {(m["quantity"], m["side"]) for m in extra["measured"]}
+    assert {("kp", "left"), ("bemf_constant", "right"), ("battery_resistance", "")} <= measured
+    assert "| bemf_constant |" in extra["sections"]["Measured directly (no simulator)"]
     table = extra["tracking"][log.path]
     t = log.time
     window = (t >= 1.1 + 1.0) & (t <= 4.0)  # the legs are commanded from 1.1 s (data/real/README.md)

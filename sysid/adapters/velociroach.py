@@ -372,7 +372,9 @@ class RoachAdapter(Adapter):
         sections = {"Tracking on the held-out logs": _tracking_table(tracking)}
         if rates:
             sections["Body rates compared as distributions"] = _rates_table(rates, self.BANDS)
-        return {"tracking": tracking, "distributions": rates, "sections": sections}
+        measured, text = _measured_directly([*result.train, *result.test])
+        sections["Measured directly (no simulator)"] = text
+        return {"tracking": tracking, "distributions": rates, "measured": measured, "sections": sections}
 
     def _commanded(self, log: Log) -> np.ndarray:
         """The samples from one second after the legs were first commanded to move to the last commanded move."""
@@ -457,6 +459,24 @@ def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
     f, power = periodogram(x - x.mean(), fs=1.0 / dt)
     total = float(power[f >= bands[0][0]].sum()) or 1.0
     return {"std": float(np.std(x)), "bands": [float(power[(f >= lo) & (f < hi)].sum() / total) for lo, hi in bands]}
+
+
+def _measured_directly(logs: Sequence[Log]) -> tuple[list[dict], str]:
+    """What each log measures before any replay (sysid/measure.py): its records and a table, or why not."""
+    from dataclasses import asdict
+
+    from sysid import measure
+
+    found, skipped = [], []
+    for log in logs:
+        try:
+            found += measure.measure_roach(log.df, log.meta, log.path)
+        except ValueError as exc:
+            skipped.append(f"- {exc}")
+    text = ("What the logs measure by themselves, beside the nominal model's values (`python -m sysid.measure`; "
+            "docs/calibration.md).\n\n" + (measure.table(found) if found else "")
+            + ("\n" + "\n".join(skipped) + "\n" if skipped else ""))  # fmt: skip
+    return [asdict(m) for m in found], text
 
 
 def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]]) -> str:
