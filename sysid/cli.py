@@ -174,6 +174,7 @@ def _run(args: argparse.Namespace) -> int:
             start = read_calibration(args.calibration, adapter.robot)
             start.check(adapter.known_effects())
         adapter.check_logs([*train, *test])
+        adapter.check_length([*train, *test])
         known = adapter.known_effects()
         for name in args.fit or ():
             if name not in known:

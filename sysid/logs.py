@@ -43,7 +43,8 @@ import pandas as pd
 from envs.common.telemetry import MAX_REPEATED_ROWS, ChannelLimit
 
 MAX_BAD_FRACTION = 0.05
-MIN_DURATION = 1.0  # s: less than one segment cannot be calibrated on
+# fewer rows cannot be a log of motion; how long a log must be to replay is the robot's (Adapter.check_length: a
+# segment to score, of the robot's segment length or, for a legged robot's short run, of a few strides)
 MIN_ROWS = 20
 # an impossible jump is judged against the median of the rows this far either side (the sample's own among them):
 # up to this many corrupted rows in a row leave that median on good samples
@@ -400,11 +401,9 @@ def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLim
     if dropped > MAX_BAD_FRACTION * rows:  # each kind of bad row is within bounds, but not all of them together
         raise LogError(f"{log.path}: {dropped} of {rows} rows are malformed (more than {MAX_BAD_FRACTION:.0%}), "
                        "counting every kind dropped above")  # fmt: skip
-    if len(t) < MIN_ROWS or log.duration < MIN_DURATION:
-        raise LogError(
-            f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s "
-            f"(at least {MIN_ROWS} rows over {MIN_DURATION:g} s)"
-        )
+    if len(t) < MIN_ROWS or not log.duration > 0:
+        raise LogError(f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s (at least "
+                       f"{MIN_ROWS} rows)")  # fmt: skip
     return log
 
 

@@ -133,6 +133,9 @@ class Adapter(ABC):
     # the first segment of a log (or of a window of one) starts from a guessed body state, since the log does not
     # hold it: with ``burn_in`` it is replayed only to carry its end over, and its residual is not counted
     burn_in: bool = False
+    # a log too short for segments of ``segment_seconds`` is cut into shorter ones, each of at least this many of
+    # its strides (:meth:`stride_seconds`), so that a short run still holds a burn-in and a scored segment; 0: never
+    min_segment_strides: float = 0.0
     # how a synthetic case records its training and its held-out logs (sysid/cases.py): None, the generator's own
     # log of the case (one run of ``synth.SECONDS``); or (runs, seconds), this many runs, each from rest, of this many
     # seconds. A robot whose unlogged body, carried from segment to segment, parts from the log within seconds even
@@ -183,19 +186,54 @@ class Adapter(ABC):
     def physics_dt(self) -> float: ...
 
     # --- replay ---------------------------------------------------------------------------------------------------
+    def stride_seconds(self, log: Log) -> float | None:
+        """The period of the log's stride, for a robot whose segments may shrink to a number of strides
+        (``min_segment_strides``); None where the log has none (default)."""
+        return None
+
+    def segment_length(self, log: Log) -> float:
+        """The length of the log's segments: ``segment_seconds``, or for a log too short to hold its burn-in and
+        one scored segment of that length, as long as the log allows but at least ``min_segment_strides`` strides."""
+        needed = 2 if self.burn_in else 1
+        stride = self.stride_seconds(log) if self.min_segment_strides > 0 else None
+        if stride is None or log.duration >= needed * self.segment_seconds:
+            return self.segment_seconds
+        return max(log.duration / needed, self.min_segment_strides * stride)
+
+    def shortest_log(self, log: Log) -> tuple[float, str]:
+        """The shortest log of this kind the replay can use (s), and why: one segment to score, after the
+        burn-in segment where the robot has one."""
+        needed = 2 if self.burn_in else 1
+        stride = self.stride_seconds(log) if self.min_segment_strides > 0 else None
+        what = "a burn-in segment and a scored one" if self.burn_in else "one segment"
+        if stride is None:
+            return needed * self.segment_seconds, f"{what} of {self.segment_seconds:g} s"
+        shortest = needed * self.min_segment_strides * stride
+        return shortest, f"{what}, each of {self.min_segment_strides:g} strides of {stride:.3g} s"
+
+    def check_length(self, logs: Sequence[Log]) -> None:
+        """Each log holds a segment to score (LogError naming the log, its length and the shortest usable)."""
+        for log in logs:
+            scored = len(self.segments(log)) - (1 if self.burn_in else 0)
+            if scored < 1:
+                shortest, why = self.shortest_log(log)
+                raise LogError(f"{log.path}: {log.duration:.3g} s is too short to replay; the shortest usable log is "
+                               f"{shortest:.3g} s ({why})")  # fmt: skip
+
     def segments(self, log: Log) -> list[Segment]:
-        """Cut a log into segments of about ``segment_seconds`` (a shorter tail, under half a segment, is left out).
-        A segment starts at its first sample; ``carry_steps`` is the number of physics steps to the next segment's
-        start when that follows on directly (0 otherwise)."""
+        """Cut a log into segments of about :meth:`segment_length` (a shorter tail, under half a segment, is left
+        out). A segment starts at its first sample; ``carry_steps`` is the number of physics steps to the next
+        segment's start when that follows on directly (0 otherwise)."""
         t = log.time
         h = self.physics_dt
         columns = {
             c: log.df[c].to_numpy(dtype=float) for c in log.df.columns if np.issubdtype(log.df[c].dtype, np.number)
         }
-        edges = np.arange(t[0], t[-1] - 0.5 * self.segment_seconds + 1e-12, self.segment_seconds)
+        length = self.segment_length(log)
+        edges = np.arange(t[0], t[-1] - 0.5 * length + 1e-12, length)
         out: list[Segment] = []
         for index, start in enumerate(edges):
-            rows = np.flatnonzero((t >= start) & (t < start + self.segment_seconds))
+            rows = np.flatnonzero((t >= start) & (t < start + length))
             if len(rows) < 3:
                 continue
             t0 = float(t[rows[0]])

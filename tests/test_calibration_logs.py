@@ -164,7 +164,7 @@ def _bad(tmp_path: Path, kind: str) -> tuple[Path, str]:
         rows = rows[:150] + [f"{10 * (i + 1)},{i * 5},500,128" for i in range(150)]
         return _write(tmp_path, "bad.csv", [header, *rows]), "row at line 152, column 'time'"
     if kind == "too short":
-        return _write(tmp_path, "bad.csv", [header, *rows[:30]]), "too short to calibrate on"
+        return _write(tmp_path, "bad.csv", [header, *rows[:30]]), "0.29 s is too short to replay"
     if kind == "many bad rows":
         for i in range(0, 300, 10):
             rows[i] = "x,y"
@@ -787,3 +787,29 @@ def test_bad_rows_of_every_kind_count_together_towards_the_refusal(tmp_path):
     adapter = make_adapter("motor")
     with pytest.warns(UserWarning), pytest.raises(LogError, match=r"80 of 1000 rows are malformed .*every kind"):
         read_log(path, ("duty", "angle"), limits=adapter.channel_limits())
+
+
+def test_a_short_roach_run_is_cut_into_segments_of_its_strides():
+    """A second of the 13 Hz log holds thirteen strides: it is cut into a burn-in and a scored segment of half a
+    second each, so it can be fitted and tested on. A second of the 2 Hz log holds two strides, fewer than the two
+    segments of two strides the replay needs: refused, naming the shortest usable log."""
+    adapter = make_adapter("roach")
+    (fast,) = calibrate.read_logs([Path(f"{REAL}/velociroach_13Hz_beetleshell_grass_run3.txt@8:8.99")],
+                                  adapter.required(), None)  # fmt: skip
+    assert adapter.stride_seconds(fast) == pytest.approx(1 / 13, rel=0.02)
+    segments = adapter.segments(fast)
+    assert len(segments) == 2
+    for seg in segments:
+        span = seg.data["time"][-1] - seg.data["time"][0]
+        assert span >= 2 / 13 and span == pytest.approx(fast.duration / 2, abs=0.01)
+    adapter.check_length([fast])
+    (long,) = calibrate.read_logs([Path(f"{REAL}/velociroach_13Hz_beetleshell_grass_run3.txt@0:4")],
+                                  adapter.required(), None)  # fmt: skip
+    assert adapter.segment_length(long) == adapter.segment_seconds, "a long log keeps the robot's segments"
+    (slow,) = calibrate.read_logs([Path(f"{REAL}/velociroach_behavior4_2Hz.txt@2:2.99")], adapter.required(), None)
+    with pytest.raises(
+        LogError,
+        match=r"2Hz.txt@2:2.99: 0.989 s is too short to replay; the shortest usable log is "
+        r"2 s \(a burn-in segment and a scored one, each of 2 strides of 0.50\d s\)",
+    ):
+        adapter.check_length([slow])

@@ -129,6 +129,8 @@ class RoachAdapter(Adapter):
     } | {"supply": "vbatt"}  # fmt: skip
     replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
     burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
+    # a short run is cut into segments of two strides at least: the stride's loads seen twice in each
+    min_segment_strides = 2.0
     fd_step = 0.02  # contacts make the cost rough at small scales: difference over 2% of each range,
     rough_cost = True  # and fit without derivatives
     chain_search = (1, 1, 1)  # each joint fit costs minutes (thousands of segment rollouts): one chain per length
@@ -183,6 +185,16 @@ class RoachAdapter(Adapter):
                     "gait-mode run (an open-loop duty test?); the replay runs the firmware's PID after the commanded "
                     "legs"
                 )
+
+    def stride_seconds(self, log: Log) -> float | None:
+        """The slower side's stride while its commanded leg moves: one revolution of the leg clock."""
+        t = log.time
+        periods = []
+        for side in SIDES:
+            rate = np.abs(np.gradient(log.df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float), t))
+            if (rate > 0).any():
+                periods.append(2 * math.pi / float(np.median(rate[rate > 0])))
+        return max(periods) if periods else None
 
     def segments(self, log: Log) -> list[Segment]:
         out = super().segments(log)
