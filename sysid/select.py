@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -598,8 +598,10 @@ def _fit_candidate(
     for k, p in params.items():
         value = trial.values[k]
         if p.span > 0 and min(value - p.low, p.high - value) < 0.01 * p.span and not np.isclose(value, p.nominal):
+            asked = _asked_for(problem, current, params, nuisance, fitting, trial, k) if len(effects) == 1 else ""
             return (
-                f"{k} pushes against the end of its range ({value:.3g} {p.unit}): something else is at work",
+                f"{k} pushes against the end of its range ({value:.3g} {p.unit}, range [{p.low:g}, {p.high:g}])"
+                f"{asked}: something else is at work",
                 trial,
                 0.0,
             )
@@ -624,6 +626,33 @@ def _bic_change(problem: Problem, trial: FitResult, before: FitResult, added: in
     else:  # one variance for all, profiled out
         fit_term = n_eff * math.log(max(trial.cost, 1e-300) / max(before.cost, 1e-300))
     return fit_term + added * math.log(n_eff)
+
+
+def _asked_for(
+    problem: Problem,
+    current: Setting,
+    params: Mapping[str, Param],
+    nuisance: Mapping[str, Param],
+    fitting,
+    trial: FitResult,
+    key: str,
+) -> str:
+    """What the data ask of a parameter that a fit pushed to an end of its range: the fit again with that end moved
+    out by the range's span (not below 0 for a quantity whose range starts at or above 0), for this question only;
+    the model keeps its range, widened only with a physical reason written beside it."""
+    p = params[key]
+    value = trial.values[key]
+    if abs(p.high - value) <= abs(value - p.low):
+        low, high = p.low, p.high + p.span
+    else:
+        low, high = (max(p.low - p.span, 0.0) if p.low >= 0 else p.low - p.span), p.high
+    if np.isclose(low, p.low) and np.isclose(high, p.high):
+        return ""
+    wide = replace(p, low=low, high=high)
+    again = fit(problem, current, {**params, key: wide, **nuisance}, fitting, start=trial.values, intervals=False)
+    asked = again.values[key]
+    still = ", again at that end" if min(asked - low, high - asked) < 0.01 * wide.span else ""
+    return f"; over [{low:.3g}, {high:.3g}] the data ask for {asked:.3g}{still}"
 
 
 def _identified(

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -1034,3 +1035,30 @@ def test_the_matrix_says_where_its_time_went():
     assert _time_spent(plan, done) == (
         "Case-minutes (each case's own wall time, summed): 3.6 in all; roach effect 3.0, weak 0.5; motor null 0.1."
     )
+
+
+class _BeyondProblem(_StandIn):
+    """A stand-in for Problem whose one effect ``mass.scale`` explains the residual at 3.4, beyond its range (to 2)."""
+
+    truth = 3.4
+
+    def residuals(self, settings, segments=None, anchor=None):
+        wave = np.sin(2 * np.pi * 3 * self.t)[:, None]
+        return [[Residual((self.truth - s.get("mass.scale", 1.0)) * wave, np.zeros(0))] for s in settings]
+
+
+def test_an_effect_refused_at_the_end_of_its_range_says_what_the_data_ask_for():
+    """The data want 3.4 of a scale whose range ends at 2: the fit stops at 2 and the effect is refused, saying which
+    range it hit and, from a fit with that end moved out by the range's span, what the data ask for."""
+    from envs.common.effects import make
+    from sysid import select
+    from sysid.fit import FitResult
+
+    effect = make("mass", scale=(1.0, 0.5, 2.0))
+    before = FitResult({}, 1.0, n=200, n_eff=200)
+    reason, trial, _ = select._fit_candidate(_BeyondProblem(), {"mass.scale": 1.0}, [effect], {}, None, before,
+                                             {"mass.scale": 1.5})  # fmt: skip
+    assert trial.values["mass.scale"] == pytest.approx(2.0, abs=0.02)
+    assert reason is not None and "pushes against the end of its range (2 1, range [0.5, 2])" in reason, reason
+    asked = float(re.search(r"over \[0\.5, 3\.5\] the data ask for ([\d.]+)", reason).group(1))
+    assert asked == pytest.approx(3.4, abs=0.02) and "again at that end" not in reason

@@ -169,6 +169,22 @@ TEMPLATES: dict[str, Effect] = {
             "time), 1 lets it coast (fast decay: current flows, and the back-EMF brakes, only during the on-time)",
         ),
         Effect(
+            "gearbox_efficiency",
+            (Param("efficiency", "1", 1.0, 0.15, 1.0),),
+            "drive losses",
+            "the drive needs more duty for its torque than the motor's constants say, while its back-EMF reads right",
+            "the fraction of the motor's torque the gearbox and linkage pass on (driving and driven alike); to the "
+            "motor's circuit the same as a winding resistance of 1/efficiency times nominal",
+        ),
+        Effect(
+            "sensor_coupling",
+            (Param("per_unit", "channel unit", 0.0, -1.0, 1.0),),
+            "sensor coupling",
+            "a residual on one channel that follows the duty",
+            "a measured channel reads the duty times a coefficient besides its own quantity (a back-EMF sampled while "
+            "the drive's current still decays reads lower the longer the pulse)",
+        ),
+        Effect(
             "armature",
             (Param("inertia", "kg m^2", 0.0, 0.0, 1.0),),
             GROUP_LAG,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import mujoco
 
-from envs.actuators.dcmotor import GAIN_K
+from envs.actuators.dcmotor import GAIN_K, GAIN_R
 from envs.common.edits import delay_actuators, scale_mass
 from envs.common.effects import Effect, Setting, make
 from envs.velociroach import constants
@@ -51,6 +51,19 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         make("leg_stiffness", scale=(1.0, 0.3, 3.0), weak=body),
         make("mass", scale=(1.0, 0.5, 2.0), carried=True, weak=floor),
         make("com_offset", x=(0.0, -0.02, 0.02), weak=body),
+    ]
+    # after the effects above, so that their places in the catalog (and the calibration matrix's seeds) stay
+    for side in SIDES:
+        out += [
+            # gears and the planarizing linkage: a small spur train passes 0.5-0.8 of the torque per stage pair
+            # and the linkage loses more; down to 0.15, since the real logs' duty asks for a drive a third as strong
+            # at a back-EMF twice the model's (sysid/measure.py, docs/calibration.md)
+            make("gearbox_efficiency", side, efficiency=(1.0, 0.15, 1.0)),
+            # the board samples the back-EMF in the PWM off-time; measured directly on the real logs, -0.2 to -0.6 V
+            # per unit duty (sysid/measure.py)
+            make("sensor_coupling", f"bemf_{side}", per_unit=(0.0, -1.0, 0.5)),
+        ]
+    out += [
         # ridges up to 3 cm: about twice the C-leg's 13.4 mm diameter (assets/velociroach/cleg.xml), obstacles of
         # the 13 Hz log's kind; lower ones barely reach the leg channels through the body
         make("terrain_bump", height=(0.0, 0.0, 0.03)),
@@ -61,7 +74,8 @@ def roach_effects(dt: float) -> dict[str, Effect]:
 
 def effects_edit(setting: Setting):
     """Spec edit of a setting's model effects (calibration and the calibrated envs alike), added to the nominal
-    spec's values: each crank's Coulomb and viscous friction, each motor's rotor inertia and motor constant, the
+    spec's values: each crank's Coulomb and viscous friction, each motor's rotor inertia, motor constant and
+    gearbox efficiency (as its winding resistance over the efficiency), the
     feet's and floor's friction, the floor's contact time constant and damping ratio, the C-legs' stiffness, and the
     chassis' mass (its inertia with it) and centre of mass (its inertial written explicitly, from the compiled
     nominal body)."""
@@ -74,6 +88,7 @@ def effects_edit(setting: Setting):
             motor = spec.actuator(constants.MOTORS[side])
             motor.armature += setting.get(f"armature_{side}.inertia", 0.0)
             motor.gainprm[GAIN_K] *= setting.get(f"torque_constant_{side}.scale", 1.0)
+            motor.gainprm[GAIN_R] /= setting.get(f"gearbox_efficiency_{side}.efficiency", 1.0)
         if "foot_friction.mu" in setting:
             for geom in spec.geoms:
                 body = geom.parent

@@ -315,18 +315,21 @@ class RoachAdapter(Adapter):
         battery = self._battery(segment, setting)
         columns = [sensordata[:, self._sensors[constants.SENSOR_LEG_POS[s]]] - setting.get(f"crank_offset.{s}", 0.0)
                    for s in SIDES]  # fmt: skip
+        duty = {}
         for side in SIDES:
             a = self._motor[side]
-            r = gains[a, GAIN_R]
+            r = gains[a, GAIN_R] / setting.get(f"gearbox_efficiency_{side}.efficiency", 1.0)
             k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
             torque = sensordata[:, self._sensors[constants.SENSOR_MOTOR_TORQUE[side]]]
             speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
-            columns.append((r * torque / k + k * speed) / battery)
-        for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed, plus its offset
+            duty[side] = (r * torque / k + k * speed) / battery
+            columns.append(duty[side])
+        for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed, its offset, the duty's
             a = self._motor[side]
             k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
             speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
-            columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0))
+            columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0)
+                           + setting.get(f"sensor_coupling_bemf_{side}.per_unit", 0.0) * duty[side])  # fmt: skip
         return np.column_stack(columns)
 
     def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
