@@ -43,7 +43,7 @@ from envs.velociroach import constants
 
 SIDES = constants.SIDES
 REPS = 400  # bootstrap replications
-MIN_RUNNING = 1.0  # s of running rows a log needs for the PID and back-EMF regressions
+MIN_STRIDES = 3  # strides of running a log needs: the bootstrap resamples whole strides
 MIN_SPEED = 1.0  # rad/s: slower running rows do not enter the back-EMF regression's moving part
 REQUIRED = ("time", *(f"{c}_{s}" for c in ("leg_angle", "leg_angle_cmd", "duty", "bemf") for s in SIDES), "vbatt")
 
@@ -135,13 +135,13 @@ def measure_roach(
     t = df["time"].to_numpy(dtype=float)
     cmd = np.column_stack([df[f"leg_angle_cmd_{s}"].to_numpy(dtype=float) for s in SIDES])
     run = running_mask(t, cmd)
-    if run.sum() < 2 or t[run][-1] - t[run][0] < MIN_RUNNING:
-        span = 0.0 if run.sum() < 2 else t[run][-1] - t[run][0]
+    stride = _stride_seconds(meta)
+    span = 0.0 if run.sum() < 2 else t[run][-1] - t[run][0]
+    if span < MIN_STRIDES * stride:
         raise ValueError(
             f"{name}: the commanded legs move for {span:.2f} s; measuring the firmware and the back-EMF needs "
-            f"{MIN_RUNNING:g} s of running"
+            f"{MIN_STRIDES} strides of running ({MIN_STRIDES * stride:.2f} s at its {1 / stride:g} Hz)"
         )
-    stride = _stride_seconds(meta)
     dt = float(np.median(np.diff(t)))
     block = max(round(stride / dt), 20)
     gains = meta.get("motor_gains")
