@@ -56,6 +56,36 @@ RESIDUAL = "+residual"  # an algorithm's suffix: learn a correction on top of th
 CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw reward: VecMonitor is innermost)
 BOOTSTRAP_REPS = 2000
 CHILD_GRACE = 120.0  # s a stopped train.py or evaluate.py may take to save its checkpoint and end
+SOCCER = "soccer/"  # a task ``soccer/<robot>``: self-play (train.py --soccer), one a side, rated against the script
+SOCCER_PLAYERS = 1
+SCRIPTED_ELO = 1000.0  # the scripted team: the anchor of every rating (agents/soccer/selfplay.py)
+
+
+def is_soccer(task: str) -> bool:
+    """Whether a task is a robot's self-play soccer (``soccer/<robot>``), not a gym id."""
+    return task.startswith(SOCCER)
+
+
+def elo_against(wins: int, draws: int, losses: int) -> dict[str, float]:
+    """A team's Elo from its record against a team rated :data:`SCRIPTED_ELO`: the rating difference at which Elo
+    expects its score, ``400 log10(s / (1 - s))``, with the score's 95% Wilson interval carried through (a score of 0
+    or 1 has an open end: that side of the rating is unbounded, written as infinite)."""
+    from scipy import stats
+
+    n = wins + draws + losses
+    points = wins + 0.5 * draws
+
+    def rating(score: float) -> float:
+        if score <= 0.0:
+            return -np.inf
+        if score >= 1.0:
+            return np.inf
+        return SCRIPTED_ELO + 400.0 * np.log10(score / (1.0 - score))
+
+    # the Wilson interval of a score with half points: of the wins and draws counted in half matches
+    interval = stats.binomtest(round(2 * points), 2 * n).proportion_ci(confidence_level=0.95, method="wilson")
+    return {"elo": rating(points / n), "low": rating(interval.low), "high": rating(interval.high), "matches": n,
+            "score": points / n}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -127,7 +157,7 @@ def _run(command: list[str], threads: int, log: Path) -> None:
     with log.open("a") as out:
         out.write(f"$ {shlex.join(command)}\n")
         out.flush()
-        child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, env=env, cwd=ROOT)
+        child = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, env=env)
         try:
             code = child.wait()
         except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the child stops as on its own Ctrl-C (train.py checkpoints)
@@ -167,13 +197,35 @@ def _episodes(plan: Plan) -> list[Any]:
     return ["--episodes", plan.episodes, "--seed", plan.eval_seed, *_cut(plan)]
 
 
+def _soccer(task: str, *args: Any) -> list[Any]:
+    """evaluate.py's options of a soccer task's matches (its robot, one a side)."""
+    return ["--soccer", task.removeprefix(SOCCER), "--players", SOCCER_PLAYERS, *args]
+
+
+def _matches(plan: Plan) -> list[Any]:
+    """evaluate.py --soccer's options that choose the evaluation matches (the same for every row of a task)."""
+    return ["--matches", plan.episodes, "--seed", plan.eval_seed]
+
+
 def task_baselines(plan: Plan, task: str, out: Path, threads: int) -> dict[str, Any]:
-    """The task's reference gait and a random policy on the evaluation seeds (once per task)."""
+    """The task's reference gait and a random policy on the evaluation seeds (once per task); for a soccer task,
+    the scripted team against a random one."""
     folder = out / "tasks" / task.replace("/", "_")
     record = folder / "baselines.json"
     done = _load_done(record, plan.eval_settings, f"the baselines of {task}")
     if done is not None:
         return done
+    if is_soccer(task):
+        evaluation = folder / "eval"
+        _run(_tool("evaluate.py", *_soccer(task, "--home", "scripted", "--away", "random"), *_matches(plan), "--out",
+                   evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+        result = json.loads((evaluation / "results.json").read_text())
+        counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
+        random_elo = elo_against(*reversed(counts))  # the random team's record against the scripted one
+        baselines = {"task": task, "soccer": True, "reference": "scripted", "scripted_vs_random": result,
+                     "random_elo": random_elo, "settings": plan.eval_settings}  # fmt: skip
+        write_json(record, baselines)
+        return baselines
     reference = reference_name(task)
     evaluation = folder / "eval"
     _run(_tool("evaluate.py", "--env", task, "--policy", reference, "--policy", "random", *_episodes(plan), "--out",
@@ -192,7 +244,7 @@ def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], t
     """A side-by-side video of the task's reference gait and its best row's model, on the first evaluation seed
     (``OUT/videos/<task>/``); made again when the best row changes."""
     done = [(rec["mean_return"], row) for row, rec in rows.items() if rec is not None and row.task == task]
-    if not done:
+    if not done or is_soccer(task):
         return None
     _, best = max(done, key=lambda pair: pair[0])
     folder = out / "videos" / task.replace("/", "_")
@@ -233,12 +285,19 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
         budget = [] if plan.minutes is None else ["--minutes", f"{max(plan.minutes - credit / 60.0, 0.01):.4f}"]
         if resuming:
             command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
+        elif is_soccer(row.task):
+            command = _tool("train.py", "--soccer", row.task.removeprefix(SOCCER), "--players", SOCCER_PLAYERS,
+                            *_algo_options(plan, row.algo), "--seed", row.seed, "--timesteps",
+                            plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name, "--no-progress",
+                            *budget)  # fmt: skip
         else:
             command = _tool("train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", row.seed,
                             "--timesteps", plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name,
                             "--no-progress", *budget)  # fmt: skip
         _run(command, threads, log)
     trained = _trained_steps(run_dir)
+    if is_soccer(row.task):
+        return _soccer_row(plan, row, out, threads, started, trained)
     reference = reference_name(row.task)
     evaluation = folder / "eval"
     _run(_tool("evaluate.py", "--env", row.task, "--policy", reference, "--policy", run_dir / "model.zip",
@@ -256,6 +315,37 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
               "reproduce": reproduce(plan, row, trained, reference),
               "settings": plan.row_settings(row.task)}  # fmt: skip
     write_json(record_path, record)
+    return record
+
+
+def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int) -> dict[str, Any]:
+    """A soccer row's evaluation and record: its model as the home team against the scripted one on the
+    evaluation matches, the Elo that record gives it, and the rating self-play ended with (ratings.json)."""
+    from agents.soccer.selfplay import RATINGS_FILE
+
+    folder = out / "rows" / row.name
+    run_dir = out / "runs" / row.name
+    evaluation = folder / "eval"
+    _run(_tool("evaluate.py", *_soccer(row.task, "--home", run_dir / "model.zip", "--away", "scripted"),
+               *_matches(plan), "--out", evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+    result = json.loads((evaluation / "results.json").read_text())
+    counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
+    ratings = json.loads((run_dir / RATINGS_FILE).read_text()) if (run_dir / RATINGS_FILE).is_file() else {}
+    record = {**asdict(row), "row": row.name, "soccer": True, "timesteps": trained,
+              "timesteps_planned": plan.steps(row.task), "capped": trained < plan.steps(row.task),
+              "against_scripted": result, "elo": elo_against(*counts),
+              "selfplay_elo": ratings.get("ratings", {}).get("learner"), "wall_seconds": time.time() - started,
+              "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
+                                     f"{row.task}:{row.algo}:{row.seed}"]),
+              "reproduce": [
+                  shlex.join(["python", "train.py", "--soccer", row.task.removeprefix(SOCCER), "--players",
+                              str(SOCCER_PLAYERS), "--seed", str(row.seed), "--timesteps", str(trained),
+                              "--run-name", row.name]),
+                  shlex.join(["python", "evaluate.py", *map(str, _soccer(row.task, "--home",
+                              f"runs/{row.name}/model.zip", "--away", "scripted")), *map(str, _matches(plan)),
+                              "--out", f"results/{row.name}"])],
+              "settings": plan.row_settings(row.task)}  # fmt: skip
+    write_json(folder / "row.json", record)
     return record
 
 
@@ -365,7 +455,10 @@ def normalized(score: np.ndarray, baselines: dict[str, Any]) -> np.ndarray:
 
 
 def comparable(baselines: dict[str, Any]) -> bool:
-    """Whether a task's reference beats its random policy, so that its scores can be normalized."""
+    """Whether a task's reference beats its random policy, so that its scores can be normalized (a soccer task
+    is rated, not normalized)."""
+    if baselines.get("soccer"):
+        return False
     low, high = baselines["random_return"], baselines["reference_return"]
     return bool(np.isfinite(low) and np.isfinite(high) and high > low)
 
@@ -443,12 +536,14 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
                 grid = np.linspace(0, max(c[0][-1] for c in curves), 50)
                 mean = np.mean([np.interp(grid, s, v) for s, v in curves], axis=0)
                 ax.plot(grid, mean, label=f"{algo} ({len(curves)} seeds)")
-        ax.axhline(baselines[task]["reference_return"], color="k", ls="--", label=baselines[task]["reference"])
-        ax.axhline(baselines[task]["random_return"], color="grey", ls=":", label="random")
+        if not is_soccer(task):  # a soccer task's training return is against its pool, not the script
+            ax.axhline(baselines[task]["reference_return"], color="k", ls="--", label=baselines[task]["reference"])
+            ax.axhline(baselines[task]["random_return"], color="grey", ls=":", label="random")
         ax.set_xlabel("env steps")
         ax.set_ylabel("episode return (training)")
         ax.set_title(task)
-        ax.legend()
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend()
         _save(fig, plots / f"curve_{task.replace('/', '_')}.png")
     summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
                "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
@@ -475,6 +570,48 @@ def _cell(cell: dict[str, float] | None, seeds: int, comparable: bool) -> str:
     if cell is None:
         return "not run" if comparable else "-"
     return _interval(cell) + ("" if cell["seeds"] == seeds else f" ({cell['seeds']} of {seeds} seeds)")
+
+
+def _rating(r: dict[str, float]) -> str:
+    def one(x: float) -> str:
+        return "-inf" if x == -np.inf else "+inf" if x == np.inf else f"{x:.0f}"
+
+    return f"{one(r['elo'])} [{one(r['low'])}, {one(r['high'])}]"
+
+
+def _soccer_section(plan: Plan, baselines: dict, rows: dict[Row, dict | None]) -> list[str]:
+    """The soccer tasks' ratings: each row's team against the scripted one (the anchor, Elo 1000) on the evaluation
+    matches, the random team's from the scripted team's record against it, and the rating self-play ended with."""
+    tasks = [t for t in plan.tasks if is_soccer(t)]
+    if not tasks:
+        return []
+    lines = ["", "## Soccer", "", f"Self-play (`train.py --soccer`, {SOCCER_PLAYERS} a side) rated against the "
+             f"scripted team, the anchor at Elo {SCRIPTED_ELO:.0f}: a team's Elo is the rating at which Elo expects "
+             f"its score over the {plan.episodes} evaluation matches (wins 1, draws 1/2) against the scripted team, "
+             "with the score's 95% Wilson interval carried through (an open end where every match went one way). "
+             "The random team is rated from the scripted team's record against it. Self-play's own rating is "
+             "against its pool.",
+             "", "| row | steps trained | wall time (min) | wins-draws-losses vs scripted | goal difference | Elo "
+             "(95%) | Elo in self-play |", "|---" * 7 + "|"]  # fmt: skip
+    for task in tasks:
+        b = baselines[task]
+        vs = b["scripted_vs_random"]
+        lines.append(f"| `{task}` scripted | - | - | {vs['wins']['count']}-{vs['draws']['count']}-"
+                     f"{vs['losses']['count']} vs random | {vs['goal_difference']['mean']:+.2f} | "
+                     f"{SCRIPTED_ELO:.0f} (anchor); random {_rating(b['random_elo'])} | - |")  # fmt: skip
+        for row, rec in rows.items():
+            if row.task != task:
+                continue
+            if rec is None:
+                lines.append(f"| {row.name} | not run | | | | | |")
+                continue
+            r, gd = rec["against_scripted"], rec["against_scripted"]["goal_difference"]
+            selfplay = "-" if rec.get("selfplay_elo") is None else f"{rec['selfplay_elo']:.0f}"
+            record = f"{r['wins']['count']}-{r['draws']['count']}-{r['losses']['count']}"
+            lines.append(f"| {row.name} | {rec['timesteps']:,} | {rec['wall_seconds'] / 60:.0f} | {record} | "
+                         f"{gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}] | {_rating(rec['elo'])} | "
+                         f"{selfplay} |")  # fmt: skip
+    return lines
 
 
 def _budget(plan: Plan) -> str:
@@ -506,12 +643,12 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         "|---|---|---|---|" + "---|" * len(plan.algos),
     ]
     seeds = len(plan.seeds)
-    for task in plan.tasks:
+    for task in [t for t in plan.tasks if not is_soccer(t)]:
         b = baselines[task]
         cells = [_cell(per_task.get(task, {}).get(a), seeds, comparable(b)) for a in plan.algos]
         lines.append(f"| `{task}` | {b['reference']} | {b['reference_return']:.1f} | {b['random_return']:.1f} | "
                      + " | ".join(cells) + " |")  # fmt: skip
-    unranked = [t for t in plan.tasks if not comparable(baselines[t])]
+    unranked = [t for t in plan.tasks if not comparable(baselines[t]) and not is_soccer(t)]
     if unranked:
         lines += ["", "Not normalized (the reference scores no better than random there): "
                   + ", ".join(f"`{t}`" for t in unranked) + "."]  # fmt: skip
@@ -526,6 +663,8 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     lines += ["", "## Rows", "", "| row | steps trained | wall time (min) | mean return | normalized | "
               "speed vs reference (m/s) | cost of transport vs reference |", "|---" * 7 + "|"]  # fmt: skip
     for row, rec in rows.items():
+        if is_soccer(row.task):
+            continue
         if rec is None:
             lines.append(f"| {row.name} | not run | | | | | |")
             continue
@@ -542,6 +681,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         wall = f"{rec['wall_seconds'] / 60:.0f}" if "wall_seconds" in rec else "-"
         lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {wall} | {rec['mean_return']:.1f} | {score:.2f} | "
                      f"{paired('speed')} | {paired('cost_of_transport')} |")  # fmt: skip
+    lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
     videos = [t for t in plan.tasks if (Path(out_folder) / "videos" / t.replace("/", "_") / "row.txt").is_file()]
@@ -588,10 +728,16 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     import gymnasium as gym
 
     import envs  # noqa: F401
+    from agents.training import SOCCER_ROBOTS
 
     for task in args.tasks:
-        if task not in gym.registry:
-            parser.error(f"--tasks: unknown env {task!r}")
+        if is_soccer(task):
+            if task.removeprefix(SOCCER) not in SOCCER_ROBOTS:
+                parser.error(f"--tasks {task!r}: soccer/ROBOT takes one of {', '.join(SOCCER_ROBOTS)}")
+            if any(a != "ppo" for a in args.algos):
+                parser.error(f"--tasks {task!r}: self-play trains with ppo alone, not {', '.join(args.algos)}")
+        elif task not in gym.registry:
+            parser.error(f"--tasks: unknown env {task!r} (an env id, or soccer/ROBOT)")
     args.timesteps = _task_budgets(parser, args.tasks, args.timesteps)
     checks = (
         ("--episodes", args.episodes, 2),
@@ -721,7 +867,14 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
             failures.append(error)
             print(f"leaderboard: {row.name}: {error}", file=sys.stderr)
         else:
-            print(f"leaderboard: {row.name}: mean return {record['mean_return']:.1f}")
+            print(
+                f"leaderboard: {row.name}: "
+                + (
+                    f"Elo {record['elo']['elo']:.0f} against the scripted team's {SCRIPTED_ELO:.0f}"
+                    if record.get("soccer")
+                    else f"mean return {record['mean_return']:.1f}"
+                )
+            )
     for row in plan.rows:
         path = out / "rows" / row.name / "row.json"
         if results[row] is None and path.is_file():

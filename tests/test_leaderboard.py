@@ -151,3 +151,69 @@ def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
     when = attempts[1]["start"] + 45.0
     os.utime(second, (when, when))
     assert leaderboard._begin_attempt(folder, run) == pytest.approx(75.0)
+
+
+def test_elo_against_the_scripted_team_follows_the_record():
+    even = leaderboard.elo_against(5, 10, 5)
+    assert even["elo"] == pytest.approx(1000.0) and even["low"] < 1000.0 < even["high"]
+    three_to_one = leaderboard.elo_against(15, 0, 5)
+    assert three_to_one["elo"] == pytest.approx(1000.0 + 400.0 * np.log10(3.0))
+    sweep = leaderboard.elo_against(20, 0, 0)
+    assert sweep["elo"] == np.inf and np.isfinite(sweep["low"]) and sweep["low"] > 1000.0
+    assert leaderboard.elo_against(0, 0, 20)["elo"] == -np.inf
+
+
+def test_soccer_tasks_are_rated_beside_the_normalized_table(tmp_path):
+    """A soccer task's rows are rated against the scripted team in their own section; the walking task's table and
+    its overall score are those of the walking rows alone."""
+    soccer = "soccer/roach"
+    plan = leaderboard.Plan((WALK, soccer), ("ppo",), (0, 1), ((WALK, 100), (soccer, 100)), None, 20, 1000, None)
+    record = {"wins": {"count": 4}, "draws": {"count": 1}, "losses": {"count": 15},
+              "goal_difference": {"mean": -1.2, "ci_low": -1.8, "ci_high": -0.6}}  # fmt: skip
+    baselines = {WALK: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0},
+                 soccer: {"soccer": True, "reference": "scripted", "random_elo": leaderboard.elo_against(0, 2, 18),
+                          "scripted_vs_random": {**record, "wins": {"count": 18}, "draws": {"count": 2},
+                                                 "losses": {"count": 0}}}}  # fmt: skip
+    rows = {}
+    for row in plan.rows:
+        if row.task == WALK:
+            rows[row] = {"mean_return": 60.0 + row.seed, "timesteps": 100, "capped": False, "paired_differences": {}}
+        elif row.seed == 0:
+            rows[row] = {"soccer": True, "timesteps": 100, "wall_seconds": 120.0, "against_scripted": record,
+                         "elo": leaderboard.elo_against(4, 1, 15), "selfplay_elo": 1012.0}  # fmt: skip
+        else:
+            rows[row] = None
+    summary = leaderboard.build_table(plan, tmp_path, baselines, rows, None)
+    assert set(summary["per_task"]) == {WALK} and set(summary["overall"]) == {"ppo"}
+    text = (tmp_path / "results.md").read_text()
+    assert "## Soccer" in text and "| soccer_roach__ppo__0 | 100 | 2 | 4-1-15 | -1.20 [-1.80, -0.60] |" in text
+    assert "| soccer_roach__ppo__1 | not run |" in text and "1000 (anchor); random" in text
+    assert "`soccer/roach` | scripted" not in text.split("## Soccer")[0], "not in the normalized table"
+
+
+def test_soccer_tasks_are_checked_before_anything_runs(tmp_path, capsys):
+    for argv, message in (
+        (["--tasks", "soccer/nope", "--timesteps", "10"], "soccer/ROBOT takes one of"),
+        (["--tasks", "soccer/roach", "--algos", "sac", "--timesteps", "10"], "self-play trains with ppo alone"),
+    ):
+        with pytest.raises(SystemExit) as exited:
+            leaderboard.main([*argv, "--out", str(tmp_path / "b")])
+        assert exited.value.code == 2 and message in capsys.readouterr().err
+    assert leaderboard.parse_args(["--tasks", "soccer/xjus", WALK, "--timesteps", "10"]).tasks[0] == "soccer/xjus"
+
+
+@pytest.mark.slow  # a minute or more: a self-play run, the scripted team's matches and the row's
+def test_a_soccer_row_trains_by_self_play_and_is_rated_against_the_scripted_team(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    tiny = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "n_steps": 64, "batch_size": 64, "n_epochs": 1}
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({"soccer/roach": tiny}))
+    out = tmp_path / "board"
+    argv = ["--tasks", "soccer/roach", "--seeds", "0", "--timesteps", "256", "--episodes", "2", "--hyperparams",
+            "tiny.yml", "--out", str(out)]  # fmt: skip
+    assert leaderboard.main(argv) == 0
+    record = json.loads((out / "rows" / "soccer_roach__ppo__0" / "row.json").read_text())
+    assert record["timesteps"] >= 256 and record["against_scripted"]["matches"] == 2
+    counts = [record["against_scripted"][k]["count"] for k in ("wins", "draws", "losses")]
+    assert record["elo"] == pytest.approx(leaderboard.elo_against(*counts))
+    assert record["reproduce"][0].startswith("python train.py --soccer roach --players 1")
+    assert "## Soccer" in (out / "results.md").read_text()
