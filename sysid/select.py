@@ -19,7 +19,8 @@ and stop when nothing helps.
    candidate is fitted together with the effects already kept (stepwise with refitting: held, their values would hide
    part of it). A kept effect is refitted on every segment jointly with the effects kept before it (backfitting:
    their values had taken up part of its effect).
-4. Effects of an alias group that already has a member are not offered again: the data cannot tell them apart.
+4. Effects of an alias group that already has a member are not offered again: the data cannot tell them apart. A
+   group is per side or channel (:func:`group_of`): a member kept on one side leaves the other side's open.
 5. Stop when nothing is kept or the training residual reaches the noise floor.
 """
 
@@ -198,14 +199,14 @@ def calibrate(
     outcome.training_errors.append(everything.error)
     say(f"nominal model: error {everything.error:.2f} on the training logs")
     offered = {k: e for k, e in effects.items() if not any(key in (start or {}) for key in e.nominal())}
-    used_groups: set[str] = set()
+    used_groups: set[tuple[str, str]] = set()
     # candidates fitted with the kept effects, and the backward step (below; ``Adapter.stepwise``)
     stepwise = adapter.stepwise if adapter.stepwise is not None else not adapter.rough_cost
     for _ in range(MAX_EFFECTS):
         if at_floor(problem, outcome.training_errors[-1]):
             say("the residual is at the noise floor: stop")
             break
-        candidates = {k: e for k, e in offered.items() if e.alias not in used_groups}
+        candidates = {k: e for k, e in offered.items() if not aliased(e, used_groups)}
         if not candidates:
             break
         # the effects kept so far are fitted again with every candidate (stepwise with refitting): held at values
@@ -315,13 +316,13 @@ def calibrate(
                            outcome.training_errors[-1], together=[e.name for e in group_effects if e is not effect])
                 )  # fmt: skip
                 outcome.history.append(dict(current))
-                used_groups.add(effect.alias)
+                used_groups.add(group_of(effect))
                 offered.pop(effect.name)
                 failed.pop(effect.name, None)
             say(f"kept {label}: error {outcome.training_errors[-1]:.2f} on the training logs")
             if stepwise and _drop_idle(whole, outcome, len(group_effects), nuisance, compared, say):
                 current = outcome.setting
-                used_groups.intersection_update(c.effect.alias for c in outcome.chosen)
+                used_groups.intersection_update(group_of(c.effect) for c in outcome.chosen)
                 before = evaluate(problem, current, fitting)
         for label, verdict in failed.items():
             if " + " not in label:
@@ -549,8 +550,8 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
         for _length in range(2, CHAIN_DEPTH + 1):
             grown = []
             for chain, entries, trial in frontier:
-                groups = {e.alias for e in chain} | used_groups
-                rest = {k: e for k, e in candidates.items() if e.alias not in groups}
+                groups = {group_of(e) for e in chain} | used_groups
+                rest = {k: e for k, e in candidates.items() if not aliased(e, groups)}
                 if not rest:
                     continue
                 ranking = [e for e in score(problem, trial.values, rest, fitting) if e["p_value"] <= 0.05]
@@ -579,6 +580,21 @@ def _chains(problem: Problem, current: Setting, candidates, singles, fitting, us
             if not frontier:
                 break
     return None
+
+
+def group_of(effect: Effect) -> tuple[str, str]:
+    """An effect's alias group and its target: effects of one group alias each other on one side or channel, and
+    an effect on no side (a supply) aliases its group's members on every side, but the left motor's torque constant
+    does not stand for the right one's."""
+    return effect.alias, effect.target
+
+
+def aliased(effect: Effect, used: set[tuple[str, str]]) -> bool:
+    """Whether a kept effect has found ``effect``'s group already: one of its group on its target, or on none; for
+    an effect on no target, one of its group on any."""
+    if not effect.target:
+        return any(group == effect.alias for group, _ in used)
+    return (effect.alias, effect.target) in used or (effect.alias, "") in used
 
 
 def _fit_candidate(
