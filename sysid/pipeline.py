@@ -22,6 +22,7 @@ class HeldOut:
     error: float
     per_channel: dict[str, float]
     residuals: list[Residual] = field(repr=False, default_factory=list)
+    per_log: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -77,7 +78,9 @@ def held_out(problem: Problem, setting: Mapping[str, float]) -> HeldOut:
             setting.setdefault(k, p.nominal)
         setting = fit(problem, setting, nuisance).values
     result = evaluate(problem, setting)
-    return HeldOut(result.error, problem.channel_errors(result.residuals), result.residuals)
+    return HeldOut(
+        result.error, problem.channel_errors(result.residuals), result.residuals, problem.log_errors(result.residuals)
+    )
 
 
 def run(

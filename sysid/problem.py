@@ -975,6 +975,13 @@ class Problem:
         n = data_size(residuals)
         return math.sqrt(total_cost(residuals) / n) if n else float("nan")
 
+    def log_errors(self, residuals: Sequence[Residual]) -> dict[str, float]:
+        """:meth:`error` per log (its path), of the residuals of the scored segments in order."""
+        by_log: dict[str, list[Residual]] = {}
+        for i, res in zip(self.scored, residuals, strict=True):
+            by_log.setdefault(self.segments[i].log, []).append(res)
+        return {log: self.error(rs) for log, rs in by_log.items()}
+
     def channel_errors(self, residuals: Sequence[Residual]) -> dict[str, float]:
         r = np.concatenate([x.data for x in residuals])
         return {c: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, c in enumerate(self.channels)}

@@ -72,6 +72,10 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
             c: {"before": _round(result.before.per_channel[c], 4), "after": _round(result.after.per_channel[c], 4)}
             for c in adapter.channels
         },
+        "per_log": {
+            log: {"before": _round(result.before.per_log[log], 4), "after": _round(result.after.per_log[log], 4)}
+            for log in result.before.per_log
+        },
         "mode": out.mode,
         "chosen": chosen,
         "rejected": list(out.rejected),
@@ -155,6 +159,9 @@ def report_markdown(report: Mapping[str, Any]) -> str:
         "|---|---|---|",
     ]
     lines += [f"| {c} | {v['before']:.3g} | {v['after']:.3g} |" for c, v in r["per_channel"].items()]
+    if len(r.get("per_log") or {}) > 1:
+        lines += ["", "| held-out log | before | after |", "|---|---|---|"]
+        lines += [f"| {log} | {v['before']:.3g} | {v['after']:.3g} |" for log, v in r["per_log"].items()]
     lines += ["", "## Effects kept, in order" if r["mode"] == "select" else "## Effects fitted (named with --fit)", ""]
     if r["chosen"]:
         lines += [
