@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from envs.actuators.dcmotor import DCMotors, PIDGains
+from envs.actuators.dcmotor import GAIN_KD, GAIN_KP, GAIN_R, DCMotors, PIDGains
 from envs.common.parameters import FieldRef
 from envs.common.telemetry import ChannelLimit
 
@@ -51,10 +51,65 @@ TORQUE_PER_VOLT = _per_volt(1)  # N m / V at the output: stall torque = this x s
 SPEED_PER_VOLT = _per_volt(2)  # rad/s / V at the output: no-load speed = this x supply
 MOTOR_CONSTANT = 1.0 / (SPEED_PER_VOLT * GEAR_RATIO)  # V s/rad = N m/A at the motor
 RESISTANCE = GEAR_RATIO * MOTOR_CONSTANT / TORQUE_PER_VOLT  # ohm, effective (gearbox losses lumped in)
+# the winding's own resistance, from the AX-12A's stall current, 1.5 A at 12 V (ROBOTIS e-manual [ax12-manual])
+WINDING_RESISTANCE = 12.0 / 1.5  # ohm
+# what RESISTANCE lumps in: with the motor constant that gives the datasheet's no-load speed, the datasheet's stall
+# torque is this fraction of what the winding alone would give, the gearbox's efficiency (about 0.72)
+GEARBOX_EFFICIENCY = WINDING_RESISTANCE / RESISTANCE
 MAX_SUPPLY_VOLTAGE = 12.0  # V: the top of the AX-12A's operating range, 9 to 12 V (ROBOTIS e-manual)
 # a log's servo moves at most this many times the model's no-load speed at MAX_SUPPLY_VOLTAGE: the datasheet's
 # figures are a servo's typical ones, and a back-driven output can run somewhat faster
 LOG_SPEED_MARGIN = 2.0
+
+# where MuJoCo 4.0's compiler keeps a dcmotor's cogging torque and LuGre friction (actuator biasprm and dynprm, as
+# ``set_to_dcmotor(cogging=..., lugre=...)`` fills them; checked in tests/test_servo_friction.py), beside the slots
+# envs/actuators/dcmotor.py names
+BIAS_COGGING_AMPLITUDE, BIAS_COGGING_POLES, BIAS_COGGING_PHASE = 0, 1, 2
+BIAS_LUGRE_COULOMB, BIAS_LUGRE_STATIC, BIAS_LUGRE_STRIBECK = 3, 4, 5
+DYN_LUGRE_STIFFNESS, DYN_LUGRE_DAMPING = 5, 6
+# the LuGre bristles' stiffness at the output, N m/rad: a presliding deflection of at most a tenth of a count
+# (0.29 deg / 10 = 5.1e-4 rad) at the top of the rig's static friction range (0.2 N m: sysid/adapters/bench.py) needs
+# 390 N m/rad. No bristle damping: the motor's back-EMF (stall torque over no-load speed, 0.3 N m s/rad at 10 V)
+# damps the bristles' oscillation, and a critical bristle damping made the rig's rollout diverge once the Stribeck
+# term had decayed at speed (measured at its 0.5 ms step; tests/test_servo_friction.py runs the undamped ones at the
+# servo's top speed)
+BRISTLE_STIFFNESS = 400.0
+
+
+def scale_output_torque(actuator: mujoco.MjsActuator, saturated: float, linear: float) -> None:
+    """Scale an AX-12 actuator's torque at the output by ``saturated`` while its amplifier is saturated (full duty:
+    further than the compliance slope from the goal) and by ``linear`` within the slope, leaving its drive law (the
+    duty for a position error) as it is: a spec edit of the dcmotor's fields, after :meth:`Servo.configure`.
+
+    The controller commands the torque ``tau_c = kp e - kd w`` and drives ``v = (R/K) tau_c + K w`` clipped to
+    ``Vmax``; the motor gives ``(K/R)(v - K w)``. Saturated, that is ``(K/R)(+-Vmax - K w)``, scaled by dividing R;
+    within the slope it is ``tau_c`` itself, scaled by multiplying kp and kd (whose nominal ``K^2/R`` cancels the
+    back-EMF compensation: the amplifier a voltage source). Both factors 1 leave every field as it was."""
+    actuator.gainprm[GAIN_R] /= saturated
+    actuator.gainprm[GAIN_KP] *= linear
+    actuator.gainprm[GAIN_KD] *= linear
+
+
+def add_stribeck_friction(actuator: mujoco.MjsActuator, static: float, velocity: float) -> None:
+    """Static friction above the Coulomb level that decays with speed, ``static exp(-(w / velocity)^2)`` at the
+    output in steady sliding (N m; ``velocity`` the Stribeck velocity, rad/s at the output): the dcmotor's own LuGre
+    friction with no Coulomb part of its own (the joint's frictionloss holds that), its bristle state an activation
+    of the actuator. The dcmotor's LuGre sits at the motor: levels are divided by the gear, speeds multiplied."""
+    gear = actuator.gear[0]
+    actuator.actdim = 1
+    actuator.dynprm[DYN_LUGRE_STIFFNESS] = BRISTLE_STIFFNESS / gear**2
+    actuator.dynprm[DYN_LUGRE_DAMPING] = 0.0
+    actuator.biasprm[BIAS_LUGRE_COULOMB] = 0.0
+    actuator.biasprm[BIAS_LUGRE_STATIC] = static / gear
+    actuator.biasprm[BIAS_LUGRE_STRIBECK] = velocity * gear
+
+
+def add_constant_torque(actuator: mujoco.MjsActuator, torque: float) -> None:
+    """A constant torque at the output (N m), natively: the dcmotor's cogging term ``amplitude sin(poles theta +
+    phase)`` with no poles and a phase of 90 deg."""
+    actuator.biasprm[BIAS_COGGING_AMPLITUDE] = torque / actuator.gear[0]
+    actuator.biasprm[BIAS_COGGING_POLES] = 0.0
+    actuator.biasprm[BIAS_COGGING_PHASE] = math.pi / 2
 
 
 @dataclass(frozen=True)

@@ -119,6 +119,30 @@ TEMPLATES: dict[str, Effect] = {
             "viscous damping on a joint",
         ),
         Effect(
+            "stribeck_friction",
+            (Param("static", "N m", 0.0, 0.0, 1.0), Param("velocity", "rad/s", 0.5, 0.1, 2.5, shape=True)),
+            "Stribeck friction",
+            "moves start late and stop short of the goal: residual near zero speed only, gone at speed",
+            "static friction above the Coulomb level that decays with speed (static exp(-(w / velocity)^2)): the "
+            "Stribeck effect, natively as MuJoCo's LuGre friction",
+        ),
+        Effect(
+            "asymmetric_friction",
+            (Param("positive", "N m", 0.0, 0.0, 1.0), Param("negative", "N m", 0.0, 0.0, 1.0)),
+            GROUP_STICTION,
+            "steady error and speed differ between the two directions of motion",
+            "Coulomb friction that differs by direction: one level against positive speed, another against negative "
+            "(their mean a frictionloss, half their difference a constant torque); equal levels are Coulomb friction",
+        ),
+        Effect(
+            "load_friction",
+            (Param("coefficient", "1", 0.0, 0.0, 0.5),),
+            "load-dependent friction",
+            "starts slower and stops harder than the model: residual follows the torque the gearbox carries",
+            "friction that grows with the torque the gearbox transmits (coefficient x |torque|): less torque out "
+            "while the motor drives the load, more braking while the load drives the gearbox",
+        ),
+        Effect(
             "backlash",
             (Param("gap", "rad", 0.0, 0.0, 0.2, smooth=False),),
             GROUP_STICTION,
