@@ -16,7 +16,8 @@ is, where the first commands do not show them, the one of three draws of the com
 that records its cases as several short runs (``Adapter.runs``) has its effects drawn and shown on those runs
 together (:func:`record`). The log holds the commands, the measured channels (with noise) and the noise levels; the
 truth goes to a separate ``<out>.truth.json`` that calibration never reads. Out-of-catalog effects (a terrain bump,
-a periodic disturbance) can be injected too.
+a periodic disturbance) can be injected too. An effect may ask for its recording (``Effect.meta["record"]``, into
+the log's record: the servo rig's load friction and gearbox efficiency are recorded on a loaded bench).
 """
 
 from __future__ import annotations
@@ -190,9 +191,22 @@ def excitation_commands(adapter: Adapter, seconds: float, seed: int, draw: int) 
 
 
 def noisy_log(adapter: Adapter, setting: Mapping[str, float], commands: pd.DataFrame, seed: int, robot: str) -> Log:
-    """The model with ``setting`` run under ``commands``, read with the adapter's sensor noise drawn from ``seed``."""
-    clean = simulate(adapter, setting, commands)
-    return _log(adapter, commands, clean, adapter.synth_noise(), rng_noise(seed), robot)
+    """The model with ``setting`` run under ``commands``, read with the adapter's sensor noise drawn from ``seed``;
+    recorded as :func:`recording` says."""
+    meta = recording(adapter, setting)
+    clean = simulate(adapter, setting, commands, meta)
+    return _log(adapter, commands, clean, adapter.synth_noise(), rng_noise(seed), robot, meta)
+
+
+def recording(adapter: Adapter, setting: Mapping[str, float]) -> dict:
+    """What a synthetic log's record holds besides its noise: the adapter's own (``synth_meta``), and what an effect
+    of ``setting`` asks of the recording (``Effect.meta["record"]``: the servo rig's load friction and gearbox
+    efficiency need load torque to show, and are recorded on a loaded bench, the load declared in the record)."""
+    meta = dict(adapter.synth_meta())
+    for effect in adapter.effects().values():
+        if any(effect.key(p.name) in setting for p in effect.params):
+            meta.update(effect.meta.get("record", {}))
+    return meta
 
 
 def rng_noise(seed: int) -> np.random.Generator:
@@ -234,12 +248,14 @@ def effect_values(
     return out
 
 
-def _log(adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Mapping[str, float], rng, robot) -> Log:
+def _log(
+    adapter: Adapter, commands: pd.DataFrame, clean: np.ndarray, noise: Mapping[str, float], rng, robot, record: Mapping
+) -> Log:
     df = commands.copy()
     for i, c in enumerate(adapter.channels):
         df[c] = adapter.measure(c, clean[:, i] + rng.normal(0.0, noise[c], len(df)))
     meta = {"robot": robot, "format": SYNTHETIC_FORMAT, "noise_sigma": adapter.recorded_noise(noise),
-            "units": {"time": "s", **dict(adapter.channels)}, **adapter.synth_meta()}  # fmt: skip
+            "units": {"time": "s", **dict(adapter.channels)}, **record}  # fmt: skip
     return Log("synthetic", df, meta)
 
 

@@ -15,10 +15,23 @@ Both rigs measure the output shaft. Their effects:
 | servo_gain | | x | the amplifier's gain (compliance slope) |
 | sensor_gain (angle), sensor_bias (speed) | x | | on the predicted channel |
 | sensor_bias (position) | | x | on the predicted channel, counts |
+| load_friction | | x | the dcmotor's torque out scaled by 1 - k where its amplifier saturates, 1 + k within the slope |
+| stribeck_friction | | x | the dcmotor's LuGre friction, its Coulomb part 0 (the frictionloss holds that) |
+| asymmetric_friction | | x | the mean level a frictionloss, half the difference a constant torque (dcmotor cogging) |
+| gearbox_efficiency | | x | the dcmotor's resistance the winding's over the efficiency, gains kept to the duty law |
+
+The servo's friction forms follow Rhoban's BAM (Duclusaud et al. 2024, 'Extended friction models for the physics
+simulation of servo actuators'). BAM's load-dependent friction, a friction budget that follows the torque the gearbox
+carries, cannot run natively (MuJoCo's friction levels are constants): its native form above takes k of the torque
+from a motor driving its load and adds k to one braking it, as a position servo does while saturated and within its
+compliance slope (tests/test_servo_friction.py measures it against BAM's form run in Python per step: it leaves 10
+to 25% of the effect on a loaded bench, an efficiency-like scale 70 to 77%).
 
 A servo log without its goal (the AX-12A step file) gets the goal as a nuisance: its level at the log's start, and
 for each move between plateaus of the position (and a move still under way at the log's end) a step of fitted time
-and level (smooth: the step is spread over the physics step it falls in).
+and level (smooth: the step is spread over the physics step it falls in). A servo log's record may declare the load
+it moved (``load_inertia``, kg m^2 about the horn), which its replay takes; the generator records the load friction
+and the gearbox efficiency so, on a loaded bench (:data:`LOADED_INERTIA`).
 """
 
 from __future__ import annotations
@@ -36,13 +49,29 @@ import pandas as pd
 
 from envs.actuators.dcmotor import GAIN_KP, GAIN_VMAX
 from envs.actuators.motor import MotorConstants
-from envs.bench.robot import JOINT, MotorRig, ServoRig
+from envs.actuators.servo import GEARBOX_EFFICIENCY, add_constant_torque, add_stribeck_friction, scale_output_torque
+from envs.bench.robot import JOINT, LOAD, MotorRig, ServoRig
 from envs.common.effects import GROUP_DRIVE, Effect, Param, make
-from sysid.logs import Log
+from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting
 
 PLAY = "play"
 SERVO_TOP_SPEED = "servo top speed: viscous friction / supply voltage"
+# on the servo, a gearbox that passes a fraction e of the motor's torque moves a frictionless load as an inertia 1/e
+# times the rig's (the motor's own included) does: below its nominal value the efficiency is an armature
+SERVO_LAG = "lag: delay / armature / gearbox efficiency"
+# the least of the servo's torque a setting leaves (a thousandth: the motor stalls against any load), and the least
+# Stribeck velocity (a thousandth of the rig's resolved speed, a count per 16 ms sample, 0.32 rad/s): the loop looks
+# past a range's end (sysid/select.py, what the data ask for over a range moved out by its span), where a load
+# friction of 1 or an efficiency of 0 would leave the motor nothing and a Stribeck velocity of 0 divide by zero
+LEAST_TORQUE_SCALE = 1e-3
+LEAST_STRIBECK_VELOCITY = 3e-4  # rad/s
+# a servo log's record may declare the load's inertia about the horn (kg m^2), which its replay then takes
+LOAD_INERTIA = "load_inertia"
+# the loaded bench the generator records the effects that need load torque on (the servo's load friction and gearbox
+# efficiency; the unloaded rig's 1e-4 kg m^2 is a tenth of the motor's own inertia at the output, 9.7e-4): a 100 g
+# mass at the end of a 30 cm bar on the horn, 0.1 x 0.3^2 = 0.009 kg m^2, and the 30 g bar's own 0.0009
+LOADED_INERTIA = 0.01  # kg m^2
 
 
 def add_backlash(gap: float, rotor_inertia: float):
@@ -266,19 +295,53 @@ class ServoAdapter(RigAdapter):
         shaft = {e.name: e for e in self.shaft_effects(friction=0.3, damping=0.05, armature=0.005)}
         # on a position-only channel, viscous friction and the supply both set the servo's top speed
         shaft["viscous_friction"] = replace(shaft["viscous_friction"], alias=SERVO_TOP_SPEED)
+        shaft["delay"] = replace(shaft["delay"], alias=SERVO_LAG)
+        shaft["armature"] = replace(shaft["armature"], alias=SERVO_LAG)
         out = [
             *shaft.values(),
             make("servo_gain", scale=(1.0, 0.25, 4.0)),
             make("supply_voltage", scale=(1.0, 0.5, 1.5), alias=SERVO_TOP_SPEED),
             make("sensor_bias", target="position", offset=(0.0, -20.0, 20.0)),
+            *self.friction_effects(),
             *self.out_of_catalog(),
         ]
         return {e.name: e for e in out}
 
+    def friction_effects(self) -> list[Effect]:
+        """The friction forms a Dynamixel needs beyond Coulomb and viscous ones, after Rhoban's BAM (Duclusaud et al.
+        2024, 'Extended friction models for the physics simulation of servo actuators'), and the gearbox's
+        efficiency. Ranges and their sources beside each."""
+        out = [
+            # BAM's load-dependent friction, its coefficient K_l of |tau_m - tau_e| bounded by BAM's own fit range,
+            # [0, 0.5]; BAM fits 0.22 to the XL-320 (bam/params/xl320/m4.json), plastic-geared as the AX-12 is
+            make("load_friction", coefficient=(0.0, 0.0, 0.5)),
+            # BAM's Stribeck term: its static level bounded by BAM's fit range for friction levels, [0, 0.2] N m
+            # (it fits 0.02 to the XL-320 and the MX-64); its Stribeck velocity from BAM's lower bound, 0.1 rad/s,
+            # to above its fits to the XL-320 and MX-64 (2.0 and 1.5 rad/s), about half the AX-12's no-load speed at
+            # 10 V (5.3 rad/s [ax12-manual]): 2.5 rad/s. BAM also fits the decay's exponent (1.3 to 1.8); MuJoCo's
+            # LuGre fixes it at 2. Nominal 0.5 rad/s, a shape: with no static level it does nothing
+            make("stribeck_friction", static=(0.0, 0.0, 0.2), velocity=(0.5, 0.1, 2.5)),
+            # Coulomb friction by direction, a level against each: each level as the Coulomb friction's range. Two
+            # levels rather than a level and an asymmetry factor: a factor on a friction that starts at zero has
+            # no gradient there, and the loop, blind to it, keeps a Coulomb friction instead
+            make("asymmetric_friction", positive=(0.0, 0.0, 0.3), negative=(0.0, 0.0, 0.3)),
+            # the model's lumped efficiency, GEARBOX_EFFICIENCY (0.72, from the AX-12A's stall current), from a
+            # lossless gearbox (1: the physical bound) down to 0.4 (assumed: 0.83 a stage over five spur stages, a
+            # worn or cold train)
+            make("gearbox_efficiency", efficiency=(GEARBOX_EFFICIENCY, 0.4, 1.0), alias=SERVO_LAG),
+        ]
+        loaded = {"record": {LOAD_INERTIA: LOADED_INERTIA}}  # load torque to show (sysid.synth.recording)
+        return [replace(e, meta=loaded) if e.name in ("load_friction", "gearbox_efficiency") else e for e in out]
+
     def check_logs(self, logs: Sequence[Log]) -> None:
         """The model is an AX-12: a log of another servo (a Wizard export names its model) is calibrated as one,
-        with a warning, since what differs (gearing, motor) is what the fit's effects would have to absorb."""
+        with a warning, since what differs (gearing, motor) is what the fit's effects would have to absorb. A load
+        the log's record declares must be an inertia (positive, finite, kg m^2)."""
         for log in logs:
+            load = log.meta.get(LOAD_INERTIA)
+            if load is not None and not (isinstance(load, (int, float)) and math.isfinite(load) and load > 0):
+                raise LogError(f"{log.path}: field '{LOAD_INERTIA}' of the log's record: {load!r} is not a load "
+                               "inertia (kg m^2, positive)")  # fmt: skip
             model = log.meta.get("model")
             if model and not str(model).upper().replace("-", "").startswith("AX12"):
                 warnings.warn(
@@ -364,6 +427,25 @@ class ServoAdapter(RigAdapter):
             level = new
         return goal
 
+    def segments(self, log: Log) -> list[Segment]:
+        """Segments, each holding the load its log's record declares (None: the rig's own)."""
+        out = super().segments(log)
+        load = log.meta.get(LOAD_INERTIA)
+        for seg in out:
+            seg.cache[LOAD_INERTIA] = None if load is None else float(load)
+        return out
+
+    def segment_edits(self, segment: Segment, setting: Setting) -> tuple[tuple, list]:
+        """The load a segment's log declares, as the rig sets its own (``BenchRig.configure``); none without."""
+        load = segment.cache.get(LOAD_INERTIA)
+        if load is None:
+            return (), []
+
+        def edit(spec: mujoco.MjSpec) -> None:
+            spec.body(LOAD).inertia = [load] * 3
+
+        return (load,), [edit]
+
     def initial_state(self, model, data, segment: Segment, setting: Setting, carried: bool = False) -> None:
         """The measured position; the speed (not logged) carried over, or from the first two samples."""
         start = segment.data["present_position"][0] - setting.get("sensor_bias_position.offset", 0.0)
@@ -400,13 +482,46 @@ class ServoAdapter(RigAdapter):
     def spec_edits(self, setting: Setting) -> list:
         gain = setting.get("servo_gain.scale", 1.0)
         supply = setting.get("supply_voltage.scale", 1.0)
+        efficiency = setting.get("gearbox_efficiency.efficiency", GEARBOX_EFFICIENCY) / GEARBOX_EFFICIENCY
+        load = setting.get("load_friction.coefficient", 0.0)
+        saturated = max(efficiency * (1.0 - load), LEAST_TORQUE_SCALE)
+        linear = max(efficiency * (1.0 + load), LEAST_TORQUE_SCALE)
+        static = setting.get("stribeck_friction.static", 0.0)
+        velocity = max(setting.get("stribeck_friction.velocity", 0.5), LEAST_STRIBECK_VELOCITY)
+        positive = setting.get("asymmetric_friction.positive", 0.0)
+        negative = setting.get("asymmetric_friction.negative", 0.0)
 
         def servo_edit(spec: mujoco.MjSpec) -> None:  # after the servo's own configuration (robot spec edits run last)
             a = spec.actuator(self._servo)
             a.gainprm[GAIN_KP] *= gain * supply
             a.gainprm[GAIN_VMAX] *= supply
+            # the efficiency scales the torque out alike in every regime; the load-dependent friction takes it from
+            # a motor that drives the load (saturated: accelerating it toward a far goal) and adds it to one that
+            # brakes it (within the compliance slope: stopping it on the goal)
+            scale_output_torque(a, saturated, linear)
+            if self._bristles(setting):
+                add_stribeck_friction(a, static, velocity)
+            if positive or negative:  # their mean a frictionloss, half their difference a constant torque
+                spec.joint(JOINT).frictionloss += 0.5 * (positive + negative)
+                add_constant_torque(a, -0.5 * (positive - negative))
 
         return [*super().spec_edits(setting), servo_edit]
+
+    @staticmethod
+    def _bristles(setting: Setting) -> bool:
+        """Whether a setting's model has the Stribeck friction's bristle state (an activation: a structural change)."""
+        return setting.get("stribeck_friction.static", 0.0) > 0
+
+    def structure(self, setting: Setting) -> tuple:
+        """The structural effects of :class:`~sysid.problem.Adapter`, and the Stribeck friction's bristle state."""
+        return (*super().structure(setting), self._bristles(setting))
+
+    def structural_edits(self, setting: Setting, backlash=None, bump=None, disturbance=None) -> list:
+        """As :meth:`Adapter.structural_edits` reads the first three entries of :meth:`structure` (the bristle
+        state comes with the servo's own edit, :meth:`spec_edits`)."""
+        gap, height, disturbed = super().structure(setting)
+        return [*([backlash(gap)] if gap and backlash else []), *([bump(height)] if height and bump else []),
+                *([disturbance] if disturbed and disturbance else [])]  # fmt: skip
 
     def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
         """Goal steps of random size and length, sampled every 12 to 20 ms (irregular, as the Wizard samples)."""
