@@ -679,7 +679,7 @@ def _identified(
     parameter's range, and the estimate more than one standard error from an end of the range other than nominal,
     the standard error read on the interval's other side (1.96 of them from the estimate to that side's end): how
     tightly the data hold the estimate from within. Closer, the estimate sits at the end: the data would take it
-    further, something else is at work (the roach's 2 Hz log needs this test: docs/calibration.md, "VelociRoACH 2
+    further, something else is at work (the roach's 2 Hz log needs this test: docs/real-logs.md, "VelociRoACH 2
     Hz"). A cost flat from the estimate out to the end (a friction above which the leg stalls anyway) is no such
     push: the estimate is a lower bound and the interval says so. Nor is an end that the interval reaches only by
     its shape (a rough cost's parabola is symmetric): where the cost at the end itself rises above the estimate's by
