@@ -223,9 +223,11 @@ RECOVERY = [
     # matrix's seed 10 its Stribeck velocity is low (0.28 rad/s), where a lower velocity and a higher static level
     # replay alike (the training error 1.101 at the fit against 1.104 at the truth) and the fit lands off the truth
     ("servo", "load_friction", 9, True),
-    ("servo", "stribeck_friction", 3, True),
-    ("servo", "asymmetric_friction", 11, True),
-    ("servo", "gearbox_efficiency", 12, True),
+    # the other three take 10-20 s each: the matrix runs them (python -m benchmarks.calibration_matrix --robots servo
+    # --effects stribeck_friction asymmetric_friction gearbox_efficiency), make test-slow too
+    pytest.param("servo", "stribeck_friction", 3, True, marks=pytest.mark.slow),
+    pytest.param("servo", "asymmetric_friction", 11, True, marks=pytest.mark.slow),
+    pytest.param("servo", "gearbox_efficiency", 12, True, marks=pytest.mark.slow),
     # the xJüs's case takes half a minute: the calibration matrix runs it (python -m benchmarks.calibration_matrix
     # --robots xjus ..., its configuration in benchmarks/results/calibration_matrix_xjus.md), make test-slow too
     pytest.param("xjus", "viscous_friction_left", 5, False, marks=pytest.mark.slow),
