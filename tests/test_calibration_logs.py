@@ -826,5 +826,7 @@ def test_another_robots_one_second_run_at_5_hz_is_replayed_and_measured():
     assert adapter.stride_seconds(log) == pytest.approx(0.2, rel=0.02)
     assert len(adapter.segments(log)) == 2
     adapter.check_length([log])
+    window = adapter._commanded(log)  # the tracking table's stretch: the run's second half, not empty
+    assert log.time[window][0] == pytest.approx(log.time[0] + 0.5 * (log.time[-1] - log.time[0]), abs=0.003)
     found = {(m.quantity, m.side): m for m in measure.measure_roach(log.df, log.meta, "5 Hz")}
     assert found[("duty_sign", "left")].value == 1.0 and found[("kp", "right")].nominal == pytest.approx(1.175, 1e-3)

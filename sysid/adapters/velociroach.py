@@ -392,7 +392,8 @@ class RoachAdapter(Adapter):
         return {"tracking": tracking, "distributions": rates, "measured": measured, "sections": sections}
 
     def _commanded(self, log: Log) -> np.ndarray:
-        """The samples from one second after the legs were first commanded to move to the last commanded move."""
+        """The samples from one second after the legs were first commanded to move to the last commanded move; in a
+        run shorter than two seconds, its second half."""
         t = log.time
         moving = np.zeros(len(t), dtype=bool)
         for side in SIDES:
@@ -400,7 +401,7 @@ class RoachAdapter(Adapter):
         if not moving.any():
             return np.ones(len(t), dtype=bool)
         first, last = t[np.flatnonzero(moving)[[0, -1]]]
-        return (t >= first + 1.0) & (t <= last)
+        return (t >= first + min(1.0, 0.5 * (last - first))) & (t <= last)
 
     def _tracking(self, df, t: np.ndarray, window: np.ndarray) -> dict[str, float]:
         out = {}
