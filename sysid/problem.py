@@ -209,7 +209,8 @@ class Adapter(ABC):
         if stride is None:
             return needed * self.segment_seconds, f"{what} of {self.segment_seconds:g} s"
         shortest = needed * self.min_segment_strides * stride
-        return shortest, f"{what}, each of {self.min_segment_strides:g} strides of {stride:.3g} s"
+        strides = f"{self.min_segment_strides:g} stride" + ("" if self.min_segment_strides == 1 else "s")
+        return shortest, f"{what}, each of {strides} of {stride:.3g} s"
 
     def check_length(self, logs: Sequence[Log]) -> None:
         """Each log holds a segment to score (LogError naming the log, its length and the shortest usable)."""

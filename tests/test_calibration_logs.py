@@ -791,8 +791,8 @@ def test_bad_rows_of_every_kind_count_together_towards_the_refusal(tmp_path):
 
 def test_a_short_roach_run_is_cut_into_segments_of_its_strides():
     """A second of the 13 Hz log holds thirteen strides: it is cut into a burn-in and a scored segment of half a
-    second each, so it can be fitted and tested on. A second of the 2 Hz log holds two strides, fewer than the two
-    segments of two strides the replay needs: refused, naming the shortest usable log."""
+    second each, so it can be fitted and tested on. Half a second of the 2 Hz log holds one stride, fewer than the
+    two segments of a stride the replay needs: refused, naming the shortest usable log."""
     adapter = make_adapter("roach")
     (fast,) = calibrate.read_logs([Path(f"{REAL}/velociroach_13Hz_beetleshell_grass_run3.txt@8:8.99")],
                                   adapter.required(), None)  # fmt: skip
@@ -801,16 +801,16 @@ def test_a_short_roach_run_is_cut_into_segments_of_its_strides():
     assert len(segments) == 2
     for seg in segments:
         span = seg.data["time"][-1] - seg.data["time"][0]
-        assert span >= 2 / 13 and span == pytest.approx(fast.duration / 2, abs=0.01)
+        assert span >= 1 / 13 and span == pytest.approx(fast.duration / 2, abs=0.01)
     adapter.check_length([fast])
     (long,) = calibrate.read_logs([Path(f"{REAL}/velociroach_13Hz_beetleshell_grass_run3.txt@0:4")],
                                   adapter.required(), None)  # fmt: skip
     assert adapter.segment_length(long) == adapter.segment_seconds, "a long log keeps the robot's segments"
-    (slow,) = calibrate.read_logs([Path(f"{REAL}/velociroach_behavior4_2Hz.txt@2:2.99")], adapter.required(), None)
+    (slow,) = calibrate.read_logs([Path(f"{REAL}/velociroach_behavior4_2Hz.txt@2:2.5")], adapter.required(), None)
     with pytest.raises(
         LogError,
-        match=r"2Hz.txt@2:2.99: 0.989 s is too short to replay; the shortest usable log is "
-        r"2 s \(a burn-in segment and a scored one, each of 2 strides of 0.50\d s\)",
+        match=r"2Hz.txt@2:2.5: 0.498 s is too short to replay; the shortest usable log is "
+        r"1 s \(a burn-in segment and a scored one, each of 1 stride of 0.50\d s\)",
     ):
         adapter.check_length([slow])
 

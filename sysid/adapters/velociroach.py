@@ -129,8 +129,8 @@ class RoachAdapter(Adapter):
     } | {"supply": "vbatt"}  # fmt: skip
     replay_floor = True  # the body's state is not logged and its contacts make replay sensitive to it
     burn_in = True  # a log's first segment guesses the body's state: replayed, carried over, not counted
-    # a short run is cut into segments of two strides at least: the stride's loads seen twice in each
-    min_segment_strides = 2.0
+    # a short run is cut into segments of a stride at least: each leg's stance and swing once in each
+    min_segment_strides = 1.0
     fd_step = 0.02  # contacts make the cost rough at small scales: difference over 2% of each range,
     rough_cost = True  # and fit without derivatives
     chain_search = (1, 1, 1)  # each joint fit costs minutes (thousands of segment rollouts): one chain per length
