@@ -344,8 +344,8 @@ class RoachAdapter(Adapter):
         nothing re-measured) under the nominal and the calibrated model:
 
         - **tracking**, the quantities of the tracking table: the leg's tracking error (median and 95th percentile,
-          deg), the mean |duty|, and the back-EMF per leg speed (the slope of the reading on the leg's rate,
-          mV s/rad), per side, over the commanded stretch from its first second on;
+          deg), the mean |duty|, and the back-EMF per leg speed (the reading's least-squares ratio to the leg's
+          rate, mV s/rad), per side, over the commanded stretch from its first second on;
         - **body rates compared as distributions**: the body's pose is not logged, so its rates cannot be aligned
           in time with the model's; the gyro readings are compared with the log's by spread (standard deviation),
           the share of power in three bands and the Wasserstein distance between the samples (over the log's
@@ -410,7 +410,9 @@ class RoachAdapter(Adapter):
             error = np.degrees(np.abs(df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float) - angle))[window]
             rate = np.gradient(angle, t)[window]
             bemf = df[f"bemf_{side}"].to_numpy(dtype=float)[window]
-            slope = float(np.polyfit(rate, bemf, 1)[0]) if np.ptp(rate) > 0 else float("nan")
+            # through the origin, as a back-EMF constant is: a slope with an intercept is lost where the legs run
+            # at one steady rate (a 5 Hz clock tracked closely)
+            slope = float(np.dot(rate, bemf) / np.dot(rate, rate)) if np.any(rate) else float("nan")
             out.update({f"error_median_{side}": float(np.median(error)), f"error_p95_{side}": float(np.percentile(
                 error, 95)), f"duty_mean_abs_{side}": float(np.mean(np.abs(df[f"duty_{side}"].to_numpy()[window]))),
                 f"bemf_per_speed_{side}": 1e3 * slope})  # fmt: skip
