@@ -10,8 +10,9 @@ trained model and the task's reference gait on the evaluation seeds (``--eval-se
 task) into ``OUT/rows/<row>/``. For each task, ``evaluate.py`` also plays a random policy and the reference once
 (``OUT/tasks/<task>/``). A row is done when its ``row.json`` is written: another command skips it. A row whose
 training was killed continues from its last checkpoint (``train.py --resume``). ``--rerun`` computes the named rows
-again from nothing. Rows run in a local pool of ``--workers`` processes (each with an equal share of the cores), or
-as Ray tasks on the cluster at ``--address``.
+again from nothing, and ``--table-only`` trains nothing: it writes the table of the rows done so far (a table built
+over several runs can be published between them). Rows run in a local pool of ``--workers`` processes (each with an
+equal share of the cores), or as Ray tasks on the cluster at ``--address``.
 
 **Budget.** Every row trains ``--timesteps`` env steps: one number for every task, or ``TASK=N`` for each, so that
 a budget of time on a given machine becomes a number of steps per task that any machine can train again. A row
@@ -724,6 +725,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--videos", action="store_true",
                         help="a video per task: its reference and its best row side by side")  # fmt: skip
     parser.add_argument("--rerun", nargs="+", default=[], metavar="TASK:ALGO:SEED", help="compute these rows again")
+    parser.add_argument(
+        "--table-only",
+        action="store_true",
+        help="train nothing: write the table of the rows done so far (the others listed as not run)",
+    )
     args = parser.parse_args(argv)
     import gymnasium as gym
 
@@ -766,6 +772,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"--rerun {text!r}: expected TASK:ALGO:SEED")
         reruns.append(Row(parts[0], parts[1], int(parts[2])))
     args.rerun = reruns
+    if args.table_only and args.rerun:
+        parser.error("--table-only trains nothing: it cannot --rerun rows")
     return args
 
 
@@ -854,6 +862,9 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
     # seed by seed, so that a table built over several runs has every task and algorithm early
     todo = sorted((r for r in plan.rows if not (out / "rows" / r.name / "row.json").is_file()),
                   key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
+    if args.table_only:
+        print(f"leaderboard: --table-only: {len(todo)} rows not run are listed as such")
+        todo = []
     worst = "" if plan.minutes is None else f"; at most {len(todo) * plan.minutes / args.workers:.1f} min of training"
     print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {_budget(plan)}{worst}, "
           f"{args.workers} at a time on {threads} threads each" + (f" on Ray at {args.address}" if args.address

@@ -217,3 +217,22 @@ def test_a_soccer_row_trains_by_self_play_and_is_rated_against_the_scripted_team
     assert record["elo"] == pytest.approx(leaderboard.elo_against(*counts))
     assert record["reproduce"][0].startswith("python train.py --soccer roach --players 1")
     assert "## Soccer" in (out / "results.md").read_text()
+
+
+def test_table_only_trains_nothing_and_lists_the_rows_not_run(tmp_path, monkeypatch, capsys):
+    baselines = {"reference": "tripod", "reference_return": 110.0, "random_return": 10.0}
+    monkeypatch.setattr(leaderboard, "task_baselines", lambda plan, task, out, threads: {**baselines, "task": task})
+
+    def train(*args):
+        raise AssertionError("--table-only ran a row")
+
+    monkeypatch.setattr(leaderboard, "run_row", train)
+    out = tmp_path / "board"
+    argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--out", str(out), "--table-only"]
+    assert leaderboard.main(argv) == 0
+    assert "2 rows not run are listed as such" in capsys.readouterr().out
+    text = (out / "results.md").read_text()
+    assert f"| {WALK.replace('/', '_')}__ppo__0 | not run |" in text
+    with pytest.raises(SystemExit):
+        leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:0"])
+    assert "cannot --rerun" in capsys.readouterr().err
