@@ -736,6 +736,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     import envs  # noqa: F401
     from agents.training import SOCCER_ROBOTS
 
+    if len(set(args.tasks)) != len(args.tasks):
+        parser.error(f"--tasks must not repeat a task: {' '.join(args.tasks)}")
     for task in args.tasks:
         if is_soccer(task):
             if task.removeprefix(SOCCER) not in SOCCER_ROBOTS:
@@ -780,17 +782,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def _task_budgets(parser: argparse.ArgumentParser, tasks: list[str], given: list[str]) -> tuple[tuple[str, int], ...]:
     """``--timesteps``: N for every task, or TASK=N for each; errors name the item at fault."""
 
-    def count(text: str) -> int:
+    def count(text: str, item: str) -> int:
         try:
             value = int(text.replace("_", ""))
         except ValueError:
-            parser.error(f"--timesteps {text!r}: expected a whole number of env steps")
+            parser.error(f"--timesteps {item!r}: expected a whole number of env steps")
         if value < 1:
-            parser.error(f"--timesteps must be at least 1, got {value}")
+            parser.error(f"--timesteps {item!r}: must be at least 1, got {value}")
         return value
 
     if len(given) == 1 and "=" not in given[0]:
-        return tuple((t, count(given[0])) for t in tasks)
+        return tuple((t, count(given[0], given[0])) for t in tasks)
     budgets: dict[str, int] = {}
     for item in given:
         task, sep, steps = item.rpartition("=")
@@ -800,7 +802,7 @@ def _task_budgets(parser: argparse.ArgumentParser, tasks: list[str], given: list
             parser.error(f"--timesteps {item!r}: {task!r} is not one of --tasks")
         if task in budgets:
             parser.error(f"--timesteps {item!r}: {task} is given twice")
-        budgets[task] = count(steps)
+        budgets[task] = count(steps, item)
     missing = [t for t in tasks if t not in budgets]
     if missing:
         parser.error(f"--timesteps: no budget for {', '.join(missing)}")

@@ -106,6 +106,7 @@ def read_logs(
     required: tuple[str, ...],
     column_map: ColumnMap | None,
     limits: Mapping[str, ChannelLimit] | None = None,
+    tool: str = "calibrate.py",
 ) -> list[Log]:
     logs = []
     for spec in specs:
@@ -116,9 +117,12 @@ def read_logs(
         for message in dict.fromkeys(str(w.message) for w in caught):  # once each, in order
             if message not in _WARNED:
                 _WARNED.add(message)
-                print(f"calibrate.py: warning: {message}", file=sys.stderr)
+                print(f"{tool}: warning: {message}", file=sys.stderr)
         if start is not None or end is not None:
             t = log.time
+            if (start is not None and start > t[-1]) or (end is not None and end < t[0]):
+                raise LogError(f"{spec}: the window lies outside the log, which runs from {t[0]:.3g} s to "
+                               f"{t[-1]:.3g} s")  # fmt: skip
             log = log.between(t[0] if start is None else start, t[-1] + 1.0 if end is None else end)
             log.path = str(spec)
             log = check_log(log, required)

@@ -21,7 +21,7 @@ among them) is dropped with a warning naming the file and its line; so is a row 
 have produced (:func:`drop_impossible`: outside its channel's range, or apart from its neighbours by more than the
 channel can move in the time between them, by the robot's ``channel_limits``); the log is refused (``LogError``:
 one line naming the file, line and column) for a missing required column, time that does not increase, an unknown
-unit or one of the wrong kind for its channel, a log too short to calibrate on, or more than 5% bad rows. Every message
+unit or one of the wrong kind for its channel, a log too short, or more than 5% bad rows. Every message
 names a row by its line in the file ("line 152"), the number an editor shows; in a Parquet or JSON log, which has
 no lines, the number counts its rows (records) from 1.
 """
@@ -402,7 +402,7 @@ def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLim
         raise LogError(f"{log.path}: {dropped} of {rows} rows are malformed (more than {MAX_BAD_FRACTION:.0%}), "
                        "counting every kind dropped above")  # fmt: skip
     if len(t) < MIN_ROWS or not log.duration > 0:
-        raise LogError(f"{log.path}: too short to calibrate on: {len(t)} rows over {log.duration:.3g} s (at least "
+        raise LogError(f"{log.path}: too short: {len(t)} rows over {log.duration:.3g} s (at least "
                        f"{MIN_ROWS} rows)")  # fmt: skip
     return log
 

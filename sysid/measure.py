@@ -30,6 +30,7 @@ the residuals of a stride are not independent. Every value is reported beside th
 from __future__ import annotations
 
 import json
+import os
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -244,7 +245,7 @@ def table(measurements: Sequence[Measurement]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from envs.common.io import ToolParser, refuse_overwrite, write_text
+    from envs.common.io import ToolParser, parent_problem
     from sysid.cli import read_logs
     from sysid.logs import LogError
 
@@ -253,22 +254,44 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", help="also write the measurements here as JSON (a new file)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (default 0)")
     args = parser.parse_args(argv)
+    if args.seed < 0:
+        parser.error(f"--seed must be a whole number >= 0, got {args.seed}")
     if args.out is not None:
-        try:
-            refuse_overwrite(Path(args.out))
-        except FileExistsError as exc:
-            parser.error(str(exc))
+        if os.path.lexists(args.out):  # a dangling link too: never written through
+            parser.error(f"--out {args.out}: already exists; choose another path or remove it first")
+        problem = parent_problem(args.out)
+        if problem:
+            parser.error(f"--out {args.out}: {problem}")
     measurements: list[Measurement] = []
     for text in args.logs:
         try:
-            (log,) = read_logs([Path(text)], REQUIRED, None)
+            (log,) = read_logs([Path(text)], REQUIRED, None, tool="measure")
             measurements += measure_roach(log.df, log.meta, text, seed=args.seed)
         except (LogError, ValueError) as exc:
             print(f"measure: error: {exc}", file=sys.stderr)
             return 2
     print(table(measurements), end="")
     if args.out is not None:
-        write_text(args.out, json.dumps([asdict(m) for m in measurements], indent=1) + "\n")
+        return _write_new(Path(args.out), json.dumps([asdict(m) for m in measurements], indent=1) + "\n")
+    return 0
+
+
+def _write_new(path: Path, text: str) -> int:
+    """Write ``path`` whole, never over a file that appeared there meanwhile: the text goes to a temporary file
+    beside it, linked to ``path`` only if nothing is there (an atomic no-clobber), else kept under its own name."""
+    import tempfile
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    with os.fdopen(fd, "w") as out:
+        out.write(text)
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        print(f"measure: error: {path} appeared during the run and is left as it was; the measurements are in "
+              f"{tmp}", file=sys.stderr)  # fmt: skip
+        return 1
+    os.unlink(tmp)
     return 0
 
 

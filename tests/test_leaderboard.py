@@ -70,7 +70,9 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
 def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys):
     for argv, message in (
         (["--tasks", "skitter/Nope-v1", "--timesteps", "10"], "unknown env"),
-        (["--tasks", WALK, "--timesteps", "0"], "--timesteps must be at least 1"),
+        (["--tasks", WALK, "--timesteps", "0"], "--timesteps '0': must be at least 1, got 0"),
+        (["--tasks", WALK, XJUS, "--timesteps", f"{XJUS}=abc", f"{WALK}=1"], f"--timesteps '{XJUS}=abc': expected"),
+        (["--tasks", WALK, WALK, "--timesteps", "10"], "must not repeat a task"),
         (["--tasks", WALK, "--timesteps", "ten"], "expected a whole number"),
         (["--tasks", WALK, XJUS, "--timesteps", f"{WALK}=10"], f"no budget for {XJUS}"),
         (["--tasks", WALK, "--timesteps", f"{XJUS}=10"], "is not one of --tasks"),

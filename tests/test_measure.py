@@ -136,3 +136,28 @@ def test_the_command_line_prints_the_table_and_refuses_bad_input(tmp_path, capsy
     assert exited.value.code == 2 and "already exists" in capsys.readouterr().err
     assert measure.main([str(tmp_path / "none.txt")]) == 2
     assert "no such file" in capsys.readouterr().err
+    (tmp_path / "file").write_text("")
+    for bad, message in (
+        (["--out", str(tmp_path / "file" / "m.json")], "is a file, not a directory"),
+        (["--seed", "-1"], "--seed must be a whole number >= 0, got -1"),
+    ):
+        with pytest.raises(SystemExit) as exited:  # refused before anything is measured
+            measure.main([str(REAL_2HZ), *bad])
+        assert exited.value.code == 2 and message in capsys.readouterr().err
+    (tmp_path / "dangling.json").symlink_to(tmp_path / "nowhere.json")
+    with pytest.raises(SystemExit):
+        measure.main([str(REAL_2HZ), "--out", str(tmp_path / "dangling.json")])
+    assert not (tmp_path / "nowhere.json").exists()
+    assert measure.main([f"{REAL_2HZ}@100:200"]) == 2
+    assert "the window lies outside the log, which runs from" in capsys.readouterr().err
+
+
+def test_a_file_that_appears_during_the_run_is_not_written_over(tmp_path, capsys):
+    target = tmp_path / "m.json"
+    target.write_text("the user's\n")
+    assert measure._write_new(target, "measured\n") == 1
+    assert target.read_text() == "the user's\n" and "left as it was" in capsys.readouterr().err
+    assert measure._write_new(tmp_path / "new.json", "measured\n") == 0
+    assert (tmp_path / "new.json").read_text() == "measured\n"
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # the refused write's, named in its message
+    assert len(kept) == 1 and kept[0].read_text() == "measured\n"
