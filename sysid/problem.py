@@ -198,7 +198,8 @@ class Adapter(ABC):
         stride = self.stride_seconds(log) if self.min_segment_strides > 0 else None
         if stride is None or log.duration >= needed * self.segment_seconds:
             return self.segment_seconds
-        return max(log.duration / needed, self.min_segment_strides * stride)
+        # a hair over the share, so that the last segment holds the log's last sample
+        return max(log.duration / needed * (1 + 1e-9), self.min_segment_strides * stride)
 
     def shortest_log(self, log: Log) -> tuple[float, str]:
         """The shortest log of this kind the replay can use (s), and why: one segment to score, after the

@@ -824,7 +824,9 @@ def test_another_robots_one_second_run_at_5_hz_is_replayed_and_measured():
     (log,) = calibrate.read_logs([REAL / "velociroach_5Hz_bmltools_2014.txt"], adapter.required(), None)
     assert log.duration == pytest.approx(0.988, abs=0.002) and log.meta["motor_gains"][:5] == [1800, 20, 100, 0, 0]
     assert adapter.stride_seconds(log) == pytest.approx(0.2, rel=0.02)
-    assert len(adapter.segments(log)) == 2
+    segments = adapter.segments(log)
+    assert len(segments) == 2
+    assert sorted(np.concatenate([s.samples for s in segments])) == list(range(len(log.df))), "every row, the last too"
     adapter.check_length([log])
     window = adapter._commanded(log)  # the tracking table's stretch: the run's second half, not empty
     assert log.time[window][0] == pytest.approx(log.time[0] + 0.5 * (log.time[-1] - log.time[0]), abs=0.003)

@@ -364,7 +364,10 @@ class RoachAdapter(Adapter):
         rates: dict[str, dict] = {}
         for log in result.test:
             t = log.time
-            window = self._commanded(log)
+            covered = np.zeros(len(t), dtype=bool)  # the rows a replay of the log's segments simulates
+            for segment in self.segments(log):
+                covered[segment.samples] = True
+            window = self._commanded(log) & covered
             tracking[log.path] = {"log": self._tracking(log.df, t, window)}
             has_rates = all(c in log.df for c in self.BODY_RATES)
             for name, setting in (("nominal", result.outcome.nominal), ("calibrated", result.outcome.setting)):
