@@ -368,14 +368,15 @@ class RoachAdapter(Adapter):
             for segment in self.segments(log):
                 covered[segment.samples] = True
             window = self._commanded(log) & covered
-            tracking[log.path] = {"log": self._tracking(log.df, t, window)}
+            # rates from the simulated rows alone: a difference across the first row not simulated would be a jump
+            tracking[log.path] = {"log": self._tracking(log.df[covered], t[covered], window[covered])}
             has_rates = all(c in log.df for c in self.BODY_RATES)
             for name, setting in (("nominal", result.outcome.nominal), ("calibrated", result.outcome.setting)):
                 sim = simulate(self, setting, log.df, log.meta, channels_and_rates)
                 model = log.df.copy()
                 for i, c in enumerate(self.channels):
                     model[c] = sim[:, i]
-                tracking[log.path][name] = self._tracking(model, t, window)
+                tracking[log.path][name] = self._tracking(model[covered], t[covered], window[covered])
                 if not has_rates:
                     continue
                 measured = log.df[list(self.BODY_RATES)].to_numpy(dtype=float)
