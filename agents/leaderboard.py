@@ -553,9 +553,26 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     write_json(out / "results.json", summary, strict=True)
     write_text(out / "results.md", text)
     if docs is not None:
-        there = os.path.relpath(out, docs.parent)
-        write_text(docs, text.replace("](plots/", f"]({there}/plots/").replace("](videos/", f"]({there}/videos/"))
+        write_text(docs, publish_media(text, out, docs))
     return summary
+
+
+def publish_media(text: str, out: Path, docs: Path) -> str:
+    """The page for ``docs``, its plots and videos copied beside it into a folder of its name (``docs/results/``:
+    the leaderboard's own folder is a run's output, not part of a checkout), its links pointing there."""
+    media = docs.with_suffix("")
+    for png in sorted((out / "plots").glob("*.png")):
+        target = media / "plots" / png.name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(target, lambda tmp, png=png: shutil.copyfile(png, tmp))
+        text = text.replace(f"](plots/{png.name})", f"]({media.name}/plots/{png.name})")
+    for video in sorted((out / "videos").glob("*/eval/videos/side_by_side.mp4")):
+        task = video.parents[2].name
+        target = media / "videos" / f"{task}.mp4"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(target, lambda tmp, video=video: shutil.copyfile(video, tmp))
+        text = text.replace(f"](videos/{task}/eval/videos/side_by_side.mp4)", f"]({media.name}/videos/{task}.mp4)")
+    return text
 
 
 def _save(fig: Any, path: Path) -> None:
@@ -690,8 +707,8 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         lines += ["", "## Videos", "", "The reference gait and the best row's model side by side, on the first "
                   "evaluation seed:", ""]  # fmt: skip
         lines += [
-            f"- `{t}`: [videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4]"
-            f"(videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4)"
+            f"- `{t}`: [the reference gait and the best row's model](videos/{t.replace('/', '_')}/eval/videos/"
+            "side_by_side.mp4)"
             for t in videos
         ]
     return "\n".join(lines) + "\n"

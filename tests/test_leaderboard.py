@@ -49,7 +49,12 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v2.png"):
         assert (out / "plots" / plot).stat().st_size > 5_000
     video = out / "videos" / "skitter_RoachWalk-v2" / "eval" / "videos" / "side_by_side.mp4"
-    assert video.stat().st_size > 10_000 and "side_by_side.mp4" in text
+    assert video.stat().st_size > 10_000 and "side_by_side.mp4" in (out / "results.md").read_text()
+    # the page's media beside it (the leaderboard's folder is a run's output, not a checkout's)
+    media = docs.parent / "results"
+    assert (media / "videos" / "skitter_RoachWalk-v2.mp4").read_bytes() == video.read_bytes()
+    assert "](results/videos/skitter_RoachWalk-v2.mp4)" in text and "](results/plots/performance_profiles.png)" in text
+    assert (media / "plots" / "performance_profiles.png").is_file()
     capsys.readouterr()
     # again: every row is done, nothing trains
     assert leaderboard.main(argv) == 0
