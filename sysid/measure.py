@@ -6,7 +6,7 @@ window ``FILE@START:END``) and side:
 
 - **The firmware's PID** (``kp``, ``ki``, ``kd``): the logged duty regressed on the tracking error, its integral and
   its rate over the running part (rows at the duty clip left out). The header's integer gains through the
-  firmware's arithmetic (``sysid/adapters/velociroach.py``, ``duty_gains``) give what the regression should find;
+  firmware's arithmetic (``envs/velociroach/firmware.py``, ``duty_gains``) give what the regression should find;
   their ratio is the gain unit check. The derivative and the integral are per firmware tick, so each also measures
   the **loop rate**: ``kd`` falls and ``ki`` grows in proportion to it.
 - **The duty's sign**: the sign of the measured ``kp`` (+1: a positive duty turns the leg forward, its counts up).
@@ -130,7 +130,7 @@ def measure_roach(
     """Measure a VelociRoACH log (our telemetry table, SI units, and its reader's record); see the module docstring.
 
     Raises ValueError naming the log when it has too little running for the regressions."""
-    from sysid.adapters.velociroach import TICK, duty_gains
+    from envs.velociroach.firmware import TICK, duty_gains
 
     nominal = nominal or Nominal.from_model()
     t = df["time"].to_numpy(dtype=float)
@@ -175,7 +175,7 @@ def measure_roach(
         coef = _lstsq(x, d[use])
         ci = _bootstrap(lambda x, y: _lstsq(x, y)[:3], block, x, d[use], seed=seed)
         formula = per_side.get(side, {})
-        src = "the header's gains through the firmware's arithmetic at a 1 kHz tick (sysid/adapters/velociroach.py)"
+        src = "the header's gains through the firmware's arithmetic at a 1 kHz tick (envs/velociroach/firmware.py)"
         add("kp", side, coef[0], ci[:, 0], "duty/rad", formula.get("kp"), src)
         add("ki", side, coef[1], ci[:, 1], "duty/(rad s)", formula.get("ki"), src)
         add("kd", side, coef[2], ci[:, 2], "duty s/rad", formula.get("kd"), src)
@@ -183,9 +183,9 @@ def measure_roach(
             # kd per tick: measured kd = formula kd x (1 kHz / rate); ki per tick: measured ki = formula ki x rate/1 kHz
             rates = np.array([formula["kd"] / coef[2], coef[1] / formula["ki"]]) / TICK
             add("loop_rate_from_kd", side, rates[0], np.sort(formula["kd"] / ci[:, 2] / TICK), "Hz", 1 / TICK,
-                "the firmware's 1 kHz PID tick (sysid/adapters/velociroach.py)")  # fmt: skip
+                "the firmware's 1 kHz PID tick (envs/velociroach/firmware.py)")  # fmt: skip
             add("loop_rate_from_ki", side, rates[1], ci[:, 1] / formula["ki"] / TICK, "Hz", 1 / TICK,
-                "the firmware's 1 kHz PID tick (sysid/adapters/velociroach.py)")  # fmt: skip
+                "the firmware's 1 kHz PID tick (envs/velociroach/firmware.py)")  # fmt: skip
         sign = np.sign(ci[:, 0])
         add("duty_sign", side, np.sign(coef[0]), sign, "1", 1.0,
             "positive duty turns the leg forward (docs/telemetry.md)",

@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from envs.velociroach.firmware import duty_gains
 from sysid import measure
-from sysid.adapters.velociroach import duty_gains
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_2HZ = ROOT / "data/real/velociroach_behavior4_2Hz.txt"

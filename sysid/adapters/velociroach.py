@@ -50,24 +50,11 @@ from envs.common import edits
 from envs.common.effects import Effect, Param
 from envs.velociroach import constants
 from envs.velociroach.effects import effects_edit, roach_effects
+from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (this module's names too)
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
 
 SIDES = constants.SIDES
-COUNTS_PER_RAD = 65536 / (2 * math.pi)  # leg encoder counts (the firmware's p_state) per radian
-PWM_PERIOD = 3900  # PWM counts of full duty (docs/telemetry.md)
-TICK = 1e-3  # s, the firmware's PID period
-
-
-def duty_gains(gains: Sequence[float]) -> dict[str, float]:
-    """The firmware's integer gains [Kp, Ki, Kd, Kaw, ff] in duty per joint unit (see the module docstring)."""
-    kp, ki, kd, _kaw, ff = (float(g) for g in gains)
-    return {
-        "kp": kp / 4096 * COUNTS_PER_RAD / PWM_PERIOD,  # duty / rad
-        "ki": ki / (4096 * 16 * 16) * COUNTS_PER_RAD / TICK / PWM_PERIOD,  # duty / (rad s)
-        "kd": kd / 16 * COUNTS_PER_RAD * TICK / PWM_PERIOD,  # duty / (rad/s)
-        "ff": ff / PWM_PERIOD,  # duty
-    }
 
 
 def firmware_gains(gains: Mapping[str, float], battery: float, resistance: float, k: float, gear: float) -> dict:
