@@ -348,6 +348,12 @@ class Adapter(ABC):
         voltage), as a key (segments with equal keys share a model) and spec edits; default nothing."""
         return (), []
 
+    def measure_log(self, log: Log, seed: int = 0) -> list:
+        """What the log measures by itself, before any replay (``sysid.measurement.Measurement`` records beside the
+        nominal model's values: ``python -m sysid.measure``, and a section of every calibration report); ValueError
+        naming the log where it holds too little. Default: nothing."""
+        return []
+
     def report_extra(self, result) -> dict:
         """Robot-specific additions to the report: ``{"sections": {title: markdown}, ...}`` (e.g. channels
         compared as distributions)."""

@@ -102,7 +102,7 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
             "findings_before": diagnostics.summarize(before_diag),
             "findings_after": diagnostics.summarize(test_diag),
         },
-        "extra": adapter.report_extra(result),
+        "extra": report_extra(adapter, result),
         "segments": {
             "train": len(result.train_problem.scored),
             "test": len(result.test_problem.scored),
@@ -134,6 +134,28 @@ WORSE = (
     "{before:.3g}): what the training logs chose does not carry over to the test logs. calibration.json holds it "
     "as chosen; before using it, calibrate on logs more like those it is meant for."
 )
+
+
+def report_extra(adapter, result) -> dict[str, Any]:
+    """The adapter's own additions to the report, and what each log measures by itself (``Adapter.measure_log``): its
+    records and a section, with the logs too short for it named."""
+    from dataclasses import asdict
+
+    from sysid.measurement import table
+
+    extra = dict(adapter.report_extra(result))
+    found, skipped = [], []
+    for log in [*result.train, *result.test]:
+        try:
+            found += adapter.measure_log(log)
+        except ValueError as exc:
+            skipped.append(f"- {exc}")
+    if found or skipped:
+        extra["measured"] = [asdict(m) for m in found]
+        extra["sections"] = {**extra.get("sections", {}), "Measured directly (no simulator)": (
+            "What the logs measure by themselves, beside the nominal model's values (`python -m sysid.measure`).\n\n"
+            + (table(found) if found else "") + ("\n" + "\n".join(skipped) + "\n" if skipped else ""))}  # fmt: skip
+    return extra
 
 
 def report_markdown(report: Mapping[str, Any]) -> str:

@@ -28,7 +28,7 @@ from sysid.cases import TEST_SEED_OFFSET, Case, pair, run_case
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Problem, Residual, total_objective
-from sysid.report import report_markdown
+from sysid.report import report_extra, report_markdown
 from sysid.robots import adapter as make_adapter
 from sysid.select import UNEXPLAINED_ABOVE, _bic_change
 from tests.conftest import model_bytes
@@ -586,7 +586,7 @@ def test_roach_report_compares_tracking_and_body_rates():
     nominal = adapter.catalog_nominal()
     stronger = {**nominal, "torque_constant_left.scale": 2.0, "torque_constant_right.scale": 2.0}
     result = SimpleNamespace(train=[], test=[log], outcome=SimpleNamespace(nominal=nominal, setting=stronger))
-    extra = adapter.report_extra(result)
+    extra = report_extra(adapter, result)  # the adapter's own sections, and what the logs measure by themselves
     assert set(extra["sections"]) == {"Tracking on the held-out logs", "Body rates compared as distributions",
                                       "Measured directly (no simulator)"}  # fmt: skip
     measured = {(m["quantity"], m["side"]) for m in extra["measured"]}

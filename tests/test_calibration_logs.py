@@ -817,9 +817,7 @@ def test_a_short_roach_run_is_cut_into_segments_of_its_strides():
 
 def test_another_robots_one_second_run_at_5_hz_is_replayed_and_measured():
     """The lab's 2014 log in its older dialect: five strides at 5 Hz in 0.99 s. It reads, it holds a burn-in and a
-    scored segment of two and a half strides each, and it is measured directly (sysid/measure.py)."""
-    from sysid import measure
-
+    scored segment of two and a half strides each, and it is measured directly (Adapter.measure_log)."""
     adapter = make_adapter("roach")
     (log,) = calibrate.read_logs([REAL / "velociroach_5Hz_bmltools_2014.txt"], adapter.required(), None)
     assert log.duration == pytest.approx(0.988, abs=0.002) and log.meta["motor_gains"][:5] == [1800, 20, 100, 0, 0]
@@ -830,5 +828,5 @@ def test_another_robots_one_second_run_at_5_hz_is_replayed_and_measured():
     adapter.check_length([log])
     window = adapter._commanded(log)  # the tracking table's stretch: the run's second half, not empty
     assert log.time[window][0] == pytest.approx(log.time[0] + 0.5 * (log.time[-1] - log.time[0]), abs=0.003)
-    found = {(m.quantity, m.side): m for m in measure.measure_roach(log.df, log.meta, "5 Hz")}
+    found = {(m.quantity, m.side): m for m in adapter.measure_log(log)}
     assert found[("duty_sign", "left")].value == 1.0 and found[("kp", "right")].nominal == pytest.approx(1.175, 1e-3)

@@ -1,5 +1,6 @@
-"""Direct measurements of a VelociRoACH log (sysid/measure.py): planted values in a synthetic log come back within
-their intervals, and on a real log the firmware's gains are the header's through its arithmetic."""
+"""Direct measurements of a VelociRoACH log (sysid/adapters/velociroach_measure.py; python -m sysid.measure):
+planted values in a synthetic log come back within their intervals, and on a real log the firmware's gains are the
+header's through its arithmetic."""
 
 from pathlib import Path
 
@@ -9,6 +10,9 @@ import pytest
 
 from envs.velociroach.firmware import duty_gains
 from sysid import measure
+from sysid.adapters import velociroach_measure as roach
+from sysid.measurement import Measurement
+from sysid.robots import adapter as make_adapter
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_2HZ = ROOT / "data/real/velociroach_behavior4_2Hz.txt"
@@ -52,7 +56,7 @@ def synthetic_log(seed: int = 0, run_seconds: float = 4.0, rate: float = 1000.0)
     return pd.DataFrame(df), meta
 
 
-def _by_key(found: list[measure.Measurement]) -> dict[tuple[str, str], measure.Measurement]:
+def _by_key(found: list[Measurement]) -> dict[tuple[str, str], Measurement]:
     return {(m.quantity, m.side): m for m in found}
 
 
@@ -60,7 +64,7 @@ def test_planted_constants_come_back_within_their_intervals():
     """Each planted constant is recovered closely; its 95% interval holds it in most cases (sixteen intervals of a
     log cannot all be asked to, and one that missed by far would fail the closeness)."""
     df, meta = synthetic_log()
-    found = _by_key(measure.measure_roach(df, meta, "synthetic"))
+    found = _by_key(roach.measure_roach(df, meta, "synthetic"))
     planted = duty_gains(GAINS)
     truths = {("battery_resistance", ""): BATTERY_R, ("battery_open_circuit", ""): OPEN_CIRCUIT}
     for side in ("left", "right"):
@@ -95,7 +99,7 @@ def test_a_firmware_at_another_rate_is_found_at_its_rate():
     integral = np.concatenate([[0.0], np.cumsum(0.5 * (err.to_numpy()[1:] + err.to_numpy()[:-1]) * np.diff(t))])
     df["duty_left"] = np.clip(planted["ff"] + planted["kp"] * err + 0.5 * planted["ki"] * integral
                               + 2 * planted["kd"] * np.gradient(err, t), -0.95, 0.95) * run  # fmt: skip
-    found = _by_key(measure.measure_roach(df, meta, "synthetic"))
+    found = _by_key(roach.measure_roach(df, meta, "synthetic"))
     for source in ("kd", "ki"):
         m = found[(f"loop_rate_from_{source}", "left")]
         assert m.low <= 500.0 <= m.high and not m.low <= 1000.0 <= m.high, m
@@ -110,8 +114,8 @@ def test_the_real_firmware_runs_the_headers_gains_at_1_khz():
     back-EMF reading per leg speed is above the model's constant."""
     from sysid.cli import read_logs
 
-    (log,) = read_logs([REAL_2HZ], measure.REQUIRED, None)
-    found = _by_key(measure.measure_roach(log.df, log.meta, "2 Hz"))
+    (log,) = read_logs([REAL_2HZ], make_adapter("roach").required(), None)
+    found = _by_key(roach.measure_roach(log.df, log.meta, "2 Hz"))
     for side in ("left", "right"):
         for quantity in ("kp", "ki", "kd", "loop_rate_from_kd", "loop_rate_from_ki"):
             m = found[(quantity, side)]
@@ -123,18 +127,18 @@ def test_the_real_firmware_runs_the_headers_gains_at_1_khz():
 def test_a_log_without_running_is_refused_by_name():
     df, meta = synthetic_log(run_seconds=0.5)
     with pytest.raises(ValueError, match=r"short\.txt: the commanded legs move for 0\.\d+ s; .* needs 3 strides"):
-        measure.measure_roach(df, meta, "short.txt")
+        roach.measure_roach(df, meta, "short.txt")
 
 
 def test_the_command_line_prints_the_table_and_refuses_bad_input(tmp_path, capsys):
     out = tmp_path / "m.json"
-    assert measure.main([f"{REAL_2HZ}@1:9", "--out", str(out)]) == 0
+    assert measure.main(["--robot", "roach", f"{REAL_2HZ}@1:9", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "| bemf_constant | left |" in text and out.is_file()
     with pytest.raises(SystemExit) as exited:  # never over a user's file
-        measure.main([str(REAL_2HZ), "--out", str(out)])
+        measure.main(["--robot", "roach", str(REAL_2HZ), "--out", str(out)])
     assert exited.value.code == 2 and "already exists" in capsys.readouterr().err
-    assert measure.main([str(tmp_path / "none.txt")]) == 2
+    assert measure.main(["--robot", "roach", str(tmp_path / "none.txt")]) == 2
     assert "no such file" in capsys.readouterr().err
     (tmp_path / "file").write_text("")
     for bad, message in (
@@ -142,13 +146,13 @@ def test_the_command_line_prints_the_table_and_refuses_bad_input(tmp_path, capsy
         (["--seed", "-1"], "--seed must be a whole number >= 0, got -1"),
     ):
         with pytest.raises(SystemExit) as exited:  # refused before anything is measured
-            measure.main([str(REAL_2HZ), *bad])
+            measure.main(["--robot", "roach", str(REAL_2HZ), *bad])
         assert exited.value.code == 2 and message in capsys.readouterr().err
     (tmp_path / "dangling.json").symlink_to(tmp_path / "nowhere.json")
     with pytest.raises(SystemExit):
-        measure.main([str(REAL_2HZ), "--out", str(tmp_path / "dangling.json")])
+        measure.main(["--robot", "roach", str(REAL_2HZ), "--out", str(tmp_path / "dangling.json")])
     assert not (tmp_path / "nowhere.json").exists()
-    assert measure.main([f"{REAL_2HZ}@100:200"]) == 2
+    assert measure.main(["--robot", "roach", f"{REAL_2HZ}@100:200"]) == 2
     assert "the window lies outside the log, which runs from" in capsys.readouterr().err
 
 

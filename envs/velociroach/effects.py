@@ -60,12 +60,12 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         out += [
             # gears and the planarizing linkage: a small spur train passes 0.5-0.8 of the torque per stage pair
             # and the linkage loses more; down to 0.15, since the real logs' duty asks for a drive a third as strong
-            # at a back-EMF twice the model's (sysid/measure.py, docs/calibration.md)
+            # at a back-EMF twice the model's (python -m sysid.measure, docs/real-logs.md)
             # not weak: at 0.15 the nominal model's error on its own synthetic logs reaches 3.07, just over the
             # threshold of 3 (python -m benchmarks.calibration_matrix --kinds weak); a drawn value nearer 1 barely shows
             make("gearbox_efficiency", side, efficiency=(1.0, 0.15, 1.0)),
             # the board samples the back-EMF in the PWM off-time; measured directly on the real logs, -0.2 to -0.6 V
-            # per unit duty (sysid/measure.py)
+            # per unit duty (python -m sysid.measure)
             make("sensor_coupling", f"bemf_{side}", per_unit=(0.0, -1.0, 0.5), weak=light),
         ]
     out += [

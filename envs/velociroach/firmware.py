@@ -6,7 +6,7 @@
 with ``e`` in encoder counts (65536 per leg revolution), ``v_error`` the commanded minus the measured counts per
 tick, and the output in PWM counts of a 3900-count period. A regression of the real logs' duty on these terms gives
 the same gains (``python -m sysid.measure``; docs/real-logs.md). The calibration's replay
-(sysid/adapters/velociroach.py) and the direct measurements (sysid/measure.py) read it from here.
+(sysid/adapters/velociroach.py) and the direct measurements (sysid/adapters/velociroach_measure.py) read it from here.
 """
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ from envs.common import edits
 from envs.common.effects import Effect, Param
 from envs.velociroach import constants
 from envs.velociroach.effects import effects_edit, roach_effects
-from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (this module's names too)
+from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (its names here too)
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
 
@@ -378,9 +378,14 @@ class RoachAdapter(Adapter):
         sections = {"Tracking on the held-out logs": _tracking_table(tracking)}
         if rates:
             sections["Body rates compared as distributions"] = _rates_table(rates, self.BANDS)
-        measured, text = _measured_directly([*result.train, *result.test])
-        sections["Measured directly (no simulator)"] = text
-        return {"tracking": tracking, "distributions": rates, "measured": measured, "sections": sections}
+        return {"tracking": tracking, "distributions": rates, "sections": sections}
+
+    def measure_log(self, log: Log, seed: int = 0) -> list:
+        """The firmware's gains and loop rate, the duty's sign, the back-EMF per leg speed, the battery and the drive
+        balance, read off the log (sysid/adapters/velociroach_measure.py)."""
+        from sysid.adapters.velociroach_measure import measure_roach
+
+        return measure_roach(log.df, log.meta, log.path, seed=seed)
 
     def _commanded(self, log: Log) -> np.ndarray:
         """The samples from one second after the legs were first commanded to move to the last commanded move; in a
@@ -468,24 +473,6 @@ def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
     f, power = periodogram(x - x.mean(), fs=1.0 / dt)
     total = float(power[f >= bands[0][0]].sum()) or 1.0
     return {"std": float(np.std(x)), "bands": [float(power[(f >= lo) & (f < hi)].sum() / total) for lo, hi in bands]}
-
-
-def _measured_directly(logs: Sequence[Log]) -> tuple[list[dict], str]:
-    """What each log measures before any replay (sysid/measure.py): its records and a table, or why not."""
-    from dataclasses import asdict
-
-    from sysid import measure
-
-    found, skipped = [], []
-    for log in logs:
-        try:
-            found += measure.measure_roach(log.df, log.meta, log.path)
-        except ValueError as exc:
-            skipped.append(f"- {exc}")
-    text = ("What the logs measure by themselves, beside the nominal model's values (`python -m sysid.measure`; "
-            "docs/calibration.md).\n\n" + (measure.table(found) if found else "")
-            + ("\n" + "\n".join(skipped) + "\n" if skipped else ""))  # fmt: skip
-    return [asdict(m) for m in found], text
 
 
 def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]]) -> str:
