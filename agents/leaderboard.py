@@ -306,17 +306,22 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     results = json.loads((evaluation / "results.json").read_text())
     model_spec = next(s for s in results["policies"] if s != reference)
     returns = _returns(results, model_spec)
-    record = {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.steps(row.task),
-              "capped": trained < plan.steps(row.task), "returns": returns, "mean_return": float(np.mean(returns)),
-              "summary": results["policies"][model_spec]["summary"],
-              "paired_differences": results["paired_differences"]["policies"][model_spec],
-              "reference": reference, "wall_seconds": time.time() - started,
-              "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
-                                     f"{row.task}:{row.algo}:{row.seed}"]),
-              "reproduce": reproduce(plan, row, trained, reference),
-              "settings": plan.row_settings(row.task)}  # fmt: skip
+    record = {**_row_record(plan, row, trained, started), "returns": returns,
+              "mean_return": float(np.mean(returns)), "summary": results["policies"][model_spec]["summary"],
+              "paired_differences": results["paired_differences"]["policies"][model_spec], "reference": reference,
+              "reproduce": reproduce(plan, row, trained, reference)}  # fmt: skip
     write_json(record_path, record)
     return record
+
+
+def _row_record(plan: Plan, row: Row, trained: int, started: float) -> dict[str, Any]:
+    """What every row's record holds: the row, the steps it trained against its plan's, its wall time, the command
+    that computes it again and the settings it was made with."""
+    return {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.steps(row.task),
+            "capped": trained < plan.steps(row.task), "wall_seconds": time.time() - started,
+            "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
+                                   f"{row.task}:{row.algo}:{row.seed}"]),
+            "settings": plan.row_settings(row.task)}  # fmt: skip
 
 
 def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int) -> dict[str, Any]:
@@ -332,20 +337,15 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
     result = json.loads((evaluation / "results.json").read_text())
     counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
     ratings = json.loads((run_dir / RATINGS_FILE).read_text()) if (run_dir / RATINGS_FILE).is_file() else {}
-    record = {**asdict(row), "row": row.name, "soccer": True, "timesteps": trained,
-              "timesteps_planned": plan.steps(row.task), "capped": trained < plan.steps(row.task),
-              "against_scripted": result, "elo": elo_against(*counts),
-              "selfplay_elo": ratings.get("ratings", {}).get("learner"), "wall_seconds": time.time() - started,
-              "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
-                                     f"{row.task}:{row.algo}:{row.seed}"]),
+    record = {**_row_record(plan, row, trained, started), "soccer": True, "against_scripted": result,
+              "elo": elo_against(*counts), "selfplay_elo": ratings.get("ratings", {}).get("learner"),
               "reproduce": [
                   shlex.join(["python", "train.py", "--soccer", row.task.removeprefix(SOCCER), "--players",
                               str(SOCCER_PLAYERS), "--seed", str(row.seed), "--timesteps", str(trained),
                               "--run-name", row.name]),
                   shlex.join(["python", "evaluate.py", *map(str, _soccer(row.task, "--home",
                               f"runs/{row.name}/model.zip", "--away", "scripted")), *map(str, _matches(plan)),
-                              "--out", f"results/{row.name}"])],
-              "settings": plan.row_settings(row.task)}  # fmt: skip
+                              "--out", f"results/{row.name}"])]}  # fmt: skip
     write_json(folder / "row.json", record)
     return record
 

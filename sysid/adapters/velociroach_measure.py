@@ -30,6 +30,7 @@ the residuals of a stride are not independent. Every value is reported beside th
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,6 +56,7 @@ class Nominal:
     source_resistance: str
 
     @classmethod
+    @functools.cache
     def from_model(cls) -> Nominal:
         """The VelociRoACH's MJCF (its motors' ``motorconst``, ``gear`` and ``resistance``)."""
         import mujoco
