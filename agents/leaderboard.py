@@ -2,13 +2,17 @@
 
     python -m agents.leaderboard --tasks skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
         --algos ppo --seeds 0 1 2 --timesteps skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 \\
-        skitter/BioloidWalk-v2=7000000 --out results/leaderboard --docs docs/results.md
+        skitter/BioloidWalk-v2=7000000 --out results/leaderboard --records benchmarks/results/leaderboard \\
+        --docs docs/results.md
 
 **Rows.** A row is one task, algorithm and seed. ``train.py`` trains it into ``OUT/runs/<row>/`` with the
 hyperparameter file's entry (``--hyperparams``, default ``hyperparams/<algo>.yml``); ``evaluate.py`` then plays the
 trained model and the task's reference gait on the evaluation seeds (``--eval-seed``, the same for every row of a
 task) into ``OUT/rows/<row>/``. For each task, ``evaluate.py`` also plays a random policy and the reference once
-(``OUT/tasks/<task>/``). A row is done when its ``row.json`` is written: another command skips it. A row whose
+(``OUT/tasks/<task>/``). A row is done when its record, ``row.json`` with its numbers and its learning curve, is
+written into ``--records`` (default ``OUT``): another command skips it. ``make leaderboard`` keeps the records in
+``benchmarks/results/leaderboard/``, part of the repository, and the runs in ``results/`` outside it, so that a
+table built over several sessions or machines keeps its finished rows on a fresh checkout. A row whose
 training was killed continues from its last checkpoint (``train.py --resume``). ``--rerun`` computes the named rows
 again from nothing, and ``--table-only`` trains nothing: it writes the table of the rows done so far (a table built
 over several runs can be published between them). Rows run in a local pool of ``--workers`` processes (each with an
@@ -54,6 +58,7 @@ from envs.common.io import ToolParser, atomic_write, write_json, write_text
 ROOT = Path(__file__).resolve().parents[1]
 RETURN = "return"
 RESIDUAL = "+residual"  # an algorithm's suffix: learn a correction on top of the task's reference gait
+CURVE_POINTS = 200  # a row's learning curve as kept in its record
 CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw reward: VecMonitor is innermost)
 BOOTSTRAP_REPS = 2000
 CHILD_GRACE = 120.0  # s a stopped train.py or evaluate.py may take to save its checkpoint and end
@@ -208,11 +213,21 @@ def _matches(plan: Plan) -> list[Any]:
     return ["--matches", plan.episodes, "--seed", plan.eval_seed]
 
 
-def task_baselines(plan: Plan, task: str, out: Path, threads: int) -> dict[str, Any]:
+def task_file(records: Path, task: str) -> Path:
+    """Where a task's finished baselines are kept."""
+    return records / "tasks" / task.replace("/", "_") / "baselines.json"
+
+
+def row_file(records: Path, row: Row) -> Path:
+    """Where a finished row's record is kept."""
+    return records / "rows" / row.name / "row.json"
+
+
+def task_baselines(plan: Plan, task: str, out: Path, threads: int, records: Path | None = None) -> dict[str, Any]:
     """The task's reference gait and a random policy on the evaluation seeds (once per task); for a soccer task,
-    the scripted team against a random one."""
+    the scripted team against a random one. Worked out in ``out``, kept in ``records`` (default ``out``)."""
     folder = out / "tasks" / task.replace("/", "_")
-    record = folder / "baselines.json"
+    record = task_file(records or out, task)
     done = _load_done(record, plan.eval_settings, f"the baselines of {task}")
     if done is not None:
         return done
@@ -241,17 +256,26 @@ def task_baselines(plan: Plan, task: str, out: Path, threads: int) -> dict[str, 
     return baselines
 
 
-def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], threads: int) -> Path | None:
+def video_marker(records: Path, task: str) -> Path:
+    """The name of the row whose model a task's published video shows."""
+    return records / "videos" / task.replace("/", "_") / "row.txt"
+
+
+def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], threads: int,
+               records: Path | None = None) -> Path | None:  # fmt: skip
     """A side-by-side video of the task's reference gait and its best row's model, on the first evaluation seed
-    (``OUT/videos/<task>/``); made again when the best row changes."""
+    (``OUT/videos/<task>/``); made again when the best row changes and its model is in ``OUT/runs/`` (a checkout
+    keeps the records, not the runs: there the published video stays)."""
     done = [(rec["mean_return"], row) for row, rec in rows.items() if rec is not None and row.task == task]
     if not done or is_soccer(task):
         return None
     _, best = max(done, key=lambda pair: pair[0])
     folder = out / "videos" / task.replace("/", "_")
-    marker = folder / "row.txt"
+    marker = video_marker(records or out, task)
     if marker.is_file() and marker.read_text().strip() == best.name:
         return folder
+    if not (out / "runs" / best.name / "model.zip").is_file():
+        return None
     _run(_tool("evaluate.py", "--env", task, "--policy", reference_name(task), "--policy",
                out / "runs" / best.name / "model.zip", "--episodes", 2, "--seed", plan.eval_seed, *_cut(plan),
                "--video", "--out", folder / "eval", "--overwrite"), threads, folder / "log.txt")  # fmt: skip
@@ -263,10 +287,11 @@ def _returns(results: dict[str, Any], spec: str) -> list[float]:
     return [float(e["metrics"][RETURN]) for e in results["policies"][spec]["episodes"]]
 
 
-def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
-    """Train and evaluate one row (resuming a killed training); returns its record, also written as row.json."""
+def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None = None) -> dict[str, Any]:
+    """Train and evaluate one row in ``out`` (resuming a killed training); returns its record, also written as
+    ``row.json`` in ``records`` (default ``out``) with the run's learning curve."""
     folder = out / "rows" / row.name
-    record_path = folder / "row.json"
+    record_path = row_file(records or out, row)
     done = _load_done(record_path, plan.row_settings(row.task), f"row {row.name}")
     if done is not None:
         return done
@@ -298,7 +323,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
         _run(command, threads, log)
     trained = _trained_steps(run_dir)
     if is_soccer(row.task):
-        return _soccer_row(plan, row, out, threads, started, trained)
+        return _soccer_row(plan, row, out, threads, started, trained, record_path)
     reference = reference_name(row.task)
     evaluation = folder / "eval"
     _run(_tool("evaluate.py", "--env", row.task, "--policy", reference, "--policy", run_dir / "model.zip",
@@ -306,7 +331,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     results = json.loads((evaluation / "results.json").read_text())
     model_spec = next(s for s in results["policies"] if s != reference)
     returns = _returns(results, model_spec)
-    record = {**_row_record(plan, row, trained, started), "returns": returns,
+    record = {**_row_record(plan, row, trained, started, run_dir), "returns": returns,
               "mean_return": float(np.mean(returns)), "summary": results["policies"][model_spec]["summary"],
               "paired_differences": results["paired_differences"]["policies"][model_spec], "reference": reference,
               "reproduce": reproduce(plan, row, trained, reference)}  # fmt: skip
@@ -314,17 +339,21 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int) -> dict[str, Any]:
     return record
 
 
-def _row_record(plan: Plan, row: Row, trained: int, started: float) -> dict[str, Any]:
-    """What every row's record holds: the row, the steps it trained against its plan's, its wall time, the command
-    that computes it again and the settings it was made with."""
+def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Path) -> dict[str, Any]:
+    """What every row's record holds: the row, the steps it trained against its plan's, its wall time, its learning
+    curve, the command that computes it again and the settings it was made with."""
+    steps, values = learning_curve(run_dir)
+    keep = np.unique(np.linspace(0, len(steps) - 1, min(len(steps), CURVE_POINTS)).round().astype(int))
     return {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.steps(row.task),
+            "curve": {"steps": steps[keep].tolist(), "values": values[keep].tolist()} if len(steps) else None,
             "capped": trained < plan.steps(row.task), "wall_seconds": time.time() - started,
             "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
                                    f"{row.task}:{row.algo}:{row.seed}"]),
             "settings": plan.row_settings(row.task)}  # fmt: skip
 
 
-def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int) -> dict[str, Any]:
+def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int,
+                record_path: Path) -> dict[str, Any]:  # fmt: skip
     """A soccer row's evaluation and record: its model as the home team against the scripted one on the
     evaluation matches, the Elo that record gives it, and the rating self-play ended with (ratings.json)."""
     from agents.soccer.selfplay import RATINGS_FILE
@@ -337,7 +366,7 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
     result = json.loads((evaluation / "results.json").read_text())
     counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
     ratings = json.loads((run_dir / RATINGS_FILE).read_text()) if (run_dir / RATINGS_FILE).is_file() else {}
-    record = {**_row_record(plan, row, trained, started), "soccer": True, "against_scripted": result,
+    record = {**_row_record(plan, row, trained, started, run_dir), "soccer": True, "against_scripted": result,
               "elo": elo_against(*counts), "selfplay_elo": ratings.get("ratings", {}).get("learner"),
               "reproduce": [
                   shlex.join(["python", "train.py", "--soccer", row.task.removeprefix(SOCCER), "--players",
@@ -346,7 +375,7 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
                   shlex.join(["python", "evaluate.py", *map(str, _soccer(row.task, "--home",
                               f"runs/{row.name}/model.zip", "--away", "scripted")), *map(str, _matches(plan)),
                               "--out", f"results/{row.name}"])]}  # fmt: skip
-    write_json(folder / "row.json", record)
+    write_json(record_path, record)
     return record
 
 
@@ -491,8 +520,16 @@ def learning_curve(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.array([e.step for e in events], dtype=np.float64), np.array([e.value for e in events])
 
 
+def _curve(record: dict[str, Any], run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A row's learning curve: from its record, or from its run's TensorBoard log (a record written before records
+    held their curve)."""
+    if record.get("curve"):
+        return np.array(record["curve"]["steps"], dtype=np.float64), np.array(record["curve"]["values"])
+    return learning_curve(run_dir)
+
+
 def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Row, dict | None],
-                docs: Path | None) -> dict[str, Any]:  # fmt: skip
+                docs: Path | None, records: Path | None = None) -> dict[str, Any]:  # fmt: skip
     """results.md, results.json and the plots from the rows done (rows not done are listed as such)."""
     import matplotlib
 
@@ -531,7 +568,9 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     for task in plan.tasks:
         fig, ax = plt.subplots(figsize=(6, 4))
         for algo in plan.algos:
-            curves = [learning_curve(out / "runs" / r.name) for r in done if r.task == task and r.algo == algo]
+            curves = [
+                _curve(rec, out / "runs" / r.name) for r, rec in done.items() if r.task == task and r.algo == algo
+            ]
             curves = [c for c in curves if len(c[0])]
             if curves:
                 grid = np.linspace(0, max(c[0][-1] for c in curves), 50)
@@ -549,17 +588,18 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
                "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
                    ["python", "-m", "agents.leaderboard", *plan_arguments(plan)])}  # fmt: skip
-    text = render(plan, baselines, done, rows, per_task, overall, summary["command"], out)
+    text = render(plan, baselines, done, rows, per_task, overall, summary["command"], records or out)
     write_json(out / "results.json", summary, strict=True)
     write_text(out / "results.md", text)
     if docs is not None:
-        write_text(docs, publish_media(text, out, docs))
+        write_text(docs, publish_media(text, out, docs, records or out))
     return summary
 
 
-def publish_media(text: str, out: Path, docs: Path) -> str:
+def publish_media(text: str, out: Path, docs: Path, records: Path | None = None) -> str:
     """The page for ``docs``, its plots and videos copied beside it into a folder of its name (``docs/results/``:
-    the leaderboard's own folder is a run's output, not part of a checkout), its links pointing there."""
+    the leaderboard's own folder is a run's output, not part of a checkout), its links pointing there; a video made
+    by an earlier run and published there stays while its row is the task's best (``records``' marker)."""
     media = docs.with_suffix("")
     for png in sorted((out / "plots").glob("*.png")):
         target = media / "plots" / png.name
@@ -572,6 +612,11 @@ def publish_media(text: str, out: Path, docs: Path) -> str:
         target.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(target, lambda tmp, video=video: shutil.copyfile(video, tmp))
         text = text.replace(f"](videos/{task}/eval/videos/side_by_side.mp4)", f"]({media.name}/videos/{task}.mp4)")
+    for marker in sorted((records or out).glob("videos/*/row.txt")):
+        task = marker.parent.name
+        if (media / "videos" / f"{task}.mp4").is_file():
+            text = text.replace(f"](videos/{task}/eval/videos/side_by_side.mp4)",
+                                f"]({media.name}/videos/{task}.mp4)")  # fmt: skip
     return text
 
 
@@ -645,7 +690,7 @@ def _interval(a: dict[str, float]) -> str:
 
 
 def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
-           overall: dict, command: str, out_folder: Path) -> str:  # fmt: skip
+           overall: dict, command: str, records: Path) -> str:  # fmt: skip
     budget = _budget(plan) + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
     lines = [
         "# Results",
@@ -702,14 +747,14 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
-    videos = [t for t in plan.tasks if (Path(out_folder) / "videos" / t.replace("/", "_") / "row.txt").is_file()]
+    videos = {t: video_marker(records, t) for t in plan.tasks}
+    videos = {t: m.read_text().strip() for t, m in videos.items() if m.is_file()}
     if videos:
-        lines += ["", "## Videos", "", "The reference gait and the best row's model side by side, on the first "
-                  "evaluation seed:", ""]  # fmt: skip
+        lines += ["", "## Videos", "", "The reference gait and a row's model side by side, on the first evaluation "
+                  "seed:", ""]  # fmt: skip
         lines += [
-            f"- `{t}`: [the reference gait and the best row's model](videos/{t.replace('/', '_')}/eval/videos/"
-            "side_by_side.mp4)"
-            for t in videos
+            f"- `{t}`: [the reference gait and {name}](videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4)"
+            for t, name in videos.items()
         ]
     return "\n".join(lines) + "\n"
 
@@ -735,7 +780,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--eval-seed", type=int, default=1000, help="the first evaluation seed (default 1000)")
     parser.add_argument("--max-episode-steps", type=int, help="cut evaluation episodes short (default: the task's)")
     parser.add_argument("--hyperparams", help="a hyperparameter file, or a folder of <algo>.yml (default hyperparams/)")
-    parser.add_argument("--out", default="results/leaderboard", help="the leaderboard's folder")
+    parser.add_argument("--out", default="results/leaderboard", help="the leaderboard's working folder: runs, "
+                        "evaluations, plots and the table")  # fmt: skip
+    parser.add_argument("--records", help="keep the finished rows' and tasks' records here (default: --out); "
+                        "make leaderboard keeps them in benchmarks/results/leaderboard/, part of a checkout, so that "
+                        "a table built over several machines' runs keeps every row")  # fmt: skip
     parser.add_argument("--docs", help="also write the page here (docs/results.md)")
     parser.add_argument("--workers", type=int, default=1, help="rows at a time in the local pool (default 1)")
     parser.add_argument("--address", help="run rows as Ray tasks on the cluster at HOST:PORT")
@@ -782,8 +831,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error(f"--hyperparams {args.hyperparams}: no such file or folder")
     if args.hyperparams is not None and Path(args.hyperparams).resolve() == (ROOT / "hyperparams").resolve():
         args.hyperparams = None  # the shipped files, however named: the same rows as without the option
-    if Path(args.out).exists() and not Path(args.out).is_dir():
-        parser.error(f"--out {args.out}: exists and is not a folder")
+    for name in ("out", "records"):
+        value = getattr(args, name)
+        if value is not None and Path(value).exists() and not Path(value).is_dir():
+            parser.error(f"--{name} {value}: exists and is not a folder")
     reruns = []
     for text in args.rerun:
         parts = text.rsplit(":", 2)
@@ -833,24 +884,25 @@ def main(argv: list[str] | None = None) -> int:
     plan = Plan(tuple(args.tasks), tuple(args.algos), tuple(args.seeds), args.timesteps, args.minutes,
                 args.episodes, args.eval_seed, args.hyperparams, args.max_episode_steps)  # fmt: skip
     out = Path(args.out)
+    records = Path(args.records) if args.records else out
     try:
-        _check_plan(plan, args.rerun, out)
+        _check_plan(plan, args.rerun, records)
     except (StaleResult, ValueError) as exc:
         print(f"leaderboard: error: {exc}", file=sys.stderr)
         return 2
     try:
         with sigterm_as_interrupt(), folder_lock(out, "leaderboard", ".leaderboard.lock"):
-            return _run_plan(plan, args, out)
+            return _run_plan(plan, args, out, records)
     except Busy as exc:
         print(exc, file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:
-        print(f"leaderboard: interrupted; finished rows are kept in {out}, and a killed row's training resumes from "
-              "its last checkpoint when the command runs again", file=sys.stderr)  # fmt: skip
+        print(f"leaderboard: interrupted; finished rows are kept in {records}, and a killed row's training resumes "
+              "from its last checkpoint when the command runs again", file=sys.stderr)  # fmt: skip
         return interrupted_exit_code(exc)
 
 
-def _check_plan(plan: Plan, reruns: list[Row], out: Path) -> None:
+def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
     """Everything a command can be refused for, before anything runs or is removed: rows to rerun that are not in
     the plan, hyperparameter files without an entry for a task, finished rows and baselines of other settings."""
     from agents.training import read_yaml
@@ -865,21 +917,22 @@ def _check_plan(plan: Plan, reruns: list[Row], out: Path) -> None:
         if missing:
             raise ValueError(f"{path}: no entry for {', '.join(missing)}")
     for task in plan.tasks:
-        _load_done(out / "tasks" / task.replace("/", "_") / "baselines.json", plan.eval_settings, task)
+        _load_done(task_file(records, task), plan.eval_settings, task)
     for row in plan.rows:
         if row not in reruns:
-            _load_done(out / "rows" / row.name / "row.json", plan.row_settings(row.task), f"row {row.name}")
+            _load_done(row_file(records, row), plan.row_settings(row.task), f"row {row.name}")
 
 
-def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
+def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) -> int:
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
     for row in args.rerun:
         shutil.rmtree(out / "rows" / row.name, ignore_errors=True)
+        row_file(records, row).unlink(missing_ok=True)
         if (out / "runs" / row.name).exists():
             _remove_run(out / "runs" / row.name)
     # seed by seed, so that a table built over several runs has every task and algorithm early
-    todo = sorted((r for r in plan.rows if not (out / "rows" / r.name / "row.json").is_file()),
+    todo = sorted((r for r in plan.rows if not row_file(records, r).is_file()),
                   key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
     if args.table_only:
         print(f"leaderboard: --table-only: {len(todo)} rows not run are listed as such")
@@ -888,10 +941,10 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
     print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {_budget(plan)}{worst}, "
           f"{args.workers} at a time on {threads} threads each" + (f" on Ray at {args.address}" if args.address
                                                                     else ""))  # fmt: skip
-    baselines = {task: task_baselines(plan, task, out, cores) for task in plan.tasks}
+    baselines = {task: task_baselines(plan, task, out, cores, records) for task in plan.tasks}
     results: dict[Row, dict | None] = {r: None for r in plan.rows}
     failures = []
-    for row, record, error in _run_rows(plan, todo, out, threads, args.workers, args.address):
+    for row, record, error in _run_rows(plan, todo, out, records, threads, args.workers, args.address):
         results[row] = record
         if error:
             failures.append(error)
@@ -906,30 +959,31 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path) -> int:
                 )
             )
     for row in plan.rows:
-        path = out / "rows" / row.name / "row.json"
+        path = row_file(records, row)
         if results[row] is None and path.is_file():
             results[row] = json.loads(path.read_text())
     if args.videos:
         for task in plan.tasks:
             try:
-                task_video(plan, task, out, results, cores)
+                task_video(plan, task, out, results, cores, records)
             except RuntimeError as exc:  # a video is a picture of the table, not part of it
                 print(f"leaderboard: {task}: no video ({exc})", file=sys.stderr)
-    build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None)
+    build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None, records)
     print(f"leaderboard: {out / 'results.md'}" + (f" and {args.docs}" if args.docs else ""))
     return 1 if failures else 0
 
 
-def _row_job(plan: Plan, row: Row, out: Path, threads: int) -> tuple[Row, dict | None, str | None]:
+def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int) -> tuple[Row, dict | None, str | None]:
     try:
-        return row, run_row(plan, row, out, threads), None
+        return row, run_row(plan, row, out, threads, records), None
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # a failed tool, a stale run, a busy folder: the row fails, the others go on
         return row, None, f"{type(exc).__name__}: {exc}" if not isinstance(exc, RuntimeError) else str(exc)
 
 
-def _run_rows(plan: Plan, rows: list[Row], out: Path, threads: int, workers: int, address: str | None):
+def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: int, workers: int,
+              address: str | None):  # fmt: skip
     """Each row's (row, record, error), as they finish: in this process, a local pool or Ray."""
     if not rows:
         return
@@ -940,20 +994,20 @@ def _run_rows(plan: Plan, rows: list[Row], out: Path, threads: int, workers: int
 
         init_ray(address)
         job = ray.remote(num_cpus=threads)(_row_job)
-        pending = [job.remote(plan, row, out.resolve(), threads) for row in rows]
+        pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads) for row in rows]
         while pending:
             ready, pending = ray.wait(pending)
             yield ray.get(ready[0])
         return
     if workers == 1:
         for row in rows:
-            yield _row_job(plan, row, out, threads)
+            yield _row_job(plan, row, out, records, threads)
         return
     import multiprocessing
     from concurrent.futures import as_completed
 
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(_row_job, plan, row, out, threads) for row in rows]
+        futures = [pool.submit(_row_job, plan, row, out, records, threads) for row in rows]
         for future in as_completed(futures):
             yield future.result()
 

@@ -30,7 +30,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     out, docs = tmp_path / "board", tmp_path / "docs" / "results.md"
     argv = ["--tasks", WALK, "--algos", "ppo", "--seeds", "0", "1", "--timesteps", "256", "--episodes", "2",
             "--max-episode-steps", "50", "--hyperparams", str(best), "--videos", "--out", str(out), "--docs",
-            str(docs)]  # fmt: skip
+            str(docs), "--records", str(tmp_path / "kept")]  # fmt: skip
     assert leaderboard.main(argv) == 0
     summary = json.loads((out / "results.json").read_text())
     rows = summary["rows"]
@@ -62,7 +62,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     # one row again, from nothing, with the same seeds: the same model, so the same evaluation
     kept = rows["skitter_RoachWalk-v2__ppo__1"]["returns"]
     assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
-    again = json.loads((out / "rows" / "skitter_RoachWalk-v2__ppo__1" / "row.json").read_text())
+    again = json.loads((tmp_path / "kept" / "rows" / "skitter_RoachWalk-v2__ppo__1" / "row.json").read_text())
     assert "(1 to run)" in capsys.readouterr().out
     assert again["returns"] == pytest.approx(kept)
     # the same folder with another budget: refused, naming the row, before anything runs
@@ -228,7 +228,7 @@ def test_a_soccer_row_trains_by_self_play_and_is_rated_against_the_scripted_team
 
 def test_table_only_trains_nothing_and_lists_the_rows_not_run(tmp_path, monkeypatch, capsys):
     baselines = {"reference": "tripod", "reference_return": 110.0, "random_return": 10.0}
-    monkeypatch.setattr(leaderboard, "task_baselines", lambda plan, task, out, threads: {**baselines, "task": task})
+    monkeypatch.setattr(leaderboard, "task_baselines", lambda plan, task, *args: {**baselines, "task": task})
 
     def train(*args):
         raise AssertionError("--table-only ran a row")
@@ -243,3 +243,34 @@ def test_table_only_trains_nothing_and_lists_the_rows_not_run(tmp_path, monkeypa
     with pytest.raises(SystemExit):
         leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:0"])
     assert "cannot --rerun" in capsys.readouterr().err
+
+
+def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, monkeypatch, capsys):
+    """The records folder alone (no runs, no evaluations: what a checkout holds) is enough: its rows are not run
+    again, the table takes their returns and learning curves from the records, and the published video stays
+    while its row is the best."""
+    plan = leaderboard.Plan((WALK,), ("ppo",), (0, 1), ((WALK, 100),), None, 2, 1000, None)
+    kept, docs = tmp_path / "kept", tmp_path / "docs" / "results.md"
+    baselines = {"task": WALK, "reference": "tripod", "reference_return": 110.0, "random_return": 10.0,
+                 "settings": plan.eval_settings}  # fmt: skip
+    leaderboard.write_json(leaderboard.task_file(kept, WALK), baselines)
+    row = leaderboard.Row(WALK, "ppo", 0)
+    record = {"mean_return": 85.0, "returns": [80.0, 90.0], "timesteps": 100, "capped": False, "wall_seconds": 60.0,
+              "paired_differences": {}, "curve": {"steps": [0, 50, 100], "values": [10.0, 50.0, 85.0]},
+              "settings": plan.row_settings(WALK)}  # fmt: skip
+    leaderboard.write_json(leaderboard.row_file(kept, row), record)
+    leaderboard.write_text(leaderboard.video_marker(kept, WALK), row.name + "\n")
+    (docs.parent / "results" / "videos").mkdir(parents=True)
+    (docs.parent / "results" / "videos" / "skitter_RoachWalk-v2.mp4").write_bytes(b"published")
+    ran = []
+    monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args: ran.append(row) or {**record, "curve": None})
+    argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--episodes", "2", "--out",
+            str(tmp_path / "fresh"), "--records", str(kept), "--docs", str(docs), "--videos"]  # fmt: skip
+    assert leaderboard.main(argv) == 0
+    assert ran == [leaderboard.Row(WALK, "ppo", 1)], "the kept row is not trained again"
+    assert "(1 to run)" in capsys.readouterr().out
+    text = docs.read_text()
+    assert f"| {row.name} | 100 | 1 | 85.0 | 0.75 |" in text
+    assert f"[the reference gait and {row.name}](results/videos/skitter_RoachWalk-v2.mp4)" in text
+    assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v2.png").stat().st_size > 5_000
+    assert not (tmp_path / "fresh" / "runs").exists()
