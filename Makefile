@@ -45,7 +45,7 @@ demo: setup
 # the leaderboard (agents/leaderboard.py): PPO on each robot's walk, 3 seeds, an hour of 2 cores a row as env steps
 # (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach 1,140, Bioloid 2,100, xJüs 3,000 steps/s),
 # 9 hours in all; rows already done are kept, a killed row resumes; works in results/leaderboard/, keeps the finished
-# rows' records in benchmarks/results/leaderboard/ (commit them: a fresh checkout then skips those rows) and writes
+# rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
 # docs/results.md
 LEADERBOARD_TASKS ?= skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2
 LEADERBOARD_STEPS ?= skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000
@@ -53,7 +53,7 @@ LEADERBOARD_SEEDS ?= 0 1 2
 leaderboard: setup
 	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_TASKS) --algos ppo --seeds $(LEADERBOARD_SEEDS) \
 		--timesteps $(LEADERBOARD_STEPS) --episodes 20 --eval-seed 1000 \
-		--videos --out results/leaderboard --records benchmarks/results/leaderboard --docs docs/results.md
+		--videos --out results/leaderboard --records docs/results/records --docs docs/results.md
 
 bench: setup
 	$(BIN)/python -m benchmarks.env_speed

@@ -2,7 +2,7 @@
 
     python -m agents.leaderboard --tasks skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
         --algos ppo --seeds 0 1 2 --timesteps skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 \\
-        skitter/BioloidWalk-v2=7000000 --out results/leaderboard --records benchmarks/results/leaderboard \\
+        skitter/BioloidWalk-v2=7000000 --out results/leaderboard --records docs/results/records \\
         --docs docs/results.md
 
 **Rows.** A row is one task, algorithm and seed. ``train.py`` trains it into ``OUT/runs/<row>/`` with the
@@ -11,7 +11,7 @@ trained model and the task's reference gait on the evaluation seeds (``--eval-se
 task) into ``OUT/rows/<row>/``. For each task, ``evaluate.py`` also plays a random policy and the reference once
 (``OUT/tasks/<task>/``). A row is done when its record, ``row.json`` with its numbers and its learning curve, is
 written into ``--records`` (default ``OUT``): another command skips it. ``make leaderboard`` keeps the records in
-``benchmarks/results/leaderboard/``, part of the repository, and the runs in ``results/`` outside it, so that a
+``docs/results/records/``, part of the repository, and the runs in ``results/`` outside it, so that a
 table built over several sessions or machines keeps its finished rows on a fresh checkout. A row whose
 training was killed continues from its last checkpoint (``train.py --resume``). ``--rerun`` computes the named rows
 again from nothing, and ``--table-only`` trains nothing: it writes the table of the rows done so far (a table built
@@ -783,7 +783,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--out", default="results/leaderboard", help="the leaderboard's working folder: runs, "
                         "evaluations, plots and the table")  # fmt: skip
     parser.add_argument("--records", help="keep the finished rows' and tasks' records here (default: --out); "
-                        "make leaderboard keeps them in benchmarks/results/leaderboard/, part of a checkout, so that "
+                        "make leaderboard keeps them in docs/results/records/, part of a checkout, so that "
                         "a table built over several machines' runs keeps every row")  # fmt: skip
     parser.add_argument("--docs", help="also write the page here (docs/results.md)")
     parser.add_argument("--workers", type=int, default=1, help="rows at a time in the local pool (default 1)")

@@ -47,7 +47,9 @@ def academy(robot: str, task: str) -> dict:
     venv = gym.make_vec(env_id, num_envs=len(EPISODE_SEEDS), vectorization_mode="vector_entry_point",
                         action_mode="commands")  # fmt: skip
     base = venv.unwrapped
-    player = ScriptedPlayer(base.task.layout, base.env.commands.mode, base.robot.facts.length, base.task.field)
+    commands = base.env.commands
+    player = ScriptedPlayer(base.task.layout, commands.mode, base.robot.facts.length, base.task.field,
+                            kick=commands.kick_zone)  # fmt: skip
     obs, _ = venv.reset(seed=EPISODE_SEEDS)
     n = len(EPISODE_SEEDS)
     done, success, fell, ended_at = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)

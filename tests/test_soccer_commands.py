@@ -7,10 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from envs.bioloid.kick import LEFT, RIGHT, Kick
 from envs.common.task import ObservationLayout
 from envs.soccer import match
 from envs.soccer.scripted import MEMORY, ScriptedPlayer, scripted_team
-from envs.soccer.steering import MAPS, STEERING, Commands, GaitMap
+from envs.soccer.steering import KICK_THRESHOLD, MAPS, STEERING, Commands, GaitMap
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -98,13 +99,14 @@ def turned_by(robot: str, speed: float, yaw_rate: float, seconds: float) -> floa
     """How far (rad) a player commanded ``(speed, yaw_rate)`` turns in ``seconds``, from the home half's centre."""
     env = match.parallel_env(robot=robot, players_per_team=1, action_mode="commands", reset_noise_scale=0.0)
     env.reset(seed=0, options={"places": {"home_0": [-0.25 * env.field.length, 0.0, 0.0]}})
-    action = env.mode.to_action(np.array([[speed, yaw_rate]]))[0]
+    extra = [0.0] * (env.mode.size - 2)  # no kick, for a robot that kicks
+    action = env.mode.to_action(np.array([[speed, yaw_rate, *extra]]))[0]
     data = env.scene.sim.data
     steps = round(seconds / env.dt)
     turned = 0.0
     for _ in range(steps):
         before = 2 * np.arctan2(data.qpos[6], data.qpos[3])
-        env.step({"home_0": action, "away_0": np.array([-1.0, 0.0])})
+        env.step({"home_0": action, "away_0": np.array([-1.0, 0.0, *extra])})
         turned += np.angle(np.exp(1j * (2 * np.arctan2(data.qpos[6], data.qpos[3]) - before)))
     return turned
 
@@ -113,14 +115,60 @@ def test_the_bioloids_commands_run_the_ik_trot_from_its_own_clock():
     env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
     env.reset(seed=0)
     commands: Commands = env.commands
-    first = commands.robot_commands(np.zeros((2, 2)))
-    second = commands.robot_commands(np.zeros((2, 2)))
+    first = commands.robot_commands(np.zeros((2, 3)))
+    second = commands.robot_commands(np.zeros((2, 3)))
     assert first.shape == (2, 16) and not np.array_equal(first, second), "the trot's clock runs"
     commands.reset(np.array([0, 1]))
-    np.testing.assert_array_equal(commands.robot_commands(np.zeros((2, 2))), first)
+    np.testing.assert_array_equal(commands.robot_commands(np.zeros((2, 3))), first)
+
+
+def test_a_bioloids_kick_runs_to_its_end_whatever_is_commanded_then_the_trot_starts_afresh():
+    """The third command kicks: from the goals the trot left the legs at, the kick's own goals (the left leg's for
+    a kick above the threshold, the right's below minus it), commands ignored until it ends; then the trot's clock
+    starts again at 0. Another player's commands are its own all along."""
+    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+    env.reset(seed=0)
+    commands: Commands = env.commands
+    steering = commands.steering
+    assert env.mode.commands == ("speed", "yaw_rate", "kick") and commands.kick_zone is not None
+    walk = np.array([[0.5, 0.0, 0.0], [0.5, 0.0, 0.0]])
+    for _ in range(10):
+        commands.robot_commands(walk)
+    trotting = steering.last.copy()
+    kick = Kick()
+    first = commands.robot_commands(np.array([[0.5, 0.0, -KICK_THRESHOLD], [0.5, 0.0, KICK_THRESHOLD - 0.01]]))
+    np.testing.assert_allclose(first[0], trotting[0], atol=1e-9)  # the kick starts where the trot left the legs
+    assert steering.kicking().tolist() == [True, False] and steering.kick_side[0] == RIGHT
+    steps = math.ceil(kick.duration / env.dt - 1e-9)  # the control steps a kick takes
+    for k in range(1, steps):
+        goals = commands.robot_commands(np.array([[1.0, 1.0, 1.0], [0.5, 0.0, 0.0]]))  # ignored by the kicker
+        if k * env.dt >= kick.shape.lean_time:  # blended into the kick's own goals by then
+            np.testing.assert_allclose(goals[0], kick.counts(np.array([k * env.dt]), np.array([RIGHT]))[0])
+    assert not steering.kicking()[0] and steering.clock[0] == 0.0 and steering.clock[1] > 1.0
+    after = commands.robot_commands(np.array([[0.5, 0.0, 0.0], [0.5, 0.0, 0.0]]))
+    np.testing.assert_allclose(after[0], kick.ready, atol=1.0)  # the trot's lead-in: from the ready posture
 
 
 LAYOUT = ObservationLayout.from_structure({"ball": 2, "goal": 2, "own_goal": 2})
+
+
+def test_a_scripted_kicker_kicks_with_the_foot_the_ball_lies_before_when_the_goal_is_ahead():
+    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+    zone = env.commands.kick_zone
+    player = ScriptedPlayer(LAYOUT, env.mode, 0.3, env.field, kick=zone)
+    ahead = np.mean(zone.ahead)
+    obs = np.array([[ahead, -zone.side, 2.0, 0.0, -2.0, 0.0],  # before the right foot, the goal ahead
+                    [ahead, zone.side, 2.0, 0.5, -2.0, 0.0],  # before the left foot
+                    [ahead, -zone.side, -2.0, 0.0, 2.0, 0.0],  # the goal behind: no kick toward its own
+                    [zone.ahead[1] + 0.05, -zone.side, 2.0, 0.0, -2.0, 0.0],  # too far
+                    [ahead, 0.0, 2.0, 0.0, -2.0, 0.0]])  # between the feet  # fmt: skip
+    assert player.kicks(obs).tolist() == [RIGHT, LEFT, 0.0, 0.0, 0.0]
+    action, _ = player.predict(obs)
+    assert action.shape == (5, 3) and action[0, 2] <= -KICK_THRESHOLD and action[1, 2] >= KICK_THRESHOLD
+    assert np.all(np.abs(action[2:, 2]) < KICK_THRESHOLD)
+    assert np.all(ScriptedPlayer(LAYOUT, env.mode, 0.3, env.field, keeper=True, kick=zone).kicks(obs) == 0.0)
+    with pytest.raises(ValueError, match="kick zone goes with"):
+        ScriptedPlayer(LAYOUT, env.mode, 0.3, env.field)
 
 
 def player(keeper: bool = False) -> ScriptedPlayer:

@@ -34,6 +34,11 @@ PLAYER = "home_0"  # the academy's one player: the home team's, attacking the go
 EPISODE_SECONDS = 20.0
 APPROACH_WEIGHT = 0.1  # per body length closed: 10 lengths nearer the ball are worth a goal
 PROGRESS_WEIGHT = 0.2  # per body length the ball moves nearer the goal's centre
+# the Bioloid's academy ids' newest version (its robot's and its ScoreVsKeeper's)
+KICK_HISTORY = (
+    "the commands mode has a third action, ``kick`` (envs/bioloid/kick.py): at or above 0.5 the left "
+    "front leg kicks, at or below -0.5 the right; the joints mode is unchanged."
+)
 
 
 class AcademyTask(SoccerTask):
@@ -46,7 +51,8 @@ class AcademyTask(SoccerTask):
         "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
     }
     players: ClassVar[tuple[str, ...]] = (PLAYER,)  # the scene's players: the learner's first
-    history: ClassVar[tuple[str, ...] | None] = None  # the task's own version history (None: the robot's academy's)
+    # the task's own version history, or one per robot (its name in ids, as ``Bioloid``); None: the robot's academy's
+    history: ClassVar[tuple[str, ...] | dict[str, tuple[str, ...]] | None] = None
 
     # --- placing --------------------------------------------------------------------------------------------------
     def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
@@ -171,7 +177,8 @@ class ScoreVsKeeperTask(ScoreEmptyGoalTask):
 
     name = "score_vs_keeper"
     players = (PLAYER, KEEPER)
-    history = ("first version.",)
+    history: ClassVar[dict[str, tuple[str, ...]]] = {"Roach": ("first version.",), "Xjus": ("first version.",),
+                                                     "Bioloid": ("first version.", KICK_HISTORY)}  # fmt: skip
     ball_out = (3.0, 6.0)
 
     def place_players(self, scene: int, rng: np.random.Generator, robot: np.ndarray, ball: np.ndarray,
@@ -321,7 +328,8 @@ HISTORY = {
     "Bioloid": ["first version.",
                 "the commands mode turns the trot by sideways steps of the feet (front and back opposite, through the "
                 "abduction servos) instead of a shortened stride, with a new gait map; the joints mode is "
-                "unchanged."],
+                "unchanged.",
+                KICK_HISTORY],
 }  # fmt: skip
 
 
@@ -329,6 +337,8 @@ def history(robot: str, task_class: type[AcademyTask] | None = None) -> tuple[st
     """The version history of a robot's academy id (its name in ids, as ``Bioloid``): the task's own where it has one
     (a task added after the others starts at v1), else the robot's academy's."""
     own = None if task_class is None else task_class.history
+    if isinstance(own, dict):
+        own = own[robot]
     return tuple(HISTORY[robot]) if own is None else own
 
 

@@ -57,7 +57,7 @@ class KeeperMatch:
         self.keeper = self.learner + 1
         self.steering = commands if commands is not None else Commands(scene.robot)
         self.player = ScriptedPlayer(task.layout, self.steering.mode, scene.robot.facts.length, task.field,
-                                     keeper=True)  # fmt: skip
+                                     keeper=True, kick=self.steering.kick_zone)  # fmt: skip
         self.memory = np.zeros((n, len(MEMORY)))
         self.fresh = np.ones(n, dtype=bool)  # the keeper's memory starts again at its next move
         self.keeper_obs = np.zeros((n, task.layout.size))

@@ -147,7 +147,9 @@ class Matches:
         self._match_of = np.arange(rows) // n
         self._home = np.tile([agent.startswith("home") for agent in self.possible_agents], self.num_matches)
         # what a player off the field is sent: standing still in the commands mode, mid-range commands otherwise
-        self.rest = np.array([-1.0, 0.0]) if self.commands is not None else np.zeros(self.mode.size)
+        self.rest = np.zeros(self.mode.size)  # speed 0 (the action -1), no turn, no kick
+        if self.commands is not None:
+            self.rest[0] = -1.0
         self._match_rngs = [np.random.default_rng() for _ in range(self.num_matches)]
         self.rngs = [np.random.default_rng() for _ in range(rows)]
         self.off_until = np.full(rows, np.nan)  # a player off the field: the time it comes back
@@ -363,7 +365,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v3",
+        "name": "skitter_soccer_v4",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,

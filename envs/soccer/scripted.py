@@ -6,6 +6,11 @@ there pushes the ball along that line; from three a side the last player keeps g
 centre of its own goal. Every player reads its own observation by name (``ball``, ``goal``, ``own_goal``: positions in
 its frame) and steers on the bearing of its target: it turns toward it and walks faster the more it faces it.
 
+A robot that can kick (the Bioloid) lines up with the ball in front of its right front foot, not of its centre (a
+player choosing its foot afresh at every step would swap sides while on the line): it walks the line to the goal
+shifted to its left by the foot's offset, and kicks with either foot when the ball lies in that foot's kick zone
+(``Commands.kick_zone``) and the goal it attacks is ahead.
+
 A player that has neither moved nor turned for ``stuck_seconds`` while it wants to (pressed into a goal's net, wedged
 between a post and the wall, pushing a ball against the wall) escapes: it turns to the centre spot and walks toward
 it for ``ESCAPE_WALK`` body lengths, then plays on. Its memory is the recurrent state of Stable-Baselines3's
@@ -21,6 +26,7 @@ import numpy as np
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
 from envs.soccer.field import Field
+from envs.soccer.steering import KickZone
 
 BEHIND = 0.6  # body lengths behind the ball (beyond its radius) where a field player lines up
 LINED_UP = 0.35  # body lengths off the line (and behind the ball) within which it pushes
@@ -35,6 +41,9 @@ STUCK_LENGTHS = 2.0  # for as long as it takes to walk this many body lengths at
 STUCK_MOVE = 0.3  # body lengths: less than this from where it was is not moving
 STUCK_TURN = 0.5  # rad: less than this from the heading it had is not turning
 ESCAPE_WALK = 3.0  # body lengths a stuck player walks toward the centre spot after turning to it
+KICK_TOWARD = np.radians(45.0)  # a player kicks only with the goal it attacks at most this far off straight ahead
+KICK_SLOW_WITHIN = 0.5  # body lengths from its kick zone within which a kicker pushing the ball slows down, to
+KICK_CREEP = 0.15  # of its cruising speed
 JUMP = 1.0  # body lengths between two steps: the player was placed (a kickoff, a penalty), and starts afresh
 # the memory of each row (``predict``'s state): where it is and its heading on the field; where it was and its heading
 # when it last moved or turned, and how long ago; the seconds left of an escape
@@ -50,13 +59,17 @@ class ScriptedPlayer:
         length: the robot's body length, m.
         field: the match's field (its walls and ball).
         keeper: keep goal instead of chasing the ball.
+        kick: where the ball must lie for the robot's kick (``Commands.kick_zone``), if it can kick and ``mode`` has
+            a ``kick`` command.
     """
 
     def __init__(self, layout: ObservationLayout, mode: ActionMode, length: float, field: Field,
-                 keeper: bool = False):  # fmt: skip
-        if mode.commands != ("speed", "yaw_rate"):
+                 keeper: bool = False, kick: KickZone | None = None):  # fmt: skip
+        if mode.commands[:2] != ("speed", "yaw_rate"):
             raise ValueError(f"the scripted team plays in the commands mode, not {mode.name!r}")
-        self.layout, self.mode, self.length, self.keeper = layout, mode, length, keeper
+        if (kick is not None) != ("kick" in mode.commands):
+            raise ValueError(f"kick: a kick zone goes with a commands mode that has a kick ({mode.commands})")
+        self.layout, self.mode, self.length, self.keeper, self.kick = layout, mode, length, keeper, kick
         self.ball_radius = field.ball.radius
         # how far from the centre spot a player's target may lie: a body length inside the walls
         self.inside = (0.5 * field.length + field.end_border - length, 0.5 * field.width + field.side_border - length)
@@ -74,6 +87,8 @@ class ScriptedPlayer:
             return own + toward / np.maximum(reach, 1e-9) * keep, np.zeros(len(obs), dtype=bool)
         line = goal - ball
         u = line / np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-9)
+        if self.kick is not None and not self.keeper:  # the line shifted to its left: the right foot on the line
+            ball = ball + np.column_stack([-u[:, 1], u[:, 0]]) * self.kick.side
         reach = self.ball_radius + BEHIND * self.length  # from the ball's centre to the player's, lined up behind it
         # where the player stands relative to the ball, along the line to the goal and across it
         along = -np.sum(ball * u, axis=1)  # < 0: behind the ball
@@ -118,6 +133,19 @@ class ScriptedPlayer:
         place = -np.column_stack([c * centre[:, 0] - s * centre[:, 1], s * centre[:, 0] + c * centre[:, 1]])
         return place, heading
 
+    def kicks(self, obs: np.ndarray) -> np.ndarray:
+        """Each row's kick command: +1 (the left front leg) or -1 (the right) where the ball lies in the kick zone on
+        that side and the goal it attacks is ahead, else 0."""
+        n = len(obs)
+        if self.kick is None or self.keeper:
+            return np.zeros(n)
+        ball, goal = self.layout.get(obs, "ball"), self.layout.get(obs, "goal")
+        near, far = self.kick.ahead
+        in_zone = (ball[:, 0] >= near) & (ball[:, 0] <= far) & (np.abs(np.abs(ball[:, 1]) - self.kick.side)
+                                                                  <= self.kick.width)  # fmt: skip
+        ahead = np.abs(np.arctan2(goal[:, 1], goal[:, 0])) <= KICK_TOWARD
+        return np.where(in_zone & ahead, np.sign(ball[:, 1]), 0.0)
+
     def steer(self, target: np.ndarray, pushing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Speed and turn rate (n,) toward each row's target point in its own frame."""
         bearing = np.arctan2(target[:, 1], target[:, 0])
@@ -158,6 +186,11 @@ class ScriptedPlayer:
         memory[restart] = fresh[restart]
         target, pushing = self.targets(obs)
         speed, yaw_rate = self.steer(target, pushing)
+        if self.kick is not None and not self.keeper:  # a kicker closes in on its kick zone slowly: its gait's
+            # swinging front legs would knock the ball aside before it lies there
+            gap = self.layout.get(obs, "ball")[:, 0] - np.mean(self.kick.ahead)
+            closing = np.clip(gap / (KICK_SLOW_WITHIN * self.length), KICK_CREEP, 1.0) * self.cruise
+            speed = np.where(pushing, np.minimum(speed, closing), speed)
         idle = np.zeros(n, dtype=bool)
         if self.keeper:  # at its place, it faces the ball
             ball = self.layout.get(obs, "ball")
@@ -180,7 +213,8 @@ class ScriptedPlayer:
             speed, yaw_rate = np.where(escaping, run_speed, speed), np.where(escaping, run_yaw, yaw_rate)
             memory[:, 7] = np.maximum(memory[:, 7] - dt, 0.0)
         memory[:, 0:3] = np.column_stack([place, heading])
-        action = self.mode.to_action(np.column_stack([speed, yaw_rate]))
+        commands = [speed, yaw_rate] if self.kick is None else [speed, yaw_rate, self.kicks(obs)]
+        action = self.mode.to_action(np.column_stack(commands))
         single = np.asarray(observation).ndim == 1
         return (action[0], memory[0]) if single else (action, memory)
 
@@ -195,5 +229,6 @@ def scripted_team(env, team: str) -> dict[str, ScriptedPlayer]:
     layout = base.task.layout
     length = base.robot.facts.length
     keeper = len(players) - 1 if len(players) >= 3 else None
-    return {agent: ScriptedPlayer(layout, base.mode, length, base.field, keeper=i == keeper)
+    kick = None if base.commands is None else base.commands.kick_zone
+    return {agent: ScriptedPlayer(layout, base.mode, length, base.field, keeper=i == keeper, kick=kick)
             for i, agent in enumerate(players)}  # fmt: skip

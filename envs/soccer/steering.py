@@ -7,6 +7,11 @@ trot at 1.5 Hz (stride length, and each foot stepping sideways in its stance). W
 turn) gives was measured on the model over a grid (``python -m benchmarks.gait_maps``, written to
 ``envs/soccer/gait_maps/``), and a :class:`GaitMap` inverts it: a commanded (speed, turn rate) goes to the measured
 (drive, turn) whose speed and turn rate were nearest to it.
+
+A robot that can kick has a third command, ``kick``: the Bioloid kicks with its left front leg when it is above
+``KICK_THRESHOLD`` and with its right one below minus that (envs/bioloid/kick.py). A kick runs to its end (1.4 s),
+whatever is commanded meanwhile; the gait then starts again from its ready posture. Its :class:`KickZone` says where
+the ball must lie for the kick to send it straight.
 """
 
 from __future__ import annotations
@@ -23,11 +28,24 @@ from scipy.interpolate import NearestNDInterpolator
 
 from envs.bioloid import constants as bioloid
 from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals
+from envs.bioloid.kick import KICK_AHEAD, KICK_SIDE, KICK_WIDTH, Kick
 from envs.common.robot import ActionMode, Robot
 from envs.xjus import constants as xjus
 
 MAPS = Path(__file__).resolve().parent / "gait_maps"
 COMMANDS = "commands"
+KICK_THRESHOLD = 0.5  # |kick| at or above which a kick starts (normalized: the command's range is [-1, 1])
+
+
+@dataclass(frozen=True)
+class KickZone:
+    """Where the ball's centre must lie in a robot's frame when its kick starts, for the kick to send it straight:
+    ``ahead`` (nearest, farthest) m in front of the body's centre, ``side`` m to the kicking leg's side, within
+    ``width``."""
+
+    ahead: tuple[float, float]
+    side: float
+    width: float
 
 
 class Steering(ABC):
@@ -40,6 +58,7 @@ class Steering(ABC):
     robot_name: ClassVar[str]
     drives: ClassVar[tuple[float, ...]]
     turns: ClassVar[tuple[float, ...]]
+    kick_zone: ClassVar[KickZone | None] = None  # a robot that can kick: where the ball must lie
 
     def __init__(self, robot: Robot):
         if robot.name != self.robot_name:
@@ -51,10 +70,11 @@ class Steering(ABC):
         """Players ``ids`` start again (a gait with a clock of its own starts it at 0)."""
 
     @abstractmethod
-    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None,
+                 kick: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         """The robot's commands (n, its mode's size) for the next control step, in its physical units, of the
         robot's simulations ``rows`` (default: all of them, in order; a gait with a state of its own keeps it per
-        simulation)."""
+        simulation); ``kick`` (n,) in [-1, 1] for a robot that can kick."""
 
 
 class RoachSteering(Steering):
@@ -72,7 +92,8 @@ class RoachSteering(Steering):
     drives = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
     turns = (-8.0, -4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0, 8.0)
 
-    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None,
+                 kick: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         half = 0.5 * np.asarray(turn)
         left, right = drive - half, drive + half
         return np.column_stack([left, right, np.full_like(left, np.pi)])
@@ -89,7 +110,8 @@ class XjusSteering(Steering):
     SPIN = np.pi  # the turn that runs a side backward (beyond any sweep difference: the sweeps span pi / 2)
     turns = (-SPIN, *np.radians(np.arange(-60.0, 61.0, 15.0)).tolist(), SPIN)
 
-    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None,
+                 kick: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         spin = np.abs(turn) >= self.SPIN
         self.robot.backward[slice(None) if rows is None else rows] = np.column_stack(
             [spin & (turn > 0), spin & (turn < 0)]
@@ -109,7 +131,12 @@ class BioloidSteering(Steering):
     sideways swing up to ``TURN_ABDUCTION``. The report's gait only walks straight; the stride-shortening turn that
     steered it before turned less than the trot drifts (gait map of 2026-11-28), while this one turns 0.2-0.46 rad/s
     with a spread of about 0.01 rad/s between seeds (``python -m benchmarks.gait_maps``). Each player's clock starts at
-    0 when it resets, with the gait's lead-in."""
+    0 when it resets, with the gait's lead-in.
+
+    It kicks (envs/bioloid/kick.py): a kick starts from the goals the trot left the legs at, blends into the kick's
+    lean over the lean's time, runs to its end, and the trot's clock then starts again at 0."""
+
+    kick_zone = KickZone(KICK_AHEAD, KICK_SIDE, KICK_WIDTH)
 
     robot_name = "bioloid"
     drives = (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0)
@@ -123,12 +150,48 @@ class BioloidSteering(Steering):
     def __init__(self, robot: Robot):
         super().__init__(robot)
         self.goals = IKGoals(TROT, TROT_FREQUENCY, robot.wedge)
-        self.clock = np.zeros(robot.num_sims)
+        self.kick = Kick(robot.wedge)
+        n = robot.num_sims
+        self.clock = np.zeros(n)
+        self.kick_time = np.full(n, np.inf)  # s since each simulation's kick started (inf: not kicking)
+        self.kick_side = np.zeros(n)
+        self.kick_from = np.tile(self.kick.ready, (n, 1))  # the goals the kick started from
+        self.last = np.tile(self.kick.ready, (n, 1))  # the goals last commanded
 
     def reset(self, ids: np.ndarray) -> None:
         self.clock[ids] = 0.0
+        self.kick_time[ids] = np.inf
+        self.last[ids] = self.kick.ready
 
-    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def kicking(self, rows: np.ndarray | None = None) -> np.ndarray:
+        """Whether each simulation (of ``rows``) is in a kick (its commands are ignored until the kick ends)."""
+        return (self.kick_time if rows is None else self.kick_time[rows]) < self.kick.duration
+
+    def commands(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None = None,
+                 kick: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+        goal = self._trot(drive, turn, rows)
+        ids = np.arange(len(self.clock)) if rows is None else np.asarray(rows)
+        if kick is not None:
+            kick = np.asarray(kick, dtype=np.float64)
+            start = ~self.kicking(ids) & (np.abs(kick) >= KICK_THRESHOLD)
+            self.kick_time[ids[start]] = 0.0
+            self.kick_side[ids[start]] = np.sign(kick[start])
+            self.kick_from[ids[start]] = self.last[ids[start]]
+        active = self.kicking(ids)
+        if active.any():
+            kicker = ids[active]
+            t = self.kick_time[kicker]
+            lean = self.kick.shape.lean_time
+            blend = np.clip(t / lean, 0.0, 1.0)
+            blend = (blend * blend * (3.0 - 2.0 * blend))[:, None]
+            goal[active] = (self.kick.counts(t, self.kick_side[kicker])
+                            + (1.0 - blend) * (self.kick_from[kicker] - self.kick.ready))  # fmt: skip
+            self.kick_time[kicker] += self.dt
+            self.clock[kicker] = 0.0  # the trot starts again from its ready posture when the kick ends
+        self.last[ids] = goal
+        return goal
+
+    def _trot(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         clock = self.clock if rows is None else self.clock[rows]
         lead = self.goals.lead_in(clock)
         stride = np.asarray(drive) * lead
@@ -201,14 +264,21 @@ class GaitMap:
 class Commands:
     """The ``commands`` mode of a robot: a normalized action (forward speed, turn rate) in [-1, 1] per player, run by
     its steering gait through its gait map. Speed from 0 (-1) to the map's fastest straight run (+1); turn rate up to
-    the map's ``max_yaw_rate`` either way (+ to the left)."""
+    the map's ``max_yaw_rate`` either way (+ to the left). A robot that can kick has a third action, ``kick`` in
+    [-1, 1] (its steering's ``kick_zone`` is then this object's too; else None)."""
 
     def __init__(self, robot: Robot):
         self.steering = STEERING[robot.name](robot)
         self.map = GaitMap.read(robot.name)
-        self.mode = ActionMode(COMMANDS, ("speed", "yaw_rate"), ("m/s", "rad/s"), (0.0, -self.map.max_yaw_rate),
-                               (self.map.max_speed, self.map.max_yaw_rate), 1.0 / robot.control_dt,
-                               "forward speed and turn rate, run by the robot's reference gait")  # fmt: skip
+        self.kick_zone = self.steering.kick_zone
+        names, units, low, high = ("speed", "yaw_rate"), ("m/s", "rad/s"), (0.0, -self.map.max_yaw_rate), \
+            (self.map.max_speed, self.map.max_yaw_rate)  # fmt: skip
+        what = "forward speed and turn rate, run by the robot's reference gait"
+        if self.kick_zone is not None:
+            names, units, low, high = (*names, "kick"), (*units, "side"), (*low, -1.0), (*high, 1.0)
+            what += (f"; and a kick: at or above {KICK_THRESHOLD:g} with the left front leg, at or below "
+                     f"{-KICK_THRESHOLD:g} with the right (it runs to its end)")  # fmt: skip
+        self.mode = ActionMode(COMMANDS, names, units, low, high, 1.0 / robot.control_dt, what)
 
     def reset(self, ids: np.ndarray) -> None:
         self.steering.reset(ids)
@@ -218,4 +288,4 @@ class Commands:
         (default: all of them)."""
         wanted = self.mode.to_command(actions)
         drive, turn = self.map.controls(wanted[:, 0], wanted[:, 1])
-        return self.steering.commands(drive, turn, rows)
+        return self.steering.commands(drive, turn, rows, wanted[:, 2] if self.kick_zone is not None else None)
