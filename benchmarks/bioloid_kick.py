@@ -3,8 +3,9 @@ posture, by where the ball lay, with either front leg, and whether the robot sta
 
 On ``skitter/BioloidScoreEmptyGoal`` (the Four-Legged League field and ball) in the robot's own mode: the robot
 starts at the centre spot facing the goal, stands in the ready posture for 0.5 s, the ball is then put at rest at
-each place of a grid ahead of the kicking front foot, and the kick runs to its end. Reported per place: the ball's
-largest forward speed, its direction of travel (deg, 0 straight ahead), and falls, over seeds 0-2.
+each place of a grid (m ahead of the body's centre, and to the kicking leg's side), and the kick runs to its end.
+Reported per place: the ball's largest forward speed, its direction of travel (deg, 0 straight ahead), and falls,
+over seeds 0-2.
 
 Run: ``python -m benchmarks.bioloid_kick`` (about a minute).
 """
@@ -30,8 +31,8 @@ SEEDS = (0, 1, 2)
 AHEAD = (0.13, 0.14, 0.15, 0.16, 0.17)  # m ahead of the body's centre
 SIDE = (0.05, 0.07, 0.09, 0.11, 0.12, 0.13)  # m to the kicking leg's side
 STAND_SECONDS = 0.5
-FAST = 0.3  # m/s: a kick that sends the ball at least this fast (the trot pushes it at 0.04-0.07 m/s)
-STRAIGHT = 40.0  # deg: and within this of straight ahead
+FAST = 2.0  # m/s: a kick that sends the ball at least this fast (the trot pushes it at 0.04-0.07 m/s)
+STRAIGHT = 15.0  # deg: and within this of straight ahead
 
 
 def kick_once(env: gym.Env, kick: Kick, side: float, ahead: float, across: float, seed: int) -> dict:

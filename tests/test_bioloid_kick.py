@@ -28,7 +28,7 @@ def test_a_kick_starts_and_ends_in_the_ready_posture_and_the_left_one_mirrors_th
 @pytest.mark.parametrize("side", [RIGHT, LEFT])
 def test_a_ball_in_the_kick_zone_goes_forward_fast_and_the_robot_stays_up(side):
     """From the ready posture, a ball at rest in front of the kicking foot (the zone's near end, where the strike
-    is hardest) leaves at 2 m/s or more within 15 deg of straight ahead, ten to fifty times as fast as the trot
+    is hardest) leaves at 2 m/s or more within 15 deg of straight ahead, thirty to fifty times as fast as the trot
     pushes it, and the robot does not fall."""
     env = gym.make(f"skitter/BioloidScoreEmptyGoal-v{version('Bioloid')}")
     result = kick_once(env, Kick(), side, KICK_AHEAD[0], KICK_SIDE, seed=0)

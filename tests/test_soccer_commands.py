@@ -115,18 +115,24 @@ def test_the_bioloids_commands_run_the_ik_trot_from_its_own_clock():
     env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
     env.reset(seed=0)
     commands: Commands = env.commands
-    first = commands.robot_commands(np.zeros((2, 3)))
-    second = commands.robot_commands(np.zeros((2, 3)))
+    first = commands.robot_commands(np.zeros((2, 2)))
+    second = commands.robot_commands(np.zeros((2, 2)))
     assert first.shape == (2, 16) and not np.array_equal(first, second), "the trot's clock runs"
     commands.reset(np.array([0, 1]))
-    np.testing.assert_array_equal(commands.robot_commands(np.zeros((2, 3))), first)
+    np.testing.assert_array_equal(commands.robot_commands(np.zeros((2, 2))), first)
 
 
 def test_a_bioloids_kick_runs_to_its_end_whatever_is_commanded_then_the_trot_starts_afresh():
     """The third command kicks: from the goals the trot left the legs at, the kick's own goals (the left leg's for
     a kick above the threshold, the right's below minus it), commands ignored until it ends; then the trot's clock
-    starts again at 0. Another player's commands are its own all along."""
-    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+    starts again at 0. Another player's commands are its own all along. The kick is asked for: off by default, and
+    only the Bioloid kicks."""
+    assert match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands").mode.size == 2
+    for robot, kwargs, message in (("roach", {"action_mode": "commands"}, "has no kick"),
+                                   ("bioloid", {}, "give action_mode='commands'")):  # fmt: skip
+        with pytest.raises(ValueError, match=message):
+            match.parallel_env(robot=robot, players_per_team=1, kick=True, **kwargs)
+    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands", kick=True)
     env.reset(seed=0)
     commands: Commands = env.commands
     steering = commands.steering
@@ -153,7 +159,7 @@ LAYOUT = ObservationLayout.from_structure({"ball": 2, "goal": 2, "own_goal": 2})
 
 
 def test_a_scripted_kicker_kicks_with_the_foot_the_ball_lies_before_when_the_goal_is_ahead():
-    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+    env = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands", kick=True)
     zone = env.commands.kick_zone
     player = ScriptedPlayer(LAYOUT, env.mode, 0.3, env.field, kick=zone)
     ahead = np.mean(zone.ahead)
@@ -167,8 +173,11 @@ def test_a_scripted_kicker_kicks_with_the_foot_the_ball_lies_before_when_the_goa
     assert action.shape == (5, 3) and action[0, 2] <= -KICK_THRESHOLD and action[1, 2] >= KICK_THRESHOLD
     assert np.all(np.abs(action[2:, 2]) < KICK_THRESHOLD)
     assert np.all(ScriptedPlayer(LAYOUT, env.mode, 0.3, env.field, keeper=True, kick=zone).kicks(obs) == 0.0)
-    with pytest.raises(ValueError, match="kick zone goes with"):
+    with pytest.raises(ValueError, match="needs the robot's kick zone"):
         ScriptedPlayer(LAYOUT, env.mode, 0.3, env.field)
+    plain = match.parallel_env(robot="bioloid", players_per_team=1, action_mode="commands")
+    pusher = ScriptedPlayer(LAYOUT, plain.mode, 0.3, plain.field, kick=zone)  # pushes with its foot, never kicks
+    assert pusher.predict(obs)[0].shape == (5, 2)
 
 
 def player(keeper: bool = False) -> ScriptedPlayer:

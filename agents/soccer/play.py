@@ -111,17 +111,20 @@ def team_mode(spec: str) -> str | None:
 
 
 def play(robot: str, players: int, home: str, away: str, matches: int, seed: int, match_seconds: float,
-         action_mode: str | None = None, video: Path | None = None) -> dict[str, Any]:  # fmt: skip
+         action_mode: str | None = None, video: Path | None = None, kick: bool = False) -> dict[str, Any]:  # fmt: skip
     """Play ``matches`` seeded matches; returns every match's score and the statistics. A team is ``scripted``,
-    ``random`` or the path of a model trained by ``train.py --soccer``."""
+    ``random`` or the path of a model trained by ``train.py --soccer``; ``kick``: the commands mode's kick action
+    (the Bioloid's), for both teams."""
     modes = {m for m in (team_mode(home), team_mode(away)) if m is not None}
     if len(modes) > 1:
         raise ValueError(f"the two teams play in different action modes: {sorted(modes)}")
     if action_mode is not None and modes and action_mode not in modes:
         raise ValueError(f"--action-mode {action_mode!r}: the teams play in {modes.pop()!r}")
     mode = action_mode if action_mode is not None else (modes.pop() if modes else None)
+    if kick and mode != COMMANDS:
+        raise ValueError(f"--kick is the {COMMANDS!r} mode's kick action: the teams play in {mode!r}")
     engine = Matches(robot=robot, players_per_team=players, action_mode=mode, num_matches=matches, batched=True,
-                     max_cycles=1)  # fmt: skip
+                     max_cycles=1, kick=kick)  # fmt: skip
     engine.max_cycles = max(1, round(match_seconds / engine.dt))
     for m in range(matches):
         engine.seed(m, seed + m)
@@ -203,6 +206,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0, help="match i runs with seed SEED + i")
     p.add_argument("--match-seconds", type=float, default=MATCH_SECONDS, help="each match's length, s")
     p.add_argument("--action-mode", help="the robots' action mode (default: commands where a team is scripted)")
+    p.add_argument("--kick", action="store_true", help="the commands mode's kick action, for a robot that kicks "
+                   "(the Bioloid): both teams have it, and the scripted team kicks")  # fmt: skip
     p.add_argument("--out", required=True, type=Path, help="output directory")
     p.add_argument("--video", action="store_true", help="write an mp4 of the first match")
     p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
@@ -262,12 +267,13 @@ def _run(args: argparse.Namespace) -> int:
             video.parent.mkdir()
         try:
             result = play(args.soccer, args.players, args.home, args.away, args.matches, args.seed,
-                          args.match_seconds, args.action_mode, video)  # fmt: skip
+                          args.match_seconds, args.action_mode, video, args.kick)  # fmt: skip
         except ValueError as exc:
             print(f"evaluate.py: error: {exc}", file=sys.stderr)
             return 2
         text = report(args, result)
-        record = {"robot": args.soccer, "players_per_team": args.players, "home": args.home, "away": args.away,
+        record = {"robot": args.soccer, "players_per_team": args.players, "kick": args.kick, "home": args.home,
+                  "away": args.away,
                   "seeds": [args.seed + i for i in range(args.matches)], "match_seconds": args.match_seconds,
                   **result}  # fmt: skip
         write_json(staging / "results.json", record, strict=True)

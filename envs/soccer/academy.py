@@ -34,11 +34,6 @@ PLAYER = "home_0"  # the academy's one player: the home team's, attacking the go
 EPISODE_SECONDS = 20.0
 APPROACH_WEIGHT = 0.1  # per body length closed: 10 lengths nearer the ball are worth a goal
 PROGRESS_WEIGHT = 0.2  # per body length the ball moves nearer the goal's centre
-# the Bioloid's academy ids' newest version (its robot's and its ScoreVsKeeper's)
-KICK_HISTORY = (
-    "the commands mode has a third action, ``kick`` (envs/bioloid/kick.py): at or above 0.5 the left "
-    "front leg kicks, at or below -0.5 the right; the joints mode is unchanged."
-)
 
 
 class AcademyTask(SoccerTask):
@@ -51,8 +46,7 @@ class AcademyTask(SoccerTask):
         "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
     }
     players: ClassVar[tuple[str, ...]] = (PLAYER,)  # the scene's players: the learner's first
-    # the task's own version history, or one per robot (its name in ids, as ``Bioloid``); None: the robot's academy's
-    history: ClassVar[tuple[str, ...] | dict[str, tuple[str, ...]] | None] = None
+    history: ClassVar[tuple[str, ...] | None] = None  # the task's own version history (None: the robot's academy's)
 
     # --- placing --------------------------------------------------------------------------------------------------
     def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
@@ -177,8 +171,7 @@ class ScoreVsKeeperTask(ScoreEmptyGoalTask):
 
     name = "score_vs_keeper"
     players = (PLAYER, KEEPER)
-    history: ClassVar[dict[str, tuple[str, ...]]] = {"Roach": ("first version.",), "Xjus": ("first version.",),
-                                                     "Bioloid": ("first version.", KICK_HISTORY)}  # fmt: skip
+    history = ("first version.",)
     ball_out = (3.0, 6.0)
 
     def place_players(self, scene: int, rng: np.random.Generator, robot: np.ndarray, ball: np.ndarray,
@@ -220,6 +213,8 @@ class AcademyEnv(SkitterEnv):
         action_mode, control_freq: the robot's (default its first mode, at its rate), or ``"commands"``: forward
             speed and turn rate, run by the robot's reference gait through its gait map, as in matches
             (envs/soccer/steering.py).
+        kick: in the commands mode, a third action, ``kick``, for a robot that kicks (the Bioloid,
+            envs/bioloid/kick.py; off by default: a random policy would be kicking nearly all the time).
         sensor_noise: the IMU's noise and bias.
         sparse, ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: the task's
             (:class:`envs.soccer.task.SoccerTask`).
@@ -248,8 +243,11 @@ class AcademyEnv(SkitterEnv):
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
+        kick: bool = False,
     ):
         robot_class = self.robot_class
+        if check_flag("kick", kick) and action_mode != COMMANDS:
+            raise ValueError(f"kick=True is the commands mode's kick action: give action_mode={COMMANDS!r}")
         first = next(iter(robot_class.action_modes))
         mode = first if action_mode in (None, COMMANDS) else action_mode
         players = self.task_class.players
@@ -267,7 +265,7 @@ class AcademyEnv(SkitterEnv):
         task = self.task_class(scene.robot, scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
                                terminate_when_unhealthy, height_band, grace_time, head)  # fmt: skip
         # speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
-        commands = Commands(scene.robot) if action_mode == COMMANDS else None
+        commands = Commands(scene.robot, kick) if action_mode == COMMANDS else None
         robot: Any = scene.robot
         if len(players) > 1:  # the learner's rows of a scene with a scripted keeper (envs/soccer/keeper.py)
             self.keeper = KeeperMatch(scene, task, commands)
@@ -293,7 +291,7 @@ MANUAL = """{title}: {task}
 
     ## Action Space
     {modes}, normalized to [-1, 1]; or ``action_mode="commands"``: forward speed and turn rate (2), run by its
-    reference gait as in matches.
+    reference gait as in matches, and with ``kick=True`` a third, ``kick``, for a robot that kicks (the Bioloid).
 
     ## Observation Space
     The robot's proprioception, then the soccer task's egocentric view (``observation_structure`` names every
@@ -328,8 +326,7 @@ HISTORY = {
     "Bioloid": ["first version.",
                 "the commands mode turns the trot by sideways steps of the feet (front and back opposite, through the "
                 "abduction servos) instead of a shortened stride, with a new gait map; the joints mode is "
-                "unchanged.",
-                KICK_HISTORY],
+                "unchanged."],
 }  # fmt: skip
 
 
@@ -337,8 +334,6 @@ def history(robot: str, task_class: type[AcademyTask] | None = None) -> tuple[st
     """The version history of a robot's academy id (its name in ids, as ``Bioloid``): the task's own where it has one
     (a task added after the others starts at v1), else the robot's academy's."""
     own = None if task_class is None else task_class.history
-    if isinstance(own, dict):
-        own = own[robot]
     return tuple(HISTORY[robot]) if own is None else own
 
 

@@ -93,6 +93,7 @@ class Matches:
         sensor_noise: bool = True,
         num_matches: int = 1,
         nthread: int | None = None,
+        kick: bool = False,
         batched: bool | None = None,
     ):
         names = {name.lower(): name for name in ROBOTS}
@@ -135,7 +136,9 @@ class Matches:
         )
         self.robot = self.scene.robot
         # the commands mode: forward speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
-        self.commands = Commands(self.robot) if mode == COMMANDS else None
+        if check_flag("kick", kick) and mode != COMMANDS:
+            raise ValueError(f"kick=True is the commands mode's kick action: give action_mode={COMMANDS!r}")
+        self.commands = Commands(self.robot, kick) if mode == COMMANDS else None
         self.mode = self.robot.mode if self.commands is None else self.commands.mode
         head = HEADS.get(robot_class.name)
         self.task = MatchTask(self.robot, self.scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
@@ -358,6 +361,8 @@ class SoccerParallelEnv(ParallelEnv):
         reset_noise_scale: perturbation of the robots' kickoff pose (the robot's ``reset``), and of their places
             (x ``reset_noise_scale`` body lengths) and headings (x ``reset_noise_scale`` rad).
         sensor_noise: the robots' IMU noise and bias.
+        kick: in the commands mode, a third action per player, ``kick``, for a robot that kicks (the Bioloid,
+            envs/bioloid/kick.py; off by default: a random policy would be kicking nearly all the time).
         render_mode: ``"rgb_array"`` (frames; ``camera``: ``"top"``, the whole field, or an agent's name, following
             it), or ``"human"`` (a window from the top camera, where the machine has a display; not in ``metadata``,
             which lists what renders headless).
@@ -365,7 +370,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v4",
+        "name": "skitter_soccer_v3",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,

@@ -8,10 +8,12 @@ turn) gives was measured on the model over a grid (``python -m benchmarks.gait_m
 ``envs/soccer/gait_maps/``), and a :class:`GaitMap` inverts it: a commanded (speed, turn rate) goes to the measured
 (drive, turn) whose speed and turn rate were nearest to it.
 
-A robot that can kick has a third command, ``kick``: the Bioloid kicks with its left front leg when it is above
-``KICK_THRESHOLD`` and with its right one below minus that (envs/bioloid/kick.py). A kick runs to its end (1.4 s),
-whatever is commanded meanwhile; the gait then starts again from its ready posture. Its :class:`KickZone` says where
-the ball must lie for the kick to send it straight.
+A robot that can kick (the Bioloid, envs/bioloid/kick.py) has a third command when asked for (``kick=True``),
+``kick``: it kicks with its left front leg at or above ``KICK_THRESHOLD`` and with its right one at or below minus
+that. A kick runs to its end (1.4 s), whatever is commanded meanwhile; the gait then starts again from its ready
+posture. The command is off by default: a random or untrained policy, its actions spread over [-1, 1], would be
+kicking nearly all the time (a kick blocks 71 control steps). Its :class:`KickZone` says where the ball must lie
+for the kick to send it forward.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from scipy.interpolate import NearestNDInterpolator
 from envs.bioloid import constants as bioloid
 from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals
 from envs.bioloid.kick import KICK_AHEAD, KICK_SIDE, KICK_WIDTH, Kick
-from envs.common.robot import ActionMode, Robot
+from envs.common.robot import ActionMode, Robot, check_flag
 from envs.xjus import constants as xjus
 
 MAPS = Path(__file__).resolve().parent / "gait_maps"
@@ -264,17 +266,22 @@ class GaitMap:
 class Commands:
     """The ``commands`` mode of a robot: a normalized action (forward speed, turn rate) in [-1, 1] per player, run by
     its steering gait through its gait map. Speed from 0 (-1) to the map's fastest straight run (+1); turn rate up to
-    the map's ``max_yaw_rate`` either way (+ to the left). A robot that can kick has a third action, ``kick`` in
-    [-1, 1] (its steering's ``kick_zone`` is then this object's too; else None)."""
+    the map's ``max_yaw_rate`` either way (+ to the left). With ``kick``, a robot that can kick has a third action,
+    ``kick`` in [-1, 1]. ``kick_zone`` is where the robot's kick sends the ball forward (None: it cannot kick),
+    whether or not the action is on."""
 
-    def __init__(self, robot: Robot):
+    def __init__(self, robot: Robot, kick: bool = False):
         self.steering = STEERING[robot.name](robot)
         self.map = GaitMap.read(robot.name)
         self.kick_zone = self.steering.kick_zone
+        self.kicks = check_flag("kick", kick)
+        if self.kicks and self.kick_zone is None:
+            kickers = [name for name, s in STEERING.items() if s.kick_zone is not None]
+            raise ValueError(f"kick: the {robot.name} has no kick (robots that kick: {', '.join(kickers)})")
         names, units, low, high = ("speed", "yaw_rate"), ("m/s", "rad/s"), (0.0, -self.map.max_yaw_rate), \
             (self.map.max_speed, self.map.max_yaw_rate)  # fmt: skip
         what = "forward speed and turn rate, run by the robot's reference gait"
-        if self.kick_zone is not None:
+        if self.kicks:
             names, units, low, high = (*names, "kick"), (*units, "side"), (*low, -1.0), (*high, 1.0)
             what += (f"; and a kick: at or above {KICK_THRESHOLD:g} with the left front leg, at or below "
                      f"{-KICK_THRESHOLD:g} with the right (it runs to its end)")  # fmt: skip
@@ -288,4 +295,4 @@ class Commands:
         (default: all of them)."""
         wanted = self.mode.to_command(actions)
         drive, turn = self.map.controls(wanted[:, 0], wanted[:, 1])
-        return self.steering.commands(drive, turn, rows, wanted[:, 2] if self.kick_zone is not None else None)
+        return self.steering.commands(drive, turn, rows, wanted[:, 2] if self.kicks else None)
