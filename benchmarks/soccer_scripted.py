@@ -8,7 +8,9 @@ Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal,ScoreVsKeeper}`` at their cur
 mean time of a success. ``--academy-only`` runs this part alone (a few minutes; results in
 ``soccer_scripted_academy``). Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library
 call, 20 matches of 10 minutes (one half of a Four-Legged League match, RoboCup 2005 rules) on seeds 0-19, home
-scripted against away random and against away scripted, two robots' sets at a time (one process per core).
+scripted against away random and against away scripted, two robots' sets at a time (one process per core). The
+Bioloid plays again with its kick (``kick=True``: both teams have the action, the scripted team kicks), in the
+academy and against random.
 
 Run: ``python -m benchmarks.soccer_scripted`` (51 minutes on 2 cores, 2026-11-29; the roach's sets are the longest).
 """
@@ -41,11 +43,15 @@ MATCH_SECONDS = 600.0  # one half of a Four-Legged League match (two halves of 1
 WINS_WANTED = 18  # of 20, against a random team
 
 
-def academy(robot: str, task: str) -> dict:
-    """The scripted player on one academy task in the commands mode, one episode per seed."""
+KICKERS = ("bioloid",)  # robots whose sets run again with the kick action
+
+
+def academy(robot: str, task: str, kick: bool = False) -> dict:
+    """The scripted player on one academy task in the commands mode (with the kick action), one episode per
+    seed."""
     env_id = f"skitter/{ROBOTS[robot]}{task}-v{version(ROBOTS[robot], ACADEMY_TASKS[task])}"
     venv = gym.make_vec(env_id, num_envs=len(EPISODE_SEEDS), vectorization_mode="vector_entry_point",
-                        action_mode="commands")  # fmt: skip
+                        action_mode="commands", kick=kick)  # fmt: skip
     base = venv.unwrapped
     commands = base.env.commands
     player = ScriptedPlayer(base.task.layout, commands.mode, base.robot.facts.length, base.task.field,
@@ -64,14 +70,14 @@ def academy(robot: str, task: str) -> dict:
         if done.all():
             break
     venv.close()
-    return {"env_id": env_id, "episodes": n, "successes": int(success.sum()), "falls": int(fell.sum()),
+    return {"env_id": env_id, "kick": kick, "episodes": n, "successes": int(success.sum()), "falls": int(fell.sum()),
             "mean_success_seconds": float(ended_at[success].mean()) if success.any() else None}  # fmt: skip
 
 
-def match_set(job: tuple[str, str]) -> dict:
-    """The scripted team's record in one-a-side matches against ``away`` on ``robot``."""
-    robot, away = job
-    return play(robot, 1, "scripted", away, MATCHES, 0, MATCH_SECONDS)
+def match_set(job: tuple[str, str, bool]) -> dict:
+    """The scripted team's record in one-a-side matches against ``away`` on ``robot`` (with the kick action)."""
+    robot, away, kick = job
+    return play(robot, 1, "scripted", away, MATCHES, 0, MATCH_SECONDS, kick=kick)
 
 
 def make_parser() -> argparse.ArgumentParser:
@@ -87,16 +93,19 @@ def main(argv: list[str] | None = None) -> None:
     output = resolve_output(parser, args, "soccer_scripted", CONFIGURATIONS)
     started = time.perf_counter()
     episodes = [academy(robot, task) for robot in ROBOTS for task in TASKS]
-    jobs = [] if args.academy_only else [(robot, away) for robot in ROBOTS for away in ("random", "scripted")]
+    episodes += [academy(robot, task, kick=True) for robot in KICKERS for task in TASKS]
+    jobs = [] if args.academy_only else [(robot, away, False) for robot in ROBOTS for away in ("random", "scripted")]
+    jobs += [] if args.academy_only else [(robot, "random", True) for robot in KICKERS]
     # each set is seeded on its own (the same numbers serially); fresh interpreters, not forks of this one, whose
     # simulations' worker threads a fork would not carry over
     with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
         results = list(pool.map(match_set, jobs))
-    matches = [{"robot": robot, "away": away, **result} for (robot, away), result in zip(jobs, results, strict=True)]
+    matches = [{"robot": robot + (" (kick)" if kick else ""), "away": away, "kick": kick, **result}
+               for (robot, away, kick), result in zip(jobs, results, strict=True)]  # fmt: skip
     wall = time.perf_counter() - started
     academy_table = md_table(
         ["env id (commands mode)", "episodes", "successes", "falls", "mean time of a success, s"],
-        [[e["env_id"], e["episodes"], e["successes"], e["falls"],
+        [[e["env_id"] + (", kick" if e["kick"] else ""), e["episodes"], e["successes"], e["falls"],
           "-" if e["mean_success_seconds"] is None else f"{e['mean_success_seconds']:.1f}"] for e in episodes],
     )  # fmt: skip
 
