@@ -298,7 +298,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
     runs = out / "runs"
     run_dir = runs / row.name
     log = folder / "log.txt"
-    started = time.time()
+    started = time.time()  # less the training behind a resumed checkpoint: the row's wall time is all its training
     trained_before = (run_dir / "model.zip").is_file()
     resuming = (run_dir / "config.json").is_file() and any((run_dir / "checkpoints").glob("step_*"))
     if (run_dir / "config.json").is_file() and (trained_before or resuming):
@@ -308,6 +308,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
             _remove_run(run_dir)
             (folder / ATTEMPTS).unlink(missing_ok=True)
         credit = _begin_attempt(folder, run_dir)
+        started -= credit
         budget = [] if plan.minutes is None else ["--minutes", f"{max(plan.minutes - credit / 60.0, 0.01):.4f}"]
         if resuming:
             command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
@@ -677,6 +678,19 @@ def _soccer_section(plan: Plan, baselines: dict, rows: dict[Row, dict | None]) -
     return lines
 
 
+def _share(record: dict[str, Any], baselines: dict[str, Any], metric: str) -> str:
+    """A row's share of ``metric`` (falls: of its episodes; contact: of its time), the reference's in brackets."""
+
+    def mean(summary: dict[str, Any] | None) -> float | None:
+        value = (summary or {}).get(metric)
+        return value.get("mean") if isinstance(value, dict) else None
+
+    mine, reference = mean(record.get("summary")), mean(baselines.get("reference_summary"))
+    if mine is None:
+        return "-"
+    return f"{mine:.0%}" + ("" if reference is None else f" ({reference:.0%})")
+
+
 def _budget(plan: Plan) -> str:
     """The steps a row trains, in words: one number, or one per task."""
     budgets = {n for _, n in plan.timesteps}
@@ -723,13 +737,16 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
-    lines += ["", "## Rows", "", "| row | steps trained | wall time (min) | mean return | normalized | "
-              "speed vs reference (m/s) | cost of transport vs reference |", "|---" * 7 + "|"]  # fmt: skip
+    lines += ["", "## Rows", "", "A row's falls and the time its body touched the ground with more than its feet are "
+              "its model's over the evaluation episodes; the reference's are in brackets.", "",
+              "| row | steps trained | wall time (min) | mean return | normalized | speed vs reference (m/s) | "
+              "cost of transport vs reference | falls | time touching with more than feet |",
+              "|---" * 9 + "|"]  # fmt: skip
     for row, rec in rows.items():
         if is_soccer(row.task):
             continue
         if rec is None:
-            lines.append(f"| {row.name} | not run | | | | | |")
+            lines.append(f"| {row.name} | not run | | | | | | | |")
             continue
         diff = rec["paired_differences"]
 
@@ -743,7 +760,9 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         score = float(normalized(rec["mean_return"], baselines[row.task]))
         wall = f"{rec['wall_seconds'] / 60:.0f}" if "wall_seconds" in rec else "-"
         lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {wall} | {rec['mean_return']:.1f} | {score:.2f} | "
-                     f"{paired('speed')} | {paired('cost_of_transport')} |")  # fmt: skip
+                     f"{paired('speed')} | {paired('cost_of_transport')} | "
+                     f"{_share(rec, baselines[row.task], 'falls')} | "
+                     f"{_share(rec, baselines[row.task], 'non_foot_contact')} |")  # fmt: skip
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
