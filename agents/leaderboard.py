@@ -612,7 +612,6 @@ def publish_media(text: str, out: Path, docs: Path, records: Path | None = None)
         target = media / "videos" / f"{task}.mp4"
         target.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(target, lambda tmp, video=video: shutil.copyfile(video, tmp))
-        text = text.replace(f"](videos/{task}/eval/videos/side_by_side.mp4)", f"]({media.name}/videos/{task}.mp4)")
     for marker in sorted((records or out).glob("videos/*/row.txt")):
         task = marker.parent.name
         if (media / "videos" / f"{task}.mp4").is_file():

@@ -105,9 +105,10 @@ class Kick:
         """The ready posture's goal counts (16,), where the kick starts and ends."""
         return self._ready.copy()
 
-    def counts(self, t: np.ndarray, side: np.ndarray) -> np.ndarray:
+    def counts(self, t: np.ndarray, side: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
         """Goal counts (n, 16) at times ``t`` (n,) since each kick started, for kicks with the leg on ``side`` (n,):
-        :data:`LEFT` or :data:`RIGHT`; before 0 and after the kick's duration, the ready posture."""
+        :data:`LEFT` or :data:`RIGHT`; before 0 and after the kick's duration, the ready posture. ``start`` (n, 16):
+        the goals each kick starts from (where a gait left the legs), blended into the kick's over its lean."""
         t = np.asarray(t, dtype=np.float64)
         right = np.asarray(side, dtype=np.float64) < 0.0
         s, k = self.shape, self._times
@@ -133,4 +134,6 @@ class Kick:
         goal = np.tile(self._ready, (len(t), 1))
         goal[:, self._hips] = constants.CENTER + hip / constants.RAD_PER_COUNT
         goal[:, self._knees] = constants.CENTER + knee / constants.RAD_PER_COUNT
+        if start is not None:
+            goal += (1.0 - _smooth(t / s.lean_time))[:, None] * (np.asarray(start) - self._ready)
         return goal

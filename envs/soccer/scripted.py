@@ -70,8 +70,8 @@ class ScriptedPlayer:
                  keeper: bool = False, kick: KickZone | None = None):  # fmt: skip
         if mode.commands[:2] != ("speed", "yaw_rate"):
             raise ValueError(f"the scripted team plays in the commands mode, not {mode.name!r}")
-        self.kicking = "kick" in mode.commands
-        if self.kicking and kick is None:
+        self.may_kick = "kick" in mode.commands  # the commands have the kick action (else it only pushes with a foot)
+        if self.may_kick and kick is None:
             raise ValueError(f"kick: a commands mode with a kick ({mode.commands}) needs the robot's kick zone")
         self.layout, self.mode, self.length, self.keeper, self.kick = layout, mode, length, keeper, kick
         self.ball_radius = field.ball.radius
@@ -141,7 +141,7 @@ class ScriptedPlayer:
         """Each row's kick command: +1 (the left front leg) or -1 (the right) where the ball lies in the kick zone on
         that side and the goal it attacks is ahead, else 0."""
         n = len(obs)
-        if not self.kicking or self.keeper:
+        if not self.may_kick or self.keeper:
             return np.zeros(n)
         ball, goal = self.layout.get(obs, "ball"), self.layout.get(obs, "goal")
         near, far = self.kick.ahead
@@ -217,7 +217,7 @@ class ScriptedPlayer:
             speed, yaw_rate = np.where(escaping, run_speed, speed), np.where(escaping, run_yaw, yaw_rate)
             memory[:, 7] = np.maximum(memory[:, 7] - dt, 0.0)
         memory[:, 0:3] = np.column_stack([place, heading])
-        commands = [speed, yaw_rate, self.kicks(obs)] if self.kicking else [speed, yaw_rate]
+        commands = [speed, yaw_rate, self.kicks(obs)] if self.may_kick else [speed, yaw_rate]
         action = self.mode.to_action(np.column_stack(commands))
         single = np.asarray(observation).ndim == 1
         return (action[0], memory[0]) if single else (action, memory)

@@ -182,12 +182,7 @@ class BioloidSteering(Steering):
         active = self.kicking(ids)
         if active.any():
             kicker = ids[active]
-            t = self.kick_time[kicker]
-            lean = self.kick.shape.lean_time
-            blend = np.clip(t / lean, 0.0, 1.0)
-            blend = (blend * blend * (3.0 - 2.0 * blend))[:, None]
-            goal[active] = (self.kick.counts(t, self.kick_side[kicker])
-                            + (1.0 - blend) * (self.kick_from[kicker] - self.kick.ready))  # fmt: skip
+            goal[active] = self.kick.counts(self.kick_time[kicker], self.kick_side[kicker], self.kick_from[kicker])
             self.kick_time[kicker] += self.dt
             self.clock[kicker] = 0.0  # the trot starts again from its ready posture when the kick ends
         self.last[ids] = goal
