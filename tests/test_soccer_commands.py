@@ -10,7 +10,7 @@ import pytest
 from envs.bioloid.kick import LEFT, RIGHT, Kick
 from envs.common.task import ObservationLayout
 from envs.soccer import match
-from envs.soccer.scripted import MEMORY, ScriptedPlayer, scripted_team
+from envs.soccer.scripted import AIM_DEPTH, MEMORY, ScriptedPlayer, scripted_team
 from envs.soccer.steering import KICK_THRESHOLD, MAPS, STEERING, Commands, GaitMap
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -195,6 +195,22 @@ def test_a_scripted_player_behind_the_ball_pushes_it_toward_the_goal():
     assert pushing[0] and target[0, 0] > 0.3 and abs(target[0, 1]) < 1e-9
     action, _ = player().predict(obs((0.3, 0.0))[0])
     assert action[0] > -1.0 and abs(action[1]) < 1e-6, "straight at it"
+
+
+def test_a_scripted_player_aims_behind_the_goal_where_the_ball_goes_straight_in_else_at_its_line():
+    """A ball just short of the goal line in front of the goal is aimed in, not along the line to its centre (where
+    the scripted Bioloid pushed it back and forth for minutes); one wide of the goal near the line is brought round
+    to the goal line's centre first."""
+    p = player()
+    goal, own = np.array([[0.9, 0.0]]), np.array([[-0.9, 0.0]])
+    depth = AIM_DEPTH * p.goal_half_width * 2.0
+    short = p.aim(np.array([[0.87, 0.06]]), goal, own)  # 3 cm short of the line, off the goal's centre
+    np.testing.assert_allclose(short, [[0.9 + depth, 0.0]])
+    wide = p.aim(np.array([[0.85, 0.5]]), goal, own)
+    np.testing.assert_allclose(wide, goal)
+    # seen from a player turned half a turn (the goal behind it), the same ball gets the same aim in its frame
+    turned = p.aim(-np.array([[0.87, 0.06]]), -goal, -own)
+    np.testing.assert_allclose(turned, -short)
 
 
 def test_a_scripted_player_in_front_of_the_ball_goes_round_it_on_its_own_side():

@@ -9,7 +9,7 @@ import pytest
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test, seed_test
 
 from envs.soccer import match
-from envs.soccer.field import BALL
+from envs.soccer.field import BALL, THROW_IN_BACK, THROW_IN_INSET
 
 
 def pettingzoo_battery(robot: str, k: int, cycles: int) -> None:
@@ -71,6 +71,67 @@ def test_a_goal_rewards_both_teams_and_the_next_step_kicks_off():
     env.step(still)
     ball = env.scene.scene_sensor("ball_pos")[0]
     assert abs(ball[0]) < 1e-3 and abs(ball[1]) < 1e-3, "the kickoff puts the ball on the centre spot"
+
+
+def test_a_ball_that_leaves_the_field_is_put_back_as_a_referee_would():
+    """Rolled over a touch line, the ball is put back at rest a metre (scaled) nearer the halfway line (nobody has
+    touched it since the kickoff), a body length inside the line; the step's info says so, and the shaping terms
+    do not count the jump."""
+    env = quiet(robot="roach", players_per_team=1)
+    env.reset(seed=0)
+    f = env.field
+    data = env.scene.sim.data
+    q, v = env.scene.objects[BALL]
+    x_out = 0.5 * f.half_length
+    data.qpos[q : q + 3] = [x_out, f.half_width - 0.01, f.ball.radius]
+    data.qvel[v : v + 6] = [0.0, 1.0, 0, 0, 0, 0]
+    still = {a: np.zeros(3) for a in env.possible_agents}
+    for _ in range(20):
+        _, rewards, _, _, infos = env.step(still)
+        if infos["home_0"]["throw_in"]:
+            break
+    assert infos["home_0"]["throw_in"] and infos["away_0"]["throw_in"] and rewards["home_0"] == 0.0
+    ball = env.scene.scene_sensor("ball_pos")[0]
+    expected = f.throw_in(np.array([x_out]), np.array([f.half_width + 0.05]), np.array([0]))
+    assert ball[0] == pytest.approx(max(x_out - THROW_IN_BACK * f.scale, 0.0)) == pytest.approx(expected[0][0])
+    assert ball[1] == pytest.approx(f.half_width - THROW_IN_INSET * f.scale)
+    assert np.allclose(env.scene.scene_sensor("ball_vel")[0], 0.0)
+    _, _, _, _, infos = env.step(still)
+    assert not infos["home_0"]["throw_in"]
+    assert abs(infos["home_0"]["approach"]) < 0.05 and abs(infos["home_0"]["ball_progress"]) < 0.05
+    assert np.allclose(env.scene.scene_sensor("ball_pos")[0][:2], ball[:2], atol=2e-3), "it stays where it was put"
+
+
+def test_the_throw_in_goes_toward_the_goal_of_the_team_that_touched_the_ball_last_and_is_symmetric():
+    f = match.FIELDS["Bioloid"]
+    back, inset = THROW_IN_BACK * f.scale, THROW_IN_INSET * f.scale
+    x = np.array([0.5, 0.5, 1.2, 0.4, f.half_length + 0.1, -(f.half_length + 0.1)])
+    y = np.array([f.half_width + 0.1, f.half_width + 0.1, -(f.half_width + 0.1), f.half_width + 0.1, 0.9, -0.9])
+    last = np.array([1, -1, 0, 0, -1, 1])  # home's goal is at -x: a home touch sends the ball toward -x
+    px, py = f.throw_in(x, y, last)
+    limit = f.half_length - back
+    np.testing.assert_allclose(px, [0.5 - back, 0.5 + back, 1.2 - back, 0.0, limit, -limit])
+    np.testing.assert_allclose(py, [*[f.half_width - inset] * 2, inset - f.half_width, f.half_width - inset, 0.9, -0.9])
+    mx, my = f.throw_in(-x, -y, -last)  # the field turned by half a turn, the teams swapped
+    np.testing.assert_allclose(mx, -px)
+    np.testing.assert_allclose(my, -py)
+    assert list(f.left_field(x, y)) == [True] * 6
+    inside = f.left_field(np.array([f.half_length + 0.1, 0.0, f.half_length]), np.array([0.0, f.half_width, 1.0]))
+    assert not inside.any(), "past the goal line between the posts is a goal; on a line is still in"
+
+
+def test_without_the_throw_in_a_ball_past_the_touch_line_stays_in_play():
+    env = quiet(robot="roach", players_per_team=1, throw_in=False)
+    env.reset(seed=0)
+    f = env.field
+    data = env.scene.sim.data
+    q, v = env.scene.objects[BALL]
+    data.qpos[q : q + 3] = [0.0, f.half_width + 2 * f.ball.radius, f.ball.radius]
+    data.qvel[v : v + 6] = 0.0
+    for _ in range(5):
+        _, _, _, _, infos = env.step({a: np.zeros(3) for a in env.possible_agents})
+        assert not infos["home_0"]["throw_in"]
+    assert env.scene.scene_sensor("ball_pos")[0][1] > f.half_width
 
 
 def test_a_match_to_one_goal_ends_by_rule():
@@ -209,6 +270,35 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
                 np.testing.assert_array_equal([info["terminal_observation"] for info in infos[mine]], rows(o, env))
                 o = env.reset()[0]
             np.testing.assert_array_equal(obs[mine], rows(o, env))
+
+
+def test_a_throw_in_in_batched_matches_is_the_pettingzoo_matchs_bit_for_bit():
+    """Two batched roach matches whose balls start beyond a touch line and a goal line: put back in the first step,
+    each exactly as in a PettingZoo match of the same seed, the other match untouched by the placement."""
+    engine = match.Matches(robot="roach", players_per_team=1, num_matches=2, batched=True, max_cycles=50)
+    f = engine.field
+    balls = (
+        (0.3 * f.half_length, -(f.half_width + 1.5 * f.ball.radius)),
+        (f.half_length + 2 * f.ball.radius, 0.6 * f.half_width),
+    )
+    singles = [match.parallel_env(robot="roach", players_per_team=1, max_cycles=50) for _ in range(2)]
+    for m, ball in enumerate(balls):
+        engine.seed(m, 7 + m)
+        engine.reset(np.array([m]), {"ball": ball})
+        singles[m].reset(seed=7 + m, options={"ball": ball})
+    rng = np.random.default_rng(1)
+    for step in range(6):
+        actions = rng.uniform(-1, 1, (4, 3))
+        out = engine.step(actions)
+        assert out["throw_in"].tolist() == [step == 0] * 2
+        for m, env in enumerate(singles):
+            o, r, *_, infos = env.step({a: actions[2 * m + i] for i, a in enumerate(env.possible_agents)})
+            assert infos["home_0"]["throw_in"] == (step == 0)
+            assert out["reward"][2 * m : 2 * m + 2].tolist() == [r[a] for a in env.possible_agents]
+            np.testing.assert_array_equal(engine.obs[2 * m : 2 * m + 2], [o[a] for a in env.possible_agents])
+            np.testing.assert_array_equal(
+                engine.scene.scene_sensor("ball_pos")[m], env.scene.scene_sensor("ball_pos")[0]
+            )
 
 
 def test_a_scene_that_goes_unstable_ends_its_match_with_nothing_counted():

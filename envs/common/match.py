@@ -33,6 +33,8 @@ if TYPE_CHECKING:
 SceneEdit = Callable[[mujoco.MjSpec], None]
 MAX_PLAYERS = 30  # players of a scene: contact bits 1 to 30 of MuJoCo's 32-bit contype (bit 0 is the world's)
 # the model's arrays with one block per player, and the MjModel sizes of their blocks
+# the object types of a sensor that reads a body's frame (the ball's position and velocity)
+OBJECT_FRAMES = (int(mujoco.mjtObj.mjOBJ_BODY), int(mujoco.mjtObj.mjOBJ_XBODY))
 _BLOCKS = {"qpos": "nq", "qvel": "nv", "act": "na", "ctrl": "nu", "sensordata": "nsensordata"}
 
 
@@ -225,6 +227,29 @@ class SharedScene:
         qpos[scenes, qadr + 3 : qadr + 7] = [1.0, 0.0, 0.0, 0.0]
         qvel[scenes, vadr : vadr + 3] = velocity
         qvel[scenes, vadr + 3 : vadr + 6] = 0.0
+
+    def move_object(self, scenes: np.ndarray, body: str, position: np.ndarray, velocity: np.ndarray) -> None:
+        """Put a free object (the ball) at ``position`` (len(scenes), 3), level, moving at ``velocity``
+        (len(scenes), 3), in running ``scenes`` now (a referee's placement during play): the object's own sensors
+        (those whose object is the body) read its new state in the last step's record; every other record is
+        kept."""
+        if body not in self.objects:
+            raise KeyError(f"the scene has no free body {body!r} (it has {sorted(self.objects)})")
+        scenes = np.asarray(scenes, dtype=np.int64)
+        qadr, vadr = self.objects[body]
+        n = len(scenes)
+        qpos = np.column_stack([position, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))])
+        qvel = np.column_stack([velocity, np.zeros((n, 3))])
+        sensordata = self.sim.write(
+            scenes,
+            {"qpos": (np.tile(np.arange(qadr, qadr + 7), (n, 1)), qpos),
+             "qvel": (np.tile(np.arange(vadr, vadr + 6), (n, 1)), qvel)},
+        )  # fmt: skip
+        m = self.model
+        own = (m.sensor_objid == m.body(body).id) & np.isin(m.sensor_objtype, OBJECT_FRAMES)
+        for i in np.flatnonzero(own):  # the object's own sensors (its position and velocity)
+            columns = slice(int(m.sensor_adr[i]), int(m.sensor_adr[i] + m.sensor_dim[i]))
+            self.sim.substep_sensordata[scenes, -1, columns] = sensordata[:, columns]
 
     def pending_state(self, scenes: np.ndarray) -> dict[str, np.ndarray]:
         """The full state rows that a kickoff of ``scenes`` starts from: the model's defaults with the objects at

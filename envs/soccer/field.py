@@ -200,6 +200,24 @@ class Field:
     def half_width(self) -> float:
         return 0.5 * self.width
 
+    def left_field(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Whether a ball at (``x``, ``y``) has left the field: wholly past a touch line, or wholly past a goal line
+        beside the goal (past it between the posts is a goal)."""
+        r = self.ball.radius
+        past_goal_line = (np.abs(x) > self.half_length + r) & (np.abs(y) >= 0.5 * self.goal_width)
+        return (np.abs(y) > self.half_width + r) | past_goal_line
+
+    def throw_in(self, x: np.ndarray, y: np.ndarray, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where a referee puts back a ball that left the field at (``x``, ``y``): ``THROW_IN_BACK`` toward the goal
+        of the team that touched it last (``last``: +1 the home team, whose goal is at -x; -1 the away team; 0
+        nobody since the kickoff: toward the halfway line, not past it), at least that far from either goal line,
+        and ``THROW_IN_INSET`` inside the touch lines."""
+        back, inset = THROW_IN_BACK * self.scale, THROW_IN_INSET * self.scale
+        x, y, last = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64), np.asarray(last)
+        placed = np.where(last != 0, x - last * back, np.sign(x) * np.maximum(np.abs(x) - back, 0.0))
+        limit = self.half_length - back
+        return np.clip(placed, -limit, limit), np.clip(y, inset - self.half_width, self.half_width - inset)
+
 
 def _box(body: mujoco.MjsBody, name: str, centre, half, rgba, collide: bool = True) -> None:
     body.add_geom(
@@ -307,6 +325,12 @@ def field_edit(field: Field, players: Sequence[str] = (), root_body: str | None 
 
 
 # --- the leagues' fields and balls: each number's source is in docs/soccer.md ---------------------------------------
+# a ball that leaves the field is put back by the referee 1 m behind where it left, toward the goal of the team that
+# touched it last (RoboCup SPL rule book, "ball leaving the field"; scaled with the field); the SPL puts it on the
+# touch line, here it goes a Bioloid's body length inside it (assumed), so that a player gets round it on either side
+# and a pushing player does not pin it to the wall again
+THROW_IN_BACK = 1.0  # m on the Four-Legged field
+THROW_IN_INSET = 0.3  # m on the Four-Legged field
 # the Four-Legged League's ball: 84 mm (rUNSWift's 2005 field definition, BALL_RADIUS = 4.2 cm), a hollow plastic
 # shell; its mass is assumed (30 g: no source found); its roll: C_rr 0.05, a deceleration of 0.29 m/s^2, within the
 # 0.19-0.35 m/s^2 that RoboCup teams' simulators use for balls on carpet and turf; its bounce on carpet is assumed

@@ -10,8 +10,8 @@ Rewards: +1 to every player of a team that scores, -1 to every player of the oth
 ``ball_progress``) are in ``infos``. A goal is followed by a kickoff: players and ball back to their kickoff places.
 A fallen player (tilted, or breaking the ground rules, as in the walking tasks) is taken off the field as a referee
 would and put back standing at the touch line of its own half after ``penalty_seconds``, unless ``referee=False``
-lets it try to get up by itself. The game ends by rule (terminated) only when a team reaches ``max_goals``; the time
-limit (``max_cycles``) truncates it.
+lets it try to get up by itself. A ball that leaves the field is put back by the referee (``throw_in``). The game
+ends by rule (terminated) only when a team reaches ``max_goals``; the time limit (``max_cycles``) truncates it.
 
 Where a player is taken off, put back, or everyone kicks off, the change happens in the step after the one that
 called for it (the step's physics runs, then those players are placed), as Gymnasium's vector envs reset: each
@@ -35,7 +35,7 @@ from envs.common.locomotion import GRACE_TIME
 from envs.common.match import SharedScene
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import check_flag, check_number
-from envs.soccer.field import BALL, TOP_CAMERA, field_edit
+from envs.soccer.field import BALL, BALL_POS, TOP_CAMERA, field_edit
 from envs.soccer.robots import FIELDS, HEADS, ROBOTS
 from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
@@ -94,6 +94,7 @@ class Matches:
         num_matches: int = 1,
         nthread: int | None = None,
         kick: bool = False,
+        throw_in: bool = True,
         batched: bool | None = None,
     ):
         names = {name.lower(): name for name in ROBOTS}
@@ -110,6 +111,7 @@ class Matches:
         k = int(players_per_team)
         self.possible_agents = [f"home_{i}" for i in range(k)] + [f"away_{i}" for i in range(k)]
         self.referee = check_flag("referee", referee)
+        self.throw_in = check_flag("throw_in", throw_in)
         self.penalty_seconds = check_number("penalty_seconds", penalty_seconds, 0)
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
         if max_goals is not None and (isinstance(max_goals, bool) or not isinstance(max_goals, int) or max_goals < 1):
@@ -158,6 +160,7 @@ class Matches:
         self.off_until = np.full(rows, np.nan)  # a player off the field: the time it comes back
         self._pending = np.zeros(rows, dtype=bool)  # players to place at the next step (taken off, put back)
         self._kickoff = np.zeros(self.num_matches, dtype=bool)
+        self._last_touch = np.zeros(self.num_matches, dtype=np.int64)  # +1 home, -1 away, 0 nobody since the kickoff
         self.scores = np.zeros((self.num_matches, 2), dtype=np.int64)  # home, away
         self.cycles = np.zeros(self.num_matches, dtype=np.int64)
         self.obs = np.zeros((rows, self.task.layout.size))
@@ -241,6 +244,7 @@ class Matches:
         self.scores[matches] = 0
         self.cycles[matches] = 0
         self._kickoff[matches] = False
+        self._last_touch[matches] = 0
         self.off_until[rows] = np.nan
         self._pending[rows] = False
         for m in matches:
@@ -295,6 +299,7 @@ class Matches:
         ended = np.zeros(self.num_matches, dtype=bool)
         if self.max_goals is not None:
             ended = self.scores.max(axis=1) >= self.max_goals
+        thrown = self._throw_in(state["touched"], plus | minus | unstable, readings)
         quiet = unstable[self._match_of]
         return {
             "reward": np.where(quiet, 0.0, self.task.reward_terms(state)["goal"]),
@@ -307,9 +312,31 @@ class Matches:
             "goal_home": plus,
             "goal_away": minus,
             "ended": ended,
+            "throw_in": thrown,
             "truncated": ((self.cycles >= self.max_cycles) | unstable) & ~ended,
             "unstable": unstable,
         }
+
+    def _throw_in(self, touched: np.ndarray, skip: np.ndarray, readings: dict[str, np.ndarray]) -> np.ndarray:
+        """The referee's ball out: who touched the ball last in each match, and the ball of every match (not in
+        ``skip``) that left the field this step put back at its throw-in place (``Field.throw_in``), at rest, at once
+        (this step's observations still see it where it left). (num_matches,) bool: where it was put back."""
+        hit = touched.reshape(self.num_matches, self.players) > 0
+        home = self._home.reshape(self.num_matches, self.players)
+        by_home, by_away = (hit & home).any(axis=1), (hit & ~home).any(axis=1)
+        self._last_touch = np.where(by_home != by_away, np.where(by_home, 1, -1), self._last_touch)
+        if not self.throw_in:
+            return np.zeros(self.num_matches, dtype=bool)
+        ball = self.scene.scene_sensor(BALL_POS)
+        out = self.field.left_field(ball[:, 0], ball[:, 1]) & ~skip
+        if out.any():
+            ids = np.flatnonzero(out)
+            x, y = self.field.throw_in(ball[ids, 0], ball[ids, 1], self._last_touch[ids])
+            place = np.column_stack([x, y, np.full(len(ids), self.field.ball.radius)])
+            self.scene.move_object(ids, BALL, place, np.zeros((len(ids), 3)))
+            self._last_touch[ids] = 0
+            self.task.ball_moved(readings, self.rows_of(ids))
+        return out
 
     def _place_pending(self) -> np.ndarray:
         """After the step's physics: the kickoffs called for (every player of those matches), the players taken off
@@ -321,6 +348,7 @@ class Matches:
             matches = np.flatnonzero(self._kickoff)
             rows = self.rows_of(matches)
             self._kickoff[matches] = False
+            self._last_touch[matches] = 0
             self.off_until[rows] = np.nan
             self._pending[rows] = False
             for m in matches:
@@ -356,6 +384,11 @@ class SoccerParallelEnv(ParallelEnv):
         referee: take fallen players off for ``penalty_seconds`` and put them back standing (False: they stay and
             may get up by themselves).
         penalty_seconds: how long a fallen player stays off.
+        throw_in: a ball that leaves the field (wholly past a touch line, or past a goal line beside the goal) is put
+            back at once, at rest, as a referee would: ``THROW_IN_BACK`` (1 m on the Bioloid's field, scaled with the
+            field) behind where it left toward the goal of the team that touched it last, ``THROW_IN_INSET`` inside
+            the touch line (``Field.throw_in``); the step's ``info`` says ``throw_in``. False: the walls keep it in
+            play, where it can lie pinned in a corner for the rest of the match.
         sparse, ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: as the
             academy's (:class:`envs.soccer.task.SoccerTask`; the ground rules decide when a player has fallen).
         reset_noise_scale: perturbation of the robots' kickoff pose (the robot's ``reset``), and of their places
@@ -370,7 +403,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v3",
+        "name": "skitter_soccer_v4",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,
@@ -462,6 +495,7 @@ class SoccerParallelEnv(ParallelEnv):
                 "fallen": bool(out["fallen"][i]),
                 "reward_goal": float(out["reward"][i]),
                 "sim_unstable": bool(out["unstable"][0]),
+                "throw_in": bool(out["throw_in"][0]),
                 **{key: float(out[key][i]) for key in ("approach", "ball_progress", "touched", "ball_distance")},
             }
             for i, agent in enumerate(self.possible_agents)

@@ -1,16 +1,18 @@
 """The scripted soccer team, the matches' reference opponent: it plays in the ``commands`` mode (forward speed and
 turn rate, run by each robot's reference gait), so one script serves every robot.
 
-Each field player walks to the point behind the ball on the line from the goal it attacks through the ball, and once
-there pushes the ball along that line; from three a side the last player keeps goal, staying between the ball and the
-centre of its own goal. Every player reads its own observation by name (``ball``, ``goal``, ``own_goal``: positions in
-its frame) and steers on the bearing of its target: it turns toward it and walks faster the more it faces it.
+Each field player walks to the point behind the ball on the line from its aim through the ball, and once there pushes
+the ball along that line. It aims behind the centre of the goal it attacks where the ball's straight way there
+enters the goal; else (a ball wide of the goal near its line) at the goal line's centre, to bring the ball in front
+of the goal first. From three a side the last player keeps goal, staying between the ball and the centre of its own
+goal. Every player reads its own observation by name (``ball``, ``goal``, ``own_goal``: positions in its frame) and
+steers on the bearing of its target: it turns toward it and walks faster the more it faces it.
 
 A robot that can kick (the Bioloid, whose ball also fits under its body) lines up with the ball in front of its
 right front foot, not of its centre (a player choosing its foot afresh at every step would swap sides while on the
 line): it walks the line to the goal shifted to its left by the foot's offset, and closes in slowly. Where its
 commands have the kick (``kick=True``), it kicks with either foot when the ball lies in that foot's kick zone
-(``Commands.kick_zone``) and the goal it attacks is ahead.
+(``Commands.kick_zone``) and its aim in the goal it attacks is ahead.
 
 A player that has neither moved nor turned for ``stuck_seconds`` while it wants to (pressed into a goal's net, wedged
 between a post and the wall, pushing a ball against the wall) escapes: it turns to the centre spot and walks toward
@@ -47,6 +49,7 @@ ESCAPE_WALK = 3.0  # body lengths a stuck player walks toward the centre spot af
 KICK_TOWARD = np.radians(20.0)
 KICK_SLOW_WITHIN = 0.5  # body lengths from its kick zone within which a kicker pushing the ball slows down, to
 KICK_CREEP = 0.15  # of its cruising speed
+AIM_DEPTH = 0.5  # of the goal's width: how far behind the goal line's centre a field player aims
 JUMP = 1.0  # body lengths between two steps: the player was placed (a kickoff, a penalty), and starts afresh
 # the memory of each row (``predict``'s state): where it is and its heading on the field; where it was and its heading
 # when it last moved or turned, and how long ago; the seconds left of an escape
@@ -75,6 +78,8 @@ class ScriptedPlayer:
             raise ValueError(f"kick: a commands mode with a kick ({mode.commands}) needs the robot's kick zone")
         self.layout, self.mode, self.length, self.keeper, self.kick = layout, mode, length, keeper, kick
         self.ball_radius = field.ball.radius
+        self.aim_depth = AIM_DEPTH * field.goal_width
+        self.goal_half_width = 0.5 * field.goal_width
         # how far from the centre spot a player's target may lie: a body length inside the walls
         self.inside = (0.5 * field.length + field.end_border - length, 0.5 * field.width + field.side_border - length)
 
@@ -89,7 +94,7 @@ class ScriptedPlayer:
             reach = np.linalg.norm(toward, axis=1, keepdims=True)
             keep = np.minimum(KEEP * self.length, reach)
             return own + toward / np.maximum(reach, 1e-9) * keep, np.zeros(len(obs), dtype=bool)
-        line = goal - ball
+        line = self.aim(ball, goal, own) - ball
         u = line / np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-9)
         if self.kick is not None and not self.keeper:  # the line shifted to its left: the right foot on the line
             ball = ball + np.column_stack([-u[:, 1], u[:, 0]]) * self.kick.side
@@ -114,13 +119,32 @@ class ScriptedPlayer:
         through = ball + u * self.length
         return self.on_field(np.where(pushing[:, None], through, target), goal, own), pushing
 
+    def aim(self, ball: np.ndarray, goal: np.ndarray, own: np.ndarray) -> np.ndarray:
+        """Where each row's field player aims the ball (n, 2), in its frame: ``AIM_DEPTH`` behind the centre of the
+        goal line it attacks, if the ball's straight way there enters the goal a ball's width inside the posts; else
+        (a ball wide of the goal near its line) the centre of the goal line, which brings the ball in front of the
+        goal first. (Aimed at the line's centre, a ball just short of the line would be pushed along it.)"""
+        centre, ex, ey = self.field_frame(goal, own)
+        rel = ball - centre
+        x, y = np.sum(rel * ex, axis=1), np.sum(rel * ey, axis=1)
+        line = np.linalg.norm(goal - centre, axis=1)
+        crossing = y * self.aim_depth / np.maximum(line + self.aim_depth - x, 1e-9)  # where it crosses the line
+        through = (x < line) & (np.abs(crossing) <= self.goal_half_width - 2.0 * self.ball_radius)
+        return goal + np.where(through[:, None], self.aim_depth * ex, 0.0)
+
+    @staticmethod
+    def field_frame(goal: np.ndarray, own: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The field's frame in each row's own frame, from the two goals it sees: the centre spot (their midpoint),
+        and the unit vectors along the field toward the goal it attacks and across it to the left (n, 2) each."""
+        centre = 0.5 * (goal + own)
+        ex = (goal - own) / np.maximum(np.linalg.norm(goal - own, axis=1, keepdims=True), 1e-9)
+        return centre, ex, np.column_stack([-ex[:, 1], ex[:, 0]])
+
     def on_field(self, points: np.ndarray, goal: np.ndarray, own: np.ndarray) -> np.ndarray:
         """Points (n, 2) in each player's frame, moved inside the walls by a body length: a ball against a wall has
         its approach point beyond it, and a player sent there would walk into the wall. The field's frame comes from
         the two goals the player sees (their midpoint the centre spot, the line through them the x axis)."""
-        centre = 0.5 * (goal + own)
-        ex = (goal - own) / np.maximum(np.linalg.norm(goal - own, axis=1, keepdims=True), 1e-9)
-        ey = np.column_stack([-ex[:, 1], ex[:, 0]])
+        centre, ex, ey = self.field_frame(goal, own)
         rel = points - centre
         x = np.clip(np.sum(rel * ex, axis=1), -self.inside[0], self.inside[0])
         y = np.clip(np.sum(rel * ey, axis=1), -self.inside[1], self.inside[1])
@@ -139,15 +163,16 @@ class ScriptedPlayer:
 
     def kicks(self, obs: np.ndarray) -> np.ndarray:
         """Each row's kick command: +1 (the left front leg) or -1 (the right) where the ball lies in the kick zone on
-        that side and the goal it attacks is ahead, else 0."""
+        that side and its aim (:meth:`aim`) is ahead, else 0."""
         n = len(obs)
         if not self.may_kick or self.keeper:
             return np.zeros(n)
-        ball, goal = self.layout.get(obs, "ball"), self.layout.get(obs, "goal")
+        ball, goal, own = (self.layout.get(obs, name) for name in ("ball", "goal", "own_goal"))
+        aim = self.aim(ball, goal, own)
         near, far = self.kick.ahead
         in_zone = (ball[:, 0] >= near) & (ball[:, 0] <= far) & (np.abs(np.abs(ball[:, 1]) - self.kick.side)
                                                                   <= self.kick.width)  # fmt: skip
-        ahead = np.abs(np.arctan2(goal[:, 1], goal[:, 0])) <= KICK_TOWARD
+        ahead = np.abs(np.arctan2(aim[:, 1], aim[:, 0])) <= KICK_TOWARD
         return np.where(in_zone & ahead, np.sign(ball[:, 1]), 0.0)
 
     def steer(self, target: np.ndarray, pushing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -123,6 +123,13 @@ class SoccerTask(LocomotionTask):
         self._goal_distance[ids] = to_goal[ids]
         self._observe(readings, ball, ids)
 
+    def ball_moved(self, readings: dict[str, np.ndarray], ids: np.ndarray) -> None:
+        """The ball was put somewhere by hand (a referee's throw-in): players ``ids``' shaping terms count from its
+        new place, not across the jump."""
+        ball, to_goal = self._ball_state(readings)
+        self._ball_distance[ids] = ball["distance"][ids]
+        self._goal_distance[ids] = to_goal[ids]
+
     def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
         state = super().update(readings, stepped)
         ball, to_goal = self._ball_state(readings)
