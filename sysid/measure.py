@@ -55,21 +55,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _write_new(path: Path, text: str) -> int:
-    """Write ``path`` whole, never over a file that appeared there meanwhile: the text goes to a temporary file
-    beside it, linked to ``path`` only if nothing is there (an atomic no-clobber), else kept under its own name."""
-    import tempfile
+    """Write ``path`` whole, never over a file that appeared there meanwhile (kept under its own name then)."""
+    from envs.common.io import atomic_write_new
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    with os.fdopen(fd, "w") as out:
-        out.write(text)
-    try:
-        os.link(tmp, path)
-    except FileExistsError:
+    where, written = atomic_write_new(path, lambda tmp: tmp.write_text(text))
+    if not written:
         print(f"measure: error: {path} appeared during the run and is left as it was; the measurements are in "
-              f"{tmp}", file=sys.stderr)  # fmt: skip
+              f"{where}", file=sys.stderr)  # fmt: skip
         return 1
-    os.unlink(tmp)
     return 0
 
 

@@ -32,6 +32,29 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     return path
 
 
+def atomic_write_new(path: str | Path, write: Callable[[Path], None]) -> tuple[Path, bool]:
+    """:func:`atomic_write` that never replaces a file: the result is linked to ``path`` only if nothing is there
+    (an atomic no-clobber, for a ``path`` checked free when the run began). Returns (where the result is, whether
+    that is ``path``): if a file appeared at ``path`` meanwhile, it is left as it was and the result stays in its
+    temporary file beside it, for the caller to name."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    prefix, suffix = _temp_affixes(path)
+    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.chmod(tmp, 0o666 & ~current_umask())
+        os.link(tmp, path)
+    except FileExistsError:
+        return Path(tmp), False
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    os.unlink(tmp)
+    return path, True
+
+
 def _temp_affixes(path: Path) -> tuple[str, str]:
     """The prefix and suffix of :func:`atomic_write`'s temporary file for ``path``: hidden, and keeping the
     extension, for writers that choose their format by it (ffmpeg, matplotlib)."""
