@@ -18,17 +18,7 @@ from typing import Any
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp_path)`` and move the result to ``path`` in one rename, so readers never see half a file."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    prefix, suffix = _temp_affixes(path)
-    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes the file private; give it the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    _written_beside(path, write, lambda tmp: os.replace(tmp, path))
     return path
 
 
@@ -38,21 +28,40 @@ def atomic_write_new(path: str | Path, write: Callable[[Path], None]) -> tuple[P
     that is ``path``): if a file appeared at ``path`` meanwhile, it is left as it was and the result stays in its
     temporary file beside it, for the caller to name."""
     path = Path(path)
+    try:
+        tmp = _written_beside(path, write, lambda tmp: os.link(tmp, path))
+    except _Kept as kept:
+        return kept.tmp, False
+    tmp.unlink()
+    return path, True
+
+
+class _Kept(Exception):
+    def __init__(self, tmp: Path):
+        self.tmp = tmp
+
+
+def _written_beside(path: Path, write: Callable[[Path], None], place: Callable[[Path], None]) -> Path:
+    """``write`` a temporary file beside ``path`` (hidden, with the usual permissions), then ``place`` it; the
+    temporary file is removed on any error but a ``place`` that finds ``path`` taken (:class:`_Kept` then)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     prefix, suffix = _temp_affixes(path)
-    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
+    fd, name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
     os.close(fd)
+    tmp = Path(name)
     try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~current_umask())
-        os.link(tmp, path)
-    except FileExistsError:
-        return Path(tmp), False
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        write(tmp)
+        os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes the file private; give it the usual permissions
+        try:
+            place(tmp)
+        except FileExistsError as exc:
+            raise _Kept(tmp) from exc
+    except _Kept:
         raise
-    os.unlink(tmp)
-    return path, True
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return tmp
 
 
 def _temp_affixes(path: Path) -> tuple[str, str]:
