@@ -58,6 +58,7 @@ from envs.common.io import ToolParser, atomic_write, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RETURN = "return"
+NARROW_MARGIN = 0.25  # a reference that beats random by less than this share of its return: say normalizing magnifies
 RESIDUAL = "+residual"  # an algorithm's suffix: learn a correction on top of the task's reference gait
 CURVE_POINTS = 200  # a row's learning curve as kept in its record
 CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw reward: VecMonitor is innermost)
@@ -729,8 +730,16 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     if unranked:
         lines += ["", "Not normalized (the reference scores no better than random there): "
                   + ", ".join(f"`{t}`" for t in unranked) + "."]  # fmt: skip
+    narrow = [t for t in plan.tasks if not is_soccer(t) and comparable(baselines[t])
+              and baselines[t]["reference_return"] - baselines[t]["random_return"]
+              < NARROW_MARGIN * abs(baselines[t]["reference_return"])]  # fmt: skip
+    if narrow:
+        lines += ["", "The reference gait beats a random policy by little on "
+                  + ", ".join(f"`{t}` ({baselines[t]['reference_return'] - baselines[t]['random_return']:.0f} of "
+                              f"{baselines[t]['reference_return']:.0f})" for t in narrow)
+                  + ": a normalized score there magnifies a lead in return; read the returns beside it."]  # fmt: skip
     if seeds < 4:
-        lines += ["", f"With {seeds} seeds the interquartile mean trims nothing: it is the mean."]
+        lines += ["", f"Over {seeds} seeds or fewer the interquartile mean trims nothing: it is the mean."]
     missing = [a for a in plan.algos if a not in overall]
     if overall:
         lines += ["", "Over all tasks: " + "; ".join(f"{a} {_interval(v)}" for a, v in overall.items()) + ".", "",

@@ -138,6 +138,11 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     summary = leaderboard.build_table(plan, tmp_path, flat, rows, None)
     assert xjus not in summary["per_task"] and np.isnan(leaderboard.normalized(7.0, flat[xjus]))
     assert f"no better than random there): `{xjus}`" in (tmp_path / "results.md").read_text()
+    # one whose reference beats random by a small share of its return: the page says a score there magnifies
+    narrow = {**baselines, xjus: {"reference": "gait", "reference_return": 110.0, "random_return": 100.0}}
+    leaderboard.build_table(plan, tmp_path, narrow, rows, None)
+    text = (tmp_path / "results.md").read_text()
+    assert f"beats a random policy by little on `{xjus}` (10 of 110)" in text and f"`{WALK}` (" not in text
 
 
 def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
