@@ -208,6 +208,8 @@ def test_a_scripted_player_aims_behind_the_goal_where_the_ball_goes_straight_in_
     np.testing.assert_allclose(short, [[0.9 + depth, 0.0]])
     wide = p.aim(np.array([[0.85, 0.5]]), goal, own)
     np.testing.assert_allclose(wide, goal)
+    on_line = p.aim(np.array([[0.9, 0.0]]), goal, own)  # on the line, not yet wholly over it: pushed in
+    np.testing.assert_allclose(on_line, [[0.9 + depth, 0.0]])
     # seen from a player turned half a turn (the goal behind it), the same ball gets the same aim in its frame
     turned = p.aim(-np.array([[0.87, 0.06]]), -goal, -own)
     np.testing.assert_allclose(turned, -short)

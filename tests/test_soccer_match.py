@@ -120,6 +120,25 @@ def test_the_throw_in_goes_toward_the_goal_of_the_team_that_touched_the_ball_las
     assert not inside.any(), "past the goal line between the posts is a goal; on a line is still in"
 
 
+def test_a_throw_in_spot_taken_by_a_player_moves_along_the_line_clear_of_it():
+    """A player standing on the throw-in spot: the ball goes a body length on along the touch line, the way it was
+    sent, not into the robot (which would shoot it out)."""
+    env = quiet(robot="roach", players_per_team=1)
+    f = env.field
+    spot = (0.0, -(f.half_width - THROW_IN_INSET * f.scale))  # where a ball out at x = 0.3 m, untouched, goes
+    env.reset(seed=0, options={"ball": (0.3, -(f.half_width + 1.5 * f.ball.radius)),
+                               "places": {"home_0": (*spot, 0.0)}})  # fmt: skip
+    _, _, _, _, infos = env.step({a: np.zeros(3) for a in env.possible_agents})
+    assert infos["home_0"]["throw_in"]
+    ball = env.scene.scene_sensor("ball_pos")[0]
+    length = env.task.length
+    assert ball[1] == pytest.approx(spot[1]) and ball[0] == pytest.approx(-length), "one body length on, toward -x"
+    robot = env.robot.read([None, None], False)["position"][0]
+    assert np.hypot(*(ball[:2] - robot[:2])) > length
+    _, _, _, _, infos = env.step({a: np.zeros(3) for a in env.possible_agents})
+    assert np.linalg.norm(env.scene.scene_sensor("ball_vel")[0]) < 0.05 and not infos["home_0"]["touched"]
+
+
 def test_without_the_throw_in_a_ball_past_the_touch_line_stays_in_play():
     env = quiet(robot="roach", players_per_team=1, throw_in=False)
     env.reset(seed=0)

@@ -18,7 +18,7 @@ from typing import Any
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp_path)`` and move the result to ``path`` in one rename, so readers never see half a file."""
     path = Path(path)
-    _written_beside(path, write, lambda tmp: os.replace(tmp, path))
+    _written_beside(path, write, link=False)
     return path
 
 
@@ -29,7 +29,7 @@ def atomic_write_new(path: str | Path, write: Callable[[Path], None]) -> tuple[P
     temporary file beside it, for the caller to name."""
     path = Path(path)
     try:
-        tmp = _written_beside(path, write, lambda tmp: os.link(tmp, path))
+        tmp = _written_beside(path, write, link=True)
     except _Kept as kept:
         return kept.tmp, False
     tmp.unlink()
@@ -41,9 +41,10 @@ class _Kept(Exception):
         self.tmp = tmp
 
 
-def _written_beside(path: Path, write: Callable[[Path], None], place: Callable[[Path], None]) -> Path:
-    """``write`` a temporary file beside ``path`` (hidden, with the usual permissions), then ``place`` it; the
-    temporary file is removed on any error but a ``place`` that finds ``path`` taken (:class:`_Kept` then)."""
+def _written_beside(path: Path, write: Callable[[Path], None], link: bool) -> Path:
+    """``write`` a temporary file beside ``path`` (hidden, with the usual permissions), then rename it onto ``path``
+    or, with ``link``, hard-link it there only if nothing is there; the temporary file is removed on any error but a
+    link that finds ``path`` taken (:class:`_Kept` then)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     prefix, suffix = _temp_affixes(path)
     fd, name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
@@ -52,8 +53,11 @@ def _written_beside(path: Path, write: Callable[[Path], None], place: Callable[[
     try:
         write(tmp)
         os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes the file private; give it the usual permissions
+        if not link:
+            os.replace(tmp, path)
+            return tmp
         try:
-            place(tmp)
+            os.link(tmp, path)
         except FileExistsError as exc:
             raise _Kept(tmp) from exc
     except _Kept:

@@ -210,8 +210,8 @@ class Field:
     def throw_in(self, x: np.ndarray, y: np.ndarray, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Where a referee puts back a ball that left the field at (``x``, ``y``): ``THROW_IN_BACK`` toward the goal
         of the team that touched it last (``last``: +1 the home team, whose goal is at -x; -1 the away team; 0
-        nobody since the kickoff: toward the halfway line, not past it), at least that far from either goal line,
-        and ``THROW_IN_INSET`` inside the touch lines."""
+        nobody since the kickoff or the last throw-in: toward the halfway line, not past it), at least that far from
+        either goal line, and ``THROW_IN_INSET`` inside the touch lines."""
         back, inset = THROW_IN_BACK * self.scale, THROW_IN_INSET * self.scale
         x, y, last = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64), np.asarray(last)
         placed = np.where(last != 0, x - last * back, np.sign(x) * np.maximum(np.abs(x) - back, 0.0))

@@ -129,7 +129,9 @@ class ScriptedPlayer:
         x, y = np.sum(rel * ex, axis=1), np.sum(rel * ey, axis=1)
         line = np.linalg.norm(goal - centre, axis=1)
         crossing = y * self.aim_depth / np.maximum(line + self.aim_depth - x, 1e-9)  # where it crosses the line
-        through = (x < line) & (np.abs(crossing) <= self.goal_half_width - 2.0 * self.ball_radius)
+        # a ball on the line (not yet wholly over it) counts as short of it: aimed at the line's centre it would be
+        # pushed back out
+        through = (x < line + self.ball_radius) & (np.abs(crossing) <= self.goal_half_width - 2.0 * self.ball_radius)
         return goal + np.where(through[:, None], self.aim_depth * ex, 0.0)
 
     @staticmethod
