@@ -33,7 +33,11 @@ from envs.soccer import TASKS as ACADEMY_TASKS
 from envs.soccer.academy import version
 from envs.soccer.scripted import ScriptedPlayer
 
-CONFIGURATIONS: dict[str, list[str]] = {"soccer_scripted": [], "soccer_scripted_academy": ["--academy-only"]}
+CONFIGURATIONS: dict[str, list[str]] = {
+    "soccer_scripted": [],
+    "soccer_scripted_academy": ["--academy-only"],
+    "soccer_scripted_bioloid": ["--robots", "bioloid"],
+}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
 ROBOTS = {"roach": "Roach", "xjus": "Xjus", "bioloid": "Bioloid"}
 TASKS = ("GoToBall", "ScoreEmptyGoal", "ScoreVsKeeper")
@@ -83,6 +87,8 @@ def match_set(job: tuple[str, str, bool]) -> dict:
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__.splitlines()[0])
     parser.add_argument("--academy-only", action="store_true", help="run the academy's episodes, not the matches")
+    parser.add_argument("--robots", nargs="+", choices=tuple(ROBOTS), default=list(ROBOTS),
+                        help="the robots whose academy and matches to run (default: all three)")  # fmt: skip
     add_output_options(parser)
     return parser
 
@@ -92,10 +98,12 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "soccer_scripted", CONFIGURATIONS)
     started = time.perf_counter()
-    episodes = [academy(robot, task) for robot in ROBOTS for task in TASKS]
-    episodes += [academy(robot, task, kick=True) for robot in KICKERS for task in TASKS]
-    jobs = [] if args.academy_only else [(robot, away, False) for robot in ROBOTS for away in ("random", "scripted")]
-    jobs += [] if args.academy_only else [(robot, "random", True) for robot in KICKERS]
+    robots = [r for r in ROBOTS if r in args.robots]
+    kickers = [r for r in KICKERS if r in args.robots]
+    episodes = [academy(robot, task) for robot in robots for task in TASKS]
+    episodes += [academy(robot, task, kick=True) for robot in kickers for task in TASKS]
+    jobs = [] if args.academy_only else [(robot, away, False) for robot in robots for away in ("random", "scripted")]
+    jobs += [] if args.academy_only else [(robot, "random", True) for robot in kickers]
     # each set is seeded on its own (the same numbers serially); fresh interpreters, not forks of this one, whose
     # simulations' worker threads a fork would not carry over
     with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
