@@ -92,8 +92,8 @@ def test_a_ball_that_leaves_the_field_is_put_back_as_a_referee_would():
             break
     assert infos["home_0"]["throw_in"] and infos["away_0"]["throw_in"] and rewards["home_0"] == 0.0
     ball = env.scene.scene_sensor("ball_pos")[0]
-    expected = f.throw_in(np.array([x_out]), np.array([f.half_width + 0.05]), np.array([0]))
-    assert ball[0] == pytest.approx(max(x_out - THROW_IN_BACK * f.scale, 0.0)) == pytest.approx(expected[0][0])
+    expected = f.throw_in(x_out, f.half_width + 0.05, 0, np.zeros((0, 2)), 0.0)
+    assert ball[0] == pytest.approx(max(x_out - THROW_IN_BACK * f.scale, 0.0)) == pytest.approx(expected[0])
     assert ball[1] == pytest.approx(f.half_width - THROW_IN_INSET * f.scale)
     assert np.allclose(env.scene.scene_sensor("ball_vel")[0], 0.0)
     _, _, _, _, infos = env.step(still)
@@ -108,11 +108,16 @@ def test_the_throw_in_goes_toward_the_goal_of_the_team_that_touched_the_ball_las
     x = np.array([0.5, 0.5, 1.2, 0.4, f.half_length + 0.1, -(f.half_length + 0.1)])
     y = np.array([f.half_width + 0.1, f.half_width + 0.1, -(f.half_width + 0.1), f.half_width + 0.1, 0.9, -0.9])
     last = np.array([1, -1, 0, 0, -1, 1])  # home's goal is at -x: a home touch sends the ball toward -x
-    px, py = f.throw_in(x, y, last)
+    none = np.zeros((0, 2))
+
+    def throw(xs, ys, lasts):
+        return np.array([f.throw_in(*a, none, 0.0) for a in zip(xs, ys, lasts, strict=True)]).T
+
+    px, py = throw(x, y, last)
     limit = f.half_length - back
     np.testing.assert_allclose(px, [0.5 - back, 0.5 + back, 1.2 - back, 0.0, limit, -limit])
     np.testing.assert_allclose(py, [*[f.half_width - inset] * 2, inset - f.half_width, f.half_width - inset, 0.9, -0.9])
-    mx, my = f.throw_in(-x, -y, -last)  # the field turned by half a turn, the teams swapped
+    mx, my = throw(-x, -y, -last)  # the field turned by half a turn, the teams swapped
     np.testing.assert_allclose(mx, -px)
     np.testing.assert_allclose(my, -py)
     assert list(f.left_field(x, y)) == [True] * 6

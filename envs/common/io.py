@@ -18,7 +18,12 @@ from typing import Any
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp_path)`` and move the result to ``path`` in one rename, so readers never see half a file."""
     path = Path(path)
-    _written_beside(path, write, link=False)
+    tmp = _written_beside(path, write)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -28,23 +33,21 @@ def atomic_write_new(path: str | Path, write: Callable[[Path], None]) -> tuple[P
     that is ``path``): if a file appeared at ``path`` meanwhile, it is left as it was and the result stays in its
     temporary file beside it, for the caller to name."""
     path = Path(path)
+    tmp = _written_beside(path, write)
     try:
-        tmp = _written_beside(path, write, link=True)
-    except _Kept as kept:
-        return kept.tmp, False
+        os.link(tmp, path)
+    except FileExistsError:
+        return tmp, False
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     tmp.unlink()
     return path, True
 
 
-class _Kept(Exception):
-    def __init__(self, tmp: Path):
-        self.tmp = tmp
-
-
-def _written_beside(path: Path, write: Callable[[Path], None], link: bool) -> Path:
-    """``write`` a temporary file beside ``path`` (hidden, with the usual permissions), then rename it onto ``path``
-    or, with ``link``, hard-link it there only if nothing is there; the temporary file is removed on any error but a
-    link that finds ``path`` taken (:class:`_Kept` then)."""
+def _written_beside(path: Path, write: Callable[[Path], None]) -> Path:
+    """A temporary file beside ``path`` (hidden, with the usual permissions) that ``write`` filled; removed if
+    ``write`` fails."""
     path.parent.mkdir(parents=True, exist_ok=True)
     prefix, suffix = _temp_affixes(path)
     fd, name = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
@@ -53,15 +56,6 @@ def _written_beside(path: Path, write: Callable[[Path], None], link: bool) -> Pa
     try:
         write(tmp)
         os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes the file private; give it the usual permissions
-        if not link:
-            os.replace(tmp, path)
-            return tmp
-        try:
-            os.link(tmp, path)
-        except FileExistsError as exc:
-            raise _Kept(tmp) from exc
-    except _Kept:
-        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -207,16 +207,28 @@ class Field:
         past_goal_line = (np.abs(x) > self.half_length + r) & (np.abs(y) >= 0.5 * self.goal_width)
         return (np.abs(y) > self.half_width + r) | past_goal_line
 
-    def throw_in(self, x: np.ndarray, y: np.ndarray, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def throw_in(self, x: float, y: float, last: int, players: np.ndarray, clearance: float) -> tuple[float, float]:
         """Where a referee puts back a ball that left the field at (``x``, ``y``): ``THROW_IN_BACK`` toward the goal
         of the team that touched it last (``last``: +1 the home team, whose goal is at -x; -1 the away team; 0
         nobody since the kickoff or the last throw-in: toward the halfway line, not past it), at least that far from
-        either goal line, and ``THROW_IN_INSET`` inside the touch lines."""
+        either goal line, ``THROW_IN_INSET`` inside the touch lines; then moved along the touch line by
+        ``clearance``, first the way the ball was sent, until none of ``players`` ((n, 2) positions) lies within
+        ``clearance`` of it (a ball put inside a robot is shot out of it), or left there if no such place is within
+        those limits."""
         back, inset = THROW_IN_BACK * self.scale, THROW_IN_INSET * self.scale
-        x, y, last = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64), np.asarray(last)
-        placed = np.where(last != 0, x - last * back, np.sign(x) * np.maximum(np.abs(x) - back, 0.0))
+        way = -last if last != 0 else -np.sign(x)  # the way the ball is sent back
+        placed = x - last * back if last != 0 else np.sign(x) * max(abs(x) - back, 0.0)
         limit = self.half_length - back
-        return np.clip(placed, -limit, limit), np.clip(y, inset - self.half_width, self.half_width - inset)
+        placed = float(np.clip(placed, -limit, limit))
+        y = float(np.clip(y, inset - self.half_width, self.half_width - inset))
+        way = way if way != 0 else 1.0
+        players = np.asarray(players, dtype=np.float64).reshape(-1, 2)
+        for k in range(int(2.0 * limit / clearance) + 2 if clearance > 0 else 1):
+            for spot in (placed + way * k * clearance, placed - way * k * clearance)[: 1 if k == 0 else 2]:
+                near = len(players) and np.min(np.hypot(players[:, 0] - spot, players[:, 1] - y)) <= clearance
+                if abs(spot) <= limit + 1e-9 and not near:
+                    return float(spot), y
+        return placed, y
 
 
 def _box(body: mujoco.MjsBody, name: str, centre, half, rgba, collide: bool = True) -> None:

@@ -35,7 +35,7 @@ from envs.common.locomotion import GRACE_TIME
 from envs.common.match import SharedScene
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import check_flag, check_number
-from envs.soccer.field import BALL, BALL_POS, THROW_IN_BACK, TOP_CAMERA, field_edit
+from envs.soccer.field import BALL, BALL_POS, TOP_CAMERA, field_edit
 from envs.soccer.robots import FIELDS, HEADS, ROBOTS
 from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
@@ -322,9 +322,9 @@ class Matches:
     def _throw_in(self, touched: np.ndarray, skip: np.ndarray, readings: dict[str, np.ndarray]) -> np.ndarray:
         """The referee's ball out: who touched the ball last in each match (of one team alone in a step; if both
         touched it, the earlier toucher stands), and the ball of every match (not in ``skip``) that left the field
-        this step put back at its throw-in place (``Field.throw_in``; moved along the touch line clear of the
-        players), at rest, at once (this step's observations still see it where it left); nobody has touched it
-        since. (num_matches,) bool: where it was put back."""
+        this step put back at its throw-in place (``Field.throw_in``, clear of the players by a body length), at
+        rest, at once (this step's observations still see it where it left); nobody has touched it since.
+        (num_matches,) bool: where it was put back."""
         hit = touched.reshape(self.num_matches, self.players) > 0
         home = self._home.reshape(self.num_matches, self.players)
         by_home, by_away = (hit & home).any(axis=1), (hit & ~home).any(axis=1)
@@ -335,32 +335,23 @@ class Matches:
         out = self.field.left_field(ball[:, 0], ball[:, 1]) & ~skip
         if out.any():
             ids = np.flatnonzero(out)
-            last = self._last_touch[ids]
-            x, y = self.field.throw_in(ball[ids, 0], ball[ids, 1], last)
-            toward = np.where(last != 0, -last, -np.sign(ball[ids, 0]))  # the way the ball was sent back
             positions = readings["position"][:, :2]
-            x = np.array([self._clear_of_players(m, xi, yi, t, positions)
-                          for m, xi, yi, t in zip(ids, x, y, toward, strict=True)])  # fmt: skip
+            spots = [
+                self.field.throw_in(
+                    ball[m, 0],
+                    ball[m, 1],
+                    self._last_touch[m],
+                    positions[self.rows_of(np.array([m]))],
+                    self.task.length,
+                )
+                for m in ids
+            ]
+            x, y = np.array(spots).T  # fmt: skip
             place = np.column_stack([x, y, np.full(len(ids), self.field.ball.radius)])
             self.scene.move_object(ids, BALL, place, np.zeros((len(ids), 3)))
             self._last_touch[ids] = 0
             self.task.ball_moved(readings, self.rows_of(ids))
         return out
-
-    def _clear_of_players(self, match: int, x: float, y: float, toward: float, positions: np.ndarray) -> float:
-        """The x of a throw-in spot moved along the touch line by body lengths, first the way the ball was sent,
-        until no player of the match stands within a body length of it (a ball put inside a robot is shot out of it);
-        the spot as it was if no place within the field's throw-in limits is clear."""
-        clearance = self.task.length
-        limit = self.field.half_length - THROW_IN_BACK * self.field.scale
-        players = positions[self.rows_of(np.array([match]))]
-        way = toward if toward != 0 else 1.0
-        for k in range(int(2.0 * limit / clearance) + 2):
-            for candidate in (x + way * k * clearance, x - way * k * clearance)[: 1 if k == 0 else 2]:
-                clear = np.min(np.hypot(players[:, 0] - candidate, players[:, 1] - y)) > clearance
-                if abs(candidate) <= limit + 1e-9 and clear:
-                    return float(candidate)
-        return float(x)
 
     def _place_pending(self) -> np.ndarray:
         """After the step's physics: the kickoffs called for (every player of those matches), the players taken off

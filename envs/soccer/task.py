@@ -118,17 +118,16 @@ class SoccerTask(LocomotionTask):
         super().reset(ids, rngs, options, readings)
         for i, rng in zip(ids, rngs, strict=True):  # each player's stream, for what it sees at every step
             self._generators[i] = rng
-        ball, to_goal = self._ball_state(readings)
-        self._ball_distance[ids] = ball["distance"][ids]
-        self._goal_distance[ids] = to_goal[ids]
+        ball = self.ball_moved(readings, ids)
         self._observe(readings, ball, ids)
 
-    def ball_moved(self, readings: dict[str, np.ndarray], ids: np.ndarray) -> None:
-        """The ball was put somewhere by hand (a referee's throw-in): players ``ids``' shaping terms count from its
-        new place, not across the jump."""
+    def ball_moved(self, readings: dict[str, np.ndarray], ids: np.ndarray) -> dict[str, np.ndarray]:
+        """The ball was put somewhere (a reset, a referee's throw-in): players ``ids``' shaping terms count from its
+        new place, not across the jump. Returns the ball's state as every player sees it."""
         ball, to_goal = self._ball_state(readings)
         self._ball_distance[ids] = ball["distance"][ids]
         self._goal_distance[ids] = to_goal[ids]
+        return ball
 
     def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
         state = super().update(readings, stepped)
