@@ -97,6 +97,9 @@ class SoccerTask(LocomotionTask):
         self._goal_distance = np.zeros(n)
         super().__init__(robot, False, 0.0, max_tilt, terminate_when_unhealthy, height_band, grace_time)
         self._generators: list[np.random.Generator | None] = [None] * n
+        self._draws = np.empty((n, 2 * (self._k + 1)))
+        # the goal attacked and the own goal's centres, per player
+        self._goal_points = (self._side * field.half_length)[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
 
     # --- layout ---------------------------------------------------------------------------------------------------
     def _command_structure(self) -> dict[str, int]:
@@ -194,36 +197,46 @@ class SoccerTask(LocomotionTask):
         def frame(vec: np.ndarray) -> np.ndarray:
             """World-frame vectors (n, m, 2) in each row's own frame."""
             x, y = vec[..., 0], vec[..., 1]
-            return np.stack([c * x + s * y, -s * x + c * y], axis=-1)
+            out = np.empty(vec.shape)
+            np.add(c * x, s * y, out=out[..., 0])
+            np.subtract(c * y, s * x, out=out[..., 1])
+            return out
 
         pos = readings["position"][:, :2]
         n, k = len(pos), self._k
-        seen = frame(np.stack([ball["offset"], ball["velocity"][:, :2]], axis=1))  # (n, 2, 2): position, velocity
+        rows = slice(None) if len(ids) == n else ids  # every row (the usual step) without a gather
+        world = np.empty((n, 2, 2))  # the ball's position and velocity
+        world[:, 0], world[:, 1] = ball["offset"], ball["velocity"][:, :2]
+        seen = frame(world)
         others = np.zeros((n, k - 1, 2))
         if k > 1:
             in_scene = pos.reshape(-1, k, 2)
             rel = in_scene[:, self._order, :] - in_scene[:, :, None, :]  # (scenes, k, k - 1, 2)
             others = frame(rel.reshape(n, k - 1, 2))
         if self.ball_noise > 0 and len(ids):
-            draws = np.stack([self._generators[i].normal(0.0, 1.0, 2 * (k + 1)) for i in ids])
-            sigma = self.ball_noise * np.column_stack(
-                [ball["distance"][ids], np.hypot(*others[ids].transpose(2, 0, 1))]
-            )
-            seen[ids] += draws[:, :4].reshape(-1, 2, 2) * sigma[:, :1, None]
+            draws = self._draws[: len(ids)]  # standard_normal(out=) is normal(0, 1)'s values at half its cost
+            for row, i in zip(draws, np.asarray(ids).tolist(), strict=True):
+                self._generators[i].standard_normal(out=row)
+            sigma = np.empty((len(ids), k))
+            sigma[:, 0] = ball["distance"][rows]
+            np.hypot(others[rows, :, 0], others[rows, :, 1], out=sigma[:, 1:])
+            sigma *= self.ball_noise
+            seen[rows] += draws[:, :4].reshape(-1, 2, 2) * sigma[:, :1, None]
             if k > 1:
-                others[ids] += draws[:, 4:].reshape(-1, k - 1, 2) * sigma[:, 1:, None]
-        visible = np.ones(n)
-        if self.field_of_view is not None:
+                others[rows] += draws[:, 4:].reshape(-1, k - 1, 2) * sigma[:, 1:, None]
+        ball_obs = self._ball_obs
+        if self.field_of_view is None:
+            ball_obs[rows, :4] = seen.reshape(n, 4)[rows]
+            ball_obs[rows, 4] = 1.0
+        else:
             bearing = np.arctan2(seen[:, 0, 1], seen[:, 0, 0])  # of the ball, in the body's frame
             if self._head_sensors is not None:  # the head's view, panned and tilted by the neck, against the body
                 axis = np.stack([self.scene.scene_sensor(s) for s in self._head_sensors], axis=1).reshape(n, 3)
                 bearing = np.angle(np.exp(1j * (bearing - (np.arctan2(-axis[:, 1], -axis[:, 0]) - yaw))))
             visible = (np.abs(bearing) <= 0.5 * self.field_of_view).astype(np.float64)
-        ball_obs = np.concatenate([seen.reshape(n, 4) * visible[:, None], visible[:, None]], axis=1)
-        self._ball_obs[ids] = ball_obs[ids]
-        self._others_obs[ids] = others.reshape(n, -1)[ids]
-        goals = (self._side * self.field.half_length)[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
-        self._goals_obs = frame(goals - pos[:, None, :]).reshape(n, 4)
+            ball_obs[rows] = np.concatenate([seen.reshape(n, 4) * visible[:, None], visible[:, None]], axis=1)[rows]
+        self._others_obs[rows] = others.reshape(n, -1)[rows]
+        self._goals_obs = frame(self._goal_points - pos[:, None, :]).reshape(n, 4)
 
     def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
         return self.ground_metrics(info)
