@@ -59,7 +59,7 @@ def academy(robot: str, task: str, kick: bool = False) -> dict:
     base = venv.unwrapped
     commands = base.env.commands
     player = ScriptedPlayer(base.task.layout, commands.mode, base.robot.facts.length, base.task.field,
-                            kick=commands.kick_zone)  # fmt: skip
+                            kick=commands.kick_zone, push=commands.push_share)  # fmt: skip
     obs, _ = venv.reset(seed=EPISODE_SEEDS)
     n = len(EPISODE_SEEDS)
     done, success, fell, ended_at = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)

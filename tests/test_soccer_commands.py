@@ -11,7 +11,7 @@ from envs.bioloid.kick import LEFT, RIGHT, Kick
 from envs.common.task import ObservationLayout
 from envs.soccer import match
 from envs.soccer.scripted import AIM_DEPTH, MEMORY, ScriptedPlayer, scripted_team
-from envs.soccer.steering import KICK_THRESHOLD, MAPS, STEERING, Commands, GaitMap
+from envs.soccer.steering import KICK_THRESHOLD, MAPS, STEERING, BioloidSteering, Commands, GaitMap
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -195,6 +195,22 @@ def test_a_scripted_player_behind_the_ball_pushes_it_toward_the_goal():
     assert pushing[0] and target[0, 0] > 0.3 and abs(target[0, 1]) < 1e-9
     action, _ = player().predict(obs((0.3, 0.0))[0])
     assert action[0] > -1.0 and abs(action[1]) < 1e-6, "straight at it"
+
+
+def test_a_scripted_player_pushes_at_its_gaits_share_of_its_cruise():
+    lined_up = obs((0.3, 0.0))
+    default = player().predict(lined_up)[0]
+    env = match.parallel_env(robot="roach", players_per_team=1, action_mode="commands")
+    slow = ScriptedPlayer(LAYOUT, env.mode, 0.1, env.field, push=0.25).predict(lined_up)[0]
+    speed = env.mode.to_command(np.vstack([default, slow]))[:, 0]
+    cruise = player().cruise
+    np.testing.assert_allclose(speed, [0.5 * cruise, 0.25 * cruise])  # facing the ball straight ahead
+    with pytest.raises(ValueError, match="push"):
+        ScriptedPlayer(LAYOUT, env.mode, 0.1, env.field, push=0.0)
+    # the scripted team takes its share from the robot's steering: the Bioloid's, the others the default
+    for robot, share in (("bioloid", BioloidSteering.push_share), ("roach", 0.5)):
+        team = scripted_team(match.parallel_env(robot=robot, players_per_team=1, action_mode="commands"), "home")
+        assert [p.push for p in team.values()] == [share]
 
 
 def test_a_scripted_player_aims_behind_the_goal_where_the_ball_goes_straight_in_else_at_its_line():

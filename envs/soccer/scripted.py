@@ -38,7 +38,8 @@ AT_PLACE = 0.5  # body lengths from its place within which the keeper stands and
 TURN_GAIN = 2.0  # rad/s of commanded turn rate per rad of bearing
 SLOW_WITHIN = 2.0  # body lengths from its target within which a player slows down
 CRUISE = 10.0  # body lengths per second: the fastest a player runs (the roach's tripod runs 24; it overshoots)
-PUSH = 0.5  # of its cruising speed, with which a player pushes the ball (and the least a field player slows to)
+PUSH = 0.5  # of its cruising speed, with which a player pushes the ball (and the least a field player slows to),
+# unless its gait says otherwise (``Steering.push_share``)
 STUCK_SECONDS = 2.0  # a player that has neither moved nor turned for this long, wanting to, is stuck, or
 STUCK_LENGTHS = 2.0  # for as long as it takes to walk this many body lengths at cruise, if longer (a slow robot)
 STUCK_MOVE = 0.3  # body lengths: less than this from where it was is not moving
@@ -67,16 +68,21 @@ class ScriptedPlayer:
         keeper: keep goal instead of chasing the ball.
         kick: where the ball must lie for the robot's kick (``Commands.kick_zone``), if it can kick: the player then
             pushes with that foot, and kicks if ``mode`` has the ``kick`` command.
+        push: the share of its cruising speed with which it pushes the ball (``Commands.push_share``; None:
+            ``PUSH``).
     """
 
     def __init__(self, layout: ObservationLayout, mode: ActionMode, length: float, field: Field,
-                 keeper: bool = False, kick: KickZone | None = None):  # fmt: skip
+                 keeper: bool = False, kick: KickZone | None = None, push: float | None = None):  # fmt: skip
         if mode.commands[:2] != ("speed", "yaw_rate"):
             raise ValueError(f"the scripted team plays in the commands mode, not {mode.name!r}")
         self.may_kick = "kick" in mode.commands  # the commands have the kick action (else it only pushes with a foot)
         if self.may_kick and kick is None:
             raise ValueError(f"kick: a commands mode with a kick ({mode.commands}) needs the robot's kick zone")
         self.layout, self.mode, self.length, self.keeper, self.kick = layout, mode, length, keeper, kick
+        self.push = PUSH if push is None else float(push)
+        if not 0.0 < self.push <= 1.0:
+            raise ValueError(f"push: a share of the cruising speed in (0, 1], got {push!r}")
         self.ball_radius = field.ball.radius
         self.aim_depth = AIM_DEPTH * field.goal_width
         self.goal_half_width = 0.5 * field.goal_width
@@ -183,8 +189,8 @@ class ScriptedPlayer:
         distance = np.linalg.norm(target, axis=1)
         yaw_rate = np.clip(TURN_GAIN * bearing, self.mode.low[1], self.mode.high[1])
         facing = np.maximum(np.cos(bearing), 0.0) ** 2
-        least = 0.0 if self.keeper else PUSH  # the keeper comes to rest at its place; a field player keeps pace
-        near = np.where(pushing, PUSH, np.clip(distance / (SLOW_WITHIN * self.length), least, 1.0))
+        least = 0.0 if self.keeper else self.push  # the keeper comes to rest at its place; a field player keeps pace
+        near = np.where(pushing, self.push, np.clip(distance / (SLOW_WITHIN * self.length), least, 1.0))
         return self.cruise * facing * near, yaw_rate
 
     @property
@@ -261,5 +267,6 @@ def scripted_team(env, team: str) -> dict[str, ScriptedPlayer]:
     length = base.robot.facts.length
     keeper = len(players) - 1 if len(players) >= 3 else None
     kick = None if base.commands is None else base.commands.kick_zone
-    return {agent: ScriptedPlayer(layout, base.mode, length, base.field, keeper=i == keeper, kick=kick)
+    push = None if base.commands is None else base.commands.push_share
+    return {agent: ScriptedPlayer(layout, base.mode, length, base.field, keeper=i == keeper, kick=kick, push=push)
             for i, agent in enumerate(players)}  # fmt: skip

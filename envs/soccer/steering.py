@@ -61,6 +61,9 @@ class Steering(ABC):
     drives: ClassVar[tuple[float, ...]]
     turns: ClassVar[tuple[float, ...]]
     kick_zone: ClassVar[KickZone | None] = None  # a robot that can kick: where the ball must lie
+    # the share of its cruising speed at which the scripted player pushes the ball with this gait (None: the
+    # player's own default, envs/soccer/scripted.py)
+    push_share: ClassVar[float | None] = None
 
     def __init__(self, robot: Robot):
         if robot.name != self.robot_name:
@@ -139,6 +142,10 @@ class BioloidSteering(Steering):
     lean over the lean's time, runs to its end, and the trot's clock then starts again at 0."""
 
     kick_zone = KickZone(KICK_AHEAD, KICK_SIDE, KICK_WIDTH)
+    # Its gait map runs straight at several settings. Asked for half its cruise, it pushes at (drive 0.5, turn 1),
+    # whose legs knock the ball aside; asked for 0.3-0.4 of it, at (0.5, -0.75). One-a-side against random, 20
+    # matches of 600 s on seeds 100-119 (2026-11-29): 0.35 won 19 (38 goals), 0.5 16 (22), 0.25 7 (10), 1.0 4 (4).
+    push_share = 0.35
 
     robot_name = "bioloid"
     drives = (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0)
@@ -269,6 +276,7 @@ class Commands:
         self.steering = STEERING[robot.name](robot)
         self.map = GaitMap.read(robot.name)
         self.kick_zone = self.steering.kick_zone
+        self.push_share = self.steering.push_share
         self.kicks = check_flag("kick", kick)
         if self.kicks and self.kick_zone is None:
             kickers = [name for name, s in STEERING.items() if s.kick_zone is not None]
