@@ -31,7 +31,7 @@ from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
 from envs.soccer import TASKS as ACADEMY_TASKS
 from envs.soccer.academy import version
-from envs.soccer.scripted import ScriptedPlayer
+from envs.soccer.scripted import scripted_player
 
 CONFIGURATIONS: dict[str, list[str]] = {
     "soccer_scripted": [],
@@ -58,8 +58,7 @@ def academy(robot: str, task: str, kick: bool = False) -> dict:
                         action_mode="commands", kick=kick)  # fmt: skip
     base = venv.unwrapped
     commands = base.env.commands
-    player = ScriptedPlayer(base.task.layout, commands.mode, base.robot.facts.length, base.task.field,
-                            kick=commands.kick_zone, push=commands.push_share)  # fmt: skip
+    player = scripted_player(base.task.layout, commands.mode, base.robot.facts.length, base.task.field, commands)
     obs, _ = venv.reset(seed=EPISODE_SEEDS)
     n = len(EPISODE_SEEDS)
     done, success, fell, ended_at = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)

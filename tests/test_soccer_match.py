@@ -296,6 +296,23 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
             np.testing.assert_array_equal(obs[mine], rows(o, env))
 
 
+def test_matches_reset_in_any_order_give_each_player_its_own_noisy_view():
+    """Every match reset at once, its rows listed in another order: each player still sees with its own noise
+    stream, so the views are those of the ordered reset, then and after a step."""
+    engines = [match.Matches(robot="roach", players_per_team=2, num_matches=2, batched=True, nthread=1,
+                             max_cycles=10) for _ in range(2)]  # fmt: skip
+    assert engines[0].task.ball_noise > 0
+    for engine, order in zip(engines, ([0, 1], [1, 0]), strict=True):
+        for m in range(2):
+            engine.seed(m, 20 + m)
+        engine.reset(np.array(order))
+    np.testing.assert_array_equal(engines[0].obs, engines[1].obs)
+    actions = np.random.default_rng(0).uniform(-1, 1, (8, engines[0].mode.size))
+    for engine in engines:
+        engine.step(actions)
+    np.testing.assert_array_equal(engines[0].obs, engines[1].obs)
+
+
 def test_a_throw_in_in_batched_matches_is_the_pettingzoo_matchs_bit_for_bit():
     """Two batched roach matches whose balls start beyond a touch line and a goal line: put back in the first step,
     each exactly as in a PettingZoo match of the same seed, the other match untouched by the placement."""

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from envs.soccer.field import BALL_POS
-from envs.soccer.scripted import MEMORY, ScriptedPlayer
+from envs.soccer.scripted import MEMORY, scripted_player
 from envs.soccer.steering import Commands
 
 if TYPE_CHECKING:
@@ -56,8 +56,8 @@ class KeeperMatch:
         self.learner = np.arange(n) * k
         self.keeper = self.learner + 1
         self.steering = commands if commands is not None else Commands(scene.robot)
-        self.player = ScriptedPlayer(task.layout, self.steering.mode, scene.robot.facts.length, task.field,
-                                     keeper=True, kick=self.steering.kick_zone)  # fmt: skip
+        self.player = scripted_player(task.layout, self.steering.mode, scene.robot.facts.length, task.field,
+                                      self.steering, keeper=True)  # fmt: skip
         self.memory = np.zeros((n, len(MEMORY)))
         self.fresh = np.ones(n, dtype=bool)  # the keeper's memory starts again at its next move
         self.keeper_obs = np.zeros((n, task.layout.size))

@@ -29,7 +29,7 @@ import numpy as np
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
 from envs.soccer.field import Field
-from envs.soccer.steering import KickZone
+from envs.soccer.steering import Commands, KickZone
 
 BEHIND = 0.6  # body lengths behind the ball (beyond its radius) where a field player lines up
 LINED_UP = 0.35  # body lengths off the line (and behind the ball) within which it pushes
@@ -68,8 +68,8 @@ class ScriptedPlayer:
         keeper: keep goal instead of chasing the ball.
         kick: where the ball must lie for the robot's kick (``Commands.kick_zone``), if it can kick: the player then
             pushes with that foot, and kicks if ``mode`` has the ``kick`` command.
-        push: the share of its cruising speed with which it pushes the ball (``Commands.push_share``; None:
-            ``PUSH``).
+        push: the share of its cruising speed with which it pushes the ball, and the least it slows to as it nears
+            any target (``Commands.push_share``; None: ``PUSH``).
     """
 
     def __init__(self, layout: ObservationLayout, mode: ActionMode, length: float, field: Field,
@@ -266,7 +266,14 @@ def scripted_team(env, team: str) -> dict[str, ScriptedPlayer]:
     layout = base.task.layout
     length = base.robot.facts.length
     keeper = len(players) - 1 if len(players) >= 3 else None
-    kick = None if base.commands is None else base.commands.kick_zone
-    push = None if base.commands is None else base.commands.push_share
-    return {agent: ScriptedPlayer(layout, base.mode, length, base.field, keeper=i == keeper, kick=kick, push=push)
+    return {agent: scripted_player(layout, base.mode, length, base.field, base.commands, keeper=i == keeper)
             for i, agent in enumerate(players)}  # fmt: skip
+
+
+def scripted_player(layout: ObservationLayout, mode: ActionMode, length: float, field: Field,
+                    commands: Commands | None, keeper: bool = False) -> ScriptedPlayer:  # fmt: skip
+    """A scripted player of a robot whose ``commands`` (``envs.soccer.steering.Commands``; None outside the commands
+    mode, which the player refuses) give its kick zone and push share."""
+    kick = None if commands is None else commands.kick_zone
+    push = None if commands is None else commands.push_share
+    return ScriptedPlayer(layout, mode, length, field, keeper=keeper, kick=kick, push=push)

@@ -61,8 +61,8 @@ class Steering(ABC):
     drives: ClassVar[tuple[float, ...]]
     turns: ClassVar[tuple[float, ...]]
     kick_zone: ClassVar[KickZone | None] = None  # a robot that can kick: where the ball must lie
-    # the share of its cruising speed at which the scripted player pushes the ball with this gait (None: the
-    # player's own default, envs/soccer/scripted.py)
+    # the share of its cruising speed at which the scripted player pushes the ball with this gait, and the least it
+    # slows to near a target (None: the player's own default, envs/soccer/scripted.py)
     push_share: ClassVar[float | None] = None
 
     def __init__(self, robot: Robot):

@@ -214,9 +214,9 @@ class SoccerTask(LocomotionTask):
             rel = in_scene[:, self._order, :] - in_scene[:, :, None, :]  # (scenes, k, k - 1, 2)
             others = frame(rel.reshape(n, k - 1, 2))
         if self.ball_noise > 0 and len(ids):
-            draws = self._draws[: len(ids)]  # standard_normal(out=) is normal(0, 1)'s values at half its cost
-            for row, i in zip(draws, np.asarray(ids).tolist(), strict=True):
-                self._generators[i].standard_normal(out=row)
+            for i in np.asarray(ids).tolist():  # standard_normal(out=) is normal(0, 1)'s values at half its cost
+                self._generators[i].standard_normal(out=self._draws[i])
+            draws = self._draws[rows]
             sigma = np.empty((len(ids), k))
             sigma[:, 0] = ball["distance"][rows]
             np.hypot(others[rows, :, 0], others[rows, :, 1], out=sigma[:, 1:])
