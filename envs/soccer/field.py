@@ -216,18 +216,18 @@ class Field:
         ``clearance`` of it (a ball put inside a robot is shot out of it), or left there if no such place is within
         those limits."""
         back, inset = THROW_IN_BACK * self.scale, THROW_IN_INSET * self.scale
-        way = -last if last != 0 else -np.sign(x)  # the way the ball is sent back
+        way = -last if last != 0 else (-float(np.sign(x)) or 1.0)  # the way the ball is sent back (+x from the centre)
         placed = x - last * back if last != 0 else np.sign(x) * max(abs(x) - back, 0.0)
         limit = self.half_length - back
         placed = float(np.clip(placed, -limit, limit))
         y = float(np.clip(y, inset - self.half_width, self.half_width - inset))
-        way = way if way != 0 else 1.0
         players = np.asarray(players, dtype=np.float64).reshape(-1, 2)
-        for k in range(int(2.0 * limit / clearance) + 2 if clearance > 0 else 1):
-            for spot in (placed + way * k * clearance, placed - way * k * clearance)[: 1 if k == 0 else 2]:
-                near = len(players) and np.min(np.hypot(players[:, 0] - spot, players[:, 1] - y)) <= clearance
-                if abs(spot) <= limit + 1e-9 and not near:
-                    return float(spot), y
+        steps = int(2.0 * limit / clearance) + 2 if clearance > 0 else 1
+        spots = [placed] + [placed + side * k * clearance for k in range(1, steps) for side in (way, -way)]
+        for spot in spots:
+            near = len(players) and np.min(np.hypot(players[:, 0] - spot, players[:, 1] - y)) <= clearance
+            if abs(spot) <= limit + 1e-9 and not near:
+                return float(spot), y
         return placed, y
 
 

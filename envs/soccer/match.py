@@ -346,7 +346,7 @@ class Matches:
                 )
                 for m in ids
             ]
-            x, y = np.array(spots).T  # fmt: skip
+            x, y = np.array(spots).T
             place = np.column_stack([x, y, np.full(len(ids), self.field.ball.radius)])
             self.scene.move_object(ids, BALL, place, np.zeros((len(ids), 3)))
             self._last_touch[ids] = 0
