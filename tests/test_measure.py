@@ -165,3 +165,25 @@ def test_a_file_that_appears_during_the_run_is_not_written_over(tmp_path, capsys
     assert (tmp_path / "new.json").read_text() == "measured\n"
     kept = [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # the refused write's, named in its message
     assert len(kept) == 1 and kept[0].read_text() == "measured\n"
+
+
+def test_the_back_emf_readings_scale_scales_only_the_reading_of_its_side():
+    """The roach's ``sensor_gain_bemf_<side>`` (the board's uncalibrated divider) multiplies that side's back-EMF
+    reading of the motor's speed, and leaves the legs, the duty and the other side's reading as they were; the
+    reading's offset is added after it."""
+    from types import SimpleNamespace
+
+    robot = make_adapter("roach")
+    rng = np.random.default_rng(0)
+    sensordata = rng.normal(size=(50, max(robot._sensors.values()) + 1))
+    segment = SimpleNamespace(data={"battery": np.array([3.7])})
+    base = {"sensor_bias_bemf_left.offset": 0.1}
+    plain = robot.observe(sensordata, segment, base)
+    scaled = robot.observe(sensordata, segment, {**base, "sensor_gain_bemf_left.scale": 2.5})
+    names = list(robot.channels)
+    left, right = names.index("bemf_left"), names.index("bemf_right")
+    assert np.allclose(scaled[:, left] - 0.1, 2.5 * (plain[:, left] - 0.1))
+    others = [i for i in range(len(names)) if i != left]
+    assert np.array_equal(scaled[:, others], plain[:, others]) and right in others
+    effect = robot.effects()["sensor_gain_bemf_left"]
+    assert (effect.params[0].low, effect.params[0].high) == (0.5, 3.0) and effect.catalogued

@@ -20,7 +20,8 @@ def roach_effects(dt: float) -> dict[str, Effect]:
     2 Hz log's right leg stands stalled at full duty); its viscous friction up to three times the motor's own back-EMF
     damping (2.9e-5 N m s/rad); rotor inertia up to 70 times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to
     4 times the lab script's 1.41 mN m/A (the real logs' back-EMF is two to three times the model's:
-    docs/calibration.md); the back-EMF reading's offset +-0.3 V (the board subtracts an offset measured at start-up)."""
+    docs/calibration.md); the back-EMF reading's offset +-0.3 V (the board subtracts an offset measured at start-up)
+    and its scale from half to three times (the logs' conversion is the lab script's, uncalibrated)."""
     # what the leg channels barely see (Effect.weak): at each range's far end the nominal model's error is mostly
     # under 3 noise levels against the true model's replay floor (the matrix benchmark measures it), where the
     # others reach 4 to 20
@@ -68,6 +69,13 @@ def roach_effects(dt: float) -> dict[str, Effect]:
             # per unit duty (python -m sysid.measure)
             make("sensor_coupling", f"bemf_{side}", per_unit=(0.0, -1.0, 0.5), weak=light),
         ]
+    for side in SIDES:
+        # the back-EMF reading's scale: the logs' volts come from the lab's scaling script (3.3 V over 1024 counts
+        # through a 15/47 divider, docs/telemetry.md), and no log holds a calibration of the board's divider and
+        # sampling. The 2015 logs read 1.7 to 2.4 times the model's back-EMF per leg speed, and at 13 Hz the right
+        # side reads more than the voltage its driver applies (python -m sysid.measure): a motor constant that large
+        # or a reading that overstates. From half to three times, past the largest ratio measured
+        out.append(make("sensor_gain", f"bemf_{side}", scale=(1.0, 0.5, 3.0)))
     out += [
         # ridges up to 3 cm: about twice the C-leg's 13.4 mm diameter (assets/velociroach/cleg.xml), obstacles of
         # the 13 Hz log's kind; lower ones barely reach the leg channels through the body

@@ -311,9 +311,10 @@ class RoachAdapter(Adapter):
             speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
             duty[side] = (r * torque / k + k * speed) / battery
             columns.append(duty[side])
-        for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed, its offset, the duty's
-            a = self._motor[side]
+        for side in SIDES:  # the back-EMF the board reads between PWM pulses: K x motor speed at the reading's scale,
+            a = self._motor[side]  # its offset, the duty's coupling
             k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
+            k = k * setting.get(f"sensor_gain_bemf_{side}.scale", 1.0)
             speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
             columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0)
                            + setting.get(f"sensor_coupling_bemf_{side}.per_unit", 0.0) * duty[side])  # fmt: skip
