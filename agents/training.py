@@ -981,11 +981,7 @@ def residual_override(name: str, env_id: str, hyperparams_file: Path) -> dict[st
         raise ConfigError(f"--residual {given_name}: {exc}") from None
     finally:
         env.close()
-    table = read_yaml(hyperparams_file)
-    entry = table.get(env_id) if isinstance(table, dict) else None
-    given = entry.get("residual") if isinstance(entry, dict) else None
-    scale = given.get("scale") if isinstance(given, dict) else None
-    return {"policy": name} if scale is None else {"policy": name, "scale": scale}
+    return with_entry_scale(name, hyperparams_file, env_id)
 
 
 def start_tuning(args: argparse.Namespace) -> Path:
@@ -1007,20 +1003,24 @@ def start_tuning(args: argparse.Namespace) -> Path:
 
 def start_selfplay(args: Any) -> Path:
     """A new self-play run from train.py's command line (``--soccer``); returns the final model's path."""
-    from agents.soccer.selfplay import SelfPlayCallback, SelfPlayVecEnv
+    from agents.soccer.selfplay import SCRIPTED, SelfPlayCallback, SelfPlayVecEnv
 
     check_runs_dir(Path(args.runs_dir))
     key = f"soccer/{args.soccer}"
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / "ppo.yml"
     overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    if args.residual is not None:
+        overrides["residual"] = selfplay_residual(args.residual, key, hyperparams_file)
     hp = load_hyperparams(hyperparams_file, key, "ppo", overrides, players=args.players)
-    if hp.residual is not None:
-        raise ConfigError(f"{hp.where}: field 'residual': self-play trains in the commands mode, where the gait is the "
-                          "mode itself; a residual policy is for one robot's env")  # fmt: skip
+    if hp.residual is not None and hp.residual.policy != SCRIPTED:
+        raise ConfigError(f"{hp.where}: field 'residual' = {hp.raw['residual']!r}: self-play corrects the "
+                          f"scripted team (policy {SCRIPTED!r}), not a gait (the commands mode runs it)")  # fmt: skip
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
     soccer = {"robot": args.soccer, "players_per_team": args.players, "action_mode": COMMANDS,
               "match_seconds": args.match_seconds, "scripted_share": args.scripted_share, **hp.env_kwargs}  # fmt: skip
+    if hp.residual is not None:
+        soccer["residual"] = hp.residual.scale
     try:
         venv = SelfPlayVecEnv(hp.n_envs, pool_seed=seed, nthread=hp.nthread, **soccer)
     except (TypeError, ValueError) as exc:
@@ -1036,6 +1036,25 @@ def start_selfplay(args: Any) -> Path:
         print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
         callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], run_manifest(config))
         return train(model, run_dir, config, progress=not args.no_progress, callbacks=[callback])
+
+
+def selfplay_residual(name: str, key: str, hyperparams_file: Path) -> dict[str, Any]:
+    """``--residual NAME`` for self-play: the scripted team (``scripted``, or ``reference``, which is it for a team),
+    keeping the entry's scale if it sets one."""
+    from agents.soccer.selfplay import SCRIPTED
+
+    if name not in (SCRIPTED, "reference"):
+        raise ConfigError(f"--residual {name}: self-play corrects the scripted team: give {SCRIPTED!r}")
+    return with_entry_scale(SCRIPTED, hyperparams_file, key)
+
+
+def with_entry_scale(policy: str, hyperparams_file: Path, key: str) -> dict[str, Any]:
+    """A residual on ``policy`` at the scale the hyperparameter file's entry ``key`` sets, if it sets one."""
+    table = read_yaml(hyperparams_file)
+    entry = table.get(key) if isinstance(table, dict) else None
+    given = entry.get("residual") if isinstance(entry, dict) else None
+    scale = given.get("scale") if isinstance(given, dict) else None
+    return {"policy": policy} if scale is None else {"policy": policy, "scale": scale}
 
 
 def resumed_selfplay(config: dict[str, Any], hp: Any, seed: int, checkpoint: Any, run_dir: Path):
@@ -1059,7 +1078,7 @@ def resumed_selfplay(config: dict[str, Any], hp: Any, seed: int, checkpoint: Any
     kept = [p for p in snapshots if p.exists()][-pool.pool_size :]
     for path in kept:
         policy = SB3Policy(path)
-        pool.opponents[path.stem] = SnapshotOpponent(policy.model.policy, policy.normalizer)
+        pool.opponents[path.stem] = SnapshotOpponent(policy.model.policy, policy.normalizer, pool.base, pool.residual)
     ratings_file = run_dir / RATINGS_FILE
     if ratings_file.is_file():
         try:
@@ -1267,7 +1286,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--residual", metavar="GAIT",
                         help="train a residual policy on top of this scripted gait ('reference': the robot's own; "
-                             "agents/residual.py), whatever the hyperparameter entry says")  # fmt: skip
+                             "agents/residual.py), whatever the hyperparameter entry says; with --soccer, "
+                             "'scripted': on top of the scripted team")  # fmt: skip
     parser.add_argument("--minutes", type=float,
                         help="stop after this much wall time (the model is saved as at --timesteps)")  # fmt: skip
     tuning = parser.add_argument_group("hyperparameter tuning (agents/tuning.py; Optuna, PPO and SAC)")
@@ -1309,8 +1329,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
         if not 0.0 <= args.scripted_share <= 1.0:
             parser.error(f"--scripted-share must be in [0, 1], got {args.scripted_share}")
-    if args.residual is not None and (args.resume or args.soccer is not None):
-        parser.error("--residual starts a new run of one env: not with --resume (the run keeps its own) or --soccer")
+    if args.residual is not None and args.resume:
+        parser.error("--residual starts a new run: not with --resume (the run keeps its own)")
     if args.tune is not None:
         if args.resume or args.soccer is not None:
             parser.error("--tune runs a study of one env's training: not with --resume or --soccer")

@@ -118,3 +118,55 @@ def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
         done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
         assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
     assert not any(tmp_path.iterdir())
+
+
+def test_a_residual_learner_that_corrects_nothing_plays_the_scripted_team():
+    """With ``residual``, the learner's actions correct the scripted home team's commands: actions of 0 play, bit for
+    bit, the PettingZoo match of the scripted team against itself; a scale beyond (0, 2] is refused."""
+    venv = SelfPlayVecEnv(2, robot="roach", players_per_team=1, action_mode="commands", scripted_share=1.0,
+                          match_seconds=0.3, residual=0.5)  # fmt: skip
+    venv.seed(5)
+    obs = venv.reset()
+    envs = [match.parallel_env(robot="roach", players_per_team=1, action_mode="commands", max_cycles=10**6)
+            for _ in range(2)]  # fmt: skip
+    teams = [{**scripted_team(e, "home"), **scripted_team(e, "away")} for e in envs]
+    memory = [{}, {}]
+    seen = [e.reset(seed=5 + i)[0] for i, e in enumerate(envs)]
+    np.testing.assert_array_equal(obs, [s["home_0"] for s in seen])
+    for _ in range(5):
+        obs, *_ = venv.step(np.zeros((2, 2)))
+        for i, e in enumerate(envs):
+            moves = {}
+            for agent, player in teams[i].items():
+                moves[agent], memory[i][agent] = player.predict(seen[i][agent], memory[i].get(agent))
+            seen[i], *_ = e.step(moves)
+            np.testing.assert_array_equal(obs[i], seen[i]["home_0"])
+    with pytest.raises(ValueError, match="correction scale"):
+        SelfPlayVecEnv(1, robot="roach", players_per_team=1, action_mode="commands", residual=3.0)
+
+
+def test_train_soccer_residual_on_the_scripted_team(tmp_path):
+    """``train.py --soccer ROBOT --residual scripted``: the model records its residual, its snapshots play on top of
+    the scripted away team, and evaluate.py's matches play it on top of the scripted team; another gait is refused."""
+    done = train_in_process("--soccer", "roach", "--players", "1", "--timesteps", "512", "--n-envs", "4",
+                            "--match-seconds", "1", "--checkpoint-freq", "256", "--residual", "scripted",
+                            "--runs-dir", tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (run_dir,) = tmp_path.iterdir()
+    config = json.loads((run_dir / "config.json").read_text())
+    assert config["soccer"]["residual"] == 0.25 and config["hyperparams"]["residual"] == {"policy": SCRIPTED}
+    from agents.sb3 import read_model_file
+
+    manifest, _ = read_model_file(run_dir / "model.zip")
+    assert manifest["residual"] == {"policy": SCRIPTED, "scale": 0.25}
+    ratings = json.loads((run_dir / "ratings.json").read_text())
+    steps = ratings["num_timesteps"]  # whole rollouts of PPO's n_steps x 4
+    assert sum(sum(r.values()) for r in ratings["learner_record"].values()) == 4 * (steps // 4 // 50)
+    snapshots = {n: r for n, r in ratings["learner_record"].items() if n != SCRIPTED}
+    assert sum(sum(r.values()) for r in snapshots.values()) > 0, "snapshots (on the scripted team) played matches"
+    result = play("roach", 1, str(run_dir / "model.zip"), "scripted", 2, 0, 1.0)
+    assert result["matches"] == 2
+    refused = train_in_process("--soccer", "roach", "--timesteps", "10", "--residual", "tripod",
+                               "--runs-dir", tmp_path / "other")  # fmt: skip
+    assert refused.returncode == 2 and "--residual tripod" in refused.stderr, refused.stderr
+    assert not (tmp_path / "other").exists()

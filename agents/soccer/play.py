@@ -53,26 +53,32 @@ class TeamPolicy:
         self.agent_index = [engine.possible_agents.index(a) for a in agents]
         self.rows = [engine.rows_of(np.arange(engine.num_matches)).reshape(engine.num_matches, -1)[:, i]
                      for i in self.agent_index]  # fmt: skip
-        if spec == "scripted":
+        self.residual = None  # a residual team's correction scale on the scripted team (agents/soccer/selfplay.py)
+        if spec not in TEAMS:
+            self.model = trained_team(spec, engine)
+            self.residual = residual_scale(spec, self.model.manifest)
+        if spec == "scripted" or self.residual is not None:
             players = scripted_team(engine, team)
             self.players = [players[a] for a in agents]
             self.memory: list[np.ndarray | None] = [None] * len(agents)  # each player's, over every match
-        elif spec not in TEAMS:
-            self.model = trained_team(spec, engine)
-        else:
+        if spec == "random":
             self.rngs = [np.random.default_rng([seed, m, 0 if team == "home" else 1])
                          for m in range(engine.num_matches)]  # fmt: skip
         self.size = engine.mode.size
 
     def act(self, obs: np.ndarray, actions: np.ndarray) -> None:
         """Write the team's actions into ``actions`` (rows, size) from the observations (rows, size)."""
-        if self.spec == "scripted":
+        if self.spec == "scripted" or self.residual is not None:
             for i, (rows, player) in enumerate(zip(self.rows, self.players, strict=True)):
                 actions[rows], self.memory[i] = player.predict(obs[rows], self.memory[i])
-            return
+            if self.spec == "scripted":
+                return
         if self.spec not in TEAMS:  # one shared policy for every player of the team, every match in one call
             rows = np.concatenate(self.rows)
-            actions[rows] = np.clip(self.model.predict(obs[rows], deterministic=True)[0], -1.0, 1.0)
+            own = self.model.predict(obs[rows], deterministic=True)[0]
+            if self.residual is not None:  # a correction of the scripted commands just written
+                own = actions[rows] + self.residual * np.asarray(own, np.float64)
+            actions[rows] = np.clip(own, -1.0, 1.0)
             return
         for m, rng in enumerate(self.rngs):
             actions[[rows[m] for rows in self.rows]] = rng.uniform(-1.0, 1.0, (len(self.rows), self.size))
@@ -95,6 +101,21 @@ def trained_team(path: str, engine: Matches):
         raise ValueError(f"{path}: the model takes {size} observations and gives {actions} actions; this match's "
                          f"players have {engine.task.layout.size} and {engine.mode.size}")  # fmt: skip
     return policy
+
+
+def residual_scale(path: str, manifest: dict[str, Any]) -> float | None:
+    """A trained team's correction scale, if it plays on top of the scripted team (``train.py --soccer ROBOT
+    --residual scripted``); ValueError for a residual on anything else."""
+    from agents.residual import parse_residual
+    from agents.soccer.selfplay import SCRIPTED
+
+    record = manifest.get("residual")
+    if record is None:
+        return None
+    residual = parse_residual(record)
+    if residual.policy != SCRIPTED:
+        raise ValueError(f"{path}: a residual policy on {residual.policy!r}, which plays one robot's env, not a team")
+    return residual.scale
 
 
 def team_mode(spec: str) -> str | None:

@@ -10,6 +10,12 @@ copy of the policy and of its observation normalization, saved in the run folder
 ``evaluate.py --soccer --home FILE`` plays). Observations do not depend on the side (envs/soccer/task.py), so one
 policy plays either.
 
+With ``residual`` (``train.py --soccer ROBOT --residual scripted``, or the entry's ``residual: {policy: scripted,
+scale: S}``) the learner plays on top of the scripted team: each player's action is ``clip(scripted + S * a, -1,
+1)``, the scripted player's command for that player (its own memory per match) plus the policy's correction, as
+agents/residual.py does for one robot's gait. A new policy's corrections are near 0, so the team starts as strong as
+the scripted one. Its snapshots play on top of the scripted team too.
+
 The learner's reward per player: +1 / -1 for each goal its team scores / concedes, plus the academy's potential-based
 shaping (0.1 per body length closed toward the ball, 0.2 per body length the ball moves toward the goal attacked), each
 a ``reward_<term>`` in ``info``.
@@ -32,6 +38,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
+from agents.residual import MAX_SCALE
 from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
@@ -49,11 +56,12 @@ POOL_DIR = "pool"
 
 
 class ScriptedOpponent:
-    """The scripted team as an away team: ``act(obs, matches)`` on its players' rows of those matches (match-major),
-    each player with its memory of each match (``ScriptedPlayer.predict``'s state), which ``restart`` clears."""
+    """The scripted team of one side (the away team by default): ``act(obs, matches)`` on its players' rows of those
+    matches (match-major), each player with its memory of each match (``ScriptedPlayer.predict``'s state), which
+    ``restart`` clears."""
 
-    def __init__(self, engine: Matches):
-        self.players = list(scripted_team(engine, "away").values())
+    def __init__(self, engine: Matches, team: str = "away"):
+        self.players = list(scripted_team(engine, team).values())
         self.memory = np.zeros((engine.num_matches, len(self.players), len(MEMORY)))
         self.fresh = np.ones(engine.num_matches, dtype=bool)
 
@@ -74,23 +82,29 @@ class ScriptedOpponent:
 
 
 class SnapshotOpponent:
-    """A frozen copy of the learner: its policy network and its observation normalization at the time taken."""
+    """A frozen copy of the learner: its policy network and its observation normalization at the time taken; for a
+    residual learner also the scripted team it corrects (``base``) and the correction's ``scale``."""
 
-    def __init__(self, policy: Any, normalizer: VecNormalize | None):
+    def __init__(self, policy: Any, normalizer: VecNormalize | None, base: ScriptedOpponent | None = None,
+                 scale: float | None = None):  # fmt: skip
         self.policy = policy
         self.policy.set_training_mode(False)
         self.normalizer = normalizer
+        self.base, self.scale = base, scale
 
     @classmethod
-    def of(cls, model: Any) -> SnapshotOpponent:
+    def of(cls, model: Any, base: ScriptedOpponent | None = None, scale: float | None = None) -> SnapshotOpponent:
         stats = model.get_vec_normalize_env()
         normalizer = pickle.loads(pickle.dumps(stats)) if stats is not None else None  # SB3 pickles it without env
-        return cls(copy.deepcopy(model.policy), normalizer)
+        return cls(copy.deepcopy(model.policy), normalizer, base, scale)
 
     def act(self, obs: np.ndarray, matches: np.ndarray) -> np.ndarray:
+        base = None if self.base is None else self.base.act(obs, matches)  # the env's own observations
         if self.normalizer is not None:
             obs = self.normalizer.normalize_obs(obs)
         actions, _ = self.policy.predict(obs, deterministic=False)
+        if base is not None:
+            actions = base + self.scale * np.asarray(actions, np.float64)
         return np.clip(actions, -1.0, 1.0)
 
 
@@ -98,11 +112,18 @@ class Pool:
     """The opponents and everyone's Elo rating; the scripted team is the anchor (its rating never moves)."""
 
     def __init__(self, scripted: ScriptedOpponent, rng: np.random.Generator, scripted_share: float = SCRIPTED_SHARE,
-                 pool_size: int = POOL_SIZE):  # fmt: skip
+                 pool_size: int = POOL_SIZE, residual: float | None = None):  # fmt: skip
         self.opponents: dict[str, Any] = {SCRIPTED: scripted}
         self.rng, self.scripted_share, self.pool_size = rng, scripted_share, pool_size
+        self.residual = residual  # a residual learner's correction scale: its snapshots correct the scripted team
         self.ratings = {"learner": ANCHOR_RATING, SCRIPTED: ANCHOR_RATING}
         self.records: dict[str, list[int]] = {SCRIPTED: [0, 0, 0]}  # the learner's wins, draws, losses against each
+
+    @property
+    def base(self) -> ScriptedOpponent | None:
+        """What a residual learner's snapshots correct: the scripted away team (a match has one away opponent at a
+        time, so the scripted team's memory of a match is its opponent's); None for a plain learner."""
+        return None if self.residual is None else self.opponents[SCRIPTED]
 
     def add(self, name: str, opponent: Any) -> None:
         """A snapshot joins the pool at the learner's current rating; beyond ``pool_size`` the oldest is no longer
@@ -156,10 +177,12 @@ class SelfPlayVecEnv(MatchesVecEnv):
     """The home team of ``num_matches`` matches as an SB3 VecEnv (``num_matches x players`` envs, match-major), with
     every away team played by an opponent from ``pool`` (drawn as its match starts). Match ``m`` is seeded with its
     first player's env seed, as :class:`agents.soccer.vec_env.SoccerVecEnv` does; the pool draws from its own
-    stream. Arguments: :class:`envs.soccer.match.Matches`'s."""
+    stream. ``residual``: the learner's actions are corrections of this scale to the scripted home team's (the
+    module's docstring). Other arguments: :class:`envs.soccer.match.Matches`'s."""
 
     def __init__(self, num_matches: int, pool_seed: int = 0, scripted_share: float = SCRIPTED_SHARE,
-                 match_seconds: float = MATCH_SECONDS, nthread: int | None = None, **kwargs: Any):  # fmt: skip
+                 match_seconds: float = MATCH_SECONDS, nthread: int | None = None, residual: float | None = None,
+                 **kwargs: Any):  # fmt: skip
         engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
         engine.max_cycles = max(1, round(match_seconds / engine.dt))
         if engine.commands is None:
@@ -168,12 +191,19 @@ class SelfPlayVecEnv(MatchesVecEnv):
         super().__init__(engine, self.k)
         rows = engine.rows_of(np.arange(num_matches)).reshape(num_matches, 2, self.k)
         self.home, self.away = rows[:, 0].reshape(-1), rows[:, 1].reshape(-1)
-        self.pool = Pool(ScriptedOpponent(engine), np.random.default_rng(pool_seed), scripted_share)
+        if residual is not None and not (isinstance(residual, int | float) and 0.0 < residual <= MAX_SCALE):
+            raise ValueError(f"residual must be a correction scale in (0, {MAX_SCALE:g}], got {residual!r}")
+        self.residual = None if residual is None else float(residual)
+        self.script = ScriptedOpponent(engine, "home") if residual is not None else None
+        self.pool = Pool(ScriptedOpponent(engine), np.random.default_rng(pool_seed), scripted_share,
+                         residual=self.residual)  # fmt: skip
         self.opponent_of = [SCRIPTED] * num_matches
 
     def reset(self) -> np.ndarray:
         self.opponent_of = [self.pool.draw() for _ in range(self.engine.num_matches)]
         self.pool.opponents[SCRIPTED].restart(np.arange(self.engine.num_matches))
+        if self.script is not None:
+            self.script.restart(np.arange(self.engine.num_matches))
         self._reset_matches()
         return self.engine.obs[self.home].copy()
 
@@ -191,7 +221,11 @@ class SelfPlayVecEnv(MatchesVecEnv):
     def step_wait(self):
         engine = self.engine
         actions = np.tile(engine.rest, (engine.robot.num_sims, 1))
-        actions[self.home] = self._actions
+        if self.script is None:
+            actions[self.home] = self._actions
+        else:  # the scripted home team's commands, corrected
+            base = self.script.act(engine.obs[self.home], np.arange(engine.num_matches))
+            actions[self.home] = np.clip(base + self.residual * self._actions, -1.0, 1.0)
         self._opponents_act(actions)
         out = engine.step(actions)
         terms = {
@@ -218,6 +252,8 @@ class SelfPlayVecEnv(MatchesVecEnv):
             self.pool.release(self.opponent_of)
             engine.reset(finished)
             self.pool.opponents[SCRIPTED].restart(finished)
+            if self.script is not None:
+                self.script.restart(finished)
             obs = engine.obs[self.home].copy()
         return obs, reward.astype(np.float32), done_match[match_of], infos
 
@@ -265,7 +301,7 @@ class SelfPlayCallback(BaseCallback):
         from agents.sb3 import save_model
 
         name = f"step_{self.num_timesteps:010d}"  # as the run's checkpoints are named
-        self.pool.add(name, SnapshotOpponent.of(self.model))
+        self.pool.add(name, SnapshotOpponent.of(self.model, self.pool.base, self.pool.residual))
         save_model(self.model, self.run_dir / POOL_DIR / f"{name}.zip", {**self.manifest, "snapshot": name})
         self._last = self.num_timesteps
         self.write_ratings()
