@@ -155,6 +155,10 @@ CONFIGURATIONS: dict[str, list[str]] = {
     "calibration_matrix_roach_draw1": ["--robots", "roach", "--kinds", "effect", "--draw", "1", "--seeds", "1"],
     "calibration_matrix_roach_draw1_rest": ["--robots", "roach", "--kinds", "effect", "--draw", "1", "--seeds", "1",
                                             "--effects", "torque_constant_right", "sensor_bias_bemf_right"],
+    "calibration_matrix_roach_drive": ["--robots", "roach", "--kinds", "effect", "weak", "--seeds", "4", "--effects",
+                                       "gearbox_efficiency_left", "gearbox_efficiency_right", "sensor_gain_bemf_left",
+                                       "sensor_gain_bemf_right", "sensor_coupling_bemf_left",
+                                       "sensor_coupling_bemf_right"],
 }  # fmt: skip
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py). The budget,
 workers, threads and cluster address say how a matrix runs, not what it measures (a case cut by the budget is listed

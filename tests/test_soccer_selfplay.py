@@ -141,8 +141,9 @@ def test_a_residual_learner_that_corrects_nothing_plays_the_scripted_team():
                 moves[agent], memory[i][agent] = player.predict(seen[i][agent], memory[i].get(agent))
             seen[i], *_ = e.step(moves)
             np.testing.assert_array_equal(obs[i], seen[i]["home_0"])
-    with pytest.raises(ValueError, match="correction scale"):
-        SelfPlayVecEnv(1, robot="roach", players_per_team=1, action_mode="commands", residual=3.0)
+    for bad in (3.0, 0.0, True):
+        with pytest.raises(ValueError, match="correction scale"):
+            SelfPlayVecEnv(1, robot="roach", players_per_team=1, action_mode="commands", residual=bad)
 
 
 def test_train_soccer_residual_on_the_scripted_team(tmp_path):

@@ -191,7 +191,8 @@ class SelfPlayVecEnv(MatchesVecEnv):
         super().__init__(engine, self.k)
         rows = engine.rows_of(np.arange(num_matches)).reshape(num_matches, 2, self.k)
         self.home, self.away = rows[:, 0].reshape(-1), rows[:, 1].reshape(-1)
-        if residual is not None and not (isinstance(residual, int | float) and 0.0 < residual <= MAX_SCALE):
+        if residual is not None and (isinstance(residual, bool) or not isinstance(residual, int | float)
+                                     or not 0.0 < residual <= MAX_SCALE):  # fmt: skip
             raise ValueError(f"residual must be a correction scale in (0, {MAX_SCALE:g}], got {residual!r}")
         self.residual = None if residual is None else float(residual)
         self.script = ScriptedOpponent(engine, "home") if residual is not None else None

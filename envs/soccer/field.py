@@ -223,7 +223,8 @@ class Field:
         y = float(np.clip(y, inset - self.half_width, self.half_width - inset))
         players = np.asarray(players, dtype=np.float64).reshape(-1, 2)
         steps = int(2.0 * limit / clearance) + 2 if clearance > 0 else 1
-        spots = [placed] + [placed + side * k * clearance for k in range(1, steps) for side in (way, -way)]
+        # the placed spot first (+ 0.0: a spot at the halfway line as +0, never -0), then along the line both ways
+        spots = [placed + 0.0] + [placed + side * k * clearance for k in range(1, steps) for side in (way, -way)]
         for spot in spots:
             near = len(players) and np.min(np.hypot(players[:, 0] - spot, players[:, 1] - y)) <= clearance
             if abs(spot) <= limit + 1e-9 and not near:

@@ -19,7 +19,7 @@ def roach_effects(dt: float) -> dict[str, Effect]:
     Ranges: the crank's Coulomb friction up to 1.4 times the motor's stall torque at the crank (11 mN m at 3.7 V: the
     2 Hz log's right leg stands stalled at full duty); its viscous friction up to three times the motor's own back-EMF
     damping (2.9e-5 N m s/rad); rotor inertia up to 70 times the assumed 1.5e-9 kg m^2; the motor constant from 0.3 to
-    4 times the lab script's 1.41 mN m/A (the real logs' back-EMF is two to three times the model's:
+    4 times the lab script's 1.41 mN m/A (the real logs' back-EMF is 1.7 to 2.4 times the model's:
     docs/calibration.md); the back-EMF reading's offset +-0.3 V (the board subtracts an offset measured at start-up)
     and its scale from half to three times (the logs' conversion is the lab script's, uncalibrated)."""
     # what the leg channels barely see (Effect.weak): at each range's far end the nominal model's error is mostly
