@@ -171,3 +171,40 @@ def test_train_soccer_residual_on_the_scripted_team(tmp_path):
                                "--runs-dir", tmp_path / "other")  # fmt: skip
     assert refused.returncode == 2 and "--residual tripod" in refused.stderr, refused.stderr
     assert not (tmp_path / "other").exists()
+
+
+def test_evaluate_plays_a_residual_team_on_top_of_the_scripted_team(monkeypatch):
+    """evaluate.py's team of a residual model: the scripted team's commands plus the model's correction at the scale
+    its file records, clipped; a correction of 0 is the scripted team, step by step."""
+    from types import SimpleNamespace
+
+    from agents.soccer import play as play_module
+    from envs.soccer.match import Matches
+
+    correction = {"value": 0.0}
+
+    def predict(obs, deterministic):
+        return np.full((len(obs), 2), correction["value"]), None
+
+    stub = SimpleNamespace(manifest={"residual": {"policy": SCRIPTED, "scale": 0.25}}, predict=predict)
+    monkeypatch.setattr(play_module, "trained_team", lambda spec, engine: stub)
+    engine = Matches(robot="roach", players_per_team=2, action_mode="commands", num_matches=2, batched=True,
+                     max_cycles=10**6)  # fmt: skip
+    for m in range(2):
+        engine.seed(m, 7 + m)
+    engine.reset(np.arange(2))
+    residual = play_module.TeamPolicy("team.zip", engine, "home", 0)
+    scripted = play_module.TeamPolicy("scripted", engine, "home", 0)
+    away = play_module.TeamPolicy("scripted", engine, "away", 0)
+    rows = np.concatenate(scripted.rows)
+    for step in range(6):
+        correction["value"] = 0.0 if step < 3 else 1.0
+        actions, expected = np.zeros((engine.robot.num_sims, 2)), np.zeros((engine.robot.num_sims, 2))
+        scripted.act(engine.obs, expected)
+        residual.act(engine.obs, actions)
+        np.testing.assert_array_equal(actions[rows], np.clip(expected[rows] + 0.25 * correction["value"], -1, 1))
+        away.act(engine.obs, actions)
+        engine.step(actions)
+    stub.manifest["residual"] = {"policy": "tripod"}
+    with pytest.raises(ValueError, match="tripod"):
+        play_module.TeamPolicy("team.zip", engine, "home", 0)
