@@ -13,8 +13,8 @@ policy plays either.
 With ``residual`` (``train.py --soccer ROBOT --residual scripted``, or the entry's ``residual: {policy: scripted,
 scale: S}``) the learner plays on top of the scripted team: each player's action is ``clip(scripted + S * a, -1,
 1)``, the scripted player's command for that player (its own memory per match) plus the policy's correction, as
-agents/residual.py does for one robot's gait. A new policy's corrections are near 0, so the team starts as strong as
-the scripted one. Its snapshots play on top of the scripted team too.
+agents/residual.py does for one robot's gait. A new policy's mean correction is near 0, so the team starts from the
+scripted team's commands (with PPO's exploration noise, scaled). Its snapshots play on top of the scripted team too.
 
 The learner's reward per player: +1 / -1 for each goal its team scores / concedes, plus the academy's potential-based
 shaping (0.1 per body length closed toward the ball, 0.2 per body length the ball moves toward the goal attacked), each
@@ -38,7 +38,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
-from agents.residual import MAX_SCALE
+from agents.residual import parse_residual
 from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
@@ -191,10 +191,10 @@ class SelfPlayVecEnv(MatchesVecEnv):
         super().__init__(engine, self.k)
         rows = engine.rows_of(np.arange(num_matches)).reshape(num_matches, 2, self.k)
         self.home, self.away = rows[:, 0].reshape(-1), rows[:, 1].reshape(-1)
-        if residual is not None and (isinstance(residual, bool) or not isinstance(residual, int | float)
-                                     or not 0.0 < residual <= MAX_SCALE):  # fmt: skip
-            raise ValueError(f"residual must be a correction scale in (0, {MAX_SCALE:g}], got {residual!r}")
-        self.residual = None if residual is None else float(residual)
+        try:  # the residual's own check of its scale (agents/residual.py)
+            self.residual = None if residual is None else parse_residual({"policy": SCRIPTED, "scale": residual}).scale
+        except ValueError as exc:
+            raise ValueError(f"residual: a correction scale, {exc}") from None
         self.script = ScriptedOpponent(engine, "home") if residual is not None else None
         self.pool = Pool(ScriptedOpponent(engine), np.random.default_rng(pool_seed), scripted_share,
                          residual=self.residual)  # fmt: skip
