@@ -39,6 +39,35 @@ def test_matches_played_together_are_the_pettingzoo_matches_of_their_seeds():
         assert played["scores"][i] == [env.score["home"], env.score["away"]]
 
 
+def test_a_match_that_goes_unstable_is_stopped_there_and_said_so(monkeypatch):
+    """A scene MuJoCo had to reset ends its match at that step: later goals there do not count, the others' do, and
+    the record and report name the match and when."""
+    import argparse
+
+    from agents.soccer.play import report
+
+    step, calls = match.Matches.step, []
+
+    def step_with_trouble(self, actions):
+        out = step(self, actions)
+        calls.append(None)
+        if len(calls) == 2:  # match 1's scene blows up at the second step
+            out["unstable"][1] = True
+        if len(calls) == 4:  # a goal in each match afterwards: only match 0's counts
+            self.scores[:, 0] += 1
+        return out
+
+    monkeypatch.setattr(match.Matches, "step", step_with_trouble)
+    result = play("roach", 1, "random", "random", 2, 3, 0.2)
+    dt = 0.2 / len(calls)
+    assert result["scores"] == [[1, 0], [0, 0]]
+    assert result["stopped_unstable"] == [{"match": 1, "seconds": pytest.approx(2 * dt), "score": [0, 0]}]
+    assert result["wins"]["count"] == 1 and result["draws"]["count"] == 1
+    args = argparse.Namespace(soccer="roach", players=1, home="random", away="random", match_seconds=0.2, seed=3,
+                              matches=2)  # fmt: skip
+    assert "1 of 2 matches went numerically unstable" in report(args, result) and "seed 4 at" in report(args, result)
+
+
 def test_evaluate_plays_matches_and_writes_one_folder(tmp_path, capsys):
     out = tmp_path / "m"
     assert evaluate.main(["--soccer", "bioloid", "--players", "1", "--home", "scripted", "--away", "random",

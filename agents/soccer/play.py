@@ -155,10 +155,18 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
     frames, renderer = [], None
     if video is not None:
         renderer = _renderer(engine)
-    for _ in range(engine.max_cycles):
+    # a match whose scene goes numerically unstable (MuJoCo resets its data) is stopped there, as a referee would
+    # abandon it: its score stands as it was, and the record says when; nothing after it counts
+    stopped = np.full(matches, np.nan)
+    final = np.zeros((matches, 2), dtype=np.int64)
+    for cycle in range(engine.max_cycles):
         for team in teams:
             team.act(engine.obs, actions)
-        engine.step(actions)
+        out = engine.step(actions)
+        new = out["unstable"] & np.isnan(stopped)
+        if new.any():
+            stopped[new] = (cycle + 1) * engine.dt
+            final[new] = engine.scores[new]  # the unstable step's goals are not counted (Matches.step)
         if renderer is not None:
             frames.append(renderer.render(engine.scene.sim.get_data(0)))
     if renderer is not None:
@@ -166,8 +174,11 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
 
         renderer.close()
         write_video(frames, video, fps=1.0 / engine.dt)
-    scores = engine.scores.tolist()
-    return {"scores": scores, **statistics(np.array(scores))}
+    played = np.isnan(stopped)
+    final[played] = engine.scores[played]
+    scores = final.tolist()
+    cut = [{"match": int(m), "seconds": float(stopped[m]), "score": scores[m]} for m in np.flatnonzero(~played)]
+    return {"scores": scores, "stopped_unstable": cut, **statistics(final)}
 
 
 def _renderer(engine: Matches):
@@ -214,7 +225,18 @@ def report(args: argparse.Namespace, result: dict[str, Any]) -> str:
         "| wins | draws | losses | goal difference | goals (home-away) |\n|---|---|---|---|---|\n"
         f"| {' | '.join(row)} | {gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}] | "
         f"{result['goals']['home']}-{result['goals']['away']} |\n"
+        + _stopped_note(args, result.get("stopped_unstable", []))
     )
+
+
+def _stopped_note(args: argparse.Namespace, stopped: list[dict[str, Any]]) -> str:
+    """The matches stopped early, where a scene went numerically unstable (their scores stand as they were)."""
+    if not stopped:
+        return ""
+    each = ", ".join(f"seed {args.seed + s['match']} at {s['seconds']:.1f} s ({s['score'][0]}-{s['score'][1]})"
+                     for s in stopped)  # fmt: skip
+    return (f"\n{len(stopped)} of {args.matches} matches went numerically unstable (MuJoCo reset the scene) and were "
+            f"stopped there, their scores standing as they were: {each}.\n")  # fmt: skip
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -43,6 +43,7 @@ from envs.soccer.task import BALL_NOISE, SoccerTask
 MAX_PLAYERS = 4  # a team: 1 to 4 (the Four-Legged League played 4 a side; the report's six Bioloids are 3 vs 3)
 MATCH_SECONDS = 60.0  # the default time limit
 PENALTY_SECONDS = 10.0  # how long a fallen player stays off the field (assumed)
+RETURN_CLEARANCE = 2.0  # body lengths between a player put back and anyone else (a body length each way; assumed)
 # kickoff places of the home team, (x / half length, y / half width), by team size; the away team's are these turned
 # by half a turn about the centre spot. The last player of a team of three or more keeps goal.
 FORMATIONS = {
@@ -165,6 +166,7 @@ class Matches:
         self.scores = np.zeros((self.num_matches, 2), dtype=np.int64)  # home, away
         self.cycles = np.zeros(self.num_matches, dtype=np.int64)
         self.obs = np.zeros((rows, self.task.layout.size))
+        self._where = np.zeros((rows, 2))  # every player's (x, y) at the last reading: where not to put another
 
     def rows_of(self, matches: np.ndarray) -> np.ndarray:
         """The rows of every player of ``matches``."""
@@ -190,12 +192,26 @@ class Matches:
         y = f.half_width + f.side_border + 3.0 * length
         return np.array([-side * (0.5 + 2.0 * i) * length, -side * y, 0.0])
 
-    def _return_place(self, row: int) -> np.ndarray:
-        """Where a player comes back: at the touch line of its own half, facing into the field."""
+    def _return_place(self, row: int, where: np.ndarray) -> np.ndarray:
+        """Where a player comes back: at the touch line of its own half, facing into the field, on the first spot
+        clear of every other player of its match and of the ball (``RETURN_CLEARANCE`` body lengths between centres;
+        ``where``: every row's (x, y) now), tried from the middle of the half outward along the line; if none is
+        clear, the clearest. Two players coming back at once, or onto a spot someone stands on, would otherwise be
+        put one inside the other, and the solver blows the scene up."""
         f, length = self.field, self.robot.facts.length
         side = 1.0 if self._home[row] else -1.0
         y = -side * (f.half_width - 0.5 * length)
-        return np.array([-side * 0.5 * f.half_length, y, side * math.pi / 2])
+        spacing = RETURN_CLEARANCE * length
+        reach = int((0.5 * f.half_length - length) // spacing)  # spots either way that stay inside the half
+        offsets = [0.0] + [sign * j * spacing for j in range(1, reach + 1) for sign in (1.0, -1.0)]
+        spots = np.array([[-side * (0.5 * f.half_length + o), y] for o in offsets])
+        rows = self.rows_of(np.array([self._match_of[row]]))
+        others = where[rows[(rows != row) & np.isnan(self.off_until[rows])]]  # those off wait outside the field
+        ball = self.scene.scene_sensor(BALL_POS)[self._match_of[row], :2]
+        gap = np.linalg.norm(spots[:, None, :] - np.vstack([others, ball])[None], axis=2).min(axis=1)
+        clear = np.flatnonzero(gap >= spacing)
+        x = spots[clear[0] if len(clear) else int(np.argmax(gap)), 0]
+        return np.array([x, y, side * math.pi / 2])
 
     def _place_kickoff(self, match: int) -> None:
         self.scene.placement[self.rows_of(np.array([match]))] = self.kickoff_places(match)
@@ -258,6 +274,7 @@ class Matches:
         readings = self.robot.read([rng if r else None for rng, r in zip(self.rngs, reset, strict=True)], False)
         self.task.reset(rows, [self.rngs[i] for i in rows], None, readings)
         self.obs[rows] = self.task.observe(readings)[rows]
+        self._where[rows] = readings["position"][rows, :2]
 
     def _reset_rows(self, rows: np.ndarray) -> None:
         self.robot.reset(rows, [self.rngs[i] for i in rows], self.reset_noise_scale, None)
@@ -287,6 +304,7 @@ class Matches:
             self.task.reset(ids, [self.rngs[i] for i in ids], None, readings)
         state = self.task.update(readings, stepped if any_placed else None)
         self.obs = self.task.observe(readings)
+        self._where[:] = readings["position"][:, :2]
         self.cycles += 1
         plus, minus = self.task.scene_goals()
         plus, minus = plus & ~unstable, minus & ~unstable
@@ -372,9 +390,11 @@ class Matches:
         now = self.scene.time[self._match_of]
         off = ~np.isnan(self.off_until)
         back = off & (np.where(off, self.off_until, np.inf) <= now + 1e-9) & ~self._pending & ~placed
+        where = self._where.copy()
         for row in np.flatnonzero(back):
             self.off_until[row] = np.nan
-            self.scene.placement[row] = self._return_place(row)
+            self.scene.placement[row] = self._return_place(row, where)
+            where[row] = self.scene.placement[row, :2]  # the next one to come back keeps clear of it too
         going = self._pending & ~placed
         for row in np.flatnonzero(going):
             self.scene.placement[row] = self._off_place(row)
@@ -418,7 +438,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v4",
+        "name": "skitter_soccer_v5",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,
