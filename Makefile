@@ -32,10 +32,10 @@ lint: setup
 
 # slow cases (marked) are covered by the calibration matrix benchmark; `make test-slow` runs them too
 test: lint
-	$(BIN)/python -m pytest -n 2 -q -m "not slow"
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m "not slow"
 
 test-slow: setup
-	$(BIN)/python -m pytest -n 2 -q -m slow
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m slow
 
 demo: setup
 	$(BIN)/python train.py --env skitter/RoachWalk-v2 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)

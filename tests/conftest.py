@@ -31,3 +31,19 @@ def _sb3_logs_in_tmp_path(tmp_path_factory):
 @pytest.fixture(params=ENV_IDS)
 def env_id(request) -> str:
     return request.param
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under ``pytest -n 2 --dist loadgroup`` (``make test``): the tests that share a module-scoped fixture (a
+    trained run, a compiled model) run on one worker, so that the fixture is made once, not once per worker."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        shared = sorted(
+            name
+            for name, defs in info.name2fixturedefs.items()
+            if defs and defs[-1].scope == "module" and name in item.fixturenames
+        )
+        if shared:
+            item.add_marker(pytest.mark.xdist_group(f"{item.module.__name__}::{shared[0]}"))
