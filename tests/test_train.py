@@ -238,10 +238,13 @@ def test_a_killed_run_never_leaves_a_model_without_its_statistics(tmp_path):
     """SIGKILL at several moments after checkpoints begin (timed from the first one, not from the start, so a busy
     machine cannot make the test vacuous): every model file present is whole (weights, statistics and manifest)."""
     found = 0
+    hyperparams = tmp_path / "ppo.yml"
+    hyperparams.write_text(TINY_PPO)  # a checkpoint every 64 steps: many writes to be killed in
     for delay in (0.0, 1.5):  # at the first checkpoint, and some checkpoints later
         runs = tmp_path / f"runs{delay}"
         command = [sys.executable, str(ROOT / "train.py"), "--env", WALK, "--algo", "ppo", "--timesteps", "100000",
-                   "--checkpoint-freq", "2048", "--runs-dir", str(runs), "--no-progress"]  # fmt: skip
+                   "--checkpoint-freq", "64", "--hyperparams", str(hyperparams), "--runs-dir", str(runs),
+                   "--no-progress"]  # fmt: skip
         process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
             deadline = time.monotonic() + 240.0
