@@ -289,12 +289,14 @@ def _returns(results: dict[str, Any], spec: str) -> list[float]:
     return [float(e["metrics"][RETURN]) for e in results["policies"][spec]["episodes"]]
 
 
-def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None = None) -> dict[str, Any]:
+def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None = None,
+            again: bool = False) -> dict[str, Any]:  # fmt: skip
     """Train and evaluate one row in ``out`` (resuming a killed training); returns its record, also written as
-    ``row.json`` in ``records`` (default ``out``) with the run's learning curve."""
+    ``row.json`` in ``records`` (default ``out``) with the run's learning curve. ``again``: compute it even where a
+    record exists (``--rerun``), which the new record replaces only when it is done."""
     folder = out / "rows" / row.name
     record_path = row_file(records or out, row)
-    done = _load_done(record_path, plan.row_settings(row.task), f"row {row.name}")
+    done = None if again else _load_done(record_path, plan.row_settings(row.task), f"row {row.name}")
     if done is not None:
         return done
     runs = out / "runs"
@@ -772,6 +774,14 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                      f"{paired('speed')} | {paired('cost_of_transport')} | "
                      f"{_share(rec, baselines[row.task], 'falls')} | "
                      f"{_share(rec, baselines[row.task], 'non_foot_contact')} |")  # fmt: skip
+    again = [(row, rec["reproduction"]) for row, rec in rows.items() if rec and "reproduction" in rec]
+    if again:
+        lines += ["", "Rows computed again with their own command (`--rerun`), against their earlier record:", ""]
+        lines += [f"- {row.name}: {r['metric']} {r['again']['value']:.2f} [{r['again']['ci_low']:.2f}, "
+                  f"{r['again']['ci_high']:.2f}] against {r['before']['value']:.2f} [{r['before']['ci_low']:.2f}, "
+                  f"{r['before']['ci_high']:.2f}] before: "
+                  + ("within the earlier 95% interval." if r["within"] else "outside the earlier 95% interval.")
+                  for row, r in again]  # fmt: skip
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
@@ -962,16 +972,35 @@ def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
             _load_done(row_file(records, row), plan.row_settings(row.task), f"row {row.name}")
 
 
+def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
+    """Whether a row computed again reproduces its earlier record: each one's number and 95% interval (the mean
+    evaluation return, bootstrap over its episodes; a soccer row's goal difference against the scripted team) and
+    whether the new number lies within the earlier interval."""
+
+    def number(rec: dict[str, Any]) -> dict[str, float]:
+        if rec.get("soccer"):
+            gd = rec["against_scripted"]["goal_difference"]
+            return {"metric": "goal difference", "value": gd["mean"], "ci_low": gd["ci_low"], "ci_high": gd["ci_high"]}
+        r = rec["summary"]["return"]
+        return {"metric": "mean return", "value": rec["mean_return"], "ci_low": r["ci_low"], "ci_high": r["ci_high"]}
+
+    before, now = number(previous), number(record)
+    return {"metric": now["metric"], "before": before, "again": now, "timesteps_before": previous.get("timesteps"),
+            "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
+
+
 def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) -> int:
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
+    # a row computed again keeps its published record until the new one replaces it, then says if it reproduced
+    previous = {row: json.loads(row_file(records, row).read_text()) for row in args.rerun
+                if row_file(records, row).is_file()}  # fmt: skip
     for row in args.rerun:
         shutil.rmtree(out / "rows" / row.name, ignore_errors=True)
-        row_file(records, row).unlink(missing_ok=True)
         if (out / "runs" / row.name).exists():
             _remove_run(out / "runs" / row.name)
     # seed by seed, so that a table built over several runs has every task and algorithm early
-    todo = sorted((r for r in plan.rows if not row_file(records, r).is_file()),
+    todo = sorted((r for r in plan.rows if r in args.rerun or not row_file(records, r).is_file()),
                   key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
     if args.table_only:
         print(f"leaderboard: --table-only: {len(todo)} rows not run are listed as such")
@@ -983,7 +1012,15 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
     baselines = {task: task_baselines(plan, task, out, cores, records) for task in plan.tasks}
     results: dict[Row, dict | None] = {r: None for r in plan.rows}
     failures = []
-    for row, record, error in _run_rows(plan, todo, out, records, threads, args.workers, args.address):
+    for row, record, error in _run_rows(plan, todo, out, records, threads, args.workers, args.address,
+                                        set(args.rerun)):  # fmt: skip
+        if record is not None and row in previous:
+            record = {**record, "reproduction": reproduction(previous[row], record)}
+            write_json(row_file(records, row), record)
+            r = record["reproduction"]
+            print(f"leaderboard: {row.name} again: {r['metric']} {r['again']['value']:.2f} against "
+                  f"{r['before']['value']:.2f} [{r['before']['ci_low']:.2f}, {r['before']['ci_high']:.2f}] before: "
+                  + ("within" if r["within"] else "OUTSIDE") + " its 95% interval")  # fmt: skip
         results[row] = record
         if error:
             failures.append(error)
@@ -1012,9 +1049,10 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
     return 1 if failures else 0
 
 
-def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int) -> tuple[Row, dict | None, str | None]:
+def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int,
+             again: bool = False) -> tuple[Row, dict | None, str | None]:  # fmt: skip
     try:
-        return row, run_row(plan, row, out, threads, records), None
+        return row, run_row(plan, row, out, threads, records, again), None
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # a failed tool, a stale run, a busy folder: the row fails, the others go on
@@ -1022,8 +1060,9 @@ def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int) -> tu
 
 
 def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: int, workers: int,
-              address: str | None):  # fmt: skip
-    """Each row's (row, record, error), as they finish: in this process, a local pool or Ray."""
+              address: str | None, again: set[Row] = frozenset()):  # fmt: skip
+    """Each row's (row, record, error), as they finish: in this process, a local pool or Ray. Rows in ``again`` are
+    computed even where their record exists."""
     if not rows:
         return
     if address is not None:
@@ -1033,20 +1072,20 @@ def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: in
 
         init_ray(address)
         job = ray.remote(num_cpus=threads)(_row_job)
-        pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads) for row in rows]
+        pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads, row in again) for row in rows]
         while pending:
             ready, pending = ray.wait(pending)
             yield ray.get(ready[0])
         return
     if workers == 1:
         for row in rows:
-            yield _row_job(plan, row, out, records, threads)
+            yield _row_job(plan, row, out, records, threads, row in again)
         return
     import multiprocessing
     from concurrent.futures import as_completed
 
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(_row_job, plan, row, out, records, threads) for row in rows]
+        futures = [pool.submit(_row_job, plan, row, out, records, threads, row in again) for row in rows]
         for future in as_completed(futures):
             yield future.result()
 

@@ -65,6 +65,9 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     again = json.loads((tmp_path / "kept" / "rows" / "skitter_RoachWalk-v2__ppo__1" / "row.json").read_text())
     assert "(1 to run)" in capsys.readouterr().out
     assert again["returns"] == pytest.approx(kept)
+    assert again["reproduction"]["within"] and again["reproduction"]["again"]["value"] == pytest.approx(
+        rows["skitter_RoachWalk-v2__ppo__1"]["mean_return"]
+    )
     # the same folder with another budget: refused, naming the row, before anything runs
     other = [*argv]
     other[other.index("--timesteps") + 1] = "512"
@@ -281,3 +284,42 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     assert f"[the reference gait and {row.name}](results/videos/skitter_RoachWalk-v2.mp4)" in text
     assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v2.png").stat().st_size > 5_000
     assert not (tmp_path / "fresh" / "runs").exists()
+
+
+def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_reproduced(tmp_path, monkeypatch, capsys):
+    """--rerun: a killed rerun leaves the published record as it was; a finished one replaces it with its own, which
+    says whether its number lies within the earlier record's 95% interval (and the page lists it)."""
+    plan = leaderboard.Plan((WALK,), ("ppo",), (0,), ((WALK, 100),), None, 2, 1000, None)
+    kept, docs = tmp_path / "kept", tmp_path / "docs" / "results.md"
+    baselines = {"task": WALK, "reference": "tripod", "reference_return": 110.0, "random_return": 10.0,
+                 "settings": plan.eval_settings}  # fmt: skip
+    leaderboard.write_json(leaderboard.task_file(kept, WALK), baselines)
+    row = leaderboard.Row(WALK, "ppo", 0)
+
+    def record(mean: float) -> dict:
+        return {"mean_return": mean, "returns": [mean - 5, mean + 5], "timesteps": 100, "capped": False,
+                "wall_seconds": 60.0, "paired_differences": {}, "curve": None, "settings": plan.row_settings(WALK),
+                "summary": {"return": {"mean": mean, "ci_low": mean - 5, "ci_high": mean + 5, "n": 2}}}  # fmt: skip
+
+    published = record(85.0)
+    leaderboard.write_json(leaderboard.row_file(kept, row), published)
+    argv = ["--tasks", WALK, "--seeds", "0", "--timesteps", "100", "--episodes", "2", "--out", str(tmp_path / "b"),
+            "--records", str(kept), "--docs", str(docs), "--rerun", f"{WALK}:ppo:0"]  # fmt: skip
+
+    def killed(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(leaderboard, "run_row", killed)
+    assert leaderboard.main(argv) != 0
+    assert json.loads(leaderboard.row_file(kept, row).read_text()) == published, "the published row stays"
+    for mean, verdict in ((88.0, "within"), (95.0, "OUTSIDE")):
+        monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args, mean=mean: record(mean))
+        capsys.readouterr()
+        assert leaderboard.main(argv) == 0
+        printed = capsys.readouterr().out
+        assert f"again: mean return {mean:.2f} against 85.00 [80.00, 90.00] before: {verdict}" in printed
+        again = json.loads(leaderboard.row_file(kept, row).read_text())
+        assert again["mean_return"] == mean and again["reproduction"]["within"] is (verdict == "within")
+        assert again["reproduction"]["before"]["value"] == 85.0
+        assert f"{row.name}: mean return {mean:.2f}" in docs.read_text()
+        leaderboard.write_json(leaderboard.row_file(kept, row), published)
