@@ -47,7 +47,7 @@ import sys
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -336,7 +336,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
     results = json.loads((evaluation / "results.json").read_text())
     model_spec = next(s for s in results["policies"] if s != reference)
     returns = _returns(results, model_spec)
-    record = {**_row_record(plan, row, trained, started, run_dir), "returns": returns,
+    record = {**_row_record(plan, row, trained, started, run_dir, out, records or out), "returns": returns,
               "mean_return": float(np.mean(returns)), "summary": results["policies"][model_spec]["summary"],
               "paired_differences": results["paired_differences"]["policies"][model_spec], "reference": reference,
               "reproduce": reproduce(plan, row, trained, reference)}  # fmt: skip
@@ -344,7 +344,18 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
     return record
 
 
-def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Path) -> dict[str, Any]:
+def row_command(plan: Plan, row: Row, out: Path, records: Path) -> str:
+    """The command that computes ``row`` alone again, into the folders it was made in (its record replaced when
+    done, with the verdict of :func:`reproduction`)."""
+    alone = replace(plan, tasks=(row.task,), algos=(row.algo,), seeds=(row.seed,),
+                    timesteps=((row.task, plan.steps(row.task)),))  # fmt: skip
+    folders = ["--out", str(out)] + ([] if Path(records) == Path(out) else ["--records", str(records)])
+    return shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(alone), *folders, "--rerun",
+                       f"{row.task}:{row.algo}:{row.seed}"])  # fmt: skip
+
+
+def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Path, out: Path,
+                records: Path) -> dict[str, Any]:  # fmt: skip
     """What every row's record holds: the row, the steps it trained against its plan's, its wall time, its learning
     curve, the command that computes it again and the settings it was made with."""
     steps, values = learning_curve(run_dir)
@@ -352,9 +363,7 @@ def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Pat
     return {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.steps(row.task),
             "curve": {"steps": steps[keep].tolist(), "values": values[keep].tolist()} if len(steps) else None,
             "capped": trained < plan.steps(row.task), "wall_seconds": time.time() - started,
-            "command": shlex.join(["python", "-m", "agents.leaderboard", *plan_arguments(plan), "--rerun",
-                                   f"{row.task}:{row.algo}:{row.seed}"]),
-            "settings": plan.row_settings(row.task)}  # fmt: skip
+            "command": row_command(plan, row, out, records), "settings": plan.row_settings(row.task)}  # fmt: skip
 
 
 def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int,
@@ -371,7 +380,8 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
     result = json.loads((evaluation / "results.json").read_text())
     counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
     ratings = json.loads((run_dir / RATINGS_FILE).read_text()) if (run_dir / RATINGS_FILE).is_file() else {}
-    record = {**_row_record(plan, row, trained, started, run_dir), "soccer": True, "against_scripted": result,
+    base = _row_record(plan, row, trained, started, run_dir, out, record_path.parents[2])  # records/rows/<row>/
+    record = {**base, "soccer": True, "against_scripted": result,
               "elo": elo_against(*counts), "selfplay_elo": ratings.get("ratings", {}).get("learner"),
               "reproduce": [
                   shlex.join(["python", "train.py", "--soccer", row.task.removeprefix(SOCCER), "--players",
@@ -780,7 +790,8 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         lines += [f"- {row.name}: {r['metric']} {r['again']['value']:.2f} [{r['again']['ci_low']:.2f}, "
                   f"{r['again']['ci_high']:.2f}] against {r['before']['value']:.2f} [{r['before']['ci_low']:.2f}, "
                   f"{r['before']['ci_high']:.2f}] before: "
-                  + ("within the earlier 95% interval." if r["within"] else "outside the earlier 95% interval.")
+                  + ("within the earlier 95% interval" if r["within"] else "outside the earlier 95% interval")
+                  + ("." if r.get("same_settings", True) else ", which was made with other settings.")
                   for row, r in again]  # fmt: skip
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
@@ -986,7 +997,8 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
 
     before, now = number(previous), number(record)
     return {"metric": now["metric"], "before": before, "again": now, "timesteps_before": previous.get("timesteps"),
-            "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
+            "settings_before": previous.get("settings"), "same_settings": previous.get("settings") == record.get(
+                "settings"), "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
 
 
 def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) -> int:
@@ -996,7 +1008,10 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
     previous = {row: json.loads(row_file(records, row).read_text()) for row in args.rerun
                 if row_file(records, row).is_file()}  # fmt: skip
     for row in args.rerun:
-        shutil.rmtree(out / "rows" / row.name, ignore_errors=True)
+        folder, record = out / "rows" / row.name, row_file(records, row)
+        for item in folder.iterdir() if folder.is_dir() else ():  # the row's work, not its record (records = out)
+            if item != record:
+                shutil.rmtree(item) if item.is_dir() else item.unlink()
         if (out / "runs" / row.name).exists():
             _remove_run(out / "runs" / row.name)
     # seed by seed, so that a table built over several runs has every task and algorithm early
@@ -1020,7 +1035,8 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
             r = record["reproduction"]
             print(f"leaderboard: {row.name} again: {r['metric']} {r['again']['value']:.2f} against "
                   f"{r['before']['value']:.2f} [{r['before']['ci_low']:.2f}, {r['before']['ci_high']:.2f}] before: "
-                  + ("within" if r["within"] else "OUTSIDE") + " its 95% interval")  # fmt: skip
+                  + ("within" if r["within"] else "OUTSIDE") + " its 95% interval"
+                  + ("" if r["same_settings"] else f" (made with other settings: {r['settings_before']})"))  # fmt: skip
         results[row] = record
         if error:
             failures.append(error)

@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -312,6 +313,15 @@ def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_rep
     monkeypatch.setattr(leaderboard, "run_row", killed)
     assert leaderboard.main(argv) != 0
     assert json.loads(leaderboard.row_file(kept, row).read_text()) == published, "the published row stays"
+    # the same where the records are the row's own folder (no --records): its other files go, its record stays
+    alone = tmp_path / "alone"
+    shutil.copytree(kept, alone)
+    (alone / "rows" / row.name / "log.txt").write_text("the killed run's")
+    default = ["--tasks", WALK, "--seeds", "0", "--timesteps", "100", "--episodes", "2", "--out", str(alone),
+               "--rerun", f"{WALK}:ppo:0"]  # fmt: skip
+    assert leaderboard.main(default) != 0
+    assert sorted(p.name for p in (alone / "rows" / row.name).iterdir()) == ["row.json"]
+    assert json.loads(leaderboard.row_file(alone, row).read_text()) == published
     for mean, verdict in ((88.0, "within"), (95.0, "OUTSIDE")):
         monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args, mean=mean: record(mean))
         capsys.readouterr()
@@ -323,3 +333,14 @@ def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_rep
         assert again["reproduction"]["before"]["value"] == 85.0
         assert f"{row.name}: mean return {mean:.2f}" in docs.read_text()
         leaderboard.write_json(leaderboard.row_file(kept, row), published)
+
+
+def test_a_rows_command_computes_that_row_alone_into_its_own_folders():
+    plan = leaderboard.Plan((WALK, XJUS), ("ppo", "ppo+residual"), (0, 1), ((WALK, 100), (XJUS, 200)), None, 20,
+                            1000, None)  # fmt: skip
+    command = leaderboard.row_command(plan, leaderboard.Row(XJUS, "ppo+residual", 1), "board", "kept")
+    assert command == (
+        f"python -m agents.leaderboard --tasks {XJUS} --algos ppo+residual --seeds 1 --timesteps 200 "
+        f"--episodes 20 --eval-seed 1000 --out board --records kept --rerun {XJUS}:ppo+residual:1"
+    )
+    assert "--records" not in leaderboard.row_command(plan, leaderboard.Row(WALK, "ppo", 0), "board", "board")

@@ -188,28 +188,33 @@ def test_a_fallen_player_is_taken_off_and_put_back_at_its_own_half():
     assert back[0] < 0 and abs(back[1]) < env.field.half_width, "back on its own half, inside the touch line"
 
 
-def test_players_put_back_together_are_put_apart_and_clear_of_the_others():
-    """Two players of a team whose penalties end in the same step come back on their touch line, each a
-    ``RETURN_CLEARANCE`` of body lengths from everyone else and from the ball (one spot for both put one inside the
-    other, and the scene blew up)."""
-    engine = match.Matches(robot="bioloid", players_per_team=3, num_matches=1)
+@pytest.mark.parametrize(("robot", "k", "back"), [("bioloid", 3, [3, 4]), ("roach", 4, [0, 1, 2, 3])])
+def test_players_put_back_together_are_put_apart_and_clear_of_the_others(robot, k, back):
+    """Players of a team whose penalties end in the same step (two of a Bioloid three, a whole roach four) come back
+    on their side of the field, each a ``RETURN_CLEARANCE`` of body lengths from everyone else and from the ball (one
+    spot for all of them put one inside the other, and the scene blew up)."""
+    engine = match.Matches(robot=robot, players_per_team=k, num_matches=1)
     engine.seed(0, 7)
     engine.reset(np.arange(1))
     rest = np.tile(engine.rest, (engine.players, 1))
     engine.step(rest)
-    back = np.array([3, 4])  # away_0 and away_1, due back now (standing where they are, as if waiting outside)
+    back = np.array(back)  # due back now (standing where they are, as if waiting outside)
     engine.off_until[back] = engine.scene.time[0]
-    engine._where[5] = engine._return_place(3, engine._where)[:2]  # away_2 read standing on the first spot
+    side = 1.0 if back[0] < k else -1.0
+    blocker = 2 * k - 1 if side > 0 else 0  # a player of the other team read standing on the first spot
+    engine._where[blocker] = engine._return_spots(side)[0]
     before = engine._where.copy()
     engine.step(rest)
     places = engine.scene.placement[back]
     length, f = engine.robot.facts.length, engine.field
-    assert np.allclose(places[:, 1], f.half_width - 0.5 * length) and (places[:, 0] > 0).all(), "own touch line"
-    assert np.all(np.abs(places[:, 2] + np.pi / 2) < 1e-12), "facing into the field"
+    assert np.all(side * places[:, 0] < 0) and np.all(side * places[:, 1] < 0), "its own half, its own touch side"
+    assert np.all(np.abs(places[:, 1]) <= f.half_width - 0.5 * length + 1e-12), "inside the touch line"
+    assert np.all(np.abs(places[:, 2] - side * np.pi / 2) < 1e-12), "facing into the field"
     others = np.vstack([np.delete(before, back, axis=0), engine.scene.scene_sensor(match.BALL_POS)[0, :2]])
-    for place in places:
-        assert np.linalg.norm(others - place[:2], axis=1).min() >= match.RETURN_CLEARANCE * length - 1e-9
-    assert np.linalg.norm(places[0, :2] - places[1, :2]) >= match.RETURN_CLEARANCE * length - 1e-9
+    clearance = match.RETURN_CLEARANCE * length - 1e-9
+    for i, place in enumerate(places):
+        assert np.linalg.norm(others - place[:2], axis=1).min() >= clearance
+        assert all(np.linalg.norm(place[:2] - q[:2]) >= clearance for q in places[i + 1 :])
 
 
 def test_without_a_referee_a_fallen_player_stays():

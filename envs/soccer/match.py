@@ -44,6 +44,7 @@ MAX_PLAYERS = 4  # a team: 1 to 4 (the Four-Legged League played 4 a side; the r
 MATCH_SECONDS = 60.0  # the default time limit
 PENALTY_SECONDS = 10.0  # how long a fallen player stays off the field (assumed)
 RETURN_CLEARANCE = 2.0  # body lengths between a player put back and anyone else (a body length each way; assumed)
+RETURN_ROWS = 3  # rows of places a player may come back to: its touch line, then two further in
 # kickoff places of the home team, (x / half length, y / half width), by team size; the away team's are these turned
 # by half a turn about the centre spot. The last player of a team of three or more keeps goal.
 FORMATIONS = {
@@ -200,18 +201,27 @@ class Matches:
         put one inside the other, and the solver blows the scene up."""
         f, length = self.field, self.robot.facts.length
         side = 1.0 if self._home[row] else -1.0
-        y = -side * (f.half_width - 0.5 * length)
-        spacing = RETURN_CLEARANCE * length
-        reach = int((0.5 * f.half_length - length) // spacing)  # spots either way that stay inside the half
-        offsets = [0.0] + [sign * j * spacing for j in range(1, reach + 1) for sign in (1.0, -1.0)]
-        spots = np.array([[-side * (0.5 * f.half_length + o), y] for o in offsets])
+        spots = self._return_spots(side)
         rows = self.rows_of(np.array([self._match_of[row]]))
         others = where[rows[(rows != row) & np.isnan(self.off_until[rows])]]  # those off wait outside the field
         ball = self.scene.scene_sensor(BALL_POS)[self._match_of[row], :2]
         gap = np.linalg.norm(spots[:, None, :] - np.vstack([others, ball])[None], axis=2).min(axis=1)
-        clear = np.flatnonzero(gap >= spacing)
-        x = spots[clear[0] if len(clear) else int(np.argmax(gap)), 0]
+        clear = np.flatnonzero(gap >= RETURN_CLEARANCE * length)
+        x, y = spots[clear[0] if len(clear) else int(np.argmax(gap))]
         return np.array([x, y, side * math.pi / 2])
+
+    def _return_spots(self, side: float) -> np.ndarray:
+        """The places a player of the team attacking ``side`` (+1 home) may come back to, (spots, 2), in the order
+        they are tried: on its touch line, a body length in from its half's ends, from the middle of the half outward
+        ``RETURN_CLEARANCE`` body lengths apart; then as many rows again, each that much further into the field (up
+        to ``RETURN_ROWS``): at least nine spots on every robot's field."""
+        f, length = self.field, self.robot.facts.length
+        spacing = RETURN_CLEARANCE * length
+        middle = 0.5 * f.half_length
+        reach = int((middle - length) // spacing)  # spots either way that stay a body length inside the half
+        offsets = [0.0] + [sign * j * spacing for j in range(1, reach + 1) for sign in (1.0, -1.0)]
+        lines = [f.half_width - 0.5 * length - k * spacing for k in range(RETURN_ROWS)]
+        return np.array([[-side * (middle + o), -side * y] for y in lines if y > 0 for o in offsets])
 
     def _place_kickoff(self, match: int) -> None:
         self.scene.placement[self.rows_of(np.array([match]))] = self.kickoff_places(match)
