@@ -1301,12 +1301,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="episodes per evaluation (default 5)")  # fmt: skip
     soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
     soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
-    soccer.add_argument("--players", type=_positive_int, default=3, help="players a side, 1 to 4 (default 3)")
-    soccer.add_argument("--match-seconds", type=float, default=60.0, help="each match's length, s (default 60)")
+    soccer.add_argument("--players", type=_positive_int, help="players a side, 1 to 4 (default 3)")
+    soccer.add_argument("--match-seconds", type=float, help="each match's length, s (default 60)")
     soccer.add_argument(
         "--scripted-share",
         type=float,
-        default=0.5,
         help="the share of matches against the scripted team (default 0.5; else past snapshots)",
     )
     soccer.add_argument(
@@ -1315,6 +1314,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="env steps between the learner's snapshots into its pool (default --checkpoint-freq)",
     )
     args = parser.parse_args(argv)
+    self_play = {"players": 3, "match_seconds": 60.0, "scripted_share": 0.5, "snapshot_freq": None}
+    if args.soccer is None:
+        given = [name for name in self_play if getattr(args, name) is not None]
+        if given:
+            parser.error(f"--{given[0].replace('_', '-')} is a self-play option: give --soccer ROBOT with it")
+    for name, default in self_play.items():
+        if getattr(args, name) is None:
+            setattr(args, name, default)
     if args.soccer is not None:
         if args.env is not None:
             parser.error("give --env (one robot's env) or --soccer (a team by self-play), not both")

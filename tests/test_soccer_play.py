@@ -61,7 +61,7 @@ def test_a_match_that_goes_unstable_is_stopped_there_and_said_so(monkeypatch):
     result = play("roach", 1, "random", "random", 2, 3, 0.2)
     dt = 0.2 / len(calls)
     assert result["scores"] == [[1, 0], [0, 0]]
-    assert result["stopped_unstable"] == [{"match": 1, "seconds": pytest.approx(2 * dt), "score": [0, 0]}]
+    assert result["stopped_unstable"] == [{"match": 1, "seed": 4, "seconds": pytest.approx(2 * dt), "score": [0, 0]}]
     assert result["wins"]["count"] == 1 and result["draws"]["count"] == 1
     args = argparse.Namespace(soccer="roach", players=1, home="random", away="random", match_seconds=0.2, seed=3,
                               matches=2)  # fmt: skip
@@ -92,3 +92,17 @@ def test_bad_arguments_are_one_line_errors_before_any_match(args, word, tmp_path
         evaluate.main([item for pair in base.items() for item in pair])
     assert stop.value.code == 2 and word in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [(["--action-mode", "bogus"], "action_mode must be one of"),
+     (["--kick"], "the robot's own mode (give --action-mode commands)")],
+)  # fmt: skip
+def test_teams_that_cannot_play_are_refused_before_any_folder_is_made(args, words, tmp_path, capsys):
+    out = tmp_path / "deep" / "x"
+    code = evaluate.main(["--soccer", "roach", "--players", "1", "--home", "random", "--away", "random", *args,
+                          "--out", str(out)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("evaluate.py --soccer: error: ") and words in err and "Traceback" not in err
+    assert not (tmp_path / "deep").exists()

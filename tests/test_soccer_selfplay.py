@@ -117,6 +117,9 @@ def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
                        (("--players", "3", "--n-envs", "1"), "(matches) x players = 256 x 1 x 3")):  # fmt: skip
         done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
         assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
+    for flag in ("--players", "--match-seconds", "--scripted-share", "--snapshot-freq"):  # not ignored without it
+        done = train_in_process("--env", "skitter/RoachWalk-v2", "--timesteps", "10", "--runs-dir", tmp_path, flag, "2")
+        assert done.returncode == 2 and f"{flag} is a self-play option: give --soccer" in done.stderr, done.stderr
     assert not any(tmp_path.iterdir())
 
 

@@ -131,11 +131,10 @@ def team_mode(spec: str) -> str | None:
     return soccer.get("action_mode")
 
 
-def play(robot: str, players: int, home: str, away: str, matches: int, seed: int, match_seconds: float,
-         action_mode: str | None = None, video: Path | None = None, kick: bool = False) -> dict[str, Any]:  # fmt: skip
-    """Play ``matches`` seeded matches; returns every match's score and the statistics. A team is ``scripted``,
-    ``random`` or the path of a model trained by ``train.py --soccer``; ``kick``: the commands mode's kick action
-    (the Bioloid's), for both teams."""
+def prepare(robot: str, players: int, home: str, away: str, matches: int, seed: int, match_seconds: float,
+            action_mode: str | None = None, kick: bool = False) -> tuple[Matches, list[TeamPolicy]]:  # fmt: skip
+    """The seeded matches, reset, and the two teams (:func:`play`'s arguments); ValueError, before anything is
+    written, for teams that cannot play each other or these matches."""
     modes = {m for m in (team_mode(home), team_mode(away)) if m is not None}
     if len(modes) > 1:
         raise ValueError(f"the two teams play in different action modes: {sorted(modes)}")
@@ -143,14 +142,25 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
         raise ValueError(f"--action-mode {action_mode!r}: the teams play in {modes.pop()!r}")
     mode = action_mode if action_mode is not None else (modes.pop() if modes else None)
     if kick and mode != COMMANDS:
-        raise ValueError(f"--kick is the {COMMANDS!r} mode's kick action: the teams play in {mode!r}")
+        playing = f"the {mode!r} mode" if mode else "the robot's own mode (give --action-mode commands)"
+        raise ValueError(f"--kick is the {COMMANDS!r} mode's kick action: the teams play in {playing}")
     engine = Matches(robot=robot, players_per_team=players, action_mode=mode, num_matches=matches, batched=True,
                      max_cycles=1, kick=kick)  # fmt: skip
     engine.max_cycles = max(1, round(match_seconds / engine.dt))
     for m in range(matches):
         engine.seed(m, seed + m)
     engine.reset(np.arange(matches))
-    teams = [TeamPolicy(home, engine, "home", seed), TeamPolicy(away, engine, "away", seed)]
+    return engine, [TeamPolicy(home, engine, "home", seed), TeamPolicy(away, engine, "away", seed)]
+
+
+def play(robot: str, players: int, home: str, away: str, matches: int, seed: int, match_seconds: float,
+         action_mode: str | None = None, video: Path | None = None, kick: bool = False,
+         prepared: tuple[Matches, list[TeamPolicy]] | None = None) -> dict[str, Any]:  # fmt: skip
+    """Play ``matches`` seeded matches; returns every match's score and the statistics. A team is ``scripted``,
+    ``random`` or the path of a model trained by ``train.py --soccer``; ``kick``: the commands mode's kick action
+    (the Bioloid's), for both teams. ``prepared``: :func:`prepare`'s result for these arguments (made here if
+    None). A match lasts a whole number of control steps: ``match_seconds`` rounded to one (at least one)."""
+    engine, teams = prepared or prepare(robot, players, home, away, matches, seed, match_seconds, action_mode, kick)
     actions = np.zeros((engine.robot.num_sims, engine.mode.size))
     frames, renderer = [], None
     if video is not None:
@@ -177,8 +187,10 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
     played = np.isnan(stopped)
     final[played] = engine.scores[played]
     scores = final.tolist()
-    cut = [{"match": int(m), "seconds": float(stopped[m]), "score": scores[m]} for m in np.flatnonzero(~played)]
-    return {"scores": scores, "stopped_unstable": cut, **statistics(final)}
+    cut = [{"match": int(m), "seed": seed + int(m), "seconds": float(stopped[m]), "score": scores[m]}
+           for m in np.flatnonzero(~played)]  # fmt: skip
+    return {"scores": scores, "played_seconds": engine.max_cycles * engine.dt, "stopped_unstable": cut,
+            **statistics(final)}  # fmt: skip
 
 
 def _renderer(engine: Matches):
@@ -220,7 +232,8 @@ def report(args: argparse.Namespace, result: dict[str, Any]) -> str:
     gd = result["goal_difference"]
     return (
         f"# {args.soccer}, {args.players} a side: {args.home} (home) against {args.away} (away)\n\n"
-        f"{result['matches']} matches of {args.match_seconds:g} s, seeds {args.seed}-{args.seed + args.matches - 1}; "
+        f"{result['matches']} matches of {result.get('played_seconds', args.match_seconds):g} s, seeds "
+        f"{args.seed}-{args.seed + args.matches - 1}; "
         "the home team's record, 95% Wilson intervals; goal difference home minus away, 95% bootstrap interval.\n\n"
         "| wins | draws | losses | goal difference | goals (home-away) |\n|---|---|---|---|---|\n"
         f"| {' | '.join(row)} | {gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}] | "
@@ -233,7 +246,7 @@ def _stopped_note(args: argparse.Namespace, stopped: list[dict[str, Any]]) -> st
     """The matches stopped early, where a scene went numerically unstable (their scores stand as they were)."""
     if not stopped:
         return ""
-    each = ", ".join(f"seed {args.seed + s['match']} at {s['seconds']:.1f} s ({s['score'][0]}-{s['score'][1]})"
+    each = ", ".join(f"seed {s['seed']} at {s['seconds']:.1f} s ({s['score'][0]}-{s['score'][1]})"
                      for s in stopped)  # fmt: skip
     return (f"\n{len(stopped)} of {args.matches} matches went numerically unstable (MuJoCo reset the scene) and were "
             f"stopped there, their scores standing as they were: {each}.\n")  # fmt: skip
@@ -301,6 +314,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     out: Path = args.out
+    try:  # every refusal before anything is written
+        prepared = prepare(args.soccer, args.players, args.home, args.away, args.matches, args.seed,
+                           args.match_seconds, args.action_mode, args.kick)  # fmt: skip
+    except ValueError as exc:
+        print(f"evaluate.py --soccer: error: {exc}", file=sys.stderr)
+        return 2
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f".{out.name}.", dir=out.parent) as tmp:
         staging = Path(tmp) / "results"
@@ -308,12 +327,8 @@ def _run(args: argparse.Namespace) -> int:
         video = staging / "videos" / "match.mp4" if args.video else None
         if video is not None:
             video.parent.mkdir()
-        try:
-            result = play(args.soccer, args.players, args.home, args.away, args.matches, args.seed,
-                          args.match_seconds, args.action_mode, video, args.kick)  # fmt: skip
-        except ValueError as exc:
-            print(f"evaluate.py: error: {exc}", file=sys.stderr)
-            return 2
+        result = play(args.soccer, args.players, args.home, args.away, args.matches, args.seed, args.match_seconds,
+                      args.action_mode, video, args.kick, prepared)  # fmt: skip
         text = report(args, result)
         record = {"robot": args.soccer, "players_per_team": args.players, "kick": args.kick, "home": args.home,
                   "away": args.away,
