@@ -142,14 +142,15 @@ def test_two_models_with_the_same_file_name_get_their_own_plots(model_zip, tmp_p
     assert len(set(files.values())) == 2
 
 
-def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip, tmp_path):
+def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip, tmp_path, capsys):
     stripped = tmp_path / "stripped.zip"
     with zipfile.ZipFile(model_zip) as src, zipfile.ZipFile(stripped, "w") as dst:
         for item in src.infolist():
             if item.filename != "vecnormalize.pkl":
                 dst.writestr(item, src.read(item))
-    done = run(
-        "--env", "skitter/RoachWalk-v2", "--policy", str(stripped), "--episodes", "1", "--out", str(tmp_path / "o")
+    done = run_here(
+        capsys,
+        *("--env", "skitter/RoachWalk-v2", "--policy", str(stripped), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2
     assert "lacks the statistics" in done.stderr and "Traceback" not in done.stderr
@@ -167,9 +168,10 @@ def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path):
     assert len(done.stderr.strip().splitlines()) == 1
 
 
-def test_a_model_of_another_env_is_refused(model_zip, tmp_path):
-    done = run(
-        "--env", "skitter/RoachTurn-v2", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")
+def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
+    done = run_here(
+        capsys,
+        *("--env", "skitter/RoachTurn-v2", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "trained on skitter/RoachWalk-v2" in done.stderr and "not on skitter/RoachTurn-v2" in done.stderr
