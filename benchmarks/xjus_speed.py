@@ -194,7 +194,7 @@ def flat_ground(period: float, seeds: list[int], threads: int, **kwargs) -> dict
 
 def turning(seeds: list[int], threads: int) -> dict:
     """Yaw rate against the sweep difference (right minus left, around 60 deg) at T = 0.5 s, and the turn routine's
-    tracking of commanded yaw rates (XjusTurn-v1, 10 s episodes)."""
+    tracking of commanded yaw rates (XjusTurn-v2, 10 s episodes)."""
     differences = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
     open_loop = []
     for diff in differences:
@@ -209,7 +209,7 @@ def turning(seeds: list[int], threads: int) -> dict:
         open_loop.append({"difference_deg": float(np.degrees(diff)), "yaw_rate": rates.tolist()})
     tracking = []
     for command in (-0.4, -0.2, 0.2, 0.4):
-        env = gym.make("skitter/XjusTurn-v1")
+        env = gym.make("skitter/XjusTurn-v2")
         policy = load_policy("buehler", env)
         errors = []
         for seed in seeds:

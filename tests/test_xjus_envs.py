@@ -11,7 +11,7 @@ from agents.evaluation import run_episodes
 from envs.common.terrain import Terrain
 from envs.xjus import constants
 
-WALK, TURN, ROUGH = "skitter/XjusWalk-v1", "skitter/XjusTurn-v1", "skitter/XjusRough-v1"
+WALK, TURN, ROUGH = "skitter/XjusWalk-v1", "skitter/XjusTurn-v2", "skitter/XjusRough-v1"
 XJUS_IDS = [WALK, TURN, ROUGH]
 SEEDS = [0, 1, 2]
 
@@ -35,13 +35,20 @@ def test_the_tripod_walks_forward_at_half_and_one_second_periods(period, least_s
 
 @pytest.mark.parametrize("yaw_rate", [-0.3, 0.3])
 def test_the_turn_routine_follows_a_commanded_yaw_rate(yaw_rate):
-    """A 10 s episode at a set command; the mean yaw rate after the first second within 0.06 rad/s of it."""
+    """A 10 s episode at a set command; the mean yaw rate after the first second within 0.06 rad/s of it. The
+    rate the reward tracks is the mean over the last stride (0.5 s: 62 steps at 125 Hz; since the reset before),
+    and its term is exp(-(rate - command)^2 / 0.15^2)."""
     env = gym.make(TURN)
     policy = load_policy("buehler", env)
     obs, _ = env.reset(seed=1, options={"yaw_rate": yaw_rate})
-    for _ in range(1250):
+    travel, window, dt = [0.0], 62, 0.008
+    for step in range(1, 1251):
         obs, _, terminated, _, info = env.step(policy.predict(obs)[0])
         assert not terminated
+        travel.append(info["yaw_travel"])
+        rate = (travel[-1] - travel[max(0, step - window)]) / (min(step, window) * dt)
+        assert info["yaw_rate_window"] == pytest.approx(rate, abs=1e-9)
+        assert info["reward_tracking"] == pytest.approx(np.exp(-(((rate - yaw_rate) / 0.15) ** 2)), abs=1e-12)
     mean_rate = (info["yaw_travel"] - info["yaw_travel_warmup"]) / (info["elapsed"] - 1.0)
     assert mean_rate == pytest.approx(yaw_rate, abs=0.06)
     assert env.unwrapped.task.episode_metrics(info)["yaw_rate_error"] == pytest.approx(abs(mean_rate - yaw_rate))

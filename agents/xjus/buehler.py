@@ -91,7 +91,7 @@ class BuehlerController:
         if routine == "stand" and context.mode.name == GAIT:
             raise ValueError("the stand routine needs action_mode='duty': the gait mode's clock always runs")
         if routine == "turn" and "yaw_rate_command" not in context.layout:
-            raise ValueError("the turn routine needs an env with a yaw-rate command (skitter/XjusTurn-v1)")
+            raise ValueError("the turn routine needs an env with a yaw-rate command (skitter/XjusTurn-v2)")
         self.context, self.routine = context, routine
         self.period, self.sweep = float(period), float(sweep)
         self.gait = Gait.tripod()

@@ -398,7 +398,12 @@ class WalkTask(LocomotionTask):
 
 
 class TurnTask(LocomotionTask):
-    """Turn at a commanded yaw rate while running: reward = tracking + speed + energy."""
+    """Turn at a commanded yaw rate while running: reward = tracking + speed + energy.
+
+    ``tracking_window`` (s): the yaw rate tracked is the mean over that long (the body's yaw travel over the window,
+    or since the reset within the first window), so that a gait whose body swings from side to side within a stride
+    is judged by the rate it turns at, not by its swing; 0 (the default) tracks the rate over each control step.
+    """
 
     name = "turn"
     metrics: ClassVar[dict[str, str]] = {
@@ -420,12 +425,18 @@ class TurnTask(LocomotionTask):
         height_band: Sequence[float] | None = None,
         grace_time: float = GRACE_TIME,
         ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
+        tracking_window: float = 0.0,
     ):
         self.yaw_rate_range = check_number("yaw_rate_range", yaw_rate_range, 0)
         self.tracking_reward_weight = check_number("tracking_reward_weight", tracking_reward_weight)
         self.tracking_sigma = check_number("tracking_sigma", tracking_sigma, 0, strict=True)
         self.speed_reward_weight = check_number("speed_reward_weight", speed_reward_weight)
+        self.tracking_window = check_number("tracking_window", tracking_window, 0, 60)
         self.yaw_rate_command = np.zeros(robot.num_sims)
+        # the yaw travel of the last ``_window`` steps, per simulation (a ring; zeros back to the reset)
+        self._window = max(1, round(self.tracking_window / robot.control_dt))
+        self._travel_ring = np.zeros((robot.num_sims, self._window))
+        self._ring_at = 0
         super().__init__(
             robot,
             privileged_obs,
@@ -453,8 +464,26 @@ class TurnTask(LocomotionTask):
     def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
         return self.yaw_rate_command * elapsed
 
+    def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
+        super().reset(ids, rngs, options, readings)
+        self._travel_ring[ids] = 0.0
+
+    def update(self, readings: dict[str, np.ndarray], stepped: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        state = super().update(readings, stepped)
+        if self._window > 1:  # the mean rate over the window: travel now less travel then (0 before the reset)
+            travel, steps = state["yaw_travel"], state["steps"]
+            then = self._travel_ring[:, self._ring_at].copy()
+            if stepped is None:
+                self._travel_ring[:, self._ring_at] = travel
+            else:  # a simulation reset in this step took no step: its ring stays as the reset left it
+                self._travel_ring[:, self._ring_at] = np.where(stepped, travel, self._travel_ring[:, self._ring_at])
+            self._ring_at = (self._ring_at + 1) % self._window
+            state["yaw_rate_window"] = (travel - then) / (np.clip(steps, 1.0, self._window) * self._dt)
+        return state
+
     def reward_terms(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        error = (state["yaw_rate"] - self.yaw_rate_command) / self.tracking_sigma
+        rate = state["yaw_rate_window"] if self._window > 1 else state["yaw_rate"]
+        error = (rate - self.yaw_rate_command) / self.tracking_sigma
         return {
             "tracking": self.tracking_reward_weight * np.exp(-np.square(error)),
             "speed": self.speed_reward_weight * state["speed"] / self.length,

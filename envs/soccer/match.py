@@ -199,7 +199,7 @@ class Matches:
         ``where``: every row's (x, y) now), tried from the middle of the half outward along the line; if none is
         clear, the clearest. Two players coming back at once, or onto a spot someone stands on, would otherwise be
         put one inside the other, and the solver blows the scene up."""
-        f, length = self.field, self.robot.facts.length
+        length = self.robot.facts.length
         side = 1.0 if self._home[row] else -1.0
         spots = self._return_spots(side)
         rows = self.rows_of(np.array([self._match_of[row]]))
