@@ -57,7 +57,7 @@ def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_re
 
 
 def test_vector_info_carries_every_step_key_with_masks():
-    venv = make_batched("skitter/RoachTurn-v2", max_episode_steps=5)
+    venv = make_batched("skitter/RoachTurn-v3", max_episode_steps=5)
     venv.reset(seed=0)
     for _ in range(5):
         *_, info = venv.step(venv.action_space.sample())
@@ -226,7 +226,7 @@ def test_sb3_vec_env_resets_finished_envs_in_the_same_step():
     np.testing.assert_array_equal(again, obs[0])
 
 
-@pytest.mark.parametrize("env_id", ["skitter/RoachTurn-v2", "skitter/RoachWalkDuty-v2"])
+@pytest.mark.parametrize("env_id", ["skitter/RoachTurn-v3", "skitter/RoachWalkDuty-v2"])
 def test_episodes_run_together_match_episodes_run_one_by_one(env_id):
     """evaluate.py runs a policy's episodes as one batch: the metrics equal those of single envs, seed by seed."""
     from agents import load_policy

@@ -18,9 +18,9 @@ N_STEPS = 60
 def test_registry_has_walk_and_turn_in_both_action_modes():
     assert {
         "skitter/RoachWalk-v2",
-        "skitter/RoachTurn-v2",
+        "skitter/RoachTurn-v3",
         "skitter/RoachWalkDuty-v2",
-        "skitter/RoachTurnDuty-v2",
+        "skitter/RoachTurnDuty-v3",
     } <= set(ENV_IDS)
 
 
@@ -268,7 +268,7 @@ def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
 
 
 def test_turn_command_is_sampled_in_range_and_settable():
-    env = gym.make("skitter/RoachTurn-v2")
+    env = gym.make("skitter/RoachTurn-v3")
     index = env.unwrapped.task.layout["yaw_rate_command"].start
     commands = []
     for seed in range(20):

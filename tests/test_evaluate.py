@@ -119,7 +119,7 @@ def test_runs_on_every_registered_env(env_id, tmp_path):
 def test_turn_reports_the_yaw_rate_error(tmp_path):
     import evaluate
 
-    assert evaluate.main(["--env", "skitter/RoachTurn-v2", "--policy", "tripod", "--episodes", "2", "--out",
+    assert evaluate.main(["--env", "skitter/RoachTurn-v3", "--policy", "tripod", "--episodes", "2", "--out",
                           str(tmp_path / "t"), "--max-episode-steps", "100"]) == 0  # fmt: skip
     summary = json.loads((tmp_path / "t" / "results.json").read_text())["policies"]["tripod"]["summary"]
     assert 0 <= summary["yaw_rate_error"]["mean"] < 1.0
@@ -171,10 +171,10 @@ def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path):
 def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
     done = run_here(
         capsys,
-        *("--env", "skitter/RoachTurn-v2", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")),
+        *("--env", "skitter/RoachTurn-v3", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
-    assert "trained on skitter/RoachWalk-v2" in done.stderr and "not on skitter/RoachTurn-v2" in done.stderr
+    assert "trained on skitter/RoachWalk-v2" in done.stderr and "not on skitter/RoachTurn-v3" in done.stderr
 
 
 @pytest.mark.parametrize(

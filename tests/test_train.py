@@ -365,7 +365,7 @@ def test_a_model_torch_cannot_build_is_a_config_error_naming_the_field(tmp_path,
 def test_resume_refuses_a_checkpoint_of_another_env(tiny_run, tmp_path):
     run_dir = shutil.copytree(tiny_run, tmp_path / "run")
     config = run_dir / "config.json"
-    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v2"))  # 22 observations, not 21
+    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v3"))  # 22 observations, not 21
     before = files(run_dir)
     result = train_in_process("--resume", run_dir, "--timesteps", 256)
     model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"

@@ -62,7 +62,7 @@ def test_turning_direction_follows_the_sign_of_the_offset_from_180_deg():
 
 
 def test_turning_tripod_maps_the_command_through_the_measured_table():
-    env = gym.make("skitter/RoachTurn-v2")
+    env = gym.make("skitter/RoachTurn-v3")
     policy = load_policy("tripod", env)
     assert isinstance(policy, TripodTurn)
     obs, _ = env.reset(seed=0)
@@ -76,7 +76,7 @@ def test_turning_tripod_maps_the_command_through_the_measured_table():
 
 @pytest.mark.parametrize("command", [0.6, -0.6])
 def test_turning_tripod_turns_the_commanded_way(command):
-    env = gym.make("skitter/RoachTurn-v2", max_episode_steps=300)
+    env = gym.make("skitter/RoachTurn-v3", max_episode_steps=300)
     policy = load_policy("tripod", env)
     obs, info = env.reset(seed=1, options={"yaw_rate": command})
     rates = []

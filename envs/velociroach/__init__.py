@@ -4,10 +4,11 @@ calibration adapter and the reader of its text telemetry for calibration are in 
 from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
 
 _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
+VERSIONS = {"Walk": 2, "Turn": 3}  # each task's version (both modes): raised when its dynamics or rewards change
 
 ENVS = [
     {
-        "id": f"skitter/Roach{task}{suffix}-v2",
+        "id": f"skitter/Roach{task}{suffix}-v{VERSIONS[task]}",
         "entry_point": f"envs.velociroach.{task.lower()}:make_env",
         "vector_entry_point": f"envs.velociroach.{task.lower()}:make_batched",
         "kwargs": {"action_mode": mode, "control_freq": freq, "episode_seconds": EPISODE_SECONDS},

@@ -12,6 +12,13 @@ from envs.common.vector import vector_entry_point
 from envs.velociroach.robot import GAIT, VelociRoach
 
 YAW_RATE_RANGE = 0.8  # rad/s: commands are drawn from U(-0.8, 0.8), within the turning tripod's reach at 10 Hz
+# the task's weights, measured against what they reward (docs/velociroach.md, "RoachTurn's reward"): the yaw rate is
+# tracked over half a second (the body's yaw over one 20 ms step is mostly the bound of its stride), within 0.3 rad/s,
+# and speed pays a tenth of v2's 0.1 per body length a second, at which running straight at 45 Hz out-returned the
+# turning tripod 2.7 times
+TRACKING_WINDOW = 0.5  # s
+TRACKING_SIGMA = 0.3  # rad/s
+SPEED_REWARD_WEIGHT = 0.01  # per body length a second
 
 
 class RoachTurnEnv(SkitterEnv):
@@ -34,15 +41,21 @@ class RoachTurnEnv(SkitterEnv):
     ## Rewards
     ``reward = tracking + speed + energy``, each in ``info["reward_<term>"]``:
 
-    - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the yaw rate over the step;
+    - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the mean yaw rate over the
+      last ``tracking_window`` (since the reset within the first);
     - ``speed``: ``speed_reward_weight * v / 0.1 m``, v the speed along the body's heading in body lengths/s;
     - ``energy``: ``-energy_cost_weight * P`` as in RoachWalk.
 
     ## Arguments
     As RoachWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range`` (0.8 rad/s),
-    ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.5 rad/s), ``speed_reward_weight`` (0.1).
+    ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.3 rad/s), ``tracking_window`` (0.5 s),
+    ``speed_reward_weight`` (0.01).
 
     ## Version History
+    - v3: tracking of the mean yaw rate over ``tracking_window`` (0.5 s) within 0.3 rad/s, and a speed weight of 0.01
+      (v2: the rate over each 20 ms step within 0.5 rad/s, and 0.1). Under v2 the tripod run straight at 45 Hz,
+      ignoring the command, returned 1699 against the turning tripod's 625 (seeds 1000-1007): a learner won the turn
+      by not turning.
     - v2: as RoachWalk-v2 (the episode ends on a non-foot ground contact or a body out of its height band).
     - v1: as RoachWalk-v1 (heading error in the observation, IMU noise, 0-45 Hz strides, replayable controls).
     - v0: first release.
@@ -55,8 +68,8 @@ class RoachTurnEnv(SkitterEnv):
         privileged_obs: bool = False,
         yaw_rate_range: float = YAW_RATE_RANGE,
         tracking_reward_weight: float = 1.0,
-        tracking_sigma: float = 0.5,
-        speed_reward_weight: float = 0.1,
+        tracking_sigma: float = TRACKING_SIGMA,
+        speed_reward_weight: float = SPEED_REWARD_WEIGHT,
         energy_cost_weight: float = 0.1,
         max_tilt: float = 1.4,
         terminate_when_unhealthy: bool = True,
@@ -71,6 +84,7 @@ class RoachTurnEnv(SkitterEnv):
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
+        tracking_window: float = TRACKING_WINDOW,
     ):
         robot = VelociRoach(
             action_mode,
@@ -91,6 +105,7 @@ class RoachTurnEnv(SkitterEnv):
             terminate_when_unhealthy=terminate_when_unhealthy,
             height_band=height_band,
             grace_time=grace_time,
+            tracking_window=tracking_window,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 
