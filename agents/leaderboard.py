@@ -617,6 +617,8 @@ def publish_media(text: str, out: Path, docs: Path, records: Path | None = None)
     by an earlier run and published there stays while its row is the task's best (``records``' marker)."""
     media = docs.with_suffix("")
     for png in sorted((out / "plots").glob("*.png")):
+        if f"](plots/{png.name})" not in text:  # a plot of an earlier plan's task: not the page's
+            continue
         target = media / "plots" / png.name
         target.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(target, lambda tmp, png=png: shutil.copyfile(png, tmp))

@@ -286,7 +286,10 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args: ran.append(row) or {**record, "curve": None})
     argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--episodes", "2", "--out",
             str(tmp_path / "fresh"), "--records", str(kept), "--docs", str(docs), "--videos"]  # fmt: skip
+    (tmp_path / "fresh" / "plots").mkdir(parents=True)
+    (tmp_path / "fresh" / "plots" / "curve_skitter_Gone-v1.png").write_bytes(b"an earlier plan's")
     assert leaderboard.main(argv) == 0
+    assert not (docs.parent / "results" / "plots" / "curve_skitter_Gone-v1.png").exists(), "only the page's plots"
     assert ran == [leaderboard.Row(WALK, "ppo", 1)], "the kept row is not trained again"
     assert "(1 to run)" in capsys.readouterr().out
     text = docs.read_text()
