@@ -360,7 +360,11 @@ def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Pat
     curve, the command that computes it again and the settings it was made with."""
     steps, values = learning_curve(run_dir)
     keep = np.unique(np.linspace(0, len(steps) - 1, min(len(steps), CURVE_POINTS)).round().astype(int))
+    attempts = out / "rows" / row.name / ATTEMPTS
     return {**asdict(row), "row": row.name, "timesteps": trained, "timesteps_planned": plan.steps(row.task),
+            # training processes it took: more than one when killed and resumed from a checkpoint (a resumed PPO
+            # run does not continue bit for bit: the row's commands then give a close, not the same, result)
+            "training_attempts": len(json.loads(attempts.read_text())) if attempts.is_file() else 1,
             "curve": {"steps": steps[keep].tolist(), "values": values[keep].tolist()} if len(steps) else None,
             "capped": trained < plan.steps(row.task), "wall_seconds": time.time() - started,
             "command": row_command(plan, row, out, records), "settings": plan.row_settings(row.task)}  # fmt: skip
@@ -786,6 +790,12 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                      f"{paired('speed')} | {paired('cost_of_transport')} | "
                      f"{_share(rec, baselines[row.task], 'falls')} | "
                      f"{_share(rec, baselines[row.task], 'non_foot_contact')} |")  # fmt: skip
+    resumed = [f"{row.name} ({rec['training_attempts']})" for row, rec in rows.items()
+               if rec and rec.get("training_attempts", 1) > 1]  # fmt: skip
+    if resumed:
+        lines += ["", "Rows trained in several attempts (killed and resumed from a checkpoint; a resumed run does not "
+                  "continue bit for bit, so its commands give a close result, not the same): "
+                  + ", ".join(resumed) + "."]  # fmt: skip
     again = [(row, rec["reproduction"]) for row, rec in rows.items() if rec and "reproduction" in rec]
     if again:
         lines += ["", "Rows computed again with their own command (`--rerun`), against their earlier record:", ""]

@@ -278,7 +278,7 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     record = {"mean_return": 85.0, "returns": [80.0, 90.0], "timesteps": 100, "capped": False, "wall_seconds": 60.0,
               "paired_differences": {}, "curve": {"steps": [0, 50, 100], "values": [10.0, 50.0, 85.0]},
               "settings": plan.row_settings(WALK)}  # fmt: skip
-    leaderboard.write_json(leaderboard.row_file(kept, row), record)
+    leaderboard.write_json(leaderboard.row_file(kept, row), {**record, "training_attempts": 3})
     leaderboard.write_text(leaderboard.video_marker(kept, WALK), row.name + "\n")
     (docs.parent / "results" / "videos").mkdir(parents=True)
     (docs.parent / "results" / "videos" / "skitter_RoachWalk-v2.mp4").write_bytes(b"published")
@@ -294,6 +294,7 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     assert "(1 to run)" in capsys.readouterr().out
     text = docs.read_text()
     assert f"| {row.name} | 100 | 1 | 85.0 | 0.75 |" in text
+    assert "Rows trained in several attempts (killed and resumed" in text and f"{row.name} (3)." in text
     assert f"[the reference gait and {row.name}](results/videos/skitter_RoachWalk-v2.mp4)" in text
     assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v2.png").stat().st_size > 5_000
     assert not (tmp_path / "fresh" / "runs").exists()
