@@ -328,7 +328,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
         _run(command, threads, log)
     trained = _trained_steps(run_dir)
     if is_soccer(row.task):
-        return _soccer_row(plan, row, out, threads, started, trained, record_path)
+        return _soccer_row(plan, row, out, threads, started, trained, records or out)
     reference = reference_name(row.task)
     evaluation = folder / "eval"
     _run(_tool("evaluate.py", "--env", row.task, "--policy", reference, "--policy", run_dir / "model.zip",
@@ -371,7 +371,7 @@ def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Pat
 
 
 def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int,
-                record_path: Path) -> dict[str, Any]:  # fmt: skip
+                records: Path) -> dict[str, Any]:  # fmt: skip
     """A soccer row's evaluation and record: its model as the home team against the scripted one on the
     evaluation matches, the Elo that record gives it, and the rating self-play ended with (ratings.json)."""
     from agents.soccer.selfplay import RATINGS_FILE
@@ -384,8 +384,8 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
     result = json.loads((evaluation / "results.json").read_text())
     counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
     ratings = json.loads((run_dir / RATINGS_FILE).read_text()) if (run_dir / RATINGS_FILE).is_file() else {}
-    base = _row_record(plan, row, trained, started, run_dir, out, record_path.parents[2])  # records/rows/<row>/
-    record = {**base, "soccer": True, "against_scripted": result,
+    record = {**_row_record(plan, row, trained, started, run_dir, out, records), "soccer": True,
+              "against_scripted": result,
               "elo": elo_against(*counts), "selfplay_elo": ratings.get("ratings", {}).get("learner"),
               "reproduce": [
                   shlex.join(["python", "train.py", "--soccer", row.task.removeprefix(SOCCER), "--players",
@@ -394,7 +394,7 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
                   shlex.join(["python", "evaluate.py", *map(str, _soccer(row.task, "--home",
                               f"runs/{row.name}/model.zip", "--away", "scripted")), *map(str, _matches(plan)),
                               "--out", f"results/{row.name}"])]}  # fmt: skip
-    write_json(record_path, record)
+    write_json(row_file(records, row), record)
     return record
 
 
@@ -799,12 +799,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     again = [(row, rec["reproduction"]) for row, rec in rows.items() if rec and "reproduction" in rec]
     if again:
         lines += ["", "Rows computed again with their own command (`--rerun`), against their earlier record:", ""]
-        lines += [f"- {row.name}: {r['metric']} {r['again']['value']:.2f} [{r['again']['ci_low']:.2f}, "
-                  f"{r['again']['ci_high']:.2f}] against {r['before']['value']:.2f} [{r['before']['ci_low']:.2f}, "
-                  f"{r['before']['ci_high']:.2f}] before: "
-                  + ("within the earlier 95% interval" if r["within"] else "outside the earlier 95% interval")
-                  + ("." if r.get("same_settings", True) else ", which was made with other settings.")
-                  for row, r in again]  # fmt: skip
+        lines += [f"- {row.name}: {verdict(r)}." for row, r in again]
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
@@ -1013,6 +1008,16 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
                 "settings"), "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
 
 
+def verdict(r: dict[str, Any]) -> str:
+    """A :func:`reproduction` in words: the new number against the earlier one and its interval, within or not."""
+    b = r["before"]
+    other = "" if r.get("same_settings", True) else f" (made with other settings: {r['settings_before']})"
+    return (
+        f"{r['metric']} {r['again']['value']:.2f} against {b['value']:.2f} [{b['ci_low']:.2f}, {b['ci_high']:.2f}]"
+        f" before: {'within' if r['within'] else 'OUTSIDE'} its 95% interval{other}"
+    )
+
+
 def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) -> int:
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
@@ -1044,11 +1049,7 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
         if record is not None and row in previous:
             record = {**record, "reproduction": reproduction(previous[row], record)}
             write_json(row_file(records, row), record)
-            r = record["reproduction"]
-            print(f"leaderboard: {row.name} again: {r['metric']} {r['again']['value']:.2f} against "
-                  f"{r['before']['value']:.2f} [{r['before']['ci_low']:.2f}, {r['before']['ci_high']:.2f}] before: "
-                  + ("within" if r["within"] else "OUTSIDE") + " its 95% interval"
-                  + ("" if r["same_settings"] else f" (made with other settings: {r['settings_before']})"))  # fmt: skip
+            print(f"leaderboard: {row.name} again: {verdict(record['reproduction'])}")
         results[row] = record
         if error:
             failures.append(error)

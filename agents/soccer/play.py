@@ -232,13 +232,12 @@ def report(args: argparse.Namespace, result: dict[str, Any]) -> str:
     gd = result["goal_difference"]
     return (
         f"# {args.soccer}, {args.players} a side: {args.home} (home) against {args.away} (away)\n\n"
-        f"{result['matches']} matches of {result.get('played_seconds', args.match_seconds):g} s, seeds "
+        f"{result['matches']} matches of {result['played_seconds']:g} s, seeds "
         f"{args.seed}-{args.seed + args.matches - 1}; "
         "the home team's record, 95% Wilson intervals; goal difference home minus away, 95% bootstrap interval.\n\n"
         "| wins | draws | losses | goal difference | goals (home-away) |\n|---|---|---|---|---|\n"
         f"| {' | '.join(row)} | {gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}] | "
-        f"{result['goals']['home']}-{result['goals']['away']} |\n"
-        + _stopped_note(args, result.get("stopped_unstable", []))
+        f"{result['goals']['home']}-{result['goals']['away']} |\n" + _stopped_note(args, result["stopped_unstable"])
     )
 
 
