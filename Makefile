@@ -50,10 +50,10 @@ demo: setup
 # rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
 # docs/results.md
 LEADERBOARD_ALL = skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v3 \
-	skitter/XjusTurn-v2 skitter/BioloidTurn-v2 skitter/XjusRough-v1
+	skitter/XjusTurn-v2 skitter/BioloidTurn-v3 skitter/XjusRough-v1
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
 LEADERBOARD_STEPS ?= skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
-	skitter/RoachTurn-v3=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v2=7000000 \
+	skitter/RoachTurn-v3=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v3=7000000 \
 	skitter/XjusRough-v1=9000000
 LEADERBOARD_SEEDS ?= 0 1 2
 LEADERBOARD_ALGOS_ALL = ppo ppo+residual

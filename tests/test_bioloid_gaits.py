@@ -97,23 +97,23 @@ def test_measured_foot_contacts_of_trot_and_walk_follow_the_commanded_order_with
     assert -0.5 < shift[0] < -0.2 and abs(shift[2]) < 0.15, ("the documented shifts", shift)
 
 
-@pytest.mark.parametrize("yaw_rate", [-0.2, 0.2])
-def test_stride_steering_turns_the_way_the_task_commands_on_average(yaw_rate):
-    """The trot's yaw drifts by up to +-0.17 rad/s from episode to episode (docs/bioloid.md), as large as the stride
-    scaling's authority (0.13-0.28 rad/s), and a change of 1e-6 in the first step sends an episode elsewhere; over
-    sixteen episodes (standard error about 0.04 rad/s) the mean yaw rate follows the command's sign."""
-    venv = gym.make_vec("skitter/BioloidTurn-v2", num_envs=16, vectorization_mode="vector_entry_point",
-                        max_episode_steps=500)  # fmt: skip
+@pytest.mark.parametrize("yaw_rate", [-0.25, 0.0, 0.15])
+def test_the_steered_trot_turns_at_the_commanded_rate(yaw_rate):
+    """The reference on BioloidTurn swings its feet sideways to turn, with a heading correction: its mean yaw rate
+    after the first second is within 0.04 rad/s of the command in every episode (measured: 0.013 on average over
+    seeds 1000-1019, docs/bioloid.md), where the full trot alone veers by +-0.13."""
+    venv = gym.make_vec("skitter/BioloidTurn-v3", num_envs=4, vectorization_mode="vector_entry_point",
+                        max_episode_steps=300, nthread=1)  # fmt: skip
     policy = load_policy("ik-trot", venv)
     obs, _ = venv.reset(seed=0, options={"yaw_rate": yaw_rate})
-    state, start = None, np.ones(16, dtype=bool)
-    for _ in range(499):
+    state, start = None, np.ones(4, dtype=bool)
+    for _ in range(299):
         action, state = policy.predict(obs, state, start)
         start[:] = False
         obs, _, terminated, _, info = venv.step(action)
         assert not terminated.any()
     rates = (info["yaw_travel"] - info["yaw_travel_warmup"]) / (info["elapsed"] - 1.0)
-    assert np.sign(rates.mean()) == np.sign(yaw_rate) and abs(rates.mean()) > 0.05, rates
+    assert np.abs(rates - yaw_rate).max() < 0.04, rates
 
 
 def test_shortening_one_sides_stride_turns_the_trot_toward_the_other_side():
@@ -148,9 +148,9 @@ def test_ik_gaits_walk_when_the_caller_does_not_pass_the_state_back(batched):
     """A caller that drops predict()'s state (``action, _ = policy.predict(obs)``) gets the same actions as one that
     passes it back: the policy keeps its clock, and episode_start restarts a row's clock either way."""
     if batched:
-        env = gym.make_vec("skitter/BioloidTurn-v2", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
+        env = gym.make_vec("skitter/BioloidTurn-v3", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
     else:
-        env = gym.make("skitter/BioloidTurn-v2")
+        env = gym.make("skitter/BioloidTurn-v3")
     keeps, drops = load_policy("ik-trot", env), load_policy("ik-trot", env)
     obs, _ = env.reset(seed=0)
     n = 2 if batched else 1

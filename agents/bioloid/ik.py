@@ -7,11 +7,11 @@ bent past 90 deg (envs/bioloid/kinematics.py). The four legs run the same ellips
 ellipse is the stance (the foot moves backward), so every gait's commanded duty factor is 0.5; docs/bioloid.md
 sets the phases and duty factors beside the gait literature's.
 
-Steering: each side's stride (the ellipse's x radius) is scaled by a factor in [0, 1], as the seed's Webots model
-steered (its controller's "turn amount" added to one side's stride factor and took from the other's). Measured on
-this model, the trot turns toward the side with the longer stride: a right stride of 0 turns it left at 0.13-0.28
-rad/s at 1.5 Hz (docs/bioloid.md; negative strides tipped it over). On a turning task the factor follows the
-commanded yaw rate (a feed-forward) plus a proportional correction on the observed heading error.
+Steering, on a turning task: the trot shortens its stride to ``STEER_STRIDE`` and swings each foot sideways in its
+stance (``IKGoals.turning``, the Four-Legged League's turn, as the soccer envs' ``commands`` mode steers). The turn
+follows the commanded yaw rate (a feed-forward) plus a proportional correction on the observed heading error. The
+seed's Webots model steered by scaling one side's stride instead; on this model that turned less than the full
+trot drifts from episode to episode (+-0.13 rad/s), and often the wrong way (docs/bioloid.md).
 
 Names in the policy registry (agents/bioloid/__init__.py): ``ik-<gait>`` (at 1.5 Hz, the trot's reference) and
 ``ik-<gait>:<Hz>``. Every policy follows Stable-Baselines3's ``predict(observation, state, episode_start,
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs.bioloid import constants
-from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals, side_strides
+from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals
 from envs.common.robot import ActionMode
 from envs.common.task import ObservationLayout
 
@@ -57,8 +57,14 @@ GAITS: dict[str, Gait] = {
 }
 DEFAULT_FREQUENCY = TROT_FREQUENCY  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
-TURN_GAIN = 0.2  # rad/s of yaw rate with one side's stride at 0 (measured at 1.5 Hz: 0.13-0.28, docs/bioloid.md)
-HEADING_GAIN = 1.0  # stride reduction per rad of heading error
+# Steering on BioloidTurn, chosen on it (seeds 1000-1007, docs/bioloid.md): the stride it turns at (at 1/4 of the
+# ellipse and longer the trot's own drift grows and tracking falls), the turn per rad/s of wanted yaw rate (1.5 of
+# 1.5, 2 and 2.5), the wanted yaw rate per rad of heading error, and the largest turn (past it the soccer gait map's
+# turn rate falls: 0.36 rad/s at 0.75, -0.05 at 1, stride 1/8)
+STEER_STRIDE = 0.125
+TURN_PER_RATE = 1.5
+HEADING_GAIN = 1.0
+TURN_LIMIT = 0.75
 
 
 def touchdown_fraction(gait: Gait) -> np.ndarray:
@@ -97,25 +103,19 @@ class IKGait:
         self.gait, self.frequency = GAITS[gait], float(frequency)
         self.steer = "yaw_rate_command" in layout if steer is None else bool(steer)
         if self.steer and "yaw_rate_command" not in layout:
-            raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn-v2)")
+            raise ValueError("steering needs an env with a yaw-rate command (skitter/BioloidTurn)")
         self.goals = IKGoals(self.gait.phases, self.frequency, wedge)
         self._clock: np.ndarray | None = None  # the clock after the last call, per row
 
     def __repr__(self) -> str:
         return f"IKGait({self.gait.name}, {self.frequency:g} Hz{', steering' if self.steer else ''})"
 
-    def strides(self, obs: np.ndarray) -> np.ndarray:
-        """Stride factor per leg (n, 4): 1 walking straight; on a turning task one side's stride shortens, down to 0
-        (the trot turns toward the side of the longer stride: measured, docs/bioloid.md)."""
-        n = len(obs)
-        if not self.steer:
-            return np.ones((n, 4))
+    def turn(self, obs: np.ndarray) -> np.ndarray:
+        """The turn (n,) in [-TURN_LIMIT, TURN_LIMIT], > 0 left, on a turning task: the commanded yaw rate less a
+        correction on the heading error, scaled to the sideways swing of ``IKGoals.turning``."""
         command = self.layout.get(obs, "yaw_rate_command")[:, 0]
         s, c = self.layout.get(obs, "heading_error").T
-        turn = command / TURN_GAIN - HEADING_GAIN * np.arctan2(s, c)  # > 0: turn left
-        right = 1.0 - np.clip(turn, 0.0, 1.0)
-        left = 1.0 - np.clip(-turn, 0.0, 1.0)
-        return side_strides(left, right)
+        return np.clip(TURN_PER_RATE * (command - HEADING_GAIN * np.arctan2(s, c)), -TURN_LIMIT, TURN_LIMIT)
 
     def lead_in(self, t: np.ndarray) -> np.ndarray:
         """Stride scale over the first cycle, from 0 to 1 (see :meth:`envs.bioloid.gait.IKGoals.lead_in`)."""
@@ -147,7 +147,12 @@ class IKGait:
             t = np.zeros(n)
         if episode_start is not None:
             t[np.atleast_1d(np.asarray(episode_start, dtype=bool))] = 0.0
-        goal, _ = self.counts(t, self.strides(obs) * self.lead_in(t)[:, None])
+        lead = self.lead_in(t)
+        if self.steer:
+            goal, _ = self.counts(t, np.full((n, 4), STEER_STRIDE) * lead[:, None])
+            self.goals.turning(goal, t, self.turn(obs) * lead)
+        else:
+            goal, _ = self.counts(t, np.ones((n, 4)) * lead[:, None])
         action = self.mode.to_action(goal).astype(np.float32)
         t = t + self.control_dt
         self._clock = t

@@ -3,12 +3,14 @@ registers; its calibration adapter (``calibrate.py --robot bioloid``) is sysid/a
 
 from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
 
+VERSIONS = {"Walk": 2, "Turn": 3}  # bumped when a task's rewards, observations or model change
+
 ENVS = [
     {
-        "id": f"skitter/Bioloid{task}-v2",
+        "id": f"skitter/Bioloid{task}-v{version}",
         "entry_point": f"envs.bioloid.{task.lower()}:make_env",
         "vector_entry_point": f"envs.bioloid.{task.lower()}:make_batched",
         "kwargs": {"episode_seconds": EPISODE_SECONDS},
     }
-    for task in ("Walk", "Turn")
+    for task, version in VERSIONS.items()
 ]

@@ -3,7 +3,9 @@
 
 Each foot follows the seed's ellipse (eqs. 7-8) under its hip, at the gait's phase offset; the hip and knee servos
 come from the leg's inverse kinematics (eqs. 3-6, envs/bioloid/kinematics.py). A stride factor per leg scales the
-ellipse's x radius: 1 walks straight, a shorter stride on one side turns the robot toward the other.
+ellipse's x radius: 1 walks straight, 0 marks time. A turn in [-1, 1] swings each foot sideways in its stance
+(:meth:`IKGoals.turning`): the Four-Legged League quadrupeds' way of turning (Hengst, Ibbotson, Pham, Sammut,
+"Omnidirectional locomotion for quadruped robots", RoboCup 2001, LNAI 2377); the report's gait only walks straight.
 """
 
 from __future__ import annotations
@@ -17,7 +19,11 @@ from envs.bioloid.kinematics import Ellipse, LegGeometry
 
 TROT = (0.0, 0.5, 0.5, 0.0)  # phase offsets, legs F_L, F_R, B_L, B_R: diagonal pairs together
 TROT_FREQUENCY = 1.5  # Hz: the reference trot (the seed's trot scored best at 1.5 Hz, Figure 30)
-SIDE = np.array([0.0 if constants.LEG_SIDE[leg] == "left" else 1.0 for leg in constants.LEGS])  # 0 left, 1 right
+# rad of abduction swing either way at |turn| = 1 (the foot about 5 cm sideways at the sole, 0.16 m below the
+# abduction axis; assets/bioloid/bioloid.xml): chosen on the soccer gait map, where larger swings turned no faster
+TURN_ABDUCTION = 0.3
+_FRONT = np.array([1.0 if leg.startswith("F") else -1.0 for leg in constants.LEGS])
+_ABDUCTION = np.array([constants.SERVO_INDEX[constants.ABDUCTION[leg]] for leg in constants.LEGS])
 
 
 class IKGoals:
@@ -57,7 +63,12 @@ class IKGoals:
         goal[:, self._knees] = constants.CENTER + knee / constants.RAD_PER_COUNT
         return goal, limited
 
-
-def side_strides(left: np.ndarray, right: np.ndarray) -> np.ndarray:
-    """Stride factors per leg (n, 4) from one factor per side (n,)."""
-    return np.where(SIDE[None, :] == 0.0, np.asarray(left)[:, None], np.asarray(right)[:, None])
+    def turning(self, goal: np.ndarray, t: np.ndarray, turn: np.ndarray) -> None:
+        """Turn the gait's goal counts ``goal`` (n, 16) at clock times ``t`` (n,) in place by ``turn`` (n,) in
+        [-1, 1] (> 0 turns left): each sole swings sideways with its place along its stride, +1 at touch-down to -1
+        at lift-off; turning left, a front foot steps from its left to its right in the stance (it pushes the body's
+        front to the left) and a back foot the other way. An abduction of +0.1 rad moves a sole 1.6 cm to the
+        robot's right on every leg."""
+        along = -np.cos(self.phase(t))
+        leftward = np.asarray(turn)[:, None] * TURN_ABDUCTION * _FRONT[None, :] * along
+        goal[:, _ABDUCTION] -= leftward / constants.RAD_PER_COUNT

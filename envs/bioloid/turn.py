@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from envs.actuators.servo import ServoConstants
+from envs.bioloid.gait import TROT_FREQUENCY
 from envs.bioloid.robot import GOAL, Bioloid
 from envs.bioloid.walk import ENERGY_COST_WEIGHT
 from envs.common.env import SkitterEnv, entry_point
@@ -13,7 +14,13 @@ from envs.common.locomotion import GRACE_TIME, TurnTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 
-YAW_RATE_RANGE = 0.2  # rad/s: commands from U(-0.2, 0.2), within the stride-scaling trot's reach (docs/bioloid.md)
+# rad/s: commands from U(-0.3, 0.3), within the steered trot's reach (0.36 rad/s at its largest turn, docs/bioloid.md)
+YAW_RATE_RANGE = 0.3
+# s: the yaw rate tracked is the mean over one cycle of the reference trot, whose body sways within it
+TRACKING_WINDOW = 1.0 / TROT_FREQUENCY
+# rad/s: with 0.2 (v2) and one step's rate, a robot that stood still out-scored the steered trot; with a stride's mean
+# and 0.05, standing still scores about half of what the steered trot does (docs/bioloid.md)
+TRACKING_SIGMA = 0.05
 
 
 class BioloidTurnEnv(SkitterEnv):
@@ -25,8 +32,9 @@ class BioloidTurnEnv(SkitterEnv):
     ## Command
     A yaw rate ``r`` (rad/s, positive counter-clockwise seen from above), drawn per episode from
     ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.2 rad/s), or set with ``reset(options={"yaw_rate": r})``. The
-    commanded heading turns at ``r`` from the heading at reset. The reference gait turns by scaling the stride of each
-    side (``ik-trot`` on this env; agents/bioloid/ik.py).
+    commanded heading turns at ``r`` from the heading at reset (default range 0.3 rad/s). The reference gait
+    (``ik-trot`` on this env; agents/bioloid/ik.py) trots at an eighth of its stride and turns by swinging each foot
+    sideways in its stance.
 
     ## Observation Space
     As BioloidWalk, ``heading_error`` taken against the turning commanded heading, and the commanded yaw rate
@@ -35,15 +43,21 @@ class BioloidTurnEnv(SkitterEnv):
     ## Rewards
     ``reward = tracking + speed + energy``, each in ``info["reward_<term>"]``:
 
-    - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the yaw rate over the step;
+    - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the mean yaw rate over the
+      last ``tracking_window`` (one cycle of the 1.5 Hz trot; since the reset within the first);
     - ``speed``: ``speed_reward_weight * v / 0.30 m``, v the speed along the body's heading in body lengths/s;
     - ``energy``: ``-energy_cost_weight * P`` as in BioloidWalk.
 
     ## Arguments
     As BioloidWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range``
-    (0.2 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.2 rad/s), ``speed_reward_weight`` (0.1).
+    (0.3 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.05 rad/s), ``tracking_window``
+    (0.667 s), ``speed_reward_weight`` (0.1).
 
     ## Version History
+    - v3: the yaw rate tracked is the mean over ``tracking_window`` (one trot cycle) within 0.05 rad/s, commands
+      within 0.3 rad/s, and the reference trot turns by its feet's sideways swing. On v2 standing still out-scored
+      the steered trot (411 against 10): one step's yaw rate is the trot's sway, and the stride-scaling steering
+      turned the wrong way.
     - v2: as BioloidWalk-v2 (the episode ends on a non-foot ground contact or a body out of its height band).
     - v1: as BioloidWalk-v1 (the knees stop at straight).
     - v0: first release.
@@ -56,8 +70,9 @@ class BioloidTurnEnv(SkitterEnv):
         privileged_obs: bool = False,
         yaw_rate_range: float = YAW_RATE_RANGE,
         tracking_reward_weight: float = 1.0,
-        tracking_sigma: float = 0.2,
+        tracking_sigma: float = TRACKING_SIGMA,
         speed_reward_weight: float = 0.1,
+        tracking_window: float = TRACKING_WINDOW,
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
         max_tilt: float = 1.0,
         terminate_when_unhealthy: bool = True,
@@ -96,6 +111,7 @@ class BioloidTurnEnv(SkitterEnv):
             terminate_when_unhealthy=terminate_when_unhealthy,
             height_band=height_band,
             grace_time=grace_time,
+            tracking_window=tracking_window,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -132,11 +132,11 @@ class BioloidSteering(Steering):
     path turned in the ground plane about the body's centre, so that in its stance a front foot steps to one side
     and a back foot to the other (Hengst, Ibbotson, Pham, Sammut, "Omnidirectional locomotion for quadruped robots",
     RoboCup 2001, LNAI 2377). Here the abduction servos (servo 2 of each leg) move the foot sideways in step with its
-    ellipse. Drive = stride factor (0 marks time, 1 the full ellipse); turn in [-1, 1] (> 0 turns left) scales the
-    sideways swing up to ``TURN_ABDUCTION``. The report's gait only walks straight; the stride-shortening turn that
-    steered it before turned less than the trot drifts (gait map of 2026-11-28), while this one turns 0.2-0.46 rad/s
-    with a spread of about 0.01 rad/s between seeds (``python -m benchmarks.gait_maps``). Each player's clock starts at
-    0 when it resets, with the gait's lead-in.
+    ellipse (``IKGoals.turning``, envs/bioloid/gait.py). Drive = stride factor (0 marks time, 1 the full ellipse);
+    turn in [-1, 1] (> 0 turns left) scales the sideways swing. The report's gait only walks straight; the
+    stride-shortening turn that steered it before turned less than the trot drifts (gait map of 2026-11-28), while
+    this one turns 0.2-0.46 rad/s with a spread of about 0.01 rad/s between seeds (``python -m
+    benchmarks.gait_maps``). Each player's clock starts at 0 when it resets, with the gait's lead-in.
 
     It kicks (envs/bioloid/kick.py): a kick starts from the goals the trot left the legs at, blends into the kick's
     lean over the lean's time, runs to its end, and the trot's clock then starts again at 0."""
@@ -150,11 +150,6 @@ class BioloidSteering(Steering):
     robot_name = "bioloid"
     drives = (0.0, 0.125, 0.25, 0.375, 0.5, 0.75, 1.0)
     turns = (-1.0, -0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75, 1.0)
-    # rad of abduction swing either way at |turn| = 1 (the foot about 5 cm sideways at the sole, 0.16 m below the
-    # abduction axis; assets/bioloid/bioloid.xml): chosen on the gait map, where larger swings turned no faster
-    TURN_ABDUCTION = 0.3
-    _FRONT = np.array([1.0 if leg.startswith("F") else -1.0 for leg in bioloid.LEGS])
-    _ABDUCTION = np.array([bioloid.SERVO_INDEX[bioloid.ABDUCTION[leg]] for leg in bioloid.LEGS])
 
     def __init__(self, robot: Robot):
         super().__init__(robot)
@@ -200,12 +195,7 @@ class BioloidSteering(Steering):
         lead = self.goals.lead_in(clock)
         stride = np.asarray(drive) * lead
         goal, _ = self.goals.counts(clock, np.repeat(stride[:, None], len(bioloid.LEGS), axis=1))
-        # the sole's place along its stride, +1 at touch-down to -1 at lift-off; turning left, a front foot steps
-        # from its left to its right in the stance (it pushes the body's front to the left) and a back foot the
-        # other way; an abduction of +0.1 rad moves a sole 1.6 cm to the robot's right on every leg
-        along = -np.cos(self.goals.phase(clock))
-        leftward = (np.asarray(turn) * lead)[:, None] * self.TURN_ABDUCTION * self._FRONT[None, :] * along
-        goal[:, self._ABDUCTION] -= leftward / bioloid.RAD_PER_COUNT
+        self.goals.turning(goal, clock, np.asarray(turn) * lead)
         if rows is None:
             self.clock = self.clock + self.dt
         else:
