@@ -42,19 +42,28 @@ demo: setup
 	$(BIN)/python evaluate.py --env skitter/RoachWalk-v2 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
 		--episodes $(DEMO_EPISODES) --seed 1000 --out results/$(DEMO_ID)
 
-# the leaderboard (agents/leaderboard.py): PPO, plain and as a residual on the reference gait, on each robot's walk
-# and turn and the xJüs's rough ground, 3 seeds, an hour of 2 cores a row as env steps (PPO's throughput with train.py
-# on a 2-core host, 2026-11-29: roach 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk,
-# 2026-11-30), 42 hours in all; rows already done are kept, a killed row resumes;
-# LEADERBOARD_TASKS, LEADERBOARD_SEEDS and LEADERBOARD_ALGOS pick rows; works in results/leaderboard/, keeps the finished
-# rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
+# the leaderboard (agents/leaderboard.py): PPO, plain and as a residual on the reference, on each robot's walk and
+# turn, the xJüs's rough ground and each robot's soccer academy (in the commands mode, against the scripted player),
+# 3 seeds, an hour of 2 cores a row as env steps (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach
+# 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk, 2026-11-30; the academy's envs in the
+# commands mode step at 0.72, 0.64 and 0.55 of the walks' speed, 2026-11-30, 4 batched envs on one thread), 96 hours
+# in all; rows already done are kept, a killed row resumes;
+# LEADERBOARD_TASKS, LEADERBOARD_SEEDS and LEADERBOARD_ALGOS pick rows; works in results/leaderboard/, keeps the
+# finished rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
 # docs/results.md
+LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v2 skitter/RoachScoreEmptyGoal-v2 skitter/RoachScoreVsKeeper-v1 \
+	skitter/XjusGoToBall-v2 skitter/XjusScoreEmptyGoal-v2 skitter/XjusScoreVsKeeper-v1 \
+	skitter/BioloidGoToBall-v2 skitter/BioloidScoreEmptyGoal-v2 skitter/BioloidScoreVsKeeper-v1
 LEADERBOARD_ALL = skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v3 \
-	skitter/XjusTurn-v2 skitter/BioloidTurn-v3 skitter/XjusRough-v1
+	skitter/XjusTurn-v2 skitter/BioloidTurn-v3 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY)
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
 LEADERBOARD_STEPS ?= skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
 	skitter/RoachTurn-v3=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v3=7000000 \
-	skitter/XjusRough-v1=9000000
+	skitter/XjusRough-v1=9000000 \
+	skitter/RoachGoToBall-v2=3000000 skitter/RoachScoreEmptyGoal-v2=3000000 skitter/RoachScoreVsKeeper-v1=3000000 \
+	skitter/XjusGoToBall-v2=6000000 skitter/XjusScoreEmptyGoal-v2=6000000 skitter/XjusScoreVsKeeper-v1=6000000 \
+	skitter/BioloidGoToBall-v2=4000000 skitter/BioloidScoreEmptyGoal-v2=4000000 \
+	skitter/BioloidScoreVsKeeper-v1=4000000
 LEADERBOARD_SEEDS ?= 0 1 2
 LEADERBOARD_ALGOS_ALL = ppo ppo+residual
 LEADERBOARD_ALGOS ?= $(LEADERBOARD_ALGOS_ALL)
@@ -64,9 +73,9 @@ leaderboard: setup
 	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_TASKS) --seeds $(LEADERBOARD_SEEDS) \
 		--algos $(LEADERBOARD_ALGOS) $(LEADERBOARD_PLAN) --videos
 	$(MAKE) leaderboard-table
-# docs/results.md: the table of the whole plan (every robot's walk and turn, the rough ground, seeds 0-2), from the
-# rows done so far, even after a run of fewer tasks or seeds (LEADERBOARD_TASKS=..., LEADERBOARD_SEEDS=...); trains
-# nothing but the tasks' reference and random baselines
+# docs/results.md: the table of the whole plan (every robot's walk, turn and academy, the rough ground, seeds 0-2),
+# from the rows done so far, even after a run of fewer tasks or seeds (LEADERBOARD_TASKS=..., LEADERBOARD_SEEDS=...);
+# trains nothing but the tasks' reference and random baselines
 leaderboard-table: setup
 	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_ALL) --seeds 0 1 2 --algos $(LEADERBOARD_ALGOS_ALL) \
 		$(LEADERBOARD_PLAN) --table-only \

@@ -59,6 +59,14 @@ def reference_policy(robot: str) -> str:
     raise ValueError(f"no reference gait for the {robot}: its agents/<robot>/__init__.py names none (REFERENCE)")
 
 
+def env_reference(env) -> str:
+    """The scripted policy a learner on ``env`` is compared with: the scripted soccer player (``scripted``) on a
+    soccer academy task in the ``commands`` mode, else the robot's reference gait (:func:`reference_policy`)."""
+    from agents.soccer import academy_commands
+
+    return "scripted" if academy_commands(env) is not None else reference_policy(env.unwrapped.robot.name)
+
+
 class RandomPolicy:
     """Uniform actions over the env's action space, from a generator of its own (``random:SEED``, default seed 0):
     the zero of a normalized score (the leaderboard's), on every robot."""

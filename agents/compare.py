@@ -20,7 +20,6 @@ shape or action space differs from the env's is refused (agents/sb3.py).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 import sys
@@ -47,6 +46,7 @@ from envs.common.calibration import CalibrationError, read_calibration
 from envs.common.io import (
     ToolParser,
     atomic_write,
+    json_object,
     publish_folder,
     published_exit_code,
     replace_problem,
@@ -102,11 +102,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     args = p.parse_args(argv)
     try:
-        args.env_kwargs = json.loads(args.env_kwargs)
+        args.env_kwargs = json_object(args.env_kwargs, "--env-kwargs")
     except ValueError as exc:
-        p.error(f"--env-kwargs {args.env_kwargs!r}: not JSON ({exc})")
-    if not isinstance(args.env_kwargs, dict):
-        p.error(f"--env-kwargs {args.env_kwargs!r}: expected a JSON object of keyword arguments")
+        p.error(str(exc))
     if args.episodes < 1:
         p.error(f"--episodes must be at least 1, got {args.episodes}")
     if args.seed < 0:

@@ -1,4 +1,4 @@
-"""The leaderboard: learning on every task against its reference gait, in one command that anyone can rerun.
+"""The leaderboard: learning on every task against its reference, in one command that anyone can rerun.
 
     python -m agents.leaderboard --tasks skitter/RoachWalk-v2 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
         --algos ppo --seeds 0 1 2 --timesteps skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 \\
@@ -7,16 +7,17 @@
 
 **Rows.** A row is one task, algorithm and seed. ``train.py`` trains it into ``OUT/runs/<row>/`` with the
 hyperparameter file's entry (``--hyperparams``, default ``hyperparams/<algo>.yml``); ``evaluate.py`` then plays the
-trained model and the task's reference gait on the evaluation seeds (``--eval-seed``, the same for every row of a
-task) into ``OUT/rows/<row>/``. For each task, ``evaluate.py`` also plays a random policy and the reference once
-(``OUT/tasks/<task>/``). A row is done when its record, ``row.json`` with its numbers and its learning curve, is
-written into ``--records`` (default ``OUT``): another command skips it. ``make leaderboard`` keeps the records in
-``docs/results/records/``, part of the repository, and the runs in ``results/`` outside it, so that a
-table built over several sessions or machines keeps its finished rows on a fresh checkout. A row whose
-training was killed continues from its last checkpoint (``train.py --resume``). ``--rerun`` computes the named rows
-again from nothing, and ``--table-only`` trains nothing: it writes the table of the rows done so far (a table built
-over several runs can be published between them). Rows run in a local pool of ``--workers`` processes (each with an
-equal share of the cores), or as Ray tasks on the cluster at ``--address``.
+trained model and the task's reference on the evaluation seeds (``--eval-seed``, the same for every row of a task)
+into ``OUT/rows/<row>/``: the robot's reference gait, or on a soccer academy task the scripted player, where the
+task is trained and evaluated in the commands mode (:func:`task_kwargs`). For each task, ``evaluate.py`` also plays
+a random policy and the reference once (``OUT/tasks/<task>/``). A row is done when its record, ``row.json`` with its
+numbers and its learning curve, is written into ``--records`` (default ``OUT``): another command skips it. ``make
+leaderboard`` keeps the records in ``docs/results/records/``, part of the repository, and the runs in ``results/``
+outside it, so that a table built over several sessions or machines keeps its finished rows on a fresh checkout. A
+row whose training was killed continues from its last checkpoint (``train.py --resume``). ``--rerun`` computes the
+named rows again from nothing, and ``--table-only`` trains nothing: it writes the table of the rows done so far (a
+table built over several runs can be published between them). Rows run in a local pool of ``--workers`` processes
+(each with an equal share of the cores), or as Ray tasks on the cluster at ``--address``.
 
 **Budget.** Every row trains ``--timesteps`` env steps: one number for every task, or ``TASK=N`` for each, so that
 a budget of time on a given machine becomes a number of steps per task that any machine can train again. A row
@@ -24,7 +25,7 @@ records its wall time. ``--minutes`` adds a cap of wall time; the row says when 
 the cap trained fewer steps than another machine would. The command prints its plan before it starts.
 
 **Scores.** A row's score is its model's mean return over the evaluation episodes, normalized per task so that the
-random policy scores 0 and the reference gait 1. For each task and algorithm: the interquartile mean (IQM) over
+random policy scores 0 and the reference 1. For each task and algorithm: the interquartile mean (IQM) over
 seeds, with a 95% stratified-bootstrap interval (``rliable``). Over all tasks: the same across tasks and seeds, and
 performance profiles. Learning curves are each run's TensorBoard episode return, averaged over seeds. The model's
 speed and cost of transport beside the reference's come from ``evaluate.py``'s paired comparison.
@@ -72,6 +73,23 @@ SCRIPTED_ELO = 1000.0  # the scripted team: the anchor of every rating (agents/s
 def is_soccer(task: str) -> bool:
     """Whether a task is a robot's self-play soccer (``soccer/<robot>``), not a gym id."""
     return task.startswith(SOCCER)
+
+
+ACADEMY_KWARGS = {"action_mode": "commands"}  # the soccer academy's tasks: learnt and judged in the commands mode
+
+
+def task_kwargs(task: str) -> dict[str, Any]:
+    """The env keyword arguments a task is trained and evaluated with: the commands mode (speed and turn rate, run
+    by the robot's gait) on a soccer academy task, where the reference is the scripted player; none elsewhere."""
+    from envs.soccer import ACADEMY
+
+    return dict(ACADEMY_KWARGS) if any(spec["id"] == task for spec in ACADEMY) else {}
+
+
+def _env(task: str) -> list[str]:
+    """train.py's and evaluate.py's options that make a task's env: ``--env`` and its ``--env-kwargs``."""
+    kwargs = task_kwargs(task)
+    return ["--env", task, *(["--env-kwargs", json.dumps(kwargs)] if kwargs else [])]
 
 
 def elo_against(wins: int, draws: int, losses: int) -> dict[str, float]:
@@ -182,15 +200,16 @@ def _run(command: list[str], threads: int, log: Path) -> None:
 
 @functools.cache
 def reference_name(task: str) -> str:
-    """The reference gait of a task's robot (agents: each robot's ``REFERENCE``)."""
+    """The policy a task's rows are compared with: its robot's reference gait (agents: each robot's ``REFERENCE``),
+    or on a soccer academy task the scripted player (:func:`agents.env_reference`)."""
     import gymnasium as gym
 
     import envs  # noqa: F401  (registers the ids)
-    from agents import reference_policy
+    from agents import env_reference
 
-    env = gym.make(task)
+    env = gym.make(task, **task_kwargs(task))
     try:
-        return reference_policy(env.unwrapped.robot.name)
+        return env_reference(env)
     finally:
         env.close()
 
@@ -246,7 +265,7 @@ def task_baselines(plan: Plan, task: str, out: Path, threads: int, records: Path
         return baselines
     reference = reference_name(task)
     evaluation = folder / "eval"
-    _run(_tool("evaluate.py", "--env", task, "--policy", reference, "--policy", "random", *_episodes(plan), "--out",
+    _run(_tool("evaluate.py", *_env(task), "--policy", reference, "--policy", "random", *_episodes(plan), "--out",
                evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
     results = json.loads((evaluation / "results.json").read_text())
     returns = {spec: _returns(results, spec) for spec in (reference, "random")}
@@ -278,7 +297,7 @@ def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], t
         return folder
     if not (out / "runs" / best.name / "model.zip").is_file():
         return None
-    _run(_tool("evaluate.py", "--env", task, "--policy", reference_name(task), "--policy",
+    _run(_tool("evaluate.py", *_env(task), "--policy", reference_name(task), "--policy",
                out / "runs" / best.name / "model.zip", "--episodes", 2, "--seed", plan.eval_seed, *_cut(plan),
                "--video", "--out", folder / "eval", "--overwrite"), threads, folder / "log.txt")  # fmt: skip
     write_text(marker, best.name + "\n")
@@ -322,7 +341,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
                             plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name, "--no-progress",
                             *budget)  # fmt: skip
         else:
-            command = _tool("train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", row.seed,
+            command = _tool("train.py", *_env(row.task), *_algo_options(plan, row.algo), "--seed", row.seed,
                             "--timesteps", plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name,
                             "--no-progress", *budget)  # fmt: skip
         _run(command, threads, log)
@@ -331,7 +350,7 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
         return _soccer_row(plan, row, out, threads, started, trained, records or out)
     reference = reference_name(row.task)
     evaluation = folder / "eval"
-    _run(_tool("evaluate.py", "--env", row.task, "--policy", reference, "--policy", run_dir / "model.zip",
+    _run(_tool("evaluate.py", *_env(row.task), "--policy", reference, "--policy", run_dir / "model.zip",
                *_episodes(plan), "--out", evaluation, "--overwrite"), threads, log)  # fmt: skip
     results = json.loads((evaluation / "results.json").read_text())
     model_spec = next(s for s in results["policies"] if s != reference)
@@ -456,9 +475,9 @@ def reproduce(plan: Plan, row: Row, trained: int, reference: str) -> list[str]:
     time cap), then its evaluation."""
     run = f"runs/{row.name}"
     return [
-        shlex.join(["python", "train.py", "--env", row.task, *_algo_options(plan, row.algo), "--seed", str(row.seed),
+        shlex.join(["python", "train.py", *_env(row.task), *_algo_options(plan, row.algo), "--seed", str(row.seed),
                     "--timesteps", str(trained), "--run-name", row.name]),
-        shlex.join(["python", "evaluate.py", "--env", row.task, "--policy", reference, "--policy", f"{run}/model.zip",
+        shlex.join(["python", "evaluate.py", *_env(row.task), "--policy", reference, "--policy", f"{run}/model.zip",
                     "--episodes", str(plan.episodes), "--seed", str(plan.eval_seed), *map(str, _cut(plan)), "--out",
                     f"results/{row.name}"]),
     ]  # fmt: skip
@@ -728,10 +747,11 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     lines = [
         "# Results",
         "",
-        f"Learning against each task's reference gait: {', '.join(plan.algos)} on {len(plan.tasks)} tasks, seeds "
+        f"Learning against each task's reference: {', '.join(plan.algos)} on {len(plan.tasks)} tasks, seeds "
         f"{', '.join(map(str, plan.seeds))}; {budget}; {plan.episodes} evaluation episodes per row on seeds "
         f"{plan.eval_seed}-{plan.eval_seed + plan.episodes - 1}. Scores are normalized per task: a random policy 0, "
-        "the reference gait 1. IQM over seeds with 95% stratified-bootstrap intervals (rliable).",
+        "the reference 1. IQM over seeds with 95% stratified-bootstrap intervals (rliable). Soccer academy tasks "
+        "are learnt in the commands mode, against the scripted player.",
         "",
         f"Reproduce the table: `{command}`; each row's own command is in results.json.",
         "",
@@ -752,7 +772,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
               and baselines[t]["reference_return"] - baselines[t]["random_return"]
               < NARROW_MARGIN * abs(baselines[t]["reference_return"])]  # fmt: skip
     if narrow:
-        lines += ["", "The reference gait beats a random policy by little on "
+        lines += ["", "The reference beats a random policy by little on "
                   + ", ".join(f"`{t}` ({baselines[t]['reference_return'] - baselines[t]['random_return']:.0f} of "
                               f"{baselines[t]['reference_return']:.0f})" for t in narrow)
                   + ": a normalized score there magnifies a lead in return; read the returns beside it."]  # fmt: skip
@@ -806,10 +826,10 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     videos = {t: video_marker(records, t) for t in plan.tasks}
     videos = {t: m.read_text().strip() for t, m in videos.items() if m.is_file()}
     if videos:
-        lines += ["", "## Videos", "", "The reference gait and a row's model side by side, on the first evaluation "
+        lines += ["", "## Videos", "", "The reference and a row's model side by side, on the first evaluation "
                   "seed:", ""]  # fmt: skip
         lines += [
-            f"- `{t}`: [the reference gait and {name}](videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4)"
+            f"- `{t}`: [the reference and {name}](videos/{t.replace('/', '_')}/eval/videos/side_by_side.mp4)"
             for t, name in videos.items()
         ]
     return "\n".join(lines) + "\n"

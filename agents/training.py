@@ -98,6 +98,7 @@ from envs.common.io import (
     current_umask,
     folder_lock,
     interrupted_exit_code,
+    json_object,
     parent_problem,
     refuse_overwrite,
     sigterm_as_interrupt,
@@ -950,9 +951,13 @@ def start_run(args: argparse.Namespace) -> Path:
     check_runs_dir(Path(args.runs_dir))
     check_env_id(args.env)
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
-    overrides = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    overrides: dict[str, Any] = {"n_envs": args.n_envs} if args.n_envs is not None else {}
+    env_kwargs = load_hyperparams(hyperparams_file, args.env, args.algo, overrides).env_kwargs
+    if args.env_kwargs:
+        env_kwargs = overrides["env_kwargs"] = {**env_kwargs, **args.env_kwargs}
+        check_env_kwargs(args.env, env_kwargs)
     if args.residual is not None:
-        overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file)
+        overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
     hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
@@ -966,16 +971,27 @@ def start_run(args: argparse.Namespace) -> Path:
         return train(model, run_dir, config, progress=not args.no_progress)
 
 
-def residual_override(name: str, env_id: str, hyperparams_file: Path) -> dict[str, Any]:
-    """``--residual NAME``: the entry's residual with its gait replaced (``reference``: the robot's reference gait),
-    keeping the entry's scale if it sets one."""
-    from agents import reference_policy
+def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any]) -> None:
+    """``--env-kwargs`` (merged over the entry's): the env is made once, so that a bad one is a line naming the
+    flag, before anything is created."""
+    try:
+        gym.make(env_id, **env_kwargs).close()
+    except (TypeError, ValueError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"--env-kwargs {json.dumps(env_kwargs)}: {reason}") from None
+
+
+def residual_override(name: str, env_id: str, hyperparams_file: Path,
+                      env_kwargs: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """``--residual NAME``: the entry's residual with its gait replaced (``reference``: the env's reference,
+    :func:`agents.env_reference`, with ``env_kwargs``), keeping the entry's scale if it sets one."""
+    from agents import env_reference
 
     given_name = name
-    env = gym.make(env_id)
+    env = gym.make(env_id, **(env_kwargs or {}))
     try:
         if name == "reference":
-            name = reference_policy(env.unwrapped.robot.name)
+            name = env_reference(env)
         residual_reference(name, env)  # a gait of this robot, named on the command line
     except ValueError as exc:
         raise ConfigError(f"--residual {given_name}: {exc}") from None
@@ -994,8 +1010,14 @@ def start_tuning(args: argparse.Namespace) -> Path:
     if not isinstance(entry, dict):
         raise ConfigError(f"{hyperparams_file}: no entry (a mapping of hyperparameters) for env {args.env!r}")
     base = {**entry, **({"n_envs": args.n_envs} if args.n_envs is not None else {})}
+    env_kwargs = entry.get("env_kwargs") or {}
+    if not isinstance(env_kwargs, dict):
+        raise ConfigError(f"{hyperparams_file}: {args.env}: field 'env_kwargs' = {env_kwargs!r}: expected a mapping")
+    if args.env_kwargs:
+        env_kwargs = base["env_kwargs"] = {**env_kwargs, **args.env_kwargs}
+        check_env_kwargs(args.env, env_kwargs)
     if args.residual is not None:
-        base["residual"] = residual_override(args.residual, args.env, hyperparams_file)
+        base["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
     return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {args.env}", args.tune, args.timesteps,
                 Path(args.runs_dir), args.storage, args.study, 0 if args.seed is None else args.seed,
                 args.evaluations, args.eval_episodes, args.minutes, command_line())  # fmt: skip
@@ -1288,6 +1310,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="train a residual policy on top of this scripted gait ('reference': the robot's own; "
                              "agents/residual.py), whatever the hyperparameter entry says; with --soccer, "
                              "'scripted': on top of the scripted team")  # fmt: skip
+    parser.add_argument("--env-kwargs", metavar="JSON",
+                        help="the env's keyword arguments as a JSON object, over the hyperparameter entry's "
+                             "env_kwargs, e.g. '{\"action_mode\": \"commands\"}'")  # fmt: skip
     parser.add_argument("--minutes", type=float,
                         help="stop after this much wall time (the model is saved as at --timesteps)")  # fmt: skip
     tuning = parser.add_argument_group("hyperparameter tuning (agents/tuning.py; Optuna, PPO and SAC)")
@@ -1336,6 +1361,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
         if not 0.0 <= args.scripted_share <= 1.0:
             parser.error(f"--scripted-share must be in [0, 1], got {args.scripted_share}")
+    if args.env_kwargs is not None:
+        if args.resume or args.soccer is not None:
+            parser.error("--env-kwargs sets a new run's env: not with --resume (the run keeps its own) or --soccer")
+        try:
+            args.env_kwargs = json_object(args.env_kwargs, "--env-kwargs")
+        except ValueError as exc:
+            parser.error(str(exc))
     if args.residual is not None and args.resume:
         parser.error("--residual starts a new run: not with --resume (the run keeps its own)")
     if args.tune is not None:

@@ -85,6 +85,39 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert "was made with" in capsys.readouterr().err
 
 
+ACADEMY = "skitter/BioloidGoToBall-v2"
+
+
+def test_an_academy_task_is_learnt_and_judged_in_the_commands_mode_against_the_scripted_player():
+    """A soccer academy task's rows train and evaluate in the commands mode (the scripted player's), and the
+    commands that reproduce a row say so; a walk's rows make their env as it is registered."""
+    assert leaderboard.task_kwargs(ACADEMY) == {"action_mode": "commands"} and leaderboard.task_kwargs(WALK) == {}
+    assert leaderboard.reference_name(ACADEMY) == "scripted" and leaderboard.reference_name(WALK) == "tripod"
+    plan = leaderboard.Plan((ACADEMY,), ("ppo+residual",), (0,), ((ACADEMY, 100),), None, 2, 1000, None)
+    train, evaluate = leaderboard.reproduce(plan, leaderboard.Row(ACADEMY, "ppo+residual", 0), 100, "scripted")
+    for command in (train, evaluate):
+        assert """--env skitter/BioloidGoToBall-v2 --env-kwargs '{"action_mode": "commands"}'""" in command
+    assert "--residual reference" in train and "--policy scripted" in evaluate
+
+
+@pytest.mark.slow  # a minute: train.py and evaluate.py three times on a soccer academy task
+def test_an_academy_row_trains_a_residual_on_the_scripted_player_and_is_judged_against_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    tiny = {**TINY, "env_kwargs": {"max_episode_steps": 50}}
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({ACADEMY: tiny}))
+    out = tmp_path / "board"
+    argv = ["--tasks", ACADEMY, "--algos", "ppo+residual", "--seeds", "0", "--timesteps", "256", "--episodes", "2",
+            "--max-episode-steps", "50", "--hyperparams", "tiny.yml", "--out", str(out)]  # fmt: skip
+    assert leaderboard.main(argv) == 0
+    summary = json.loads((out / "results.json").read_text())
+    assert summary["baselines"][ACADEMY]["reference"] == "scripted"
+    (record,) = summary["rows"].values()
+    assert record["reference"] == "scripted" and len(record["returns"]) == 2
+    config = json.loads((out / "runs" / record["row"] / "config.json").read_text())
+    assert config["hyperparams"]["env_kwargs"] == {"max_episode_steps": 50, "action_mode": "commands"}
+    assert config["hyperparams"]["residual"]["policy"] == "scripted"
+
+
 def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys):
     for argv, message in (
         (["--tasks", "skitter/Nope-v1", "--timesteps", "10"], "unknown env"),
@@ -295,7 +328,7 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     text = docs.read_text()
     assert f"| {row.name} | 100 | 1 | 85.0 | 0.75 |" in text
     assert "Rows trained in several attempts (killed and resumed" in text and f"{row.name} (3)." in text
-    assert f"[the reference gait and {row.name}](results/videos/skitter_RoachWalk-v2.mp4)" in text
+    assert f"[the reference and {row.name}](results/videos/skitter_RoachWalk-v2.mp4)" in text
     assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v2.png").stat().st_size > 5_000
     assert not (tmp_path / "fresh" / "runs").exists()
 

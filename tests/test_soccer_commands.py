@@ -319,3 +319,27 @@ def test_the_scripted_team_plays_in_the_commands_mode_only():
     assert [p.keeper for p in team.values()] == [False, False, True]
     with pytest.raises(ValueError, match="commands mode"):
         scripted_team(match.parallel_env(robot="bioloid", players_per_team=1), "home")
+
+
+def test_the_scripted_player_is_a_policy_by_name_on_academy_tasks_in_the_commands_mode_only():
+    """``scripted`` (agents/soccer) plays an academy env made in the commands mode, single or batched, and is then
+    that env's reference; elsewhere it is refused, saying where it plays."""
+    import gymnasium as gym
+
+    from agents import env_reference, load_policy
+
+    single = gym.make("skitter/RoachGoToBall-v2", action_mode="commands")
+    batched = gym.make_vec("skitter/XjusScoreVsKeeper-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                           action_mode="commands", nthread=1)  # fmt: skip
+    for env, shape in ((single, (2,)), (batched, (2, 2))):
+        obs, _ = env.reset(seed=0)
+        action, state = load_policy("scripted", env).predict(obs)
+        assert action.shape == shape and np.isfinite(action).all() and state.shape[-1] == len(MEMORY)
+        assert env_reference(env) == "scripted"
+    joints = gym.make("skitter/RoachGoToBall-v2")
+    assert env_reference(joints) == "tripod"
+    for env, message in ((joints, "commands mode"), (gym.make("skitter/RoachWalk-v2"), "academy")):
+        with pytest.raises(ValueError, match=message):
+            load_policy("scripted", env)
+    with pytest.raises(ValueError, match="no argument"):
+        load_policy("scripted:3", single)

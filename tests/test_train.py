@@ -181,6 +181,9 @@ BAD_INPUTS = {
     # a zero learning rate, and a minibatch larger than the rollout it is drawn from, trained silently
     "zero learning rate": ({WALK: "  learning_rate: lin_0"}, [], ["bad.yml", "learning_rate", "above 0"]),
     "batch larger than rollout": ({WALK: "  n_steps: 64\n  batch_size: 512"}, [], ["batch_size", "512", "64 x 1"]),
+    "--env-kwargs not JSON": ({}, ["--env-kwargs", "{legs"], ["--env-kwargs", "not JSON"]),
+    "--env-kwargs not an object": ({}, ["--env-kwargs", "[1]"], ["--env-kwargs", "JSON object"]),
+    "--env-kwargs unknown": ({}, ["--env-kwargs", '{"legs": 8}'], ["--env-kwargs", "legs"]),
 }
 
 
@@ -281,6 +284,24 @@ def test_bad_input_is_a_one_line_error(case, tmp_path):
 def test_bad_input_is_a_one_line_error_from_the_command_line(case, tmp_path):
     assert_one_line_error(run_train(*_bad_input_args(case, tmp_path)), *BAD_INPUTS[case][2])
     assert not (tmp_path / "runs").exists()
+
+
+def test_env_kwargs_on_the_command_line_go_over_the_entrys_and_into_the_run(tmp_path):
+    """``--env-kwargs`` merges over the hyperparameter entry's env_kwargs; the run keeps them (a resume makes its env
+    as it was), and ``--residual reference`` on a soccer academy task in the commands mode is the scripted player."""
+    academy = "skitter/BioloidGoToBall-v2"
+    hyperparams = tmp_path / "tiny.yml"
+    hyperparams.write_text(f"{academy}:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  n_epochs: 1\n"
+                           "  env_kwargs: {sensor_noise: false}\n")  # fmt: skip
+    result = train_in_process("--env", academy, "--algo", "ppo", "--timesteps", 64, "--hyperparams", hyperparams,
+                              "--env-kwargs", '{"action_mode": "commands"}', "--residual", "reference",
+                              "--runs-dir", tmp_path / "runs", "--run-name", "a")  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    config = json.loads((tmp_path / "runs" / "a" / "config.json").read_text())
+    assert config["hyperparams"]["env_kwargs"] == {"sensor_noise": False, "action_mode": "commands"}
+    assert config["hyperparams"]["residual"] == {"policy": "scripted"}
+    refused = train_in_process("--soccer", "roach", "--env-kwargs", "{}", "--runs-dir", tmp_path / "other")
+    assert refused.returncode == 2 and "--env-kwargs" in refused.stderr and not (tmp_path / "other").exists()
 
 
 def test_batched_and_dummy_vec_envs_train_the_same_model(tmp_path):

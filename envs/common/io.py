@@ -308,6 +308,18 @@ def foreign_unless(names: tuple[str, ...]) -> Callable[[Path], list[str]]:
     return lambda entry: [] if entry.name in names and entry.is_file() else [entry.name + "/" * entry.is_dir()]
 
 
+def json_object(text: str, flag: str) -> dict[str, Any]:
+    """A command line's JSON object of keyword arguments (the value of ``flag``, e.g. ``--env-kwargs``); ValueError
+    names the flag and the value."""
+    try:
+        value = json.loads(text)
+    except ValueError as exc:
+        raise ValueError(f"{flag} {text!r}: not JSON ({exc})") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{flag} {text!r}: expected a JSON object of keyword arguments")
+    return value
+
+
 class ToolParser(argparse.ArgumentParser):
     """The command-line parser of every skitter tool: a bad argument is one line, ``PROG: error: ... (see --help)``,
     and exit code 2, without argparse's usage block."""
