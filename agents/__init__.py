@@ -60,11 +60,16 @@ def reference_policy(robot: str) -> str:
 
 
 def env_reference(env) -> str:
-    """The scripted policy a learner on ``env`` is compared with: the scripted soccer player (``scripted``) on a
-    soccer academy task in the ``commands`` mode, else the robot's reference gait (:func:`reference_policy`)."""
-    from agents.soccer import academy_commands
-
-    return "scripted" if academy_commands(env) is not None else reference_policy(env.unwrapped.robot.name)
+    """The scripted policy a learner on ``env`` is compared with: what an agents package's ``reference_for(env)``
+    names (agents/soccer: the scripted player on a soccer academy task in the ``commands`` mode), else the robot's
+    reference gait (:func:`reference_policy`)."""
+    for module in pkgutil.iter_modules(__path__):
+        if module.ispkg:
+            hook = getattr(importlib.import_module(f"{__name__}.{module.name}"), "reference_for", None)
+            name = None if hook is None else hook(env)
+            if name is not None:
+                return name
+    return reference_policy(env.unwrapped.robot.name)
 
 
 class RandomPolicy:

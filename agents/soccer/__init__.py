@@ -20,6 +20,11 @@ def academy_commands(env: Any) -> Any:
     return getattr(base, "commands", None) or getattr(getattr(base, "env", None), "commands", None)
 
 
+def reference_for(env: Any) -> str | None:
+    """The reference of a soccer academy env in the commands mode, the scripted player (agents.env_reference)."""
+    return "scripted" if academy_commands(env) is not None else None
+
+
 def _scripted(env: Any, arg: str) -> Policy:
     """The scripted field player of an academy env (single or batched) in the commands mode."""
     from envs.soccer.scripted import scripted_player
