@@ -75,12 +75,10 @@ def is_soccer(task: str) -> bool:
     return task.startswith(SOCCER)
 
 
-ACADEMY_KWARGS = {"action_mode": "commands"}  # the soccer academy's tasks: learnt and judged in the commands mode
-
-
 def task_kwargs(task: str) -> dict[str, Any]:
     """The env keyword arguments a task is trained and evaluated with: the commands mode (speed and turn rate, run
     by the robot's gait) on a soccer academy task, where the reference is the scripted player; none elsewhere."""
+    from agents.soccer import ACADEMY_KWARGS
     from envs.soccer import ACADEMY
 
     return dict(ACADEMY_KWARGS) if any(spec["id"] == task for spec in ACADEMY) else {}
@@ -148,7 +146,13 @@ class Plan:
     def row_settings(self, task: str) -> dict[str, Any]:
         """What a row's numbers depend on besides its task, algorithm and seed."""
         return {"timesteps": self.steps(task), "minutes": self.minutes, "hyperparams": self.hyperparams,
-                **self.eval_settings}  # fmt: skip
+                **self.task_settings(task)}  # fmt: skip
+
+    def task_settings(self, task: str) -> dict[str, Any]:
+        """What a task's evaluation episodes depend on: :attr:`eval_settings`, and the env kwargs it is made with
+        (a soccer academy task's commands mode)."""
+        kwargs = task_kwargs(task)
+        return {**self.eval_settings, **({"env_kwargs": kwargs} if kwargs else {})}
 
     @property
     def eval_settings(self) -> dict[str, Any]:
@@ -249,7 +253,7 @@ def task_baselines(plan: Plan, task: str, out: Path, threads: int, records: Path
     the scripted team against a random one. Worked out in ``out``, kept in ``records`` (default ``out``)."""
     folder = out / "tasks" / task.replace("/", "_")
     record = task_file(records or out, task)
-    done = _load_done(record, plan.eval_settings, f"the baselines of {task}")
+    done = _load_done(record, plan.task_settings(task), f"the baselines of {task}")
     if done is not None:
         return done
     if is_soccer(task):
@@ -272,7 +276,7 @@ def task_baselines(plan: Plan, task: str, out: Path, threads: int, records: Path
     baselines = {"task": task, "reference": reference, "reference_return": float(np.mean(returns[reference])),
                  "random_return": float(np.mean(returns["random"])), "returns": returns,
                  "reference_summary": results["policies"][reference]["summary"],
-                 "settings": plan.eval_settings}  # fmt: skip
+                 "settings": plan.task_settings(task)}  # fmt: skip
     write_json(record, baselines)
     return baselines
 
@@ -421,9 +425,16 @@ def _check_run_plan(run_dir: Path, plan: Plan, row: Row) -> None:
     """A killed row's run goes on only under the plan it started with (StaleResult otherwise)."""
     config = json.loads((run_dir / "config.json").read_text())
     algo, residual = row.algo.removesuffix(RESIDUAL), row.algo.endswith(RESIDUAL)
+    made_with = config.get("hyperparams", {}).get("env_kwargs") or {}
     started = {"timesteps": config.get("timesteps"), "algo": config.get("algo"),
-               "residual": "residual" in config.get("hyperparams", {})}  # fmt: skip
-    wanted = {"timesteps": plan.steps(row.task), "algo": algo, "residual": residual}
+               "residual": "residual" in config.get("hyperparams", {}),
+               "env_kwargs": {k: made_with[k] for k in task_kwargs(row.task) if k in made_with}}  # fmt: skip
+    wanted = {
+        "timesteps": plan.steps(row.task),
+        "algo": algo,
+        "residual": residual,
+        "env_kwargs": task_kwargs(row.task),
+    }
     if started != wanted:
         raise StaleResult(f"{run_dir}: a killed row's run started with {started}, not {wanted}: give --rerun for it, "
                           "or another --out")  # fmt: skip
@@ -1004,7 +1015,7 @@ def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
         if missing:
             raise ValueError(f"{path}: no entry for {', '.join(missing)}")
     for task in plan.tasks:
-        _load_done(task_file(records, task), plan.eval_settings, task)
+        _load_done(task_file(records, task), plan.task_settings(task), task)
     for row in plan.rows:
         if row not in reruns:
             _load_done(row_file(records, row), plan.row_settings(row.task), f"row {row.name}")

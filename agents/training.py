@@ -1307,8 +1307,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--residual", metavar="GAIT",
-                        help="train a residual policy on top of this scripted gait ('reference': the robot's own; "
-                             "agents/residual.py), whatever the hyperparameter entry says; with --soccer, "
+                        help="train a residual policy on top of this scripted gait ('reference': the env's own, the "
+                             "robot's reference gait or on a soccer academy task in the commands mode the scripted "
+                             "player; agents/residual.py), whatever the hyperparameter entry says; with --soccer, "
                              "'scripted': on top of the scripted team")  # fmt: skip
     parser.add_argument("--env-kwargs", metavar="JSON",
                         help="the env's keyword arguments as a JSON object, over the hyperparameter entry's "

