@@ -5,15 +5,15 @@ itself (even within the interval).
 Academy: ``skitter/<Robot>{GoToBall,ScoreEmptyGoal,ScoreVsKeeper}`` at their current versions,
 ``action_mode="commands"``, seeds 1000-1019 (one batched env of 20), the scripted field player
 (envs/soccer/scripted.py) on each episode (against the scripted keeper on ScoreVsKeeper): successes, falls and the
-mean time of a success. ``--academy-only`` runs this part alone (a few minutes, into
-``--out``). Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library
+mean time of a success. ``--academy-only`` runs this part alone (a few minutes, under
+``runs/benchmarks/``). Matches: ``evaluate.py --soccer ROBOT --players 1`` as a library
 call, 20 matches of 10 minutes (one half of a Four-Legged League match, RoboCup 2005 rules) on seeds 0-19, home
 scripted against away random and against away scripted, two robots' sets at a time (one process per core). The
 Bioloid plays again with its kick (``kick=True``: both teams have the action, the scripted team kicks), in the
 academy and against random.
 
 Run: ``python -m benchmarks.soccer_scripted`` (66 minutes on 2 cores beside other jobs, 2026-11-30; the roach's sets
-are the longest). ``--robots bioloid`` runs one robot's sets (13 minutes for the Bioloid), into ``--out``.
+are the longest). ``--robots bioloid`` runs one robot's sets (13 minutes for the Bioloid), under ``runs/benchmarks/``.
 """
 
 from __future__ import annotations
