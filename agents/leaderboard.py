@@ -1081,6 +1081,9 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
             record = {**record, "reproduction": reproduction(previous[row], record)}
             write_json(row_file(records, row), record)
             print(f"leaderboard: {row.name} again: {verdict(record['reproduction'])}")
+            marker = video_marker(records, row.task)  # the task's video showed the model this one replaced
+            if marker.is_file() and marker.read_text().strip() == row.name:
+                marker.unlink()
         results[row] = record
         if error:
             failures.append(error)

@@ -370,8 +370,11 @@ def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_rep
     assert json.loads(leaderboard.row_file(alone, row).read_text()) == published
     for mean, verdict in ((88.0, "within"), (95.0, "OUTSIDE")):
         monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args, mean=mean: record(mean))
+        marker = leaderboard.video_marker(kept, WALK)  # the task's published video shows this row's model
+        leaderboard.write_text(marker, row.name + "\n")
         capsys.readouterr()
         assert leaderboard.main(argv) == 0
+        assert not marker.exists(), "the video of the model the new record replaced is made again, not kept"
         printed = capsys.readouterr().out
         assert f"again: mean return {mean:.2f} against 85.00 [80.00, 90.00] before: {verdict}" in printed
         again = json.loads(leaderboard.row_file(kept, row).read_text())
