@@ -45,9 +45,9 @@ demo: setup
 # the leaderboard (agents/leaderboard.py): PPO, plain and as a residual on the reference, on each robot's walk and
 # turn, the xJüs's rough ground and each robot's soccer academy (in the commands mode, against the scripted player),
 # 3 seeds, an hour of 2 cores a row as env steps (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach
-# 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk, 2026-11-30; the academy's envs in the
-# commands mode step at 0.72, 0.64 and 0.55 of the walks' speed, 2026-11-30, 4 batched envs on one thread), 96 hours
-# in all; rows already done are kept, a killed row resumes;
+# 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk, 2026-11-30; PPO on each academy in
+# the commands mode trains at 0.71, 0.72 and 0.73 of its walk's speed, 61,440 steps each, 2026-11-30), 96 hours in
+# all; rows already done are kept, a killed row resumes;
 # LEADERBOARD_TASKS, LEADERBOARD_SEEDS and LEADERBOARD_ALGOS pick rows; works in results/leaderboard/, keeps the
 # finished rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
 # docs/results.md
@@ -61,9 +61,9 @@ LEADERBOARD_STEPS ?= skitter/RoachWalk-v2=4000000 skitter/XjusWalk-v1=10000000 s
 	skitter/RoachTurn-v3=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v3=7000000 \
 	skitter/XjusRough-v1=9000000 \
 	skitter/RoachGoToBall-v2=3000000 skitter/RoachScoreEmptyGoal-v2=3000000 skitter/RoachScoreVsKeeper-v1=3000000 \
-	skitter/XjusGoToBall-v2=6000000 skitter/XjusScoreEmptyGoal-v2=6000000 skitter/XjusScoreVsKeeper-v1=6000000 \
-	skitter/BioloidGoToBall-v2=4000000 skitter/BioloidScoreEmptyGoal-v2=4000000 \
-	skitter/BioloidScoreVsKeeper-v1=4000000
+	skitter/XjusGoToBall-v2=7000000 skitter/XjusScoreEmptyGoal-v2=7000000 skitter/XjusScoreVsKeeper-v1=7000000 \
+	skitter/BioloidGoToBall-v2=5000000 skitter/BioloidScoreEmptyGoal-v2=5000000 \
+	skitter/BioloidScoreVsKeeper-v1=5000000
 LEADERBOARD_SEEDS ?= 0 1 2
 LEADERBOARD_ALGOS_ALL = ppo ppo+residual
 LEADERBOARD_ALGOS ?= $(LEADERBOARD_ALGOS_ALL)
