@@ -952,13 +952,12 @@ def start_run(args: argparse.Namespace) -> Path:
     check_env_id(args.env)
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     overrides: dict[str, Any] = {"n_envs": args.n_envs} if args.n_envs is not None else {}
-    env_kwargs = load_hyperparams(hyperparams_file, args.env, args.algo, overrides).env_kwargs
-    if args.env_kwargs:
-        env_kwargs = overrides["env_kwargs"] = {**env_kwargs, **args.env_kwargs}
-        check_env_kwargs(args.env, env_kwargs)
-    if args.residual is not None:
-        overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
     hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
+    if args.env_kwargs or args.residual is not None:  # the command line's over the entry's: checked, then again
+        env_kwargs = overrides["env_kwargs"] = command_line_env_kwargs(args, hp.env_kwargs)
+        if args.residual is not None:
+            overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
+        hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
     venv = make_env(args.env, hp, seed)  # a bad env_kwargs fails here, before the run folder is made
@@ -971,14 +970,18 @@ def start_run(args: argparse.Namespace) -> Path:
         return train(model, run_dir, config, progress=not args.no_progress)
 
 
-def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any]) -> None:
-    """``--env-kwargs`` (merged over the entry's): the env is made once, so that a bad one is a line naming the
-    flag, before anything is created."""
+def command_line_env_kwargs(args: argparse.Namespace, entry: dict[str, Any]) -> dict[str, Any]:
+    """The entry's env_kwargs with ``--env-kwargs`` over them; where the flag is given, the env is made once, so that
+    a bad one is a line naming the flag, before anything is created."""
+    if not args.env_kwargs:
+        return entry
+    env_kwargs = {**entry, **args.env_kwargs}
     try:
-        gym.make(env_id, **env_kwargs).close()
+        gym.make(args.env, **env_kwargs).close()
     except (TypeError, ValueError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise ConfigError(f"--env-kwargs {json.dumps(env_kwargs)}: {reason}") from None
+    return env_kwargs
 
 
 def residual_override(name: str, env_id: str, hyperparams_file: Path,
@@ -1014,8 +1017,7 @@ def start_tuning(args: argparse.Namespace) -> Path:
     if not isinstance(env_kwargs, dict):
         raise ConfigError(f"{hyperparams_file}: {args.env}: field 'env_kwargs' = {env_kwargs!r}: expected a mapping")
     if args.env_kwargs:
-        env_kwargs = base["env_kwargs"] = {**env_kwargs, **args.env_kwargs}
-        check_env_kwargs(args.env, env_kwargs)
+        env_kwargs = base["env_kwargs"] = command_line_env_kwargs(args, env_kwargs)
     if args.residual is not None:
         base["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
     return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {args.env}", args.tune, args.timesteps,

@@ -147,12 +147,10 @@ class IKGait:
             t = np.zeros(n)
         if episode_start is not None:
             t[np.atleast_1d(np.asarray(episode_start, dtype=bool))] = 0.0
-        lead = self.lead_in(t)
         if self.steer:
-            goal, _ = self.counts(t, np.full((n, 4), STEER_STRIDE) * lead[:, None])
-            self.goals.turning(goal, t, self.turn(obs) * lead)
+            goal = self.goals.steered(t, np.full(n, STEER_STRIDE), self.turn(obs))
         else:
-            goal, _ = self.counts(t, np.ones((n, 4)) * lead[:, None])
+            goal = self.goals.steered(t, np.ones(n))
         action = self.mode.to_action(goal).astype(np.float32)
         t = t + self.control_dt
         self._clock = t

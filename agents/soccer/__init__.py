@@ -33,12 +33,12 @@ def _scripted(env: Any, arg: str) -> Policy:
     if arg:
         raise ValueError(f"policy 'scripted:{arg}': the scripted player takes no argument")
     base = env.unwrapped
-    if not hasattr(getattr(base, "task", None), "field"):
+    commands = academy_commands(env)
+    if commands is None and not hasattr(getattr(base, "task", None), "field"):
         spec = getattr(env, "spec", None)
         raise ValueError(f"policy 'scripted' plays the soccer academy's tasks (skitter/<Robot>GoToBall and the like), "
                          f"not {spec.id if spec else type(base).__name__}; in matches: evaluate.py --soccer ROBOT "
                          "--home scripted")  # fmt: skip
-    commands = academy_commands(env)
     if commands is None:
         raise ValueError(f"policy 'scripted' plays in the commands mode: make the env with action_mode='commands' "
                          f"(evaluate.py --env-kwargs '{json.dumps(ACADEMY_KWARGS)}')")  # fmt: skip

@@ -63,6 +63,15 @@ class IKGoals:
         goal[:, self._knees] = constants.CENTER + knee / constants.RAD_PER_COUNT
         return goal, limited
 
+    def steered(self, t: np.ndarray, stride: np.ndarray, turn: np.ndarray | None = None) -> np.ndarray:
+        """Goal counts (n, 16) at clock times ``t`` (n,), the lead-in applied: every leg at stride factor ``stride``
+        (n,), turned by ``turn`` (n,; :meth:`turning`; None walks straight)."""
+        lead = self.lead_in(t)
+        goal, _ = self.counts(t, np.repeat((np.asarray(stride) * lead)[:, None], len(constants.LEGS), axis=1))
+        if turn is not None:
+            self.turning(goal, t, np.asarray(turn) * lead)
+        return goal
+
     def turning(self, goal: np.ndarray, t: np.ndarray, turn: np.ndarray) -> None:
         """Turn the gait's goal counts ``goal`` (n, 16) at clock times ``t`` (n,) in place by ``turn`` (n,) in
         [-1, 1] (> 0 turns left): each sole swings sideways with its place along its stride, +1 at touch-down to -1

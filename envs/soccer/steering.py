@@ -28,7 +28,6 @@ from typing import ClassVar
 import numpy as np
 from scipy.interpolate import NearestNDInterpolator
 
-from envs.bioloid import constants as bioloid
 from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals
 from envs.bioloid.kick import KICK_AHEAD, KICK_SIDE, KICK_WIDTH, Kick
 from envs.common.robot import ActionMode, Robot, check_flag
@@ -192,10 +191,7 @@ class BioloidSteering(Steering):
 
     def _trot(self, drive: np.ndarray, turn: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         clock = self.clock if rows is None else self.clock[rows]
-        lead = self.goals.lead_in(clock)
-        stride = np.asarray(drive) * lead
-        goal, _ = self.goals.counts(clock, np.repeat(stride[:, None], len(bioloid.LEGS), axis=1))
-        self.goals.turning(goal, clock, np.asarray(turn) * lead)
+        goal = self.goals.steered(clock, drive, turn)
         if rows is None:
             self.clock = self.clock + self.dt
         else:
