@@ -323,10 +323,16 @@ class PlayerSimulation:
     def _refresh(self, scenes: np.ndarray) -> None:
         """Copy the players' sensor blocks of ``scenes`` out of the scenes' substep sensor values."""
         k, size = self._k, self._block["sensordata"]
+        n = len(scenes)
+        if n == self.scene.num_scenes and n and scenes[0] == 0 and scenes[-1] == n - 1:  # every scene, in order:
+            # one copy between views, no gathers
+            sub = self.scene.sim.substep_sensordata[:, :, : k * size].reshape(n, self.n_substeps, k, size)
+            self.substep_sensordata.reshape(n, k, self.n_substeps, size)[...] = sub.transpose(0, 2, 1, 3)
+            return
         sub = self.scene.sim.substep_sensordata[scenes, :, : k * size]
         rows = (scenes[:, None] * k + np.arange(k)).reshape(-1)
-        blocks = sub.reshape(len(scenes), self.n_substeps, k, size).transpose(0, 2, 1, 3)
-        self.substep_sensordata[rows] = blocks.reshape(len(scenes) * k, self.n_substeps, size)
+        blocks = sub.reshape(n, self.n_substeps, k, size).transpose(0, 2, 1, 3)
+        self.substep_sensordata[rows] = blocks.reshape(n * k, self.n_substeps, size)
 
     def _place(self, ids: np.ndarray, state: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The robot's reset state of players ``ids`` moved to their places: the root's position and heading turned

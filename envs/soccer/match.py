@@ -316,7 +316,7 @@ class Matches:
         self.obs = self.task.observe(readings)
         self._where[:] = readings["position"][:, :2]
         self.cycles += 1
-        plus, minus = self.task.scene_goals()
+        plus, minus = self.task.last_scene_goals  # this step's, as the task's update saw them
         plus, minus = plus & ~unstable, minus & ~unstable
         self.scores[:, 0] += plus
         self.scores[:, 1] += minus

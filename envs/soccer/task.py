@@ -95,6 +95,7 @@ class SoccerTask(LocomotionTask):
         self._start_yaw = np.zeros(n)
         self._ball_distance = np.zeros(n)
         self._goal_distance = np.zeros(n)
+        self.last_scene_goals = (np.zeros(n // k, dtype=bool), np.zeros(n // k, dtype=bool))  # goals()' last
         super().__init__(robot, False, 0.0, max_tilt, terminate_when_unhealthy, height_band, grace_time)
         self._generators: list[np.random.Generator | None] = [None] * n
         self._draws = np.empty((n, 2 * (self._k + 1)))
@@ -180,8 +181,9 @@ class SoccerTask(LocomotionTask):
         return ((x > line) & mouth).any(axis=1), ((x < -line) & mouth).any(axis=1)
 
     def goals(self) -> tuple[np.ndarray, np.ndarray]:
-        """(scored, conceded) per player: its team's goal, its own goal."""
-        plus, minus = self.scene_goals()
+        """(scored, conceded) per player: its team's goal, its own goal. Keeps the scenes' goals of this step in
+        :attr:`last_scene_goals`, for the match that counts them."""
+        plus, minus = self.last_scene_goals = self.scene_goals()
         plus, minus = plus[self._scene_of], minus[self._scene_of]
         home = self._side > 0
         return np.where(home, plus, minus), np.where(home, minus, plus)
@@ -193,26 +195,22 @@ class SoccerTask(LocomotionTask):
         w, z = quat[:, 0], quat[:, 3]
         yaw = np.arctan2(2.0 * (w * z + quat[:, 1] * quat[:, 2]), 1.0 - 2.0 * (quat[:, 2] ** 2 + z * z))
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-
-        def frame(vec: np.ndarray) -> np.ndarray:
-            """World-frame vectors (n, m, 2) in each row's own frame."""
-            x, y = vec[..., 0], vec[..., 1]
-            out = np.empty(vec.shape)
-            np.add(c * x, s * y, out=out[..., 0])
-            np.subtract(c * y, s * x, out=out[..., 1])
-            return out
-
         pos = readings["position"][:, :2]
         n, k = len(pos), self._k
         rows = slice(None) if len(ids) == n else ids  # every row (the usual step) without a gather
-        world = np.empty((n, 2, 2))  # the ball's position and velocity
+        # every world-frame vector a player sees, turned into its frame in one go: the ball's offset and velocity,
+        # the goals' offsets (attacked, own), the others' offsets
+        world = np.empty((n, 4 + k - 1, 2))
         world[:, 0], world[:, 1] = ball["offset"], ball["velocity"][:, :2]
-        seen = frame(world)
-        others = np.zeros((n, k - 1, 2))
+        np.subtract(self._goal_points, pos[:, None, :], out=world[:, 2:4])
         if k > 1:
             in_scene = pos.reshape(-1, k, 2)
-            rel = in_scene[:, self._order, :] - in_scene[:, :, None, :]  # (scenes, k, k - 1, 2)
-            others = frame(rel.reshape(n, k - 1, 2))
+            world[:, 4:] = (in_scene[:, self._order, :] - in_scene[:, :, None, :]).reshape(n, k - 1, 2)
+        x, y = world[..., 0], world[..., 1]
+        turned = np.empty(world.shape)
+        np.add(c * x, s * y, out=turned[..., 0])
+        np.subtract(c * y, s * x, out=turned[..., 1])
+        seen, goals, others = turned[:, :2], turned[:, 2:4], turned[:, 4:]
         if self.ball_noise > 0 and len(ids):
             for i in np.asarray(ids).tolist():  # standard_normal(out=) is normal(0, 1)'s values at half its cost
                 self._generators[i].standard_normal(out=self._draws[i])
@@ -236,7 +234,7 @@ class SoccerTask(LocomotionTask):
             visible = (np.abs(bearing) <= 0.5 * self.field_of_view).astype(np.float64)
             ball_obs[rows] = np.concatenate([seen.reshape(n, 4) * visible[:, None], visible[:, None]], axis=1)[rows]
         self._others_obs[rows] = others.reshape(n, -1)[rows]
-        self._goals_obs = frame(self._goal_points - pos[:, None, :]).reshape(n, 4)
+        self._goals_obs = goals.reshape(n, 4)
 
     def episode_metrics(self, info: Mapping[str, Any]) -> dict[str, float]:
         return self.ground_metrics(info)
