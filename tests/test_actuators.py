@@ -187,3 +187,30 @@ def test_cancelled_back_emf_compensation_is_a_plain_voltage_amplifier():
         volts = motors.terminal_voltage(np.array([torque]), np.array([motor_speed]))[0]
         duty = np.clip((goal - c.center) / c.compliance_slope, -1, 1)
         assert volts == pytest.approx(duty * c.supply_voltage, rel=1e-9)
+
+
+@pytest.mark.parametrize("velocity_setpoint", [True, False])
+def test_a_voltage_mode_pid_with_a_derivative_and_feed_forward_is_the_firmwares_duty_law(velocity_setpoint):
+    """A firmware's PWM PID, ``v = supply x clip(kp e + kd (v_cmd - w) + ff)``, whatever the shaft speed: MuJoCo's
+    back-EMF compensation cancelled through the derivative gain and the feed-forward input."""
+    xml = """<mujoco><worldbody><body><joint name="j" axis="0 1 0"/><geom size=".01" mass=".01"/></body></worldbody>
+    <actuator><dcmotor name="m" joint="j" resistance="3.3" motorconst="0.00141" gear="7"/></actuator></mujoco>"""
+    spec = mujoco.MjSpec.from_string(xml)
+    pid = dcmotor.PIDGains(kp=1.2, kd=0.03, feedforward=0.05, velocity_setpoint=velocity_setpoint,
+                           compensate_back_emf=False, max_duty=0.9)  # fmt: skip
+    motors = dcmotor.DCMotors(["m"], 3.7, pid)
+    motors.configure(spec)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    motors.bind(m)
+    supply = np.array([3.7])
+    ctrl = np.zeros((1, 1, m.nu))
+    for target, rate, angle, speed in itertools.product((0.0, 0.3), (0.0, 40.0), (-0.1, 0.2), (-30.0, 0.0, 50.0)):
+        motors.set_setpoints(ctrl, np.full((1, 1, 1), target), np.full((1, 1, 1), rate), supply)
+        d.ctrl[:] = ctrl[0, 0]
+        d.qpos[0], d.qvel[0] = angle, speed
+        mujoco.mj_forward(m, d)
+        volts = motors.terminal_voltage(np.array([[d.actuator_force[0]]]), np.array([[d.actuator_velocity[0]]]))
+        command = rate if velocity_setpoint else 0.0
+        duty = np.clip(1.2 * (target - angle) + 0.03 * (command - speed) + 0.05, -0.9, 0.9)
+        assert volts[0, 0] == pytest.approx(duty * 3.7, rel=1e-9, abs=1e-12)

@@ -22,7 +22,7 @@ from envs.xjus import constants as xjus_constants
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results" / "ground_rules.json"
 WALKS = {
-    "skitter/RoachWalk-v2": roach_constants,
+    "skitter/RoachWalk-v3": roach_constants,
     "skitter/XjusWalk-v1": xjus_constants,
     "skitter/BioloidWalk-v2": bioloid_constants,
 }

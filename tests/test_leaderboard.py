@@ -11,7 +11,7 @@ import yaml
 from agents import leaderboard
 from agents.training import main as train_main
 
-WALK = "skitter/RoachWalk-v2"
+WALK = "skitter/RoachWalk-v3"
 XJUS = "skitter/XjusWalk-v1"
 
 
@@ -36,7 +36,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     tuning = ["--tune", "2", "--env", WALK, "--algo", "ppo", "--timesteps", "256", "--hyperparams", "tiny.yml",
               "--runs-dir", "runs", "--evaluations", "1", "--eval-episodes", "1"]  # fmt: skip
     assert train_main(tuning) == 0
-    best = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v2__ppo" / "best.yml"
+    best = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v3__ppo" / "best.yml"
     out, docs = tmp_path / "board", tmp_path / "docs" / "results.md"
     argv = ["--tasks", WALK, "--algos", "ppo", "--seeds", "0", "1", "--timesteps", "256", "--episodes", "2",
             "--max-episode-steps", "50", "--hyperparams", str(best), "--videos", "--out", str(out), "--docs",
@@ -44,7 +44,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert leaderboard.main(argv) == 0
     summary = json.loads((out / "results.json").read_text())
     rows = summary["rows"]
-    assert sorted(rows) == ["skitter_RoachWalk-v2__ppo__0", "skitter_RoachWalk-v2__ppo__1"]
+    assert sorted(rows) == ["skitter_RoachWalk-v3__ppo__0", "skitter_RoachWalk-v3__ppo__1"]
     base = summary["baselines"][WALK]
     assert base["reference"] == "tripod" and base["reference_return"] > base["random_return"]
     for record in rows.values():
@@ -55,28 +55,28 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert cell["low"] <= cell["iqm"] <= cell["high"]
     assert set(summary["overall"]) == {"ppo"}
     text = docs.read_text()
-    assert "| `skitter/RoachWalk-v2` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
-    for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v2.png"):
+    assert "| `skitter/RoachWalk-v3` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
+    for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v3.png"):
         assert (out / "plots" / plot).stat().st_size > 5_000
-    video = out / "videos" / "skitter_RoachWalk-v2" / "eval" / "videos" / "side_by_side.mp4"
+    video = out / "videos" / "skitter_RoachWalk-v3" / "eval" / "videos" / "side_by_side.mp4"
     assert video.stat().st_size > 10_000 and "side_by_side.mp4" in (out / "results.md").read_text()
     # the page's media beside it (the leaderboard's folder is a run's output, not a checkout's)
     media = docs.parent / "results"
-    assert (media / "videos" / "skitter_RoachWalk-v2.mp4").read_bytes() == video.read_bytes()
-    assert "](results/videos/skitter_RoachWalk-v2.mp4)" in text and "](results/plots/performance_profiles.png)" in text
+    assert (media / "videos" / "skitter_RoachWalk-v3.mp4").read_bytes() == video.read_bytes()
+    assert "](results/videos/skitter_RoachWalk-v3.mp4)" in text and "](results/plots/performance_profiles.png)" in text
     assert (media / "plots" / "performance_profiles.png").is_file()
     capsys.readouterr()
     # again: every row is done, nothing trains
     assert leaderboard.main(argv) == 0
     assert "(0 to run)" in capsys.readouterr().out
     # one row again, from nothing, with the same seeds: the same model, so the same evaluation
-    kept = rows["skitter_RoachWalk-v2__ppo__1"]["returns"]
+    kept = rows["skitter_RoachWalk-v3__ppo__1"]["returns"]
     assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
-    again = json.loads((tmp_path / "kept" / "rows" / "skitter_RoachWalk-v2__ppo__1" / "row.json").read_text())
+    again = json.loads((tmp_path / "kept" / "rows" / "skitter_RoachWalk-v3__ppo__1" / "row.json").read_text())
     assert "(1 to run)" in capsys.readouterr().out
     assert again["returns"] == pytest.approx(kept)
     assert again["reproduction"]["within"] and again["reproduction"]["again"]["value"] == pytest.approx(
-        rows["skitter_RoachWalk-v2__ppo__1"]["mean_return"]
+        rows["skitter_RoachWalk-v3__ppo__1"]["mean_return"]
     )
     # the same folder with another budget: refused, naming the row, before anything runs
     other = [*argv]
@@ -174,7 +174,7 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     assert cell["iqm"] == pytest.approx(0.75) and cell["low"] <= 0.75 <= cell["high"]
     assert set(summary["overall"]) == {"ppo"}, "sac misses a row: no score over all tasks"
     text = (tmp_path / "results.md").read_text()
-    assert "| skitter_RoachWalk-v2__sac__2 | not run |" in text
+    assert "| skitter_RoachWalk-v3__sac__2 | not run |" in text
     assert leaderboard.normalized(10.0, baselines[WALK]) == 0.0
     assert leaderboard.normalized(110.0, baselines[WALK]) == 1.0
     assert "(2 of 3 seeds)" in text
@@ -314,7 +314,7 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     leaderboard.write_json(leaderboard.row_file(kept, row), {**record, "training_attempts": 3})
     leaderboard.write_text(leaderboard.video_marker(kept, WALK), row.name + "\n")
     (docs.parent / "results" / "videos").mkdir(parents=True)
-    (docs.parent / "results" / "videos" / "skitter_RoachWalk-v2.mp4").write_bytes(b"published")
+    (docs.parent / "results" / "videos" / "skitter_RoachWalk-v3.mp4").write_bytes(b"published")
     ran = []
     monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args: ran.append(row) or {**record, "curve": None})
     argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--episodes", "2", "--out",
@@ -328,8 +328,8 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     text = docs.read_text()
     assert f"| {row.name} | 100 | 1 | 85.0 | 0.75 |" in text
     assert "Rows trained in several attempts (killed and resumed" in text and f"{row.name} (3)." in text
-    assert f"[the reference and {row.name}](results/videos/skitter_RoachWalk-v2.mp4)" in text
-    assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v2.png").stat().st_size > 5_000
+    assert f"[the reference and {row.name}](results/videos/skitter_RoachWalk-v3.mp4)" in text
+    assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v3.png").stat().st_size > 5_000
     assert not (tmp_path / "fresh" / "runs").exists()
 
 

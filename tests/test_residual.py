@@ -10,7 +10,7 @@ from agents.residual import ResidualPolicy, ResidualVecEnv, gym_env
 from agents.training import main as train_main
 from agents.training import make_env, resolve_hyperparams
 
-TURN = "skitter/RoachTurn-v3"
+TURN = "skitter/RoachTurn-v4"
 TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 40},
         "n_steps": 64, "batch_size": 64}  # fmt: skip
 

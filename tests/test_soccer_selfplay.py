@@ -111,14 +111,14 @@ def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
 
 
 def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
-    for args, word in ((("--env", "skitter/RoachWalk-v2"), "not both"), (("--algo", "sac"), "PPO"),
+    for args, word in ((("--env", "skitter/RoachWalk-v3"), "not both"), (("--algo", "sac"), "PPO"),
                        (("--players", "5"), "--players"), (("--scripted-share", "2"), "--scripted-share"),
                        (("--resume", "x"), "without --soccer"),
                        (("--players", "3", "--n-envs", "1"), "(matches) x players = 256 x 1 x 3")):  # fmt: skip
         done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
         assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
     for flag in ("--players", "--match-seconds", "--scripted-share", "--snapshot-freq"):  # not ignored without it
-        done = train_in_process("--env", "skitter/RoachWalk-v2", "--timesteps", "10", "--runs-dir", tmp_path, flag, "2")
+        done = train_in_process("--env", "skitter/RoachWalk-v3", "--timesteps", "10", "--runs-dir", tmp_path, flag, "2")
         assert done.returncode == 2 and f"{flag} is a self-play option: give --soccer" in done.stderr, done.stderr
     assert not any(tmp_path.iterdir())
 

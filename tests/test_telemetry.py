@@ -68,9 +68,9 @@ def _sim_episode(env_id: str, action: np.ndarray, steps: int):
 @pytest.fixture(scope="module")
 def sim_gait():
     """2 s of tripod at 6 strides/s in gait mode (50 Hz)."""
-    env = gym.make("skitter/RoachWalk-v2")
+    env = gym.make("skitter/RoachWalk-v3")
     action = env.unwrapped.robot.mode.to_action([6.0, 6.0, math.pi])
-    return _sim_episode("skitter/RoachWalk-v2", action, 100)
+    return _sim_episode("skitter/RoachWalk-v3", action, 100)
 
 
 # --- the real files --------------------------------------------------------------------------------------------
@@ -402,7 +402,7 @@ def test_physics_rate_telemetry_resolves_a_45_hz_stride_that_control_rate_aliase
 
     tables = {}
     for rate in ("control", "physics"):
-        env = gym.make("skitter/RoachWalk-v2", telemetry=rate)
+        env = gym.make("skitter/RoachWalk-v3", telemetry=rate)
         policy = load_policy("tripod", env)
         obs, _ = env.reset(seed=0)
         for _ in range(100):

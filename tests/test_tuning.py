@@ -20,7 +20,7 @@ from stable_baselines3 import PPO
 from agents.training import RUN_CODE, load_hyperparams, main, make_env, resolve_hyperparams
 from agents.tuning import TrialEvalCallback, eval_env, tune
 
-WALK = "skitter/RoachWalk-v2"
+WALK = "skitter/RoachWalk-v3"
 # a tiny entry: 2 envs, episodes of 50 steps (1 s), so that a trial of 256 steps evaluates in a blink
 TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 50},
         "n_steps": 128, "batch_size": 64}  # fmt: skip
@@ -42,7 +42,7 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     common = ("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs",
               "--evaluations", 2, "--eval-episodes", 1)  # fmt: skip
     assert train_py("--tune", 2, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
-    folder = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v2__ppo"
+    folder = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v3__ppo"
     assert [row["state"] for row in trials_csv(folder)] == ["COMPLETE", "COMPLETE"]
     assert (tmp_path / "runs" / "tuning.db").is_file(), "SQLite by default"
     # best.yml is an entry train.py takes as it is, with the drawn values over the file's own

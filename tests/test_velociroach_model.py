@@ -64,7 +64,7 @@ def test_motor_reaches_a_45_hz_stride_with_headroom_and_stalls_at_its_datasheet_
 
 def test_model_sizes_are_pinned(robot):
     m = robot.model
-    assert (m.nq, m.nv, m.nu, m.na, m.neq) == (29, 28, 4, 2, 14)
+    assert (m.nq, m.nv, m.nu, m.na, m.neq) == (29, 28, 6, 2, 14)  # gait: pos, vel, ff per motor
     duty = VelociRoach("duty").model
     assert (duty.nq, duty.nv, duty.nu, duty.na) == (29, 28, 2, 0)
 

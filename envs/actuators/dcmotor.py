@@ -10,7 +10,10 @@ Two ways to drive it here, both through ``ctrl`` only:
   drives ``v = (R/K) torque + K l'`` clipped to ``Vmax``. Firmware gains are written here as a voltage-mode
   controller writes them, in duty (fraction of the supply voltage) per radian at the joint, and converted. With
   ``compensate_back_emf=False`` a derivative term of exactly ``K^2/R`` cancels MuJoCo's back-EMF compensation, which
-  leaves a plain voltage-mode controller, ``v = supply x clip(duty)``: what a hobby servo's amplifier does.
+  leaves a plain voltage-mode controller, ``v = supply x clip(duty)``: what a hobby servo's amplifier does, and what
+  a firmware's PWM PID does, ``duty = kp e + ki int(e) + kd (v_cmd - w) + ff``. Its velocity setpoint and constant
+  feed-forward go through the controller's feed-forward input, ``-(K^2/R) u_vel + (K/R) supply ff`` (written with the
+  setpoints at every physics step), which cancels what the extra ``K^2/R`` adds to the setpoint's term.
 
 Electrical readouts come from the motor's torque and speed sensors (``actuatorfrc``, ``actuatorvel``) at every
 physics step. The H-bridge returns no braking energy to the supply: battery power is ``max(v i, 0)`` per motor.
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from envs.common.parameters import FieldRef
 
@@ -42,6 +46,7 @@ class PIDGains:
         kp: duty per rad of position error.
         ki: duty per (rad s) of integrated error.
         kd: duty per rad/s of velocity error.
+        feedforward: constant duty added to the output (a firmware's ``ff``; voltage mode only).
         integral_limit: bound of the integral term, in duty (0: unbounded).
         velocity_setpoint: the firmware also sends a velocity setpoint (inputs ``pos vel``); else ``pos`` only.
         compensate_back_emf: keep MuJoCo's back-EMF compensation (a current-mode driver); False: plain voltage mode.
@@ -51,14 +56,15 @@ class PIDGains:
     kp: float
     ki: float = 0.0
     kd: float = 0.0
+    feedforward: float = 0.0
     integral_limit: float = 0.0
     velocity_setpoint: bool = True
     compensate_back_emf: bool = True
     max_duty: float = 1.0
 
     def __post_init__(self) -> None:
-        if not self.compensate_back_emf and (self.velocity_setpoint or self.kd):
-            raise ValueError("cancelling the back-EMF compensation needs a position-only setpoint and kd = 0")
+        if self.compensate_back_emf and self.feedforward:
+            raise ValueError("a constant feed-forward duty needs the plain voltage mode (compensate_back_emf=False)")
         if not 0 < self.max_duty <= 1:
             raise ValueError(f"max_duty must be in (0, 1], got {self.max_duty}")
 
@@ -81,6 +87,23 @@ class DCMotors:
     def mode(self) -> str:
         return "voltage" if self.pid is None else "pid"
 
+    @property
+    def feeds_forward(self) -> bool:
+        """Whether the controller takes the feed-forward input (a voltage-mode PID with a velocity setpoint or a
+        constant feed-forward duty)."""
+        g = self.pid
+        return g is not None and not g.compensate_back_emf and (g.velocity_setpoint or g.feedforward != 0.0)
+
+    def derivative_gain(
+        self, supply: ArrayLike, resistance: ArrayLike, constant: ArrayLike, gear: ArrayLike
+    ) -> ArrayLike:
+        """The controller's derivative gain in motor-shaft units for a supply (V) and the motor's R, K and gear:
+        the duty's ``kd`` converted, plus ``K^2/R`` where the back-EMF compensation is cancelled (numbers or arrays).
+        It is not a product of the supply, R and K, so it is computed, not scaled, when they change."""
+        g = self.pid
+        to_torque = supply * constant / (resistance * gear)  # duty per joint radian -> motor torque per motor radian
+        return g.kd * to_torque + (0.0 if g.compensate_back_emf else constant * constant / resistance)
+
     def configure(self, spec: mujoco.MjSpec) -> None:
         """Set the inputs and controller of every motor in the spec."""
         vs = self.supply_voltage
@@ -93,9 +116,9 @@ class DCMotors:
             r, k, gear = a.gainprm[GAIN_R], a.gainprm[GAIN_K], a.gear[0]
             to_torque = vs * k / (r * gear)  # duty per joint radian -> motor torque per motor radian
             g = self.pid
-            kd = g.kd * to_torque + (0.0 if g.compensate_back_emf else k * k / r)
+            kd = self.derivative_gain(vs, r, k, gear)
             ki = g.ki * to_torque
-            a.ctrlspec = INPUT_POS | (INPUT_VEL if g.velocity_setpoint else 0)
+            a.ctrlspec = INPUT_POS | (INPUT_VEL if g.velocity_setpoint else 0) | (INPUT_FF if self.feeds_forward else 0)
             a.gainprm[GAIN_KP] = g.kp * to_torque
             a.gainprm[GAIN_KI] = ki
             a.gainprm[GAIN_KD] = kd
@@ -111,6 +134,9 @@ class DCMotors:
         self.act_adr = model.actuator_actadr[self.ids].copy()
         self.gear = model.actuator_gear[self.ids, 0].copy()
         self._pos, self._vel = _as_index(self.ctrl_adr), _as_index(self.ctrl_adr + 1)
+        # the inputs lie in ctrl in the order pos, vel, ff
+        velocity = self.pid is not None and self.pid.velocity_setpoint
+        self._ff = _as_index(self.ctrl_adr + (2 if velocity else 1)) if self.feeds_forward else None
         self.resistance = np.zeros((num_sims, len(self.ids)))
         self.motor_constant = np.zeros((num_sims, len(self.ids)))
         self._power_coefficient = np.zeros((num_sims, len(self.ids)))
@@ -130,15 +156,23 @@ class DCMotors:
         """Voltage mode: hold duty (n, motors), clipped to [-1, 1], times the supply (n,) over the whole block."""
         ctrl[:, :, self._pos] = (np.minimum(np.maximum(duty, -1.0), 1.0) * supply[:, None])[:, None, :]
 
-    def set_setpoints(self, ctrl: np.ndarray, position: np.ndarray, velocity: np.ndarray | None = None) -> None:
-        """PID mode: joint-angle setpoints (n, substeps, motors) in rad and, with a velocity input, their rates."""
+    def set_setpoints(self, ctrl: np.ndarray, position: np.ndarray, velocity: np.ndarray | None = None,
+                      supply: np.ndarray | None = None) -> None:  # fmt: skip
+        """PID mode: joint-angle setpoints (n, substeps, motors) in rad and, with a velocity input, their rates; a
+        voltage-mode PID that feeds forward also takes the supply (n,), V."""
         ctrl[:, :, self._pos] = position * self.gear
+        motor_rate = None
         if self.pid is not None and self.pid.velocity_setpoint:
-            ctrl[:, :, self._vel] = velocity * self.gear
+            motor_rate = velocity * self.gear
+            ctrl[:, :, self._vel] = motor_rate
+        if self.feeds_forward:
+            self._feed_forward(ctrl, motor_rate, supply)
 
-    def set_ramps(self, ctrl: np.ndarray, start: np.ndarray, rate: np.ndarray, times: np.ndarray) -> None:
+    def set_ramps(self, ctrl: np.ndarray, start: np.ndarray, rate: np.ndarray, times: np.ndarray,
+                  supply: np.ndarray | None = None) -> None:  # fmt: skip
         """PID mode: setpoints that ramp from ``start`` (n, motors) at ``rate`` (rad/s), sampled at ``times`` (s from
-        the block's start, one per physics step, shaped (1, substeps, 1)), with ``rate`` as the velocity setpoint."""
+        the block's start, one per physics step, shaped (1, substeps, 1)), with ``rate`` as the velocity setpoint; a
+        voltage-mode PID that feeds forward also takes the supply (n,), V."""
         g = self.gear
         motor_rate = (rate * g)[:, None, :]
         ramp = np.multiply(motor_rate, times)
@@ -146,6 +180,21 @@ class DCMotors:
         ctrl[:, :, self._pos] = ramp
         if self.pid is not None and self.pid.velocity_setpoint:
             ctrl[:, :, self._vel] = motor_rate
+        if self.feeds_forward:
+            self._feed_forward(ctrl, motor_rate if self.pid.velocity_setpoint else None, supply)
+
+    def _feed_forward(self, ctrl: np.ndarray, motor_rate: np.ndarray | None, supply: np.ndarray | None) -> None:
+        """The feed-forward input of a voltage-mode PID: ``-(K^2/R) u_vel``, which cancels the ``K u_vel`` that the
+        derivative gain's ``K^2/R`` adds, plus the constant duty as a torque, ``(K/R) supply ff``."""
+        if supply is None:
+            raise ValueError("a voltage-mode PID that feeds forward needs the supply voltage with its setpoints")
+        k, r = self.motor_constant, self.resistance
+        n = ctrl.shape[0]
+        volts = np.asarray(supply, dtype=np.float64)[:, None] * self.pid.feedforward
+        ff = np.broadcast_to((k / r * volts)[:, None, :], (n, ctrl.shape[1], len(self.ids)))
+        if motor_rate is not None:
+            ff = ff - (k * k / r)[:, None, :] * motor_rate
+        ctrl[:, :, self._ff] = ff
 
     # --- electrical readouts from motor torque and speed: (num_sims, motors) or (num_sims, substeps, motors) -------
     @staticmethod
@@ -171,6 +220,8 @@ class DCMotors:
         output bound (the derivative term of a cancelled back-EMF compensation does not scale)."""
         if self.pid is None:
             return ()
+        # the derivative gain of a cancelled compensation: kd supply K / (R gear) + K^2/R, computed by the robot
+        # (derivative_gain) when the supply changes, not scaled
         slots = [GAIN_KP, GAIN_KI, GAIN_VMAX] + ([GAIN_KD] if self.pid.compensate_back_emf else [])
         return tuple(FieldRef("actuator_gainprm", (self.ids, slot), "scale") for slot in slots)
 

@@ -46,7 +46,8 @@ class AcademyTask(SoccerTask):
         "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
     }
     players: ClassVar[tuple[str, ...]] = (PLAYER,)  # the scene's players: the learner's first
-    history: ClassVar[tuple[str, ...] | None] = None  # the task's own version history (None: the robot's academy's)
+    # the task's own version history, or one per robot (None: the robot's academy's)
+    history: ClassVar[tuple[str, ...] | Mapping[str, tuple[str, ...]] | None] = None
 
     # --- placing --------------------------------------------------------------------------------------------------
     def prepare_reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None) -> None:
@@ -171,7 +172,11 @@ class ScoreVsKeeperTask(ScoreEmptyGoalTask):
 
     name = "score_vs_keeper"
     players = (PLAYER, KEEPER)
-    history = ("first version.",)
+    history: ClassVar[Mapping[str, tuple[str, ...]]] = {
+        "Roach": ("first version.", "the robot's and the keeper's firmware is the real one, as in RoachWalk-v3."),
+        "Xjus": ("first version.",),
+        "Bioloid": ("first version.",),
+    }
     ball_out = (3.0, 6.0)
 
     def place_players(self, scene: int, rng: np.random.Generator, robot: np.ndarray, ball: np.ndarray,
@@ -321,7 +326,9 @@ MANUAL = """{title}: {task}
 HISTORY = {
     "Roach": ["first version.",
               "the commands mode spins the robot on the spot, its sides' clocks running opposite ways, where one side "
-              "running alone pivoted it about the other; its gait map is new. The joints mode is unchanged."],
+              "running alone pivoted it about the other; its gait map is new. The joints mode is unchanged.",
+              "the robot's firmware is the real one, a voltage-mode PID with the lab's gains, as in RoachWalk-v3: "
+              "both modes change, and the commands mode's gait map and turning table are measured again."],
     "Xjus": ["first version.",
              "the commands mode turns on the spot, one side's legs running the Buehler clock backward (as RHex turns "
              "in place), where the sweep difference turned it only at speed; its gait map is new. The joints mode is "
@@ -337,6 +344,8 @@ def history(robot: str, task_class: type[AcademyTask] | None = None) -> tuple[st
     """The version history of a robot's academy id (its name in ids, as ``Bioloid``): the task's own where it has one
     (a task added after the others starts at v1), else the robot's academy's."""
     own = None if task_class is None else task_class.history
+    if isinstance(own, Mapping):  # a task's history per robot
+        own = own[robot]
     return tuple(HISTORY[robot]) if own is None else own
 
 

@@ -448,7 +448,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v5",
+        "name": "skitter_soccer_v6",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,

@@ -4,11 +4,12 @@ calibration adapter and the reader of its text telemetry for calibration are in 
 from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
 
 _MODES = {"": ("gait", 50.0), "Duty": ("duty", 1000.0)}
-VERSIONS = {"Walk": 2, "Turn": 3}  # each task's version (both modes): raised when its dynamics or rewards change
+# each task's version in each mode (gait "", duty "Duty"): raised when its dynamics or rewards change
+VERSIONS = {("Walk", ""): 3, ("Walk", "Duty"): 2, ("Turn", ""): 4, ("Turn", "Duty"): 3}
 
 ENVS = [
     {
-        "id": f"skitter/Roach{task}{suffix}-v{VERSIONS[task]}",
+        "id": f"skitter/Roach{task}{suffix}-v{VERSIONS[task, suffix]}",
         "entry_point": f"envs.velociroach.{task.lower()}:make_env",
         "vector_entry_point": f"envs.velociroach.{task.lower()}:make_batched",
         "kwargs": {"action_mode": mode, "control_freq": freq, "episode_seconds": EPISODE_SECONDS},

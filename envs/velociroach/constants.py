@@ -57,13 +57,13 @@ TOP_SPEED = 2.7  # m/s, ICRA 2013 abstract
 STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmware phase 0x8000 of 65536)
 
 # --- firmware: leg clock and per-side PID (the lab's roach firmware runs them at 1 kHz) ----------------------------
-# The real firmware's gains are in its own fixed-point units: [roach-firmware] gives Kp=1800, Ki=200, Kd=100; the 2 Hz
-# real log's header lists [1800, 100, 200, 0, 200], which in the firmware's usual order (Kp, Ki, Kd, anti-windup,
-# feed-forward) reads Ki=100, Kd=200. Ours are in duty per leg radian, chosen so that the legs follow the clock within
-# 1 to 3 deg up to 45 Hz (benchmarks/speed_vs_frequency.py).
-PID_KP = 1.8  # duty / rad of leg angle error: full duty at about 32 deg
-PID_KI = 10.0  # duty / (rad s)
-PID_KD = 0.009  # duty / (rad/s)
-PID_INTEGRAL_LIMIT = 0.3  # duty: anti-windup bound of the integral term
+# The firmware drives each side's motor with a PWM duty, duty = ff + Kp e + Ki int(e) + Kd (v_cmd - v), in its own
+# fixed-point units (envs/velociroach/firmware.py): a voltage-mode PID, no back-EMF compensation. Its gains are the
+# lab's experiment script's, [roach-firmware]: Kp = 1800, Ki = 200, Kd = 100, anti-windup 0, feed-forward 0 (the real
+# logs carry [1800, 100, 200, 0, 200], [1800, 100, 100, 0, 0] and [1800, 20, 100, 0, 0]; a regression of their duty
+# on these terms gives the same Kp and Kd, docs/real-logs.md). In duty per leg radian through the firmware's
+# arithmetic: Kp 1.175, Ki 0.51, Kd 0.0167, ff 0.
+FIRMWARE_GAINS = (1800, 200, 100, 0, 0)  # [Kp, Ki, Kd, Kaw, ff], the firmware's units, [roach-firmware]
+PID_INTEGRAL_LIMIT = 0.3  # duty: bound of the integral term; assumed (the firmware's own bound is not in our sources)
 PHASE_SLEW = 2 * np.pi * 5.0  # rad/s: fastest change of the left/right phase the firmware makes
 MAX_COMMAND_FREQUENCY = MAX_STRIDE_FREQUENCY  # Hz: the gait action's bound, what the real robot strides (v1; v0: 50)

@@ -9,19 +9,21 @@ from typing import ClassVar
 import mujoco
 import numpy as np
 
-from envs.actuators.dcmotor import DCMotors, PIDGains
+from envs.actuators.dcmotor import GAIN_KD, GAIN_KP, DCMotors, PIDGains
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number, standing_band
 from envs.common.telemetry import ChannelLimit
-from envs.velociroach import constants
+from envs.velociroach import constants, firmware
 from envs.velociroach.effects import delay_edit, effects_edit, roach_effects
 
 GAIT, DUTY = "gait", "duty"
+_FIRMWARE = firmware.duty_gains(constants.FIRMWARE_GAINS)
 FIRMWARE_PID = PIDGains(
-    kp=constants.PID_KP, ki=constants.PID_KI, kd=constants.PID_KD, integral_limit=constants.PID_INTEGRAL_LIMIT
-)
+    kp=_FIRMWARE["kp"], ki=_FIRMWARE["ki"], kd=_FIRMWARE["kd"], feedforward=_FIRMWARE["ff"],
+    integral_limit=constants.PID_INTEGRAL_LIMIT, compensate_back_emf=False,
+)  # fmt: skip
 
 
 def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
@@ -56,9 +58,10 @@ class VelociRoach(Robot):
 
     - ``gait`` (50 Hz): the firmware runs a leg clock per side at a commanded stride frequency (0 to 45 Hz, the real
       robot's range), the right clock trailing the left by a commanded phase, which the firmware moves at most
-      ``PHASE_SLEW``; a PID per side tracks its clock. The PID is MuJoCo's dcmotor controller (P, I, D, back-EMF
-      compensation, output clipped to the battery voltage) evaluated at every physics step; the clock is its
-      setpoint, given for every physics step of the control block. No Python runs per physics step and nothing
+      ``PHASE_SLEW``; a PID per side tracks its clock. The PID is the firmware's voltage-mode law (a PWM duty from
+      P, I, D on the clock's angle and rate; no back-EMF compensation; clipped to the battery voltage) on MuJoCo's
+      dcmotor controller, evaluated at every physics step; the clock is its setpoint, given for every physics step
+      of the control block. No Python runs per physics step and nothing
       writes the model.
     - ``duty`` (1 kHz): the PWM duty cycle per side in [-1, 1]; the motor sees duty x battery voltage.
 
@@ -183,15 +186,10 @@ class VelociRoach(Robot):
         return float(mujoco.MjSpec.from_file(str(cls.xml_path())).option.timestep)
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
-        from envs.actuators.dcmotor import GAIN_KD, GAIN_KP
-
         setting = calibration.setting
 
-        def firmware(spec: mujoco.MjSpec) -> None:  # its torque-space gains carry the motor constant (duty V K / R)
-            for side in constants.SIDES:
-                spec.actuator(constants.MOTORS[side]).gainprm[GAIN_KP : GAIN_KD + 1] *= setting.get(
-                    f"torque_constant_{side}.scale", 1.0
-                )
+        def firmware(spec: mujoco.MjSpec) -> None:  # its torque-space gains carry the motors' calibrated R and K
+            self.motors.configure(spec)
 
         delay = setting.get("delay.seconds", 0.0)
         return [effects_edit(setting), *([firmware] if self.action_mode == GAIT else []),
@@ -208,7 +206,9 @@ class VelociRoach(Robot):
         contact = np.append(feet, floor) if floor >= 0 else feet
         r0, k0 = (float(model.actuator_gainprm[ids[0], s]) for s in (0, 1))
         pid = self.action_mode == GAIT
-        gain = (ids, slice(4, 7))  # the firmware's torque-space gains: duty gains x V K / (R gear)
+        # the firmware's torque-space P and I gains: duty gains x V K / (R gear); its D gain is computed
+        # (parameters_changed), since the K^2/R that cancels MuJoCo's back-EMF compensation does not scale with V
+        gain = (ids, slice(GAIN_KP, GAIN_KD))
         p = ParameterMap()
         p.add(Parameter("battery_voltage", "V", self.nominal_battery, 2.5, 4.5,
                         "supply voltage (1-cell LiPo, 3.5-3.9 V in the real logs)",
@@ -238,6 +238,16 @@ class VelociRoach(Robot):
 
     def parameters_changed(self, ids: np.ndarray) -> None:
         self.motors.refresh(ids, self.field("actuator_gainprm"))
+        if self.action_mode != GAIT:
+            return
+        m = self.motors
+        kd = m.derivative_gain(self.battery[ids, None], m.resistance[ids], m.motor_constant[ids], m.gear)
+        if self.batched:
+            gains = self.sim.expand("actuator_gainprm")
+            for row, i in enumerate(ids):
+                gains[i][m.ids, GAIN_KD] = kd[row]
+        else:
+            self.model.actuator_gainprm[m.ids, GAIN_KD] = kd[0]
 
     # --- the contract -------------------------------------------------------------------------------------------
     @property
@@ -347,7 +357,7 @@ class VelociRoach(Robot):
         rate[:, 1] -= dphi / dt  # the right clock falls behind by the phase change over the step
         # as the firmware advances its clock, then runs its PID: the clock at the end of each physics step is the
         # setpoint during that step (the last one ends the block at the new clock)
-        self.motors.set_ramps(ctrl, self.clock, rate, self._substep_times)
+        self.motors.set_ramps(ctrl, self.clock, rate, self._substep_times, self.battery)
         self.clock += rate * dt
 
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:

@@ -96,7 +96,7 @@ class RoachWalkEnv(SkitterEnv):
     of steps) and ``body_height`` (mean, m).
 
     ## Arguments
-    ``gymnasium.make("skitter/RoachWalk-v2", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
+    ``gymnasium.make("skitter/RoachWalk-v3", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
     mode, 1000 in duty mode), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.1 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``battery_voltage`` (V,
     default the model's 3.7), ``sensor_noise`` (True: the IMU's noise and bias), ``randomize`` (parameter name ->
@@ -108,6 +108,10 @@ class RoachWalkEnv(SkitterEnv):
     ``grace_time`` (1.5 s).
 
     ## Version History
+    - v3 (gait mode; duty mode stays v2): the firmware's PID is the real one, a voltage-mode PWM law with the lab's
+      gains (Kp 1800, Ki 200, Kd 100 in its units; no back-EMF compensation), where v2 ran a current-mode PID with
+      stiffer gains of our own; the legs now lag the clock as the real robot's do (about 6 deg at 13 Hz, 40 deg at
+      45 Hz, against 1 and 2.5).
     - v2: the episode also ends when anything but the feet touches the ground, or the body leaves its height
       band, for more than ``grace_time`` (a leaky count); ``info`` and the evaluation report the fraction of
       steps with a non-foot ground contact and the mean body height (v1 ended only on a tilt, and a learner
