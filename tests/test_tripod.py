@@ -137,5 +137,5 @@ def test_duty_tripod_reads_its_inputs_by_name_not_position():
     shuffled = ObservationLayout.from_structure(structure)
     shuffled_obs = np.concatenate([obs[context.layout[n]] for n in shuffled_names])
     a = TripodGait(context, frequency=10.0).predict(obs)[0]
-    b = TripodGait(TripodContext(shuffled, context.mode, context.control_dt, context.back_emf_per_leg_rate), 10.0)
+    b = TripodGait(TripodContext(shuffled, context.mode, context.control_dt), 10.0)
     np.testing.assert_array_equal(a, b.predict(shuffled_obs)[0])

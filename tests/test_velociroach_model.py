@@ -109,3 +109,31 @@ def test_braking_energy_is_not_returned_to_the_battery():
     torque = robot.sensor(constants.SENSOR_MOTOR_TORQUE["left"])[0, 0]
     assert torque < 0, "the spinning motor brakes"
     assert robot.read(RNG)["power"][0] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_firmwares_gains_follow_the_battery_and_the_motor_per_simulation(batched):
+    """The voltage-mode PID's motor-shaft gains are the firmware's duty gains times battery x K / (R gear), and its
+    derivative gain also holds the K^2/R that cancels MuJoCo's back-EMF compensation: per simulation, after
+    randomized parameters, and back at nominal."""
+    from envs.actuators.dcmotor import GAIN_KD, GAIN_KI, GAIN_KP
+    from envs.velociroach.robot import FIRMWARE_PID
+
+    robot = VelociRoach("gait", num_sims=2 if batched else 1, batched=batched)
+    robot.reset(np.arange(robot.num_sims), RNG * robot.num_sims)
+    m = robot.motors
+    r0, k0 = float(m.resistance[0, 0]), float(m.motor_constant[0, 0])
+    changed = {"battery_voltage": 3.2, "motor_constant": 1.3 * k0, "motor_resistance": 0.8 * r0}
+    last = robot.num_sims - 1
+    for values in (changed, {}):
+        robot.set_parameters(np.array([last]), values)
+        vb = values.get("battery_voltage", robot.nominal_battery)
+        k, r = values.get("motor_constant", k0), values.get("motor_resistance", r0)
+        gains = robot.field("actuator_gainprm")[last][m.ids]
+        to_torque = vb * k / (r * m.gear)
+        np.testing.assert_allclose(gains[:, GAIN_KP], FIRMWARE_PID.kp * to_torque, rtol=1e-12)
+        np.testing.assert_allclose(gains[:, GAIN_KI], FIRMWARE_PID.ki * to_torque, rtol=1e-12)
+        np.testing.assert_allclose(gains[:, GAIN_KD], FIRMWARE_PID.kd * to_torque + k * k / r, rtol=1e-12)
+        if batched:  # the other simulation keeps the nominal gains
+            nominal = robot.field("actuator_gainprm")[0][m.ids, GAIN_KD]
+            np.testing.assert_allclose(nominal, m.derivative_gain(robot.nominal_battery, r0, k0, m.gear), rtol=1e-12)

@@ -2,8 +2,9 @@
 
 A leg clock per side runs at stride frequency f; the right clock trails the left by a phase (pi runs straight,
 other offsets turn). In gait mode the clock and its PID are the robot's firmware, so the policy only sends
-(f, f, phase). In duty mode the policy is the firmware: it runs the clock and a PID per side on the measured leg
-angle at the control rate and outputs the duty cycle, with a back-EMF feed-forward.
+(f, f, phase). In duty mode the policy is the firmware: it runs the clock and the firmware's PID per side on the
+measured leg angle at the control rate (its 1 kHz) and outputs the duty cycle, the same voltage-mode law the gait
+mode's motors run.
 
 Both follow Stable-Baselines3's ``predict(observation, state, episode_start, deterministic) -> (action, state)``,
 batched or not. They read their inputs by name from the env's observation layout, and the policy's clock lives in
@@ -29,13 +30,11 @@ WALK_FREQUENCY = 45.0  # Hz: the real robot's top stride [roach-sim, Table 1]
 
 @dataclass(frozen=True)
 class TripodContext:
-    """What the tripod knows of the env it drives: the observation layout, the action mode, the control period and,
-    for the duty-mode firmware's feed-forward, the back-EMF per unit leg speed (Ke x gear, V s/rad)."""
+    """What the tripod knows of the env it drives: the observation layout, the action mode and the control period."""
 
     layout: ObservationLayout
     mode: ActionMode
     control_dt: float
-    back_emf_per_leg_rate: float
 
     @classmethod
     def from_env(cls, env) -> TripodContext:
@@ -43,8 +42,7 @@ class TripodContext:
         robot = base.robot
         if robot.name != "velociroach":
             raise ValueError(f"the tripod drives a VelociRoACH, not a {robot.name}")
-        emf = float(robot.motors.motor_constant[0, 0] * robot.gear)
-        return cls(base.task.layout, robot.mode, robot.control_dt, emf)
+        return cls(base.task.layout, robot.mode, robot.control_dt)
 
 
 class TripodGait:
@@ -118,8 +116,7 @@ class TripodGait:
         pid = FIRMWARE_PID
         state[:, 2:] = np.clip(state[:, 2:] + pid.ki * error * dt, -pid.integral_limit, pid.integral_limit)
         clock_rate = np.column_stack([np.full(n, omega), omega + correction / dt])
-        feedforward = self.context.back_emf_per_leg_rate * clock_rate / layout.get(obs, "battery")
-        duty = pid.kp * error + state[:, 2:] + pid.kd * (clock_rate - layout.get(obs, "leg_velocity")) + feedforward
+        duty = pid.kp * error + state[:, 2:] + pid.kd * (clock_rate - layout.get(obs, "leg_velocity")) + pid.feedforward
         return np.clip(duty, -1.0, 1.0), state
 
 
