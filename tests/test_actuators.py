@@ -196,7 +196,7 @@ def test_a_voltage_mode_pid_with_a_derivative_and_feed_forward_is_the_firmwares_
     xml = """<mujoco><worldbody><body><joint name="j" axis="0 1 0"/><geom size=".01" mass=".01"/></body></worldbody>
     <actuator><dcmotor name="m" joint="j" resistance="3.3" motorconst="0.00141" gear="7"/></actuator></mujoco>"""
     spec = mujoco.MjSpec.from_string(xml)
-    pid = dcmotor.PIDGains(kp=1.2, kd=0.03, feedforward=0.05, velocity_setpoint=velocity_setpoint,
+    pid = dcmotor.PIDGains(kp=1.2, ki=0.5, kd=0.03, feedforward=0.05, velocity_setpoint=velocity_setpoint,
                            compensate_back_emf=False, max_duty=0.9)  # fmt: skip
     motors = dcmotor.DCMotors(["m"], 3.7, pid)
     motors.configure(spec)
@@ -205,12 +205,15 @@ def test_a_voltage_mode_pid_with_a_derivative_and_feed_forward_is_the_firmwares_
     motors.bind(m)
     supply = np.array([3.7])
     ctrl = np.zeros((1, 1, m.nu))
-    for target, rate, angle, speed in itertools.product((0.0, 0.3), (0.0, 40.0), (-0.1, 0.2), (-30.0, 0.0, 50.0)):
+    integral = (-0.2, 0.0, 0.3)  # rad s of integrated leg-angle error, as the firmware's integrator holds it
+    for target, rate, angle, speed, area in itertools.product((0.0, 0.3), (0.0, 40.0), (-0.1, 0.2), (-30.0, 0.0, 50.0),
+                                                              integral):  # fmt: skip
         motors.set_setpoints(ctrl, np.full((1, 1, 1), target), np.full((1, 1, 1), rate), supply)
         d.ctrl[:] = ctrl[0, 0]
         d.qpos[0], d.qvel[0] = angle, speed
+        d.act[0] = 7 * area  # MuJoCo's integrator holds the motor shaft's angle error (gear 7)
         mujoco.mj_forward(m, d)
         volts = motors.terminal_voltage(np.array([[d.actuator_force[0]]]), np.array([[d.actuator_velocity[0]]]))
         command = rate if velocity_setpoint else 0.0
-        duty = np.clip(1.2 * (target - angle) + 0.03 * (command - speed) + 0.05, -0.9, 0.9)
+        duty = np.clip(1.2 * (target - angle) + 0.5 * area + 0.03 * (command - speed) + 0.05, -0.9, 0.9)
         assert volts[0, 0] == pytest.approx(duty * 3.7, rel=1e-9, abs=1e-12)

@@ -241,3 +241,29 @@ def test_calibration_delay_uses_mujocos_actuator_history(tmp_path):
     step = forces["nominal"][0]  # the voltage's torque at once (the rest is back-EMF of the body settling)
     assert step > 1e-4 and np.all(forces["delayed"][: steps - 1] < 1e-3 * step)
     assert forces["delayed"][steps + 1] > 0.5 * step
+
+
+def test_a_calibrated_roach_keeps_its_sides_and_its_firmware_law_under_drawn_parameters(tmp_path):
+    """A calibration that makes the right motor twice as strong: a drawn motor constant, resistance and battery scale
+    both sides alike, so the right motor stays twice the left, and each side's torque-space gains stay the
+    firmware's duty gains times battery x K / (R gear) (its derivative gain with the K^2/R that cancels MuJoCo's
+    back-EMF compensation)."""
+    from envs.actuators.dcmotor import GAIN_KD, GAIN_KI, GAIN_R
+    from envs.velociroach.robot import FIRMWARE_PID
+
+    robot = gym.make("skitter/RoachWalk-v3", calibration=str(_write(tmp_path / "cal.json"))).unwrapped.robot
+    m = robot.model
+    left, right = (m.actuator(constants.MOTORS[s]).id for s in ("left", "right"))
+    k0 = float(m.actuator_gainprm[left, GAIN_K])
+    ratio = m.actuator_gainprm[right, GAIN_K] / k0
+    robot.set_parameters(np.array([0]), {"motor_constant": 1.25 * k0, "motor_resistance": 4.0, "battery_voltage": 3.3})
+    g = m.actuator_gainprm
+    assert g[right, GAIN_K] / g[left, GAIN_K] == pytest.approx(ratio, rel=1e-12) and g[left, GAIN_K] == 1.25 * k0
+    assert g[left, GAIN_R] == g[right, GAIN_R] == 4.0
+    for a in (left, right):
+        k, r = g[a, GAIN_K], g[a, GAIN_R]
+        to_torque = 3.3 * k / (r * m.actuator_gear[a, 0])
+        assert g[a, GAIN_KP] == pytest.approx(FIRMWARE_PID.kp * to_torque, rel=1e-12)
+        assert g[a, GAIN_KI] == pytest.approx(FIRMWARE_PID.ki * to_torque, rel=1e-12)
+        assert g[a, GAIN_KD] == pytest.approx(FIRMWARE_PID.kd * to_torque + k * k / r, rel=1e-12)
+        assert g[a, GAIN_VMAX] == pytest.approx(3.3 * FIRMWARE_PID.max_duty, rel=1e-12)

@@ -114,7 +114,9 @@ class TripodGait:
         state[:, 1] += omega * dt + correction
         error = wrap_angle(state[:, :2] - measured)
         pid = FIRMWARE_PID
-        state[:, 2:] = np.clip(state[:, 2:] + pid.ki * error * dt, -pid.integral_limit, pid.integral_limit)
+        state[:, 2:] += pid.ki * error * dt
+        if pid.integral_limit > 0:  # 0: unbounded, as the firmware's
+            np.clip(state[:, 2:], -pid.integral_limit, pid.integral_limit, out=state[:, 2:])
         clock_rate = np.column_stack([np.full(n, omega), omega + correction / dt])
         duty = pid.kp * error + state[:, 2:] + pid.kd * (clock_rate - layout.get(obs, "leg_velocity")) + pid.feedforward
         return np.clip(duty, -1.0, 1.0), state

@@ -328,7 +328,7 @@ HISTORY = {
               "the commands mode spins the robot on the spot, its sides' clocks running opposite ways, where one side "
               "running alone pivoted it about the other; its gait map is new. The joints mode is unchanged.",
               "the robot's firmware is the real one, a voltage-mode PID with the lab's gains, as in RoachWalk-v3: "
-              "both modes change, and the commands mode's gait map and turning table are measured again."],
+              "the gait mode and the commands mode (whose gait map is measured again) change; the duty mode does not."],
     "Xjus": ["first version.",
              "the commands mode turns on the spot, one side's legs running the Buehler clock backward (as RHex turns "
              "in place), where the sweep difference turned it only at speed; its gait map is new. The joints mode is "

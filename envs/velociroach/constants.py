@@ -64,6 +64,8 @@ STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmw
 # on these terms gives the same Kp and Kd, docs/real-logs.md). In duty per leg radian through the firmware's
 # arithmetic: Kp 1.175, Ki 0.51, Kd 0.0167, ff 0.
 FIRMWARE_GAINS = (1800, 200, 100, 0, 0)  # [Kp, Ki, Kd, Kaw, ff], the firmware's units, [roach-firmware]
-PID_INTEGRAL_LIMIT = 0.3  # duty: bound of the integral term; assumed (the firmware's own bound is not in our sources)
+# duty: bound of the integral term, 0 for none: the firmware's anti-windup gain Kaw is 0 in [roach-firmware]'s
+# script and in every real log's header, and the calibration's replay of the logs leaves the integrator unbounded
+PID_INTEGRAL_LIMIT = 0.0
 PHASE_SLEW = 2 * np.pi * 5.0  # rad/s: fastest change of the left/right phase the firmware makes
 MAX_COMMAND_FREQUENCY = MAX_STRIDE_FREQUENCY  # Hz: the gait action's bound, what the real robot strides (v1; v0: 50)

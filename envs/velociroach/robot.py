@@ -215,10 +215,21 @@ class VelociRoach(Robot):
                         self.motors.supply_fields(), attribute="battery"))  # fmt: skip
         firmware_r = (FieldRef("actuator_gainprm", gain, "inverse"),) if pid else ()
         firmware_k = (FieldRef("actuator_gainprm", gain, "scale"),) if pid else ()
-        p.add(Parameter("motor_resistance", "ohm", r0, 0.5 * r0, 3.0 * r0, "winding resistance, both motors",
-                        (FieldRef("actuator_gainprm", (ids, 0)), *firmware_r)))  # fmt: skip
-        p.add(Parameter("motor_constant", "N m/A", k0, 0.5 * k0, 2.0 * k0, "torque and back-EMF constant, both motors",
-                        (FieldRef("actuator_gainprm", (ids, 1)), *firmware_k)))  # fmt: skip
+
+        def both(slot: int) -> tuple[FieldRef, ...]:
+            """R or K (the left motor's value): set on both motors where they are alike, as built; a calibrated
+            robot's right motor (its own R or K) scales with the left's."""
+            values = model.actuator_gainprm[ids, slot]
+            if values[1] == values[0]:
+                return (FieldRef("actuator_gainprm", (ids, slot)),)
+            return FieldRef("actuator_gainprm", (ids[:1], slot)), FieldRef("actuator_gainprm", (ids[1:], slot), "scale")
+
+        p.add(Parameter("motor_resistance", "ohm", r0, 0.5 * r0, 3.0 * r0,
+                        "winding resistance, both motors (a calibrated right motor scales with the left)",
+                        (*both(0), *firmware_r)))  # fmt: skip
+        p.add(Parameter("motor_constant", "N m/A", k0, 0.5 * k0, 2.0 * k0,
+                        "torque and back-EMF constant, both motors (a calibrated right motor scales with the left)",
+                        (*both(1), *firmware_k)))  # fmt: skip
         p.add(Parameter("chassis_mass", "kg", float(model.body_mass[chassis]), 0.01, 0.06,
                         "mass of the chassis body (its inertia scales with it)",
                         (FieldRef("body_mass", (chassis,), "scale"), FieldRef("body_inertia", (chassis,), "scale")),
