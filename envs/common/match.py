@@ -297,7 +297,7 @@ class PlayerSimulation:
         free = joint >= 0 and single.jnt_type[joint] == mujoco.mjtJoint.mjJNT_FREE
         # the robot's root free joint: moved to each player's place as it resets
         self._root = (int(single.jnt_qposadr[joint]), int(single.jnt_dofadr[joint])) if free else None
-        self._refresh(np.arange(scene.num_scenes))
+        self._refresh()
 
     @property
     def sensordata(self) -> np.ndarray:
@@ -320,15 +320,16 @@ class PlayerSimulation:
         size = self._block[name]
         return np.arange(self._k * size).reshape(self._k, size)
 
-    def _refresh(self, scenes: np.ndarray) -> None:
-        """Copy the players' sensor blocks of ``scenes`` out of the scenes' substep sensor values."""
+    def _refresh(self, scenes: np.ndarray | None = None) -> None:
+        """Copy the players' sensor blocks of ``scenes`` (default every scene) out of the scenes' substep sensor
+        values."""
         k, size = self._k, self._block["sensordata"]
-        n = len(scenes)
-        if n == self.scene.num_scenes and n and scenes[0] == 0 and scenes[-1] == n - 1:  # every scene, in order:
-            # one copy between views, no gathers
+        if scenes is None:  # every scene: one copy between views, no gathers
+            n = self.scene.num_scenes
             sub = self.scene.sim.substep_sensordata[:, :, : k * size].reshape(n, self.n_substeps, k, size)
             self.substep_sensordata.reshape(n, k, self.n_substeps, size)[...] = sub.transpose(0, 2, 1, 3)
             return
+        n = len(scenes)
         sub = self.scene.sim.substep_sensordata[scenes, :, : k * size]
         rows = (scenes[:, None] * k + np.arange(k)).reshape(-1)
         blocks = sub.reshape(n, self.n_substeps, k, size).transpose(0, 2, 1, 3)
@@ -401,7 +402,7 @@ class PlayerSimulation:
         )
         if ids is None:
             stable = self.scene.sim.step()
-            self._refresh(np.arange(n))
+            self._refresh()
         else:
             scenes = np.unique(np.asarray(ids, dtype=np.int64) // k)
             stable = self.scene.sim.step(scenes)
