@@ -62,9 +62,8 @@ def test_the_xjus_walks_at_the_commanded_speed_in_the_commands_mode():
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_the_roach_turns_the_way_it_is_commanded(sign):
     """Differential drive: asked for 1.5 rad/s either way at 0.8 m/s, it turns that way at least at half that rate
-    on open ground, over the 2 s after the gait map's first second (its warm-up: from a standstill at the 20-25 Hz
-    this asks for, both motors run at full duty until the robot is up to speed, so it runs straight for up to a
-    second, as a field's length at this size)."""
+    on open ground, over the 2 s after the gait map's first second (its warm-up: from a standstill the settings this
+    asks for hold the heading for up to 0.75 s, which on the roach's field runs it into the ball or a wall)."""
     assert sign * turn_rate_on_flat_ground("Roach", 0.8, sign * 1.5, 3.0) > 0.5 * 1.5
 
 
