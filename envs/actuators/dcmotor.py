@@ -9,7 +9,7 @@ Two ways to drive it here, both through ``ctrl`` only:
   a control step). MuJoCo's controller commands torque ``kp e + ki x_I + kd (u_vel - l')`` in motor-shaft units and
   drives ``v = (R/K) torque + K l'`` clipped to ``Vmax``. Firmware gains are written here as a voltage-mode
   controller writes them, in duty (fraction of the supply voltage) per radian at the joint, and converted. With
-  ``compensate_back_emf=False`` a derivative term of exactly ``K^2/R`` cancels MuJoCo's back-EMF compensation, which
+  ``compensate_back_emf=False`` a ``K^2/R`` added to the derivative gain cancels MuJoCo's back-EMF compensation, which
   leaves a plain voltage-mode controller, ``v = supply x clip(duty)``: what a hobby servo's amplifier does, and what
   a firmware's PWM PID does, ``duty = kp e + ki int(e) + kd (v_cmd - w) + ff``. Its velocity setpoint and constant
   feed-forward go through the controller's feed-forward input, ``-(K^2/R) u_vel + (K/R) supply ff`` (written with the

@@ -59,9 +59,11 @@ STRAIGHT_PHASE = np.pi  # rad: left/right offset of an alternating tripod (firmw
 # --- firmware: leg clock and per-side PID (the lab's roach firmware runs them at 1 kHz) ----------------------------
 # The firmware drives each side's motor with a PWM duty, duty = ff + Kp e + Ki int(e) + Kd (v_cmd - v), in its own
 # fixed-point units (envs/velociroach/firmware.py): a voltage-mode PID, no back-EMF compensation. Its gains are the
-# lab's experiment script's, [roach-firmware]: Kp = 1800, Ki = 200, Kd = 100, anti-windup 0, feed-forward 0 (the real
-# logs carry [1800, 100, 200, 0, 200], [1800, 100, 100, 0, 0] and [1800, 20, 100, 0, 0]; a regression of their duty
-# on these terms gives the same Kp and Kd, docs/real-logs.md). In duty per leg radian through the firmware's
+# lab's experiment script's, [roach-firmware]: Kp = 1800, Ki = 200, Kd = 100, anti-windup 0, feed-forward 0. The
+# gains are a setting of the firmware, not of the robot: the real logs ran [1800, 100, 200, 0, 200],
+# [1800, 100, 100, 0, 0] and [1800, 20, 100, 0, 0] (every one Kp 1800; Ki 100 or 20, Kd 200 or 100), and a regression
+# of their duty on these terms gives their own headers' gains back, each within or at the edge of its 95% interval
+# (docs/real-logs.md); the calibration replays each log with its own. In duty per leg radian through the firmware's
 # arithmetic: Kp 1.175, Ki 0.51, Kd 0.0167, ff 0.
 FIRMWARE_GAINS = (1800, 200, 100, 0, 0)  # [Kp, Ki, Kd, Kaw, ff], the firmware's units, [roach-firmware]
 # duty: bound of the integral term, 0 for none: the firmware's anti-windup gain Kaw is 0 in [roach-firmware]'s

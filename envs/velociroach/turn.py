@@ -52,7 +52,7 @@ class RoachTurnEnv(SkitterEnv):
     ``speed_reward_weight`` (0.01).
 
     ## Version History
-    - v4 (gait mode; duty mode stays v3): as RoachWalk-v3 (the real firmware's voltage-mode PID and gains).
+    - v4: (gait mode; duty mode stays v3) as RoachWalk-v3 (the real firmware's voltage-mode PID and gains).
     - v3: tracking of the mean yaw rate over ``tracking_window`` (0.5 s) within 0.3 rad/s, and a speed weight of 0.01
       (v2: the rate over each 20 ms step within 0.5 rad/s, and 0.1). Under v2 the tripod run straight at 45 Hz,
       ignoring the command, returned 1699 against the turning tripod's 625 (seeds 1000-1007): a learner won the turn

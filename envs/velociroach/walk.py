@@ -108,9 +108,9 @@ class RoachWalkEnv(SkitterEnv):
     ``grace_time`` (1.5 s).
 
     ## Version History
-    - v3 (gait mode; duty mode stays v2): the firmware's PID is the real one, a voltage-mode PWM law with the lab's
+    - v3: (gait mode; duty mode stays v2) the firmware's PID is the real one, a voltage-mode PWM law with the lab's
       gains (Kp 1800, Ki 200, Kd 100 in its units; no back-EMF compensation), where v2 ran a current-mode PID with
-      stiffer gains of our own; the legs now lag the clock (about 4 deg at 13 Hz and 12 at 45 Hz, against 1.3 and
+      stiffer gains of our own; the legs now lag the clock (about 4 deg at 15 Hz and 12 at 45 Hz, against 1.3 and
       2.7), as the real robot's do.
     - v2: the episode also ends when anything but the feet touches the ground, or the body leaves its height
       band, for more than ``grace_time`` (a leaky count); ``info`` and the evaluation report the fraction of
