@@ -1,6 +1,7 @@
 """Batched env speed: against raw ``mujoco.batch`` stepping of the same blocks, and against the single env.
 
-For every registered id, with N simulations on T threads:
+For every registered id of a robot's own task (the soccer academy's are ``benchmarks.soccer_speed``'s), with N
+simulations on T threads:
 
 - **batched / raw**: the batched env (``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``)
   runs random actions while its control blocks are recorded; the same batch model then replays them raw, one native
@@ -23,7 +24,7 @@ import mujoco
 import numpy as np
 
 import envs  # noqa: F401
-from benchmarks.common import add_output_options, md_table, resolve_output
+from benchmarks.common import add_output_options, md_table, resolve_output, robot_task_ids
 from envs.common.batch import default_threads
 from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC
@@ -167,7 +168,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "batch_speed", CONFIGURATIONS)
     threads = default_threads()
-    ids = sorted(k for k in gym.registry if k.startswith("skitter/"))
+    ids = robot_task_ids()
     rows = []
     for env_id in ids:
         steps = args.steps * (10 if "Duty" in env_id else 1)

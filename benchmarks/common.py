@@ -33,6 +33,17 @@ STANDARD_FILES = ("{name}.json", "{name}.md")
 OUTPUT_OPTIONS = frozenset({"out", "name"})
 
 
+def robot_task_ids() -> list[str]:
+    """The registered ids of the robots' own tasks (walking, turning, rough ground), sorted; the soccer academy's
+    ids step a shared scene with a field and a ball, which ``benchmarks.soccer_speed`` measures."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401 (registers the ids)
+
+    ids = (k for k in gym.registry if k.startswith("skitter/"))
+    return sorted(k for k in ids if not str(gym.spec(k).entry_point).startswith("envs.soccer."))
+
+
 def machine() -> dict[str, Any]:
     """The machine and the versions of the numerical packages a result depends on (a contact-rough fit can take
     another path on another numpy or scipy)."""

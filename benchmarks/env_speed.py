@@ -1,6 +1,7 @@
 """Env steps per second against the same physics stepped raw, in one run.
 
-For every registered env: the env (made with ``gymnasium.make``, wrappers included) runs N control steps with
+For every registered walking, turning and rough-ground env (the soccer academy's are
+``benchmarks.soccer_speed``'s): the env (made with ``gymnasium.make``, wrappers included) runs N control steps with
 random actions while the control blocks it gives the physics are recorded; then the same model steps raw from the
 same start with those controls, one native call per control step: ``mj_step(model, data, nstep)`` where the block's
 controls are constant (duty mode), ``mujoco.rollout`` of the block where they change within it (gait mode: the
@@ -24,7 +25,7 @@ import numpy as np
 from mujoco import rollout
 
 import envs  # noqa: F401
-from benchmarks.common import add_output_options, md_table, resolve_output
+from benchmarks.common import add_output_options, md_table, resolve_output, robot_task_ids
 from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC, STATE_SPEC
 
@@ -168,7 +169,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "env_speed", CONFIGURATIONS)
-    ids = sorted(k for k in gym.registry if k.startswith("skitter/"))
+    ids = robot_task_ids()
     rows = []
     for env_id in ids:
         steps = args.steps * (10 if "Duty" in env_id else 1)
