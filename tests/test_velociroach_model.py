@@ -137,3 +137,21 @@ def test_the_firmwares_gains_follow_the_battery_and_the_motor_per_simulation(bat
         if batched:  # the other simulation keeps the nominal gains
             nominal = robot.field("actuator_gainprm")[0][m.ids, GAIN_KD]
             np.testing.assert_allclose(nominal, m.derivative_gain(robot.nominal_battery, r0, k0, m.gear), rtol=1e-12)
+
+
+def test_the_parameter_map_alone_writes_the_firmwares_derivative_gain():
+    """The D gain is no product of battery, R and K, so it is a derived entry of the parameter map: applying the map
+    to a copy of the compiled model (as a replay would) writes it, with no robot hook after."""
+    import copy
+
+    from envs.actuators.dcmotor import GAIN_KD
+
+    robot = VelociRoach("gait")
+    m = robot.motors
+    r0, k0 = float(m.resistance[0, 0]), float(m.motor_constant[0, 0])
+    values = {"battery_voltage": 3.3, "motor_constant": 1.2 * k0, "motor_resistance": 1.5 * r0}
+    model = copy.copy(robot.model)
+    robot.parameters.apply(lambda name: getattr(model, name), values)
+    expected = m.derivative_gain(3.3, 1.5 * r0, 1.2 * k0, m.gear)
+    np.testing.assert_allclose(model.actuator_gainprm[m.ids, GAIN_KD], expected, rtol=1e-12)
+    assert robot.model.actuator_gainprm[m.ids[0], GAIN_KD] != model.actuator_gainprm[m.ids[0], GAIN_KD]

@@ -67,6 +67,9 @@ class ParameterMap:
 
     parameters: dict[str, Parameter] = field(default_factory=dict)
     _nominal_fields: dict[str, np.ndarray] = field(default_factory=dict)
+    # entries no product of their parameters can give (a sum of terms, say): each is called with ``target`` and every
+    # parameter's value after the fields are set, and writes its entries from them
+    derived: list[Callable[[Callable[[str], np.ndarray], Mapping[str, float]], None]] = field(default_factory=list)
 
     def add(self, parameter: Parameter) -> None:
         if parameter.name in self.parameters:
@@ -129,6 +132,7 @@ class ParameterMap:
 
         Fields shared by several parameters compose: each starts from its nominal value, a ``set`` writes, and
         ``scale`` and ``inverse`` multiply (the battery voltage and the motor resistance both act on a PID's gains).
+        Then the :attr:`derived` entries are written from the values.
         """
         for name, nominal in self._nominal_fields.items():
             target(name)[...] = nominal
@@ -144,6 +148,10 @@ class ParameterMap:
                 else:
                     array[ref.index] = array[ref.index] * (p.nominal / value)
             setconst |= p.setconst
+        if self.derived:
+            every = {p.name: float(values.get(p.name, p.nominal)) for p in self}
+            for derive in self.derived:
+                derive(target, every)
         return setconst
 
     def describe(self) -> list[dict[str, Any]]:

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import ClassVar
 
 import mujoco
 import numpy as np
 
-from envs.actuators.dcmotor import GAIN_KD, GAIN_KP, DCMotors, PIDGains
+from envs.actuators.dcmotor import GAIN_K, GAIN_KD, GAIN_KP, GAIN_R, DCMotors, PIDGains
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
@@ -245,20 +245,20 @@ class VelociRoach(Robot):
         p.add(Parameter("motor_armature", "kg m^2", armature, 0.0, max(1e-7, 2 * armature),
                         "rotor inertia at the motor shaft (up to 1e-7, or twice a calibrated model's)",
                         (FieldRef("actuator_armature", (ids,)),)))  # fmt: skip
+        if pid:
+            p.derived.append(self._derivative_gain)
         return p
+
+    def _derivative_gain(self, target: Callable[[str], np.ndarray], values: Mapping[str, float]) -> None:
+        """The firmware's D gain in the model, from the drawn battery and each motor's drawn R and K (already set):
+        the duty's kd converted plus the K^2/R that cancels the back-EMF compensation, a sum no scaling gives."""
+        m = self.motors
+        gains = target("actuator_gainprm")
+        gains[m.ids, GAIN_KD] = m.derivative_gain(values["battery_voltage"], gains[m.ids, GAIN_R], gains[m.ids, GAIN_K],
+                                                  m.gear)  # fmt: skip
 
     def parameters_changed(self, ids: np.ndarray) -> None:
         self.motors.refresh(ids, self.field("actuator_gainprm"))
-        if self.action_mode != GAIT:
-            return
-        m = self.motors
-        kd = m.derivative_gain(self.battery[ids, None], m.resistance[ids], m.motor_constant[ids], m.gear)
-        if self.batched:
-            gains = self.sim.expand("actuator_gainprm")
-            for row, i in enumerate(ids):
-                gains[i][m.ids, GAIN_KD] = kd[row]
-        else:
-            self.model.actuator_gainprm[m.ids, GAIN_KD] = kd[0]
 
     # --- the contract -------------------------------------------------------------------------------------------
     @property
