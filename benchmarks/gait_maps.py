@@ -17,11 +17,13 @@ import argparse
 import itertools
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser, write_json
+from envs.common.robot import Robot
 from envs.soccer.robots import ROBOTS
 from envs.soccer.steering import MAPS, STEERING, usable
 
@@ -42,28 +44,10 @@ def measure(robot_key: str, seconds: float, seeds: int) -> dict:
     drive = np.repeat([g[0] for g in grid], seeds)
     turn = np.repeat([g[1] for g in grid], seeds)
     rngs = [np.random.default_rng(i % seeds) for i in range(n)]
-    ids = np.arange(n)
-    robot.reset(ids, rngs, 0.1, None)
-    steering.reset(ids)
-    readings = robot.read(rngs, False)
-    steps = round(seconds / robot.control_dt)
-    warm = round(WARMUP / robot.control_dt)
-    fallen = np.zeros(n, dtype=bool)
-    progress, yaw_travel = np.zeros(n), np.zeros(n)
-    last_xy, last_yaw = readings["position"][:, :2].copy(), _yaw(readings["quaternion"])
-    for step in range(steps):
-        robot.command(steering.commands(drive, turn))
-        robot.step()
-        readings = robot.read(rngs)
-        q = readings["quaternion"]
-        fallen |= 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2) < TILT
-        xy, yaw = readings["position"][:, :2], _yaw(q)
-        if step >= warm:
-            move = xy - last_xy
-            progress += np.cos(yaw) * move[:, 0] + np.sin(yaw) * move[:, 1]
-            yaw_travel += np.angle(np.exp(1j * (yaw - last_yaw)))
-        last_xy, last_yaw = xy.copy(), yaw
-    span = (steps - warm) * robot.control_dt
+    robot.reset(np.arange(n), rngs, 0.1, None)
+    steering.reset(np.arange(n))
+    progress, yaw_travel, fallen, span = run_on_flat_ground(robot, rngs, lambda: steering.commands(drive, turn),
+                                                            seconds)  # fmt: skip
     speed, rate = (progress / span).reshape(-1, seeds), (yaw_travel / span).reshape(-1, seeds)
     falls = fallen.reshape(-1, seeds).sum(axis=1)
     points = [
@@ -83,6 +67,34 @@ def measure(robot_key: str, seconds: float, seeds: int) -> dict:
         "seconds": seconds,
         "seeds": seeds,
     }
+
+
+def run_on_flat_ground(robot: Robot, rngs: list[np.random.Generator], commands: Callable[[], np.ndarray],
+                       seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # fmt: skip
+    """Run a reset ``robot`` on flat ground for ``seconds`` under ``commands()`` (its command block, asked afresh at
+    every control step); returns each simulation's progress along its heading (m) and the angle it turned (rad, +
+    to the left) over the run after its first ``WARMUP`` second, whether it tipped past ``TILT`` at any step, and
+    the seconds those sums span."""
+    n = robot.num_sims
+    readings = robot.read(rngs, False)
+    steps = round(seconds / robot.control_dt)
+    warm = round(WARMUP / robot.control_dt)
+    fallen = np.zeros(n, dtype=bool)
+    progress, yaw_travel = np.zeros(n), np.zeros(n)
+    last_xy, last_yaw = readings["position"][:, :2].copy(), _yaw(readings["quaternion"])
+    for step in range(steps):
+        robot.command(commands())
+        robot.step()
+        readings = robot.read(rngs)
+        q = readings["quaternion"]
+        fallen |= 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2) < TILT
+        xy, yaw = readings["position"][:, :2], _yaw(q)
+        if step >= warm:
+            move = xy - last_xy
+            progress += np.cos(yaw) * move[:, 0] + np.sin(yaw) * move[:, 1]
+            yaw_travel += np.angle(np.exp(1j * (yaw - last_yaw)))
+        last_xy, last_yaw = xy.copy(), yaw
+    return progress, yaw_travel, fallen, (steps - warm) * robot.control_dt
 
 
 def _yaw(q: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.gait_maps import WARMUP
+from benchmarks.gait_maps import run_on_flat_ground
 from envs.bioloid.kick import LEFT, RIGHT, Kick
 from envs.common.task import ObservationLayout
 from envs.soccer import match
@@ -76,14 +76,8 @@ def turn_rate_on_flat_ground(robot_key: str, speed: float, yaw_rate: float, seco
     robot.reset(np.arange(1), rngs, 0.0, None)
     commands.reset(np.arange(1))
     action = commands.mode.to_action(np.array([[speed, yaw_rate]]))
-    steps, warm = round(seconds / robot.control_dt), round(WARMUP / robot.control_dt)
-    yaw = []
-    for _ in range(steps):
-        robot.command(commands.robot_commands(action))
-        robot.step()
-        w, _, _, z = robot.read(rngs)["quaternion"][0]
-        yaw.append(2.0 * np.arctan2(z, w))
-    return float(np.diff(np.unwrap(yaw[warm - 1 :])).sum() / ((steps - warm) * robot.control_dt))
+    _, turned, _, span = run_on_flat_ground(robot, rngs, lambda: commands.robot_commands(action), seconds)
+    return float(turned[0] / span)
 
 
 @pytest.mark.parametrize("sign", [1.0, -1.0])

@@ -140,6 +140,9 @@ class DCMotors:
         self.resistance = np.zeros((num_sims, len(self.ids)))
         self.motor_constant = np.zeros((num_sims, len(self.ids)))
         self._power_coefficient = np.zeros((num_sims, len(self.ids)))
+        # the feed-forward input's factors, K/R and K^2/R, taken with R and K rather than at every step
+        self._k_over_r = np.zeros((num_sims, len(self.ids)))
+        self._k2_over_r = np.zeros((num_sims, len(self.ids)))
         self.refresh(
             np.arange(num_sims), np.broadcast_to(model.actuator_gainprm, (num_sims, *model.actuator_gainprm.shape))
         )
@@ -149,7 +152,10 @@ class DCMotors:
         self.resistance[ids] = gainprm[ids][:, self.ids, GAIN_R]
         self.motor_constant[ids] = gainprm[ids][:, self.ids, GAIN_K]
         k = self.motor_constant[ids]
-        self._power_coefficient[ids] = self.resistance[ids] / (k * k)  # v i = R tau^2 / K^2 + w tau
+        r = self.resistance[ids]
+        self._power_coefficient[ids] = r / (k * k)  # v i = R tau^2 / K^2 + w tau
+        self._k_over_r[ids] = k / r
+        self._k2_over_r[ids] = k * k / r
 
     # --- commands into the control block ------------------------------------------------------------------------
     def set_duty(self, ctrl: np.ndarray, duty: np.ndarray, supply: np.ndarray) -> None:
@@ -188,12 +194,11 @@ class DCMotors:
         derivative gain's ``K^2/R`` adds, plus the constant duty as a torque, ``(K/R) supply ff``."""
         if supply is None:
             raise ValueError("a voltage-mode PID that feeds forward needs the supply voltage with its setpoints")
-        k, r = self.motor_constant, self.resistance
         n = ctrl.shape[0]
         volts = np.asarray(supply, dtype=np.float64)[:, None] * self.pid.feedforward
-        ff = np.broadcast_to((k / r * volts)[:, None, :], (n, ctrl.shape[1], len(self.ids)))
+        ff = np.broadcast_to((self._k_over_r * volts)[:, None, :], (n, ctrl.shape[1], len(self.ids)))
         if motor_rate is not None:
-            ff = ff - (k * k / r)[:, None, :] * motor_rate
+            ff = ff - self._k2_over_r[:, None, :] * motor_rate
         ctrl[:, :, self._ff] = ff
 
     # --- electrical readouts from motor torque and speed: (num_sims, motors) or (num_sims, substeps, motors) -------
