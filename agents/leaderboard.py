@@ -75,6 +75,17 @@ def is_soccer(task: str) -> bool:
     return task.startswith(SOCCER)
 
 
+# each kind of task's own metric, by the metric only its kind reports (the first a row has): an academy task's
+# success (1 or 0 an episode), a turn's yaw-rate error (rad/s; lower is better), else a walk's speed (m/s)
+TASK_METRICS = (("success", ""), ("yaw_rate_error", " rad/s"), ("speed", " m/s"))
+
+
+def task_metric(paired_differences: dict) -> tuple[str, str]:
+    """The task's own metric of a row (from the metrics its paired comparison holds) and its unit: what the row's
+    model is judged on beside the reference, with the cost of transport."""
+    return next(((m, unit) for m, unit in TASK_METRICS if m in paired_differences), TASK_METRICS[-1])
+
+
 def task_kwargs(task: str) -> dict[str, Any]:
     """The env keyword arguments a task is trained and evaluated with: the commands mode (speed and turn rate, run
     by the robot's gait) on a soccer academy task, where the reference is the scripted player; none elsewhere."""
@@ -795,9 +806,12 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
-    lines += ["", "## Rows", "", "A row's falls and the time its body touched the ground with more than its feet are "
-              "its model's over the evaluation episodes; the reference's are in brackets.", "",
-              "| row | steps trained | wall time (min) | mean return | normalized | speed vs reference (m/s) | "
+    lines += ["", "## Rows", "", "The task's metric is a walk's speed, a turn's yaw-rate error (lower is better) or an "
+              "academy task's success (1 or 0 an episode); it and the cost of transport are the model's less the "
+              "reference's, paired over the evaluation seeds, with 95% intervals. A row's falls and the time its "
+              "body touched the ground with more than its feet are its model's over the evaluation episodes; the "
+              "reference's are in brackets.", "",
+              "| row | steps trained | wall time (min) | mean return | normalized | the task's metric vs reference | "
               "cost of transport vs reference | falls | time touching with more than feet |",
               "|---" * 9 + "|"]  # fmt: skip
     for row, rec in rows.items():
@@ -814,11 +828,12 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                 return "-"
             return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
 
+        metric, unit = task_metric(diff)
         capped = " (capped by --minutes)" if rec["capped"] else ""
         score = float(normalized(rec["mean_return"], baselines[row.task]))
         wall = f"{rec['wall_seconds'] / 60:.0f}" if "wall_seconds" in rec else "-"
         lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {wall} | {rec['mean_return']:.1f} | {score:.2f} | "
-                     f"{paired('speed')} | {paired('cost_of_transport')} | "
+                     f"{metric} {paired(metric)}{unit} | {paired('cost_of_transport')} | "
                      f"{_share(rec, baselines[row.task], 'falls')} | "
                      f"{_share(rec, baselines[row.task], 'non_foot_contact')} |")  # fmt: skip
     resumed = [f"{row.name} ({rec['training_attempts']})" for row, rec in rows.items()

@@ -191,6 +191,33 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     assert f"beats a random policy by little on `{xjus}` (10 of 110)" in text and f"`{WALK}` (" not in text
 
 
+def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_path):
+    """A walk's row shows its speed against the reference's, a turn's its yaw-rate error, an academy task's its
+    success: each the paired difference its evaluation recorded."""
+    turn, academy = "skitter/RoachTurn-v4", "skitter/RoachGoToBall-v3"
+    plan = leaderboard.Plan((WALK, turn, academy), ("ppo",), (0,), ((WALK, 100), (turn, 100), (academy, 100)), None,
+                            5, 1000, None)  # fmt: skip
+    baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
+
+    def diff(mean: float) -> dict:
+        return {"mean": mean, "ci_low": mean - 0.01, "ci_high": mean + 0.01, "n": 5}
+
+    common = {"speed": diff(0.5), "cost_of_transport": diff(-0.2)}
+    differences = {
+        WALK: common,
+        turn: {**common, "yaw_rate_error": diff(-0.25)},
+        academy: {**common, "success": diff(0.4)},
+    }
+    rows = {row: {"mean_return": 60.0, "timesteps": 100, "capped": False,
+                  "paired_differences": differences[row.task]} for row in plan.rows}  # fmt: skip
+    leaderboard.build_table(plan, tmp_path, baselines, rows, tmp_path / "results.md")
+    lines = {line.split(" |")[0][2:]: line for line in (tmp_path / "results.md").read_text().splitlines()
+             if line.startswith("| skitter_")}  # fmt: skip
+    assert "| speed +0.500 [+0.490, +0.510] m/s | -0.200 [-0.210, -0.190] |" in lines["skitter_RoachWalk-v3__ppo__0"]
+    assert "| yaw_rate_error -0.250 [-0.260, -0.240] rad/s |" in lines["skitter_RoachTurn-v4__ppo__0"]
+    assert "| success +0.400 [+0.390, +0.410] |" in lines["skitter_RoachGoToBall-v3__ppo__0"]
+
+
 def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
     """Killed and resumed, a row trains --minutes in all: each attempt is credited the time from its start to the
     newest checkpoint it wrote, plus its own credit; what it did after that checkpoint is not counted."""
