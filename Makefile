@@ -90,7 +90,7 @@ bench: setup
 	$(BIN)/python -m benchmarks.turn_table
 	$(BIN)/python -m benchmarks.model_scan
 	$(BIN)/python -m benchmarks.calibrate_speed
-	$(BIN)/python -m benchmarks.calibration_matrix --robots roach motor servo --workers 2
+	$(BIN)/python -m benchmarks.calibration_matrix --robots roach motor servo --workers 2 --minutes 100
 	$(BIN)/python -m benchmarks.xjus_speed
 	$(BIN)/python -m benchmarks.spine_study
 	$(BIN)/python -m benchmarks.bioloid_speed
