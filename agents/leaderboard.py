@@ -434,11 +434,13 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
 
 def _check_run_plan(run_dir: Path, plan: Plan, row: Row) -> None:
     """A killed row's run goes on only under the plan it started with (StaleResult otherwise)."""
+    from agents.residual import names_a_gait
+
     config = json.loads((run_dir / "config.json").read_text())
     algo, residual = row.algo.removesuffix(RESIDUAL), row.algo.endswith(RESIDUAL)
     made_with = config.get("hyperparams", {}).get("env_kwargs") or {}
     started = {"timesteps": config.get("timesteps"), "algo": config.get("algo"),
-               "residual": "residual" in config.get("hyperparams", {}),
+               "residual": names_a_gait(config.get("hyperparams", {}).get("residual", {})),
                "env_kwargs": {k: made_with[k] for k in task_kwargs(row.task) if k in made_with}}  # fmt: skip
     wanted = {
         "timesteps": plan.steps(row.task),

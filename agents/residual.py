@@ -6,10 +6,18 @@ policy's actions are near 0, so training starts from the gait (the tripod's freq
 period and sweeps, the IK trot's servo goals) rather than from noise, and learns what to change.
 
 Train one with a hyperparameter entry's ``residual``: the reference's name (``tripod``, ``buehler:0.6``, ``ik-trot``,
-``cpg``: any scripted policy of the robot, as ``evaluate.py --policy`` takes them) or ``{policy: NAME, scale: S}``
-(default scale :data:`DEFAULT_SCALE`, at most 2). The run's model file records it, and ``evaluate.py`` (and every
-``load_policy``) plays the model with its reference again. The reference sees the env's own observations (before
-any normalization), and restarts with each episode.
+``cpg``: any scripted policy of the robot, as ``evaluate.py --policy`` takes them) or ``{policy: NAME, scale: S,
+exploration: E}`` (default scale :data:`DEFAULT_SCALE`, at most 2). The run's model file records it, and
+``evaluate.py`` (and every ``load_policy``) plays the model with its reference again. The reference sees the env's
+own observations (before any normalization), and restarts with each episode. An entry's ``residual`` without a
+``policy`` (``{scale: S, exploration: E}``) makes no run residual by itself: it says how a residual run on that env is
+made when one is asked for (``train.py --residual GAIT``, the leaderboard's ``+residual`` rows).
+
+The policy's mean action starts near 0, but PPO's and SAC's Gaussian explores around it with the standard deviation
+``exp(log_std_init)``: 1 for PPO, whose sampled corrections then reach the whole scale from the first step. Where
+the gait does not survive that (the Bioloid's steered trot on its turning task scores -110 with it against its own
+375: docs/training.md), ``exploration`` sets the policy's initial standard deviation (``log_std_init`` =
+``log(exploration)``), so that training starts from the gait in its rollouts too.
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 
 DEFAULT_SCALE = 0.25  # of the action range: a correction up to a quarter of each action's half-range
 MAX_SCALE = 2.0
+SETTINGS = ("scale", "exploration")  # what an entry's residual may set besides its policy
 
 
 def action_bounds(env: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -33,27 +42,55 @@ def action_bounds(env: Any) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class Residual:
-    """What a residual policy adds to: the reference's name and the correction's scale."""
+    """What a residual policy adds to: the reference's name, the correction's scale and, if set, the policy's initial
+    standard deviation (``exploration``; None: the algorithm's own)."""
 
     policy: str
     scale: float = DEFAULT_SCALE
+    exploration: float | None = None
 
     def record(self) -> dict[str, Any]:
-        return {"policy": self.policy, "scale": self.scale}
+        record = {"policy": self.policy, "scale": self.scale}
+        return record if self.exploration is None else {**record, "exploration": self.exploration}
+
+
+def names_a_gait(value: Any) -> bool:
+    """Whether an entry's ``residual`` makes its runs residual (a gait's name, or a mapping with ``policy``), rather
+    than only setting how a residual run is made (:func:`residual_settings`)."""
+    return not isinstance(value, dict) or "policy" in value
+
+
+def residual_settings(value: Any) -> dict[str, float]:
+    """The settings of an entry's ``residual`` without a policy (``{scale: S, exploration: E}``), checked; ValueError
+    says what is wrong."""
+    if not isinstance(value, dict) or set(value) - set(SETTINGS):
+        raise ValueError(f"expected a scripted policy's name or a mapping of policy, {', '.join(SETTINGS)}")
+    settings = {}
+    if "scale" in value:
+        settings["scale"] = _in_range("scale", value["scale"], MAX_SCALE)
+    if "exploration" in value:
+        settings["exploration"] = _in_range("exploration", value["exploration"], 1.0)
+    return settings
+
+
+def _in_range(name: str, value: Any, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 < value <= high:
+        raise ValueError(f"{name} must be a number in (0, {high:g}], got {value!r}")
+    return float(value)
 
 
 def parse_residual(value: Any) -> Residual:
-    """A hyperparameter entry's ``residual`` (a name, or ``{policy, scale}``); ValueError says what is wrong."""
+    """A hyperparameter entry's ``residual`` (a name, or ``{policy, scale, exploration}``); ValueError says what is
+    wrong."""
     if isinstance(value, str):
         value = {"policy": value}
-    if not isinstance(value, dict) or set(value) - {"policy", "scale"} or "policy" not in value:
-        raise ValueError("expected a scripted policy's name or a mapping {policy: NAME, scale: S}")
-    policy, scale = value["policy"], value.get("scale", DEFAULT_SCALE)
+    if not isinstance(value, dict) or "policy" not in value:
+        raise ValueError("expected a scripted policy's name or a mapping {policy: NAME, scale: S, exploration: E}")
+    policy = value["policy"]
     if not isinstance(policy, str) or not policy:
         raise ValueError(f"policy must be a scripted policy's name, got {policy!r}")
-    if isinstance(scale, bool) or not isinstance(scale, int | float) or not 0.0 < scale <= MAX_SCALE:
-        raise ValueError(f"scale must be a number in (0, {MAX_SCALE:g}], got {scale!r}")
-    return Residual(policy, float(scale))
+    settings = residual_settings({k: v for k, v in value.items() if k != "policy"})
+    return Residual(policy, settings.get("scale", DEFAULT_SCALE), settings.get("exploration"))
 
 
 def gym_env(venv: VecEnv) -> Any:

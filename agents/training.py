@@ -85,7 +85,15 @@ import envs  # noqa: F401  (registers the skitter envs)
 from agents import residual_reference
 from agents.config import ConfigError
 from agents.evaluation import episode_metrics
-from agents.residual import Residual, ResidualVecEnv, gym_env, parse_residual
+from agents.residual import (
+    SETTINGS,
+    Residual,
+    ResidualVecEnv,
+    gym_env,
+    names_a_gait,
+    parse_residual,
+    residual_settings,
+)
 from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
 from agents.tuning import RunCode, tune
 from agents.vec_env import make_batched_vec_env
@@ -286,6 +294,12 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: i
     if isinstance(model_kwargs.get("train_freq"), tuple) and model_kwargs["train_freq"][1] == "episode" and n_envs > 1:
         raise ConfigError(f"{where}: field 'train_freq' = {raw['train_freq']!r}: needs n_envs 1, not {n_envs}")
     _check_batch_size(model_kwargs, defaults, n_envs, algo, where, players)
+    residual = None
+    if "residual" in raw:
+        residual = check("residual", parse_residual if names_a_gait(raw["residual"]) else residual_settings)
+        residual = residual if isinstance(residual, Residual) else None
+    if residual is not None and residual.exploration is not None:
+        model_kwargs["policy_kwargs"] = _exploring(model_kwargs.get("policy_kwargs"), residual, algo, where, raw)
     return Hyperparams(
         where=where,
         raw=raw,
@@ -296,8 +310,24 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: i
         noise=noise,
         vec_env=check("vec_env", _vec_env),
         nthread=check("nthread", lambda v: None if v is None else _number("nthread", v, int)),
-        residual=check("residual", parse_residual) if "residual" in raw else None,
+        residual=residual,
     )
+
+
+def _exploring(policy_kwargs: dict[str, Any] | None, residual: Residual, algo: str, where: str,
+               raw: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+    """``policy_kwargs`` with the residual's ``exploration`` as the Gaussian policy's ``log_std_init``."""
+    if algo not in ("ppo", "sac"):
+        raise ConfigError(
+            f"{where}: field 'residual' = {raw['residual']!r}: exploration is the initial standard deviation of "
+            f"PPO's and SAC's Gaussian; {algo.upper()} explores by its noise_std"
+        )
+    if policy_kwargs and "log_std_init" in policy_kwargs:
+        raise ConfigError(
+            f"{where}: field 'residual' = {raw['residual']!r}: exploration sets log_std_init, which "
+            f"policy_kwargs sets too ({policy_kwargs['log_std_init']!r}): give one"
+        )
+    return {**(policy_kwargs or {}), "log_std_init": math.log(residual.exploration)}
 
 
 def _check_batch_size(
@@ -878,7 +908,7 @@ def run_manifest(config: dict[str, Any]) -> dict[str, Any]:
     reference gait and scale)."""
     manifest = {"algo": config["algo"], "env_id": config["env_id"], "seed": config["seed"]}
     residual = config.get("hyperparams", {}).get("residual")
-    if residual is not None:
+    if residual is not None and names_a_gait(residual):
         manifest["residual"] = parse_residual(residual).record()
     return {**manifest, "soccer": config["soccer"]} if "soccer" in config else manifest
 
@@ -987,7 +1017,7 @@ def command_line_env_kwargs(args: argparse.Namespace, entry: dict[str, Any]) -> 
 def residual_override(name: str, env_id: str, hyperparams_file: Path,
                       env_kwargs: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
     """``--residual NAME``: the entry's residual with its gait replaced (``reference``: the env's reference,
-    :func:`agents.env_reference`, with ``env_kwargs``), keeping the entry's scale if it sets one."""
+    :func:`agents.env_reference`, with ``env_kwargs``), keeping the entry's scale and exploration if it sets them."""
     from agents import env_reference
 
     given_name = name
@@ -1000,7 +1030,7 @@ def residual_override(name: str, env_id: str, hyperparams_file: Path,
         raise ConfigError(f"--residual {given_name}: {exc}") from None
     finally:
         env.close()
-    return with_entry_scale(name, hyperparams_file, env_id)
+    return with_entry_settings(name, hyperparams_file, env_id)
 
 
 def start_tuning(args: argparse.Namespace) -> Path:
@@ -1064,21 +1094,22 @@ def start_selfplay(args: Any) -> Path:
 
 def selfplay_residual(name: str, key: str, hyperparams_file: Path) -> dict[str, Any]:
     """``--residual NAME`` for self-play: the scripted team (``scripted``, or ``reference``, which is it for a team),
-    keeping the entry's scale if it sets one."""
+    keeping the entry's scale and exploration if it sets them."""
     from agents.soccer.selfplay import SCRIPTED
 
     if name not in (SCRIPTED, "reference"):
         raise ConfigError(f"--residual {name}: self-play corrects the scripted team: give {SCRIPTED!r}")
-    return with_entry_scale(SCRIPTED, hyperparams_file, key)
+    return with_entry_settings(SCRIPTED, hyperparams_file, key)
 
 
-def with_entry_scale(policy: str, hyperparams_file: Path, key: str) -> dict[str, Any]:
-    """A residual on ``policy`` at the scale the hyperparameter file's entry ``key`` sets, if it sets one."""
+def with_entry_settings(policy: str, hyperparams_file: Path, key: str) -> dict[str, Any]:
+    """A residual on ``policy`` with the scale and exploration the hyperparameter file's entry ``key`` sets, if it
+    sets them (its ``residual``, with a policy or without)."""
     table = read_yaml(hyperparams_file)
     entry = table.get(key) if isinstance(table, dict) else None
     given = entry.get("residual") if isinstance(entry, dict) else None
-    scale = given.get("scale") if isinstance(given, dict) else None
-    return {"policy": policy} if scale is None else {"policy": policy, "scale": scale}
+    settings = {k: given[k] for k in SETTINGS if k in given} if isinstance(given, dict) else {}
+    return {"policy": policy, **settings}
 
 
 def resumed_selfplay(config: dict[str, Any], hp: Any, seed: int, checkpoint: Any, run_dir: Path):

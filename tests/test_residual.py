@@ -90,6 +90,49 @@ def test_residual_reference_takes_the_robots_reference_gait(tmp_path, monkeypatc
     assert "--residual starts a new run" in capsys.readouterr().err
 
 
+def test_an_entrys_residual_settings_shape_only_residual_runs_and_set_their_exploration(tmp_path, monkeypatch):
+    """An entry's ``residual`` without a policy leaves its plain runs plain; ``--residual reference`` takes its scale
+    and exploration, and the new policy's standard deviation is the exploration, not PPO's 1."""
+    monkeypatch.chdir(tmp_path)
+    entry = {**TINY, "residual": {"scale": 0.3, "exploration": 0.05}}
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: entry}))
+    plain = resolve_hyperparams(entry, "ppo", "tiny.yml: " + TURN)
+    assert plain.residual is None and "log_std_init" not in (plain.model_kwargs.get("policy_kwargs") or {})
+    base = ["--env", TURN, "--algo", "ppo", "--timesteps", "64", "--hyperparams", "tiny.yml", "--runs-dir", "runs",
+            "--no-progress"]  # fmt: skip
+    assert train_main([*base, "--run-name", "plain"]) == 0
+    assert train_main([*base, "--run-name", "res", "--residual", "reference"]) == 0
+    from agents.sb3 import read_model_file
+
+    assert "residual" not in read_model_file(tmp_path / "runs" / "plain" / "model.zip")[0]
+    manifest, _ = read_model_file(tmp_path / "runs" / "res" / "model.zip")
+    assert manifest["residual"] == {"policy": "tripod", "scale": 0.3, "exploration": 0.05}
+    from stable_baselines3 import PPO
+
+    std = np.exp(PPO.load(tmp_path / "runs" / "res" / "model.zip", device="cpu").policy.log_std.detach().numpy())
+    np.testing.assert_allclose(std, 0.05, rtol=0.05)  # 64 steps of one update move it little
+    std = np.exp(PPO.load(tmp_path / "runs" / "plain" / "model.zip", device="cpu").policy.log_std.detach().numpy())
+    np.testing.assert_allclose(std, 1.0, rtol=0.05)
+
+
+@pytest.mark.parametrize(
+    ("algo", "residual", "extra", "message"),
+    [
+        ("ppo", {"scale": 0.3, "gain": 1}, {}, "expected a scripted policy's name or a mapping of policy"),
+        ("ppo", {"policy": "tripod", "exploration": 0}, {}, "exploration must be a number in (0, 1]"),
+        ("ppo", {"policy": "tripod", "exploration": 0.1}, {"policy_kwargs": "dict(log_std_init=-1.0)"},
+         "policy_kwargs sets too (-1.0): give one"),
+        ("td3", {"policy": "tripod", "exploration": 0.1}, {}, "TD3 explores by its noise_std"),
+    ],
+)  # fmt: skip
+def test_bad_residual_settings_are_named_in_one_line(algo, residual, extra, message):
+    entry = {"policy": "MlpPolicy", "n_envs": 2, "env_kwargs": {"max_episode_steps": 40}, "residual": residual,
+             **({"n_steps": 64, "batch_size": 64} if algo == "ppo" else {}), **extra}  # fmt: skip
+    with pytest.raises(ConfigError, match="field 'residual'") as error:
+        resolve_hyperparams(entry, algo, "tiny.yml: " + TURN)
+    assert message in str(error.value)
+
+
 def test_a_bad_residual_on_the_command_line_is_named_as_itself(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: TINY}))
