@@ -61,16 +61,22 @@ STARTUP_TRIALS = 5  # trials that run to the end before the pruner compares
 TUNABLE = ("ppo", "sac")
 GAMMAS = (0.98, 0.99, 0.995, 0.998, 0.999)
 WIDTHS = (64, 128, 256)  # hidden units of the two layers of the policy and value networks
+LOG_STDS = (-3.0, -2.0, -1.0, 0.0)  # PPO's initial log standard deviation of its actions (0: SB3's default)
 
 
-def _net(trial: optuna.Trial) -> str:
+def _net(trial: optuna.Trial, exploring: bool = False) -> str:
+    """The policy's network, and with ``exploring`` the initial standard deviation of its Gaussian (``log_std_init``):
+    a legged robot that falls under PPO's default of 1 may learn from a smaller one, as RL Zoo's sampler also draws."""
     width = trial.suggest_categorical("net_width", WIDTHS)
-    return f"dict(net_arch=[{width}, {width}])"
+    if not exploring:
+        return f"dict(net_arch=[{width}, {width}])"
+    return f"dict(net_arch=[{width}, {width}], log_std_init={trial.suggest_categorical('log_std_init', LOG_STDS)})"
 
 
-def sample_ppo(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, Any]:
+def sample_ppo(trial: optuna.Trial, n_envs: int, timesteps: int, exploring: bool = True) -> dict[str, Any]:
     """PPO's hyperparameters for a trial: a rollout cut to the trial's budget (at least 128 steps an env), a minibatch
-    no larger than a rollout. The draws' choices are fixed (a study keeps them whatever the budget); the values used
+    no larger than a rollout, and the policy's initial exploration unless the entry's residual sets it
+    (``exploring`` False). The draws' choices are fixed (a study keeps them whatever the budget); the values used
     are in each trial's ``hyperparams``."""
     drawn = trial.suggest_categorical("n_steps", (128, 256, 512, 1024, 2048))
     n_steps = max(128, min(drawn, timesteps // n_envs))
@@ -85,11 +91,11 @@ def sample_ppo(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, An
         "clip_range": trial.suggest_categorical("clip_range", (0.1, 0.2, 0.3)),
         "ent_coef": trial.suggest_float("ent_coef", 1e-8, 1e-2, log=True),
         "max_grad_norm": trial.suggest_categorical("max_grad_norm", (0.3, 0.5, 1.0, 2.0)),
-        "policy_kwargs": _net(trial),
+        "policy_kwargs": _net(trial, exploring),
     }
 
 
-def sample_sac(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, Any]:
+def sample_sac(trial: optuna.Trial, n_envs: int, timesteps: int, exploring: bool = True) -> dict[str, Any]:
     """SAC's hyperparameters for a trial: learning starts within the first quarter of the trial's budget."""
     train_freq = trial.suggest_categorical("train_freq", (1, 4, 8))
     return {
@@ -105,7 +111,7 @@ def sample_sac(trial: optuna.Trial, n_envs: int, timesteps: int) -> dict[str, An
     }
 
 
-SPACES: dict[str, Callable[[Any, int, int], dict[str, Any]]] = {"ppo": sample_ppo, "sac": sample_sac}
+SPACES: dict[str, Callable[[Any, int, int, bool], dict[str, Any]]] = {"ppo": sample_ppo, "sac": sample_sac}
 
 
 class TrialEvalCallback(EvalCallback):
@@ -212,8 +218,10 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     for key, value in made.items():
         the_study.set_user_attr(key, value)
 
+    exploring = hp0.residual is None or hp0.residual.exploration is None  # else the entry's residual sets it
+
     def objective(trial: optuna.Trial) -> float:
-        drawn = SPACES[algo](trial, hp0.n_envs, timesteps)
+        drawn = SPACES[algo](trial, hp0.n_envs, timesteps, exploring)
         hp = code.resolve_hyperparams({**base, **drawn}, algo, f"{where} (trial {trial.number})")
         trial.set_user_attr("hyperparams", drawn)
         trial.set_user_attr("command", command)

@@ -4,6 +4,7 @@ import contextlib
 import csv
 import glob
 import json
+import math
 import os
 import pwd
 import shutil
@@ -18,7 +19,7 @@ import yaml
 from stable_baselines3 import PPO
 
 from agents.training import RUN_CODE, load_hyperparams, main, make_env, resolve_hyperparams
-from agents.tuning import TrialEvalCallback, eval_env, tune
+from agents.tuning import LOG_STDS, TrialEvalCallback, eval_env, sample_ppo, tune
 
 WALK = "skitter/RoachWalk-v3"
 # a tiny entry: 2 envs, episodes of 50 steps (1 s), so that a trial of 256 steps evaluates in a blink
@@ -61,6 +62,18 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
                     monkeypatch=monkeypatch) == 2  # fmt: skip
     assert "was made with {'env_kwargs': {'max_episode_steps': 50}}" in capsys.readouterr().err
     assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
+
+
+def test_ppo_trials_draw_the_initial_exploration_unless_the_entrys_residual_sets_it():
+    study = optuna.create_study()
+    trial = study.ask()
+    drawn = sample_ppo(trial, 2, 1000)
+    assert trial.params["log_std_init"] in LOG_STDS
+    hp = resolve_hyperparams({**TINY, **drawn}, "ppo", "t")
+    assert hp.model_kwargs["policy_kwargs"]["log_std_init"] == trial.params["log_std_init"]
+    kept = sample_ppo(study.ask(), 2, 1000, exploring=False)
+    hp = resolve_hyperparams({**TINY, "residual": {"policy": "tripod", "exploration": 0.1}, **kept}, "ppo", "t")
+    assert hp.model_kwargs["policy_kwargs"]["log_std_init"] == pytest.approx(math.log(0.1))
 
 
 def test_a_trial_below_the_pruners_bar_stops_training():
