@@ -265,6 +265,20 @@ def load_hyperparams(path: Path, env_id: str, algo: str, overrides: dict[str, An
     return resolve_hyperparams({**entry, **(overrides or {})}, algo, where=f"{path}: {env_id}", players=players)
 
 
+RESIDUAL_ENTRY = "+residual"  # an entry key's suffix: the entry a residual run on that env takes
+
+
+def entry_key(path: Path, env_id: str, residual: bool) -> str:
+    """The key of the entry in the hyperparameter file ``path`` that a run on ``env_id`` takes: a residual run's
+    (``--residual``) is ``<env_id>+residual`` where the file has one, with the settings a correction on the gait
+    learns with; else ``env_id``."""
+    if residual:
+        table = read_yaml(path)
+        if isinstance(table, dict) and env_id + RESIDUAL_ENTRY in table:
+            return env_id + RESIDUAL_ENTRY
+    return env_id
+
+
 def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: int = 1) -> Hyperparams:
     """Check every field of ``entry`` for ``algo`` and parse the values; errors name ``where``, the field and value."""
     defaults = algo_defaults(algo)
@@ -982,12 +996,13 @@ def start_run(args: argparse.Namespace) -> Path:
     check_env_id(args.env)
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     overrides: dict[str, Any] = {"n_envs": args.n_envs} if args.n_envs is not None else {}
-    hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
+    key = entry_key(hyperparams_file, args.env, args.residual is not None)
+    hp = load_hyperparams(hyperparams_file, key, args.algo, overrides)
     if args.env_kwargs or args.residual is not None:  # the command line's over the entry's: checked, then again
         env_kwargs = overrides["env_kwargs"] = command_line_env_kwargs(args, hp.env_kwargs)
         if args.residual is not None:
-            overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
-        hp = load_hyperparams(hyperparams_file, args.env, args.algo, overrides)
+            overrides["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs, key)
+        hp = load_hyperparams(hyperparams_file, key, args.algo, overrides)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
     venv = make_env(args.env, hp, seed)  # a bad env_kwargs fails here, before the run folder is made
@@ -995,7 +1010,7 @@ def start_run(args: argparse.Namespace) -> Path:
     run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(args.env, args.algo, seed))
     with contextlib.ExitStack() as stack:
         lock_run(run_dir, stack)
-        config = new_run_config(args, args.env, seed, hp, hyperparams_file, run_dir)
+        config = new_run_config(args, args.env, seed, hp, hyperparams_file, run_dir, {"hyperparams_entry": key})
         print(f"run folder: {run_dir}")
         return train(model, run_dir, config, progress=not args.no_progress)
 
@@ -1014,10 +1029,11 @@ def command_line_env_kwargs(args: argparse.Namespace, entry: dict[str, Any]) -> 
     return env_kwargs
 
 
-def residual_override(name: str, env_id: str, hyperparams_file: Path,
-                      env_kwargs: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
-    """``--residual NAME``: the entry's residual with its gait replaced (``reference``: the env's reference,
-    :func:`agents.env_reference`, with ``env_kwargs``), keeping the entry's scale and exploration if it sets them."""
+def residual_override(name: str, env_id: str, hyperparams_file: Path, env_kwargs: dict[str, Any] | None = None,
+                      key: str | None = None) -> dict[str, Any]:  # fmt: skip
+    """``--residual NAME``: the residual of the entry ``key`` (default ``env_id``'s) with its gait replaced
+    (``reference``: the env's reference, :func:`agents.env_reference`, with ``env_kwargs``), keeping the entry's
+    scale and exploration if it sets them."""
     from agents import env_reference
 
     given_name = name
@@ -1030,7 +1046,7 @@ def residual_override(name: str, env_id: str, hyperparams_file: Path,
         raise ConfigError(f"--residual {given_name}: {exc}") from None
     finally:
         env.close()
-    return with_entry_settings(name, hyperparams_file, env_id)
+    return with_entry_settings(name, hyperparams_file, key or env_id)
 
 
 def start_tuning(args: argparse.Namespace) -> Path:
@@ -1039,9 +1055,10 @@ def start_tuning(args: argparse.Namespace) -> Path:
     check_env_id(args.env)
     hyperparams_file = Path(args.hyperparams) if args.hyperparams else HYPERPARAMS_DIR / f"{args.algo}.yml"
     table = read_yaml(hyperparams_file)
-    entry = table.get(args.env) if isinstance(table, dict) else None
+    key = entry_key(hyperparams_file, args.env, args.residual is not None)
+    entry = table.get(key) if isinstance(table, dict) else None
     if not isinstance(entry, dict):
-        raise ConfigError(f"{hyperparams_file}: no entry (a mapping of hyperparameters) for env {args.env!r}")
+        raise ConfigError(f"{hyperparams_file}: no entry (a mapping of hyperparameters) for env {key!r}")
     base = {**entry, **({"n_envs": args.n_envs} if args.n_envs is not None else {})}
     env_kwargs = entry.get("env_kwargs") or {}
     if not isinstance(env_kwargs, dict):
@@ -1049,8 +1066,8 @@ def start_tuning(args: argparse.Namespace) -> Path:
     if args.env_kwargs:
         env_kwargs = base["env_kwargs"] = command_line_env_kwargs(args, env_kwargs)
     if args.residual is not None:
-        base["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs)
-    return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {args.env}", args.tune, args.timesteps,
+        base["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs, key)
+    return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {key}", args.tune, args.timesteps,
                 Path(args.runs_dir), args.storage, args.study, 0 if args.seed is None else args.seed,
                 args.evaluations, args.eval_episodes, args.minutes, command_line())  # fmt: skip
 

@@ -1,5 +1,7 @@
 """Residual policies (agents/residual.py): a learned correction on top of the reference gait."""
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -91,11 +93,13 @@ def test_residual_reference_takes_the_robots_reference_gait(tmp_path, monkeypatc
 
 
 def test_an_entrys_residual_settings_shape_only_residual_runs_and_set_their_exploration(tmp_path, monkeypatch):
-    """An entry's ``residual`` without a policy leaves its plain runs plain; ``--residual reference`` takes its scale
-    and exploration, and the new policy's standard deviation is the exploration, not PPO's 1."""
+    """An entry's ``residual`` without a policy leaves its plain runs plain. A residual run (``--residual``) takes
+    the ``<id>+residual`` entry where the file has one, with its scale, exploration and PPO settings: the new
+    policy's standard deviation is the exploration, not PPO's 1."""
     monkeypatch.chdir(tmp_path)
     entry = {**TINY, "residual": {"scale": 0.3, "exploration": 0.05}}
-    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: entry}))
+    own = {**entry, "target_kl": 0.02}
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({TURN: entry, TURN + "+residual": own}))
     plain = resolve_hyperparams(entry, "ppo", "tiny.yml: " + TURN)
     assert plain.residual is None and "log_std_init" not in (plain.model_kwargs.get("policy_kwargs") or {})
     base = ["--env", TURN, "--algo", "ppo", "--timesteps", "64", "--hyperparams", "tiny.yml", "--runs-dir", "runs",
@@ -104,6 +108,11 @@ def test_an_entrys_residual_settings_shape_only_residual_runs_and_set_their_expl
     assert train_main([*base, "--run-name", "res", "--residual", "reference"]) == 0
     from agents.sb3 import read_model_file
 
+    config = {name: json.loads((tmp_path / "runs" / name / "config.json").read_text()) for name in ("plain", "res")}
+    assert config["plain"]["hyperparams_entry"] == TURN and "target_kl" not in config["plain"]["hyperparams"]
+    assert (
+        config["res"]["hyperparams_entry"] == TURN + "+residual" and config["res"]["hyperparams"]["target_kl"] == 0.02
+    )
     assert "residual" not in read_model_file(tmp_path / "runs" / "plain" / "model.zip")[0]
     manifest, _ = read_model_file(tmp_path / "runs" / "res" / "model.zip")
     assert manifest["residual"] == {"policy": "tripod", "scale": 0.3, "exploration": 0.05}
