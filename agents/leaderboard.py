@@ -672,6 +672,8 @@ def publish_media(text: str, out: Path, docs: Path, records: Path | None = None)
         text = text.replace(f"](plots/{png.name})", f"]({media.name}/plots/{png.name})")
     for video in sorted((out / "videos").glob("*/eval/videos/side_by_side.mp4")):
         task = video.parents[2].name
+        if f"](videos/{task}/eval/videos/side_by_side.mp4)" not in text:  # an earlier plan's task: not the page's
+            continue
         target = media / "videos" / f"{task}.mp4"
         target.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(target, lambda tmp, video=video: shutil.copyfile(video, tmp))

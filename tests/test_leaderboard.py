@@ -348,8 +348,12 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
             str(tmp_path / "fresh"), "--records", str(kept), "--docs", str(docs), "--videos"]  # fmt: skip
     (tmp_path / "fresh" / "plots").mkdir(parents=True)
     (tmp_path / "fresh" / "plots" / "curve_skitter_Gone-v1.png").write_bytes(b"an earlier plan's")
+    gone = tmp_path / "fresh" / "videos" / "skitter_Gone-v1" / "eval" / "videos" / "side_by_side.mp4"
+    gone.parent.mkdir(parents=True)
+    gone.write_bytes(b"an earlier plan's")
     assert leaderboard.main(argv) == 0
     assert not (docs.parent / "results" / "plots" / "curve_skitter_Gone-v1.png").exists(), "only the page's plots"
+    assert not (docs.parent / "results" / "videos" / "skitter_Gone-v1.mp4").exists(), "and the page's videos"
     assert ran == [leaderboard.Row(WALK, "ppo", 1)], "the kept row is not trained again"
     assert "(1 to run)" in capsys.readouterr().out
     text = docs.read_text()
