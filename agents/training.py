@@ -309,9 +309,10 @@ def resolve_hyperparams(entry: dict[str, Any], algo: str, where: str, players: i
         raise ConfigError(f"{where}: field 'train_freq' = {raw['train_freq']!r}: needs n_envs 1, not {n_envs}")
     _check_batch_size(model_kwargs, defaults, n_envs, algo, where, players)
     residual = None
-    if "residual" in raw:
-        residual = check("residual", parse_residual if names_a_gait(raw["residual"]) else residual_settings)
-        residual = residual if isinstance(residual, Residual) else None
+    if "residual" in raw and names_a_gait(raw["residual"]):
+        residual = check("residual", parse_residual)
+    elif "residual" in raw:  # how a residual run is made, when one is asked for: checked here, applied there
+        check("residual", residual_settings)
     if residual is not None and residual.exploration is not None:
         model_kwargs["policy_kwargs"] = _exploring(model_kwargs.get("policy_kwargs"), residual, algo, where, raw)
     return Hyperparams(
