@@ -103,7 +103,7 @@ def test_the_steered_trot_turns_at_the_commanded_rate(yaw_rate):
     6 s episodes its mean yaw rate after the first second is within 0.06 rad/s of the command in every episode and
     0.03 on average (measured: at most 0.044 on seeds 0, 7 and 100; 0.008 on average over the 10 s episodes of seeds
     1000-1019, docs/bioloid.md), where the full trot alone veers by up to +-0.17."""
-    venv = gym.make_vec("skitter/BioloidTurn-v3", num_envs=4, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("skitter/BioloidTurn-v4", num_envs=4, vectorization_mode="vector_entry_point",
                         max_episode_steps=300, nthread=1)  # fmt: skip
     policy = load_policy("ik-trot", venv)
     obs, _ = venv.reset(seed=0, options={"yaw_rate": yaw_rate})
@@ -150,9 +150,9 @@ def test_ik_gaits_walk_when_the_caller_does_not_pass_the_state_back(batched):
     """A caller that drops predict()'s state (``action, _ = policy.predict(obs)``) gets the same actions as one that
     passes it back: the policy keeps its clock, and episode_start restarts a row's clock either way."""
     if batched:
-        env = gym.make_vec("skitter/BioloidTurn-v3", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
+        env = gym.make_vec("skitter/BioloidTurn-v4", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
     else:
-        env = gym.make("skitter/BioloidTurn-v3")
+        env = gym.make("skitter/BioloidTurn-v4")
     keeps, drops = load_policy("ik-trot", env), load_policy("ik-trot", env)
     obs, _ = env.reset(seed=0)
     n = 2 if batched else 1

@@ -285,6 +285,30 @@ def test_turn_command_is_sampled_in_range_and_settable():
         env.reset(seed=0, options={"yaw_rate": "fast"})
 
 
+def test_the_bioloid_turn_pays_for_staying_upright_and_the_other_turns_do_not():
+    """BioloidTurn pays its body's uprightness each step, as BioloidWalk does (a fall must cost the steps it ends);
+    the roach's and the xJüs's turns, which stand on their own, keep a zero upright term by default."""
+    turns = (("skitter/BioloidTurn-v4", 1.0), ("skitter/RoachTurn-v4", 0.0), ("skitter/XjusTurn-v2", 0.0))
+    for env_id, weight in turns:
+        env = gym.make(env_id)
+        env.reset(seed=3)
+        for a in random_actions(env, 5):
+            _, reward, terminated, truncated, info = env.step(a)
+            assert info["reward_upright"] == weight * info["up_z"]
+            if weight:
+                assert 0.5 < info["reward_upright"] <= 1.0  # upright at the start of an episode
+            if terminated or truncated:
+                break
+        assert env.unwrapped.task.upright_reward_weight == weight
+    unpaid = gym.make("skitter/BioloidTurn-v4", upright_reward_weight=0.0)
+    unpaid.reset(seed=3)
+    _, reward, _, _, info = unpaid.step(unpaid.action_space.sample())
+    assert info["reward_upright"] == 0.0
+    assert reward == info["reward_tracking"] + info["reward_speed"] + info["reward_energy"] + info["reward_upright"]
+    with pytest.raises(ValueError, match="upright_reward_weight"):
+        gym.make("skitter/BioloidTurn-v4", upright_reward_weight="a lot")
+
+
 def _other_rate(env_id: str) -> float:
     """A control rate other than the default that the env accepts: twice it (xJüs in gait mode needs at least
     120 Hz), or half it where twice is not a whole number of physics steps."""

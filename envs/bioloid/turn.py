@@ -22,6 +22,10 @@ TRACKING_WINDOW = 1.0 / TROT_FREQUENCY
 # rad/s: with 0.2 (v2) and one step's rate, a robot that stood still out-scored the steered trot; with a cycle's mean
 # and 0.05, standing still scores a fifth of what the steered trot does (docs/bioloid.md)
 TRACKING_SIGMA = 0.05
+# per step, times the world-z component of the body's z axis: BioloidWalk's weight. Without it (v3) a fall cost nothing
+# while every step before the robot stood cost more energy than it earned, and PPO learned to fall sooner
+# (docs/bioloid.md); with it a step upright pays more than a flailing step's energy (about 0.5 under random actions)
+UPRIGHT_REWARD_WEIGHT = 1.0
 
 
 class BioloidTurnEnv(SkitterEnv):
@@ -41,19 +45,23 @@ class BioloidTurnEnv(SkitterEnv):
     (``yaw_rate_command``, rad/s) after it: size 74, 7 more with ``privileged_obs``.
 
     ## Rewards
-    ``reward = tracking + speed + energy``, each in ``info["reward_<term>"]``:
+    ``reward = tracking + speed + energy + upright``, each in ``info["reward_<term>"]``:
 
     - ``tracking``: ``tracking_reward_weight * exp(-(w - r)^2 / tracking_sigma^2)``, w the mean yaw rate over the
       last ``tracking_window`` (one cycle of the 1.5 Hz trot; since the reset within the first);
     - ``speed``: ``speed_reward_weight * v / 0.30 m``, v the speed along the body's heading in body lengths/s;
-    - ``energy``: ``-energy_cost_weight * P`` as in BioloidWalk.
+    - ``energy``: ``-energy_cost_weight * P`` as in BioloidWalk;
+    - ``upright``: ``upright_reward_weight * u`` as in BioloidWalk, u the world-z component of the body's z axis.
 
     ## Arguments
-    As BioloidWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range``
+    As BioloidWalk, less ``forward_reward_weight``, plus ``yaw_rate_range``
     (0.3 rad/s), ``tracking_reward_weight`` (1.0), ``tracking_sigma`` (0.05 rad/s), ``tracking_window``
     (0.667 s), ``speed_reward_weight`` (0.1).
 
     ## Version History
+    - v4: pays for staying upright (``upright_reward_weight`` 1.0, as BioloidWalk). On v3 a fall cost nothing and
+      every step before the robot stood cost more energy than it earned: PPO learned to end its episodes sooner
+      and every evaluation episode of its row was a fall.
     - v3: the yaw rate tracked is the mean over ``tracking_window`` (one trot cycle) within 0.05 rad/s, commands
       within 0.3 rad/s, and the reference trot turns by its feet's sideways swing. On v2 standing still out-scored
       the steered trot (411 against 10): one step's yaw rate is the trot's sway, and the stride-scaling steering
@@ -74,6 +82,7 @@ class BioloidTurnEnv(SkitterEnv):
         speed_reward_weight: float = 0.1,
         tracking_window: float = TRACKING_WINDOW,
         energy_cost_weight: float = ENERGY_COST_WEIGHT,
+        upright_reward_weight: float = UPRIGHT_REWARD_WEIGHT,
         max_tilt: float = 1.0,
         terminate_when_unhealthy: bool = True,
         height_band: Sequence[float] | None = None,
@@ -112,6 +121,7 @@ class BioloidTurnEnv(SkitterEnv):
             height_band=height_band,
             grace_time=grace_time,
             tracking_window=tracking_window,
+            upright_reward_weight=upright_reward_weight,
         )
         super().__init__(robot, task, reset_noise_scale, randomize, telemetry, render_mode, width, height)
 

@@ -398,11 +398,13 @@ class WalkTask(LocomotionTask):
 
 
 class TurnTask(LocomotionTask):
-    """Turn at a commanded yaw rate while running: reward = tracking + speed + energy.
+    """Turn at a commanded yaw rate while running: reward = tracking + speed + energy + upright.
 
     ``tracking_window`` (s): the yaw rate tracked is the mean over that long (the body's yaw travel over the window,
     or since the reset within the first window), so that a gait whose body swings from side to side within a stride
     is judged by the rate it turns at, not by its swing; 0 (the default) tracks the rate over each control step.
+    ``upright_reward_weight``: pay per step for the body's uprightness, as on :class:`WalkTask` (default 0): a robot
+    that falls unless its legs hold it up needs it, or its learner gains by ending its episodes early.
     """
 
     name = "turn"
@@ -426,8 +428,10 @@ class TurnTask(LocomotionTask):
         grace_time: float = GRACE_TIME,
         ground_height: Callable[[np.ndarray], np.ndarray] | None = None,
         tracking_window: float = 0.0,
+        upright_reward_weight: float = 0.0,
     ):
         self.yaw_rate_range = check_number("yaw_rate_range", yaw_rate_range, 0)
+        self.upright_reward_weight = check_number("upright_reward_weight", upright_reward_weight)
         self.tracking_reward_weight = check_number("tracking_reward_weight", tracking_reward_weight)
         self.tracking_sigma = check_number("tracking_sigma", tracking_sigma, 0, strict=True)
         self.speed_reward_weight = check_number("speed_reward_weight", speed_reward_weight)
@@ -488,6 +492,7 @@ class TurnTask(LocomotionTask):
             "tracking": self.tracking_reward_weight * np.exp(-np.square(error)),
             "speed": self.speed_reward_weight * state["speed"] / self.length,
             "energy": self._energy(state),
+            "upright": self.upright_reward_weight * state["up_z"],
         }
 
     def info(self, readings: dict[str, np.ndarray], state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
