@@ -53,7 +53,7 @@ demo: setup
 # docs/results.md
 LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v3 skitter/RoachScoreEmptyGoal-v3 skitter/RoachScoreVsKeeper-v2 \
 	skitter/XjusGoToBall-v2 skitter/XjusScoreEmptyGoal-v2 skitter/XjusScoreVsKeeper-v1 \
-	skitter/BioloidGoToBall-v2 skitter/BioloidScoreEmptyGoal-v2 skitter/BioloidScoreVsKeeper-v1
+	skitter/BioloidGoToBall-v3 skitter/BioloidScoreEmptyGoal-v3 skitter/BioloidScoreVsKeeper-v2
 LEADERBOARD_ALL = skitter/RoachWalk-v3 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v4 \
 	skitter/XjusTurn-v2 skitter/BioloidTurn-v4 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY)
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
@@ -62,8 +62,8 @@ LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 s
 	skitter/XjusRough-v1=9000000 \
 	skitter/RoachGoToBall-v3=3000000 skitter/RoachScoreEmptyGoal-v3=3000000 skitter/RoachScoreVsKeeper-v2=3000000 \
 	skitter/XjusGoToBall-v2=7000000 skitter/XjusScoreEmptyGoal-v2=7000000 skitter/XjusScoreVsKeeper-v1=7000000 \
-	skitter/BioloidGoToBall-v2=5000000 skitter/BioloidScoreEmptyGoal-v2=5000000 \
-	skitter/BioloidScoreVsKeeper-v1=5000000
+	skitter/BioloidGoToBall-v3=5000000 skitter/BioloidScoreEmptyGoal-v3=5000000 \
+	skitter/BioloidScoreVsKeeper-v2=5000000
 LEADERBOARD_SEEDS ?= 0 1 2
 LEADERBOARD_ALGOS_ALL = ppo ppo+residual
 LEADERBOARD_ALGOS ?= $(LEADERBOARD_ALGOS_ALL)

@@ -85,7 +85,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert "was made with" in capsys.readouterr().err
 
 
-ACADEMY = "skitter/BioloidGoToBall-v2"
+ACADEMY = "skitter/BioloidGoToBall-v3"
 
 
 def test_an_academy_task_is_learnt_and_judged_in_the_commands_mode_against_the_scripted_player():
@@ -96,7 +96,7 @@ def test_an_academy_task_is_learnt_and_judged_in_the_commands_mode_against_the_s
     plan = leaderboard.Plan((ACADEMY,), ("ppo+residual",), (0,), ((ACADEMY, 100),), None, 2, 1000, None)
     train, evaluate = leaderboard.reproduce(plan, leaderboard.Row(ACADEMY, "ppo+residual", 0), 100, "scripted")
     for command in (train, evaluate):
-        assert """--env skitter/BioloidGoToBall-v2 --env-kwargs '{"action_mode": "commands"}'""" in command
+        assert """--env skitter/BioloidGoToBall-v3 --env-kwargs '{"action_mode": "commands"}'""" in command
     assert "--residual reference" in train and "--policy scripted" in evaluate
 
 

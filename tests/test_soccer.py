@@ -129,7 +129,7 @@ def test_a_goal_is_seen_between_control_steps_and_ends_the_episode():
     [({"ball": [99.0, 0.0]}, "ball"), ({"robot": [0.0, 0.0]}, "robot"), ({"robot": "here"}, "robot")],
 )
 def test_bad_places_are_refused_by_name(options, word):
-    env = make("skitter/BioloidGoToBall-v2")
+    env = make("skitter/BioloidGoToBall-v3")
     with pytest.raises(ValueError, match=f"options\\['{word}'\\]"):
         env.reset(seed=0, options=options)
 
@@ -165,8 +165,8 @@ def test_players_collide_with_each_other_but_not_with_themselves():
 
 @pytest.mark.parametrize(
     "env_id",
-    ["skitter/BioloidGoToBall-v2", "skitter/RoachScoreEmptyGoal-v3", "skitter/XjusScoreVsKeeper-v1",
-     "skitter/BioloidScoreVsKeeper-v1"],
+    ["skitter/BioloidGoToBall-v3", "skitter/RoachScoreEmptyGoal-v3", "skitter/XjusScoreVsKeeper-v1",
+     "skitter/BioloidScoreVsKeeper-v2"],
 )  # fmt: skip
 def test_the_academy_in_the_commands_mode_is_batched_like_single_across_resets(env_id):
     """Speed and turn rate through the gait map (and the Bioloid's kick): the same results single and batched, the
@@ -196,7 +196,7 @@ def test_the_bioloids_field_of_view_follows_its_neck():
     with the head panned 0.8 rad either way by the neck's roll servo (N_2, about the raised neck)."""
     from envs.bioloid import constants as bc
 
-    env = gym.make("skitter/BioloidGoToBall-v2", field_of_view=np.radians(60), reset_noise_scale=0.0)
+    env = gym.make("skitter/BioloidGoToBall-v3", field_of_view=np.radians(60), reset_noise_scale=0.0)
     layout = env.unwrapped.task.layout
     stand = bc.CENTER + np.array([bc.STAND_ANGLES[s] for s in bc.SERVOS]) / bc.RAD_PER_COUNT
     for pan, seen in ((0.0, 1.0), (0.8, 0.0), (-0.8, 0.0)):

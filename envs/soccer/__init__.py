@@ -23,7 +23,7 @@ for _robot, _robot_class in ROBOTS.items():
                 "id": f"skitter/{_robot}{_task}-v{academy.version(_robot, _task_class)}",
                 "entry_point": f"envs.soccer.academy:{_env.make_env_name}",
                 "vector_entry_point": f"envs.soccer.academy:{_env.make_batched_name}",
-                "kwargs": {"episode_seconds": academy.EPISODE_SECONDS},
+                "kwargs": {"episode_seconds": academy.EPISODE_SECONDS[_robot]},
             }
         )
 ENVS = ACADEMY
