@@ -55,10 +55,10 @@ LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v3 skitter/RoachScoreEmptyGoal-v3 sk
 	skitter/XjusGoToBall-v2 skitter/XjusScoreEmptyGoal-v2 skitter/XjusScoreVsKeeper-v1 \
 	skitter/BioloidGoToBall-v3 skitter/BioloidScoreEmptyGoal-v3 skitter/BioloidScoreVsKeeper-v2
 LEADERBOARD_ALL = skitter/RoachWalk-v3 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v4 \
-	skitter/XjusTurn-v2 skitter/BioloidTurn-v4 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY)
+	skitter/XjusTurn-v2 skitter/BioloidTurn-v5 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY)
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
 LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
-	skitter/RoachTurn-v4=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v4=7000000 \
+	skitter/RoachTurn-v4=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v5=7000000 \
 	skitter/XjusRough-v1=9000000 \
 	skitter/RoachGoToBall-v3=3000000 skitter/RoachScoreEmptyGoal-v3=3000000 skitter/RoachScoreVsKeeper-v2=3000000 \
 	skitter/XjusGoToBall-v2=7000000 skitter/XjusScoreEmptyGoal-v2=7000000 skitter/XjusScoreVsKeeper-v1=7000000 \

@@ -8,7 +8,7 @@ import pytest
 import envs  # noqa: F401
 from agents import load_policy, reference_policy
 from agents.bioloid.ik import GAITS, stance, touchdown_fraction
-from agents.evaluation import run_episodes
+from agents.evaluation import run_episode, run_episodes
 from envs.bioloid import constants
 from envs.bioloid.kinematics import LegGeometry
 
@@ -103,7 +103,7 @@ def test_the_steered_trot_turns_at_the_commanded_rate(yaw_rate):
     6 s episodes its mean yaw rate after the first second is within 0.06 rad/s of the command in every episode and
     0.03 on average (measured: at most 0.044 on seeds 0, 7 and 100; 0.008 on average over the 10 s episodes of seeds
     1000-1019, docs/bioloid.md), where the full trot alone veers by up to +-0.17."""
-    venv = gym.make_vec("skitter/BioloidTurn-v4", num_envs=4, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec("skitter/BioloidTurn-v5", num_envs=4, vectorization_mode="vector_entry_point",
                         max_episode_steps=300, nthread=1)  # fmt: skip
     policy = load_policy("ik-trot", venv)
     obs, _ = venv.reset(seed=0, options={"yaw_rate": yaw_rate})
@@ -150,9 +150,9 @@ def test_ik_gaits_walk_when_the_caller_does_not_pass_the_state_back(batched):
     """A caller that drops predict()'s state (``action, _ = policy.predict(obs)``) gets the same actions as one that
     passes it back: the policy keeps its clock, and episode_start restarts a row's clock either way."""
     if batched:
-        env = gym.make_vec("skitter/BioloidTurn-v4", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
+        env = gym.make_vec("skitter/BioloidTurn-v5", num_envs=2, vectorization_mode="vector_entry_point", nthread=1)
     else:
-        env = gym.make("skitter/BioloidTurn-v4")
+        env = gym.make("skitter/BioloidTurn-v5")
     keeps, drops = load_policy("ik-trot", env), load_policy("ik-trot", env)
     obs, _ = env.reset(seed=0)
     n = 2 if batched else 1
@@ -172,3 +172,37 @@ def test_ik_gaits_walk_when_the_caller_does_not_pass_the_state_back(batched):
     np.testing.assert_array_equal(first_row[25], first_row[0])  # the restarted row is back at its lead-in's start
     drops.reset()
     np.testing.assert_array_equal(drops.predict(obs)[0], keeps.predict(obs, None, np.ones(n, dtype=bool))[0])
+
+
+@pytest.mark.parametrize("gait", sorted(GAITS))
+def test_every_ik_gait_fits_within_the_offset_modes_reach(gait):
+    """The offset mode reaches 0.5 rad from the ready posture; every IK gait's goals, at the ends of its frequency
+    range, marking time or striding, turning either way as hard as it steers, stay inside it (at most 0.384 rad)."""
+    from agents.bioloid.ik import FREQUENCY_RANGE, STEER_STRIDE, TURN_LIMIT
+
+    env = gym.make("skitter/BioloidTurn-v5")
+    assert env.unwrapped.robot.action_mode == "offset"
+    t = np.arange(0.0, 4.0, 0.002)
+    for frequency in FREQUENCY_RANGE:
+        policy = load_policy(f"ik-{gait}:{frequency}", env)
+        for stride in (1.0, STEER_STRIDE):
+            for turn in (-TURN_LIMIT, 0.0, TURN_LIMIT):
+                goal = policy.goals.steered(t, np.full(len(t), stride), np.full(len(t), turn))
+                action = policy.mode.to_action(goal)
+                assert np.abs(action).max() <= 1.0, (frequency, stride, turn, np.abs(action).max())
+
+
+def test_the_reference_trot_plays_the_same_in_the_offset_and_the_goal_mode():
+    """Its goals are the same counts either way: the returns agree to float rounding (measured to 2e-5)."""
+    returns = {}
+    for mode in ("offset", "goal"):
+        env = gym.make("skitter/BioloidTurn-v5", action_mode=mode, max_episode_steps=200)
+        policy = load_policy("ik-trot", env)
+        returns[mode] = np.array([run_episode(env, policy, seed).metrics["return"] for seed in (1000, 1001)])
+    assert returns["offset"] == pytest.approx(returns["goal"], rel=1e-4), returns
+
+
+def test_the_cpg_refuses_the_offset_mode_naming_the_mode_to_use():
+    with pytest.raises(ValueError, match="action_mode='goal'"):
+        load_policy("cpg", gym.make("skitter/BioloidTurn-v5"))
+    load_policy("cpg", gym.make("skitter/BioloidTurn-v5", action_mode="goal"))

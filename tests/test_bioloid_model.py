@@ -204,3 +204,40 @@ def test_parameters_reach_the_model():
 def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
     with pytest.raises(ValueError, match=message):
         gym.make("skitter/BioloidWalk-v2", **kwargs)
+
+
+def test_the_offset_mode_centres_every_servo_on_the_ready_posture_with_half_a_radian_each_way():
+    from envs.bioloid.robot import OFFSET_SCALE, ready_angles
+
+    for wedge in (False, True):
+        robot = Bioloid(action_mode="offset", knee_wedge=wedge)
+        ready = ready_angles(robot.wedge)
+        centre = np.array([constants.CENTER + ready[s] / constants.RAD_PER_COUNT for s in constants.SERVOS])
+        assert robot.mode.to_command(np.zeros(16)) == pytest.approx(centre)
+        reach = (robot.mode.to_command(np.ones(16)) - robot.mode.to_command(-np.ones(16))) / 2
+        assert reach * constants.RAD_PER_COUNT == pytest.approx(np.full(16, OFFSET_SCALE))
+    env = gym.make("skitter/BioloidTurn-v5")
+    robot = env.unwrapped.robot
+    env.reset(seed=0)
+    env.step(np.ones(16, dtype=np.float32))  # past the knees' bend limit: clipped to the servos' allowed range
+    high = np.minimum(robot.mode.to_command(np.ones(16)), constants.RANGE_HIGH)
+    assert robot.goal[0] == pytest.approx(high)
+    assert (robot.goal[0] <= constants.RANGE_HIGH).all()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_under_random_actions_the_robot_stands_in_the_offset_mode_and_falls_in_the_goal_mode(seed):
+    """What BioloidTurn-v5 changed: in the goal mode an action of 0 puts the legs out sideways and random actions
+    fall within about 2 s; in the offset mode they wobble around the ready posture and stay up (measured on seeds
+    1000-1009: 100 steps on average against the whole 500)."""
+    lengths = {}
+    for mode in ("offset", "goal"):
+        env = gym.make("skitter/BioloidTurn-v5", action_mode=mode)
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        steps, ended = 0, False
+        while steps < 300 and not ended:
+            *_, terminated, truncated, info = env.step(env.action_space.sample())
+            steps, ended = steps + 1, terminated or truncated
+        lengths[mode] = (steps, info["fallen"])
+    assert lengths["offset"] == (300, False) and lengths["goal"][0] < 250 and lengths["goal"][1], lengths

@@ -288,7 +288,7 @@ def test_turn_command_is_sampled_in_range_and_settable():
 def test_the_bioloid_turn_pays_for_staying_upright_and_the_other_turns_do_not():
     """BioloidTurn pays its body's uprightness each step, as BioloidWalk does (a fall must cost the steps it ends);
     the roach's and the xJüs's turns, which stand on their own, keep a zero upright term by default."""
-    turns = (("skitter/BioloidTurn-v4", 1.0), ("skitter/RoachTurn-v4", 0.0), ("skitter/XjusTurn-v2", 0.0))
+    turns = (("skitter/BioloidTurn-v5", 1.0), ("skitter/RoachTurn-v4", 0.0), ("skitter/XjusTurn-v2", 0.0))
     for env_id, weight in turns:
         env = gym.make(env_id)
         env.reset(seed=3)
@@ -300,13 +300,13 @@ def test_the_bioloid_turn_pays_for_staying_upright_and_the_other_turns_do_not():
             if terminated or truncated:
                 break
         assert env.unwrapped.task.upright_reward_weight == weight
-    unpaid = gym.make("skitter/BioloidTurn-v4", upright_reward_weight=0.0)
+    unpaid = gym.make("skitter/BioloidTurn-v5", upright_reward_weight=0.0)
     unpaid.reset(seed=3)
     _, reward, _, _, info = unpaid.step(unpaid.action_space.sample())
     assert info["reward_upright"] == 0.0
     assert reward == info["reward_tracking"] + info["reward_speed"] + info["reward_energy"] + info["reward_upright"]
     with pytest.raises(ValueError, match="upright_reward_weight"):
-        gym.make("skitter/BioloidTurn-v4", upright_reward_weight="a lot")
+        gym.make("skitter/BioloidTurn-v5", upright_reward_weight="a lot")
 
 
 def _other_rate(env_id: str) -> float:

@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from envs.bioloid import constants
+from envs.bioloid.robot import GOAL
 
 CONFIGS = Path(__file__).resolve().parent / "cpg_configs"
 DEFAULT_CONFIG = "experiment5"  # the policy ``cpg`` without a file: experiment 5's model at the middle of its box
@@ -388,6 +389,12 @@ def cpg_for(env, arg: str = "") -> CPGController:
     robot = env.unwrapped.robot
     if robot.name != "bioloid":
         raise ValueError(f"the CPG drives a Bioloid, not a {robot.name}")
+    if robot.action_mode != GOAL:
+        raise ValueError(
+            f"the CPG needs the servos' whole range (its offsets and amplitudes reach up to 105 deg from the standing "
+            f"posture), which the {robot.action_mode!r} action mode does not give: make the env with action_mode="
+            f"{GOAL!r}"
+        )
     source = arg or str(CONFIGS / f"{DEFAULT_CONFIG}.json")
     p = Path(source)
     if not p.suffix and not p.exists():

@@ -3,7 +3,7 @@ registers; its calibration adapter (``calibrate.py --robot bioloid``) is sysid/a
 
 from envs.common.env import EPISODE_SECONDS  # the time limit, whatever the control rate
 
-VERSIONS = {"Walk": 2, "Turn": 4}  # bumped when a task's rewards, observations or model change
+VERSIONS = {"Walk": 2, "Turn": 5}  # bumped when a task's rewards, observations, actions or model change
 
 ENVS = [
     {

@@ -24,6 +24,11 @@ from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_flag, c
 from envs.common.telemetry import ChannelLimit
 
 GOAL = "goal"
+OFFSET = "offset"
+# rad: the offset mode's reach, a servo's goal is its ready-posture angle plus this times the action, as MuJoCo
+# Playground's Go1 joystick (action_scale 0.5 around its default pose); the IK trot's goals stay within 0.38 rad of the
+# ready posture, walking and turning (docs/bioloid.md)
+OFFSET_SCALE = 0.5
 LOAD_FULL_SCALE = 1023.0  # an AX-12 reports its load as 0..1023 of its maximum torque, with a direction bit
 
 
@@ -64,6 +69,24 @@ def ready_angles(wedge: float = 0.0) -> dict[str, float]:
     return angles
 
 
+def offset_mode(wedge: float = 0.0) -> ActionMode:
+    """The ``offset`` action mode: each servo's goal is its ready-posture angle (:func:`ready_angles`) plus
+    :data:`OFFSET_SCALE` rad times its action, in counts, so that an action of 0 holds the ready posture."""
+    ready = ready_angles(wedge)
+    centre = np.array([constants.CENTER + ready[s] / constants.RAD_PER_COUNT for s in constants.SERVOS])
+    reach = OFFSET_SCALE / constants.RAD_PER_COUNT
+    return ActionMode(
+        OFFSET,
+        constants.SERVOS,
+        ("count",) * len(constants.SERVOS),
+        tuple((centre - reach).tolist()),
+        tuple((centre + reach).tolist()),
+        constants.CONTROL_FREQ,
+        f"goal position of each servo, counts: its ready-posture angle +- {OFFSET_SCALE} rad (action 0 holds the "
+        "ready posture; goals outside the servo's allowed range are clipped to it)",
+    )
+
+
 def knee_wedge_edit(angle: float = constants.KNEE_WEDGE) -> SpecEdit:
     """Spec edit: every shank turned by ``angle`` about its knee axis (the "aibo style" wedge, [bioloid-webots,
     IV.A])."""
@@ -90,14 +113,16 @@ class Bioloid(Robot):
     """A Bioloid quadruped [bioloid-webots] in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints
     the seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
 
-    One action mode, ``goal``: the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), each
-    within its allowed range (``constants.SERVO_RANGE``: the full span, the knees from straight to bent 90 deg),
-    held over the control step as the servos hold a goal packet; 50 Hz by default. Each servo's own position
+    Two action modes, each the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), clipped to
+    each servo's allowed range (``constants.SERVO_RANGE``: the full span, the knees from straight to bent 90 deg),
+    held over the control step as the servos hold a goal packet; 50 Hz by default. ``goal`` maps [-1, 1] onto the
+    allowed range (an action of 0 puts the legs out sideways); ``offset`` onto the ready posture +-
+    :data:`OFFSET_SCALE` rad (an action of 0 stands). Each servo's own position
     controller (compliance slope, torque and speed limits from its motor and supply) acts at every physics step,
     natively.
 
     Args:
-        action_mode: ``"goal"``.
+        action_mode: ``"goal"`` or ``"offset"``.
         control_freq: control steps per second (default 50).
         knee_wedge: add the 18 deg wedge at each knee ([bioloid-webots, IV.A]; False: the design the seed validated).
         servo: the servos' constants and control-table settings (default: AX-12 at 10 V, factory compliance).
@@ -122,6 +147,7 @@ class Bioloid(Robot):
             constants.CONTROL_FREQ,
             "goal position of each servo, counts (512 = 0 rad, 0.293 deg per count)",
         ),
+        OFFSET: offset_mode(),
     }
 
     def __init__(
@@ -151,6 +177,8 @@ class Bioloid(Robot):
         self.nominal_battery = servo_constants.supply_voltage
         self.imu_noise = imu_noise
         super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched, calibration)
+        if action_mode == OFFSET and knee_wedge:  # the wedge moves the ready posture's knees: centre on that one
+            self.mode = offset_mode(self.wedge)
 
     @classmethod
     def xml_path(cls) -> Path:
