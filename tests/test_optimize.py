@@ -2,6 +2,8 @@
 uninterrupted run gives, the Ray backend equals the local batch, the distance travelled [bioloid-webots, eq. 17],
 randomized rollouts, one run per folder, and the command line's one-line errors."""
 
+import contextlib
+import io
 import json
 import os
 import pickle
@@ -37,6 +39,20 @@ def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=timeout)  # fmt: skip
 
 
+def cli_here(*args: str) -> subprocess.CompletedProcess:
+    """``python -m agents.optimize``'s ``main`` in the test's process, its exit code and what it printed: the inputs it
+    refuses before anything runs, without a new process loading the libraries for each case (the tests of a whole
+    run, a kill and Ray use :func:`cli`)."""
+    argv = ["--no-progress", *args]
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's own errors
+            code = exc.code
+    return subprocess.CompletedProcess(argv, code, stdout.getvalue(), stderr.getvalue())
+
+
 def test_distance_travelled_is_the_straight_plus_the_integrated_distance():
     square = np.array([[[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]]], dtype=float)  # back where it started
     assert distance_travelled(square)[0] == pytest.approx(4.0)
@@ -54,7 +70,7 @@ def test_the_objectives_earlier_name_eq17_is_read_with_a_warning(tmp_path):
     assert config.objective == "distance_travelled"
     shipped = sorted((ROOT / "agents" / "bioloid" / "optimize").glob("*.json"))
     assert shipped and all(json.loads(p.read_text())["objective"] != "eq17" for p in shipped)
-    done = cli("--config", str(path), "--iterations", "1", "--particles", "1", "--out", str(tmp_path / "out"))
+    done = cli_here("--config", str(path), "--iterations", "1", "--particles", "1", "--out", str(tmp_path / "out"))
     assert done.returncode == 2 and done.stderr.splitlines()[0].startswith("python -m agents.optimize: warning: "), (
         done.stderr
     )
@@ -68,7 +84,7 @@ def test_a_key_given_twice_in_a_config_is_refused_naming_file_and_key(tmp_path):
         read_config(path)
     nested = tmp_path / "nested.json"
     nested.write_text(json.dumps(TINY)[:-1] + ', "env_kwargs": {"knee_wedge": true, "knee_wedge": false}}')
-    done = cli("--config", str(nested), "--iterations", "1", "--particles", "4", "--out", str(tmp_path / "out"))
+    done = cli_here("--config", str(nested), "--iterations", "1", "--particles", "4", "--out", str(tmp_path / "out"))
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert f"{nested}: key 'knee_wedge' is given twice" in done.stderr
     assert not (tmp_path / "out").exists()
@@ -111,10 +127,10 @@ def test_a_finished_run_whose_best_json_is_lost_writes_it_again(tmp_path):
     config = write_config(tmp_path, seconds=0.5, sample_interval=0.5)
     out = tmp_path / "run"
     args = ("--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out))
-    assert cli(*args).returncode == 0
+    assert cli_here(*args).returncode == 0
     first = json.loads((out / "best.json").read_text())
     (out / "best.json").unlink()
-    again = cli(*args)
+    again = cli_here(*args)
     assert again.returncode == 0, again.stderr
     assert f"policy {out / 'best.json'}" in again.stdout
     assert json.loads((out / "best.json").read_text()) == first
@@ -246,7 +262,7 @@ def test_a_checkpoint_resumes_only_under_its_own_settings(tmp_path):
 def test_bad_configs_and_flags_are_one_line_errors_before_anything_is_made(tmp_path, change, args, message):
     config = write_config(tmp_path, **change)
     out = tmp_path / "out"
-    done = cli("--config", str(config), "--iterations", "1", "--particles", "4", *args, "--out", str(out))
+    done = cli_here("--config", str(config), "--iterations", "1", "--particles", "4", *args, "--out", str(out))
     assert done.returncode == 2, done.stderr
     assert message in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not out.exists()
@@ -278,7 +294,8 @@ def test_bad_env_kwargs_are_one_line_errors_naming_the_config_and_field(tmp_path
         env_kwargs = {"calibration": str(tmp_path / env_kwargs["calibration"])}
     config = write_config(tmp_path, env_kwargs=env_kwargs)
     out = tmp_path / "out"
-    done = cli("--config", str(config), "--iterations", "1", "--particles", "4", *args, "--out", str(out))
+    run_cli = cli if "ray" in args else cli_here  # the Ray case starts its cluster: in a process of its own
+    done = run_cli("--config", str(config), "--iterations", "1", "--particles", "4", *args, "--out", str(out))
     assert done.returncode == 2, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert f"{config}: field 'env_kwargs' = {env_kwargs!r}: " in done.stderr and message in done.stderr
@@ -290,7 +307,7 @@ def test_an_out_that_is_a_file_is_refused_and_left_alone(tmp_path):
     mine = tmp_path / "notes.txt"
     mine.write_text("keep")
     for out in (mine, mine / "run"):
-        done = cli("--config", str(config), "--iterations", "1", "--particles", "4", "--out", str(out))
+        done = cli_here("--config", str(config), "--iterations", "1", "--particles", "4", "--out", str(out))
         assert done.returncode == 2, done.stderr
         assert len(done.stderr.strip().splitlines()) == 1, done.stderr
         assert f"--out {out}: {mine} is a file, not a directory" in done.stderr
@@ -326,7 +343,7 @@ def test_a_damaged_checkpoint_is_refused_naming_it_and_left_alone(tmp_path, cont
     out = tmp_path / "run"
     out.mkdir()
     (out / "checkpoint.pkl").write_bytes(content)
-    done = cli("--config", str(config), "--iterations", "1", "--particles", "4", "--out", str(out))
+    done = cli_here("--config", str(config), "--iterations", "1", "--particles", "4", "--out", str(out))
     assert done.returncode == 2, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert f"cannot resume from {out / 'checkpoint.pkl'}: {reason}" in done.stderr
