@@ -53,7 +53,7 @@ def model_zip(tmp_path_factory) -> Path:
     return runs / "tiny" / "model.zip"
 
 
-def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zip, tmp_path):
+def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zip, tmp_path, capsys):
     out = tmp_path / "walk"
     done = run("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--policy", str(model_zip),
                "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "60", "--video",
@@ -94,7 +94,8 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten
-    again = run("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--episodes", "1", "--out", str(out))
+    again = run_here(capsys, "--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--episodes", "1", "--out",
+                     str(out))  # fmt: skip
     assert again.returncode != 0 and "already holds" in again.stderr
     assert json.loads((out / "results.json").read_text())["seeds"] == [5, 6, 7]
 
@@ -157,12 +158,11 @@ def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip
     assert not (tmp_path / "o").exists()
 
 
-def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path):
+def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path, capsys):
     truncated = tmp_path / "truncated.zip"
     truncated.write_bytes(model_zip.read_bytes()[: model_zip.stat().st_size // 2])
-    done = run(
-        "--env", "skitter/RoachWalk-v3", "--policy", str(truncated), "--episodes", "1", "--out", str(tmp_path / "o")
-    )
+    args = ("--env", "skitter/RoachWalk-v3", "--policy", str(truncated), "--episodes", "1", "--out", tmp_path / "o")
+    done = run_here(capsys, *map(str, args))
     assert done.returncode == 2
     assert "truncated or corrupt" in done.stderr and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
@@ -200,26 +200,26 @@ def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, capsys, args,
     assert not (tmp_path / "out").exists(), "nothing is created for bad input"
 
 
-def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path):
+def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path, capsys):
     out = tmp_path / "out"
     (out / "telemetry").mkdir(parents=True)
     (out / "telemetry" / "tripod.parquet").write_bytes(b"a user's file")
-    done = run(
-        "--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out", str(out), "--telemetry"
-    )
+    args = ("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out", out, "--telemetry")
+    done = run_here(capsys, *map(str, args))
     # no results.json beside it: the user's folder, not an earlier run's
     assert done.returncode == 2 and "holds files evaluate.py does not write (telemetry/)" in done.stderr
     assert "Traceback" not in done.stderr
     assert (out / "telemetry" / "tripod.parquet").read_bytes() == b"a user's file"
 
 
-def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path):
+def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path, capsys):
     (tmp_path / "somefile.txt").write_text("a user's file")
     for out, message in [
         (tmp_path / "somefile.txt" / "out", f"{tmp_path / 'somefile.txt'} is a file, not a directory"),
         (tmp_path / "somefile.txt", "exists and is not a directory"),
     ]:
-        done = run("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out", str(out))
+        done = run_here(capsys, "--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out",
+                        str(out))  # fmt: skip
         assert done.returncode == 2 and f"--out {out}" in done.stderr and message in done.stderr
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
     assert [p.name for p in tmp_path.iterdir()] == ["somefile.txt"]
