@@ -26,8 +26,8 @@ from envs.common.telemetry import ChannelLimit
 GOAL = "goal"
 OFFSET = "offset"
 # rad: the offset mode's reach, a servo's goal is its ready-posture angle plus this times the action, as MuJoCo
-# Playground's Go1 joystick (action_scale 0.5 around its default pose); the IK trot's goals stay within 0.38 rad of the
-# ready posture, walking and turning (docs/bioloid.md)
+# Playground's Go1 joystick (action_scale 0.5 around its default pose); every IK gait's goals stay within 0.384 rad of
+# the ready posture at any frequency and steering (tests/test_bioloid_gaits.py, docs/bioloid.md)
 OFFSET_SCALE = 0.5
 LOAD_FULL_SCALE = 1023.0  # an AX-12 reports its load as 0..1023 of its maximum torque, with a direction bit
 
