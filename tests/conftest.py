@@ -1,4 +1,8 @@
+import contextlib
+import io
 import os
+import subprocess
+from collections.abc import Callable
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -17,6 +21,19 @@ def model_bytes(model: mujoco.MjModel) -> bytes:
     buffer = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
     mujoco.mj_saveModel(model, None, buffer)
     return buffer.tobytes()
+
+
+def main_in_process(main: Callable[[list[str]], int], argv: list[str]) -> subprocess.CompletedProcess:
+    """A command's ``main(argv)`` in the test's process, its exit code (argparse's own exits included) and what it
+    printed, as ``subprocess.run`` gives them: the inputs a command refuses before anything runs, without a new
+    process loading torch for each case (the tests of the command line itself start one)."""
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+    return subprocess.CompletedProcess(argv, code, stdout.getvalue(), stderr.getvalue())
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -2,8 +2,6 @@
 uninterrupted run gives, the Ray backend equals the local batch, the distance travelled [bioloid-webots, eq. 17],
 randomized rollouts, one run per folder, and the command line's one-line errors."""
 
-import contextlib
-import io
 import json
 import os
 import pickle
@@ -22,6 +20,7 @@ from agents.optimize.problem import ConfigError, Evaluator, distance_travelled, 
 from agents.optimize.run import LocalBackend, RayBackend, RunError, Settings, run
 from envs.common.cluster import init_ray
 from envs.common.io import folder_lock
+from tests.conftest import main_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = {"env": "skitter/BioloidWalk-v2", "controller": "cpg", "coupling": "experiment5", "seconds": 8.0,
@@ -40,17 +39,9 @@ def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
 
 
 def cli_here(*args: str) -> subprocess.CompletedProcess:
-    """``python -m agents.optimize``'s ``main`` in the test's process, its exit code and what it printed: the inputs it
-    refuses before anything runs, without a new process loading the libraries for each case (the tests of a whole
-    run, a kill and Ray use :func:`cli`)."""
-    argv = ["--no-progress", *args]
-    stdout, stderr = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        try:
-            code = main(argv)
-        except SystemExit as exc:  # argparse's own errors
-            code = exc.code
-    return subprocess.CompletedProcess(argv, code, stdout.getvalue(), stderr.getvalue())
+    """``python -m agents.optimize``'s ``main`` in the test's process: the inputs it refuses before anything runs (the
+    tests of a whole run, a kill, a lock and Ray use :func:`cli`)."""
+    return main_in_process(main, ["--no-progress", *args])
 
 
 def test_distance_travelled_is_the_straight_plus_the_integrated_distance():

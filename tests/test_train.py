@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import os
 import re
@@ -21,6 +19,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 import envs  # noqa: F401  (registers the skitter envs)
 from agents.sb3 import ModelFileError, SB3Policy, read_model_file
+from tests.conftest import main_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 WALK = "skitter/RoachWalk-v3"
@@ -50,14 +49,7 @@ def train_in_process(*args: object) -> subprocess.CompletedProcess:
     run it)."""
     from agents import training as train
 
-    argv = [*map(str, args), "--no-progress"]
-    stdout, stderr = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        try:
-            code = train.main(argv)
-        except SystemExit as exc:  # argparse's own errors
-            code = exc.code
-    return subprocess.CompletedProcess(argv, code, stdout.getvalue(), stderr.getvalue())
+    return main_in_process(train.main, [*map(str, args), "--no-progress"])
 
 
 def train_ok(*args: object) -> subprocess.CompletedProcess:

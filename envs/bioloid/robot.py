@@ -177,8 +177,10 @@ class Bioloid(Robot):
         self.nominal_battery = servo_constants.supply_voltage
         self.imu_noise = imu_noise
         super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched, calibration)
-        if action_mode == OFFSET and knee_wedge:  # the wedge moves the ready posture's knees: centre on that one
-            self.mode = offset_mode(self.wedge)
+
+    def action_mode_of(self, name: str) -> ActionMode:
+        """The ``offset`` mode centred on this robot's ready posture (the knee wedge moves its knees)."""
+        return offset_mode(self.wedge) if name == OFFSET else super().action_mode_of(name)
 
     @classmethod
     def xml_path(cls) -> Path:

@@ -250,6 +250,11 @@ class Robot(ABC):
     # when it stands or walks (see :func:`standing_band`); None: no band
     height_band: ClassVar[tuple[float, float] | None] = None
 
+    def action_mode_of(self, name: str) -> ActionMode:
+        """The action mode ``name`` of :attr:`action_modes` for this robot; a robot whose mode depends on how it is
+        built (set before ``Robot.__init__``) overrides this."""
+        return self.action_modes[name]
+
     def __init__(
         self,
         action_mode: str,
@@ -274,7 +279,7 @@ class Robot(ABC):
         self.nthread = nthread
         if action_mode not in self.action_modes:
             raise ValueError(f"action_mode must be one of {sorted(self.action_modes)}, got {action_mode!r}")
-        self.mode = self.action_modes[action_mode]
+        self.mode = self.action_mode_of(action_mode)
         self.action_mode = action_mode
         freq = (
             self.mode.control_freq
