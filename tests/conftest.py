@@ -50,6 +50,7 @@ def env_id(request) -> str:
     return request.param
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the groups into the tests' ids
 def pytest_collection_modifyitems(config, items):
     """Under ``pytest -n 2 --dist loadgroup`` (``make test``): the tests that share a module-scoped fixture (a
     trained run, a compiled model) run on one worker, so that the fixture is made once, not once per worker."""

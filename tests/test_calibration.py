@@ -217,7 +217,9 @@ def _check_recovery(robot: str, effect: str, seed: int) -> Case:
 # effects (effect k of the catalog: seed k + 1); the matrix's coverage runs count its misses at other seeds.
 RECOVERY = [
     ("motor", "viscous_friction", 11, False),
-    ("servo", "delay", 12, False),
+    # the servo's delay takes 20 s: the matrix runs it at every draw and its coverage over 20 seeds
+    # (python -m benchmarks.calibration_matrix --robots servo), make test-slow too
+    pytest.param("servo", "delay", 12, False, marks=pytest.mark.slow),
     # the servo's friction forms and gearbox efficiency at the matrix's seeds for them; the load friction and the
     # efficiency recorded on the loaded bench (sysid.synth.recording). The Stribeck friction at seed 3: at the
     # matrix's seed 10 its Stribeck velocity is low (0.28 rad/s), where a lower velocity and a higher static level

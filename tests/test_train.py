@@ -52,8 +52,10 @@ def train_in_process(*args: object) -> subprocess.CompletedProcess:
     return main_in_process(train.main, [*map(str, args), "--no-progress"])
 
 
-def train_ok(*args: object) -> subprocess.CompletedProcess:
-    result = run_train(*args)
+def train_ok(*args: object, command_line: bool = False) -> subprocess.CompletedProcess:
+    """A run that must succeed: in this process, or as ``python train.py`` (``command_line``: the module's trained
+    run and one resume go through the command line itself)."""
+    result = run_train(*args) if command_line else train_in_process(*args)
     assert result.returncode == 0, result.stderr
     return result
 
@@ -83,9 +85,8 @@ def assert_policy_acts(model: Path, env_id: str = WALK) -> SB3Policy:
 def ppo_run(tmp_path_factory) -> Path:
     """A PPO run with the default hyperparameters: one update of 4 envs x 512 steps (each env ends an episode)."""
     runs = tmp_path_factory.mktemp("runs")
-    train_ok(
-        "--env", WALK, "--algo", "ppo", "--timesteps", 2048, "--seed", 3, "--checkpoint-freq", 1024, "--runs-dir", runs
-    )
+    train_ok("--env", WALK, "--algo", "ppo", "--timesteps", 2048, "--seed", 3, "--checkpoint-freq", 1024,
+             "--runs-dir", runs, command_line=True)  # fmt: skip
     (run_dir,) = runs.iterdir()
     return run_dir
 
@@ -125,7 +126,7 @@ def test_ppo_run_writes_model_config_checkpoints_and_logs(ppo_run):
 
 def test_resume_continues_the_run_in_its_folder(ppo_run, tmp_path):
     run_dir = shutil.copytree(ppo_run, tmp_path / ppo_run.name)
-    train_ok("--resume", run_dir, "--timesteps", 4096)
+    train_ok("--resume", run_dir, "--timesteps", 4096, command_line=True)
     assert sorted(path.name for path in tmp_path.iterdir()) == [ppo_run.name]
     assert max(checkpoints(run_dir)) == 4096
     assert SB3Policy(run_dir / "model.zip").model.num_timesteps == 4096
@@ -272,8 +273,9 @@ def test_bad_input_is_a_one_line_error(case, tmp_path):
     assert not (tmp_path / "runs").exists()
 
 
-@pytest.mark.parametrize("case", ["unknown env", "bad env_kwargs value"])
-def test_bad_input_is_a_one_line_error_from_the_command_line(case, tmp_path):
+def test_bad_input_is_a_one_line_error_from_the_command_line(tmp_path):
+    """One case through ``python train.py`` itself (the others run ``main`` in this process, above)."""
+    case = "bad env_kwargs value"
     assert_one_line_error(run_train(*_bad_input_args(case, tmp_path)), *BAD_INPUTS[case][2])
     assert not (tmp_path / "runs").exists()
 
@@ -342,8 +344,7 @@ def tiny_run(tmp_path_factory) -> Path:
     runs = tmp_path_factory.mktemp("runs")
     (runs / "ppo.yml").write_text(TINY_PPO)
     args = ["--env", WALK, "--algo", "ppo", "--timesteps", 128, "--checkpoint-freq", 64, "--run-name", "tiny"]
-    result = run_train(*args, "--runs-dir", runs, "--hyperparams", runs / "ppo.yml")
-    assert result.returncode == 0, result.stderr
+    train_ok(*args, "--runs-dir", runs, "--hyperparams", runs / "ppo.yml")
     return runs / "tiny"
 
 
@@ -475,8 +476,7 @@ def test_resume_removes_what_a_killed_run_left_half_written(tiny_run, tmp_path):
     stale.mkdir()
     (stale / "model.zip").write_bytes(b"half a model")
     (run_dir / ".model.k1ll3d_0.tmp.zip").write_bytes(b"half a model")
-    result = run_train("--resume", run_dir, "--timesteps", 192)
-    assert result.returncode == 0, result.stderr
+    result = train_ok("--resume", run_dir, "--timesteps", 192)
     assert "removed what a killed run left half-written" in result.stderr
     assert not stale.exists() and not list(run_dir.glob(".*"))
     assert max(checkpoints(run_dir)) == 192
@@ -659,8 +659,7 @@ def test_resume_by_name_in_runs_dir_removes_only_its_own_temporary_files(tiny_ru
              run_dir / "checkpoints" / ".step_notes"]  # fmt: skip
     for path in users:
         path.write_text("the user's")
-    result = run_train("--resume", "mine", "--runs-dir", runs, "--timesteps", 192)
-    assert result.returncode == 0, result.stderr
+    result = train_ok("--resume", "mine", "--runs-dir", runs, "--timesteps", 192)
     assert f"resuming {run_dir} from step_0000000128" in result.stdout and max(checkpoints(run_dir)) == 192
     assert (
         not any(path.exists() for path in ours) and not (run_dir / "checkpoints" / ".step_0000000192.q1w2e3r4").exists()

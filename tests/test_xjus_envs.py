@@ -10,6 +10,7 @@ from agents import load_policy
 from agents.evaluation import run_episodes
 from envs.common.terrain import Terrain
 from envs.xjus import constants
+from tests.conftest import main_in_process
 
 WALK, TURN, ROUGH = "skitter/XjusWalk-v1", "skitter/XjusTurn-v2", "skitter/XjusRough-v1"
 XJUS_IDS = [WALK, TURN, ROUGH]
@@ -252,11 +253,9 @@ def test_bad_reset_options_are_refused():
     ],
 )
 def test_the_spine_study_refuses_bad_arguments_in_one_line_before_running(args, message, tmp_path):
-    import subprocess
-    import sys
+    from benchmarks import spine_study
 
-    command = [sys.executable, "-m", "benchmarks.spine_study", *args, "--name", "test_refused_" + tmp_path.name]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    done = main_in_process(spine_study.main, [*args, "--name", "test_refused_" + tmp_path.name])
     assert done.returncode == 2
     assert message in done.stderr and "Traceback" not in done.stderr, done.stderr
     assert not list((Path(__file__).parents[1] / "benchmarks" / "results").glob("test_refused_*"))
