@@ -159,6 +159,7 @@ CONFIGURATIONS: dict[str, list[str]] = {
                                        "gearbox_efficiency_left", "gearbox_efficiency_right", "sensor_gain_bemf_left",
                                        "sensor_gain_bemf_right", "sensor_coupling_bemf_left",
                                        "sensor_coupling_bemf_right"],
+    "calibration_matrix_servo": ["--robots", "servo"],
 }  # fmt: skip
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py). The budget,
 workers, threads and cluster address say how a matrix runs, not what it measures (a case cut by the budget is listed
