@@ -541,7 +541,9 @@ def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys)
 
 
 def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
-    (train,), (test,), _ = pair("motor", {"coulomb_friction": 0.2}, seed=15)
+    # logs of 4 s, not the matrix's 10: the command's files and its second run are what is tested here
+    (train,), truth = synth.record("motor", {"coulomb_friction": 0.2}, 15, seconds=4.0)
+    (test,), _ = synth.record("motor", truth["effects"], 15 + TEST_SEED_OFFSET, seconds=4.0, show=True)
     paths = []
     for name, log in (("train", train), ("test", test)):
         path = tmp_path / f"{name}.parquet"
