@@ -685,6 +685,37 @@ def publish_media(text: str, out: Path, docs: Path, records: Path | None = None)
     return text
 
 
+PAGE_START = "# Results\n\nLearning against each task's reference"  # how every page :func:`render` writes begins
+
+
+def docs_problem(docs: Path) -> str | None:
+    """Why ``--docs`` cannot take the page, or None: it must be a Markdown file whose folder can hold it, and an
+    existing file there must be a page this command wrote (it is replaced), never a user's own file. Its media go
+    into the folder of its name beside it (``docs/results/``), which may hold only a page's ``plots/`` and
+    ``videos/``."""
+    if docs.suffix != ".md":
+        return "the page is Markdown: give a path ending in .md"
+    for parent in docs.parents:
+        if parent.exists() and not parent.is_dir():
+            return f"{parent} is a file, not a folder"
+    if docs.is_dir():
+        return "is a folder; give the page's file name (e.g. results.md)"
+    media = docs.with_suffix("")
+    if media.exists() and not media.is_dir():
+        return f"its media folder {media} is a file"
+    if docs.exists():
+        try:
+            with docs.open(encoding="utf-8") as page:
+                begins = page.read(len(PAGE_START))
+        except (OSError, UnicodeDecodeError) as exc:
+            return f"exists and cannot be read as this command's page ({exc})"
+        if begins != PAGE_START:
+            return "exists and is not a page this command wrote (it would be replaced); give another path"
+    elif media.is_dir() and any(e.name not in ("plots", "videos") or not e.is_dir() for e in media.iterdir()):
+        return f"{media} holds other files than a page's plots and videos; give another path"
+    return None
+
+
 def _save(fig: Any, path: Path) -> None:
     atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=100, bbox_inches="tight"))
     import matplotlib.pyplot as plt
@@ -946,6 +977,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         value = getattr(args, name)
         if value is not None and Path(value).exists() and not Path(value).is_dir():
             parser.error(f"--{name} {value}: exists and is not a folder")
+    if args.docs is not None:
+        problem = docs_problem(Path(args.docs))
+        if problem:
+            parser.error(f"--docs {args.docs}: {problem}")
     reruns = []
     for text in args.rerun:
         parts = text.rsplit(":", 2)
@@ -1022,7 +1057,7 @@ def main(argv: list[str] | None = None) -> int:
 def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
     """Everything a command can be refused for, before anything runs or is removed: rows to rerun that are not in
     the plan, hyperparameter files without an entry for a task, finished rows and baselines of other settings."""
-    from agents.training import read_yaml
+    from agents.training import entry_key, load_hyperparams, read_yaml
 
     for row in reruns:
         if row not in plan.rows:
@@ -1033,6 +1068,12 @@ def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
         missing = [t for t in plan.tasks if not isinstance(table, dict) or not isinstance(table.get(t), dict)]
         if missing:
             raise ValueError(f"{path}: no entry for {', '.join(missing)}")
+    for algo in plan.algos:  # every entry a row's train.py takes, checked as train.py checks it (ConfigError)
+        base = algo.removesuffix(RESIDUAL)
+        path = Path(_hyperparams(plan.hyperparams, base)) if plan.hyperparams else ROOT / "hyperparams" / f"{base}.yml"
+        for task in plan.tasks:
+            if not is_soccer(task):  # a soccer entry is checked by self-play's own start (its players per match)
+                load_hyperparams(path, entry_key(path, task, algo.endswith(RESIDUAL)), base)
     for task in plan.tasks:
         _load_done(task_file(records, task), plan.task_settings(task), task)
     for row in plan.rows:

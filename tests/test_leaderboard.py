@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +11,8 @@ import yaml
 
 from agents import leaderboard
 from agents.training import main as train_main
+
+ROOT = Path(__file__).resolve().parents[1]
 
 WALK = "skitter/RoachWalk-v3"
 XJUS = "skitter/XjusWalk-v1"
@@ -138,6 +141,44 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
     assert leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--rerun", f"{WALK}:sac:0", "--out",
                              str(tmp_path / "b")]) == 2  # fmt: skip
     assert "not a row of this plan" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()
+
+
+def test_a_docs_page_that_is_not_the_leaderboards_own_is_refused_before_anything_runs(tmp_path, capsys):
+    """``--docs`` replaces a page this command wrote (docs/results.md), never a user's file, and never traces back
+    on a folder or a path under a file."""
+    notes = tmp_path / "notes.md"
+    notes.write_text("my own notes\n")
+    (tmp_path / "folder.md").mkdir()
+    (tmp_path / "file").write_text("a file")
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "mine.txt").write_text("a user's")
+    for docs, message in (
+        (notes, "exists and is not a page this command wrote"),
+        (tmp_path / "folder.md", "is a folder"),
+        (tmp_path / "file" / "page.md", "is a file, not a folder"),
+        (tmp_path / "page.txt", "give a path ending in .md"),
+        (tmp_path / "other.md", "holds other files than a page's plots and videos"),
+    ):
+        with pytest.raises(SystemExit) as exited:
+            leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--table-only", "--out", str(tmp_path / "b"),
+                              "--docs", str(docs)])  # fmt: skip
+        err = capsys.readouterr().err
+        assert exited.value.code == 2 and f"--docs {docs}: " in err and message in err and "Traceback" not in err, err
+    assert notes.read_text() == "my own notes\n" and not (tmp_path / "b").exists() and not (tmp_path / "notes").exists()
+    # the leaderboard's own page, as make leaderboard-table writes it, is taken
+    page = tmp_path / "results.md"
+    page.write_text((ROOT / "docs" / "results.md").read_text())
+    assert leaderboard.docs_problem(page) is None and leaderboard.docs_problem(tmp_path / "new" / "page.md") is None
+
+
+def test_a_hyperparameter_entry_train_py_would_refuse_is_refused_before_anything_runs(tmp_path, capsys):
+    bad = tmp_path / "ppo.yml"
+    bad.write_text(f'{WALK}:\n  n_envs: "four"\n')
+    assert leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--seeds", "0", "--out", str(tmp_path / "b"),
+                             "--hyperparams", str(bad)]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert str(bad) in err and "n_envs" in err and "four" in err, err
     assert not (tmp_path / "b").exists()
 
 
