@@ -77,16 +77,36 @@ def read_model_file(path: str | Path) -> tuple[dict[str, Any] | None, VecNormali
                 )
             manifest = json.loads(archive.read(MANIFEST)) if MANIFEST in names else None
             stats = _unpickle_stats(archive.read(STATS), f"{STATS} inside {path}") if STATS in names else None
+    except ModelFileError:
+        raise  # already says what is wrong (a ValueError too: not the manifest's fault)
     except (zipfile.BadZipFile, EOFError, OSError) as exc:
         raise ModelFileError(f"{path}: not a readable model file, truncated or corrupt ({exc})") from None
     except (json.JSONDecodeError, ValueError) as exc:
         raise ModelFileError(f"{path}: corrupt {MANIFEST} inside the model file ({exc})") from None
+    _check_manifest(path, manifest)
     if manifest is not None and manifest.get("normalized") and stats is None:
         raise ModelFileError(
             f"{path}: the model was trained on normalized observations but its file lacks the statistics "
             f"({STATS}); it would be scored on the wrong inputs"
         )
     return manifest, stats
+
+
+# the manifest's fields that evaluation reads, and their JSON types
+_MANIFEST_TYPES = {"env_id": (str,), "algo": (str,), "normalized": (bool,), "residual": (dict, type(None))}
+
+
+def _check_manifest(path: Path, manifest: Any) -> None:
+    """A manifest train.py wrote is a JSON object whose fields have their types: one damaged by hand (an env id of
+    5) is refused naming the field, not read past."""
+    if manifest is None:
+        return
+    if not isinstance(manifest, dict):
+        raise ModelFileError(f"{path}: corrupt {MANIFEST} inside the model file (a JSON object expected)")
+    for field, types in _MANIFEST_TYPES.items():
+        if field in manifest and not isinstance(manifest[field], types):
+            raise ModelFileError(f"{path}: corrupt {MANIFEST} inside the model file (field {field!r} = "
+                                 f"{manifest[field]!r})")  # fmt: skip
 
 
 def _unpickle_stats(data: bytes, where: str) -> VecNormalize:

@@ -928,6 +928,20 @@ def run_manifest(config: dict[str, Any]) -> dict[str, Any]:
     return {**manifest, "soccer": config["soccer"]} if "soccer" in config else manifest
 
 
+def _say_whole_rollouts(model: BaseAlgorithm, timesteps: int) -> None:
+    """An on-policy algorithm (PPO) learns from whole rollouts of ``n_envs x n_steps``: where ``timesteps`` is not a
+    whole number of them past the model's steps, the run ends at the next whole one, and says so up front."""
+    n_steps = getattr(model, "n_steps", None)
+    if not isinstance(n_steps, int) or model.num_timesteps >= timesteps:
+        return
+    rollout = n_steps * model.n_envs
+    left = timesteps - model.num_timesteps
+    if left % rollout:
+        end = model.num_timesteps + -(-left // rollout) * rollout
+        print(f"note: {type(model).__name__} learns from whole rollouts of {rollout} steps ({model.n_envs} envs x "
+              f"{n_steps}): this run ends at {end} steps, not {timesteps}", file=sys.stderr)  # fmt: skip
+
+
 def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool,
           callbacks: list[BaseCallback] | None = None) -> Path:  # fmt: skip
     """Train ``model`` until it has taken ``config["timesteps"]`` env steps in all, logging and checkpointing into
@@ -946,6 +960,7 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
     logging = [EpisodeMetricsCallback()] if callbacks is None else callbacks
     if config.get("minutes"):
         logging = [*logging, TimeBudgetCallback(config["minutes"])]
+    _say_whole_rollouts(model, config["timesteps"])
     try:
         model.learn(
             config["timesteps"] - model.num_timesteps,

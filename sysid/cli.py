@@ -183,6 +183,9 @@ def _run(args: argparse.Namespace) -> int:
         for name in args.fit or ():
             if name not in known:
                 raise LogError(f"--fit {name!r}: {args.robot} has no such effect (known: {', '.join(known)})")
+        repeated = sorted({name for name in args.fit or () if args.fit.count(name) > 1})
+        if repeated:
+            raise LogError(f"--fit names {', '.join(repeated)} more than once: give each effect once")
     except (LogError, CalibrationError) as exc:
         print(f"calibrate.py: error: {exc}", file=sys.stderr)
         return 2

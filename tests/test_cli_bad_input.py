@@ -55,6 +55,12 @@ def test_calibrate_out_under_a_file_is_refused_before_fitting(capsys, tmp_path):
     assert files(tmp_path) == before
 
 
+def test_calibrate_fit_of_one_effect_twice_is_refused_before_fitting(capsys, tmp_path):
+    code, err = calibrate_with(capsys, tmp_path / "out", "--fit", "delay", "coulomb_friction", "delay")
+    assert code == 2 and "--fit names delay more than once" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_calibrate_overwrite_refuses_a_folder_with_files_it_did_not_write(capsys, tmp_path):
     out = tmp_path / "out"
     out.mkdir()

@@ -298,6 +298,20 @@ def test_a_model_trained_on_another_env_with_the_same_shapes_is_refused_naming_b
     assert "not on skitter/RoachWalk-v3" in err and not (tmp_path / "out").exists()
 
 
+def test_a_damaged_manifest_or_a_zip_that_is_no_model_is_named_for_what_it_is(model_zip, tmp_path, capsys):
+    """A manifest field of the wrong type is refused naming it (it was read past); a zip of something else is said
+    to be no model, not to hold a corrupt manifest."""
+    model = copy_model(model_zip, tmp_path / "model.zip", replace={"skitter.json": b'{"env_id": 5}'})
+    code, err = evaluate_main(capsys, model, tmp_path / "out")
+    assert code == 2 and "corrupt skitter.json inside the model file (field 'env_id' = 5)" in err, err
+    other = tmp_path / "other.zip"
+    with zipfile.ZipFile(other, "w") as archive:
+        archive.writestr("notes.txt", "not a model")
+    code, err = evaluate_main(capsys, other, tmp_path / "out")
+    assert code == 2 and "not a Stable-Baselines3 model (no 'data' entry)" in err and "skitter.json" not in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_model_without_metadata_must_match_the_envs_action_space(model_zip, tmp_path):
     from gymnasium.wrappers import RescaleAction
 

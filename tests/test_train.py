@@ -15,6 +15,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import pytest
+import yaml
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 import envs  # noqa: F401  (registers the skitter envs)
@@ -742,6 +743,13 @@ def test_every_registered_env_has_a_checked_entry_in_the_shipped_hyperparameters
 def test_ppo_trains_the_later_robots_with_the_shipped_hyperparameters(env_id, tmp_path):
     done = train_in_process("--env", env_id, "--algo", "ppo", "--timesteps", 1, "--n-envs", 2, "--runs-dir", tmp_path)
     assert done.returncode == 0, done.stderr
+    # PPO learns whole rollouts: the run says where it ends, up front
+    n_steps = yaml.safe_load((ROOT / "hyperparams" / "ppo.yml").read_text())[env_id]["n_steps"]
+    rollout = 2 * n_steps
+    assert (
+        f"whole rollouts of {rollout} steps (2 envs x {n_steps}): this run ends at {rollout} steps, not 1"
+        in done.stderr
+    )
     (run_dir,) = tmp_path.iterdir()
     assert (run_dir / "model.zip").is_file()
     assert_policy_acts(run_dir / "model.zip", env_id)
