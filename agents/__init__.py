@@ -123,7 +123,13 @@ def load_policy(spec: str, env) -> Policy:
             return model
         residual = parse_residual(residual)
         return ResidualPolicy(model, residual, residual_reference(residual.policy, env), env)
-    name, _, arg = spec.partition(":")
+    if Path(spec).is_dir():  # a run folder: its final model is inside
+        inside = Path(spec) / "model.zip"
+        hint = f"; its model is {inside}" if inside.is_file() else ""
+        raise ValueError(f"policy {spec!r} is a folder: give the path of a model.zip{hint}")
+    name, colon, arg = spec.partition(":")
+    if colon and not arg:
+        raise ValueError(f"policy {spec!r}: nothing after ':' (give {name!r} alone, or {name}:VALUE)")
     if name == "random":
         return RandomPolicy(env, arg)
     robot = env.unwrapped.robot.name

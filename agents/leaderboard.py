@@ -965,8 +965,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"{name} must be at least {least}, got {value}")
     if args.minutes is not None and not args.minutes > 0:
         parser.error(f"--minutes must be positive, got {args.minutes}")
-    if min(args.seeds) < 0 or args.eval_seed < 0:
-        parser.error("seeds must be whole numbers >= 0")
+    negative = [s for s in (*args.seeds, args.eval_seed) if s < 0]
+    if negative:
+        parser.error(f"seeds must be whole numbers >= 0, got {negative[0]}")
     if len(set(args.seeds)) != len(args.seeds) or len(set(args.algos)) != len(args.algos):
         parser.error("--seeds and --algos must not repeat themselves")
     if args.hyperparams is not None and not Path(args.hyperparams).exists():

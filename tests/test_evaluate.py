@@ -187,6 +187,8 @@ def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
         (["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--seed", "-1"], "--seed", False),
         (["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--policy", "tripod"], "given twice", False),
         (["--env", "skitter/RoachWalk-v3", "--policy", "tripod:fast"], "not a number", False),
+        (["--env", "skitter/RoachWalk-v3", "--policy", "tripod:"], "nothing after ':'", False),
+        (["--env", "skitter/RoachWalk-v3", "--policy", "tests"], "is a folder: give the path of a model.zip", False),
     ],
 )
 def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, capsys, args, message, command_line):

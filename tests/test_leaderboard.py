@@ -133,6 +133,7 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
         (["--tasks", WALK, "--timesteps", f"{WALK}=10", f"{WALK}=20"], "given twice"),
         (["--tasks", WALK, XJUS, "--timesteps", "10", "20"], "TASK=N for every task"),
         (["--tasks", WALK, "--timesteps", "10", "--rerun", "x"], "expected TASK:ALGO:SEED"),
+        (["--tasks", WALK, "--timesteps", "10", "--seeds", "0", "-1"], "seeds must be whole numbers >= 0, got -1"),
         (["--tasks", WALK, "--timesteps", "10", "--hyperparams", str(tmp_path / "none.yml")], "no such file"),
     ):
         with pytest.raises(SystemExit) as exited:
