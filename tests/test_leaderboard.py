@@ -59,6 +59,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert set(summary["overall"]) == {"ppo"}
     text = docs.read_text()
     assert "| `skitter/RoachWalk-v3` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
+    assert text.startswith(leaderboard.PAGE_START) and leaderboard.docs_problem(docs) is None  # its own: replaceable
     for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v3.png"):
         assert (out / "plots" / plot).stat().st_size > 5_000
     video = out / "videos" / "skitter_RoachWalk-v3" / "eval" / "videos" / "side_by_side.mp4"
