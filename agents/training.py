@@ -485,8 +485,11 @@ def _noise_type(value: Any) -> str:
 
 def _normalize_kwargs(value: Any, gamma: float) -> dict[str, Any] | None:
     """VecNormalize arguments from ``normalize``: a bool, a mapping, or a Zoo-style string of a dict."""
-    if isinstance(value, str):
-        value = parse_expression(value)
+    if isinstance(value, str):  # a quoted word ("yes") is no expression: say what the field takes
+        try:
+            value = parse_expression(value)
+        except ValueError:
+            raise ValueError("expected true, false or a mapping of VecNormalize arguments (unquoted)") from None
     if isinstance(value, bool):
         return {"gamma": gamma} if value else None
     if not isinstance(value, dict):

@@ -167,6 +167,7 @@ BAD_INPUTS = {
     "negative seed": ({}, ["--seed", "-1"], ["--seed", "-1"]),
     "env missing from file": ({"skitter/RoachTurn-v0": "  n_steps: 64"}, [], ["bad.yml", WALK, "no entry"]),
     "bad value": ({WALK: "  gamma: 1.5"}, [], ["bad.yml", "gamma", "1.5"]),
+    "a quoted word for normalize": ({WALK: '  normalize: "yes"'}, [], ["bad.yml", "normalize", "expected true, false"]),
     "wrong type": ({WALK: "  n_steps: lots"}, [], ["bad.yml", "n_steps", "lots"]),
     "unknown field": ({WALK: "  n_step: 64"}, [], ["bad.yml", "n_step", "did you mean 'n_steps'"]),
     "non-positive timesteps": ({}, ["--timesteps", "0"], ["--timesteps"]),
