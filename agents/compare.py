@@ -32,6 +32,7 @@ import pandas as pd
 
 import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
+from agents.config import closest_env
 from agents.evaluation import (
     MIN_BOOTSTRAP,
     Episode,
@@ -112,8 +113,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.max_episode_steps is not None and args.max_episode_steps < 1:
         p.error(f"--max-episode-steps must be at least 1, got {args.max_episode_steps}")
     if args.env not in gym.registry:
-        known = ", ".join(sorted(k for k in gym.registry if k.startswith("skitter/")))
-        p.error(f"--env {args.env!r} is not registered; known: {known}")
+        known = sorted(k for k in gym.registry if k.startswith("skitter/"))
+        p.error(f"--env {args.env!r} is not registered{closest_env(args.env, known)}; known: {', '.join(known)}")
     if args.calibration is not None:
         try:
             read_calibration(args.calibration)

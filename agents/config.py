@@ -7,3 +7,13 @@ from __future__ import annotations
 
 class ConfigError(ValueError):
     """A configuration that cannot be used; the message names the file (or flag), the field and the value."""
+
+
+def closest_env(env_id: str, registered: list[str]) -> str:
+    """``" (did you mean 'X'?)"`` for the registered id nearest ``env_id`` (case and version typos), or ``""``."""
+    import difflib
+
+    lowered = {name.lower(): name for name in registered}
+    asked = env_id.lower() if "/" in env_id else f"skitter/{env_id.lower()}"  # the namespace left out
+    close = difflib.get_close_matches(asked, sorted(lowered), n=1, cutoff=0.8)
+    return f" (did you mean {lowered[close[0]]!r}?)" if close else ""

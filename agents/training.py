@@ -83,7 +83,7 @@ from torch.utils.tensorboard import SummaryWriter
 
 import envs  # noqa: F401  (registers the skitter envs)
 from agents import residual_reference
-from agents.config import ConfigError
+from agents.config import ConfigError, closest_env
 from agents.evaluation import episode_metrics
 from agents.residual import (
     SETTINGS,
@@ -1307,8 +1307,9 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
 
 def check_env_id(env_id: str) -> None:
     if env_id not in gym.registry:
-        skitter = ", ".join(name for name in gym.registry if name.startswith("skitter/"))
-        raise ConfigError(f"unknown env {env_id!r}; the skitter envs are {skitter}")
+        skitter = [name for name in gym.registry if name.startswith("skitter/")]
+        raise ConfigError(f"unknown env {env_id!r}{closest_env(env_id, skitter)}; the skitter envs are "
+                          f"{', '.join(skitter)}")  # fmt: skip
 
 
 def check_resume_flags(args: argparse.Namespace, config: dict[str, Any]) -> None:

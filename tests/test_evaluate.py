@@ -181,6 +181,7 @@ def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
     ("args", "message", "command_line"),
     [
         (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "not registered", True),
+        (["--env", "roachwalk-v3", "--policy", "tripod"], "(did you mean 'skitter/RoachWalk-v3'?)", False),
         (["--env", "skitter/RoachWalk-v3", "--policy", "no/such/model.zip"], "no trained model", True),
         (["--env", "skitter/RoachWalk-v3", "--policy", "moonwalk"], "unknown policy", False),
         (["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "0"], "--episodes", False),

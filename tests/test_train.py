@@ -162,6 +162,11 @@ def test_off_policy_algorithms_train(algo, tmp_path):
 
 BAD_INPUTS = {
     "unknown env": ({}, ["--env", "skitter/NoSuchEnv-v0"], ["skitter/NoSuchEnv-v0"]),
+    "an old version": (
+        {},
+        ["--env", "skitter/RoachWalk-v2"],
+        ["'skitter/RoachWalk-v2' (did you mean 'skitter/RoachWalk-v3'?)"],
+    ),
     "bad env_kwargs value": ({WALK: "  env_kwargs: {max_tilt: -1.0}"}, [], ["bad.yml", "env_kwargs", "max_tilt"]),
     "unknown env_kwargs": ({WALK: "  env_kwargs: {legs: 8}"}, [], ["bad.yml", "env_kwargs", "legs"]),
     "negative seed": ({}, ["--seed", "-1"], ["--seed", "-1"]),
