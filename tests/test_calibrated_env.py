@@ -170,6 +170,7 @@ def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
         ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
         ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
         ("skitter/RoachWalk-v3", "velociroach", {"version": 7}, ["'version'"]),
+        ("skitter/RoachWalk-v3", "velociroach", {"version": "1"}, ["'version': '1' (a string, not a number)"]),
         ("skitter/XjusWalk-v1", "xjus", {"effects": {"viscous_friction_left": {"damping": 5.0}}},
          ["viscous_friction_left.damping", "outside its range"]),
         ("skitter/BioloidWalk-v2", "bioloid", {"effects": {"servo_gain": {"scale": 9.0}}},

@@ -79,9 +79,9 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     if data.get("format") != FORMAT:
         raise CalibrationError(f"{path}: field 'format': {data.get('format')!r} is not {FORMAT!r}")
     if data.get("version") != VERSION:
-        raise CalibrationError(
-            f"{path}: field 'version': {data.get('version')!r}; this skitter reads version {VERSION}"
-        )
+        given = data.get("version")
+        kind = " (a string, not a number)" if isinstance(given, str) else ""
+        raise CalibrationError(f"{path}: field 'version': {given!r}{kind}; this skitter reads version {VERSION}")
     name = data.get("robot")
     if not isinstance(name, str):
         raise CalibrationError(f"{path}: field 'robot': {name!r} is not a robot name")
