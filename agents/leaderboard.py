@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from envs.common.batch import THREADS_VARIABLE
-from envs.common.io import ToolParser, atomic_write, write_json, write_text
+from envs.common.io import ToolParser, atomic_write, parent_problem, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RETURN = "return"
@@ -695,12 +695,12 @@ def docs_problem(docs: Path) -> str | None:
     ``videos/``."""
     if docs.suffix != ".md":
         return "the page is Markdown: give a path ending in .md"
-    for parent in docs.parents:
-        if parent.exists() and not parent.is_dir():
-            return f"{parent} is a file, not a folder"
     if docs.is_dir():
         return "is a folder; give the page's file name (e.g. results.md)"
     media = docs.with_suffix("")
+    problem = parent_problem(docs)  # a file on the path: nothing below can be read or made
+    if problem:
+        return problem
     if media.exists() and not media.is_dir():
         return f"its media folder {media} is a file"
     if docs.exists():
@@ -1063,18 +1063,19 @@ def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
     for row in reruns:
         if row not in plan.rows:
             raise ValueError(f"--rerun {row.task}:{row.algo}:{row.seed}: not a row of this plan")
-    for algo in {a.removesuffix(RESIDUAL) for a in plan.algos}:
-        path = Path(_hyperparams(plan.hyperparams, algo)) if plan.hyperparams else ROOT / "hyperparams" / f"{algo}.yml"
-        table = read_yaml(path)
+
+    def file_of(base: str) -> Path:
+        return Path(_hyperparams(plan.hyperparams, base)) if plan.hyperparams else ROOT / "hyperparams" / f"{base}.yml"
+
+    for base in {a.removesuffix(RESIDUAL) for a in plan.algos}:
+        table = read_yaml(file_of(base))
         missing = [t for t in plan.tasks if not isinstance(table, dict) or not isinstance(table.get(t), dict)]
         if missing:
-            raise ValueError(f"{path}: no entry for {', '.join(missing)}")
+            raise ValueError(f"{file_of(base)}: no entry for {', '.join(missing)}")
     for algo in plan.algos:  # every entry a row's train.py takes, checked as train.py checks it (ConfigError)
-        base = algo.removesuffix(RESIDUAL)
-        path = Path(_hyperparams(plan.hyperparams, base)) if plan.hyperparams else ROOT / "hyperparams" / f"{base}.yml"
-        for task in plan.tasks:
-            if not is_soccer(task):  # a soccer entry is checked by self-play's own start (its players per match)
-                load_hyperparams(path, entry_key(path, task, algo.endswith(RESIDUAL)), base)
+        base, path = algo.removesuffix(RESIDUAL), file_of(algo.removesuffix(RESIDUAL))
+        for task in (t for t in plan.tasks if not is_soccer(t)):  # a soccer entry: checked by self-play's start
+            load_hyperparams(path, entry_key(path, task, algo.endswith(RESIDUAL)), base)
     for task in plan.tasks:
         _load_done(task_file(records, task), plan.task_settings(task), task)
     for row in plan.rows:

@@ -13,7 +13,7 @@ import pytest
 
 import envs  # noqa: F401  (registers the envs)
 from agents import reference_policy
-from tests.conftest import ENV_IDS
+from tests.conftest import ENV_IDS, main_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -24,18 +24,12 @@ def run(*args: str) -> subprocess.CompletedProcess:
     )
 
 
-def run_here(capsys, *args: str) -> subprocess.CompletedProcess:
-    """evaluate.py's ``main`` in this process (its exit code, what it printed): what the command line does, without
-    a new process loading torch (the tests that need the command line itself use :func:`run`)."""
+def run_here(*args: str) -> subprocess.CompletedProcess:
+    """evaluate.py's ``main`` in this process: what the command line does, without a new process loading torch (the
+    tests that need the command line itself use :func:`run`)."""
     import evaluate
 
-    capsys.readouterr()
-    try:
-        code = evaluate.main(list(args))
-    except SystemExit as stop:
-        code = stop.code
-    printed = capsys.readouterr()
-    return subprocess.CompletedProcess(list(args), code, printed.out, printed.err)
+    return main_in_process(evaluate.main, list(args))
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +88,7 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten
-    again = run_here(capsys, "--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--episodes", "1", "--out",
+    again = run_here("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--episodes", "1", "--out",
                      str(out))  # fmt: skip
     assert again.returncode != 0 and "already holds" in again.stderr
     assert json.loads((out / "results.json").read_text())["seeds"] == [5, 6, 7]
@@ -150,7 +144,6 @@ def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip
             if item.filename != "vecnormalize.pkl":
                 dst.writestr(item, src.read(item))
     done = run_here(
-        capsys,
         *("--env", "skitter/RoachWalk-v3", "--policy", str(stripped), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2
@@ -162,7 +155,7 @@ def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path, capsys):
     truncated = tmp_path / "truncated.zip"
     truncated.write_bytes(model_zip.read_bytes()[: model_zip.stat().st_size // 2])
     args = ("--env", "skitter/RoachWalk-v3", "--policy", str(truncated), "--episodes", "1", "--out", tmp_path / "o")
-    done = run_here(capsys, *map(str, args))
+    done = run_here(*map(str, args))
     assert done.returncode == 2
     assert "truncated or corrupt" in done.stderr and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
@@ -170,7 +163,6 @@ def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path, capsys):
 
 def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
     done = run_here(
-        capsys,
         *("--env", "skitter/RoachTurn-v4", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
@@ -196,7 +188,7 @@ def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, capsys, args,
     """Two cases from the command line itself (a new process: no traceback reaches the user), the others through
     its ``main`` in this process (where a traceback would fail the test)."""
     where = [*args, "--out", str(tmp_path / "out")]
-    done = run(*where) if command_line else run_here(capsys, *where)
+    done = run(*where) if command_line else run_here(*where)
     assert done.returncode == 2
     assert message in done.stderr
     assert "Traceback" not in done.stderr
@@ -208,7 +200,7 @@ def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path, 
     (out / "telemetry").mkdir(parents=True)
     (out / "telemetry" / "tripod.parquet").write_bytes(b"a user's file")
     args = ("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out", out, "--telemetry")
-    done = run_here(capsys, *map(str, args))
+    done = run_here(*map(str, args))
     # no results.json beside it: the user's folder, not an earlier run's
     assert done.returncode == 2 and "holds files evaluate.py does not write (telemetry/)" in done.stderr
     assert "Traceback" not in done.stderr
@@ -221,7 +213,7 @@ def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path, c
         (tmp_path / "somefile.txt" / "out", f"{tmp_path / 'somefile.txt'} is a file, not a directory"),
         (tmp_path / "somefile.txt", "exists and is not a directory"),
     ]:
-        done = run_here(capsys, "--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out",
+        done = run_here("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out",
                         str(out))  # fmt: skip
         assert done.returncode == 2 and f"--out {out}" in done.stderr and message in done.stderr
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
@@ -236,13 +228,13 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path, capsys):
     (out / "plots" / "old.png").write_bytes(b"an earlier plot")
     args = ("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--max-episode-steps", "10")
     # without --overwrite: only what is there is named
-    done = run_here(capsys, *args, "--out", str(out))
+    done = run_here(*args, "--out", str(out))
     assert done.returncode == 2 and "already holds plots/, results.json of an earlier run" in done.stderr
     assert "results.md" not in done.stderr and "Traceback" not in done.stderr
     # files evaluate.py does not write are never deleted, not even with --overwrite
     (out / "notes.txt").write_text("the user's notes")
     (out / "plots" / "sketch.svg").write_text("the user's sketch")
-    done = run_here(capsys, *args, "--out", str(out), "--overwrite")
+    done = run_here(*args, "--out", str(out), "--overwrite")
     assert done.returncode == 2 and "notes.txt, plots/sketch.svg" in done.stderr and "--overwrite" in done.stderr
     assert "Traceback" not in done.stderr
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
@@ -251,7 +243,7 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path, capsys):
     # a folder of its own results is replaced
     (out / "notes.txt").unlink()
     (out / "plots" / "sketch.svg").unlink()
-    done = run_here(capsys, *args, "--out", str(out), "--overwrite")
+    done = run_here(*args, "--out", str(out), "--overwrite")
     assert done.returncode == 0, done.stderr
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
         "plots", "plots/tripod.png", "results.json", "results.md"

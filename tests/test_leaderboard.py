@@ -158,7 +158,7 @@ def test_a_docs_page_that_is_not_the_leaderboards_own_is_refused_before_anything
     for docs, message in (
         (notes, "exists and is not a page this command wrote"),
         (tmp_path / "folder.md", "is a folder"),
-        (tmp_path / "file" / "page.md", "is a file, not a folder"),
+        (tmp_path / "file" / "page.md", "is a file, not a directory"),
         (tmp_path / "page.txt", "give a path ending in .md"),
         (tmp_path / "other.md", "holds other files than a page's plots and videos"),
     ):
