@@ -373,8 +373,27 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
     record = {**_row_record(plan, row, trained, started, run_dir, out, records or out), "returns": returns,
               "mean_return": float(np.mean(returns)), "summary": results["policies"][model_spec]["summary"],
               "paired_differences": results["paired_differences"]["policies"][model_spec], "reference": reference,
-              "reproduce": reproduce(plan, row, trained, reference)}  # fmt: skip
+              "reproduce": reproduce(plan, row, trained, reference),
+              "one_hour": one_hour(plan, row, out, threads, trained)}  # fmt: skip
     write_json(record_path, record)
+    return record
+
+
+def backfill_one_hour(plan: Plan, row: Row, record: dict[str, Any], out: Path, records: Path,
+                      threads: int) -> dict[str, Any]:  # fmt: skip
+    """A finished row's record with its policy after an hour (:func:`one_hour`) added, where it has none and its
+    run is still in ``OUT/runs/`` (the same run: as many steps trained); the record as it was otherwise."""
+    run_dir = out / "runs" / row.name
+    if is_soccer(row.task) or "one_hour" in record or not (run_dir / "model.zip").is_file():
+        return record
+    if _trained_steps(run_dir) != record["timesteps"]:
+        return record
+    hour = one_hour(plan, row, out, threads, record["timesteps"])
+    if hour is None:
+        return record
+    record = {**record, "one_hour": hour}
+    write_json(row_file(records, row), record)
+    print(f"leaderboard: {row.name}: its policy after an hour of training judged ({hour['timesteps']:,} steps)")
     return record
 
 
@@ -474,16 +493,63 @@ def _begin_attempt(folder: Path, run_dir: Path) -> float:
     a killed process did after its last checkpoint is lost, and not counted."""
     path = folder / ATTEMPTS
     attempts = json.loads(path.read_text()) if path.is_file() else []
-    credit = 0.0
     saved = [p.stat().st_mtime for p in (run_dir / "checkpoints").glob("step_*")]
-    if saved and attempts:
-        newest = max(saved)
-        mine = [a for a in attempts if a["start"] <= newest]
-        if mine:
-            credit = mine[-1]["credit"] + newest - mine[-1]["start"]
+    credit = (training_seconds(folder, max(saved)) or 0.0) if saved else 0.0
     folder.mkdir(parents=True, exist_ok=True)
     write_json(path, [*attempts, {"start": time.time(), "credit": credit}])
     return credit
+
+
+def training_seconds(folder: Path, when: float) -> float | None:
+    """The training time (s) a row had put in at the moment ``when`` (a checkpoint's or its model's time of
+    writing): the time of the attempt running then, from its start, plus what that attempt was credited; None
+    where the row's folder keeps no record of its attempts (:data:`ATTEMPTS`)."""
+    path = folder / ATTEMPTS
+    attempts = json.loads(path.read_text()) if path.is_file() else []
+    mine = [a for a in attempts if a["start"] <= when]
+    return mine[-1]["credit"] + when - mine[-1]["start"] if mine else None
+
+
+HOUR = 3600.0  # s of training: the suite's goal, a policy trained within an hour on 2 cores that matches its reference
+
+
+def hour_checkpoint(folder: Path, run_dir: Path, limit: float = HOUR) -> tuple[Path, int, float] | None:
+    """The newest checkpoint a row's training had written within ``limit`` s of training time: its model, its env
+    steps and its training time; None if it wrote none so soon (or keeps no record of its attempts)."""
+    found = None
+    for checkpoint in (run_dir / "checkpoints").glob("step_*"):
+        seconds = training_seconds(folder, checkpoint.stat().st_mtime)
+        steps = int(checkpoint.name.removeprefix("step_"))
+        if seconds is not None and seconds <= limit and (found is None or steps > found[1]):
+            found = (checkpoint / "model.zip", steps, seconds)
+    return found
+
+
+def one_hour(plan: Plan, row: Row, out: Path, threads: int, trained: int) -> dict[str, Any] | None:
+    """The policy a row had after an hour of training, judged as the row is (its reference on the same evaluation
+    seeds): the final model where the training took an hour or less (``final``), else the newest checkpoint written
+    within the hour, evaluated into ``OUT/rows/<row>/one_hour/``. None where the row's run keeps no record of its
+    training time."""
+    folder, run_dir = out / "rows" / row.name, out / "runs" / row.name
+    final = training_seconds(folder, (run_dir / "model.zip").stat().st_mtime)
+    if final is None:
+        return None
+    if final <= HOUR:
+        return {"timesteps": trained, "training_minutes": final / 60.0, "final": True}
+    found = hour_checkpoint(folder, run_dir)
+    if found is None:
+        return {"timesteps": 0, "training_minutes": 0.0, "final": False, "mean_return": None}
+    model, steps, seconds = found
+    reference = reference_name(row.task)
+    evaluation = folder / "one_hour"
+    _run(_tool("evaluate.py", *_env(row.task), "--policy", reference, "--policy", model, *_episodes(plan), "--out",
+               evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+    results = json.loads((evaluation / "results.json").read_text())
+    spec = next(s for s in results["policies"] if s != reference)
+    returns = _returns(results, spec)
+    return {"timesteps": steps, "training_minutes": seconds / 60.0, "final": False, "returns": returns,
+            "mean_return": float(np.mean(returns)), "summary": results["policies"][spec]["summary"],
+            "paired_differences": results["paired_differences"]["policies"][spec]}  # fmt: skip
 
 
 def _algo_options(plan: Plan, algo: str) -> list[str]:
@@ -773,6 +839,66 @@ def _soccer_section(plan: Plan, baselines: dict, rows: dict[Row, dict | None]) -
     return lines
 
 
+def _paired(diff: dict[str, Any], metric: str) -> str:
+    """A paired difference and its 95% interval, as the rows' tables show it ("-" where there is none)."""
+    d = diff.get(metric)
+    if not d or d.get("mean") is None or d.get("ci_low") is None:
+        return "-"
+    return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
+
+
+LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport")
+
+
+def at_least_as_good(diff: dict[str, Any], metric: str) -> bool | None:
+    """Whether a model is not shown worse than its reference on ``metric`` by their paired difference (the model's
+    less the reference's): its 95% interval reaches zero or the better side of it. None where it has no interval."""
+    d = diff.get(metric)
+    if not d or d.get("ci_low") is None or d.get("ci_high") is None:
+        return None
+    return d["ci_low"] <= 0.0 if metric in LOWER_IS_BETTER else d["ci_high"] >= 0.0
+
+
+def _hour_section(baselines: dict, rows: dict[Row, dict | None]) -> list[str]:
+    """Each finished row's policy after an hour of training (:func:`one_hour`) against its reference: whether it
+    matches or beats it on the task's metric at no worse cost of transport."""
+    done = [(row, rec) for row, rec in rows.items() if rec is not None and not is_soccer(row.task)]
+    if not done:
+        return []
+    lines = ["", "## After an hour of training", "",
+             f"The goal: a policy trained within {HOUR / 3600:g} hour on 2 cores, from the shipped hyperparameters, "
+             "matches or beats its reference on the task's metric at no worse cost of transport. Each row's policy "
+             "after an hour is the newest checkpoint its training had written within 60 minutes of training time "
+             "(the final model if it took less), on the host it ran on and as busy as that host was: a row trained "
+             "beside other work reaches fewer steps in its hour than on an idle host. It is judged as the row is, "
+             "against the reference on the same evaluation seeds. \"Not worse\" means the paired difference's 95% "
+             "interval reaches zero or the better side of it.", "",
+             "| row | steps after 1 h | training time (min) | normalized | the task's metric vs reference | "
+             "cost of transport vs reference | matches the reference |",
+             "|---" * 7 + "|"]  # fmt: skip
+    for row, rec in done:
+        hour = rec.get("one_hour")
+        if hour is None:
+            lines.append(f"| {row.name} | not judged: trained before the leaderboard kept its training time | | | | "
+                         "| |")  # fmt: skip
+            continue
+        source = rec if hour["final"] else hour
+        if source.get("mean_return") is None:
+            lines.append(f"| {row.name} | no checkpoint within the hour | | | | | no |")
+            continue
+        diff = source["paired_differences"]
+        metric, unit = task_metric(diff)
+        judged = {m: at_least_as_good(diff, m) for m in (metric, "cost_of_transport")}
+        worse = [m.replace("_", " ") for m, ok in judged.items() if ok is False]
+        answer = "yes" if all(judged.values()) else ("no: " + " and ".join(worse) + " worse" if worse else "-")
+        score = float(normalized(source["mean_return"], baselines[row.task]))
+        final = " (its final model)" if hour["final"] else ""
+        lines.append(f"| {row.name} | {hour['timesteps']:,}{final} | {hour['training_minutes']:.0f} | {score:.2f} | "
+                     f"{metric} {_paired(diff, metric)}{unit} | {_paired(diff, 'cost_of_transport')} | "
+                     f"{answer} |")  # fmt: skip
+    return lines
+
+
 def _share(record: dict[str, Any], baselines: dict[str, Any], metric: str) -> str:
     """A row's share of ``metric`` (falls: of its episodes; contact: of its time), the reference's in brackets."""
 
@@ -856,19 +982,12 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
             lines.append(f"| {row.name} | not run | | | | | | | |")
             continue
         diff = rec["paired_differences"]
-
-        def paired(metric: str, diff: dict = diff) -> str:
-            d = diff.get(metric)
-            if not d or d.get("mean") is None or d.get("ci_low") is None:
-                return "-"
-            return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
-
         metric, unit = task_metric(diff)
         capped = " (capped by --minutes)" if rec["capped"] else ""
         score = float(normalized(rec["mean_return"], baselines[row.task]))
         wall = f"{rec['wall_seconds'] / 60:.0f}" if "wall_seconds" in rec else "-"
         lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {wall} | {rec['mean_return']:.1f} | {score:.2f} | "
-                     f"{metric} {paired(metric)}{unit} | {paired('cost_of_transport')} | "
+                     f"{metric} {_paired(diff, metric)}{unit} | {_paired(diff, 'cost_of_transport')} | "
                      f"{_share(rec, baselines[row.task], 'falls')} | "
                      f"{_share(rec, baselines[row.task], 'non_foot_contact')} |")  # fmt: skip
     resumed = [f"{row.name} ({rec['training_attempts']})" for row, rec in rows.items()
@@ -881,6 +1000,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     if again:
         lines += ["", "Rows computed again with their own command (`--rerun`), against their earlier record:", ""]
         lines += [f"- {row.name}: {verdict(r)}." for row, r in again]
+    lines += _hour_section(baselines, rows)
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
     lines += [f"![{t}](plots/curve_{t.replace('/', '_')}.png)" for t in plan.tasks]
@@ -1163,6 +1283,8 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
         path = row_file(records, row)
         if results[row] is None and path.is_file():
             results[row] = json.loads(path.read_text())
+        if not args.table_only and results[row] is not None:
+            results[row] = backfill_one_hour(plan, row, results[row], out, records, threads)
     if args.videos:
         for task in plan.tasks:
             try:

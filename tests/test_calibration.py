@@ -224,9 +224,9 @@ RECOVERY = [
     # efficiency recorded on the loaded bench (sysid.synth.recording). The Stribeck friction at seed 3: at the
     # matrix's seed 10 its Stribeck velocity is low (0.28 rad/s), where a lower velocity and a higher static level
     # replay alike (the training error 1.101 at the fit against 1.104 at the truth) and the fit lands off the truth
-    ("servo", "load_friction", 9, True),
-    # the other three take 10-20 s each: the matrix runs them (python -m benchmarks.calibration_matrix --robots servo
-    # --effects stribeck_friction asymmetric_friction gearbox_efficiency), make test-slow too
+    # the four take 10-20 s each: the matrix runs them (python -m benchmarks.calibration_matrix --robots servo
+    # --effects load_friction stribeck_friction asymmetric_friction gearbox_efficiency), make test-slow too
+    pytest.param("servo", "load_friction", 9, True, marks=pytest.mark.slow),
     pytest.param("servo", "stribeck_friction", 3, True, marks=pytest.mark.slow),
     pytest.param("servo", "asymmetric_friction", 11, True, marks=pytest.mark.slow),
     pytest.param("servo", "gearbox_efficiency", 12, True, marks=pytest.mark.slow),
@@ -899,6 +899,8 @@ def test_visibility_is_the_same_against_either_floor_where_replay_has_no_floor(t
     assert "no_such_effect" in capsys.readouterr().err
 
 
+# 15 s: the draw-1 matrix runs this case (benchmarks/results/calibration_matrix_motor_servo_bioloid_draw1.md)
+@pytest.mark.slow
 def test_a_fit_that_stalls_below_a_measured_point_is_fitted_again_from_it():
     """A second draw: the motor's PWM decay at 0.785 (seed 1011) has a cost so curved (491 noise levels at
     nominal, 274 at 0.5, 1.03 at the truth, 626 at 1) that least squares from nominal stalls at 0.002, where the

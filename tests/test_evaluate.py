@@ -50,7 +50,7 @@ def model_zip(tmp_path_factory) -> Path:
 def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zip, tmp_path, capsys):
     out = tmp_path / "walk"
     done = run("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--policy", str(model_zip),
-               "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "60", "--video",
+               "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "30", "--video",
                "--telemetry")  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "tripod:20" in done.stdout and "speed_bl" in done.stdout and "[" in done.stdout  # the table, with CIs
@@ -59,7 +59,7 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     for spec in ("tripod:20", str(model_zip)):
         policy = results["policies"][spec]
         assert [e["seed"] for e in policy["episodes"]] == [5, 6, 7]
-        assert all(e["length"] == 60 for e in policy["episodes"])
+        assert all(e["length"] == 30 for e in policy["episodes"])
         s = policy["summary"]["speed"]
         assert s["n"] == 3 and s["ci_low"] <= s["mean"] <= s["ci_high"]
         for metric in ("return", "speed", "speed_bl", "cost_of_transport", "falls", "forward_speed"):
@@ -79,12 +79,12 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert len(mp4s) == 3 and all(p.stat().st_size > 1000 for p in mp4s)
     import imageio.v2 as imageio
 
-    with imageio.get_reader(mp4s[0]) as reader:  # the start and every 2nd of 60 control steps: 25 frames/s at 50 Hz
-        assert reader.count_frames() == 1 + 60 // 2
+    with imageio.get_reader(mp4s[0]) as reader:  # the start and every 2nd of 30 control steps: 25 frames/s at 50 Hz
+        assert reader.count_frames() == 1 + 30 // 2
         assert reader.get_meta_data()["fps"] == pytest.approx(25.0)
         single = reader.get_meta_data()["size"]
     with imageio.get_reader(out / "videos" / "side_by_side.mp4") as reader:  # both policies, left to right
-        assert reader.count_frames() == 1 + 60 // 2 and reader.get_meta_data()["size"] == (2 * single[0], single[1])
+        assert reader.count_frames() == 1 + 30 // 2 and reader.get_meta_data()["size"] == (2 * single[0], single[1])
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten

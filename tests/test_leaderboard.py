@@ -69,6 +69,9 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert (media / "videos" / "skitter_RoachWalk-v3.mp4").read_bytes() == video.read_bytes()
     assert "](results/videos/skitter_RoachWalk-v3.mp4)" in text and "](results/plots/performance_profiles.png)" in text
     assert (media / "plots" / "performance_profiles.png").is_file()
+    for record in rows.values():  # trained in seconds: its policy after an hour is its final model
+        assert record["one_hour"]["final"] and record["one_hour"]["timesteps"] == record["timesteps"]
+    assert "## After an hour of training" in text and "(its final model)" in text
     capsys.readouterr()
     # again: every row is done, nothing trains
     assert leaderboard.main(argv) == 0
@@ -254,8 +257,8 @@ def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_pat
     rows = {row: {"mean_return": 60.0, "timesteps": 100, "capped": False,
                   "paired_differences": differences[row.task]} for row in plan.rows}  # fmt: skip
     leaderboard.build_table(plan, tmp_path, baselines, rows, tmp_path / "results.md")
-    lines = {line.split(" |")[0][2:]: line for line in (tmp_path / "results.md").read_text().splitlines()
-             if line.startswith("| skitter_")}  # fmt: skip
+    rows_table = (tmp_path / "results.md").read_text().split("## Rows")[1].split("\n## ")[0]
+    lines = {line.split(" |")[0][2:]: line for line in rows_table.splitlines() if line.startswith("| skitter_")}
     assert "| speed +0.500 [+0.490, +0.510] m/s | -0.200 [-0.210, -0.190] |" in lines["skitter_RoachWalk-v3__ppo__0"]
     assert "| yaw_rate_error -0.250 [-0.260, -0.240] rad/s |" in lines["skitter_RoachTurn-v4__ppo__0"]
     assert "| success +0.400 [+0.390, +0.410] |" in lines["skitter_RoachGoToBall-v3__ppo__0"]
@@ -281,6 +284,91 @@ def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
     when = attempts[1]["start"] + 45.0
     os.utime(second, (when, when))
     assert leaderboard._begin_attempt(folder, run) == pytest.approx(75.0)
+
+
+def test_a_rows_policy_after_an_hour_is_its_newest_checkpoint_within_an_hour_of_training(tmp_path, monkeypatch):
+    """Training time runs across a kill and resume (the second attempt is credited the first's time to its newest
+    checkpoint); the policy after an hour is the newest checkpoint written within 60 minutes of it, evaluated against
+    the reference on the row's seeds, or the final model where the training took less."""
+    import os
+
+    plan = leaderboard.Plan((WALK,), ("ppo",), (0,), ((WALK, 4_000_000),), None, 20, 1000, None)
+    row = plan.rows[0]
+    folder, run = tmp_path / "rows" / row.name, tmp_path / "runs" / row.name
+    folder.mkdir(parents=True)
+    (run / "checkpoints").mkdir(parents=True)
+    t0 = 1_000_000.0
+    # the first attempt ran 40 min, its newest checkpoint at 35 min; the second started 3 h later, credited 35 min
+    attempts = [{"start": t0, "credit": 0.0}, {"start": t0 + 3 * 3600, "credit": 35 * 60.0}]
+    (folder / leaderboard.ATTEMPTS).write_text(json.dumps(attempts))
+    written = {  # the first attempt's at 20 and 35 min of training, the second's at 55 and 65
+        500_000: t0 + 20 * 60,
+        900_000: t0 + 35 * 60,
+        1_300_000: t0 + 3 * 3600 + 20 * 60,
+        1_700_000: t0 + 3 * 3600 + 30 * 60,
+    }
+    for steps, when in written.items():
+        checkpoint = run / "checkpoints" / f"step_{steps:010d}"
+        checkpoint.mkdir()
+        (checkpoint / "model.zip").write_bytes(b"")
+        os.utime(checkpoint, (when, when))
+    assert leaderboard.training_seconds(folder, t0 + 3 * 3600 + 20 * 60) == pytest.approx(55 * 60)
+    model, steps, seconds = leaderboard.hour_checkpoint(folder, run)
+    assert steps == 1_300_000 and seconds == pytest.approx(55 * 60)
+    (run / "model.zip").write_bytes(b"")
+    os.utime(run / "model.zip", (t0 + 3 * 3600 + 50 * 60,) * 2)  # the final model at 85 min of training
+    commands = []
+
+    def evaluate(command, threads, log):  # what evaluate.py writes, for the policies it was given
+        commands.append(command)
+        out = Path(command[command.index("--out") + 1])
+        out.mkdir(parents=True, exist_ok=True)
+        episodes = [{"metrics": {"return": 7.0}}]
+        policies = {"tripod": {"episodes": episodes}, str(model): {"episodes": episodes, "summary": {}}}
+        results = {"policies": policies, "paired_differences": {"policies": {str(model): {}}}}
+        (out / "results.json").write_text(json.dumps(results))
+
+    monkeypatch.setattr(leaderboard, "_run", evaluate)
+    hour = leaderboard.one_hour(plan, row, tmp_path, 1, 2_000_000)
+    assert str(model) in commands[0] and "tripod" in commands[0] and "1000" in commands[0]
+    assert hour["timesteps"] == 1_300_000 and hour["training_minutes"] == pytest.approx(55.0) and not hour["final"]
+    assert hour["mean_return"] == 7.0
+    os.utime(run / "model.zip", (t0 + 3 * 3600 + 20 * 60,) * 2)  # done at 55 min: the final model is the hour's
+    assert leaderboard.one_hour(plan, row, tmp_path, 1, 2_000_000) == {"timesteps": 2_000_000,
+                                                                       "training_minutes": pytest.approx(55.0),
+                                                                       "final": True}  # fmt: skip
+    assert len(commands) == 1
+    (folder / leaderboard.ATTEMPTS).unlink()  # a run from before the leaderboard kept its attempts: not judged
+    assert leaderboard.one_hour(plan, row, tmp_path, 1, 2_000_000) is None
+
+
+def test_the_hour_is_judged_on_the_tasks_metric_and_the_cost_of_transport(tmp_path):
+    """A speed is not worse when its interval reaches zero from below, a yaw-rate error or a cost of transport when
+    it reaches zero from above; the hour's section says which of the two fell short."""
+    assert leaderboard.at_least_as_good({"speed": {"ci_low": -0.2, "ci_high": 0.01}}, "speed")
+    assert not leaderboard.at_least_as_good({"speed": {"ci_low": -0.2, "ci_high": -0.01}}, "speed")
+    assert leaderboard.at_least_as_good({"yaw_rate_error": {"ci_low": -0.01, "ci_high": 0.2}}, "yaw_rate_error")
+    assert not leaderboard.at_least_as_good({"cost_of_transport": {"ci_low": 0.1, "ci_high": 0.2}},
+                                            "cost_of_transport")  # fmt: skip
+    assert leaderboard.at_least_as_good({}, "speed") is None
+    turn = "skitter/RoachTurn-v4"
+    plan = leaderboard.Plan((WALK, turn), ("ppo",), (0,), ((WALK, 100), (turn, 100)), None, 20, 1000, None)
+    baselines = {t: {"reference": "tripod", "reference_return": 10.0, "random_return": 0.0} for t in plan.tasks}
+    faster = {"speed": {"mean": 0.1, "ci_low": 0.05, "ci_high": 0.15},
+              "cost_of_transport": {"mean": 0.5, "ci_low": 0.2, "ci_high": 0.8}}  # fmt: skip
+    turning = {"yaw_rate_error": {"mean": 0.0, "ci_low": -0.01, "ci_high": 0.01},
+               "cost_of_transport": {"mean": -0.5, "ci_low": -0.8, "ci_high": -0.2}}  # fmt: skip
+    rows = {plan.rows[0]: {"timesteps": 100, "capped": False, "mean_return": 12.0, "paired_differences": faster,
+                           "one_hour": {"timesteps": 100, "training_minutes": 30.0, "final": True}},
+            plan.rows[1]: {"timesteps": 100, "capped": False, "mean_return": 9.0, "paired_differences": turning,
+                           "one_hour": {"timesteps": 60, "training_minutes": 59.5, "final": False,
+                                        "mean_return": 5.0, "paired_differences": turning}}}  # fmt: skip
+    text = "\n".join(leaderboard._hour_section(baselines, rows))
+    assert "| skitter_RoachWalk-v3__ppo__0 | 100 (its final model) | 30 | 1.20 |" in text
+    assert "speed +0.100 [+0.050, +0.150] m/s | +0.500 [+0.200, +0.800] | no: cost of transport worse |" in text
+    assert "| skitter_RoachTurn-v4__ppo__0 | 60 | 60 | 0.50 | yaw_rate_error" in text and text.endswith("| yes |")
+    del rows[plan.rows[1]]["one_hour"]
+    assert "not judged" in "\n".join(leaderboard._hour_section(baselines, rows))
 
 
 def test_elo_against_the_scripted_team_follows_the_record():
