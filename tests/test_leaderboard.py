@@ -280,7 +280,7 @@ def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
     attempts = json.loads((folder / leaderboard.ATTEMPTS).read_text())
     second = run / "checkpoints" / "step_0000200000"
     second.mkdir()
-    first.rmdir()  # train.py keeps the newest checkpoint only
+    first.rmdir()  # (only the newest checkpoint counts)
     when = attempts[1]["start"] + 45.0
     os.utime(second, (when, when))
     assert leaderboard._begin_attempt(folder, run) == pytest.approx(75.0)
