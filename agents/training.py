@@ -1024,6 +1024,7 @@ def start_run(args: argparse.Namespace) -> Path:
         hp = load_hyperparams(hyperparams_file, key, args.algo, overrides)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
+    check_memory(hp, args.algo, args.env)
     venv = make_env(args.env, hp, seed)  # a bad env_kwargs fails here, before the run folder is made
     model = build_model(args.algo, hp, venv, seed)
     run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(args.env, args.algo, seed))
@@ -1032,6 +1033,51 @@ def start_run(args: argparse.Namespace) -> Path:
         config = new_run_config(args, args.env, seed, hp, hyperparams_file, run_dir, {"hyperparams_entry": key})
         print(f"run folder: {run_dir}")
         return train(model, run_dir, config, progress=not args.no_progress)
+
+
+def buffer_bytes(hp: Hyperparams, algo: str, observation: gym.Space, action: gym.Space) -> tuple[str, int]:
+    """The algorithm's buffer, in words, and the bytes it allocates: PPO's rollout buffer (float32 observations and
+    actions, six numbers a step besides), an off-policy replay buffer (observations in their own dtype, twice:
+    this one and the next, and the action, reward and done)."""
+    from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+
+    obs, act = gym.spaces.flatdim(observation), gym.spaces.flatdim(action)
+    defaults = algo_defaults(algo)
+    if issubclass(ALGOS[algo], OnPolicyAlgorithm):
+        n_steps = hp.model_kwargs.get("n_steps", defaults["n_steps"])
+        what = f"PPO's rollout buffer (n_steps {n_steps} x n_envs {hp.n_envs})"
+        return what, n_steps * hp.n_envs * (obs + act + 6) * 4
+    size = hp.model_kwargs.get("buffer_size", defaults["buffer_size"])
+    item = np.dtype(observation.dtype or np.float32).itemsize
+    return f"the replay buffer (buffer_size {size})", size * (2 * obs * item + act * 4 + 8)
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux's MemAvailable), or None where it cannot be read."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_memory(hp: Hyperparams, algo: str, env_id: str) -> None:
+    """Refuse a run whose buffer would not fit in the memory available (``n_envs`` 100000 and a rollout of 512 steps
+    each: 51 million steps held at once), before anything is made; SB3 would allocate it, or only warn."""
+    available = available_memory()
+    if available is None:
+        return
+    env = gym.make(env_id, **hp.env_kwargs)
+    try:
+        what, size = buffer_bytes(hp, algo, env.observation_space, env.action_space)
+    finally:
+        env.close()
+    if size > available:
+        raise ConfigError(f"{hp.where}: {what} would take {size / 2**30:.1f} GiB, more than the "
+                          f"{available / 2**30:.1f} GiB of memory available; use fewer envs or a smaller "
+                          "buffer")  # fmt: skip
 
 
 def command_line_env_kwargs(args: argparse.Namespace, entry: dict[str, Any]) -> dict[str, Any]:

@@ -811,3 +811,27 @@ def test_a_time_budget_ends_training_as_finished(tmp_path):
     refused = train_in_process("--env", WALK, "--algo", "ppo", "--timesteps", 10, "--minutes", "-1",
                                "--runs-dir", tmp_path / "x")  # fmt: skip
     assert refused.returncode == 2 and "--minutes" in refused.stderr
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_a_buffer_larger_than_the_memory_available_is_refused_before_anything_is_made(capsys, tmp_path, monkeypatch,
+                                                                                      algo):  # fmt: skip
+    """PPO's rollout buffer holds n_steps x n_envs steps (n_envs 100000 and 512 steps: 51 million) and a replay
+    buffer its buffer_size: one that would not fit in the memory available is refused, naming its size."""
+    from agents import training as train
+
+    monkeypatch.setattr(train, "available_memory", lambda: 2**30)  # a machine with 1 GiB free
+    args = ["--env", WALK, "--algo", algo, "--timesteps", 64, "--runs-dir", tmp_path / "runs"]
+    if algo == "ppo":
+        size = ["--n-envs", 100_000]
+    else:
+        (tmp_path / "big.yml").write_text(f"{WALK}:\n  buffer_size: 100000000\n")
+        size = ["--hyperparams", tmp_path / "big.yml"]
+    code, err = train_main(capsys, *args, *size)
+    what = "PPO's rollout buffer (n_steps 512 x n_envs 100000)" if algo == "ppo" else "replay buffer (buffer_size 1000"
+    assert_refused(code, err, what, "GiB, more than the 1.0 GiB of memory available")
+    assert not (tmp_path / "runs").exists()
+    hp = train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml", WALK, algo)
+    env = gym.make(WALK)
+    _, fits = train.buffer_bytes(hp, algo, env.observation_space, env.action_space)
+    assert fits < 2**30, "the shipped entry fits"
