@@ -1069,7 +1069,10 @@ def check_memory(hp: Hyperparams, algo: str, env_id: str) -> None:
     available = available_memory()
     if available is None:
         return
-    env = gym.make(env_id, **hp.env_kwargs)
+    try:
+        env = gym.make(env_id, **hp.env_kwargs)
+    except (TypeError, ValueError):
+        return  # a bad env_kwargs: make_env names it
     try:
         what, size = buffer_bytes(hp, algo, env.observation_space, env.action_space)
     finally:

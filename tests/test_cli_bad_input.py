@@ -16,6 +16,7 @@ import pytest
 from agents import compare as evaluate
 from sysid import cli as calibrate
 from sysid import synth
+from tests.conftest import main_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 GEARMOTOR = ROOT / "data" / "real" / "rhex3_motor_speedRamp.csv"
@@ -27,14 +28,11 @@ def files(root: Path) -> dict[str, bytes | None]:
 
 
 def call(main, capsys, *args: str) -> tuple[int, str]:
-    """Exit code and stderr of a CLI's ``main``, whether it returns or exits."""
-    try:
-        code = main(list(args))
-    except SystemExit as exit_info:
-        code = exit_info.code
-    err = capsys.readouterr().err.strip()
+    """Exit code and stderr of a CLI's ``main``, whether it returns or exits; the message is one line."""
+    done = main_in_process(main, list(args))
+    err = done.stderr.strip()
     assert "Traceback" not in err and len(err.splitlines()) == 1, err
-    return code, err
+    return done.returncode, err
 
 
 # --- calibrate.py: --out is checked before any log is read or fitted ---------------------------------------------

@@ -565,11 +565,8 @@ def train_main(capsys, *args: object) -> tuple[int, str]:
     """Exit code and stderr of ``train.main`` (in this process: fast), whether it returns or exits."""
     from agents import training as train
 
-    try:
-        code = train.main([*map(str, args), "--no-progress"])
-    except SystemExit as exit_info:
-        code = exit_info.code
-    return code, capsys.readouterr().err
+    done = main_in_process(train.main, [*map(str, args), "--no-progress"])
+    return done.returncode, done.stderr
 
 
 def assert_refused(code: int, err: str, *expected: str) -> None:
