@@ -44,6 +44,7 @@ from agents.evaluation import (
     write_video,
 )
 from envs.common.calibration import CalibrationError, read_calibration
+from envs.common.env import creator_error
 from envs.common.io import (
     ToolParser,
     atomic_write,
@@ -124,7 +125,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         try:  # made once, so that a bad argument is one line here, before anything else
             gym.make(args.env, **args.env_kwargs).close()
         except (TypeError, ValueError) as exc:
-            p.error(f"--env-kwargs: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
+            p.error(f"--env-kwargs: {creator_error(exc)}")
     repeated = sorted({s for s in args.policy if args.policy.count(s) > 1})
     if repeated:
         p.error(f"--policy {repeated[0]!r} is given twice")

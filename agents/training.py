@@ -98,6 +98,7 @@ from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_mod
 from agents.tuning import RunCode, tune
 from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
+from envs.common.env import creator_error
 from envs.common.io import (
     TEMP_RANDOM,
     Busy,
@@ -1092,8 +1093,7 @@ def command_line_env_kwargs(args: argparse.Namespace, entry: dict[str, Any]) -> 
     try:
         gym.make(args.env, **env_kwargs).close()
     except (TypeError, ValueError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ConfigError(f"--env-kwargs {json.dumps(env_kwargs)}: {reason}") from None
+        raise ConfigError(f"--env-kwargs {json.dumps(env_kwargs)}: {creator_error(exc)}") from None
     return env_kwargs
 
 

@@ -484,3 +484,15 @@ def test_class_docstrings_state_the_version_history_and_the_time_limit(env_id):
         assert "episode end" in doc, f"{env_id}: neither states nor refers to its episode end"
     for stale in ("to come", "adapter yet", "registration's time limit"):
         assert stale not in doc, f"{env_id}: {stale!r}"
+
+
+def test_a_keyword_the_env_does_not_take_is_named_with_the_one_meant():
+    """gymnasium.make and make_vec name the keyword, the nearest one the env takes and all it takes (not Python's
+    "unexpected keyword argument" with gymnasium's dump of every keyword)."""
+    import re
+
+    said = re.escape("XjusWalkEnv takes no keyword 'spine_stifness' (did you mean 'spine_stiffness'?); it takes ")
+    vector = {"num_envs": 2, "vectorization_mode": "vector_entry_point"}
+    for make in (gym.make, lambda *a, **kw: gym.make_vec(*a, **vector, **kw)):
+        with pytest.raises(TypeError, match=said + "action_mode, .*episode_seconds"):
+            make("skitter/XjusWalk-v1", spine_stifness=10.0)

@@ -276,7 +276,7 @@ def test_stop_after_pauses_a_run_that_the_same_call_resumes(tmp_path):
         ({"knee_wedge": "yes"}, ["--backend", "ray"], "knee_wedge must be True or False, got 'yes'"),
         ({"calibration": "no_such_calibration.json"}, [], "no such calibration file"),
         ({"calibration": "not_a_calibration.json"}, [], "field 'format'"),
-        ({"legs": 8}, [], "unexpected keyword argument 'legs'"),
+        ({"legs": 8}, [], "BioloidWalkEnv takes no keyword 'legs'"),
     ],
 )
 def test_bad_env_kwargs_are_one_line_errors_naming_the_config_and_field(tmp_path, env_kwargs, args, message):

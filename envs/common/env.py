@@ -7,6 +7,8 @@ Gymnasium's ``MujocoEnv`` it exposes ``model`` and ``data`` (the live ``MjData``
 
 from __future__ import annotations
 
+import difflib
+import inspect
 import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar
@@ -261,6 +263,26 @@ def episode_steps(seconds: float | None, dt: float) -> int | None:
     return max(1, round(check_number("episode_seconds", seconds, 0, strict=True) / dt))
 
 
+def keywords_taken(env_class: Callable[..., SkitterEnv], kwargs: Mapping[str, Any]) -> None:
+    """TypeError naming a keyword the env does not take, the one it may have meant and those it takes."""
+    params = inspect.signature(env_class).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return
+    taken = sorted({*params, "episode_seconds"})
+    for key in kwargs:
+        if key not in params:
+            close = difflib.get_close_matches(key, taken, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise TypeError(f"{env_class.__name__} takes no keyword {key!r}{hint}; it takes {', '.join(taken)}")
+
+
+def creator_error(exc: Exception) -> str:
+    """The first line of an error from making an env, without what ``gymnasium.make`` appends to a TypeError (the
+    env's id and every keyword it was made with)."""
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text.split(" was raised from the environment creator for ")[0]
+
+
 def entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., gym.Env]:
     """The registration's ``entry_point`` of an env class: the env in a ``TimeLimit`` of ``episode_seconds``.
 
@@ -272,6 +294,7 @@ def entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., gym.Env]:
 
     def make(episode_seconds: float | None = EPISODE_SECONDS, **kwargs: Any) -> gym.Env:
         episode_steps(episode_seconds, 1.0)  # refused before anything is built
+        keywords_taken(env_class, kwargs)
         env = env_class(**kwargs)
         steps = episode_steps(episode_seconds, env.dt)
         return env if steps is None else TimeLimit(env, steps)

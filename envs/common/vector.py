@@ -24,7 +24,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from envs.common.env import EPISODE_SECONDS, PHYSICS, SkitterEnv, check_options, episode_steps
+from envs.common.env import EPISODE_SECONDS, PHYSICS, SkitterEnv, check_options, episode_steps, keywords_taken
 from envs.common.parameters import sample
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import batched_robots
@@ -308,6 +308,7 @@ def vector_entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., Sk
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         episode_steps(episode_seconds, 1.0)  # refused before anything is built
+        keywords_taken(env_class, kwargs)
         with batched_robots(int(num_envs), nthread):
             env = env_class(**kwargs)
         duration = episode_steps(episode_seconds, env.dt)
