@@ -1025,7 +1025,7 @@ def start_run(args: argparse.Namespace) -> Path:
         hp = load_hyperparams(hyperparams_file, key, args.algo, overrides)
     seed = 0 if args.seed is None else args.seed
     set_random_seed(seed)
-    check_memory(hp, args.algo, args.env)
+    check_memory(hp, args.algo, args.env, args.timesteps)
     venv = make_env(args.env, hp, seed)  # a bad env_kwargs fails here, before the run folder is made
     model = build_model(args.algo, hp, venv, seed)
     run_dir = make_run_dir(Path(args.runs_dir), args.run_name or run_name(args.env, args.algo, seed))
@@ -1036,21 +1036,28 @@ def start_run(args: argparse.Namespace) -> Path:
         return train(model, run_dir, config, progress=not args.no_progress)
 
 
-def buffer_bytes(hp: Hyperparams, algo: str, observation: gym.Space, action: gym.Space) -> tuple[str, int]:
-    """The algorithm's buffer, in words, and the bytes it allocates: PPO's rollout buffer (float32 observations and
-    actions, six numbers a step besides), an off-policy replay buffer (observations in their own dtype, twice:
-    this one and the next, and the action, reward and done)."""
+def buffer_bytes(hp: Hyperparams, algo: str, observation: gym.Space, action: gym.Space,
+                 timesteps: int | None = None) -> tuple[str, int]:  # fmt: skip
+    """The algorithm's buffer, in words, and the bytes it fills (as stable-baselines3 allocates them): PPO's rollout
+    buffer, every step of a rollout (observations and actions in their spaces' dtypes, six float32 a step besides);
+    an off-policy replay buffer, as many steps as the run takes up to its size (``np.zeros`` pages are only used
+    once written): observations twice (this one and the next, once with ``optimize_memory_usage``), the action as
+    float32 at most, reward, done and timeout."""
     from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
     obs, act = gym.spaces.flatdim(observation), gym.spaces.flatdim(action)
+    obs_item = np.dtype(observation.dtype or np.float64).itemsize
+    act_item = np.dtype(action.dtype or np.float32).itemsize
     defaults = algo_defaults(algo)
     if issubclass(ALGOS[algo], OnPolicyAlgorithm):
         n_steps = hp.model_kwargs.get("n_steps", defaults["n_steps"])
         what = f"PPO's rollout buffer (n_steps {n_steps} x n_envs {hp.n_envs})"
-        return what, n_steps * hp.n_envs * (obs + act + 6) * 4
+        return what, n_steps * hp.n_envs * (obs * obs_item + act * act_item + 6 * 4)
     size = hp.model_kwargs.get("buffer_size", defaults["buffer_size"])
-    item = np.dtype(observation.dtype or np.float32).itemsize
-    return f"the replay buffer (buffer_size {size})", size * (2 * obs * item + act * 4 + 8)
+    filled = size if timesteps is None else min(size, timesteps)
+    copies = 1 if hp.model_kwargs.get("optimize_memory_usage", defaults["optimize_memory_usage"]) else 2
+    what = f"the replay buffer (buffer_size {size}" + ("" if filled == size else f", {filled} steps filled") + ")"
+    return what, filled * (copies * obs * obs_item + act * min(act_item, 4) + 3 * 4)
 
 
 def available_memory() -> int | None:
@@ -1064,7 +1071,7 @@ def available_memory() -> int | None:
     return None
 
 
-def check_memory(hp: Hyperparams, algo: str, env_id: str) -> None:
+def check_memory(hp: Hyperparams, algo: str, env_id: str, timesteps: int | None = None) -> None:
     """Refuse a run whose buffer would not fit in the memory available (``n_envs`` 100000 and a rollout of 512 steps
     each: 51 million steps held at once), before anything is made; SB3 would allocate it, or only warn."""
     available = available_memory()
@@ -1075,7 +1082,7 @@ def check_memory(hp: Hyperparams, algo: str, env_id: str) -> None:
     except (TypeError, ValueError):
         return  # a bad env_kwargs: make_env names it
     try:
-        what, size = buffer_bytes(hp, algo, env.observation_space, env.action_space)
+        what, size = buffer_bytes(hp, algo, env.observation_space, env.action_space, timesteps)
     finally:
         env.close()
     if size > available:

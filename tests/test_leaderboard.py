@@ -315,6 +315,12 @@ def test_a_rows_policy_after_an_hour_is_its_newest_checkpoint_within_an_hour_of_
     assert leaderboard.training_seconds(folder, t0 + 3 * 3600 + 20 * 60) == pytest.approx(55 * 60)
     model, steps, seconds = leaderboard.hour_checkpoint(folder, run)
     assert steps == 1_300_000 and seconds == pytest.approx(55 * 60)
+    # a checkpoint's time is its checkpoint.json's: its folder's changes when an older one's replay buffer is dropped
+    newest = run / "checkpoints" / "step_0001700000"
+    (newest / "checkpoint.json").write_text("{}")
+    os.utime(newest / "checkpoint.json", (t0 + 3 * 3600 + 24 * 60,) * 2)  # 59 min of training
+    assert leaderboard.hour_checkpoint(folder, run)[1] == 1_700_000
+    (newest / "checkpoint.json").unlink()
     (run / "model.zip").write_bytes(b"")
     os.utime(run / "model.zip", (t0 + 3 * 3600 + 50 * 60,) * 2)  # the final model at 85 min of training
     commands = []
@@ -340,6 +346,27 @@ def test_a_rows_policy_after_an_hour_is_its_newest_checkpoint_within_an_hour_of_
     assert len(commands) == 1
     (folder / leaderboard.ATTEMPTS).unlink()  # a run from before the leaderboard kept its attempts: not judged
     assert leaderboard.one_hour(plan, row, tmp_path, 1, 2_000_000) is None
+
+
+def test_a_record_is_given_its_hour_only_from_its_own_run(tmp_path):
+    """A record keeps its model's digest, and a run with another model (a rerun killed after its training) is not
+    its run; a record from before it kept one is matched by the returns its evaluation of the run's model gave."""
+    row = leaderboard.Row(WALK, "ppo", 0)
+    model = tmp_path / "runs" / row.name / "model.zip"
+    model.parent.mkdir(parents=True)
+    model.write_bytes(b"the first run")
+    record = {"returns": [1.0, 2.0], "model_sha256": leaderboard._sha256(model)}
+    assert leaderboard._record_of_run(record, tmp_path, row)
+    model.write_bytes(b"a rerun's")
+    assert not leaderboard._record_of_run(record, tmp_path, row)
+    old = {"returns": [1.0, 2.0]}
+    assert not leaderboard._record_of_run(old, tmp_path, row)  # no evaluation to match it by
+    evaluation = tmp_path / "rows" / row.name / "eval" / "results.json"
+    evaluation.parent.mkdir(parents=True)
+    episodes = [{"metrics": {"return": r}} for r in (1.0, 2.0)]
+    evaluation.write_text(json.dumps({"policies": {str(model): {"episodes": episodes}}}))
+    assert leaderboard._record_of_run(old, tmp_path, row)
+    assert not leaderboard._record_of_run({"returns": [1.0, 3.0]}, tmp_path, row)
 
 
 def test_the_hour_is_judged_on_the_tasks_metric_and_the_cost_of_transport(tmp_path):

@@ -818,17 +818,37 @@ def test_a_buffer_larger_than_the_memory_available_is_refused_before_anything_is
     from agents import training as train
 
     monkeypatch.setattr(train, "available_memory", lambda: 2**30)  # a machine with 1 GiB free
-    args = ["--env", WALK, "--algo", algo, "--timesteps", 64, "--runs-dir", tmp_path / "runs"]
+    steps = 64 if algo == "ppo" else 100_000_000  # a replay buffer fills as the run goes: as many steps as it takes
+    args = ["--env", WALK, "--algo", algo, "--timesteps", steps, "--runs-dir", tmp_path / "runs"]
     if algo == "ppo":
         size = ["--n-envs", 100_000]
     else:
         (tmp_path / "big.yml").write_text(f"{WALK}:\n  buffer_size: 100000000\n")
         size = ["--hyperparams", tmp_path / "big.yml"]
     code, err = train_main(capsys, *args, *size)
-    what = "PPO's rollout buffer (n_steps 512 x n_envs 100000)" if algo == "ppo" else "replay buffer (buffer_size 1000"
+    what = "PPO's rollout buffer (n_steps 512 x n_envs 100000)" if algo == "ppo" else "buffer (buffer_size 100000000)"
     assert_refused(code, err, what, "GiB, more than the 1.0 GiB of memory available")
     assert not (tmp_path / "runs").exists()
     hp = train.load_hyperparams(ROOT / "hyperparams" / f"{algo}.yml", WALK, algo)
     env = gym.make(WALK)
     _, fits = train.buffer_bytes(hp, algo, env.observation_space, env.action_space)
     assert fits < 2**30, "the shipped entry fits"
+
+
+def test_the_buffer_sizes_checked_are_what_stable_baselines3_allocates():
+    import numpy as np
+    from stable_baselines3.common.buffers import ReplayBuffer, RolloutBuffer
+
+    from agents import training as train
+
+    env = gym.make(WALK)
+    obs, act = env.observation_space, env.action_space
+    hp = train.resolve_hyperparams({"n_steps": 100, "n_envs": 4}, "ppo", "x")
+    rollout = RolloutBuffer(100, obs, act, n_envs=4)
+    held = sum(v.nbytes for v in vars(rollout).values() if isinstance(v, np.ndarray))
+    assert train.buffer_bytes(hp, "ppo", obs, act)[1] == held
+    hp = train.resolve_hyperparams({"buffer_size": 1000}, "sac", "x")
+    replay = ReplayBuffer(1000, obs, act)
+    held = sum(v.nbytes for v in vars(replay).values() if isinstance(v, np.ndarray))
+    assert train.buffer_bytes(hp, "sac", obs, act)[1] == held
+    assert train.buffer_bytes(hp, "sac", obs, act, timesteps=100)[1] == held // 10  # filled as the run goes
