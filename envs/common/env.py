@@ -263,12 +263,13 @@ def episode_steps(seconds: float | None, dt: float) -> int | None:
     return max(1, round(check_number("episode_seconds", seconds, 0, strict=True) / dt))
 
 
-def keywords_taken(env_class: Callable[..., SkitterEnv], kwargs: Mapping[str, Any]) -> None:
-    """TypeError naming a keyword the env does not take, the one it may have meant and those it takes."""
+def keywords_taken(env_class: Callable[..., SkitterEnv], kwargs: Mapping[str, Any], also: Sequence[str] = ()) -> None:
+    """TypeError naming a keyword the env does not take, the one it may have meant and those it takes (its class's,
+    ``episode_seconds`` and ``also``: the entry point's own)."""
     params = inspect.signature(env_class).parameters
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
         return
-    taken = sorted({*params, "episode_seconds"})
+    taken = sorted({*params, "episode_seconds", *also})
     for key in kwargs:
         if key not in params:
             close = difflib.get_close_matches(key, taken, n=1)

@@ -308,7 +308,7 @@ def vector_entry_point(env_class: Callable[..., SkitterEnv]) -> Callable[..., Sk
         if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
             raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         episode_steps(episode_seconds, 1.0)  # refused before anything is built
-        keywords_taken(env_class, kwargs)
+        keywords_taken(env_class, kwargs, also=("num_envs", "max_episode_steps", "nthread", "render_sim"))
         with batched_robots(int(num_envs), nthread):
             env = env_class(**kwargs)
         duration = episode_steps(episode_seconds, env.dt)
