@@ -11,9 +11,9 @@ class ConfigError(ValueError):
 
 def closest_env(env_id: str, registered: list[str]) -> str:
     """``" (did you mean 'X'?)"`` for the registered id nearest ``env_id`` (case and version typos), or ``""``."""
-    import difflib
+    from envs.common.io import nearest
 
     lowered = {name.lower(): name for name in registered}
     asked = env_id.lower() if "/" in env_id else f"skitter/{env_id.lower()}"  # the namespace left out
-    close = difflib.get_close_matches(asked, sorted(lowered), n=1, cutoff=0.8)
-    return f" (did you mean {lowered[close[0]]!r}?)" if close else ""
+    close = nearest(asked, lowered, cutoff=0.8)
+    return f" (did you mean {lowered[close]!r}?)" if close else ""

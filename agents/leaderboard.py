@@ -323,6 +323,20 @@ def _returns(results: dict[str, Any], spec: str) -> list[float]:
     return [float(e["metrics"][RETURN]) for e in results["policies"][spec]["episodes"]]
 
 
+def _judge(plan: Plan, row: Row, model: Path, evaluation: Path, threads: int) -> dict[str, Any]:
+    """A model of a row played against the task's reference on the plan's evaluation seeds (evaluate.py, into
+    ``evaluation``): its returns, their mean, its metrics' summary and its paired differences from the reference."""
+    reference = reference_name(row.task)
+    _run(_tool("evaluate.py", *_env(row.task), "--policy", reference, "--policy", model, *_episodes(plan), "--out",
+               evaluation, "--overwrite"), threads, evaluation.parent / "log.txt")  # fmt: skip
+    results = json.loads((evaluation / "results.json").read_text())
+    spec = next(s for s in results["policies"] if s != reference)
+    returns = _returns(results, spec)
+    return {"returns": returns, "mean_return": float(np.mean(returns)),
+            "summary": results["policies"][spec]["summary"],
+            "paired_differences": results["paired_differences"]["policies"][spec]}  # fmt: skip
+
+
 def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None = None,
             again: bool = False) -> dict[str, Any]:  # fmt: skip
     """Train and evaluate one row in ``out`` (resuming a killed training); returns its record, also written as
@@ -364,16 +378,9 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
     if is_soccer(row.task):
         return _soccer_row(plan, row, out, threads, started, trained, records or out)
     reference = reference_name(row.task)
-    evaluation = folder / "eval"
-    _run(_tool("evaluate.py", *_env(row.task), "--policy", reference, "--policy", run_dir / "model.zip",
-               *_episodes(plan), "--out", evaluation, "--overwrite"), threads, log)  # fmt: skip
-    results = json.loads((evaluation / "results.json").read_text())
-    model_spec = next(s for s in results["policies"] if s != reference)
-    returns = _returns(results, model_spec)
-    record = {**_row_record(plan, row, trained, started, run_dir, out, records or out), "returns": returns,
-              "mean_return": float(np.mean(returns)), "summary": results["policies"][model_spec]["summary"],
-              "paired_differences": results["paired_differences"]["policies"][model_spec], "reference": reference,
-              "reproduce": reproduce(plan, row, trained, reference)}  # fmt: skip
+    judged = _judge(plan, row, run_dir / "model.zip", folder / "eval", threads)
+    record = {**_row_record(plan, row, trained, started, run_dir, out, records or out), **judged,
+              "reference": reference, "reproduce": reproduce(plan, row, trained, reference)}  # fmt: skip
     try:
         record["one_hour"] = one_hour(plan, row, out, threads, trained)
     except RuntimeError as exc:  # the row is done without it; a later command judges its hour again
@@ -420,9 +427,8 @@ def _record_of_run(record: dict[str, Any], out: Path, row: Row) -> bool:
     results = out / "rows" / row.name / "eval" / "results.json"
     if not results.is_file():
         return False
-    policies = json.loads(results.read_text()).get("policies", {})
-    played = policies.get(str(model)) or {}
-    return [float(e["metrics"][RETURN]) for e in played.get("episodes", [])] == record.get("returns")
+    results = json.loads(results.read_text())
+    return str(model) in results.get("policies", {}) and _returns(results, str(model)) == record.get("returns")
 
 
 def row_command(plan: Plan, row: Row, out: Path, records: Path) -> str:
@@ -576,16 +582,8 @@ def one_hour(plan: Plan, row: Row, out: Path, threads: int, trained: int) -> dic
     if found is None:
         return {"timesteps": 0, "training_minutes": 0.0, "final": False, "mean_return": None}
     model, steps, seconds = found
-    reference = reference_name(row.task)
-    evaluation = folder / "one_hour"
-    _run(_tool("evaluate.py", *_env(row.task), "--policy", reference, "--policy", model, *_episodes(plan), "--out",
-               evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
-    results = json.loads((evaluation / "results.json").read_text())
-    spec = next(s for s in results["policies"] if s != reference)
-    returns = _returns(results, spec)
-    return {"timesteps": steps, "training_minutes": seconds / 60.0, "final": False, "returns": returns,
-            "mean_return": float(np.mean(returns)), "summary": results["policies"][spec]["summary"],
-            "paired_differences": results["paired_differences"]["policies"][spec]}  # fmt: skip
+    return {"timesteps": steps, "training_minutes": seconds / 60.0, "final": False,
+            **_judge(plan, row, model, folder / "one_hour", threads)}  # fmt: skip
 
 
 def _algo_options(plan: Plan, algo: str) -> list[str]:

@@ -44,7 +44,6 @@ from __future__ import annotations
 import argparse
 import ast
 import contextlib
-import difflib
 import inspect
 import json
 import math
@@ -108,6 +107,7 @@ from envs.common.io import (
     folder_lock,
     interrupted_exit_code,
     json_object,
+    nearest,
     parent_problem,
     refuse_overwrite,
     sigterm_as_interrupt,
@@ -380,8 +380,8 @@ def algo_defaults(algo: str) -> dict[str, Any]:
 def _unknown_field_message(key: str, allowed: set[str], algo: str) -> str:
     if key in SET_BY_TRAIN:
         return f"field {key!r} is set by {SET_BY_TRAIN[key]}, not in the hyperparameter file"
-    close = difflib.get_close_matches(str(key), sorted(allowed), n=1)
-    hint = f"; did you mean {close[0]!r}?" if close else ""
+    close = nearest(str(key), allowed)
+    hint = f"; did you mean {close!r}?" if close else ""
     return f"unknown field {key!r} for {algo.upper()}{hint}"
 
 

@@ -7,7 +7,6 @@ Gymnasium's ``MujocoEnv`` it exposes ``model`` and ``data`` (the live ``MjData``
 
 from __future__ import annotations
 
-import difflib
 import inspect
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -19,6 +18,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.wrappers import TimeLimit
 
+from envs.common.io import nearest
 from envs.common.parameters import check_randomize, sample
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import Robot, check_number
@@ -272,8 +272,8 @@ def keywords_taken(env_class: Callable[..., SkitterEnv], kwargs: Mapping[str, An
     taken = sorted({*params, "episode_seconds", *also})
     for key in kwargs:
         if key not in params:
-            close = difflib.get_close_matches(key, taken, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            close = nearest(key, taken)
+            hint = f" (did you mean {close!r}?)" if close else ""
             raise TypeError(f"{env_class.__name__} takes no keyword {key!r}{hint}; it takes {', '.join(taken)}")
 
 

@@ -15,6 +15,15 @@ from pathlib import Path
 from typing import Any
 
 
+def nearest(word: str, choices: Iterable[str], cutoff: float = 0.6) -> str | None:
+    """The choice nearest a mistyped ``word`` (``difflib``'s closest match above ``cutoff``), for a message's "did
+    you mean"; None if none is near."""
+    import difflib
+
+    close = difflib.get_close_matches(word, sorted(choices), n=1, cutoff=cutoff)
+    return close[0] if close else None
+
+
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp_path)`` and move the result to ``path`` in one rename, so readers never see half a file."""
     path = Path(path)
