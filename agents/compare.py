@@ -238,6 +238,9 @@ def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:
     groups = robot.plot_groups
     rows = (2 + len(groups) + 1) // 2
     fig, axes = plt.subplots(rows, 2, figsize=(11, 3 * rows), squeeze=False)
+    # margins in inches for the title and labels: tight_layout measured every tick label, half of the plot's time
+    height = 3 * rows
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.5 / height, top=1 - 0.75 / height, wspace=0.22, hspace=0.55)
     ax = axes.ravel()
     ax[0].plot(df.pos_x, df.pos_y)
     ax[0].set(xlabel="x (m)", ylabel="y (m)", title="trajectory")
@@ -262,7 +265,6 @@ def plot_episode(robot, telemetry: Path, path: Path, title: str) -> None:
     for panel in ax[2 + len(groups) :]:
         panel.axis("off")
     fig.suptitle(f"{title}\n(sampled at the control rate, {meta['rate_hz']:.0f} Hz)", fontsize=10)
-    fig.tight_layout()
     atomic_write(path, lambda p: fig.savefig(p, format="png", dpi=100))
     plt.close(fig)
 

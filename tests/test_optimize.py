@@ -167,7 +167,7 @@ def test_optimizers_improve_the_objective_on_a_tiny_budget(tmp_path, optimizer):
 
 
 def test_a_killed_run_resumes_from_its_checkpoint_to_the_uninterrupted_result(tmp_path):
-    config = write_config(tmp_path, seconds=4.0)
+    config = write_config(tmp_path, seconds=2.0)
     args = ["--config", str(config), "--optimizer", "pso", "--iterations", "8", "--particles", "6", "--seed", "3",
             "--workers", "1"]  # fmt: skip
     straight = cli(*args, "--out", str(tmp_path / "straight"))

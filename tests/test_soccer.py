@@ -235,7 +235,9 @@ def test_the_keeper_stands_between_the_ball_and_its_goal(robot):
     assert np.linalg.norm(start[:2] - wanted) > 1.0 * length
     still = np.zeros(env.action_space.shape)  # no speed, no turn (and no kick)
     still[0] = -1.0
-    steps, last = round(19.0 / base.dt), round(3.0 / base.dt)
+    # long enough for each to walk there and stand still for the last 3 s (the Bioloid walks at 5 cm/s)
+    seconds = {"Roach": 12.0, "Xjus": 9.0, "Bioloid": 19.0}[robot]
+    steps, last = round(seconds / base.dt), round(3.0 / base.dt)
     off = []
     for step in range(steps):
         obs, _, terminated, truncated, _ = env.step(still)

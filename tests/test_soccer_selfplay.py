@@ -81,13 +81,14 @@ def test_the_learners_matches_are_the_pettingzoo_matches_against_the_scripted_te
 
 def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
     """A short self-play run: checkpoints, snapshots in pool/, ratings.json, the self-play scalars in TensorBoard;
-    then evaluate.py's matches take the trained model as a team, and refuse it for another team size."""
-    done = train_in_process("--soccer", "roach", "--players", "1", "--timesteps", "2048", "--n-envs", "4",
+    then evaluate.py's matches take the trained model as a team, and refuse it for another team size (the Bioloid:
+    its physics is the fastest at a 20 ms step)."""
+    done = train_in_process("--soccer", "bioloid", "--players", "1", "--timesteps", "2048", "--n-envs", "4",
                             "--match-seconds", "2", "--checkpoint-freq", "1024", "--runs-dir", tmp_path)  # fmt: skip
     assert done.returncode == 0, done.stderr
     (run_dir,) = tmp_path.iterdir()
     config = json.loads((run_dir / "config.json").read_text())
-    assert config["soccer"]["robot"] == "roach" and config["env_id"] == "soccer/roach"
+    assert config["soccer"]["robot"] == "bioloid" and config["env_id"] == "soccer/bioloid"
     ratings = json.loads((run_dir / "ratings.json").read_text())
     assert ratings["ratings"][SCRIPTED] == ANCHOR_RATING and ratings["num_timesteps"] >= 2048
     played = sum(sum(r.values()) for r in ratings["learner_record"].values())
@@ -95,10 +96,10 @@ def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
     assert sorted(p.name for p in (run_dir / "pool").iterdir()) == ["step_0000001024.zip", "step_0000002048.zip"]
     tags = scalars(run_dir / "tb")
     assert {"selfplay/elo_learner", "selfplay/win_rate_vs_scripted", "selfplay/player_return"} <= set(tags)
-    result = play("roach", 1, str(run_dir / "model.zip"), "scripted", 2, 0, 1.0)
+    result = play("bioloid", 1, str(run_dir / "model.zip"), "scripted", 2, 0, 1.0)
     assert result["matches"] == 2
     with pytest.raises(ValueError, match="players_per_team"):
-        play("roach", 2, str(run_dir / "pool" / "step_0000001024.zip"), "random", 1, 0, 1.0)
+        play("bioloid", 2, str(run_dir / "pool" / "step_0000001024.zip"), "random", 1, 0, 1.0)
     # resumed from its last checkpoint: the pool and the ratings carry on
     (run_dir / "pool" / "step_0000009999.zip").write_bytes(b"left by a killed run, after its checkpoint")
     resumed = train_in_process("--resume", run_dir, "--timesteps", "3072")
@@ -152,7 +153,7 @@ def test_a_residual_learner_that_corrects_nothing_plays_the_scripted_team():
 def test_train_soccer_residual_on_the_scripted_team(tmp_path):
     """``train.py --soccer ROBOT --residual scripted``: the model records its residual, its snapshots play on top of
     the scripted away team, and evaluate.py's matches play it on top of the scripted team; another gait is refused."""
-    done = train_in_process("--soccer", "roach", "--players", "1", "--timesteps", "512", "--n-envs", "4",
+    done = train_in_process("--soccer", "bioloid", "--players", "1", "--timesteps", "512", "--n-envs", "4",
                             "--match-seconds", "1", "--checkpoint-freq", "256", "--residual", "scripted",
                             "--runs-dir", tmp_path)  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -168,7 +169,7 @@ def test_train_soccer_residual_on_the_scripted_team(tmp_path):
     assert sum(sum(r.values()) for r in ratings["learner_record"].values()) == 4 * (steps // 4 // 50)
     snapshots = {n: r for n, r in ratings["learner_record"].items() if n != SCRIPTED}
     assert sum(sum(r.values()) for r in snapshots.values()) > 0, "snapshots (on the scripted team) played matches"
-    result = play("roach", 1, str(run_dir / "model.zip"), "scripted", 2, 0, 1.0)
+    result = play("bioloid", 1, str(run_dir / "model.zip"), "scripted", 2, 0, 1.0)
     assert result["matches"] == 2
     refused = train_in_process("--soccer", "roach", "--timesteps", "10", "--residual", "tripod",
                                "--runs-dir", tmp_path / "other")  # fmt: skip
