@@ -1195,7 +1195,12 @@ def main(argv: list[str] | None = None) -> int:
     records = Path(args.records) if args.records else out
     try:
         _check_plan(plan, args.rerun, records)
-    except (StaleResult, ValueError) as exc:
+        if args.address is not None and not args.table_only:  # joined before anything runs or is removed
+            from envs.common.cluster import check_address, init_ray
+
+            check_address(args.address)
+            init_ray(args.address)
+    except (StaleResult, ValueError, RuntimeError) as exc:  # RuntimeError: ClusterError, a cluster not joined
         print(f"leaderboard: error: {exc}", file=sys.stderr)
         return 2
     try:
@@ -1348,11 +1353,9 @@ def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: in
     if not rows:
         return
     if address is not None:
-        import ray
+        from envs.common.cluster import ensure_ray
 
-        from envs.common.cluster import init_ray
-
-        init_ray(address)
+        ray = ensure_ray(address)  # main joined the cluster before anything ran
         job = ray.remote(num_cpus=threads)(_row_job)
         pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads, row in again) for row in rows]
         while pending:
@@ -1373,4 +1376,8 @@ def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: in
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # the importable module's main, not this copy's: Ray sends a row's job and its plan to a cluster's workers by
+    # reference to their module, and a worker has no ``__main__`` of ours to find them in
+    from agents.leaderboard import main as leaderboard_main
+
+    sys.exit(leaderboard_main())

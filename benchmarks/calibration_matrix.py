@@ -45,7 +45,7 @@ import numpy as np
 
 from benchmarks.common import Output, add_output_options, md_table, resolve_output
 from envs.common.batch import THREADS_VARIABLE, default_threads
-from envs.common.cluster import init_ray
+from envs.common.cluster import ClusterError, check_address, ensure_ray
 from envs.common.io import ToolParser
 from sysid import synth
 from sysid.cases import Case, run_case
@@ -111,12 +111,9 @@ def _serial(plan: list[Job], left) -> Iterator[tuple[Job, dict | None, str]]:
 def _on_ray(plan: list[Job], left, workers: int, threads: int, address: str | None):
     """The plan as Ray tasks, at most ``workers`` at a time; no task is submitted after the budget. Yields each job
     with its row as it finishes (None: not run)."""
-    import ray
-
     root = str(Path(__file__).resolve().parent.parent)
-    if not ray.is_initialized():
-        init_ray(address, num_cpus=None if address else workers * threads,
-                 runtime_env={"env_vars": {"PYTHONPATH": root}})  # fmt: skip
+    ray = ensure_ray(address, num_cpus=None if address else workers * threads,
+                     runtime_env={"env_vars": {"PYTHONPATH": root}})  # fmt: skip
     task = ray.remote(num_cpus=threads)(_run_in)
     queue, running = list(plan), {}
     try:
@@ -210,6 +207,11 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(args.robots) - set(adapters()))
     if unknown:
         p.error(f"--robots {unknown[0]!r}: no calibration adapter (known: {', '.join(sorted(adapters()))})")
+    if args.address:
+        try:
+            check_address(args.address)
+        except ClusterError as exc:
+            p.error(str(exc))
     output = resolve_output(p, args, "calibration_matrix", CONFIGURATIONS, run_options=RUN_OPTIONS)
     threads = args.threads or (1 if args.address else max(1, default_threads() // args.workers))
     start = time.perf_counter()

@@ -92,6 +92,79 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert "was made with" in capsys.readouterr().err
 
 
+@pytest.fixture
+def ray_head(tmp_path):
+    """A Ray cluster of one node on loopback, started as a user starts one (``ray start --head``) with token
+    authentication (the token in a file of its own, ``RAY_AUTH_TOKEN_PATH``), and stopped after: its address and the
+    environment a user's command runs in. Only this head is stopped (``ray stop`` would stop every Ray instance of
+    the user)."""
+    import os
+    import secrets
+    import socket
+    import subprocess
+    import sys
+    import tempfile
+    import time
+
+    def free_port() -> int:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            return s.getsockname()[1]
+
+    port = free_port()
+    temp = Path(tempfile.mkdtemp(prefix="ray"))  # short: Ray's socket paths must fit in 107 characters
+    log = tmp_path / "ray_head.log"
+    command = [str(Path(sys.executable).with_name("ray")), "start", "--head", "--block", "--node-ip-address",
+               "127.0.0.1", "--port", str(port), "--ray-client-server-port", str(free_port()), "--num-cpus", "2",
+               "--include-dashboard", "false", "--disable-usage-stats", "--temp-dir", str(temp)]  # fmt: skip
+    token = temp / "auth_token"
+    token.write_text(secrets.token_hex(32))
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_AUTH")} | {"RAY_AUTH_TOKEN_PATH": str(token)}
+    with log.open("w") as out:
+        head = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while "Ray runtime started" not in log.read_text() and head.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert head.poll() is None and "Ray runtime started" in log.read_text(), log.read_text()
+        assert "Token authentication is enabled" in log.read_text()
+        yield f"127.0.0.1:{port}", env
+    finally:
+        import ray
+
+        ray.shutdown()
+        head.terminate()
+        head.wait(timeout=60)
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+@pytest.mark.slow  # a minute: a Ray head, then a row on it and the same row here, each trained and evaluated
+@pytest.mark.xdist_group("ray")
+def test_rows_run_on_a_ray_cluster_as_they_run_here(tmp_path, monkeypatch, ray_head):
+    """``--address``: the command (run as a user runs it, token and all) sends its rows as Ray tasks to the cluster
+    there (here a head started on loopback); they give the records that the same rows give in this process, bit
+    for bit (the same seeds, the same models)."""
+    import subprocess
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({WALK: TINY}))
+    plan = ["--tasks", WALK, "--algos", "ppo", "--seeds", "0", "--timesteps", "256", "--episodes", "2",
+            "--max-episode-steps", "50", "--hyperparams", str(tmp_path / "tiny.yml")]  # fmt: skip
+    assert leaderboard.main([*plan, "--out", str(tmp_path / "here")]) == 0
+    address, env = ray_head  # RAY_AUTH_MODE unset, as a user's: the command sends the token it finds
+    done = subprocess.run([sys.executable, "-m", "agents.leaderboard", *plan, "--out", str(tmp_path / "ray"),
+                           "--address", address], cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          env=env)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert f"on Ray at {address}" in done.stdout
+    here, there = (json.loads((tmp_path / out / "results.json").read_text()) for out in ("here", "ray"))
+    row = "skitter_RoachWalk-v3__ppo__0"
+    assert there["rows"][row]["returns"] == here["rows"][row]["returns"]
+    assert there["rows"][row]["timesteps"] == here["rows"][row]["timesteps"] >= 256
+    assert (tmp_path / "ray" / "runs" / row / "model.zip").is_file(), "the task wrote into the command's folder"
+
+
 ACADEMY = "skitter/BioloidGoToBall-v3"
 
 
@@ -146,6 +219,17 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
     assert leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--rerun", f"{WALK}:sac:0", "--out",
                              str(tmp_path / "b")]) == 2  # fmt: skip
     assert "not a row of this plan" in capsys.readouterr().err
+    # a cluster address that is not one, or where nothing answers: refused at once (Ray would retry it for minutes)
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        closed = s.getsockname()[1]  # nothing listens on it once the socket is closed
+    for address, message in (("head-node", "expected HOST:PORT"), (f"127.0.0.1:{closed}", "nothing answers there")):
+        assert leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--address", address, "--out",
+                                 str(tmp_path / "b")]) == 2  # fmt: skip
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "b").exists()
 
 

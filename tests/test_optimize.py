@@ -239,6 +239,7 @@ def test_a_checkpoint_resumes_only_under_its_own_settings(tmp_path):
         ({}, ["--particles", "1"], "--particles"),
         ({}, ["--iterations", "0"], "--iterations"),
         ({}, ["--address", "10.0.0.1:6379"], "--address"),
+        ({}, ["--backend", "ray", "--address", "head-node"], "--address 'head-node': expected HOST:PORT"),
         ({}, ["--seed", "-1"], "--seed must be in [0, 4294967295], got -1"),
         ({}, ["--seed", str(2**32)], "--seed"),
         ({}, ["--particles", "0"], "--particles"),

@@ -25,6 +25,7 @@ from pathlib import Path
 from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import ConfigError, read_config
 from agents.optimize.run import CHECKPOINT, LOCK, RunError, Settings, run
+from envs.common.cluster import ClusterError, check_address
 from envs.common.io import ToolParser, parent_problem
 
 PROG = "python -m agents.optimize"
@@ -74,6 +75,11 @@ def check(args: argparse.Namespace) -> None:
         raise RunError(f"--stop-after must be in [1, {MAX_ITERATIONS}], got {args.stop_after}")
     if args.address is not None and args.backend != "ray":
         raise RunError("--address is for --backend ray")
+    if args.address is not None:
+        try:
+            check_address(args.address)
+        except ClusterError as exc:
+            raise RunError(str(exc)) from None
     problem = parent_problem(args.out / CHECKPOINT)  # the run folder's own file: can it be made?
     if problem:
         raise RunError(f"--out {args.out}: {problem}; choose another folder")
@@ -106,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         command = f"{PROG} " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
         result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command,
                      stop_after=args.stop_after)  # fmt: skip
-    except (ConfigError, RunError) as error:
+    except (ConfigError, RunError, ClusterError) as error:
         print(f"{PROG}: error: {error}", file=sys.stderr)
         return 2
     best = result["best"]

@@ -25,7 +25,7 @@ import numpy as np
 
 from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import DEPRECATED_OBJECTIVES, Evaluator, RunConfig
-from envs.common.cluster import init_ray
+from envs.common.cluster import ensure_ray
 from envs.common.io import Busy, atomic_write, folder_lock, write_json
 
 CHECKPOINT, BEST, HISTORY, LOCK = "checkpoint.pkl", "best.json", "history.json", ".lock"
@@ -79,12 +79,9 @@ class RayBackend:
     """
 
     def __init__(self, config: RunConfig, particles: int, workers: int, address: str | None = None):
-        import ray
-
         # built here first: a bad config fails in one line before Ray starts (it also writes the policy files)
         self.controller = Evaluator(config, 1, nthread=1).controller
-        if not ray.is_initialized():
-            init_ray(address)
+        ray = ensure_ray(address)
         sizes = [len(part) for part in np.array_split(np.arange(particles), workers)]
         remote = ray.remote(num_cpus=1)(_Worker)
         self._ray = ray
