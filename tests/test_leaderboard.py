@@ -138,7 +138,7 @@ def ray_head(tmp_path):
         shutil.rmtree(temp, ignore_errors=True)
 
 
-@pytest.mark.slow  # a minute: a Ray head, then a row on it and the same row here, each trained and evaluated
+@pytest.mark.slow  # a minute: a Ray head, a row on it and the same row here (make leaderboard --address runs it)
 @pytest.mark.xdist_group("ray")
 def test_rows_run_on_a_ray_cluster_as_they_run_here(tmp_path, monkeypatch, ray_head):
     """``--address``: the command (run as a user runs it, token and all) sends its rows as Ray tasks to the cluster
