@@ -121,6 +121,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             read_calibration(args.calibration)
         except CalibrationError as exc:
             p.error(f"--calibration: {exc}")
+    # evaluate.py sets these itself (from its own options): the same key in --env-kwargs would be given twice
+    owned = {"telemetry": "--telemetry or --telemetry-rate", "render_mode": "--video", "calibration": "--calibration",
+             "num_envs": "--episodes"}  # fmt: skip
+    if args.max_episode_steps:
+        owned |= {"max_episode_steps": "--max-episode-steps", "episode_seconds": "--max-episode-steps"}
+    taken = [key for key in args.env_kwargs if key in owned]
+    if taken:
+        p.error(f"--env-kwargs {taken[0]!r}: evaluate.py sets it from {owned[taken[0]]}; give that option instead")
     if args.env_kwargs:
         try:  # made once, so that a bad argument is one line here, before anything else
             gym.make(args.env, **args.env_kwargs).close()

@@ -181,8 +181,11 @@ def _load_done(path: Path, settings: dict[str, Any], what: str) -> dict[str, Any
         return None
     record = json.loads(path.read_text())
     if record.get("settings") != settings:
-        raise StaleResult(f"{path}: {what} was made with {record.get('settings')}, not {settings}: give --rerun for "
-                          "it, or another --out")  # fmt: skip
+        # a row can be computed again (--rerun TASK:ALGO:SEED); a task's baselines belong to the plan's settings
+        remedy = "give --rerun for it, or another --out" if what.startswith("row ") else (
+            "its rows and baselines were made under those settings: give another --out (and --records), or the "
+            "settings they were made with")  # fmt: skip
+        raise StaleResult(f"{path}: {what} was made with {record.get('settings')}, not {settings}: {remedy}")
     return record
 
 
@@ -1053,7 +1056,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
 
 # --- command line -----------------------------------------------------------------------------------------------
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = ToolParser(prog="python -m agents.leaderboard", description=__doc__.splitlines()[0])
+    parser = ToolParser(prog="python -m agents.leaderboard", description=__doc__)
     parser.add_argument("--tasks", nargs="+", required=True, help="env ids")
     parser.add_argument("--algos", nargs="+", default=["ppo"], metavar="ALGO",
                         choices=[f"{a}{v}" for a in ("ppo", "sac", "td3") for v in ("", RESIDUAL)],

@@ -1447,9 +1447,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="run this many Optuna trials of --timesteps each instead of one run")  # fmt: skip
     tuning.add_argument("--storage", help="the study's database URL (default sqlite:///<runs-dir>/tuning.db)")
     tuning.add_argument("--study", help="the study's name (default <env>__<algo>); processes sharing it share trials")
-    tuning.add_argument("--evaluations", type=_positive_int, default=4,
+    tuning.add_argument("--evaluations", type=_positive_int,
                         help="evaluations per trial, each reported to the pruner (default 4)")  # fmt: skip
-    tuning.add_argument("--eval-episodes", type=_positive_int, default=5,
+    tuning.add_argument("--eval-episodes", type=_positive_int,
                         help="episodes per evaluation (default 5)")  # fmt: skip
     soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
     soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
@@ -1469,6 +1469,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     self_play = {"players": 3, "match_seconds": 60.0, "scripted_share": 0.5, "snapshot_freq": None}
     if args.soccer is None:
         given = [name for name in self_play if getattr(args, name) is not None]
+        if given and args.resume:
+            parser.error(f"--{given[0].replace('_', '-')}: --resume takes the run's settings from its folder (a "
+                         "self-play run keeps its own): give --resume alone")  # fmt: skip
         if given:
             parser.error(f"--{given[0].replace('_', '-')} is a self-play option: give --soccer ROBOT with it")
     for name, default in self_play.items():
@@ -1505,8 +1508,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                 parser.error(f"--tune needs {flag}")
         if args.algo not in ("ppo", "sac"):
             parser.error(f"--tune tunes ppo and sac, not {args.algo}")
-    elif args.storage is not None or args.study is not None:
-        parser.error("--storage and --study go with --tune")
+        for flag, value in (("--run-name", args.run_name), ("--checkpoint-freq", args.checkpoint_freq)):
+            if value is not None:  # a trial keeps no run folder or checkpoints: the study's files are its output
+                parser.error(f"{flag} is for one training run: --tune writes its study under "
+                             "<runs-dir>/tuning/<study>/ and keeps no checkpoints")  # fmt: skip
+        args.evaluations = 4 if args.evaluations is None else args.evaluations
+        args.eval_episodes = 5 if args.eval_episodes is None else args.eval_episodes
+    else:
+        for flag, value in (("--storage", args.storage), ("--study", args.study), ("--evaluations", args.evaluations),
+                            ("--eval-episodes", args.eval_episodes)):  # fmt: skip
+            if value is not None:
+                parser.error(f"{flag} goes with --tune")
     for flag, value in (("--runs-dir", args.runs_dir), ("--resume", args.resume)):
         if value is not None and not value.strip():
             parser.error(f"argument {flag}: expected a folder, got an empty path {value!r}")

@@ -155,7 +155,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"batch_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--num-envs", type=int, nargs="+", default=[4, 16, 64, 128])
     parser.add_argument("--steps", type=int, default=150, help="control steps per timing (duty ids: x10)")
     parser.add_argument("--rounds", type=int, default=3)

@@ -424,7 +424,7 @@ FILES = ("{name}.json", "{name}.md", "{name}_[0-9]*.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("policies", nargs="+", help="policy files written by agents.optimize (best.json)")
     add_output_options(parser)
     return parser

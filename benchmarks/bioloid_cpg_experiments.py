@@ -146,7 +146,7 @@ reference trot, and per experiment the best policy and its frames."""
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--no-check", action="store_true", help="skip the physical checks and the evaluation")
     parser.add_argument("--episodes", type=int, default=20, help="evaluate.py episodes per policy")
     add_output_options(parser)

@@ -107,7 +107,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_figure30": [], "bioloid_figure3
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--seeds", type=int, default=4, help="perturbed starts per cell beside the nominal one")
     parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant (seed IV.A)")
     add_output_options(parser)

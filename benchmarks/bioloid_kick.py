@@ -65,7 +65,7 @@ def kick_once(env: gym.Env, kick: Kick, side: float, ahead: float, across: float
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     add_output_options(parser)
     return parser
 

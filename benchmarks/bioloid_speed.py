@@ -184,7 +184,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer rounds and PSO iterations")
     parser.add_argument("--pso-iterations", type=int, default=None, help="seed-scale PSO iterations to time")
     add_output_options(parser)

@@ -181,7 +181,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_static": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     add_output_options(parser)
     return parser
 

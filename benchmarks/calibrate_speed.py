@@ -34,7 +34,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"calibrate_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--effect", default="coulomb_friction_right")
     parser.add_argument("--seed", type=int, default=0)

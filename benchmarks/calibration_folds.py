@@ -37,7 +37,7 @@ CONFIGURATIONS: dict[str, list[str]] = {}
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = ToolParser(description=__doc__.splitlines()[0])
+    p = ToolParser(description=__doc__)
     p.add_argument("--robot", required=True)
     p.add_argument("--effect", required=True, help="an effect the generator can inject (sysid.synth --list)")
     p.add_argument("--seed", type=int, required=True)

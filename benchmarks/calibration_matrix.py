@@ -165,7 +165,7 @@ RUN_OPTIONS = ("minutes", "workers", "threads", "address")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    p = ToolParser(description=__doc__.splitlines()[0])
+    p = ToolParser(description=__doc__)
     p.add_argument("--robots", nargs="+", default=sorted(adapters()), help="default: every robot with an adapter")
     p.add_argument("--seeds", type=int, default=20, help="effect cases per robot (every observable effect, then "
                    "again at the next draws; coverage pooled over them), and the seeds of --kinds coverage "

@@ -111,7 +111,7 @@ CONFIGURATIONS: dict[str, list[str]] = {
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument("--effect", type=synth.parse_effect, help="NAME=VALUE or NAME=p:v,p:v")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])

@@ -158,7 +158,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"env_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=600, help="control steps per round (duty envs: x10)")
     parser.add_argument("--rounds", type=int, default=9)
     add_output_options(parser)

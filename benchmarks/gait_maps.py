@@ -102,7 +102,7 @@ def _yaw(q: np.ndarray) -> np.ndarray:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=list(ROBOTS), help="robots to map")
     parser.add_argument("--seconds", type=float, default=6.0, help="length of each run, s")
     parser.add_argument("--seeds", type=int, default=3, help="runs per grid point")

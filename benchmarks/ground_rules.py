@@ -89,7 +89,7 @@ def run(env_id: str, seeds: list[int], yaw_rate: float | None = None) -> dict:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--ids", nargs="+", default=None, help="env ids (default: every registered skitter id)")
     add_output_options(parser)
     return parser

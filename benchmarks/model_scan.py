@@ -130,7 +130,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"model_scan": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--seeds", type=int, default=4)
     parser.add_argument("--seconds", type=float, default=4.0)
     add_output_options(parser)

@@ -30,7 +30,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"realtime": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--episodes", type=int, default=3)
     add_output_options(parser)
     return parser

@@ -62,7 +62,7 @@ def battery(robot: str, k: int, mode: str, cycles: int) -> dict[str, str | None]
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--cycles", type=int, default=CYCLES, help="steps of each test")
     add_output_options(parser)
     return parser

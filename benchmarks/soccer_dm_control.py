@@ -99,7 +99,7 @@ def ours_single(robot: str, steps: int, seed: int) -> dict:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=200, help="control steps of each measurement")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--venv", type=Path, default=Path("runs") / "dm_control_venv",

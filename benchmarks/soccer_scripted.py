@@ -83,7 +83,7 @@ def match_set(job: tuple[str, str, bool]) -> dict:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--academy-only", action="store_true", help="run the academy's episodes, not the matches")
     parser.add_argument("--robots", nargs="+", choices=tuple(ROBOTS), default=list(ROBOTS),
                         help="the robots whose academy and matches to run (default: all three)")  # fmt: skip

@@ -113,7 +113,7 @@ def realtime(seconds: float, seed: int) -> dict:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--matches", type=int, nargs="+", default=[8, 32], help="two-a-side matches per robot, batched")
     parser.add_argument("--steps", type=int, default=200, help="control steps of the batched matches")
     parser.add_argument("--match-seconds", type=float, default=20.0, help="simulated seconds of the Bioloid match")

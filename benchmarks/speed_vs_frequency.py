@@ -65,7 +65,7 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--seconds", type=float, default=6.0)
     add_output_options(parser)

@@ -245,7 +245,7 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--lanes", type=int, default=20,
                         help="seeded terrains (lanes) per terrain kind (default 20, the issue's least; fewer for a "
                              "quick look)")  # fmt: skip

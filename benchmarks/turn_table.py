@@ -65,7 +65,7 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--frequencies", type=float, nargs="+", default=[5.0, 10.0, 20.0])
     parser.add_argument("--table-frequency", type=float, default=10.0)
     parser.add_argument("--seeds", type=int, default=6)

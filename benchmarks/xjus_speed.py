@@ -249,7 +249,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"xjus_speed": []}
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = ToolParser(description=__doc__.splitlines()[0])
+    parser = ToolParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer rounds, seeds and episodes")
     add_output_options(parser)
     return parser

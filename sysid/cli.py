@@ -47,7 +47,7 @@ from sysid.robots import adapters, read_log
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = ToolParser(prog="calibrate.py", description=__doc__.splitlines()[0])
+    p = ToolParser(prog="calibrate.py", description=__doc__)
     p.add_argument("--robot", required=True, choices=sorted(adapters()), help="the robot (or bench rig) of the logs")
     p.add_argument("--train", required=True, nargs="+", type=Path, help="logs to calibrate on (FILE or FILE@START:END)")
     p.add_argument("--test", required=True, nargs="+", type=Path, help="held-out logs the errors are measured on")

@@ -22,7 +22,7 @@ def main(argv: list[str] | None = None) -> int:
     from sysid.robots import adapter as make_adapter
     from sysid.robots import adapters
 
-    parser = ToolParser(prog="python -m sysid.measure", description=__doc__.splitlines()[0])
+    parser = ToolParser(prog="python -m sysid.measure", description=__doc__)
     parser.add_argument("--robot", required=True, choices=sorted(adapters()), help="the robot the logs are of")
     parser.add_argument("logs", nargs="+", metavar="LOG", help="logs, whole or FILE@START:END")
     parser.add_argument("--out", help="also write the measurements here as JSON (a new file)")

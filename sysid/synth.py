@@ -317,7 +317,7 @@ def parse_effect(text: str) -> tuple[str, float | dict[str, float] | None]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = ToolParser(prog="python -m sysid.synth", description=__doc__.splitlines()[0])
+    parser = ToolParser(prog="python -m sysid.synth", description=__doc__)
     parser.add_argument("--robot", choices=sorted(adapters()))
     parser.add_argument(
         "--effect", action="append", default=[], type=parse_effect, help="NAME, NAME=VALUE or NAME=p:v,p:v"

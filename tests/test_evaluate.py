@@ -182,6 +182,25 @@ def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
         (["--env", "skitter/RoachWalk-v3", "--policy", "tripod:fast"], "not a number", False),
         (["--env", "skitter/RoachWalk-v3", "--policy", "tripod:"], "nothing after ':'", False),
         (["--env", "skitter/RoachWalk-v3", "--policy", "tests"], "is a folder: give the path of a model.zip", False),
+        (
+            ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--env-kwargs", '{"telemetry": true}'],
+            "--env-kwargs 'telemetry': evaluate.py sets it from --telemetry",
+            False,
+        ),
+        (
+            [
+                "--env",
+                "skitter/RoachWalk-v3",
+                "--policy",
+                "tripod",
+                "--max-episode-steps",
+                "5",
+                "--env-kwargs",
+                '{"episode_seconds": 2}',
+            ],
+            "sets it from --max-episode-steps",
+            False,
+        ),
     ],
 )
 def test_bad_input_gets_a_clear_message_and_no_traceback(tmp_path, capsys, args, message, command_line):

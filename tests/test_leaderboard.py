@@ -233,6 +233,38 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
     assert not (tmp_path / "b").exists()
 
 
+def test_baselines_of_other_settings_are_refused_with_a_remedy_that_works(tmp_path, capsys):
+    """A task's baselines made under other settings (another --episodes) cannot be computed again with --rerun,
+    which takes rows: the message says to give another --out or those settings; a stale row is told --rerun."""
+    out = tmp_path / "b"
+    path = leaderboard.task_file(out, WALK)
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"settings": {"episodes": 2}}))
+    argv = [
+        "--tasks",
+        WALK,
+        "--algos",
+        "ppo",
+        "--seeds",
+        "0",
+        "--timesteps",
+        "10",
+        "--episodes",
+        "3",
+        "--out",
+        str(out),
+    ]
+    assert leaderboard.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "give another --out" in err and "--rerun" not in err, err
+    path.unlink()
+    row = leaderboard.row_file(out, leaderboard.Row(WALK, "ppo", 0))
+    row.parent.mkdir(parents=True)
+    row.write_text(json.dumps({"settings": {"episodes": 2}}))
+    assert leaderboard.main(argv) == 2
+    assert "give --rerun for it" in capsys.readouterr().err
+
+
 def test_a_docs_page_that_is_not_the_leaderboards_own_is_refused_before_anything_runs(tmp_path, capsys):
     """``--docs`` replaces a page this command wrote (docs/results.md), never a user's file, and never traces back
     on a folder or a path under a file."""

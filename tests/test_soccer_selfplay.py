@@ -121,6 +121,8 @@ def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
     for flag in ("--players", "--match-seconds", "--scripted-share", "--snapshot-freq"):  # not ignored without it
         done = train_in_process("--env", "skitter/RoachWalk-v3", "--timesteps", "10", "--runs-dir", tmp_path, flag, "2")
         assert done.returncode == 2 and f"{flag} is a self-play option: give --soccer" in done.stderr, done.stderr
+        done = train_in_process("--resume", tmp_path / "a_run", flag, "2")  # a run keeps its own, self-play or not
+        assert done.returncode == 2 and "--resume takes the run's settings from its folder" in done.stderr
     assert not any(tmp_path.iterdir())
 
 

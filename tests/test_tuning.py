@@ -108,11 +108,18 @@ def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, arg
     assert not (tmp_path / "runs" / "tuning").exists(), "nothing written"
 
 
-def test_storage_and_study_need_tune(tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize(("args", "message"), [
+    (("--study", "x"), "--study goes with --tune"),
+    (("--evaluations", 3), "--evaluations goes with --tune"),  # not a normal run that ignores it
+    (("--eval-episodes", 3), "--eval-episodes goes with --tune"),
+    (("--tune", 1, "--run-name", "foo"), "--run-name is for one training run"),  # not a study that ignores it
+    (("--tune", 1, "--checkpoint-freq", 64), "--checkpoint-freq is for one training run"),
+])  # fmt: skip
+def test_tuning_options_and_run_options_are_not_mixed(tmp_path, monkeypatch, capsys, args, message):
     with pytest.raises(SystemExit) as exited:
-        train_py("--env", WALK, "--algo", "ppo", "--timesteps", 128, "--study", "x", cwd=tmp_path,
-                 monkeypatch=monkeypatch)  # fmt: skip
-    assert exited.value.code == 2 and "--storage and --study go with --tune" in capsys.readouterr().err
+        train_py("--env", WALK, "--algo", "ppo", "--timesteps", 128, *args, cwd=tmp_path, monkeypatch=monkeypatch)
+    assert exited.value.code == 2 and message in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
 
 
 def _server_binaries() -> tuple[str, str] | None:

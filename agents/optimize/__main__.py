@@ -37,7 +37,7 @@ MAX_THREADS = 1024
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = ToolParser(prog=PROG, description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = ToolParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog=__doc__)  # fmt: skip
     p.add_argument("--config", required=True, help="a run configuration (JSON; agents/optimize/problem.py)")
     p.add_argument("--optimizer", choices=sorted(OPTIMIZERS), default="pso")

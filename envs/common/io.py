@@ -331,7 +331,13 @@ def json_object(text: str, flag: str) -> dict[str, Any]:
 
 class ToolParser(argparse.ArgumentParser):
     """The command-line parser of every skitter tool: a bad argument is one line, ``PROG: error: ... (see --help)``,
-    and exit code 2, without argparse's usage block."""
+    and exit code 2, without argparse's usage block. A ``description`` is a module's docstring: ``--help`` shows its
+    first paragraph, whole (its first line alone stops mid-sentence)."""
+
+    def __init__(self, *args: Any, description: str | None = None, **kwargs: Any):
+        if description:
+            description = " ".join(description.strip().split("\n\n")[0].split())
+        super().__init__(*args, description=description, **kwargs)
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
