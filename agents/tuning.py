@@ -12,8 +12,9 @@ Storage: an SQLite file by default (``sqlite:///<runs-dir>/tuning.db``) or any d
 such as ``postgresql://user@host:5432/db`` (the ``psycopg`` driver ships with skitter): every process that names the
 same ``--study`` there shares the study, each running its own trials (on several machines at once). A study is
 resumable: run the command again and it adds its trials to those done (a trial cut short by Ctrl-C is recorded as
-failed and not counted). The sampler is Optuna's TPE, seeded with ``--seed`` (processes sharing a study should use
-different seeds).
+failed and not counted). The sampler is Optuna's TPE, seeded with ``--seed`` plus the number of trials the study
+already holds (a command run again draws anew; processes sharing a study should use different seeds). A study is
+one env's, algorithm's, env kwargs' and budget's: a command with another is refused.
 
 Writes ``<runs-dir>/tuning/<study>/`` (each file written whole, or not at all): ``best.yml``, the id's
 hyperparameter entry with the best trial's values, ready to go into ``hyperparams/<algo>.yml``; ``trials.csv``,
@@ -199,7 +200,7 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     runs_dir.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     pruner = optuna.pruners.MedianPruner(n_startup_trials=STARTUP_TRIALS, n_warmup_steps=timesteps // 3)
-    sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS)
+    sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS)  # reseeded below
     try:
         the_study = optuna.create_study(storage=url, study_name=name, direction="maximize", sampler=sampler,
                                         pruner=pruner, load_if_exists=True)  # fmt: skip
@@ -210,13 +211,16 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
                           f"{_first_line(exc)})") from None  # fmt: skip
     # a study is one env's: a process that shares it with another env id, algorithm or env kwargs (another action
     # space, say) is refused before it adds a trial
-    made = {"env_id": env_id, "algo": algo, "env_kwargs": hp0.env_kwargs}
+    made = {"env_id": env_id, "algo": algo, "env_kwargs": hp0.env_kwargs, "timesteps": timesteps}
     clash = {k: the_study.user_attrs[k] for k, v in made.items() if the_study.user_attrs.get(k, v) != v}
     if clash:
         raise ConfigError(f"--study {name} in {_shown(url)} was made with {clash}, not "
                           f"{ {k: made[k] for k in clash} }: give another --study")  # fmt: skip
     for key, value in made.items():
         the_study.set_user_attr(key, value)
+    # a command run again continues the study with new draws: seeded with --seed alone, its first (random) trials
+    # would repeat the earlier command's
+    the_study.sampler = optuna.samplers.TPESampler(seed=seed + len(the_study.trials), n_startup_trials=STARTUP_TRIALS)
 
     exploring = hp0.residual is None or hp0.residual.exploration is None  # else the entry's residual sets it
 

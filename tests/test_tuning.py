@@ -52,11 +52,17 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     assert hp.n_envs == 2 and hp.env_kwargs == {"max_episode_steps": 50}
     assert study["best"]["value"] == max(float(row["value"]) for row in trials_csv(folder))
     assert hp.model_kwargs["learning_rate"] == study["best"]["hyperparams"]["learning_rate"]
-    longer = [str(a) for a in common]
-    longer[longer.index("--timesteps") + 1] = "384"  # another budget: the study's draws keep their choices
-    assert train_py("--tune", 1, *longer, cwd=tmp_path, monkeypatch=monkeypatch) == 0
-    assert [int(row["number"]) for row in trials_csv(folder)] == [0, 1, 2], "the study goes on, keeping its trials"
+    assert train_py("--tune", 1, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
+    rows = trials_csv(folder)
+    assert [int(row["number"]) for row in rows] == [0, 1, 2], "the study goes on, keeping its trials"
     assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
+    draws = [tuple(v for k, v in sorted(row.items()) if k.startswith("params_")) for row in rows]
+    assert draws[2] not in draws[:2], "a command run again draws anew, not the earlier command's trials again"
+    # another budget: its trials' returns would not compare with these, so the study refuses it
+    longer = [str(a) for a in common]
+    longer[longer.index("--timesteps") + 1] = "384"
+    assert train_py("--tune", 1, *longer, cwd=tmp_path, monkeypatch=monkeypatch) == 2
+    assert "was made with {'timesteps': 256}" in capsys.readouterr().err
     # the same study with other env kwargs (another env): refused before a trial, naming both
     assert train_py("--tune", 1, *common, "--env-kwargs", '{"sensor_noise": false}', cwd=tmp_path,
                     monkeypatch=monkeypatch) == 2  # fmt: skip
