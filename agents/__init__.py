@@ -139,5 +139,5 @@ def load_policy(spec: str, env) -> Policy:
             return entry.build(env, arg)
     fitting = ", ".join(n for n, entries in policies.items() if any(robot in e.robots for e in entries)) or "none"
     raise ValueError(
-        f"unknown policy {spec!r} for the {robot}: give a scripted gait ({fitting}) or the path of a model.zip"
+        f"unknown policy {spec!r} for the {robot}: give a scripted gait ({fitting}), random, or the path of a model.zip"
     )

@@ -63,7 +63,9 @@ from envs.common.telemetry import read_telemetry, write_telemetry
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = ToolParser(prog="evaluate.py", description="Compare policies on the same seeds.")
+    p = ToolParser(prog="evaluate.py", description="Compare policies on the same seeds.",
+                   epilog="With --soccer ROBOT, evaluate.py plays matches between two teams' policies instead: "
+                   "evaluate.py --soccer ROBOT --help lists that mode's options.")  # fmt: skip
     p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v3")
     p.add_argument(
         "--policy", action="append", required=True, help=f"scripted gait ({describe_policies()}) or a model.zip; repeat"
