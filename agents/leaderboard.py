@@ -46,6 +46,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
@@ -665,8 +666,10 @@ def aggregate(scores: dict[str, np.ndarray], seed: int = 0) -> dict[str, dict[st
     def iqm(x: np.ndarray) -> np.ndarray:
         return np.array([metrics.aggregate_iqm(x)])
 
-    points, intervals = library.get_interval_estimates(scores, iqm, reps=BOOTSTRAP_REPS,
-                                                       random_state=np.random.RandomState(seed))  # fmt: skip
+    with warnings.catch_warnings():  # rliable hands arch a RandomState, which arch now warns of in several lines
+        warnings.filterwarnings("ignore", "random_state is deprecated", FutureWarning)
+        points, intervals = library.get_interval_estimates(scores, iqm, reps=BOOTSTRAP_REPS,
+                                                           random_state=np.random.RandomState(seed))  # fmt: skip
     return {a: {"iqm": float(points[a][0]), "low": float(intervals[a][0, 0]), "high": float(intervals[a][1, 0])}
             for a in scores}  # fmt: skip
 
