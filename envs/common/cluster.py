@@ -47,8 +47,9 @@ def init_ray(address: str | None = None, **kwargs: Any) -> None:
     with other work (a test suite, another benchmark) a local job's tasks got a small share of the CPU while the
     driver waited on them; the measured wall time then said more about the neighbours than about the job.
 
-    Joining: Ray 2.59 and later start a cluster on one machine (``ray start --head``) with token authentication,
-    while a driver that joins an address sends no token unless ``RAY_AUTH_MODE=token``. Where the user has not set
+    Joining: Ray 2.59 and later start a head (``ray start --head``) with token authentication on a machine that
+    holds a token (``~/.ray/auth_token``), while a driver that joins an address sends none unless
+    ``RAY_AUTH_MODE=token``. Where the user has not set
     ``RAY_AUTH_MODE`` and a token is at hand, the driver sends it (a cluster without authentication ignores it);
     this takes effect only before Ray is first imported in the process. A cluster that cannot be joined raises
     :class:`ClusterError`."""
