@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from envs.common.batch import THREADS_VARIABLE
+from envs.common.cluster import ClusterError, check_address, ensure_ray, init_ray
 from envs.common.io import ToolParser, atomic_write, parent_problem, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -1202,11 +1203,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _check_plan(plan, args.rerun, records)
         if args.address is not None and not args.table_only:  # joined before anything runs or is removed
-            from envs.common.cluster import check_address, init_ray
-
             check_address(args.address)
             init_ray(args.address)
-    except (StaleResult, ValueError, RuntimeError) as exc:  # RuntimeError: ClusterError, a cluster not joined
+    except (StaleResult, ValueError, ClusterError) as exc:
         print(f"leaderboard: error: {exc}", file=sys.stderr)
         return 2
     try:
@@ -1359,8 +1358,6 @@ def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: in
     if not rows:
         return
     if address is not None:
-        from envs.common.cluster import ensure_ray
-
         ray = ensure_ray(address)  # main joined the cluster before anything ran
         job = ray.remote(num_cpus=threads)(_row_job)
         pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads, row in again) for row in rows]

@@ -200,10 +200,9 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     runs_dir.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     pruner = optuna.pruners.MedianPruner(n_startup_trials=STARTUP_TRIALS, n_warmup_steps=timesteps // 3)
-    sampler = optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS)  # reseeded below
-    try:
-        the_study = optuna.create_study(storage=url, study_name=name, direction="maximize", sampler=sampler,
-                                        pruner=pruner, load_if_exists=True)  # fmt: skip
+    try:  # its sampler is set below, seeded by how many trials the study holds
+        the_study = optuna.create_study(storage=url, study_name=name, direction="maximize", pruner=pruner,
+                                        load_if_exists=True)  # fmt: skip
     except ImportError as exc:
         raise ConfigError(f"--storage {_shown(url)}: {_first_line(exc)}") from None
     except Exception as exc:  # SQLAlchemy's errors: a server that does not answer, a bad URL, a locked file
