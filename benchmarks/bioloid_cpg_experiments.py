@@ -70,8 +70,23 @@ def oscillator_parameters(policy: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
+def run_folder(e: int) -> Path:
+    return ROOT / "runs" / "optimize" / f"experiment{e}__pso__0"
+
+
+def runs_missing(output: Output) -> list[str]:
+    """The experiments whose runs the results already at ``output`` summarize but whose run folders are gone (a
+    fresh checkout holds none): summarizing again would replace those results with "not run yet"."""
+    path = output.path(".json")
+    if not path.is_file():
+        return []
+    kept = json.loads(path.read_text()).get("rows", [])
+    return [f"experiment {r['experiment']}" for r in kept
+            if r.get("iterations_done") and not (run_folder(r["experiment"]) / "history.json").exists()]  # fmt: skip
+
+
 def summary(e: int, output: Output) -> dict[str, Any]:
-    out = ROOT / "runs" / "optimize" / f"experiment{e}__pso__0"
+    out = run_folder(e)
     row: dict[str, Any] = {"experiment": e, "command": command(e), "run_folder": str(out.relative_to(ROOT))}
     if not (out / "history.json").exists():
         return {**row, "iterations_done": 0}
@@ -157,6 +172,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "bioloid_cpg_experiments", CONFIGURATIONS, files=FILES)
+    lost = runs_missing(output)
+    if lost:
+        parser.exit(1, f"{parser.prog}: the kept results in {output.path('.json')} summarize "
+                       f"{', '.join(lost)}, whose run folders are not here: nothing written (run the commands "
+                       "in that file first, or give --out)\n")  # fmt: skip
     rows = [summary(e, output) for e in EXPERIMENTS]
     done = [r for r in rows if r["iterations_done"]]
     table = md_table(

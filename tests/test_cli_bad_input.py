@@ -3,6 +3,8 @@ code 2, no traceback, and nothing created, replaced or deleted."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import os
@@ -400,3 +402,16 @@ def test_a_publish_that_fails_halfway_puts_the_earlier_results_back(tmp_path, mo
     monkeypatch.undo()
     assert (out / "results.json").read_text() == "earlier" and (staging / "results.json").read_text() == "new"
     assert sorted(p.name for p in tmp_path.iterdir()) == [".staging", "out"]
+
+
+def test_a_tools_help_shows_its_docstring_once():
+    """``--help`` shows a tool's docstring's first paragraph as its description and, where the docstring is also the
+    epilog, the rest of it after the options: no paragraph twice."""
+    from agents.optimize.__main__ import parse_args
+
+    with pytest.raises(SystemExit), contextlib.redirect_stdout(io.StringIO()) as out:
+        parse_args(["--help"])
+    text = out.getvalue()
+    first = "Tune a controller's parameters by particle swarm or CMA-ES"
+    assert text.count(first) == 1 and text.count("Examples::") == 1
+    assert text.index(first) < text.index("options:") < text.index("Examples::")

@@ -196,3 +196,24 @@ def test_a_tiny_spine_study_leaves_the_committed_study_alone(tmp_path, monkeypat
         err = capsys.readouterr().err
         assert message in err and "Traceback" not in err, err
     assert _digest(RESULTS) == before
+
+
+def test_the_cpg_summary_does_not_replace_kept_runs_it_cannot_see(tmp_path, monkeypatch, capsys):
+    """The CPG experiments' summary reads run folders that a fresh checkout does not hold: run there, it refuses to
+    replace the kept results (which summarize runs) with "not run yet", and writes nothing."""
+    from benchmarks import bioloid_cpg_experiments as cpg
+
+    kept = Path(cpg.__file__).parent / "results" / "bioloid_cpg_experiments.json"
+    folder = tmp_path / "results"
+    folder.mkdir()
+    argv = ["--out", str(folder), "--name", "bioloid_cpg_experiments"]
+    settings = common.configuration(cpg.make_parser().parse_args(argv))
+    recorded = {**json.loads(kept.read_text()), "configuration": settings}
+    (folder / kept.name).write_text(json.dumps(recorded))
+    monkeypatch.setattr(cpg, "ROOT", tmp_path)  # no runs/optimize/ there
+    with pytest.raises(SystemExit) as exit_:
+        cpg.main(argv)
+    assert exit_.value.code == 1
+    assert "experiment 5, experiment 6, whose run folders are not here: nothing written" in capsys.readouterr().err
+    assert sorted(p.name for p in folder.iterdir()) == [kept.name]
+    assert json.loads((folder / kept.name).read_text()) == recorded

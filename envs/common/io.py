@@ -332,11 +332,15 @@ def json_object(text: str, flag: str) -> dict[str, Any]:
 class ToolParser(argparse.ArgumentParser):
     """The command-line parser of every skitter tool: a bad argument is one line, ``PROG: error: ... (see --help)``,
     and exit code 2, without argparse's usage block. A ``description`` is a module's docstring: ``--help`` shows its
-    first paragraph, whole (its first line alone stops mid-sentence)."""
+    first paragraph, whole (its first line alone stops mid-sentence). An ``epilog`` that is the same docstring shows
+    the rest of it, after that paragraph."""
 
     def __init__(self, *args: Any, description: str | None = None, **kwargs: Any):
         if description:
-            description = " ".join(description.strip().split("\n\n")[0].split())
+            first, _, rest = description.strip().partition("\n\n")
+            if kwargs.get("epilog") == description:
+                kwargs["epilog"] = rest.strip() or None
+            description = " ".join(first.split())
         super().__init__(*args, description=description, **kwargs)
 
     def error(self, message: str):
