@@ -103,7 +103,15 @@ def _yaw(q: np.ndarray) -> np.ndarray:
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=list(ROBOTS), help="robots to map")
+    names = {name.lower(): name for name in ROBOTS}  # lower case, as every other soccer tool takes them
+    parser.add_argument(
+        "--robots",
+        nargs="+",
+        default=list(ROBOTS),
+        choices=list(ROBOTS),
+        type=lambda name: names.get(name.lower(), name),
+        help="robots to map (roach, xjus, bioloid)",
+    )
     parser.add_argument("--seconds", type=float, default=6.0, help="length of each run, s")
     parser.add_argument("--seeds", type=int, default=3, help="runs per grid point")
     add_output_options(parser)

@@ -255,7 +255,8 @@ def test_supersuits_path_gives_an_sb3_vec_env_of_every_player():
     ("kwargs", "word"),
     [({"robot": "aibo"}, "robot"), ({"players_per_team": 5}, "players_per_team"), ({"camera": "away_9"}, "camera"),
      ({"max_goals": 0}, "max_goals"), ({"render_mode": "ansi"}, "render_mode"), ({"penalty_seconds": -1}, "penalty"),
-     ({"max_cycles": 0}, "max_cycles"), ({"action_mode": "kick"}, "action_mode")],
+     ({"max_cycles": 0}, "max_cycles"), ({"action_mode": "kick"}, "action_mode"), ({"robot": ["roach"]}, "robot"),
+     ({"players_per_team": 2.0}, "players_per_team"), ({"max_cycles": 2.5}, "max_cycles")],
 )  # fmt: skip
 def test_bad_arguments_are_refused_by_name(kwargs, word):
     with pytest.raises(ValueError, match=word):
@@ -267,6 +268,23 @@ def test_a_bad_action_is_refused_by_agent():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="away_0"):
         env.step({"home_0": np.zeros(3), "away_0": np.array([np.nan, 0.0, 0.0])})
+    with pytest.raises(ValueError, match=r"agents not in this match: \['home0'\]"):  # a typo is not "no action"
+        env.step({"home0": np.zeros(3), "away_0": np.zeros(3)})
+    with pytest.raises(ValueError, match="actions must be a dict of agent name -> action, got list"):
+        env.step([np.zeros(3), np.zeros(3)])
+    with pytest.raises(ValueError, match="seed must be a whole number >= 0"):
+        env.reset(seed=-1)
+    with pytest.raises(ValueError, match="max_cycles"):
+        env.max_cycles = -5
+    with pytest.raises(TypeError, match="sparse"):  # a match's reward is the goal alone: no flag to pretend otherwise
+        match.parallel_env(robot="roach", sparse=True)
+
+
+def test_numpy_whole_numbers_are_whole_numbers():
+    env = match.parallel_env(robot="bioloid", players_per_team=np.int64(1), max_cycles=np.int64(10))
+    env.max_cycles = np.int64(12)
+    assert env.max_cycles == 12 and env.possible_agents == ["home_0", "away_0"]
+    env.reset(seed=np.int64(3))
 
 
 def test_the_benchmark_ran_every_robot_and_team_size_and_every_test_passed():
@@ -323,6 +341,8 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
                 np.testing.assert_array_equal([info["terminal_observation"] for info in infos[mine]], rows(o, env))
                 o = env.reset()[0]
             np.testing.assert_array_equal(obs[mine], rows(o, env))
+    with pytest.raises(ValueError, match=r"actions must be \(8, 16\) \(an action per player of every match\)"):
+        vec.step(np.zeros((3, 16)))
 
 
 def test_matches_reset_in_any_order_give_each_player_its_own_noisy_view():

@@ -39,6 +39,23 @@ def test_matches_played_together_are_the_pettingzoo_matches_of_their_seeds():
         assert played["scores"][i] == [env.score["home"], env.score["away"]]
 
 
+def test_a_match_against_the_random_team_replays_alone_from_its_seed():
+    """The random team draws each match's actions from that match's seed: match 1 of seed 5 is match 0 of seed 6,
+    so ``--seed 6 --matches 1 --video`` shows it."""
+    from agents.soccer.play import prepare
+
+    runs = []
+    for seed, matches in ((5, 2), (6, 1)):
+        engine, teams = prepare("bioloid", 1, "scripted", "random", matches, seed, 0.2)
+        actions = np.zeros((engine.robot.num_sims, engine.mode.size))
+        for _ in range(engine.max_cycles):
+            for team in teams:
+                team.act(engine.obs, actions)
+            engine.step(actions)
+        runs.append(engine.obs[engine.rows_of(np.array([matches - 1]))].copy())
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
 def test_a_match_that_goes_unstable_is_stopped_there_and_said_so(monkeypatch):
     """A scene MuJoCo had to reset ends its match at that step: later goals there do not count, the others' do, and
     the record and report name the match and when."""
@@ -82,7 +99,7 @@ def test_evaluate_plays_matches_and_writes_one_folder(tmp_path, capsys):
     ("args", "word"),
     [(["--soccer", "aibo"], "--soccer"), (["--players", "5"], "--players"), (["--home", "ppo"], "--home"),
      (["--matches", "0"], "--matches"), (["--match-seconds", "-1"], "--match-seconds"),
-     (["--action-mode", "goal"], "commands")],
+     (["--action-mode", "goal"], "commands"), (["--action-mode", "bogus"], "--action-mode must be one of")],
 )  # fmt: skip
 def test_bad_arguments_are_one_line_errors_before_any_match(args, word, tmp_path, capsys):
     base = {"--soccer": "bioloid", "--home": "scripted", "--away": "random", "--out": str(tmp_path / "x")}
@@ -96,8 +113,7 @@ def test_bad_arguments_are_one_line_errors_before_any_match(args, word, tmp_path
 
 @pytest.mark.parametrize(
     ("args", "words"),
-    [(["--action-mode", "bogus"], "action_mode must be one of"),
-     (["--kick"], "the robot's own mode (give --action-mode commands)")],
+    [(["--kick"], "the robot's own mode (give --action-mode commands)")],
 )  # fmt: skip
 def test_teams_that_cannot_play_are_refused_before_any_folder_is_made(args, words, tmp_path, capsys):
     out = tmp_path / "deep" / "x"
@@ -106,3 +122,20 @@ def test_teams_that_cannot_play_are_refused_before_any_folder_is_made(args, word
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("evaluate.py --soccer: error: ") and words in err and "Traceback" not in err
     assert not (tmp_path / "deep").exists()
+
+
+def test_a_team_given_as_a_run_or_checkpoint_folder_is_its_model(tmp_path):
+    from agents.soccer.play import model_in
+
+    checkpoint = tmp_path / "run" / "checkpoints" / "step_0000001024"
+    checkpoint.mkdir(parents=True)
+    (checkpoint / "model.zip").write_bytes(b"")
+    assert model_in(str(checkpoint)) == str(checkpoint / "model.zip")
+    assert model_in(str(tmp_path / "run")) == str(tmp_path / "run")  # no final model yet: refused as not a model
+    assert model_in("scripted") == "scripted"
+
+
+def test_the_soccer_options_are_listed_before_a_robot_is_named(capsys):
+    with pytest.raises(SystemExit) as stop:
+        evaluate.main(["--soccer", "--help"])
+    assert stop.value.code == 0 and "--match-seconds" in capsys.readouterr().out

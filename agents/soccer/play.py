@@ -5,11 +5,11 @@
 
 Match ``i`` runs with seed ``SEED + i`` (the PettingZoo match ``envs.soccer.match.parallel_env(...)`` reset with that
 seed, bit for bit; all matches are stepped together on one ``mujoco.batch``). A team's policy is ``scripted`` (the
-scripted team, commands mode) or ``random`` (uniform actions, its own stream per match). Printed and written to
-DIR/results.json and DIR/results.md: the home team's wins, draws and losses with 95% Wilson intervals, and the mean
-goal difference (home minus away) with a 95% bootstrap interval; with --video, DIR/videos/match.mp4 of the first
-match from the top camera. The results are written as one unit (a temporary folder that takes DIR's place), and bad
-arguments are refused in one line before any match runs.
+scripted team, commands mode), ``random`` (uniform actions, each match's own stream from its seed) or a model of
+``train.py --soccer``. Printed and written to DIR/results.json and DIR/results.md: the home team's wins, draws and
+losses with 95% Wilson intervals, and the mean goal difference (home minus away) with a 95% bootstrap interval;
+with --video, DIR/videos/match.mp4 of the first match from the top camera. The results are written as one unit (a
+temporary folder that takes DIR's place), and bad arguments are refused in one line before any match runs.
 """
 
 from __future__ import annotations
@@ -62,7 +62,8 @@ class TeamPolicy:
             self.players = [players[a] for a in agents]
             self.memory: list[np.ndarray | None] = [None] * len(agents)  # each player's, over every match
         if spec == "random":
-            self.rngs = [np.random.default_rng([seed, m, 0 if team == "home" else 1])
+            # each match's own stream, from that match's seed: match i of SEED replays as match 0 of SEED + i
+            self.rngs = [np.random.default_rng([seed + m, 0 if team == "home" else 1])
                          for m in range(engine.num_matches)]  # fmt: skip
         self.size = engine.mode.size
 
@@ -255,8 +256,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = ToolParser(prog="evaluate.py --soccer", description="Play matches between two teams' policies.")
     p.add_argument("--soccer", required=True, choices=sorted(name.lower() for name in ROBOTS), help="the robot")
     p.add_argument("--players", type=int, default=3, help=f"players a side, 1 to {MAX_PLAYERS}")
-    p.add_argument("--home", required=True, help="the home team's policy: scripted, random or a model.zip")
-    p.add_argument("--away", required=True, help="the away team's policy: scripted, random or a model.zip")
+    p.add_argument(
+        "--home",
+        required=True,
+        help="the home team's policy: scripted, random, a model.zip, or a run or "
+        "checkpoint folder of train.py --soccer (its model.zip)",
+    )
+    p.add_argument("--away", required=True, help="the away team's policy, as --home's")
     p.add_argument("--matches", type=int, default=20)
     p.add_argument("--seed", type=int, default=0, help="match i runs with seed SEED + i")
     p.add_argument("--match-seconds", type=float, default=MATCH_SECONDS, help="each match's length, s")
@@ -266,6 +272,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--out", required=True, type=Path, help="output directory")
     p.add_argument("--video", action="store_true", help="write an mp4 of the first match")
     p.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in --out")
+    if argv is not None and ("-h" in argv or "--help" in argv):  # also as `--soccer --help`, before a robot is named
+        p.print_help()
+        p.exit()
     args = p.parse_args(argv)
     if not 1 <= args.players <= MAX_PLAYERS:
         p.error(f"--players must be from 1 to {MAX_PLAYERS}, got {args.players}")
@@ -275,19 +284,36 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         p.error(f"--seed must be >= 0, got {args.seed}")
     if not 0 < args.match_seconds <= 3600:
         p.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
+    robot_class = {name.lower(): c for name, c in ROBOTS.items()}[args.soccer]
+    modes = [*robot_class.action_modes, COMMANDS]
+    if args.action_mode is not None and args.action_mode not in modes:
+        p.error(f"--action-mode must be one of {modes} for the {args.soccer}, got {args.action_mode!r}")
     if "scripted" in (args.home, args.away) and args.action_mode not in (None, COMMANDS):
         p.error(f"--action-mode {args.action_mode!r}: the scripted team plays in the {COMMANDS!r} mode")
-    for flag, spec in (("--home", args.home), ("--away", args.away)):
-        if spec not in TEAMS:
-            problem = model_file_problem(spec)
-            if problem:
-                p.error(f"{flag} {spec!r}: {problem} (a team is scripted, random or a model.zip of train.py --soccer)")
+    for name in ("home", "away"):
+        spec = getattr(args, name)
+        if spec in TEAMS:
+            continue
+        spec = model_in(spec)
+        setattr(args, name, spec)
+        problem = model_file_problem(spec)
+        if problem:
+            p.error(
+                f"--{name} {spec!r}: {problem} (a team is scripted, random, or train.py --soccer's model.zip, "
+                "run folder or checkpoint folder)"
+            )
     problem = results_folder_problem(args.out, args.overwrite, "evaluate.py", _foreign(args.out))
     problem = problem or replace_problem(args.out)
     if problem:
         p.error(problem)
     args.out_existed = args.out.exists()
     return args
+
+
+def model_in(spec: str) -> str:
+    """A team given as a folder of ``train.py --soccer`` (a run, or one of its checkpoints) is its ``model.zip``."""
+    folder = Path(spec)
+    return str(folder / "model.zip") if folder.is_dir() and (folder / "model.zip").is_file() else spec
 
 
 def model_file_problem(spec: str) -> str | None:

@@ -11,6 +11,7 @@ observations in ``info["terminal_observation"]``, as SB3 expects.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -72,7 +73,11 @@ class SoccerVecEnv(MatchesVecEnv):
         return self.engine.obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
-        actions = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
+        actions = np.asarray(actions, dtype=np.float64)
+        shape = (self.num_envs, *self.action_space.shape)
+        if actions.size != math.prod(shape):
+            raise ValueError(f"actions must be {shape} (an action per player of every match), got {actions.shape}")
+        actions = actions.reshape(shape)
         if not np.isfinite(actions).all():
             bad = int(np.flatnonzero(~np.isfinite(actions).all(axis=1))[0])
             raise ValueError(f"actions must be finite; env {bad} got {actions[bad]}")

@@ -38,7 +38,13 @@ class FrameRenderer:
         vis.offwidth, vis.offheight = max(vis.offwidth, width), max(vis.offheight, height)
         self.camera = camera
         self._model = model
-        self._renderer = mujoco.Renderer(model, height, width)
+        try:
+            self._renderer = mujoco.Renderer(model, height, width)
+        except mujoco.FatalError as exc:  # no OpenGL: MuJoCo chose its windowed backend, and there is no display
+            raise RuntimeError(
+                f"frames need an OpenGL context and MuJoCo found none ({exc}); on a machine without a display, set "
+                "MUJOCO_GL=egl (or osmesa) in the environment before mujoco is first imported"
+            ) from exc
 
     def render(self, data: mujoco.MjData) -> np.ndarray:
         mujoco.mjv_updateCamera(self._model, data, self.camera, self._renderer.scene)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import mujoco
@@ -65,9 +66,21 @@ class MatchTask(SoccerTask):
         return {"goal": state["scored"] - state["conceded"]}
 
 
+def _whole(value: Any) -> bool:
+    """Whether ``value`` is a whole number (a Python or numpy integer, not a bool or a float)."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def check_cycles(value: Any) -> int:
+    """``max_cycles`` as an int; ValueError unless a whole number >= 1."""
+    if not _whole(value) or value < 1:
+        raise ValueError(f"max_cycles must be a whole number >= 1, got {value!r}")
+    return int(value)
+
+
 class Matches:
     """``num_matches`` soccer matches of one configuration, stepped together: the engine behind
-    :class:`SoccerParallelEnv` (one match) and :class:`envs.soccer.vec_env.SoccerVecEnv` (many, on one
+    :class:`SoccerParallelEnv` (one match) and :class:`agents.soccer.vec_env.SoccerVecEnv` (many, on one
     ``mujoco.batch``). Every array has a row per player of every match (match-major: row ``m * players + p``); the
     bookkeeping (score, clock, referee) is per match, in arrays, with no Python loop over matches in a step.
 
@@ -84,7 +97,6 @@ class Matches:
         max_goals: int | None = None,
         referee: bool = True,
         penalty_seconds: float = PENALTY_SECONDS,
-        sparse: bool = False,
         ball_noise: float = BALL_NOISE,
         field_of_view: float | None = None,
         max_tilt: float = 1.4,
@@ -100,13 +112,13 @@ class Matches:
         batched: bool | None = None,
     ):
         names = {name.lower(): name for name in ROBOTS}
-        if robot not in names:
+        if not isinstance(robot, str) or robot not in names:
             raise ValueError(f"robot must be one of {sorted(names)}, got {robot!r}")
-        if isinstance(players_per_team, bool) or players_per_team not in range(1, MAX_PLAYERS + 1):
+        if not _whole(players_per_team) or players_per_team not in range(1, MAX_PLAYERS + 1):
             raise ValueError(
                 f"players_per_team must be a whole number from 1 to {MAX_PLAYERS}, got {players_per_team!r}"
             )
-        if isinstance(num_matches, bool) or not isinstance(num_matches, int | np.integer) or num_matches < 1:
+        if not _whole(num_matches) or num_matches < 1:
             raise ValueError(f"num_matches must be a whole number >= 1, got {num_matches!r}")
         robot_class, self.field = ROBOTS[names[robot]], FIELDS[names[robot]]
         self.robot_name = robot
@@ -116,16 +128,14 @@ class Matches:
         self.throw_in = check_flag("throw_in", throw_in)
         self.penalty_seconds = check_number("penalty_seconds", penalty_seconds, 0)
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0)
-        if max_goals is not None and (isinstance(max_goals, bool) or not isinstance(max_goals, int) or max_goals < 1):
+        if max_goals is not None and (not _whole(max_goals) or max_goals < 1):
             raise ValueError(f"max_goals must be a whole number >= 1 or None, got {max_goals!r}")
-        self.max_goals = max_goals
+        self.max_goals = None if max_goals is None else int(max_goals)
         mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
         if mode not in (*robot_class.action_modes, COMMANDS):
             raise ValueError(f"action_mode must be one of {[*robot_class.action_modes, COMMANDS]}, got {mode!r}")
-        if max_cycles is not None and (
-            isinstance(max_cycles, bool) or not isinstance(max_cycles, int) or max_cycles < 1
-        ):
-            raise ValueError(f"max_cycles must be a whole number >= 1, got {max_cycles!r}")
+        if max_cycles is not None:
+            check_cycles(max_cycles)
         self.action_mode = mode
         native = next(iter(robot_class.action_modes)) if mode == COMMANDS else mode
         imu = ImuNoise() if check_flag("sensor_noise", sensor_noise) else None
@@ -145,7 +155,8 @@ class Matches:
         self.commands = Commands(self.robot, kick) if mode == COMMANDS else None
         self.mode = self.robot.mode if self.commands is None else self.commands.mode
         head = HEADS.get(robot_class.name)
-        self.task = MatchTask(self.robot, self.scene, self.field, sparse, ball_noise, field_of_view, max_tilt,
+        # a match's reward is the goal alone, +1 / -1; its shaping terms are in the infos
+        self.task = MatchTask(self.robot, self.scene, self.field, True, ball_noise, field_of_view, max_tilt,
                               terminate_when_unhealthy, height_band, grace_time, head)  # fmt: skip
         self.dt = self.robot.control_dt
         self.max_cycles = round(MATCH_SECONDS / self.dt) if max_cycles is None else int(max_cycles)
@@ -241,9 +252,9 @@ class Matches:
                              f"got {places!r}")  # fmt: skip
         for agent, value in places.items():
             row = match * self.players + self.possible_agents.index(agent)
-            self.scene.placement[row] = self._check_place(value, 3, f"places'][{agent!r}", reach)
+            self.scene.placement[row] = self._check_place(value, 3, f"['places'][{agent!r}]", reach)
         if "ball" in options:
-            x, y = self._check_place(options["ball"], 2, "ball", reach)
+            x, y = self._check_place(options["ball"], 2, "['ball']", reach)
             self.scene.place_object(np.array([match]), BALL, np.array([[x, y, f.ball.radius]]), np.zeros((1, 3)))
 
     @staticmethod
@@ -251,7 +262,7 @@ class Matches:
         place = np.zeros(0) if isinstance(value, str | bytes) else np.asarray(value, dtype=np.float64).reshape(-1)
         inside = place.shape == (size,) and np.isfinite(place).all()
         if not inside or abs(place[0]) > reach[0] or abs(place[1]) > reach[1]:
-            raise ValueError(f"options['{name}'] must be {size} finite numbers with |x| <= {reach[0]:g} and "
+            raise ValueError(f"options{name} must be {size} finite numbers with |x| <= {reach[0]:g} and "
                              f"|y| <= {reach[1]:g} m (inside the walls), got {value!r}")  # fmt: skip
         return place
 
@@ -434,7 +445,7 @@ class SoccerParallelEnv(ParallelEnv):
             field) behind where it left toward the goal of the team that touched it last, ``THROW_IN_INSET`` inside
             the touch line (``Field.throw_in``); the step's ``info`` says ``throw_in``. False: the walls keep it in
             play, where it can lie pinned in a corner for the rest of the match.
-        sparse, ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: as the
+        ball_noise, field_of_view, max_tilt, terminate_when_unhealthy, height_band, grace_time: as the
             academy's (:class:`envs.soccer.task.SoccerTask`; the ground rules decide when a player has fallen).
         reset_noise_scale: perturbation of the robots' kickoff pose (the robot's ``reset``), and of their places
             (x ``reset_noise_scale`` body lengths) and headings (x ``reset_noise_scale`` rad).
@@ -488,7 +499,7 @@ class SoccerParallelEnv(ParallelEnv):
 
     @max_cycles.setter
     def max_cycles(self, value: int) -> None:
-        self.engine.max_cycles = int(value)
+        self.engine.max_cycles = check_cycles(value)
 
     @property
     def score(self) -> dict[str, int]:
@@ -511,6 +522,8 @@ class SoccerParallelEnv(ParallelEnv):
     # --- PettingZoo API ---------------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
         if seed is not None:
+            if not _whole(seed) or seed < 0:
+                raise ValueError(f"seed must be a whole number >= 0 or None, got {seed!r}")
             self.engine.seed(0, seed)
         self.agents = list(self.possible_agents)
         self.engine.reset(np.array([0]), options)
@@ -520,6 +533,11 @@ class SoccerParallelEnv(ParallelEnv):
     def step(self, actions: dict[str, np.ndarray]):
         if not self.agents:
             raise RuntimeError("the match is over: call reset()")
+        if not isinstance(actions, Mapping):
+            raise ValueError(f"actions must be a dict of agent name -> action, got {type(actions).__name__}")
+        unknown = [a for a in actions if a not in self.possible_agents]
+        if unknown:
+            raise ValueError(f"actions for agents not in this match: {unknown}; its agents are {self.possible_agents}")
         engine = self.engine
         chosen = np.tile(engine.rest, (len(self.possible_agents), 1))
         for i, agent in enumerate(self.possible_agents):
