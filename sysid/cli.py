@@ -170,6 +170,12 @@ def _run(args: argparse.Namespace) -> int:
     try:
         check_disjoint(args.train, args.test)
         column_map = ColumnMap.load(args.columns) if args.columns else None
+        if column_map is not None:
+            unread = [name for name in column_map.columns if name not in adapter.reads()]
+            if unread:  # a misspelt channel would leave its column unread: a logged goal fitted, say
+                print(f"calibrate.py: warning: {args.columns}: the {args.robot}'s calibration reads no channel named "
+                      f"{', '.join(map(repr, unread))}; those columns are ignored (it reads "
+                      f"{', '.join(sorted(adapter.reads() - {'episode'}))})", file=sys.stderr)  # fmt: skip
         limits = adapter.channel_limits()  # a sample the robot could not produce is dropped, with a warning
         train = read_logs(args.train, adapter.required(), column_map, limits)
         test = read_logs(args.test, adapter.required(), column_map, limits)
@@ -190,7 +196,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"calibrate.py: error: {exc}", file=sys.stderr)
         return 2
     from sysid.pipeline import run
-    from sysid.report import calibration_dict, plot_residuals, report_dict, report_markdown
+    from sysid.report import baseline, calibration_dict, plot_residuals, report_dict, report_markdown
 
     try:
         result = run(adapter, train, test, start.setting if start else None, say=say, nthread=args.threads,
@@ -220,8 +226,8 @@ def _run(args: argparse.Namespace) -> int:
     )
     if report["worse_on_test"]:
         after, before = report["error_after"], report["error_before"]
-        print(f"calibrate.py: warning: the calibrated model's held-out error ({after:.3g}) is above the nominal "
-              f"model's ({before:.3g}); see {where}/report.md", file=sys.stderr)  # fmt: skip
+        print(f"calibrate.py: warning: the calibrated model's held-out error ({after:.3g}) is above that of the "
+              f"{baseline(report)} ({before:.3g}); see {where}/report.md", file=sys.stderr)  # fmt: skip
     return published_exit_code("calibrate.py", out, where)
 
 

@@ -416,8 +416,13 @@ def _drop_non_finite(log: Log, columns: Sequence[str]) -> Log:
     if not len(bad):
         return log
     first = np.argmin(finite, axis=1)  # each row's first column that is not finite
-    lines = [(int(_row_label(log, int(k))), f"column {columns[first[k]]!r}: {float(values[k, first[k]])} is not a "
-              "finite number") for k in bad]  # fmt: skip
+    unparsed = log.meta.get("unparsed", {})  # (file line, column) -> the text that is not a number, as the file has it
+    lines = []
+    for k in bad:
+        line, column = int(_row_label(log, int(k))), columns[first[k]]
+        text = unparsed.get((line, column))
+        shown = repr(text) if text is not None else str(float(values[k, first[k]]))
+        lines.append((line, f"column {column!r}: {shown} is not a finite number"))
     drop_bad_rows(Path(log.path), lines, len(values))
     return _keep_rows(log, np.flatnonzero(finite.all(axis=1)))
 
@@ -655,9 +660,12 @@ def _read_skitter_csv(path: Path) -> Log:
     whose time or required channel is not finite, naming that column."""
     names, rows, bad = _csv_rows(path)
     drop_bad_rows(path, bad, len(rows) + len(bad))
-    data = np.asarray([[_number_or_nan(f) for f in fields] for _, fields in rows], dtype=float)
+    unparsed: dict[tuple[int, str], str] = {}
+    data = np.asarray([[_number_or_nan(f, unparsed, number, name) for f, name in zip(fields, names, strict=True)]
+                       for number, fields in rows], dtype=float)  # fmt: skip
     df = pd.DataFrame(data.reshape(-1, len(names)), columns=names)
-    meta = {"format": "skitter CSV (our channel names, SI units)", "file_rows": [number for number, _ in rows]}
+    meta = {"format": "skitter CSV (our channel names, SI units)", "file_rows": [number for number, _ in rows],
+            "unparsed": unparsed}  # fmt: skip
     return Log(str(path), df, meta)
 
 
@@ -694,10 +702,14 @@ def _read_mapped(path: Path, column_map: ColumnMap, required: Sequence[str] = ()
     return Log(str(path), df, meta)
 
 
-def _number_or_nan(value: Any) -> float:
+def _number_or_nan(value: Any, unparsed: dict | None = None, line: int = 0, column: str = "") -> float:
+    """``value`` as a number, else NaN (its text kept in ``unparsed`` under (line, column), for the warning that
+    drops its row)."""
     try:
         return float(value)
     except (TypeError, ValueError):
+        if unparsed is not None:
+            unparsed[(line, column)] = value
         return math.nan
 
 

@@ -23,7 +23,16 @@ def main(argv: list[str] | None = None) -> int:
     from sysid.robots import adapters
 
     parser = ToolParser(prog="python -m sysid.measure", description=__doc__)
-    parser.add_argument("--robot", required=True, choices=sorted(adapters()), help="the robot the logs are of")
+    from sysid.problem import Adapter
+
+    # the robots whose logs measure something by themselves (their adapter reads them: Adapter.measure_log)
+    measurable = sorted(name for name, cls in adapters().items() if cls.measure_log is not Adapter.measure_log)
+    parser.add_argument(
+        "--robot",
+        required=True,
+        choices=measurable,
+        help="the robot the logs are of (only these robots' logs hold measurements of their own)",
+    )
     parser.add_argument("logs", nargs="+", metavar="LOG", help="logs, whole or FILE@START:END")
     parser.add_argument("--out", help="also write the measurements here as JSON (a new file)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (default 0)")

@@ -92,6 +92,7 @@ class Adapter(ABC):
         name: the robot's name for ``calibrate.py --robot``.
         channels: the compared channels, name -> unit.
         commands: the columns a log must hold to be replayed (besides ``channels`` and ``time``).
+        optional: the columns it reads where a log holds them (a servo's goal, which is fitted where it is not).
         context: the log columns the residual diagnostics relate the residual to (``velocity``, ``command``,
             ``load``, ``supply``, ``phase``), each one column or a dict channel -> column (sysid/diagnostics.py).
     """
@@ -100,6 +101,7 @@ class Adapter(ABC):
     robot: str = ""  # the robot's name in calibration files (default: ``name``)
     channels: Mapping[str, str]
     commands: tuple[str, ...] = ()
+    optional: tuple[str, ...] = ()
     segment_seconds: float = 1.0
     context: Mapping[str, str | Mapping[str, str]] = {}  # log columns for the diagnostics
     carry_over: bool = True  # a segment starts from the previous one's end, its measured coordinates overwritten
@@ -169,6 +171,12 @@ class Adapter(ABC):
     def required(self) -> tuple[str, ...]:
         return (*self.commands, *self.channels)
 
+    def reads(self) -> frozenset[str]:
+        """Every log column the calibration of this robot reads: ``time``, the required ones, the optional ones and
+        those its residual diagnostics relate the residual to (``context``)."""
+        context = [c for v in self.context.values() for c in ([v] if isinstance(v, str) else v.values())]
+        return frozenset(("time", "episode", *self.required(), *self.optional, *context))
+
     def known_effects(self) -> dict[str, dict[str, tuple[float, float]]]:
         """effect -> parameter -> (low, high), of the catalog effects (for checking calibration files)."""
         return {n: {p.name: (p.low, p.high) for p in e.params} for n, e in self.catalog().items()}
@@ -219,6 +227,13 @@ class Adapter(ABC):
             scored = len(self.segments(log)) - (1 if self.burn_in else 0)
             if scored < 1:
                 shortest, why = self.shortest_log(log)
+                if log.duration >= shortest:  # long enough, but its samples lie too far apart for a segment
+                    step = float(np.median(np.diff(log.time)))
+                    raise LogError(
+                        f"{log.path}: its samples lie {step:.3g} s apart, so a {self.segment_length(log):.3g} s "
+                        f"segment holds fewer than 3 of them ({log.duration:.3g} s in all): is its time column in "
+                        "the unit the file or its column map says?"
+                    )
                 raise LogError(f"{log.path}: {log.duration:.3g} s is too short to replay; the shortest usable log is "
                                f"{shortest:.3g} s ({why})")  # fmt: skip
 

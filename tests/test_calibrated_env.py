@@ -170,6 +170,8 @@ def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
         ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
         ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
         ("skitter/RoachWalk-v3", "velociroach", {"version": 7}, ["'version'"]),
+        ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"seconds": {"ci95": 0.01}}}},
+         ["'effects.delay.seconds': no 'value'"]),
         ("skitter/RoachWalk-v3", "velociroach", {"version": "1"}, ["'version': '1' (a string, not a number)"]),
         ("skitter/XjusWalk-v1", "xjus", {"effects": {"viscous_friction_left": {"damping": 5.0}}},
          ["viscous_friction_left.damping", "outside its range"]),
@@ -185,6 +187,14 @@ def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, env_i
         gym.make(env_id, calibration=str(path))
     assert str(path) in str(info.value)
     assert all(needle in str(info.value) for needle in needles), (needles, str(info.value))
+
+
+def test_a_calibration_file_may_name_the_roach_as_calibrate_py_does(tmp_path):
+    from envs.common.calibration import read_calibration
+
+    path = tmp_path / "roach.json"
+    path.write_text(json.dumps({"format": "skitter calibration", "version": 1, "robot": "roach", "effects": EFFECTS}))
+    assert read_calibration(path, "velociroach").robot == "velociroach"
 
 
 def test_a_calibration_that_is_not_a_file_is_refused():

@@ -564,7 +564,9 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
     assert report["worse_on_test"] is False and "worse on the held-out logs" not in (out / "report.md").read_text()
     # a calibration that leaves the held-out error above the nominal model's says so first thing in report.md
     worse = {**report, "error_after": report["error_before"] * 1.1, "worse_on_test": True}
-    assert "**The calibrated model is worse on the held-out logs than the nominal one**" in report_markdown(worse)
+    assert "**The calibrated model is worse on the held-out logs than the nominal model**" in report_markdown(worse)
+    started = {**worse, "start": "earlier/calibration.json"}
+    assert "than the calibration it started from (earlier/calibration.json)**" in report_markdown(started)
     assert set(report["per_channel"]) == {"angle", "speed"}
     first = report["chosen"][0]
     assert base_name(make_adapter("motor").effects()[first["name"]]) in ("coulomb_friction", "backlash", "deadband")

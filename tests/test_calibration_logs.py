@@ -120,6 +120,31 @@ def test_a_non_finite_required_channel_is_named_as_itself_not_as_an_earlier_blan
         read_log(path, ("duty_FL", "leg_angle_FL"), ColumnMap.load(mapping))
 
 
+def test_a_field_that_is_not_a_number_is_named_as_the_file_has_it(tmp_path):
+    df = _our_channels_log()
+    path = tmp_path / "xjus.csv"
+    df.to_csv(path, index=False)
+    lines = path.read_text().splitlines()
+    fields = lines[7].split(",")
+    fields[list(df.columns).index("leg_angle_FL")] = "abc"
+    lines[7] = ",".join(fields)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.warns(UserWarning, match=r"line 8: column 'leg_angle_FL': 'abc' is not a finite number"):
+        read_log(path, ("duty_FL", "leg_angle_FL"))
+
+
+def test_a_column_map_entry_the_robot_does_not_read_is_warned_of(capsys, tmp_path):
+    """A misspelt channel (``goal_position`` for the servo's ``goal``) would leave its column unread: said before
+    anything runs."""
+    train, test = (_write(tmp_path, f"{n}.csv", ["time,pos,speed,power", *_gearmotor_rows()]) for n in "ab")
+    mapping = tmp_path / "map.json"
+    mapping.write_text(json.dumps({"time": {"column": "t", "unit": "s"}, "goal_position": {"column": "g"}}))
+    code, err = _run(capsys, tmp_path, "servo", train, test, "--columns", str(mapping), "--fit", "warp_drive")
+    assert code == 2
+    assert (f"calibrate.py: warning: {mapping}: the servo's calibration reads no channel named 'goal_position'; "
+            "those columns are ignored (it reads goal, present_position, time)") in err  # fmt: skip
+
+
 def test_a_csv_with_a_name_we_do_not_know_still_needs_a_column_map(tmp_path):
     path = tmp_path / "other.csv"
     _our_channels_log().rename(columns={"leg_angle_FL": "angle_deg"}).to_csv(path, index=False)
@@ -169,6 +194,11 @@ def _bad(tmp_path: Path, kind: str) -> tuple[Path, str]:
         for i in range(0, 300, 10):
             rows[i] = "x,y"
         return _write(tmp_path, "bad.csv", [header, *rows]), "30 of 300 rows are malformed"
+    if kind == "sparse samples":  # a time column in ms read as seconds: 3000 s with a sample every 10 s
+        t = np.arange(300) * 10.0
+        path = tmp_path / "sparse.csv"
+        pd.DataFrame({"time": t, "duty": 0.5, "angle": 0.01 * t, "speed": 0.01}).to_csv(path, index=False)
+        return path, "its samples lie 10 s apart, so a 1 s segment holds fewer than 3 of them"
     if kind == "no such file":
         return tmp_path / "nothing.csv", "no such file"
     if kind == "unknown format":
@@ -177,7 +207,16 @@ def _bad(tmp_path: Path, kind: str) -> tuple[Path, str]:
 
 
 @pytest.mark.parametrize(
-    "kind", ["missing column", "time backwards", "too short", "many bad rows", "no such file", "unknown format"]
+    "kind",
+    [
+        "missing column",
+        "time backwards",
+        "too short",
+        "sparse samples",
+        "many bad rows",
+        "no such file",
+        "unknown format",
+    ],
 )
 @pytest.mark.parametrize("side", ["train", "test"])
 def test_bad_logs_stop_calibrate_with_one_line(capsys, tmp_path, kind, side):

@@ -154,6 +154,9 @@ def test_the_command_line_prints_the_table_and_refuses_bad_input(tmp_path, capsy
     assert not (tmp_path / "nowhere.json").exists()
     assert measure.main(["--robot", "roach", f"{REAL_2HZ}@100:200"]) == 2
     assert "the window lies outside the log, which runs from" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exited:  # a robot whose logs measure nothing by themselves is not offered
+        measure.main(["--robot", "motor", str(REAL_2HZ)])
+    assert exited.value.code == 2 and "invalid choice: 'motor' (choose from 'roach')" in capsys.readouterr().err
 
 
 def test_a_file_that_appears_during_the_run_is_not_written_over(tmp_path, capsys):

@@ -21,6 +21,9 @@ from typing import Any
 
 FORMAT = "skitter calibration"
 VERSION = 1
+# the robot's name in a calibration file is the robot's own (``velociroach``); ``calibrate.py --robot`` takes the
+# short one, and a file written by hand with it means the same robot
+ROBOT_ALIASES = {"roach": "velociroach"}
 
 
 class CalibrationError(ValueError):
@@ -85,6 +88,7 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     name = data.get("robot")
     if not isinstance(name, str):
         raise CalibrationError(f"{path}: field 'robot': {name!r} is not a robot name")
+    name = ROBOT_ALIASES.get(name, name)
     if robot is not None and name != robot:
         raise CalibrationError(f"{path}: field 'robot': the file calibrates {name!r}, not {robot!r}")
     raw = data.get("effects")
@@ -96,6 +100,9 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
             raise CalibrationError(f"{path}: field 'effects.{effect}': {params!r} is not an object of parameters")
         effects[effect] = {}
         for param, entry in params.items():
+            if isinstance(entry, dict) and "value" not in entry:
+                raise CalibrationError(f"{path}: field 'effects.{effect}.{param}': no 'value' (an entry is a number, "
+                                       "or an object with one under 'value')")  # fmt: skip
             value = entry.get("value") if isinstance(entry, dict) else entry
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
                 raise CalibrationError(f"{path}: field 'effects.{effect}.{param}': {value!r} is not a finite number")

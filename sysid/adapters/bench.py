@@ -279,6 +279,8 @@ class ServoAdapter(RigAdapter):
     """The AX-12 on the rig, replayed from its goal (or from a fitted goal when the log lacks it); compared on the
     position it reports, in counts."""
 
+    optional = ("goal",)  # logged, or fitted as a nuisance (Adapter.nuisance)
+
     name = "servo"
     channels = {"present_position": "count"}  # noqa: RUF012
     segment_seconds = 0.5  # a servo settles within a quarter second: shorter segments, more of them

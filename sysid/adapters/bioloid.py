@@ -85,6 +85,8 @@ def _side(servo: str) -> str | None:
 class BioloidAdapter(Adapter):
     """The Bioloid replayed from its servos' logged goals through the AX-12 model."""
 
+    optional = ("vbatt",)  # the servos' supply, where logged
+
     name = "bioloid"
     channels = {f"present_position_{s}": "count" for s in constants.SERVOS}  # noqa: RUF012
     commands = tuple(f"goal_{s}" for s in constants.SERVOS)

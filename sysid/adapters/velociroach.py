@@ -325,6 +325,7 @@ class RoachAdapter(Adapter):
 
     # --- channels that cannot be time-aligned -----------------------------------------------------------------------
     BODY_RATES = ("gyro_x", "gyro_y", "gyro_z")
+    optional = BODY_RATES  # the IMU's rates, where logged
     BANDS = ((0.5, 5.0), (5.0, 20.0), (20.0, 100.0))  # Hz: body sway, stride, vibration
 
     def report_extra(self, result) -> dict:

@@ -142,6 +142,7 @@ class XjusAdapter(Adapter):
                                "battery voltage")  # fmt: skip
 
     CLOCK = ("clock_phase", "period", "sweep_left", "sweep_right")  # gait mode's telemetry of the Buehler clock
+    optional = CLOCK
 
     def segments(self, log: Log) -> list[Segment]:
         """Segments, each with what acts from each sample on: a telemetry row holds the duty, period and sweeps of
