@@ -132,6 +132,8 @@ TRAIN_DEFAULTS: dict[str, Any] = {
     "vec_env": "batched",
     "nthread": None,
 }
+# --tune's defaults (given here, not as argparse defaults, so that the options are refused without --tune)
+TUNE_EVALUATIONS, TUNE_EVAL_EPISODES = 4, 5
 SOCCER_ROBOTS = ("bioloid", "roach", "xjus")  # train.py --soccer (envs/soccer/robots.py, by its lower-case names)
 VEC_ENVS = ("batched", "dummy")  # the batched env on mujoco.batch (one process, every core), or SB3's DummyVecEnv
 NOISE_DEFAULTS: dict[str, Any] = {"noise_type": None, "noise_std": 0.1}  # SAC and TD3 only; None: no noise
@@ -1447,10 +1449,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="run this many Optuna trials of --timesteps each instead of one run")  # fmt: skip
     tuning.add_argument("--storage", help="the study's database URL (default sqlite:///<runs-dir>/tuning.db)")
     tuning.add_argument("--study", help="the study's name (default <env>__<algo>); processes sharing it share trials")
-    tuning.add_argument("--evaluations", type=_positive_int,
-                        help="evaluations per trial, each reported to the pruner (default 4)")  # fmt: skip
+    tuning.add_argument(
+        "--evaluations",
+        type=_positive_int,
+        help=f"evaluations per trial, each reported to the pruner (default {TUNE_EVALUATIONS})",
+    )
     tuning.add_argument("--eval-episodes", type=_positive_int,
-                        help="episodes per evaluation (default 5)")  # fmt: skip
+                        help=f"episodes per evaluation (default {TUNE_EVAL_EPISODES})")  # fmt: skip
     soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
     soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
     soccer.add_argument("--players", type=_positive_int, help="players a side, 1 to 4 (default 3)")
@@ -1512,8 +1517,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             if value is not None:  # a trial keeps no run folder or checkpoints: the study's files are its output
                 parser.error(f"{flag} is for one training run: --tune writes its study under "
                              "<runs-dir>/tuning/<study>/ and keeps no checkpoints")  # fmt: skip
-        args.evaluations = 4 if args.evaluations is None else args.evaluations
-        args.eval_episodes = 5 if args.eval_episodes is None else args.eval_episodes
+        args.evaluations = TUNE_EVALUATIONS if args.evaluations is None else args.evaluations
+        args.eval_episodes = TUNE_EVAL_EPISODES if args.eval_episodes is None else args.eval_episodes
     else:
         for flag, value in (("--storage", args.storage), ("--study", args.study), ("--evaluations", args.evaluations),
                             ("--eval-episodes", args.eval_episodes)):  # fmt: skip

@@ -24,7 +24,7 @@ import numpy as np
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser, write_json
 from envs.common.robot import Robot
-from envs.soccer.robots import ROBOTS
+from envs.soccer.robots import BY_NAME, ROBOTS
 from envs.soccer.steering import MAPS, STEERING, usable
 
 CONFIGURATIONS: dict[str, list[str]] = {"gait_maps": []}
@@ -103,13 +103,12 @@ def _yaw(q: np.ndarray) -> np.ndarray:
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    names = {name.lower(): name for name in ROBOTS}  # lower case, as every other soccer tool takes them
     parser.add_argument(
         "--robots",
         nargs="+",
         default=list(ROBOTS),
         choices=list(ROBOTS),
-        type=lambda name: names.get(name.lower(), name),
+        type=lambda name: BY_NAME.get(name.lower(), name),  # lower case, as every other soccer tool takes them
         help="robots to map (roach, xjus, bioloid)",
     )
     parser.add_argument("--seconds", type=float, default=6.0, help="length of each run, s")

@@ -171,11 +171,12 @@ def _run(args: argparse.Namespace) -> int:
         check_disjoint(args.train, args.test)
         column_map = ColumnMap.load(args.columns) if args.columns else None
         if column_map is not None:
-            unread = [name for name in column_map.columns if name not in adapter.reads()]
+            reads = adapter.reads()
+            unread = [name for name in column_map.columns if name not in reads]
             if unread:  # a misspelt channel would leave its column unread: a logged goal fitted, say
                 print(f"calibrate.py: warning: {args.columns}: the {args.robot}'s calibration reads no channel named "
                       f"{', '.join(map(repr, unread))}; those columns are ignored (it reads "
-                      f"{', '.join(sorted(adapter.reads() - {'episode'}))})", file=sys.stderr)  # fmt: skip
+                      f"{', '.join(sorted(reads - {'episode'}))})", file=sys.stderr)  # fmt: skip
         limits = adapter.channel_limits()  # a sample the robot could not produce is dropped, with a warning
         train = read_logs(args.train, adapter.required(), column_map, limits)
         test = read_logs(args.test, adapter.required(), column_map, limits)

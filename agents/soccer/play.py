@@ -35,8 +35,8 @@ from envs.common.io import (
     write_json,
     write_text,
 )
-from envs.soccer.match import MATCH_SECONDS, MAX_PLAYERS, Matches
-from envs.soccer.robots import ROBOTS
+from envs.soccer.match import MATCH_SECONDS, MAX_PLAYERS, Matches, action_modes
+from envs.soccer.robots import BY_NAME
 from envs.soccer.scripted import scripted_team
 from envs.soccer.steering import COMMANDS
 
@@ -254,7 +254,7 @@ def _stopped_note(args: argparse.Namespace, stopped: list[dict[str, Any]]) -> st
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = ToolParser(prog="evaluate.py --soccer", description="Play matches between two teams' policies.")
-    p.add_argument("--soccer", required=True, choices=sorted(name.lower() for name in ROBOTS), help="the robot")
+    p.add_argument("--soccer", required=True, choices=sorted(BY_NAME), help="the robot")
     p.add_argument("--players", type=int, default=3, help=f"players a side, 1 to {MAX_PLAYERS}")
     p.add_argument(
         "--home",
@@ -284,8 +284,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         p.error(f"--seed must be >= 0, got {args.seed}")
     if not 0 < args.match_seconds <= 3600:
         p.error(f"--match-seconds must be in (0, 3600], got {args.match_seconds}")
-    robot_class = {name.lower(): c for name, c in ROBOTS.items()}[args.soccer]
-    modes = [*robot_class.action_modes, COMMANDS]
+    modes = action_modes(args.soccer)
     if args.action_mode is not None and args.action_mode not in modes:
         p.error(f"--action-mode must be one of {modes} for the {args.soccer}, got {args.action_mode!r}")
     if "scripted" in (args.home, args.away) and args.action_mode not in (None, COMMANDS):

@@ -37,7 +37,7 @@ from envs.common.match import SharedScene
 from envs.common.rendering import FrameRenderer, tracking_camera
 from envs.common.robot import check_flag, check_number
 from envs.soccer.field import BALL, BALL_POS, TOP_CAMERA, field_edit
-from envs.soccer.robots import FIELDS, HEADS, ROBOTS
+from envs.soccer.robots import BY_NAME, FIELDS, HEADS, ROBOTS
 from envs.soccer.steering import COMMANDS, Commands
 from envs.soccer.task import BALL_NOISE, SoccerTask
 
@@ -69,6 +69,12 @@ class MatchTask(SoccerTask):
 def _whole(value: Any) -> bool:
     """Whether ``value`` is a whole number (a Python or numpy integer, not a bool or a float)."""
     return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def action_modes(robot: str) -> list[str]:
+    """The action modes a match of ``robot`` (lower case) takes: the robot's own (its default first) and
+    ``commands``."""
+    return [*ROBOTS[BY_NAME[robot]].action_modes, COMMANDS]
 
 
 def check_cycles(value: Any) -> int:
@@ -111,16 +117,15 @@ class Matches:
         throw_in: bool = True,
         batched: bool | None = None,
     ):
-        names = {name.lower(): name for name in ROBOTS}
-        if not isinstance(robot, str) or robot not in names:
-            raise ValueError(f"robot must be one of {sorted(names)}, got {robot!r}")
+        if not isinstance(robot, str) or robot not in BY_NAME:
+            raise ValueError(f"robot must be one of {sorted(BY_NAME)}, got {robot!r}")
         if not _whole(players_per_team) or players_per_team not in range(1, MAX_PLAYERS + 1):
             raise ValueError(
                 f"players_per_team must be a whole number from 1 to {MAX_PLAYERS}, got {players_per_team!r}"
             )
         if not _whole(num_matches) or num_matches < 1:
             raise ValueError(f"num_matches must be a whole number >= 1, got {num_matches!r}")
-        robot_class, self.field = ROBOTS[names[robot]], FIELDS[names[robot]]
+        robot_class, self.field = ROBOTS[BY_NAME[robot]], FIELDS[BY_NAME[robot]]
         self.robot_name = robot
         k = int(players_per_team)
         self.possible_agents = [f"home_{i}" for i in range(k)] + [f"away_{i}" for i in range(k)]
@@ -131,9 +136,10 @@ class Matches:
         if max_goals is not None and (not _whole(max_goals) or max_goals < 1):
             raise ValueError(f"max_goals must be a whole number >= 1 or None, got {max_goals!r}")
         self.max_goals = None if max_goals is None else int(max_goals)
-        mode = next(iter(robot_class.action_modes)) if action_mode is None else action_mode
-        if mode not in (*robot_class.action_modes, COMMANDS):
-            raise ValueError(f"action_mode must be one of {[*robot_class.action_modes, COMMANDS]}, got {mode!r}")
+        modes = action_modes(robot)
+        mode = modes[0] if action_mode is None else action_mode
+        if mode not in modes:
+            raise ValueError(f"action_mode must be one of {modes}, got {mode!r}")
         if max_cycles is not None:
             check_cycles(max_cycles)
         self.action_mode = mode

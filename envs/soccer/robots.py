@@ -16,6 +16,7 @@ if abs(bioloid.LENGTH - BIOLOID_LENGTH) > 1e-9:  # the Four-Legged field's scale
 
 # the robot's name in ids (RoachGoToBall) and in the match's ``robot`` argument (lower case)
 ROBOTS: dict[str, type[Robot]] = {"Bioloid": Bioloid, "Xjus": Xjus, "Roach": VelociRoach}
+BY_NAME: dict[str, str] = {name.lower(): name for name in ROBOTS}  # a match's ``robot`` -> its key in ROBOTS
 # the body each robot sees from, looking along its -z axis: the Bioloid's head (assets/bioloid/bioloid.xml; with the
 # neck raised, N_2 pans it and HEAD tilts it), so an optional field of view follows its neck and head servos
 HEADS: dict[str, str] = {Bioloid.name: "HEAD"}
