@@ -416,11 +416,11 @@ def _drop_non_finite(log: Log, columns: Sequence[str]) -> Log:
     if not len(bad):
         return log
     first = np.argmin(finite, axis=1)  # each row's first column that is not finite
-    unparsed = log.meta.get("unparsed", {})  # (file line, column) -> the text that is not a number, as the file has it
+    unparsed = log.meta.get("unparsed", {})  # column -> {file line: the text that is not a number, as the file has it}
     lines = []
     for k in bad:
         line, column = int(_row_label(log, int(k))), columns[first[k]]
-        text = unparsed.get((line, column))
+        text = unparsed.get(column, {}).get(str(line))
         shown = repr(text) if text is not None else str(float(values[k, first[k]]))
         lines.append((line, f"column {column!r}: {shown} is not a finite number"))
     drop_bad_rows(Path(log.path), lines, len(values))
@@ -660,7 +660,7 @@ def _read_skitter_csv(path: Path) -> Log:
     whose time or required channel is not finite, naming that column."""
     names, rows, bad = _csv_rows(path)
     drop_bad_rows(path, bad, len(rows) + len(bad))
-    unparsed: dict[tuple[int, str], str] = {}
+    unparsed: dict[str, dict[str, str]] = {}
     data = np.asarray([[_number_or_nan(f, unparsed, number, name) for f, name in zip(fields, names, strict=True)]
                        for number, fields in rows], dtype=float)  # fmt: skip
     df = pd.DataFrame(data.reshape(-1, len(names)), columns=names)
@@ -703,13 +703,13 @@ def _read_mapped(path: Path, column_map: ColumnMap, required: Sequence[str] = ()
 
 
 def _number_or_nan(value: Any, unparsed: dict | None = None, line: int = 0, column: str = "") -> float:
-    """``value`` as a number, else NaN (its text kept in ``unparsed`` under (line, column), for the warning that
-    drops its row)."""
+    """``value`` as a number, else NaN (its text kept in ``unparsed[column][str(line)]``, string keys so that the log's
+    meta stays JSON, for the warning that drops its row)."""
     try:
         return float(value)
     except (TypeError, ValueError):
         if unparsed is not None:
-            unparsed[(line, column)] = value
+            unparsed.setdefault(column, {})[str(line)] = value
         return math.nan
 
 

@@ -130,7 +130,8 @@ def test_a_field_that_is_not_a_number_is_named_as_the_file_has_it(tmp_path):
     lines[7] = ",".join(fields)
     path.write_text("\n".join(lines) + "\n")
     with pytest.warns(UserWarning, match=r"line 8: column 'leg_angle_FL': 'abc' is not a finite number"):
-        read_log(path, ("duty_FL", "leg_angle_FL"))
+        log = read_log(path, ("duty_FL", "leg_angle_FL"))
+    assert json.loads(json.dumps(log.meta["unparsed"]))["leg_angle_FL"] == {"8": "abc"}  # the meta stays JSON
 
 
 def test_a_column_map_entry_the_robot_does_not_read_is_warned_of(capsys, tmp_path):
