@@ -459,8 +459,40 @@ def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Pat
             "training_attempts": len(json.loads(attempts.read_text())) if attempts.is_file() else 1,
             "curve": {"steps": steps[keep].tolist(), "values": values[keep].tolist()} if len(steps) else None,
             "capped": trained < plan.steps(row.task), "wall_seconds": time.time() - started,
-            "model_sha256": _sha256(run_dir / "model.zip"),
+            "model_sha256": _sha256(run_dir / "model.zip"), "software": software(run_dir),
             "command": row_command(plan, row, out, records), "settings": plan.row_settings(row.task)}  # fmt: skip
+
+
+LIBRARIES = ("python", "stable-baselines3", "torch", "mujoco", "gymnasium", "numpy")
+"""What a row's training ran on that decides its numbers besides the code (train.py's config.json ``versions``)."""
+
+
+def software(run_dir: Path) -> dict[str, str] | None:
+    """The Python, library versions and commit a row's training ran on, from its run's ``config.json``; None where
+    the run keeps none."""
+    try:
+        versions = json.loads((run_dir / "config.json").read_text()).get("versions")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return {k: str(v) for k, v in versions.items()} if isinstance(versions, dict) else None
+
+
+def libraries(found: dict[str, str] | None) -> str | None:
+    """A record's library versions in words (``python 3.11.7, torch 2.13.0+cpu, ...``), None where it has none."""
+    return ", ".join(f"{k} {found.get(k, '?')}" for k in LIBRARIES) if found else None
+
+
+def backfill_software(row: Row, record: dict[str, Any], out: Path, records: Path) -> dict[str, Any]:
+    """A finished row's record with the versions its training ran on added, where it has none and its run is still
+    in ``OUT/runs/`` (:func:`_record_of_run`); the record as it was otherwise."""
+    if "software" in record or not _record_of_run(record, out, row):
+        return record
+    found = software(out / "runs" / row.name)
+    if found is None:
+        return record
+    record = {**record, "software": found}
+    write_json(row_file(records, row), record)
+    return record
 
 
 def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int,
@@ -1040,8 +1072,13 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   + ", ".join(resumed) + "."]  # fmt: skip
     again = [(row, rec["reproduction"]) for row, rec in rows.items() if rec and "reproduction" in rec]
     if again:
-        lines += ["", "Rows computed again with their own command (`--rerun`), against their earlier record:", ""]
+        lines += ["", "Rows computed again with their own command (`--rerun`), against their earlier record. A row's "
+                  "interval spans its evaluation episodes of one trained policy, not the training's own chance: a "
+                  "row computed again gives the same number only if it trains bit for bit (the same code, library "
+                  "versions and threads, in one sitting); otherwise it is another draw of the training, which can "
+                  "fall outside, as the spread over seeds shows:", ""]  # fmt: skip
         lines += [f"- {row.name}: {verdict(r)}." for row, r in again]
+    lines += _software_lines(rows)
     lines += _hour_section(baselines, rows)
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
@@ -1248,6 +1285,21 @@ def _check_plan(plan: Plan, reruns: list[Row], records: Path) -> None:
             _load_done(row_file(records, row), plan.row_settings(row.task), f"row {row.name}")
 
 
+def _software_lines(rows: dict[Row, dict | None]) -> list[str]:
+    """The library versions the done rows trained on, grouped, and the rows whose records do not say."""
+    groups: dict[str, list[str]] = {}
+    for row, rec in rows.items():
+        if rec:
+            groups.setdefault(libraries(rec.get("software")) or "", []).append(row.name)
+    if not groups:
+        return []
+    lines = ["", "Library versions the rows trained on (train.py's config.json):", ""]
+    lines += [f"- {found}: {', '.join(names)}." for found, names in groups.items() if found]
+    if "" in groups:
+        lines.append(f"- not recorded (rows trained before records kept them): {', '.join(groups[''])}.")
+    return lines
+
+
 def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
     """Whether a row computed again reproduces its earlier record: each one's number and 95% interval (the mean
     evaluation return, bootstrap over its episodes; a soccer row's goal difference against the scripted team) and
@@ -1261,15 +1313,21 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
         return {"metric": "mean return", "value": rec["mean_return"], "ci_low": r["ci_low"], "ci_high": r["ci_high"]}
 
     before, now = number(previous), number(record)
+    libraries_before, libraries_now = libraries(previous.get("software")), libraries(record.get("software"))
     return {"metric": now["metric"], "before": before, "again": now, "timesteps_before": previous.get("timesteps"),
             "settings_before": previous.get("settings"), "same_settings": previous.get("settings") == record.get(
-                "settings"), "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
+                "settings"), "libraries_before": libraries_before, "libraries_again": libraries_now,
+            "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
 
 
 def verdict(r: dict[str, Any]) -> str:
     """A :func:`reproduction` in words: the new number against the earlier one and its interval, within or not."""
     b = r["before"]
     other = "" if r.get("same_settings", True) else f" (made with other settings: {r['settings_before']})"
+    if "libraries_before" in r and r["libraries_before"] is None:
+        other += "; the earlier record does not say which library versions it ran on"
+    elif r.get("libraries_before") != r.get("libraries_again"):
+        other += f"; the earlier one ran on {r['libraries_before']}, this one on {r['libraries_again']}"
     return (
         f"{r['metric']} {r['again']['value']:.2f} against {b['value']:.2f} [{b['ci_low']:.2f}, {b['ci_high']:.2f}]"
         f" before: {'within' if r['within'] else 'OUTSIDE'} its 95% interval{other}"
@@ -1328,6 +1386,8 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
         path = row_file(records, row)
         if results[row] is None and path.is_file():
             results[row] = json.loads(path.read_text())
+        if results[row] is not None:
+            results[row] = backfill_software(row, results[row], out, records)
         if not args.table_only and results[row] is not None:
             results[row] = backfill_one_hour(plan, row, results[row], out, records, threads)
     if args.videos:

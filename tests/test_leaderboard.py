@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import shutil
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +53,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert base["reference"] == "tripod" and base["reference_return"] > base["random_return"]
     for record in rows.values():
         assert record["timesteps"] >= 256 and len(record["returns"]) == 2
+        assert record["software"]["torch"] == metadata.version("torch")  # what its training ran on
         score = (record["mean_return"] - base["random_return"]) / (base["reference_return"] - base["random_return"])
         assert np.isfinite(score)
     cell = summary["per_task"][WALK]["ppo"]
@@ -687,6 +689,37 @@ def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_rep
         assert again["reproduction"]["before"]["value"] == 85.0
         assert f"{row.name}: mean return {mean:.2f}" in docs.read_text()
         leaderboard.write_json(leaderboard.row_file(kept, row), published)
+
+
+def test_a_row_computed_again_says_which_library_versions_each_ran_on(tmp_path):
+    def record(mean: float, found: dict | None = None) -> dict:
+        summary = {"return": {"mean": mean, "ci_low": mean - 5, "ci_high": mean + 5, "n": 2}}
+        return {"mean_return": mean, "summary": summary, "settings": {}, **({"software": found} if found else {})}
+
+    ran = {k: "1.0" for k in leaderboard.LIBRARIES}
+    unknown = leaderboard.verdict(leaderboard.reproduction(record(85.0), record(95.0, ran)))
+    assert unknown.endswith(
+        "OUTSIDE its 95% interval; the earlier record does not say which library versions it ran on"
+    )
+    other = leaderboard.verdict(leaderboard.reproduction(record(85.0, {**ran, "torch": "2.0"}), record(88.0, ran)))
+    assert "within its 95% interval; the earlier one ran on python 1.0, stable-baselines3 1.0, torch 2.0" in other
+    assert "this one on python 1.0, stable-baselines3 1.0, torch 1.0" in other
+    # another commit is the code's change, which the row's settings and version say; the libraries are the same
+    same = leaderboard.reproduction(record(85.0, {**ran, "git_commit": "a"}), record(88.0, {**ran, "git_commit": "b"}))
+    assert leaderboard.verdict(same).endswith("within its 95% interval")
+    # a run's versions come from its config.json; a run without them has none
+    run = tmp_path / "run"
+    run.mkdir()
+    assert leaderboard.software(run) is None
+    (run / "config.json").write_text(json.dumps({"versions": ran}))
+    assert leaderboard.software(run) == ran
+    (run / "config.json").write_text("[1, 2]")
+    assert leaderboard.software(run) is None
+    rows = {leaderboard.Row(WALK, "ppo", 0): record(1.0, ran), leaderboard.Row(WALK, "ppo", 1): record(1.0),
+            leaderboard.Row(WALK, "ppo", 2): None}  # fmt: skip
+    lines = leaderboard._software_lines(rows)
+    assert f"- {leaderboard.libraries(ran)}: skitter_RoachWalk-v3__ppo__0." in lines
+    assert "- not recorded (rows trained before records kept them): skitter_RoachWalk-v3__ppo__1." in lines
 
 
 def test_a_rows_command_computes_that_row_alone_into_its_own_folders():
