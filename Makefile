@@ -5,6 +5,9 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.skitter-installed
+# the library versions to install (constraints.txt: those the leaderboard's rows ran on); CONSTRAINTS= for the
+# newest versions pyproject.toml admits
+CONSTRAINTS ?= constraints.txt
 export MUJOCO_GL ?= egl
 
 # demo budget: PPO on RoachWalk for DEMO_STEPS environment steps (the batched env on both cores), then 10 evaluation
@@ -16,11 +19,11 @@ DEMO_ID := demo-$(shell date +%Y%m%d-%H%M%S)
 
 .PHONY: setup test test-slow lint demo bench leaderboard leaderboard-table cpg-experiments clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(CONSTRAINTS)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet torch==2.13.0
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet $(if $(CONSTRAINTS),-c $(CONSTRAINTS)) -e '.[dev]'
 	touch $(STAMP)
 
 setup: $(STAMP)

@@ -63,3 +63,54 @@ def test_the_wheel_holds_the_models_and_every_env_runs_from_it(tmp_path):
     assert Path(found["envs"]).is_relative_to(site), "the installed copy, not the checkout, was imported"
     assert Path(found["assets"]).is_relative_to(site)
     assert found["made"] == sorted(k for k in gym.registry if k.startswith("skitter/"))
+
+
+def _pins() -> dict[str, str]:
+    """constraints.txt as {canonical name: pinned version}."""
+    from packaging.utils import canonicalize_name
+
+    pins = {}
+    for line in (ROOT / "constraints.txt").read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            name, _, version = line.partition("==")
+            assert version, f"constraints.txt: {line!r} is not name==version"
+            pins[canonicalize_name(name)] = version
+    return pins
+
+
+def test_constraints_pin_every_dependency_inside_its_range():
+    """make installs constraints.txt's versions: each dependency and dev tool of pyproject.toml is pinned there, at
+    a version its range admits, so the pins never fight the ranges."""
+    import tomllib
+
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    pins = _pins()
+    for text in project["dependencies"] + project["optional-dependencies"]["dev"]:
+        requirement = Requirement(text)
+        name = canonicalize_name(requirement.name)
+        assert name in pins, f"constraints.txt pins no version of {requirement.name}"
+        assert requirement.specifier.contains(pins[name], prereleases=True), (
+            f"constraints.txt pins {requirement.name}=={pins[name]}, outside pyproject.toml's {requirement}"
+        )
+    assert pins["torch"] == "2.13.0"  # the machine's CPU wheel, which the Makefile installs first
+    assert "-c $(CONSTRAINTS)" in (ROOT / "Makefile").read_text()
+
+
+def test_constraints_are_the_versions_the_leaderboard_rows_ran_on():
+    """Every leaderboard row that records its libraries trained on the pinned ones, so a fresh clone's `make`
+    installs what reproduces it (a row trained on other versions would need its own set)."""
+    from packaging.version import Version
+
+    pins = _pins()
+    records = sorted((ROOT / "docs/results/records/rows").glob("*/row.json"))
+    recorded = [r for r in records if json.loads(r.read_text()).get("software")]
+    assert recorded, "no leaderboard row records its libraries"
+    for path in recorded:
+        software = json.loads(path.read_text())["software"]
+        for name in ("stable-baselines3", "torch", "mujoco", "gymnasium", "numpy"):
+            assert Version(software[name]).public == Version(pins[name]).public, (
+                f"{path.parent.name} trained on {name} {software[name]}, constraints.txt pins {pins[name]}"
+            )
