@@ -1327,7 +1327,10 @@ def verdict(r: dict[str, Any]) -> str:
     if "libraries_before" in r and r["libraries_before"] is None:
         other += "; the earlier record does not say which library versions it ran on"
     elif r.get("libraries_before") != r.get("libraries_again"):
-        other += f"; the earlier one ran on {r['libraries_before']}, this one on {r['libraries_again']}"
+        again = r.get("libraries_again")
+        other += f"; the earlier one ran on {r['libraries_before']}, " + (
+            f"this one on {again}" if again else "this one does not say on which library versions"
+        )
     return (
         f"{r['metric']} {r['again']['value']:.2f} against {b['value']:.2f} [{b['ci_low']:.2f}, {b['ci_high']:.2f}]"
         f" before: {'within' if r['within'] else 'OUTSIDE'} its 95% interval{other}"

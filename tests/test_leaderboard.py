@@ -704,6 +704,8 @@ def test_a_row_computed_again_says_which_library_versions_each_ran_on(tmp_path):
     other = leaderboard.verdict(leaderboard.reproduction(record(85.0, {**ran, "torch": "2.0"}), record(88.0, ran)))
     assert "within its 95% interval; the earlier one ran on python 1.0, stable-baselines3 1.0, torch 2.0" in other
     assert "this one on python 1.0, stable-baselines3 1.0, torch 1.0" in other
+    silent = leaderboard.verdict(leaderboard.reproduction(record(85.0, ran), record(88.0)))
+    assert silent.endswith("this one does not say on which library versions")
     # another commit is the code's change, which the row's settings and version say; the libraries are the same
     same = leaderboard.reproduction(record(85.0, {**ran, "git_commit": "a"}), record(88.0, {**ran, "git_commit": "b"}))
     assert leaderboard.verdict(same).endswith("within its 95% interval")
