@@ -111,6 +111,14 @@ def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
     assert sum(sum(r.values()) for r in again["learner_record"].values()) == played + 4 * (1024 // 4 // 100)
 
 
+def test_train_soccer_offers_every_robot_that_plays_soccer():
+    # train.py keeps its own list, so that starting it does not load every robot's soccer scene
+    from agents.training import SOCCER_ROBOTS
+    from envs.soccer.robots import BY_NAME
+
+    assert sorted(SOCCER_ROBOTS) == sorted(BY_NAME)
+
+
 def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
     for args, word in ((("--env", "skitter/RoachWalk-v3"), "not both"), (("--algo", "sac"), "PPO"),
                        (("--players", "5"), "--players"), (("--scripted-share", "2"), "--scripted-share"),
