@@ -12,8 +12,9 @@ scripted against away random and against away scripted, two robots' sets at a ti
 Bioloid plays again with its kick (``kick=True``: both teams have the action, the scripted team kicks), in the
 academy and against random.
 
-Run: ``python -m benchmarks.soccer_scripted`` (66 minutes on 2 cores beside other jobs, 2026-11-30; the roach's sets
-are the longest). ``--robots bioloid`` runs one robot's sets (13 minutes for the Bioloid), under ``runs/benchmarks/``.
+Run: ``python -m benchmarks.soccer_scripted`` (82 minutes on 2 idle cores, 2026-12-01; the roach's two sets
+take 45 minutes each). ``--robots bioloid`` runs one robot's sets (13 minutes for the Bioloid), under
+``runs/benchmarks/``.
 """
 
 from __future__ import annotations
