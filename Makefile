@@ -49,8 +49,10 @@ demo: setup
 # turn, the xJüs's rough ground and each robot's soccer academy (in the commands mode, against the scripted player),
 # 3 seeds, an hour of 2 cores a row as env steps (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach
 # 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk, 2026-11-30; PPO on each academy in
-# the commands mode trains at 0.71, 0.72 and 0.73 of its walk's speed, 61,440 steps each, 2026-11-30), 96 hours in
-# all (a busy host takes longer: each row is also judged on its policy after an hour of training); rows already done
+# the commands mode trained at 0.71, 0.72 and 0.73 of its walk's speed over 61,440 steps each, 2026-11-30; but a
+# whole XjusGoToBall-v2 row trains at 1,260 steps/s, 0.42, on one core's worth, so its 7M steps take 95 minutes,
+# 2026-12-01), about 96 hours in all, more for the academy (each row is also judged on its policy after an hour of
+# training); rows already done
 # are kept, a killed row resumes;
 # LEADERBOARD_TASKS, LEADERBOARD_SEEDS and LEADERBOARD_ALGOS pick rows; works in results/leaderboard/, keeps the
 # finished rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
