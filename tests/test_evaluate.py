@@ -34,15 +34,17 @@ def run_here(*args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def model_zip(tmp_path_factory) -> Path:
+    """A tiny PPO run, trained by ``train.main`` in this process (the model is what the tests here need; train.py's
+    command line is tested in tests/test_train.py)."""
+    from agents import training
+
     runs = tmp_path_factory.mktemp("runs")
     hp = runs / "ppo.yml"
     hp.write_text("skitter/RoachWalk-v3:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  normalize: true\n")
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "train.py"), "--env", "skitter/RoachWalk-v3", "--algo", "ppo", "--timesteps",
-         "128", "--seed", "0", "--hyperparams", str(hp), "--runs-dir", str(runs), "--run-name", "tiny",
-         "--checkpoint-freq", "64", "--no-progress"],
-        cwd=ROOT, capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
+    done = main_in_process(training.main, [
+        "--env", "skitter/RoachWalk-v3", "--algo", "ppo", "--timesteps", "128", "--seed", "0", "--hyperparams",
+        str(hp), "--runs-dir", str(runs), "--run-name", "tiny", "--checkpoint-freq", "64", "--no-progress",
+    ])  # fmt: skip
     assert done.returncode == 0, done.stderr
     return runs / "tiny" / "model.zip"
 
