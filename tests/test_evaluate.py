@@ -50,10 +50,12 @@ def model_zip(tmp_path_factory) -> Path:
 
 
 def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zip, tmp_path, capsys):
+    """In this process (``run_here``): the comparison is what is tested; the command line itself is run by
+    test_bad_input_gets_a_clear_message_and_no_traceback."""
     out = tmp_path / "walk"
-    done = run("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--policy", str(model_zip),
-               "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "30", "--video",
-               "--telemetry")  # fmt: skip
+    done = run_here("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--policy", str(model_zip),
+                    "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "30", "--video",
+                    "--telemetry")  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "tripod:20" in done.stdout and "speed_bl" in done.stdout and "[" in done.stdout  # the table, with CIs
     results = json.loads((out / "results.json").read_text())
