@@ -395,6 +395,8 @@ def test_resume_refuses_a_checkpoint_of_another_env(tiny_run, tmp_path):
 
 
 def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_path):
+    from agents import compare
+
     run_dir = shutil.copytree(tiny_run, tmp_path / "run")
     shutil.rmtree(run_dir / "checkpoints" / "step_0000000064")
     break_weights(run_dir / "checkpoints" / "step_0000000128")
@@ -415,9 +417,8 @@ def test_a_checkpoint_with_corrupt_weights_is_a_one_line_error(tiny_run, tmp_pat
     (foreign.parent / "vecnormalize.pkl").write_bytes(b"garbage")
     with pytest.raises(ModelFileError, match=r"cannot read .*vecnormalize\.pkl: corrupt"):
         SB3Policy(foreign, gym.make(WALK))
-    out = tmp_path / "evaluation"
-    command = [sys.executable, str(ROOT / "evaluate.py"), "--env", WALK, "--policy", str(model), "--out", str(out)]
-    result = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, timeout=120)
+    out = tmp_path / "evaluation"  # evaluate.py's main, in this process: its command line is tested in test_evaluate
+    result = main_in_process(compare.main, ["--env", WALK, "--policy", str(model), "--out", str(out)])
     assert_one_line_error(result, f"--policy '{model}': cannot read policy file {model}: corrupt contents")
     assert "checkpoint" not in result.stderr.replace(str(model), "MODEL"), "a policy file is not a checkpoint here"
     assert not out.exists()
