@@ -551,10 +551,9 @@ def test_resume_names_a_bad_field_of_config_json(ppo_run, tmp_path, key, value):
     assert f"config.json: field '{key}' = {value!r}" in result.stderr
 
 
-def test_a_bad_thread_cap_is_named_as_itself(tmp_path):
-    result = subprocess.run([sys.executable, str(ROOT / "train.py"), "--env", WALK, "--algo", "ppo", "--timesteps",
-                             "64", "--runs-dir", str(tmp_path)], capture_output=True, text=True,
-                            env={**os.environ, "SKITTER_THREADS": "abc"})  # fmt: skip
+def test_a_bad_thread_cap_is_named_as_itself(tmp_path, monkeypatch):
+    monkeypatch.setenv("SKITTER_THREADS", "abc")  # read as train.main starts: in this process as in a new one
+    result = train_in_process("--env", WALK, "--algo", "ppo", "--timesteps", 64, "--runs-dir", tmp_path)
     assert result.returncode == 2 and "SKITTER_THREADS='abc'" in result.stderr and "env_kwargs" not in result.stderr
     assert not any(tmp_path.iterdir())
 
