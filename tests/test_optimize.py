@@ -39,8 +39,9 @@ def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
 
 
 def cli_here(*args: str) -> subprocess.CompletedProcess:
-    """``python -m agents.optimize``'s ``main`` in the test's process: the inputs it refuses before anything runs (the
-    tests of a whole run, a kill, a lock and Ray use :func:`cli`)."""
+    """``python -m agents.optimize``'s ``main`` in the test's process: the inputs it refuses before anything runs, and
+    the runs that need no process of their own (a killed run, a run refused by another's lock and the Ray cases
+    use :func:`cli`)."""
     return main_in_process(main, ["--no-progress", *args])
 
 
@@ -170,7 +171,8 @@ def test_a_killed_run_resumes_from_its_checkpoint_to_the_uninterrupted_result(tm
     config = write_config(tmp_path, seconds=2.0)
     args = ["--config", str(config), "--optimizer", "pso", "--iterations", "8", "--particles", "6", "--seed", "3",
             "--workers", "1"]  # fmt: skip
-    straight = cli(*args, "--out", str(tmp_path / "straight"))
+    # the kill needs a process of its own; the uninterrupted run and the resume run main in this process
+    straight = cli_here(*args, "--out", str(tmp_path / "straight"))
     assert straight.returncode == 0, straight.stderr
     killed = tmp_path / "killed"
     process = subprocess.Popen([sys.executable, "-m", "agents.optimize", "--no-progress", *args, "--out", str(killed)],
@@ -182,7 +184,7 @@ def test_a_killed_run_resumes_from_its_checkpoint_to_the_uninterrupted_result(tm
     process.wait()
     done_before = len(json.loads((killed / "history.json").read_text())["history"])
     assert 1 <= done_before < 8, "the run was killed part of the way"
-    resumed = cli(*args, "--out", str(killed))
+    resumed = cli_here(*args, "--out", str(killed))
     assert resumed.returncode == 0, resumed.stderr
     a = json.loads((tmp_path / "straight" / "history.json").read_text())
     b = json.loads((killed / "history.json").read_text())
