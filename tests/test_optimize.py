@@ -110,7 +110,7 @@ def test_a_second_run_into_a_folder_in_use_is_refused_in_one_line(tmp_path):
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert f"{out} is in use by another python -m agents.optimize run" in done.stderr
     assert sorted(os.listdir(out)) == [".lock"]
-    again = cli("--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out))
+    again = cli_here("--config", str(config), "--iterations", "1", "--particles", "2", "--out", str(out))
     assert again.returncode == 0, again.stderr  # free again: the lock file alone is not a foreign folder
     assert (out / "best.json").is_file()
 
