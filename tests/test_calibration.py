@@ -26,6 +26,7 @@ from sysid import fit as fit_module
 from sysid import synth
 from sysid.cases import TEST_SEED_OFFSET, Case, pair, run_case
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
+from sysid.logs import Log
 from sysid.pipeline import relative_excess, run
 from sysid.problem import Problem, Residual, total_objective
 from sysid.report import report_extra, report_markdown
@@ -960,6 +961,14 @@ def test_an_estimate_near_the_end_is_refused_only_where_the_cost_does_not_rise_t
         assert verdict is None and trial.bounds95["leg_stiffness.scale"] == (2.646, 3.0)
 
 
+def nominal_log(robot: str, seed: int, seconds: float) -> Log:
+    """The log ``synth.synthesize(robot, {}, seed, seconds=seconds)`` gives (the nominal model under the seed's
+    commands, read with the robot's sensor noise), without the visibility that synthesize measures for the effects
+    it injects: with none, that is a whole replay problem's floor (on the roach, most of the time)."""
+    adapter = make_adapter(robot)
+    return synth.noisy_log(adapter, {}, synth.excitation_commands(adapter, seconds, seed, 0), seed, robot)
+
+
 def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
     """The loop decides on a few segments of a long log (``decision_segments``). Where the body is carried from
     segment to segment, each run of decision segments is replayed from the one segment before it (its burn-in, as
@@ -970,8 +979,7 @@ def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
     from sysid.problem import DecisionProblem
 
     monkeypatch.setattr(select, "MAX_DECISION_SEGMENTS", 3)
-    log, _ = synth.synthesize("roach", {}, 0, seconds=7.0)
-    whole = Problem(make_adapter("roach"), [log])
+    whole = Problem(make_adapter("roach"), [nominal_log("roach", 0, 7.0)])
     fitting = select.decision_segments(whole)
     assert len(whole.scored) == 6 and len(fitting) == 3
     deciding = whole.decisions(fitting)
@@ -1001,8 +1009,11 @@ def test_decisions_on_part_of_a_long_log_replay_only_that_part(monkeypatch):
         whole.decisions([0, *fitting])  # the log's first segment burns in: it is never decided on
     with pytest.raises(ValueError, match="not decision segments"):
         deciding.residuals([setting], [whole.scored[1]])  # replayed by the whole problem only
-    rig = Problem(make_adapter("motor"), [synth.synthesize("motor", {}, 0, seconds=2.0)[0]])
+    rig_log = synth.synthesize("motor", {}, 0, seconds=2.0)[0]
+    rig = Problem(make_adapter("motor"), [rig_log])
     assert rig.decisions(rig.scored[:2]) is rig
+    shortcut = nominal_log("motor", 0, 2.0)  # the log synthesize gives, as the roach's above (checked where it is fast)
+    assert shortcut.df.equals(rig_log.df) and shortcut.meta == rig_log.meta
 
 
 @pytest.mark.parametrize("robot", ["roach", "xjus", "bioloid", "motor", "servo"])
