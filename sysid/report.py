@@ -241,7 +241,7 @@ def plot_residuals(result: Result, path: Path, which: str) -> None:
     channels = problem.channels
     height = 2.2 * len(channels) + 0.6
     fig, axes = plt.subplots(len(channels), 1, figsize=(10, height), sharex=True, squeeze=False)
-    # margins in inches for the titles and labels: tight_layout measured every tick label, most of the plot's time
+    # margins in inches for the titles and labels: tight_layout measured every tick label, a fifth of the plot's time
     fig.subplots_adjust(left=0.1, right=0.98, bottom=0.55 / height, top=1 - 0.8 / height, hspace=0.4)
     for c, ax in enumerate(axes[:, 0]):
         for seg, res in zip([problem.segments[i] for i in problem.scored], held.residuals, strict=True):
