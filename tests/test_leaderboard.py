@@ -167,7 +167,7 @@ def test_rows_run_on_a_ray_cluster_as_they_run_here(tmp_path, monkeypatch, ray_h
     assert (tmp_path / "ray" / "runs" / row / "model.zip").is_file(), "the task wrote into the command's folder"
 
 
-ACADEMY = "skitter/BioloidGoToBall-v3"
+ACADEMY = "skitter/BioloidGoToBall-v4"
 
 
 def test_an_academy_task_is_learnt_and_judged_in_the_commands_mode_against_the_scripted_player():
@@ -178,7 +178,7 @@ def test_an_academy_task_is_learnt_and_judged_in_the_commands_mode_against_the_s
     plan = leaderboard.Plan((ACADEMY,), ("ppo+residual",), (0,), ((ACADEMY, 100),), None, 2, 1000, None)
     train, evaluate = leaderboard.reproduce(plan, leaderboard.Row(ACADEMY, "ppo+residual", 0), 100, "scripted")
     for command in (train, evaluate):
-        assert """--env skitter/BioloidGoToBall-v3 --env-kwargs '{"action_mode": "commands"}'""" in command
+        assert """--env skitter/BioloidGoToBall-v4 --env-kwargs '{"action_mode": "commands"}'""" in command
     assert "--residual reference" in train and "--policy scripted" in evaluate
 
 
@@ -358,7 +358,7 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
 def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_path):
     """A walk's row shows its speed against the reference's, a turn's its yaw-rate error, an academy task's its
     success: each the paired difference its evaluation recorded."""
-    turn, academy = "skitter/RoachTurn-v4", "skitter/RoachGoToBall-v3"
+    turn, academy = "skitter/RoachTurn-v4", "skitter/RoachGoToBall-v4"
     plan = leaderboard.Plan((WALK, turn, academy), ("ppo",), (0,), ((WALK, 100), (turn, 100), (academy, 100)), None,
                             5, 1000, None)  # fmt: skip
     baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
@@ -379,7 +379,7 @@ def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_pat
     lines = {line.split(" |")[0][2:]: line for line in rows_table.splitlines() if line.startswith("| skitter_")}
     assert "| speed +0.500 [+0.490, +0.510] m/s | -0.200 [-0.210, -0.190] |" in lines["skitter_RoachWalk-v3__ppo__0"]
     assert "| yaw_rate_error -0.250 [-0.260, -0.240] rad/s |" in lines["skitter_RoachTurn-v4__ppo__0"]
-    assert "| success +0.400 [+0.390, +0.410] |" in lines["skitter_RoachGoToBall-v3__ppo__0"]
+    assert "| success +0.400 [+0.390, +0.410] |" in lines["skitter_RoachGoToBall-v4__ppo__0"]
 
 
 def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):

@@ -129,9 +129,30 @@ def test_a_goal_is_seen_between_control_steps_and_ends_the_episode():
     [({"ball": [99.0, 0.0]}, "ball"), ({"robot": [0.0, 0.0]}, "robot"), ({"robot": "here"}, "robot")],
 )
 def test_bad_places_are_refused_by_name(options, word):
-    env = make("skitter/BioloidGoToBall-v3")
+    env = make("skitter/BioloidGoToBall-v4")
     with pytest.raises(ValueError, match=f"options\\['{word}'\\]"):
         env.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize("name", sorted(ROBOTS))
+def test_go_to_ball_starts_the_robot_2_to_8_body_lengths_from_the_ball_inside_the_lines(name):
+    """Both places are drawn again until they hold, not moved inside the lines: moving the robot's put 8.5% of the
+    starts within a body length of the ball, some touching it before the first step."""
+    (env_id,) = [e["id"] for e in ACADEMY if e["id"].startswith(f"skitter/{name}GoToBall-")]
+    env = make(env_id)
+    task, length = env.unwrapped.task, env.unwrapped.robot.facts.length
+    inner = np.array([task.field.half_length, task.field.half_width]) - 2.0 * length
+    rng = np.random.default_rng(0)
+    distances = []
+    for _ in range(2000):
+        robot, ball = task.draw_places(rng, length)
+        distances.append(np.hypot(*(robot[:2] - ball)) / length)
+        assert (np.abs(robot[:2]) <= inner).all() and (np.abs(ball) <= inner).all()
+    assert 2.0 <= min(distances) and max(distances) <= 8.0
+    for seed in range(1000, 1020):  # the evaluation seeds: the old placement put the xJüs on its ball at 1004
+        env.reset(seed=seed)
+        *_, terminated, _, info = env.step(np.zeros(env.action_space.shape))
+        assert not terminated and info["ball_distance"] > 1.5, (seed, info["ball_distance"])
 
 
 def test_robots_on_a_shared_scene_refuse_per_robot_parameters():
@@ -165,7 +186,7 @@ def test_players_collide_with_each_other_but_not_with_themselves():
 
 @pytest.mark.parametrize(
     "env_id",
-    ["skitter/BioloidGoToBall-v3", "skitter/RoachScoreEmptyGoal-v3", "skitter/XjusScoreVsKeeper-v1",
+    ["skitter/BioloidGoToBall-v4", "skitter/RoachScoreEmptyGoal-v3", "skitter/XjusScoreVsKeeper-v1",
      "skitter/BioloidScoreVsKeeper-v2"],
 )  # fmt: skip
 def test_the_academy_in_the_commands_mode_is_batched_like_single_across_resets(env_id):
@@ -196,7 +217,7 @@ def test_the_bioloids_field_of_view_follows_its_neck():
     with the head panned 0.8 rad either way by the neck's roll servo (N_2, about the raised neck)."""
     from envs.bioloid import constants as bc
 
-    env = gym.make("skitter/BioloidGoToBall-v3", field_of_view=np.radians(60), reset_noise_scale=0.0)
+    env = gym.make("skitter/BioloidGoToBall-v4", field_of_view=np.radians(60), reset_noise_scale=0.0)
     layout = env.unwrapped.task.layout
     stand = bc.CENTER + np.array([bc.STAND_ANGLES[s] for s in bc.SERVOS]) / bc.RAD_PER_COUNT
     for pan, seen in ((0.0, 1.0), (0.8, 0.0), (-0.8, 0.0)):

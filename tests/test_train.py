@@ -290,7 +290,7 @@ def test_bad_input_is_a_one_line_error_from_the_command_line(tmp_path):
 def test_env_kwargs_on_the_command_line_go_over_the_entrys_and_into_the_run(tmp_path):
     """``--env-kwargs`` merges over the hyperparameter entry's env_kwargs; the run keeps them (a resume makes its env
     as it was), and ``--residual reference`` on a soccer academy task in the commands mode is the scripted player."""
-    academy = "skitter/BioloidGoToBall-v3"
+    academy = "skitter/BioloidGoToBall-v4"
     hyperparams = tmp_path / "tiny.yml"
     hyperparams.write_text(f"{academy}:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  n_epochs: 1\n"
                            "  env_kwargs: {sensor_noise: false}\n")  # fmt: skip
