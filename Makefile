@@ -51,9 +51,9 @@ demo: setup
 # 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk, 2026-11-30; PPO on each academy in
 # the commands mode trained at 0.71, 0.72 and 0.73 of its walk's speed over 61,440 steps each, 2026-11-30; but a
 # whole XjusGoToBall-v2 row trains at 1,260 steps/s, 0.42, on one core's worth, so its 7M steps take 95 minutes,
-# 2026-12-01; the other academy entries step 16 envs to gain speed, docs/training.md), about 96 hours in all, more for the academy (each row is also judged on its policy after an hour of
-# training); rows already done
-# are kept, a killed row resumes;
+# 2026-12-01; the academy's entries now step 16 envs to gain speed, docs/training.md), about 96 hours in all, more
+# for the academy (each row is also judged on its policy after an hour of training); rows already done are kept, a
+# killed row resumes;
 # LEADERBOARD_TASKS, LEADERBOARD_SEEDS and LEADERBOARD_ALGOS pick rows; works in results/leaderboard/, keeps the
 # finished rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
 # docs/results.md
