@@ -67,14 +67,15 @@ class Case:
 
 
 def pair(
-    robot: str, effects: Mapping[str, float | Mapping[str, float] | None], seed: int
+    robot: str, effects: Mapping[str, float | Mapping[str, float] | None], seed: int, seconds: float | None = None
 ) -> tuple[list[Log], list[Log], dict]:
     """A case's logs: the training logs with hidden effects (drawn when None) and the held-out logs of the same truth
     under other commands (seed + TEST_SEED_OFFSET), chosen to show it as the training logs' do. The robot's
     recording protocol (``Adapter.runs``) says how many runs of how many seconds each (by default one log of
-    ``synth.SECONDS``); the truth is drawn on the training runs, where calibration will look for it. Returns both
-    lists and the truth."""
-    runs, seconds = synth.protocol(make_adapter(robot))
+    ``synth.SECONDS``; ``seconds`` shortens a run); the truth is drawn on the training runs, where calibration will
+    look for it. Returns both lists and the truth."""
+    runs, protocol_seconds = synth.protocol(make_adapter(robot))
+    seconds = protocol_seconds if seconds is None else seconds
     train, truth = synth.record(robot, effects, seed, seconds, runs)
     test, _ = synth.record(robot, truth["effects"], seed + TEST_SEED_OFFSET, seconds, runs, show=True)
     if runs > 1:

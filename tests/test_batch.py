@@ -35,15 +35,11 @@ def run(venv, actions: np.ndarray, seed: int):
     return {k: np.array(v) for k, v in out.items()}
 
 
-@pytest.fixture(scope="module")
-def singles_runs() -> dict[str, dict[str, np.ndarray]]:
-    """The N single envs' run per env id, made once for the batched env's thread counts that are compared with it."""
-    return {}
-
-
-@pytest.mark.parametrize("nthread", [1, 2])
-@pytest.mark.parametrize("env_id", ENV_IDS)
-def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_resets(env_id, nthread, singles_runs):
+@pytest.fixture(scope="module", params=ENV_IDS)
+def singles(request) -> tuple[str, dict, np.ndarray, dict[str, np.ndarray]]:
+    """An env id's N single envs' run (its kwargs, actions and results), made once for the batched env's thread
+    counts that are compared with it."""
+    env_id = request.param
     duty = "Duty" in env_id
     steps, limit = (150, 60) if duty else (40, 15)
     kwargs = {"max_episode_steps": limit}
@@ -54,11 +50,14 @@ def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_re
         parameters = robot.parameters
         kwargs["randomize"] = {k: (0.9 * parameters[k].nominal, parameters[k].nominal)
                                for k in ("foot_friction", "battery_voltage")}  # fmt: skip
-    rng = np.random.default_rng(7)
-    actions = rng.uniform(-1, 1, (steps, N, env.action_space.shape[0]))
-    if env_id not in singles_runs:
-        singles_runs[env_id] = run(make_singles(env_id, **kwargs), actions, seed=11)
-    a, b = singles_runs[env_id], run(make_batched(env_id, nthread=nthread, **kwargs), actions, seed=11)
+    actions = np.random.default_rng(7).uniform(-1, 1, (steps, N, env.action_space.shape[0]))
+    return env_id, kwargs, actions, run(make_singles(env_id, **kwargs), actions, seed=11)
+
+
+@pytest.mark.parametrize("nthread", [1, 2])
+def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_resets(singles, nthread):
+    env_id, kwargs, actions, a = singles
+    b = run(make_batched(env_id, nthread=nthread, **kwargs), actions, seed=11)
     assert a["truncated"].sum() >= 2 * N, "the run crosses resets"
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)

@@ -110,11 +110,10 @@ def test_calibrate_results_that_cannot_be_published_are_kept_and_said_where(caps
     import errno
 
     from envs.common.telemetry import write_telemetry
-    from sysid.cases import TEST_SEED_OFFSET
+    from sysid.cases import pair
 
     # logs of 4 s, not the protocol's 10: where the results go is what is tested here
-    (train,), truth = synth.record("motor", {"coulomb_friction": 0.2}, 15, seconds=4.0)
-    (test,), _ = synth.record("motor", truth["effects"], 15 + TEST_SEED_OFFSET, seconds=4.0, show=True)
+    (train,), (test,), _ = pair("motor", {"coulomb_friction": 0.2}, seed=15, seconds=4.0)
     logs = []
     for name, log in (("train", train), ("test", test)):
         write_telemetry(tmp_path / f"{name}.parquet", log.df, log.meta)
