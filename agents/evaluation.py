@@ -29,6 +29,7 @@ GENERIC_METRICS = {
     "speed": "mean speed along the body's heading, m/s",
     "speed_bl": "the same in body lengths per second",
     "cost_of_transport": "electrical energy / (m g distance travelled)",
+    "power": "mean electrical power, W (energy / time: defined where the robot travels nowhere, as on a turn)",
     "falls": "1 if the task ended the episode: the robot fell (tilted past its limit) or broke a ground rule",
 }
 
@@ -50,6 +51,7 @@ def episode_metrics(env, total_reward: float, info: Mapping[str, Any], fallen: b
         "speed": speed,
         "speed_bl": speed / context["length"],
         "cost_of_transport": energy / (context["mass"] * GRAVITY * distance) if distance > 1e-6 else float("nan"),
+        "power": energy / elapsed if elapsed > 0 else float("nan"),
         "falls": float(fallen),
     }
     if elapsed > 0:

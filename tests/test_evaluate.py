@@ -60,14 +60,21 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert "tripod:20" in done.stdout and "speed_bl" in done.stdout and "[" in done.stdout  # the table, with CIs
     results = json.loads((out / "results.json").read_text())
     assert results["seeds"] == [5, 6, 7]
+    with gym.make("skitter/RoachWalk-v3") as env:
+        weight = env.unwrapped.metrics_context()["mass"] * 9.81
     for spec in ("tripod:20", str(model_zip)):
         policy = results["policies"][spec]
         assert [e["seed"] for e in policy["episodes"]] == [5, 6, 7]
         assert all(e["length"] == 30 for e in policy["episodes"])
         s = policy["summary"]["speed"]
         assert s["n"] == 3 and s["ci_low"] <= s["mean"] <= s["ci_high"]
-        for metric in ("return", "speed", "speed_bl", "cost_of_transport", "falls", "forward_speed"):
+        for metric in ("return", "speed", "speed_bl", "cost_of_transport", "power", "falls", "forward_speed"):
             assert metric in policy["summary"]
+        # the mean power is the energy over the time: the cost of transport's energy (m g CoT distance), per second
+        for e in policy["episodes"]:
+            m = e["metrics"]
+            if m["cost_of_transport"] is not None and m["speed"] > 0:
+                assert m["power"] == pytest.approx(m["cost_of_transport"] * weight * m["speed"], rel=1e-6)
         # the ground rules' metrics: the tripod's legs only touch the ground, its body rides at its standing height
         assert policy["summary"]["non_foot_contact"]["mean"] <= 1.0 and 0.0 < policy["summary"]["body_height"]["mean"]
     assert results["policies"]["tripod:20"]["summary"]["non_foot_contact"]["mean"] == 0.0
