@@ -28,7 +28,7 @@ the cap trained fewer steps than another machine would. The command prints its p
 random policy scores 0 and the reference 1. For each task and algorithm: the interquartile mean (IQM) over
 seeds, with a 95% stratified-bootstrap interval (``rliable``). Over all tasks: the same across tasks and seeds, and
 performance profiles. Learning curves are each run's TensorBoard episode return, averaged over seeds. The model's
-speed and cost of transport beside the reference's come from ``evaluate.py``'s paired comparison.
+metric and energy (:func:`energy_metric`) beside the reference's come from ``evaluate.py``'s paired comparison.
 
 Writes ``OUT/results.md``, ``OUT/results.json`` and ``OUT/plots/`` (each file whole, or not at all); with ``--docs
 PATH``, the page also goes to ``PATH``.
@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.evaluation import GENERIC_METRICS
 from envs.common.batch import THREADS_VARIABLE
 from envs.common.cluster import ClusterError, check_address, ensure_ray, init_ray
 from envs.common.io import ToolParser, atomic_write, parent_problem, write_json, write_text
@@ -84,8 +85,24 @@ TASK_METRICS = (("success", ""), ("yaw_rate_error", " rad/s"), ("speed", " m/s")
 
 def task_metric(paired_differences: dict) -> tuple[str, str]:
     """The task's own metric of a row (from the metrics its paired comparison holds) and its unit: what the row's
-    model is judged on beside the reference, with the cost of transport."""
+    model is judged on beside the reference, with its energy (:func:`energy_metric`)."""
     return next(((m, unit) for m, unit in TASK_METRICS if m in paired_differences), TASK_METRICS[-1])
+
+
+def energy_metric(paired_differences: dict) -> tuple[str, str]:
+    """The energy a row's model is judged on beside the reference, and its unit: on a turn, which asks for a yaw
+    rate and no travel, the mean electrical power (W; energy per metre is undefined for a robot that turns on the
+    spot); elsewhere the cost of transport (energy per metre). A turn's record from before evaluate.py reported the
+    power keeps the cost of transport."""
+    if task_metric(paired_differences)[0] == "yaw_rate_error" and "power" in paired_differences:
+        return "power", " W"
+    return "cost_of_transport", ""
+
+
+def _energy_cell(diff: dict[str, Any]) -> str:
+    """A row's energy against the reference, named: ``power -1.230 [..] W`` or ``cost of transport +0.5 [..]``."""
+    metric, unit = energy_metric(diff)
+    return f"{metric.replace('_', ' ')} {_paired(diff, metric)}{unit}"
 
 
 def task_kwargs(task: str) -> dict[str, Any]:
@@ -394,23 +411,37 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
     return record
 
 
-def backfill_one_hour(plan: Plan, row: Row, record: dict[str, Any], out: Path, records: Path,
+def backfill_judgment(plan: Plan, row: Row, record: dict[str, Any], out: Path, records: Path,
                       threads: int) -> dict[str, Any]:  # fmt: skip
-    """A finished row's record with its policy after an hour (:func:`one_hour`) added, where it has none and its
-    run is still in ``OUT/runs/`` (:func:`_record_of_run`); the record as it was otherwise."""
-    if is_soccer(row.task) or "one_hour" in record or not _record_of_run(record, out, row):
+    """A finished row's record brought up to what a row's judgment holds today, where its run is still in
+    ``OUT/runs/`` (:func:`_record_of_run`): its policy after an hour (:func:`one_hour`) added where it has none, and
+    its final and hour policies judged again where ``evaluate.py`` now reports metrics its record lacks (the mean
+    power). A judgment again must give the record's returns (evaluation is seeded), or the record stays as it was;
+    so does a record whose run is gone."""
+    lacking = [m for m in GENERIC_METRICS if m not in record.get("paired_differences", {})]
+    if is_soccer(row.task) or ("one_hour" in record and not lacking) or not _record_of_run(record, out, row):
         return record
-    try:
-        hour = one_hour(plan, row, out, threads, record["timesteps"])
-    except RuntimeError as exc:
-        print(f"leaderboard: {row.name}: its policy after an hour not judged: {exc}", file=sys.stderr)
-        return record
-    if hour is None:
-        return record
-    record = {**record, "one_hour": hour}
-    write_json(row_file(records, row), record)
-    print(f"leaderboard: {row.name}: its policy after an hour of training judged ({hour['timesteps']:,} steps)")
-    return record
+    folder = out / "rows" / row.name
+    updated = dict(record)
+    if lacking:
+        judged = _judge(plan, row, out / "runs" / row.name / "model.zip", folder / "eval", threads)
+        if judged["returns"] != record["returns"]:
+            print(f"leaderboard: {row.name}: judged again, its model gave other returns than its record's; the record "
+                  "is kept as it was", file=sys.stderr)  # fmt: skip
+            return record
+        updated.update(judged)
+    if lacking or "one_hour" not in record:
+        try:
+            hour = one_hour(plan, row, out, threads, record["timesteps"])
+        except RuntimeError as exc:
+            print(f"leaderboard: {row.name}: its policy after an hour not judged: {exc}", file=sys.stderr)
+            hour = record.get("one_hour")
+        if hour is not None:
+            updated["one_hour"] = hour
+    write_json(row_file(records, row), updated)
+    added = f"judged again for {', '.join(lacking)}" if lacking else "its policy after an hour of training judged"
+    print(f"leaderboard: {row.name}: {added}")
+    return updated
 
 
 def _sha256(path: Path) -> str:
@@ -920,7 +951,7 @@ def _paired(diff: dict[str, Any], metric: str) -> str:
     return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
 
 
-LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport")
+LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power")
 
 
 def at_least_as_good(diff: dict[str, Any], metric: str) -> bool | None:
@@ -934,13 +965,15 @@ def at_least_as_good(diff: dict[str, Any], metric: str) -> bool | None:
 
 def _hour_section(baselines: dict, rows: dict[Row, dict | None]) -> list[str]:
     """Each finished row's policy after an hour of training (:func:`one_hour`) against its reference: whether it
-    matches or beats it on the task's metric at no worse cost of transport."""
+    matches or beats it on the task's metric at no worse energy (:func:`energy_metric`)."""
     done = [(row, rec) for row, rec in rows.items() if rec is not None and not is_soccer(row.task)]
     if not done:
         return []
     lines = ["", "## After an hour of training", "",
              f"The goal: a policy trained within {HOUR / 3600:g} hour on 2 cores, from the shipped hyperparameters, "
-             "matches or beats its reference on the task's metric at no worse cost of transport. Each row's policy "
+             "matches or beats its reference on the task's metric at no worse energy: the cost of transport (energy "
+             "per metre), or on a turn, which asks for no travel, the mean electrical power (a turn's record from "
+             "before evaluate.py reported it keeps the cost of transport). Each row's policy "
              "after an hour is the newest checkpoint its training had written within 60 minutes of training time "
              "(the final model if it took less), on the host it ran on and as busy as that host was: a row trained "
              "beside other work reaches fewer steps in its hour than on an idle host. It is judged as the row is, "
@@ -948,7 +981,7 @@ def _hour_section(baselines: dict, rows: dict[Row, dict | None]) -> list[str]:
              "difference's 95% interval reaches zero or the better side of it: a wide interval passes easily, so read "
              "the intervals.", "",
              "| row | steps after 1 h | training time (min) | normalized | the task's metric vs reference | "
-             "cost of transport vs reference | not shown worse than the reference |",
+             "energy vs reference | not shown worse than the reference |",
              "|---" * 7 + "|"]  # fmt: skip
     for row, rec in done:
         hour = rec.get("one_hour")
@@ -962,14 +995,13 @@ def _hour_section(baselines: dict, rows: dict[Row, dict | None]) -> list[str]:
             continue
         diff = source["paired_differences"]
         metric, unit = task_metric(diff)
-        judged = {m: at_least_as_good(diff, m) for m in (metric, "cost_of_transport")}
+        judged = {m: at_least_as_good(diff, m) for m in (metric, energy_metric(diff)[0])}
         worse = [m.replace("_", " ") for m, ok in judged.items() if ok is False]
         answer = "yes" if all(judged.values()) else ("no: " + " and ".join(worse) + " worse" if worse else "-")
         score = float(normalized(source["mean_return"], baselines[row.task]))
         final = " (its final model)" if hour["final"] else ""
         lines.append(f"| {row.name} | {hour['timesteps']:,}{final} | {hour['training_minutes']:.0f} | {score:.2f} | "
-                     f"{metric} {_paired(diff, metric)}{unit} | {_paired(diff, 'cost_of_transport')} | "
-                     f"{answer} |")  # fmt: skip
+                     f"{metric} {_paired(diff, metric)}{unit} | {_energy_cell(diff)} | {answer} |")  # fmt: skip
     return lines
 
 
@@ -1042,12 +1074,13 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
     lines += ["", "## Rows", "", "The task's metric is a walk's speed, a turn's yaw-rate error (lower is better) or an "
-              "academy task's success (1 or 0 an episode); it and the cost of transport are the model's less the "
-              "reference's, paired over the evaluation seeds, with 95% intervals. A row's falls and the time its "
+              "academy task's success (1 or 0 an episode); it and the energy (the cost of transport, or a turn's "
+              "mean electrical power) are the model's less the reference's, paired over the evaluation seeds, with "
+              "95% intervals. A row's falls and the time its "
               "body touched the ground with more than its feet are its model's over the evaluation episodes; the "
               "reference's are in brackets.", "",
               "| row | steps trained | wall time (min) | mean return | normalized | the task's metric vs reference | "
-              "cost of transport vs reference | falls | time touching with more than feet |",
+              "energy vs reference | falls | time touching with more than feet |",
               "|---" * 9 + "|"]  # fmt: skip
     for row, rec in rows.items():
         if is_soccer(row.task):
@@ -1061,7 +1094,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
         score = float(normalized(rec["mean_return"], baselines[row.task]))
         wall = f"{rec['wall_seconds'] / 60:.0f}" if "wall_seconds" in rec else "-"
         lines.append(f"| {row.name} | {rec['timesteps']:,}{capped} | {wall} | {rec['mean_return']:.1f} | {score:.2f} | "
-                     f"{metric} {_paired(diff, metric)}{unit} | {_paired(diff, 'cost_of_transport')} | "
+                     f"{metric} {_paired(diff, metric)}{unit} | {_energy_cell(diff)} | "
                      f"{_share(rec, baselines[row.task], 'falls')} | "
                      f"{_share(rec, baselines[row.task], 'non_foot_contact')} |")  # fmt: skip
     resumed = [f"{row.name} ({rec['training_attempts']})" for row, rec in rows.items()
@@ -1392,7 +1425,7 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
         if results[row] is not None:
             results[row] = backfill_software(row, results[row], out, records)
         if not args.table_only and results[row] is not None:
-            results[row] = backfill_one_hour(plan, row, results[row], out, records, threads)
+            results[row] = backfill_judgment(plan, row, results[row], out, records, threads)
     if args.videos:
         for task in plan.tasks:
             try:

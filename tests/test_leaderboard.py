@@ -369,7 +369,7 @@ def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_pat
     common = {"speed": diff(0.5), "cost_of_transport": diff(-0.2)}
     differences = {
         WALK: common,
-        turn: {**common, "yaw_rate_error": diff(-0.25)},
+        turn: {**common, "yaw_rate_error": diff(-0.25), "power": diff(-0.1)},
         academy: {**common, "success": diff(0.4)},
     }
     rows = {row: {"mean_return": 60.0, "timesteps": 100, "capped": False,
@@ -377,9 +377,11 @@ def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_pat
     leaderboard.build_table(plan, tmp_path, baselines, rows, tmp_path / "results.md")
     rows_table = (tmp_path / "results.md").read_text().split("## Rows")[1].split("\n## ")[0]
     lines = {line.split(" |")[0][2:]: line for line in rows_table.splitlines() if line.startswith("| skitter_")}
-    assert "| speed +0.500 [+0.490, +0.510] m/s | -0.200 [-0.210, -0.190] |" in lines["skitter_RoachWalk-v3__ppo__0"]
-    assert "| yaw_rate_error -0.250 [-0.260, -0.240] rad/s |" in lines["skitter_RoachTurn-v4__ppo__0"]
-    assert "| success +0.400 [+0.390, +0.410] |" in lines["skitter_RoachGoToBall-v4__ppo__0"]
+    walk = "| speed +0.500 [+0.490, +0.510] m/s | cost of transport -0.200 [-0.210, -0.190] |"
+    assert walk in lines["skitter_RoachWalk-v3__ppo__0"]
+    turning = "| yaw_rate_error -0.250 [-0.260, -0.240] rad/s | power -0.100 [-0.110, -0.090] W |"  # a turn's energy
+    assert turning in lines["skitter_RoachTurn-v4__ppo__0"]
+    assert "| success +0.400 [+0.390, +0.410] | cost of transport" in lines["skitter_RoachGoToBall-v4__ppo__0"]
 
 
 def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
@@ -487,9 +489,49 @@ def test_a_record_is_given_its_hour_only_from_its_own_run(tmp_path):
     assert not leaderboard._record_of_run({"returns": [1.0, 3.0]}, tmp_path, row)
 
 
-def test_the_hour_is_judged_on_the_tasks_metric_and_the_cost_of_transport(tmp_path):
-    """A speed is not worse when its interval reaches zero from below, a yaw-rate error or a cost of transport when
-    it reaches zero from above; the hour's section says which of the two fell short."""
+def test_a_record_lacking_a_metric_is_judged_again_from_its_own_run(tmp_path, monkeypatch, capsys):
+    """A finished row whose record lacks a metric evaluate.py now reports (the power) is judged again from its kept
+    run, and takes the new judgment only if it gives the record's returns; a record whose run is gone stays."""
+    plan = leaderboard.Plan((WALK,), ("ppo",), (0,), ((WALK, 100),), None, 1, 1000, None)
+    row = plan.rows[0]
+    model = tmp_path / "runs" / row.name / "model.zip"
+    model.parent.mkdir(parents=True)
+    model.write_bytes(b"the run's model")
+    old_metrics = {m: {"mean": 0.0} for m in leaderboard.GENERIC_METRICS if m != "power"}
+    record = {"returns": [7.0], "model_sha256": leaderboard._sha256(model), "timesteps": 100,
+              "paired_differences": old_metrics, "one_hour": {"timesteps": 100, "final": True}}  # fmt: skip
+    returns, commands = [7.0], []
+
+    def evaluate(command, threads, log):  # what evaluate.py writes now, with the power
+        commands.append(command)
+        out = Path(command[command.index("--out") + 1])
+        out.mkdir(parents=True, exist_ok=True)
+        episodes = [{"metrics": {"return": r}} for r in returns]
+        diff = {**old_metrics, "power": {"mean": -1.0, "ci_low": -1.5, "ci_high": -0.5}}
+        results = {"policies": {"tripod": {"episodes": episodes}, str(model): {"episodes": episodes, "summary": {}}},
+                   "paired_differences": {"policies": {str(model): diff}}}  # fmt: skip
+        (out / "results.json").write_text(json.dumps(results))
+
+    monkeypatch.setattr(leaderboard, "_run", evaluate)
+    records = tmp_path / "records"
+    updated = leaderboard.backfill_judgment(plan, row, record, tmp_path, records, 1)
+    assert updated["paired_differences"]["power"]["mean"] == -1.0 and updated["one_hour"] == record["one_hour"]
+    assert json.loads(leaderboard.row_file(records, row).read_text()) == updated
+    assert "judged again for power" in capsys.readouterr().out
+    assert leaderboard.backfill_judgment(plan, row, updated, tmp_path, records, 1) is updated  # nothing lacking
+    assert len(commands) == 1
+    returns[0] = 6.0  # the model no longer gives its record's returns: the record stays as it was
+    assert leaderboard.backfill_judgment(plan, row, record, tmp_path, records, 1) is record
+    assert "other returns" in capsys.readouterr().err
+    model.unlink()  # its run is gone: nothing to judge again
+    assert leaderboard.backfill_judgment(plan, row, record, tmp_path, records, 1) is record
+    assert len(commands) == 2
+
+
+def test_the_hour_is_judged_on_the_tasks_metric_and_its_energy(tmp_path):
+    """A speed is not worse when its interval reaches zero from below, a yaw-rate error, a cost of transport or a
+    power when it reaches zero from above; a turn's energy is its mean power where its record has one (a turn on
+    the spot travels no distance), else the cost of transport; the hour's section says which fell short."""
     assert leaderboard.at_least_as_good({"speed": {"ci_low": -0.2, "ci_high": 0.01}}, "speed")
     assert not leaderboard.at_least_as_good({"speed": {"ci_low": -0.2, "ci_high": -0.01}}, "speed")
     assert leaderboard.at_least_as_good({"yaw_rate_error": {"ci_low": -0.01, "ci_high": 0.2}}, "yaw_rate_error")
@@ -510,8 +552,15 @@ def test_the_hour_is_judged_on_the_tasks_metric_and_the_cost_of_transport(tmp_pa
                                         "mean_return": 5.0, "paired_differences": turning}}}  # fmt: skip
     text = "\n".join(leaderboard._hour_section(baselines, rows))
     assert "| skitter_RoachWalk-v3__ppo__0 | 100 (its final model) | 30 | 1.20 |" in text
-    assert "speed +0.100 [+0.050, +0.150] m/s | +0.500 [+0.200, +0.800] | no: cost of transport worse |" in text
+    assert ("speed +0.100 [+0.050, +0.150] m/s | cost of transport +0.500 [+0.200, +0.800] | no: cost of transport "
+            "worse |") in text  # fmt: skip
     assert "| skitter_RoachTurn-v4__ppo__0 | 60 | 60 | 0.50 | yaw_rate_error" in text and text.endswith("| yes |")
+    # the same turn with its power: judged on the power (here worse), whatever its cost of transport says
+    turning["power"] = {"mean": 0.3, "ci_low": 0.1, "ci_high": 0.5}
+    text = "\n".join(leaderboard._hour_section(baselines, rows))
+    assert text.endswith("| power +0.300 [+0.100, +0.500] W | no: power worse |")
+    assert leaderboard.energy_metric(turning) == ("power", " W")
+    assert leaderboard.energy_metric({**faster, "power": turning["power"]}) == ("cost_of_transport", "")
     del rows[plan.rows[1]]["one_hour"]
     assert "not judged" in "\n".join(leaderboard._hour_section(baselines, rows))
 
