@@ -513,6 +513,19 @@ def libraries(found: dict[str, str] | None) -> str | None:
     return ", ".join(f"{k} {found.get(k, '?')}" for k in LIBRARIES) if found else None
 
 
+CODE_PATHS = ("numpy_simd", "torch_cpu")
+"""The CPU code paths a row's training ran (envs/common/host.py): numpy's SIMD targets and torch's CPU capability,
+which change the last bits of a result on the same library versions."""
+
+
+def code_paths(found: dict[str, str] | None) -> str | None:
+    """A record's CPU code paths in words (``numpy X86_V3 X86_V4 baseline(X86_V2), torch AVX512``), None where the
+    record does not keep them (rows trained before runs recorded them)."""
+    if not found or not any(k in found for k in CODE_PATHS):
+        return None
+    return f"numpy {found.get('numpy_simd', '?')}, torch {found.get('torch_cpu', '?')}"
+
+
 def backfill_software(row: Row, record: dict[str, Any], out: Path, records: Path) -> dict[str, Any]:
     """A finished row's record with the versions its training ran on added, where it has none and its run is still
     in ``OUT/runs/`` (:func:`_record_of_run`); the record as it was otherwise."""
@@ -1323,10 +1336,15 @@ def _software_lines(rows: dict[Row, dict | None]) -> list[str]:
     groups: dict[str, list[str]] = {}
     for row, rec in rows.items():
         if rec:
-            groups.setdefault(libraries(rec.get("software")) or "", []).append(row.name)
+            found = rec.get("software")
+            paths = code_paths(found)
+            key = (libraries(found) or "") + (f"; CPU code paths {paths}" if paths and libraries(found) else "")
+            groups.setdefault(key, []).append(row.name)
     if not groups:
         return []
-    lines = ["", "Library versions the rows trained on (train.py's config.json):", ""]
+    lines = ["", "Library versions the rows trained on (train.py's config.json), and the CPU code paths where the "
+             "record keeps them (numpy's SIMD targets and torch's CPU capability: the same seed gives the same bits "
+             "only on the same versions and paths):", ""]  # fmt: skip
     lines += [f"- {found}: {', '.join(names)}." for found, names in groups.items() if found]
     if "" in groups:
         lines.append(f"- not recorded (rows trained before records kept them): {', '.join(groups[''])}.")
@@ -1350,6 +1368,8 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
     return {"metric": now["metric"], "before": before, "again": now, "timesteps_before": previous.get("timesteps"),
             "settings_before": previous.get("settings"), "same_settings": previous.get("settings") == record.get(
                 "settings"), "libraries_before": libraries_before, "libraries_again": libraries_now,
+            "code_paths_before": code_paths(previous.get("software")),
+            "code_paths_again": code_paths(record.get("software")),
             "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
 
 
@@ -1364,6 +1384,10 @@ def verdict(r: dict[str, Any]) -> str:
         other += f"; the earlier one ran on {r['libraries_before']}, " + (
             f"this one on {again}" if again else "this one does not say on which library versions"
         )
+    paths_before, paths_again = r.get("code_paths_before"), r.get("code_paths_again")
+    if paths_again and r.get("libraries_before") is not None and paths_before != paths_again:
+        other += ("; the earlier record does not say which CPU code paths it ran" if paths_before is None else
+                  f"; the earlier one ran the CPU code paths {paths_before}, this one {paths_again}")  # fmt: skip
     return (
         f"{r['metric']} {r['again']['value']:.2f} against {b['value']:.2f} [{b['ci_low']:.2f}, {b['ci_high']:.2f}]"
         f" before: {'within' if r['within'] else 'OUTSIDE'} its 95% interval{other}"

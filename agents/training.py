@@ -98,6 +98,7 @@ from agents.tuning import RunCode, tune
 from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
 from envs.common.env import creator_error
+from envs.common.host import numerics
 from envs.common.io import (
     TEMP_RANDOM,
     Busy,
@@ -669,6 +670,8 @@ def make_run_dir(runs_dir: Path, name: str) -> Path:
 
 
 def versions() -> dict[str, str]:
+    """The Python, library versions and commit a run trains on, and the CPU code paths numpy and torch take there
+    (envs/common/host.py: the same seed trains the same model on the same versions and code paths)."""
     found = {"python": sys.version.split()[0]}
     for package in ("skitter", "stable-baselines3", "torch", "mujoco", "gymnasium", "numpy"):
         try:
@@ -676,7 +679,7 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             found[package] = "not installed"
     found["git_commit"] = _git_commit()
-    return found
+    return {**found, **numerics(), "torch_cpu": torch.backends.cpu.get_cpu_capability()}
 
 
 def _git_commit() -> str:

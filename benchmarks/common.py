@@ -25,6 +25,7 @@ from typing import Any
 
 import mujoco
 
+from envs.common.host import numerics
 from envs.common.io import json_default, write_json, write_text
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -61,6 +62,7 @@ def machine() -> dict[str, Any]:
         "python": platform.python_version(),
         "mujoco": mujoco.__version__,
         **versions,
+        **numerics(),  # the CPU and numpy's code paths: the last bits of a result can differ between them
         "commit": _commit(),
     }
 

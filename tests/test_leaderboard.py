@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import yaml
 
 from agents import leaderboard
 from agents.training import main as train_main
+from envs.common import host
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -54,6 +56,8 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     for record in rows.values():
         assert record["timesteps"] >= 256 and len(record["returns"]) == 2
         assert record["software"]["torch"] == metadata.version("torch")  # what its training ran on
+        assert record["software"]["torch_cpu"] == torch.backends.cpu.get_cpu_capability()  # and its code paths
+        assert record["software"]["numpy_simd"] == host.numpy_simd()
         score = (record["mean_return"] - base["random_return"]) / (base["reference_return"] - base["random_return"])
         assert np.isfinite(score)
     cell = summary["per_task"][WALK]["ppo"]
@@ -758,6 +762,18 @@ def test_a_row_computed_again_says_which_library_versions_each_ran_on(tmp_path):
     # another commit is the code's change, which the row's settings and version say; the libraries are the same
     same = leaderboard.reproduction(record(85.0, {**ran, "git_commit": "a"}), record(88.0, {**ran, "git_commit": "b"}))
     assert leaderboard.verdict(same).endswith("within its 95% interval")
+    # the CPU code paths (numpy's SIMD targets, torch's capability) change the last bits on the same versions
+    avx512 = {**ran, "numpy_simd": "X86_V3 X86_V4 baseline(X86_V2)", "torch_cpu": "AVX512"}
+    avx2 = {**ran, "numpy_simd": "X86_V3 baseline(X86_V2)", "torch_cpu": "AVX2"}
+    paths = leaderboard.verdict(leaderboard.reproduction(record(85.0, avx2), record(88.0, avx512)))
+    assert paths.endswith(
+        "within its 95% interval; the earlier one ran the CPU code paths numpy X86_V3 baseline(X86_V2), torch AVX2, "
+        "this one numpy X86_V3 X86_V4 baseline(X86_V2), torch AVX512"
+    )
+    untold = leaderboard.verdict(leaderboard.reproduction(record(85.0, ran), record(88.0, avx512)))
+    assert untold.endswith("within its 95% interval; the earlier record does not say which CPU code paths it ran")
+    same_paths = leaderboard.reproduction(record(85.0, avx512), record(88.0, {**avx512, "cpu": "another model"}))
+    assert leaderboard.verdict(same_paths).endswith("within its 95% interval")
     # a run's versions come from its config.json; a run without them has none
     run = tmp_path / "run"
     run.mkdir()
@@ -767,9 +783,12 @@ def test_a_row_computed_again_says_which_library_versions_each_ran_on(tmp_path):
     (run / "config.json").write_text("[1, 2]")
     assert leaderboard.software(run) is None
     rows = {leaderboard.Row(WALK, "ppo", 0): record(1.0, ran), leaderboard.Row(WALK, "ppo", 1): record(1.0),
-            leaderboard.Row(WALK, "ppo", 2): None}  # fmt: skip
+            leaderboard.Row(WALK, "ppo", 2): None,
+            leaderboard.Row(WALK, "ppo+residual", 0): record(1.0, avx512)}  # fmt: skip
     lines = leaderboard._software_lines(rows)
     assert f"- {leaderboard.libraries(ran)}: skitter_RoachWalk-v3__ppo__0." in lines
+    assert (f"- {leaderboard.libraries(ran)}; CPU code paths numpy X86_V3 X86_V4 baseline(X86_V2), torch AVX512: "
+            "skitter_RoachWalk-v3__ppo+residual__0.") in lines  # fmt: skip
     assert "- not recorded (rows trained before records kept them): skitter_RoachWalk-v3__ppo__1." in lines
 
 

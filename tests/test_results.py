@@ -9,7 +9,10 @@ import fnmatch
 import hashlib
 import importlib
 import json
+import os
 import pkgutil
+import subprocess
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -17,6 +20,7 @@ import pytest
 
 import benchmarks
 from benchmarks import common
+from envs.common import host
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
 
@@ -217,3 +221,14 @@ def test_the_cpg_summary_does_not_replace_kept_runs_it_cannot_see(tmp_path, monk
     assert "experiment 5, experiment 6, whose run folders are not here: nothing written" in capsys.readouterr().err
     assert sorted(p.name for p in folder.iterdir()) == [kept.name]
     assert json.loads((folder / kept.name).read_text()) == recorded
+
+
+def test_a_result_names_the_cpu_code_paths_its_numbers_came_from():
+    """numpy picks its functions' SIMD code at run time, and the paths differ in the last bit: a result keeps them."""
+    found = common.machine()
+    assert found["numpy_simd"] == host.numpy_simd() and found["cpu"] == host.cpu_name()
+    # the same host told to leave out AVX-512 runs other paths, and says so
+    code = "from envs.common.host import numpy_simd; print(numpy_simd())"
+    env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR"}
+    without = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert "X86_V4" not in without.stdout.split() and "baseline" in without.stdout
