@@ -1,9 +1,10 @@
 """What a machine's floating point depends on besides the library versions: its CPU, and the SIMD code numpy runs.
 
 numpy picks the code of its transcendental functions (``arccos``, ``exp``, ``log``, ...) at run time from what the
-CPU offers, and the versions differ in the last bit: numpy 2.4's float64 ``arccos`` gives other bits on a host
-without AVX-512 (its ``X86_V4`` code) than on one with it. A rollout that passes such a value through contacts can
-then part ways after a few seconds (the Bioloid's leg kinematics take an ``arccos``). So the same seed gives the
+CPU offers, and the versions differ in the last bit: numpy 2.4's float64 ``arccos``, ``exp`` and ``log`` give other
+bits on a host without AVX-512 (their ``X86_V4`` code) than on one with it. A rollout that passes such a value
+through contacts can then part ways after some seconds (the Bioloid's leg kinematics take an ``arccos``; its
+scripted soccer episodes differ between the two kinds of host). So the same seed gives the
 same rollout on the same libraries and the same code paths; results record both (benchmarks' ``machine``, a
 training run's ``versions``). ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR"`` makes an AVX-512 host
 run the other paths.
