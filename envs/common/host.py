@@ -15,8 +15,6 @@ from __future__ import annotations
 import platform
 from pathlib import Path
 
-from numpy.lib.introspect import opt_func_info
-
 
 def cpu_name() -> str:
     """The CPU's model name (``/proc/cpuinfo``), or the platform's word for it elsewhere."""
@@ -31,6 +29,10 @@ def cpu_name() -> str:
 
 def numpy_simd() -> str:
     """The SIMD targets numpy's float64 functions run on this machine (``X86_V4`` where AVX-512 is used), joined."""
+    try:
+        from numpy.lib.introspect import opt_func_info  # numpy 2.0 and later
+    except ImportError:
+        return "not told (numpy before 2.0)"
     found = opt_func_info(signature="float64")
     return " ".join(sorted({t["current"] for kinds in found.values() for t in kinds.values()}))
 
