@@ -1337,8 +1337,8 @@ def _software_lines(rows: dict[Row, dict | None]) -> list[str]:
     for row, rec in rows.items():
         if rec:
             found = rec.get("software")
-            paths = code_paths(found)
-            key = (libraries(found) or "") + (f"; CPU code paths {paths}" if paths and libraries(found) else "")
+            words, paths = libraries(found), code_paths(found)
+            key = (words or "") + (f"; CPU code paths {paths}" if words and paths else "")
             groups.setdefault(key, []).append(row.name)
     if not groups:
         return []
