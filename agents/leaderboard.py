@@ -37,6 +37,7 @@ PATH``, the page also goes to ``PATH``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
 import os
@@ -284,11 +285,16 @@ def row_file(records: Path, row: Row) -> Path:
 def task_baselines(plan: Plan, task: str, out: Path, threads: int, records: Path | None = None) -> dict[str, Any]:
     """The task's reference gait and a random policy on the evaluation seeds (once per task); for a soccer task,
     the scripted team against a random one. Worked out in ``out``, kept in ``records`` (default ``out``)."""
+    from envs.common.io import folder_lock
+
     folder = out / "tasks" / task.replace("/", "_")
     record = task_file(records or out, task)
-    done = _load_done(record, plan.task_settings(task), f"the baselines of {task}")
-    if done is not None:
-        return done
+    with folder_lock(folder, "leaderboard", wait=True):  # another command on the task: its baselines, once
+        done = _load_done(record, plan.task_settings(task), f"the baselines of {task}")
+        return done if done is not None else _work_out_baselines(plan, task, folder, record, threads)
+
+
+def _work_out_baselines(plan: Plan, task: str, folder: Path, record: Path, threads: int) -> dict[str, Any]:
     if is_soccer(task):
         evaluation = folder / "eval"
         _run(_tool("evaluate.py", *_soccer(task, "--home", "scripted", "--away", "random"), *_matches(plan), "--out",
@@ -1276,7 +1282,7 @@ def _task_budgets(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from envs.common.io import Busy, folder_lock, interrupted_exit_code, sigterm_as_interrupt
+    from envs.common.io import Busy, interrupted_exit_code, sigterm_as_interrupt
 
     args = parse_args(argv)
     plan = Plan(tuple(args.tasks), tuple(args.algos), tuple(args.seeds), args.timesteps, args.minutes,
@@ -1292,7 +1298,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"leaderboard: error: {exc}", file=sys.stderr)
         return 2
     try:
-        with sigterm_as_interrupt(), folder_lock(out, "leaderboard", ".leaderboard.lock"):
+        with sigterm_as_interrupt():
             return _run_plan(plan, args, out, records)
     except Busy as exc:
         print(exc, file=sys.stderr)
@@ -1395,18 +1401,21 @@ def verdict(r: dict[str, Any]) -> str:
 
 
 def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) -> int:
+    from envs.common.io import Busy, folder_lock
+
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
     # a row computed again keeps its published record until the new one replaces it, then says if it reproduced
     previous = {row: json.loads(row_file(records, row).read_text()) for row in args.rerun
                 if row_file(records, row).is_file()}  # fmt: skip
-    for row in args.rerun:
+    for row in args.rerun:  # Busy if another command computes the row
         folder, record = out / "rows" / row.name, row_file(records, row)
-        for item in folder.iterdir() if folder.is_dir() else ():  # the row's work, not its record (records = out)
-            if item != record:
-                shutil.rmtree(item) if item.is_dir() else item.unlink()
-        if (out / "runs" / row.name).exists():
-            _remove_run(out / "runs" / row.name)
+        with row_lock(out, row) as lock:
+            for item in folder.iterdir():  # the row's work, not its record (records = out) or its lock
+                if item not in (record, lock):
+                    shutil.rmtree(item) if item.is_dir() else item.unlink()
+            if (out / "runs" / row.name).exists():
+                _remove_run(out / "runs" / row.name)
     # seed by seed, so that a table built over several runs has every task and algorithm early
     todo = sorted((r for r in plan.rows if r in args.rerun or not row_file(records, r).is_file()),
                   key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
@@ -1430,7 +1439,10 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
             if marker.is_file() and marker.read_text().strip() == row.name:
                 marker.unlink()
         results[row] = record
-        if error:
+        if record is None and error is None:
+            print(f"leaderboard: {row.name}: another command computes it in {out} (it holds "
+                  f"{out / 'rows' / row.name / ROW_LOCK}); left to it")  # fmt: skip
+        elif error:
             failures.append(error)
             print(f"leaderboard: {row.name}: {error}", file=sys.stderr)
         else:
@@ -1442,33 +1454,56 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
                     else f"mean return {record['mean_return']:.1f}"
                 )
             )
-    for row in plan.rows:
-        path = row_file(records, row)
-        if results[row] is None and path.is_file():
-            results[row] = json.loads(path.read_text())
-        if results[row] is not None:
-            results[row] = backfill_software(row, results[row], out, records)
-        if not args.table_only and results[row] is not None:
-            results[row] = backfill_judgment(plan, row, results[row], out, records, threads)
-    if args.videos:
-        for task in plan.tasks:
-            try:
-                task_video(plan, task, out, results, cores, records)
-            except RuntimeError as exc:  # a video is a picture of the table, not part of it
-                print(f"leaderboard: {task}: no video ({exc})", file=sys.stderr)
-    build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None, records)
+    with folder_lock(out, "leaderboard", TABLE_LOCK, wait=True):  # the table, plots and videos two commands share
+        for row in plan.rows:
+            path = row_file(records, row)
+            if results[row] is None and path.is_file():
+                results[row] = json.loads(path.read_text())
+            if results[row] is not None:
+                results[row] = backfill_software(row, results[row], out, records)
+            if not args.table_only and results[row] is not None:
+                with contextlib.suppress(Busy), row_lock(out, row):  # not a row another command computes again
+                    results[row] = backfill_judgment(plan, row, results[row], out, records, threads)
+        if args.videos:
+            for task in plan.tasks:
+                try:
+                    task_video(plan, task, out, results, cores, records)
+                except RuntimeError as exc:  # a video is a picture of the table, not part of it
+                    print(f"leaderboard: {task}: no video ({exc})", file=sys.stderr)
+        build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None, records)
     print(f"leaderboard: {out / 'results.md'}" + (f" and {args.docs}" if args.docs else ""))
     return 1 if failures else 0
 
 
+ROW_LOCK = ".row.lock"  # in a row's folder: held by the command that computes the row
+TABLE_LOCK = ".table.lock"  # in --out: held while a command writes the table, its plots and videos
+
+
+def row_lock(out: Path, row: Row) -> contextlib.AbstractContextManager[Path]:
+    """The lock a command holds on a row while it computes it (:class:`~envs.common.io.Busy` if another holds it),
+    so that two commands share one ``--out``, each computing its own rows."""
+    from envs.common.io import folder_lock
+
+    return folder_lock(out / "rows" / row.name, "leaderboard", ROW_LOCK)
+
+
 def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int,
              again: bool = False) -> tuple[Row, dict | None, str | None]:  # fmt: skip
-    try:
-        return row, run_row(plan, row, out, threads, records, again), None
-    except KeyboardInterrupt:
-        raise
-    except Exception as exc:  # a failed tool, a stale run, a busy folder: the row fails, the others go on
-        return row, None, f"{type(exc).__name__}: {exc}" if not isinstance(exc, RuntimeError) else str(exc)
+    """(row, its record, None) when computed; (row, None, why) when it failed; (row, None, None) when another command
+    computes it (it holds the row's lock), which this one leaves to it."""
+    from envs.common.io import Busy
+
+    with contextlib.ExitStack() as held:
+        try:
+            held.enter_context(row_lock(out, row))
+        except Busy:
+            return row, None, None
+        try:
+            return row, run_row(plan, row, out, threads, records, again), None
+        except KeyboardInterrupt:
+            raise
+        except Exception as exc:  # a failed tool, a stale run, a busy folder: the row fails, the others go on
+            return row, None, f"{type(exc).__name__}: {exc}" if not isinstance(exc, RuntimeError) else str(exc)
 
 
 def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: int, workers: int,

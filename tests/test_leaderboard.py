@@ -726,7 +726,7 @@ def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_rep
     default = ["--tasks", WALK, "--seeds", "0", "--timesteps", "100", "--episodes", "2", "--out", str(alone),
                "--rerun", f"{WALK}:ppo:0"]  # fmt: skip
     assert leaderboard.main(default) != 0
-    assert sorted(p.name for p in (alone / "rows" / row.name).iterdir()) == ["row.json"]
+    assert sorted(p.name for p in (alone / "rows" / row.name).iterdir()) == [leaderboard.ROW_LOCK, "row.json"]
     assert json.loads(leaderboard.row_file(alone, row).read_text()) == published
     for mean, verdict in ((88.0, "within"), (95.0, "OUTSIDE")):
         monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args, mean=mean: record(mean))
@@ -801,3 +801,64 @@ def test_a_rows_command_computes_that_row_alone_into_its_own_folders():
         f"--episodes 20 --eval-seed 1000 --out board --records kept --rerun {XJUS}:ppo+residual:1"
     )
     assert "--records" not in leaderboard.row_command(plan, leaderboard.Row(WALK, "ppo", 0), "board", "board")
+
+
+def test_two_commands_share_one_folder_each_computing_its_own_rows(tmp_path, monkeypatch, capsys):
+    """A row another command computes (it holds the row's lock) is left to it, and the rest go on; --rerun of such a
+    row is refused, naming it; the table two commands write waits for the one writing it."""
+    import threading
+
+    from envs.common.io import Busy, folder_lock
+
+    baselines = {"reference": "tripod", "reference_return": 110.0, "random_return": 10.0}
+    monkeypatch.setattr(leaderboard, "task_baselines", lambda plan, task, *args: {**baselines, "task": task})
+    ran = []
+
+    def run_row(plan, row, out, threads, records, again):  # as the real one: the record, kept as the row's
+        ran.append(row)
+        record = {"mean_return": 60.0, "returns": [55.0, 65.0], "timesteps": 100, "capped": False, "wall_seconds": 1.0,
+                  "paired_differences": {}, "curve": None, "settings": plan.row_settings(WALK)}  # fmt: skip
+        leaderboard.write_json(leaderboard.row_file(records, row), record)
+        return record
+
+    monkeypatch.setattr(leaderboard, "run_row", run_row)
+    out = tmp_path / "board"
+    argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--episodes", "2", "--out", str(out)]
+    other = leaderboard.Row(WALK, "ppo", 0)
+    with leaderboard.row_lock(out, other):  # another command computes seed 0 in the same folder
+        assert leaderboard.main(argv) == 0
+        printed = capsys.readouterr().out
+        assert ran == [leaderboard.Row(WALK, "ppo", 1)], "the other command's row is not computed twice"
+        assert f"{other.name}: another command computes it in {out}" in printed and "left to it" in printed
+        assert f"| {other.name} | not run |" in (out / "results.md").read_text()
+        assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:0"]) == 1
+        assert f"{out / 'rows' / other.name} is in use by another leaderboard run" in capsys.readouterr().err
+    # the other command done, its row is computed by the next that wants it; the finished one is kept
+    assert leaderboard.main(argv) == 0
+    assert ran == [leaderboard.Row(WALK, "ppo", 1), other]
+    # the table: written under its lock, which a second command waits for, saying so
+    build_table = leaderboard.build_table
+
+    def build_table_locked(*args):
+        with pytest.raises(Busy), folder_lock(out, "leaderboard", leaderboard.TABLE_LOCK):
+            pass
+        built.append(True)
+        return build_table(*args)
+
+    built = []
+    monkeypatch.setattr(leaderboard, "build_table", build_table_locked)
+    assert leaderboard.main(argv) == 0 and built == [True]
+    taken = threading.Event()
+
+    def second() -> None:
+        with folder_lock(out, "leaderboard", leaderboard.TABLE_LOCK, wait=True):
+            taken.set()
+
+    with folder_lock(out, "leaderboard", leaderboard.TABLE_LOCK):
+        waiting = threading.Thread(target=second)
+        waiting.start()
+        waiting.join(timeout=1)
+        assert not taken.is_set(), "the second waits while the first holds the lock"
+    waiting.join(timeout=60)
+    assert taken.is_set()
+    assert f"waiting for another leaderboard run to finish with {out}" in capsys.readouterr().err

@@ -398,12 +398,13 @@ class Busy(RuntimeError):
 
 
 @contextlib.contextmanager
-def folder_lock(folder: str | Path, tool: str, lock_name: str = ".lock") -> Iterator[Path]:
+def folder_lock(folder: str | Path, tool: str, lock_name: str = ".lock", wait: bool = False) -> Iterator[Path]:
     """Hold an exclusive lock on ``folder`` (an ``fcntl.flock`` on the file ``folder/lock_name``, made if missing) for
     the block, so that two runs of a tool never write one folder at once. A second process gets :class:`Busy` at once,
-    with a message naming the folder. The kernel drops the lock when the process ends, however it ends, so a killed
-    run never leaves the folder locked; the lock file itself stays (removing it would let a third process lock a new
-    file while the second still holds the old one)."""
+    with a message naming the folder, or with ``wait`` says that it waits and waits for the lock (for a short piece of
+    work that two runs share, such as a table both write). The kernel drops the lock when the process ends, however
+    it ends, so a killed run never leaves the folder locked; the lock file itself stays (removing it would let a third
+    process lock a new file while the second still holds the old one)."""
     import fcntl
 
     path = Path(folder) / lock_name
@@ -413,8 +414,12 @@ def folder_lock(folder: str | Path, tool: str, lock_name: str = ".lock") -> Iter
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise Busy(f"{tool}: {Path(folder)} is in use by another {tool} run (lock {path}); wait for it to end, "
-                       "or choose another folder") from None  # fmt: skip
+            if not wait:
+                raise Busy(f"{tool}: {Path(folder)} is in use by another {tool} run (lock {path}); wait for it to "
+                           "end, or choose another folder") from None  # fmt: skip
+            print(f"{tool}: waiting for another {tool} run to finish with {Path(folder)} (lock {path})",
+                  file=sys.stderr, flush=True)  # fmt: skip
+            fcntl.flock(handle, fcntl.LOCK_EX)
         yield path
     finally:
         handle.close()
