@@ -1303,6 +1303,9 @@ def main(argv: list[str] | None = None) -> int:
     except Busy as exc:
         print(exc, file=sys.stderr)
         return 1
+    except StaleResult as exc:  # baselines another command on the folder wrote with other settings meanwhile
+        print(f"leaderboard: error: {exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt as exc:
         print(f"leaderboard: interrupted; finished rows are kept in {records}, and a killed row's training resumes "
               "from its last checkpoint when the command runs again", file=sys.stderr)  # fmt: skip
@@ -1401,21 +1404,16 @@ def verdict(r: dict[str, Any]) -> str:
 
 
 def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) -> int:
-    from envs.common.io import Busy, folder_lock
+    from envs.common.io import folder_lock
 
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
     # a row computed again keeps its published record until the new one replaces it, then says if it reproduced
     previous = {row: json.loads(row_file(records, row).read_text()) for row in args.rerun
                 if row_file(records, row).is_file()}  # fmt: skip
-    for row in args.rerun:  # Busy if another command computes the row
-        folder, record = out / "rows" / row.name, row_file(records, row)
-        with row_lock(out, row) as lock:
-            for item in folder.iterdir():  # the row's work, not its record (records = out) or its lock
-                if item not in (record, lock):
-                    shutil.rmtree(item) if item.is_dir() else item.unlink()
-            if (out / "runs" / row.name).exists():
-                _remove_run(out / "runs" / row.name)
+    with contextlib.ExitStack() as held:  # refused (Busy) before anything goes if another command computes one
+        for row in args.rerun:
+            held.enter_context(row_lock(out, row))
     # seed by seed, so that a table built over several runs has every task and algorithm early
     todo = sorted((r for r in plan.rows if r in args.rerun or not row_file(records, r).is_file()),
                   key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
@@ -1429,15 +1427,13 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
     baselines = {task: task_baselines(plan, task, out, cores, records) for task in plan.tasks}
     results: dict[Row, dict | None] = {r: None for r in plan.rows}
     failures = []
-    for row, record, error in _run_rows(plan, todo, out, records, threads, args.workers, args.address,
-                                        set(args.rerun)):  # fmt: skip
-        if record is not None and row in previous:
-            record = {**record, "reproduction": reproduction(previous[row], record)}
-            write_json(row_file(records, row), record)
+    replaced = []  # rows computed again: a task's video that showed the model one replaced is made again
+    again = {row: previous.get(row) for row in args.rerun}
+    for row, record, error in _run_rows(plan, todo, out, records, threads, args.workers, args.address, again):
+        if record is not None and "reproduction" in record:
             print(f"leaderboard: {row.name} again: {verdict(record['reproduction'])}")
-            marker = video_marker(records, row.task)  # the task's video showed the model this one replaced
-            if marker.is_file() and marker.read_text().strip() == row.name:
-                marker.unlink()
+        if record is not None and row in again:
+            replaced.append(row)
         results[row] = record
         if record is None and error is None:
             print(f"leaderboard: {row.name}: another command computes it in {out} (it holds "
@@ -1455,15 +1451,12 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
                 )
             )
     with folder_lock(out, "leaderboard", TABLE_LOCK, wait=True):  # the table, plots and videos two commands share
+        for row in replaced:
+            marker = video_marker(records, row.task)
+            if marker.is_file() and marker.read_text().strip() == row.name:
+                marker.unlink()
         for row in plan.rows:
-            path = row_file(records, row)
-            if results[row] is None and path.is_file():
-                results[row] = json.loads(path.read_text())
-            if results[row] is not None:
-                results[row] = backfill_software(row, results[row], out, records)
-            if not args.table_only and results[row] is not None:
-                with contextlib.suppress(Busy), row_lock(out, row):  # not a row another command computes again
-                    results[row] = backfill_judgment(plan, row, results[row], out, records, threads)
+            results[row] = _finished(plan, row, out, records, threads, results[row], not args.table_only)
         if args.videos:
             for task in plan.tasks:
                 try:
@@ -1473,6 +1466,31 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
         build_table(plan, out, baselines, results, Path(args.docs) if args.docs else None, records)
     print(f"leaderboard: {out / 'results.md'}" + (f" and {args.docs}" if args.docs else ""))
     return 1 if failures else 0
+
+
+def _finished(plan: Plan, row: Row, out: Path, records: Path, threads: int, record: dict | None,
+              judge: bool) -> dict | None:  # fmt: skip
+    """A row's record for the table: this command's, or one another command wrote in the meantime (unless made with
+    other settings, which is said and left out); given its software and its hour where its run is kept (``judge``),
+    unless another command computes the row again now."""
+    from envs.common.io import Busy
+
+    path = row_file(records, row)
+    if record is None and path.is_file():
+        try:
+            record = _load_done(path, plan.row_settings(row.task), f"row {row.name}")
+        except StaleResult as exc:  # written by another command on the same folder since this one was checked
+            print(f"leaderboard: {exc}; not in this command's table", file=sys.stderr)
+            return None
+    if record is None:
+        return None
+    try:
+        with row_lock(out, row):
+            record = json.loads(path.read_text()) if path.is_file() else record  # as written last
+            record = backfill_software(row, record, out, records)
+            return backfill_judgment(plan, row, record, out, records, threads) if judge else record
+    except Busy:
+        return record
 
 
 ROW_LOCK = ".row.lock"  # in a row's folder: held by the command that computes the row
@@ -1487,48 +1505,68 @@ def row_lock(out: Path, row: Row) -> contextlib.AbstractContextManager[Path]:
     return folder_lock(out / "rows" / row.name, "leaderboard", ROW_LOCK)
 
 
-def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int,
-             again: bool = False) -> tuple[Row, dict | None, str | None]:  # fmt: skip
+def _row_job(plan: Plan, row: Row, out: Path, records: Path, threads: int, again: bool = False,
+             before: dict | None = None) -> tuple[Row, dict | None, str | None]:  # fmt: skip
     """(row, its record, None) when computed; (row, None, why) when it failed; (row, None, None) when another command
-    computes it (it holds the row's lock), which this one leaves to it."""
+    computes it (it holds the row's lock), which this one leaves to it. ``again`` (``--rerun``): the row's work goes
+    first, under the same lock, but not its record, which the new one replaces when done, saying whether it
+    reproduced ``before`` (the record it replaces)."""
     from envs.common.io import Busy
 
     with contextlib.ExitStack() as held:
         try:
-            held.enter_context(row_lock(out, row))
-        except Busy:
-            return row, None, None
+            lock = held.enter_context(row_lock(out, row))
+        except Busy as exc:
+            return row, None, str(exc) if again else None
         try:
-            return row, run_row(plan, row, out, threads, records, again), None
+            if again:
+                _clear_row(out, records, row, lock)
+            record = run_row(plan, row, out, threads, records, again)
+            if before is not None:
+                record = {**record, "reproduction": reproduction(before, record)}
+                write_json(row_file(records, row), record)
+            return row, record, None
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # a failed tool, a stale run, a busy folder: the row fails, the others go on
             return row, None, f"{type(exc).__name__}: {exc}" if not isinstance(exc, RuntimeError) else str(exc)
 
 
+def _clear_row(out: Path, records: Path, row: Row, lock: Path) -> None:
+    """A row's work and run, before it is computed again: not its record (where records = out) or its lock."""
+    for item in (out / "rows" / row.name).iterdir():
+        if item not in (row_file(records, row), lock):
+            shutil.rmtree(item) if item.is_dir() else item.unlink()
+    if (out / "runs" / row.name).exists():
+        _remove_run(out / "runs" / row.name)
+
+
 def _run_rows(plan: Plan, rows: list[Row], out: Path, records: Path, threads: int, workers: int,
-              address: str | None, again: set[Row] = frozenset()):  # fmt: skip
+              address: str | None, again: dict[Row, dict | None] | None = None):  # fmt: skip
     """Each row's (row, record, error), as they finish: in this process, a local pool or Ray. Rows in ``again`` are
-    computed even where their record exists."""
+    computed even where their record exists, and say whether they reproduced the record given with them."""
+    again = again or {}
     if not rows:
         return
     if address is not None:
         ray = ensure_ray(address)  # main joined the cluster before anything ran
         job = ray.remote(num_cpus=threads)(_row_job)
-        pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads, row in again) for row in rows]
+        pending = [job.remote(plan, row, out.resolve(), records.resolve(), threads, row in again, again.get(row))
+                   for row in rows]  # fmt: skip
         while pending:
             ready, pending = ray.wait(pending)
             yield ray.get(ready[0])
         return
     if workers == 1:
         for row in rows:
-            yield _row_job(plan, row, out, records, threads, row in again)
+            yield _row_job(plan, row, out, records, threads, row in again, again.get(row))
         return
     import multiprocessing
     from concurrent.futures import as_completed
 
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(_row_job, plan, row, out, records, threads, row in again) for row in rows]
+        futures = [pool.submit(_row_job, plan, row, out, records, threads, row in again, again.get(row))
+                   for row in rows]  # fmt: skip
         for future in as_completed(futures):
             yield future.result()
 

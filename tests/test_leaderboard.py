@@ -805,48 +805,80 @@ def test_a_rows_command_computes_that_row_alone_into_its_own_folders():
 
 def test_two_commands_share_one_folder_each_computing_its_own_rows(tmp_path, monkeypatch, capsys):
     """A row another command computes (it holds the row's lock) is left to it, and the rest go on; --rerun of such a
-    row is refused, naming it; the table two commands write waits for the one writing it."""
-    import threading
-
-    from envs.common.io import Busy, folder_lock
-
+    row is refused, naming it, before any row's work goes; a record another command wrote meanwhile with other
+    settings stays out of the table."""
     baselines = {"reference": "tripod", "reference_return": 110.0, "random_return": 10.0}
     monkeypatch.setattr(leaderboard, "task_baselines", lambda plan, task, *args: {**baselines, "task": task})
     ran = []
 
+    def record(plan: leaderboard.Plan) -> dict:
+        return {"mean_return": 60.0, "returns": [55.0, 65.0], "timesteps": 100, "capped": False, "wall_seconds": 1.0,
+                "paired_differences": {}, "curve": None, "settings": plan.row_settings(WALK),
+                "summary": {"return": {"mean": 60.0, "ci_low": 55.0, "ci_high": 65.0, "n": 2}}}  # fmt: skip
+
     def run_row(plan, row, out, threads, records, again):  # as the real one: the record, kept as the row's
         ran.append(row)
-        record = {"mean_return": 60.0, "returns": [55.0, 65.0], "timesteps": 100, "capped": False, "wall_seconds": 1.0,
-                  "paired_differences": {}, "curve": None, "settings": plan.row_settings(WALK)}  # fmt: skip
-        leaderboard.write_json(leaderboard.row_file(records, row), record)
-        return record
+        (out / "rows" / row.name / "log.txt").write_text("its work")
+        leaderboard.write_json(leaderboard.row_file(records, row), record(plan))
+        return record(plan)
 
     monkeypatch.setattr(leaderboard, "run_row", run_row)
     out = tmp_path / "board"
     argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--episodes", "2", "--out", str(out)]
-    other = leaderboard.Row(WALK, "ppo", 0)
+    other, mine = leaderboard.Row(WALK, "ppo", 0), leaderboard.Row(WALK, "ppo", 1)
     with leaderboard.row_lock(out, other):  # another command computes seed 0 in the same folder
         assert leaderboard.main(argv) == 0
         printed = capsys.readouterr().out
-        assert ran == [leaderboard.Row(WALK, "ppo", 1)], "the other command's row is not computed twice"
+        assert ran == [mine], "the other command's row is not computed twice"
         assert f"{other.name}: another command computes it in {out}" in printed and "left to it" in printed
         assert f"| {other.name} | not run |" in (out / "results.md").read_text()
-        assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:0"]) == 1
+        rerun = [*argv, "--rerun", f"{WALK}:ppo:1", "--rerun", f"{WALK}:ppo:0"]
+        assert leaderboard.main(rerun) == 1
         assert f"{out / 'rows' / other.name} is in use by another leaderboard run" in capsys.readouterr().err
+        assert (out / "rows" / mine.name / "log.txt").is_file(), "refused before any row's work went"
     # the other command done, its row is computed by the next that wants it; the finished one is kept
     assert leaderboard.main(argv) == 0
-    assert ran == [leaderboard.Row(WALK, "ppo", 1), other]
-    # the table: written under its lock, which a second command waits for, saying so
-    build_table = leaderboard.build_table
+    assert ran == [mine, other]
+    # a rerun clears the row's work under its lock, keeps its record until replaced, and says if it reproduced
+    assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
+    assert "again: mean return 60.00 against 60.00 [55.00, 65.00] before: within" in capsys.readouterr().out
+    assert json.loads(leaderboard.row_file(out, mine).read_text())["reproduction"]["within"]
+    # seed 0 left to another command, which finishes it meanwhile with other settings: not in this one's table
+    leaderboard.row_file(out, other).unlink()
 
-    def build_table_locked(*args):
+    def job(plan, row, *args):
+        if row == other:
+            return row, None, None
+        stale = {**record(plan), "settings": {**plan.row_settings(WALK), "timesteps": 999}}
+        leaderboard.write_json(leaderboard.row_file(out, other), stale)
+        return row, record(plan), None
+
+    monkeypatch.setattr(leaderboard, "_row_job", job)
+    assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
+    said = capsys.readouterr().err
+    assert f"row {other.name}" in said and "not in this command's table" in said
+    assert f"| {other.name} | not run |" in (out / "results.md").read_text()
+
+
+def test_a_second_command_waits_for_the_table_and_says_so(tmp_path, monkeypatch, capsys):
+    import threading
+    import time
+
+    from envs.common.io import Busy, folder_lock
+
+    out = tmp_path / "board"
+    build_table, built = leaderboard.build_table, []
+
+    def build_table_locked(*args):  # the table is written under its lock
         with pytest.raises(Busy), folder_lock(out, "leaderboard", leaderboard.TABLE_LOCK):
             pass
         built.append(True)
         return build_table(*args)
 
-    built = []
+    baselines = {"reference": "tripod", "reference_return": 110.0, "random_return": 10.0}
+    monkeypatch.setattr(leaderboard, "task_baselines", lambda plan, task, *args: {**baselines, "task": task})
     monkeypatch.setattr(leaderboard, "build_table", build_table_locked)
+    argv = ["--tasks", WALK, "--seeds", "0", "--timesteps", "100", "--out", str(out), "--table-only"]
     assert leaderboard.main(argv) == 0 and built == [True]
     taken = threading.Event()
 
@@ -854,11 +886,15 @@ def test_two_commands_share_one_folder_each_computing_its_own_rows(tmp_path, mon
         with folder_lock(out, "leaderboard", leaderboard.TABLE_LOCK, wait=True):
             taken.set()
 
+    said = ""
     with folder_lock(out, "leaderboard", leaderboard.TABLE_LOCK):
         waiting = threading.Thread(target=second)
         waiting.start()
-        waiting.join(timeout=1)
+        deadline = time.monotonic() + 60
+        while "waiting for another leaderboard run" not in said and time.monotonic() < deadline:
+            said += capsys.readouterr().err
+            time.sleep(0.05)
+        assert f"waiting for another leaderboard run to finish with {out}" in said
         assert not taken.is_set(), "the second waits while the first holds the lock"
     waiting.join(timeout=60)
     assert taken.is_set()
-    assert f"waiting for another leaderboard run to finish with {out}" in capsys.readouterr().err

@@ -401,8 +401,8 @@ class Busy(RuntimeError):
 def folder_lock(folder: str | Path, tool: str, lock_name: str = ".lock", wait: bool = False) -> Iterator[Path]:
     """Hold an exclusive lock on ``folder`` (an ``fcntl.flock`` on the file ``folder/lock_name``, made if missing) for
     the block, so that two runs of a tool never write one folder at once. A second process gets :class:`Busy` at once,
-    with a message naming the folder, or with ``wait`` says that it waits and waits for the lock (for a short piece of
-    work that two runs share, such as a table both write). The kernel drops the lock when the process ends, however
+    with a message naming the folder, or with ``wait`` says that it waits and waits for the lock (for work that two
+    runs share, such as a table both write). The kernel drops the lock when the process ends, however
     it ends, so a killed run never leaves the folder locked; the lock file itself stays (removing it would let a third
     process lock a new file while the second still holds the old one)."""
     import fcntl
