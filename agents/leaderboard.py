@@ -1379,7 +1379,14 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
                 "settings"), "libraries_before": libraries_before, "libraries_again": libraries_now,
             "code_paths_before": code_paths(previous.get("software")),
             "code_paths_again": code_paths(record.get("software")),
-            "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"])}  # fmt: skip
+            "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"]),
+            "identical": _evaluated(previous) is not None and _evaluated(previous) == _evaluated(record)}  # fmt: skip
+
+
+def _evaluated(record: dict[str, Any]) -> Any:
+    """What a row's evaluation gave, episode by episode: its returns, or a soccer row's matches against the
+    scripted team; None where the record does not keep them."""
+    return record.get("against_scripted") if record.get("soccer") else record.get("returns")
 
 
 def verdict(r: dict[str, Any]) -> str:
@@ -1399,7 +1406,9 @@ def verdict(r: dict[str, Any]) -> str:
                   f"; the earlier one ran the CPU code paths {paths_before}, this one {paths_again}")  # fmt: skip
     return (
         f"{r['metric']} {r['again']['value']:.2f} against {b['value']:.2f} [{b['ci_low']:.2f}, {b['ci_high']:.2f}]"
-        f" before: {'within' if r['within'] else 'OUTSIDE'} its 95% interval{other}"
+        f" before: {'within' if r['within'] else 'OUTSIDE'} its 95% interval"
+        + (", the same in every evaluation episode, bit for bit" if r.get("identical") else "")
+        + other
     )
 
 

@@ -737,6 +737,7 @@ def test_a_row_computed_again_keeps_its_record_until_replaced_and_says_if_it_rep
         assert not marker.exists(), "the video of the model the new record replaced is made again, not kept"
         printed = capsys.readouterr().out
         assert f"again: mean return {mean:.2f} against 85.00 [80.00, 90.00] before: {verdict}" in printed
+        assert "bit for bit" not in printed, "other returns are not the same episodes"
         again = json.loads(leaderboard.row_file(kept, row).read_text())
         assert again["mean_return"] == mean and again["reproduction"]["within"] is (verdict == "within")
         assert again["reproduction"]["before"]["value"] == 85.0
@@ -841,8 +842,9 @@ def test_two_commands_share_one_folder_each_computing_its_own_rows(tmp_path, mon
     assert ran == [mine, other]
     # a rerun clears the row's work under its lock, keeps its record until replaced, and says if it reproduced
     assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
-    assert "again: mean return 60.00 against 60.00 [55.00, 65.00] before: within" in capsys.readouterr().out
-    assert json.loads(leaderboard.row_file(out, mine).read_text())["reproduction"]["within"]
+    assert ("again: mean return 60.00 against 60.00 [55.00, 65.00] before: within its 95% interval, the same in every "
+            "evaluation episode, bit for bit") in capsys.readouterr().out  # fmt: skip
+    assert json.loads(leaderboard.row_file(out, mine).read_text())["reproduction"]["identical"]
     # seed 0 left to another command, which finishes it meanwhile with other settings: not in this one's table
     leaderboard.row_file(out, other).unlink()
 
