@@ -30,6 +30,7 @@ GENERIC_METRICS = {
     "speed_bl": "the same in body lengths per second",
     "cost_of_transport": "electrical energy / (m g distance travelled)",
     "power": "mean electrical power, W (energy / time: defined where the robot travels nowhere, as on a turn)",
+    "energy": "electrical energy over the episode, J (an academy episode ends when its task is done: what it took)",
     "falls": "1 if the task ended the episode: the robot fell (tilted past its limit) or broke a ground rule",
 }
 
@@ -52,6 +53,7 @@ def episode_metrics(env, total_reward: float, info: Mapping[str, Any], fallen: b
         "speed_bl": speed / context["length"],
         "cost_of_transport": energy / (context["mass"] * GRAVITY * distance) if distance > 1e-6 else float("nan"),
         "power": energy / elapsed if elapsed > 0 else float("nan"),
+        "energy": energy,
         "falls": float(fallen),
     }
     if elapsed > 0:

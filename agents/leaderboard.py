@@ -93,10 +93,15 @@ def task_metric(paired_differences: dict) -> tuple[str, str]:
 def energy_metric(paired_differences: dict) -> tuple[str, str]:
     """The energy a row's model is judged on beside the reference, and its unit: on a turn, which asks for a yaw
     rate and no travel, the mean electrical power (W; energy per metre is undefined for a robot that turns on the
-    spot); elsewhere the cost of transport (energy per metre). A turn's record from before evaluate.py reported the
-    power keeps the cost of transport."""
-    if task_metric(paired_differences)[0] == "yaw_rate_error" and "power" in paired_differences:
+    spot); on an academy task, whose episode ends when the task is done, the energy of the episode (J: what the
+    touch or the goal took; a player that walks sideways or turns on its way travels little along its heading, so
+    its energy per metre of that is no measure of it); elsewhere the cost of transport (energy per metre). A record
+    from before evaluate.py reported the power or the energy keeps the cost of transport."""
+    metric = task_metric(paired_differences)[0]
+    if metric == "yaw_rate_error" and "power" in paired_differences:
         return "power", " W"
+    if metric == "success" and "energy" in paired_differences:
+        return "energy", " J"
     return "cost_of_transport", ""
 
 
@@ -991,8 +996,9 @@ def _hour_section(baselines: dict, rows: dict[Row, dict | None]) -> list[str]:
     lines = ["", "## After an hour of training", "",
              f"The goal: a policy trained within {HOUR / 3600:g} hour on 2 cores, from the shipped hyperparameters, "
              "matches or beats its reference on the task's metric at no worse energy: the cost of transport (energy "
-             "per metre), or on a turn, which asks for no travel, the mean electrical power (a turn's record from "
-             "before evaluate.py reported it keeps the cost of transport). Each row's policy "
+             "per metre); on a turn, which asks for no travel, the mean electrical power; on an academy task, whose "
+             "episode ends when its task is done, the energy of the episode (a record from before evaluate.py "
+             "reported these keeps the cost of transport). Each row's policy "
              "after an hour is the newest checkpoint its training had written within 60 minutes of training time "
              "(the final model if it took less), on the host it ran on and as busy as that host was: a row trained "
              "beside other work reaches fewer steps in its hour than on an idle host. It is judged as the row is, "
@@ -1093,9 +1099,9 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
     lines += ["", "## Rows", "", "The task's metric is a walk's speed, a turn's yaw-rate error (lower is better) or an "
-              "academy task's success (1 or 0 an episode); it and the energy (the cost of transport, or a turn's "
-              "mean electrical power) are the model's less the reference's, paired over the evaluation seeds, with "
-              "95% intervals. A row's falls and the time its "
+              "academy task's success (1 or 0 an episode); it and the energy (the cost of transport, a turn's "
+              "mean electrical power or an academy episode's energy) are the model's less the reference's, paired "
+              "over the evaluation seeds, with 95% intervals. A row's falls and the time its "
               "body touched the ground with more than its feet are its model's over the evaluation episodes; the "
               "reference's are in brackets.", "",
               "| row | steps trained | wall time (min) | mean return | normalized | the task's metric vs reference | "

@@ -68,13 +68,14 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
         assert all(e["length"] == 30 for e in policy["episodes"])
         s = policy["summary"]["speed"]
         assert s["n"] == 3 and s["ci_low"] <= s["mean"] <= s["ci_high"]
-        for metric in ("return", "speed", "speed_bl", "cost_of_transport", "power", "falls", "forward_speed"):
+        for metric in ("return", "speed", "speed_bl", "cost_of_transport", "power", "energy", "falls", "forward_speed"):
             assert metric in policy["summary"]
         # the mean power is the energy over the time: the cost of transport's energy (m g CoT distance), per second
         for e in policy["episodes"]:
             m = e["metrics"]
             if m["cost_of_transport"] is not None and m["speed"] > 0:
                 assert m["power"] == pytest.approx(m["cost_of_transport"] * weight * m["speed"], rel=1e-6)
+            assert m["energy"] == pytest.approx(m["power"] * e["duration"], rel=1e-6)  # the episode's energy, J
         # the ground rules' metrics: the tripod's legs only touch the ground, its body rides at its standing height
         assert policy["summary"]["non_foot_contact"]["mean"] <= 1.0 and 0.0 < policy["summary"]["body_height"]["mean"]
     assert results["policies"]["tripod:20"]["summary"]["non_foot_contact"]["mean"] == 0.0

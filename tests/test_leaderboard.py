@@ -494,24 +494,25 @@ def test_a_record_is_given_its_hour_only_from_its_own_run(tmp_path):
 
 
 def test_a_record_lacking_a_metric_is_judged_again_from_its_own_run(tmp_path, monkeypatch, capsys):
-    """A finished row whose record lacks a metric evaluate.py now reports (the power) is judged again from its kept
+    """A finished row whose record lacks metrics evaluate.py now reports (power, energy) is judged again from its kept
     run, and takes the new judgment only if it gives the record's returns; a record whose run is gone stays."""
     plan = leaderboard.Plan((WALK,), ("ppo",), (0,), ((WALK, 100),), None, 1, 1000, None)
     row = plan.rows[0]
     model = tmp_path / "runs" / row.name / "model.zip"
     model.parent.mkdir(parents=True)
     model.write_bytes(b"the run's model")
-    old_metrics = {m: {"mean": 0.0} for m in leaderboard.GENERIC_METRICS if m != "power"}
+    old_metrics = {m: {"mean": 0.0} for m in leaderboard.GENERIC_METRICS if m not in ("power", "energy")}
     record = {"returns": [7.0], "model_sha256": leaderboard._sha256(model), "timesteps": 100,
               "paired_differences": old_metrics, "one_hour": {"timesteps": 100, "final": True}}  # fmt: skip
     returns, commands = [7.0], []
 
-    def evaluate(command, threads, log):  # what evaluate.py writes now, with the power
+    def evaluate(command, threads, log):  # what evaluate.py writes now, with the power and the energy
         commands.append(command)
         out = Path(command[command.index("--out") + 1])
         out.mkdir(parents=True, exist_ok=True)
         episodes = [{"metrics": {"return": r}} for r in returns]
-        diff = {**old_metrics, "power": {"mean": -1.0, "ci_low": -1.5, "ci_high": -0.5}}
+        diff = {**old_metrics, "power": {"mean": -1.0, "ci_low": -1.5, "ci_high": -0.5},
+                "energy": {"mean": -10.0, "ci_low": -15.0, "ci_high": -5.0}}  # fmt: skip
         results = {"policies": {"tripod": {"episodes": episodes}, str(model): {"episodes": episodes, "summary": {}}},
                    "paired_differences": {"policies": {str(model): diff}}}  # fmt: skip
         (out / "results.json").write_text(json.dumps(results))
@@ -521,7 +522,7 @@ def test_a_record_lacking_a_metric_is_judged_again_from_its_own_run(tmp_path, mo
     updated = leaderboard.backfill_judgment(plan, row, record, tmp_path, records, 1)
     assert updated["paired_differences"]["power"]["mean"] == -1.0 and updated["one_hour"] == record["one_hour"]
     assert json.loads(leaderboard.row_file(records, row).read_text()) == updated
-    assert "judged again for power" in capsys.readouterr().out
+    assert "judged again for power, energy" in capsys.readouterr().out
     assert leaderboard.backfill_judgment(plan, row, updated, tmp_path, records, 1) is updated  # nothing lacking
     assert len(commands) == 1
     returns[0] = 6.0  # the model no longer gives its record's returns: the record stays as it was
@@ -565,6 +566,15 @@ def test_the_hour_is_judged_on_the_tasks_metric_and_its_energy(tmp_path):
     assert text.endswith("| power +0.300 [+0.100, +0.500] W | no: power worse |")
     assert leaderboard.energy_metric(turning) == ("power", " W")
     assert leaderboard.energy_metric({**faster, "power": turning["power"]}) == ("cost_of_transport", "")
+    # an academy task: the energy of its episode, which ends when the task is done (a record without it: the CoT)
+    touched = {
+        "success": {"mean": 0.0, "ci_low": 0.0, "ci_high": 0.0},
+        "cost_of_transport": faster["cost_of_transport"],
+    }
+    assert leaderboard.energy_metric(touched) == ("cost_of_transport", "")
+    touched["energy"] = {"mean": -40.0, "ci_low": -60.0, "ci_high": -20.0}
+    assert leaderboard.energy_metric(touched) == ("energy", " J")
+    assert leaderboard._energy_cell(touched) == "energy -40.000 [-60.000, -20.000] J"
     del rows[plan.rows[1]]["one_hour"]
     assert "not judged" in "\n".join(leaderboard._hour_section(baselines, rows))
 
