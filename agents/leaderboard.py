@@ -1465,13 +1465,13 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
                     else f"mean return {record['mean_return']:.1f}"
                 )
             )
+    for row in plan.rows:  # each under its own lock: judging one again takes minutes, and holds no other row
+        results[row] = _finished(plan, row, out, records, threads, results[row], not args.table_only)
     with folder_lock(out, "leaderboard", TABLE_LOCK, wait=True):  # the table, plots and videos two commands share
         for row in replaced:
             marker = video_marker(records, row.task)
             if marker.is_file() and marker.read_text().strip() == row.name:
                 marker.unlink()
-        for row in plan.rows:
-            results[row] = _finished(plan, row, out, records, threads, results[row], not args.table_only)
         if args.videos:
             for task in plan.tasks:
                 try:
