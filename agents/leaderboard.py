@@ -975,7 +975,7 @@ def _paired(diff: dict[str, Any], metric: str) -> str:
     return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
 
 
-LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power")
+LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power", "energy")
 
 
 def at_least_as_good(diff: dict[str, Any], metric: str) -> bool | None:

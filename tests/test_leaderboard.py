@@ -575,6 +575,8 @@ def test_the_hour_is_judged_on_the_tasks_metric_and_its_energy(tmp_path):
     touched["energy"] = {"mean": -40.0, "ci_low": -60.0, "ci_high": -20.0}
     assert leaderboard.energy_metric(touched) == ("energy", " J")
     assert leaderboard._energy_cell(touched) == "energy -40.000 [-60.000, -20.000] J"
+    assert leaderboard.at_least_as_good(touched, "energy"), "less energy is better"
+    assert not leaderboard.at_least_as_good({"energy": {"ci_low": 5.0, "ci_high": 9.0}}, "energy")
     del rows[plan.rows[1]]["one_hour"]
     assert "not judged" in "\n".join(leaderboard._hour_section(baselines, rows))
 
