@@ -1378,7 +1378,7 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
         r = rec["summary"]["return"]
         return {"metric": "mean return", "value": rec["mean_return"], "ci_low": r["ci_low"], "ci_high": r["ci_high"]}
 
-    before, now = number(previous), number(record)
+    before, now, evaluated = number(previous), number(record), _evaluated(previous)
     libraries_before, libraries_now = libraries(previous.get("software")), libraries(record.get("software"))
     return {"metric": now["metric"], "before": before, "again": now, "timesteps_before": previous.get("timesteps"),
             "settings_before": previous.get("settings"), "same_settings": previous.get("settings") == record.get(
@@ -1386,7 +1386,7 @@ def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, 
             "code_paths_before": code_paths(previous.get("software")),
             "code_paths_again": code_paths(record.get("software")),
             "within": bool(before["ci_low"] <= now["value"] <= before["ci_high"]),
-            "identical": _evaluated(previous) is not None and _evaluated(previous) == _evaluated(record)}  # fmt: skip
+            "identical": evaluated is not None and evaluated == _evaluated(record)}  # fmt: skip
 
 
 def _evaluated(record: dict[str, Any]) -> Any:
@@ -1423,9 +1423,9 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
 
     cores = os.cpu_count() or 1
     threads = max(1, cores // args.workers)
-    # a row computed again keeps its published record until the new one replaces it, then says if it reproduced
-    previous = {row: json.loads(row_file(records, row).read_text()) for row in args.rerun
-                if row_file(records, row).is_file()}  # fmt: skip
+    # a row computed again keeps its published record until the new one replaces it, then says if it reproduced it
+    again = {row: json.loads(row_file(records, row).read_text()) if row_file(records, row).is_file() else None
+             for row in args.rerun}  # fmt: skip
     with contextlib.ExitStack() as held:  # refused (Busy) before anything goes if another command computes one
         for row in args.rerun:
             held.enter_context(row_lock(out, row))
@@ -1442,13 +1442,9 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
     baselines = {task: task_baselines(plan, task, out, cores, records) for task in plan.tasks}
     results: dict[Row, dict | None] = {r: None for r in plan.rows}
     failures = []
-    replaced = []  # rows computed again: a task's video that showed the model one replaced is made again
-    again = {row: previous.get(row) for row in args.rerun}
     for row, record, error in _run_rows(plan, todo, out, records, threads, args.workers, args.address, again):
         if record is not None and "reproduction" in record:
             print(f"leaderboard: {row.name} again: {verdict(record['reproduction'])}")
-        if record is not None and row in again:
-            replaced.append(row)
         results[row] = record
         if record is None and error is None:
             print(f"leaderboard: {row.name}: another command computes it in {out} (it holds "
@@ -1465,6 +1461,7 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
                     else f"mean return {record['mean_return']:.1f}"
                 )
             )
+    replaced = [row for row in again if results[row] is not None]  # a video of the model a rerun replaced goes
     for row in plan.rows:  # each under its own lock: judging one again takes minutes, and holds no other row
         results[row] = _finished(plan, row, out, records, threads, results[row], not args.table_only)
     with folder_lock(out, "leaderboard", TABLE_LOCK, wait=True):  # the table, plots and videos two commands share
