@@ -59,7 +59,7 @@ for a in actions:
         physics.step()
 raw = time.perf_counter() - began
 import mujoco, dm_control
-print(json.dumps({"agents": len(specs), "steps": steps, "substeps": substeps,
+print(json.dumps({"agents": len(specs), "steps": steps, "substeps": substeps, "timestep": env.physics.timestep(),
                   "agent_steps_per_second": steps * len(specs) / wall,
                   "raw_agent_steps_per_second": steps * len(specs) / raw, "raw_share": raw / wall,
                   "reset_ms": 1e3 * float(np.median(resets)), "mujoco": mujoco.__version__}))
@@ -98,9 +98,18 @@ def ours_single(robot: str, steps: int, seed: int) -> dict:
     }
 
 
+def our_rows(steps: int, seed: int, rounds: int, matches: int = 32) -> list[dict]:
+    """Each robot's two-a-side soccer, one match and ``matches`` batched, random actions, one core."""
+    return [{"robot": robot, "single": ours_single(robot, steps, seed),
+             "batched": batched(robot, matches, steps, seed, rounds)}
+            for robot in ("roach", "xjus", "bioloid")]  # fmt: skip
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=200, help="control steps of each measurement")
+    parser.add_argument("--rounds", type=int, default=3,
+                        help="alternating rounds of our batched matches and their raw replay (the median share)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--venv", type=Path, default=Path("runs") / "dm_control_venv",
                         help="dm_control's virtualenv (made if missing)")  # fmt: skip
@@ -111,26 +120,23 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
-    if args.steps < 1:
-        parser.error(f"--steps must be at least 1, got {args.steps}")
+    if args.steps < 1 or args.rounds < 1:
+        parser.error(f"--steps and --rounds must be at least 1, got {args.steps} and {args.rounds}")
     output = resolve_output(parser, args, "soccer_dm_control", CONFIGURATIONS, run_options=RUN_OPTIONS)
     os.environ.setdefault("SKITTER_THREADS", "1")
     python = dm_control_python(args.venv)
     probe = subprocess.run([str(python), "-c", PROBE, str(args.steps), str(args.seed)], capture_output=True,
                            text=True, check=True, env={**os.environ, "MUJOCO_GL": "egl"})  # fmt: skip
     dm = json.loads(probe.stdout.strip().splitlines()[-1])
-    rows = []
-    for robot in ("roach", "xjus", "bioloid"):
-        single = ours_single(robot, args.steps, args.seed)
-        many = batched(robot, 32, args.steps, args.seed)
-        rows.append({"robot": robot, "single": single, "batched": many})
+    rows = our_rows(args.steps, args.seed, args.rounds)
     behind = [r["robot"] for r in rows if r["batched"]["agent_steps_per_second"] < dm["agent_steps_per_second"]]
     table = md_table(
-        ["env, 2 vs 2, one core", "agent-steps/s, one match", "agent-steps/s, 32 batched", "raw physics share",
-         "reset per match, ms"],
-        [["dm_control BoxHead", f"{dm['agent_steps_per_second']:.0f}", "(no batching)", f"{dm['raw_share']:.3f}",
-          f"{dm['reset_ms']:.1f}"]]
-        + [[f"skitter {r['robot']}", f"{r['single']['agent_steps_per_second']:.0f}",
+        ["env, 2 vs 2, one core", "physics steps a control step", "agent-steps/s, one match",
+         "agent-steps/s, 32 batched", "raw physics share", "reset per match, ms"],
+        [["dm_control BoxHead", f"{dm['substeps']} of {1e3 * dm['timestep']:g} ms",
+          f"{dm['agent_steps_per_second']:.0f}", "(no batching)", f"{dm['raw_share']:.3f}", f"{dm['reset_ms']:.1f}"]]
+        + [[f"skitter {r['robot']}", f"{r['batched']['substeps']} of {1e3 * r['batched']['physics_timestep']:g} ms",
+            f"{r['single']['agent_steps_per_second']:.0f}",
             f"{r['batched']['agent_steps_per_second']:.0f}", f"{r['batched']['raw_share']:.3f} (batched)",
             f"{r['single']['reset_ms']:.2f} (one), {r['batched']['reset_ms_per_match']:.2f} (batched)"]
            for r in rows],

@@ -85,6 +85,8 @@ def batched(robot: str, matches: int, steps: int, seed: int, rounds: int) -> dic
         "matches": matches,
         "players": engine.players,
         "steps": steps,
+        "substeps": sim.n_substeps,
+        "physics_timestep": float(model.opt.timestep),
         "agent_steps_per_second": agent_steps / env_seconds,
         "raw_agent_steps_per_second": agent_steps / raw_seconds,
         "raw_share": float(np.median(shares)),
