@@ -17,7 +17,8 @@ already holds (a command run again draws anew; processes sharing a study should 
 one env's, algorithm's, env kwargs' and budget's: a command with another is refused.
 
 Writes ``<runs-dir>/tuning/<study>/`` (each file written whole, or not at all): ``best.yml``, the id's
-hyperparameter entry with the best trial's values, ready to go into ``hyperparams/<algo>.yml``; ``trials.csv``,
+hyperparameter entry with the best trial's values, ready to go into ``hyperparams/<algo>.yml`` (its header says how
+the entry's own values scored: a new study's first trial plays them, :func:`shipped_params`); ``trials.csv``,
 every trial of the study with its values, state and return; ``study.json``, the best trial, the counts and the
 command. Nothing in ``hyperparams/`` is changed.
 """
@@ -113,6 +114,67 @@ def sample_sac(trial: optuna.Trial, n_envs: int, timesteps: int, exploring: bool
 
 
 SPACES: dict[str, Callable[[Any, int, int, bool], dict[str, Any]]] = {"ppo": sample_ppo, "sac": sample_sac}
+SHIPPED = "shipped"  # the user attribute of the trial that plays the entry's own values
+
+
+def _entry_value(algo: str, name: str, model_kwargs: dict[str, Any], defaults: dict[str, Any]) -> Any:
+    """The entry's value of the search space's parameter ``name`` (the algorithm's default where the entry has none);
+    None where it is not a plain value (a schedule, an uneven network)."""
+    policy = model_kwargs.get("policy_kwargs") or {}
+    if name == "net_width":
+        arch = policy.get("net_arch", [64, 64] if algo == "ppo" else [256, 256])  # SB3's MlpPolicy defaults
+        arch = arch.get("pi") if isinstance(arch, dict) else arch
+        return arch[0] if isinstance(arch, list) and arch and len(set(arch)) == 1 else None
+    if name == "log_std_init":
+        return policy.get("log_std_init", 0.0)
+    value = model_kwargs.get(name, defaults.get(name))
+    if name == "train_freq" and isinstance(value, tuple | list) and len(value) == 2 and value[1] == "step":
+        value = value[0]
+    return value if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def shipped_params(algo: str, hp: Any, timesteps: int, exploring: bool) -> tuple[dict[str, Any], list[str]]:
+    """The entry's own values as the search space's draws, for a trial that plays them (the study's yardstick), and
+    what could not be played as written: a choice the space lacks takes the nearest one, a number outside a range
+    the nearest end, a value that is no plain number (a schedule) a draw."""
+    import optuna
+
+    from agents.training import algo_defaults
+
+    verbosity = optuna.logging.get_verbosity()
+    optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
+    try:
+        probe = optuna.create_study().ask()
+    finally:
+        optuna.logging.set_verbosity(verbosity)
+    SPACES[algo](probe, hp.n_envs, timesteps, exploring)
+    defaults = algo_defaults(algo)
+    params, moved = {}, []
+    for name, dist in probe.distributions.items():
+        value = _entry_value(algo, name, hp.model_kwargs, defaults)
+        if value is None:
+            moved.append(f"{name}: drawn (the entry's is not a plain number)")
+            continue
+        if isinstance(dist, optuna.distributions.CategoricalDistribution):
+            played = min(dist.choices, key=lambda c: (abs(math.log(c / value)) if c > 0 and value > 0
+                                                      else abs(c - value)))  # fmt: skip
+        else:
+            played = min(max(value, dist.low), dist.high)
+        if played != value:
+            moved.append(f"{name}: {played:g} for the entry's {value:g}")
+        params[name] = played
+    # what the trial then uses against the entry, field by field (a rollout cut to the budget, SAC's gradient steps
+    # tied to its training frequency)
+    used = SPACES[algo](optuna.trial.FixedTrial({**probe.params, **params}), hp.n_envs, timesteps, exploring)
+    for key, value in used.items():
+        entry = hp.model_kwargs.get(key, defaults.get(key))
+        if key in probe.params and key not in params:
+            continue  # drawn, and said so
+        if key != "policy_kwargs" and key not in params and entry != value:
+            moved.append(f"{key}: {value} for the entry's {entry}")
+        elif key in params and value != params[key]:
+            moved.append(f"{key}: {value} (the draw {params[key]} cut to the budget)")
+    return params, moved
 
 
 class TrialEvalCallback(EvalCallback):
@@ -222,6 +284,11 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     the_study.sampler = optuna.samplers.TPESampler(seed=seed + len(the_study.trials), n_startup_trials=STARTUP_TRIALS)
 
     exploring = hp0.residual is None or hp0.residual.exploration is None  # else the entry's residual sets it
+    # the entry's own values are the study's first trial, the yardstick of its draws (once a study; workers that
+    # share one may each queue it, and Optuna keeps one: skip_if_exists)
+    if not any(t.user_attrs.get(SHIPPED) for t in the_study.trials):
+        params, moved = shipped_params(algo, hp0, timesteps, exploring)
+        the_study.enqueue_trial(params, user_attrs={SHIPPED: True, "moved": moved}, skip_if_exists=True)
 
     def objective(trial: optuna.Trial) -> float:
         drawn = SPACES[algo](trial, hp0.n_envs, timesteps, exploring)
@@ -286,6 +353,14 @@ def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder
         header = (f"# {algo} for {env_id}: the best of {len(complete)} complete trials of study {study.study_name} "
                   f"(trial {best.number}, mean return {best.value:.4g}).\n# Its trial was run by: "
                   f"{best.user_attrs.get('command', command)}\n")  # fmt: skip
+        shipped = next((t for t in study.trials if t.user_attrs.get(SHIPPED)), None)
+        if shipped is not None:
+            value = shipped.value if shipped.state == optuna.trial.TrialState.COMPLETE else None
+            summary["shipped"] = {"trial": shipped.number, "state": shipped.state.name.lower(), "value": value,
+                                  "moved": shipped.user_attrs.get("moved", [])}  # fmt: skip
+            said = ("is the best" if shipped.number == best.number else
+                    f"scored {value:.4g}" if value is not None else f"was {shipped.state.name.lower()}")  # fmt: skip
+            header += f"# The entry's own values (trial {shipped.number}) {said}.\n"
         write_text(folder / "best.yml", header + yaml.safe_dump({env_id: entry}, sort_keys=False))
     write_json(folder / "study.json", summary)
     return folder

@@ -19,7 +19,7 @@ import yaml
 from stable_baselines3 import PPO
 
 from agents.training import RUN_CODE, load_hyperparams, main, make_env, resolve_hyperparams
-from agents.tuning import LOG_STDS, TrialEvalCallback, eval_env, sample_ppo, tune
+from agents.tuning import LOG_STDS, TrialEvalCallback, eval_env, sample_ppo, shipped_params, tune
 
 WALK = "skitter/RoachWalk-v3"
 # a tiny entry: 2 envs, episodes of 50 steps (1 s), so that a trial of 256 steps evaluates in a blink
@@ -52,10 +52,19 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     assert hp.n_envs == 2 and hp.env_kwargs == {"max_episode_steps": 50}
     assert study["best"]["value"] == max(float(row["value"]) for row in trials_csv(folder))
     assert hp.model_kwargs["learning_rate"] == study["best"]["hyperparams"]["learning_rate"]
+    # the first trial plays the entry's own values (PPO's defaults where it sets none), the study's yardstick
+    first = trials_csv(folder)[0]
+    assert first["user_attrs_shipped"] == "True" and study["shipped"]["trial"] == 0
+    assert study["shipped"]["value"] == float(first["value"])
+    assert (int(first["params_n_steps"]), int(first["params_batch_size"]), int(first["params_n_epochs"])) == (128, 64, 10)
+    assert float(first["params_learning_rate"]) == 3e-4 and float(first["params_log_std_init"]) == 0.0
+    assert study["shipped"]["moved"] == ["ent_coef: 1e-08 for the entry's 0"], "PPO's 0 lies below the log range"
+    assert "The entry's own values (trial 0)" in (folder / "best.yml").read_text()
     assert train_py("--tune", 1, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
     rows = trials_csv(folder)
     assert [int(row["number"]) for row in rows] == [0, 1, 2], "the study goes on, keeping its trials"
     assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
+    assert [row["user_attrs_shipped"] for row in rows[1:]] == ["", ""], "the entry is played once a study"
     draws = [tuple(v for k, v in sorted(row.items()) if k.startswith("params_")) for row in rows]
     assert draws[2] not in draws[:2], "a command run again draws anew, not the earlier command's trials again"
     # another budget: its trials' returns would not compare with these, so the study refuses it
@@ -80,6 +89,21 @@ def test_ppo_trials_draw_the_initial_exploration_unless_the_entrys_residual_sets
     kept = sample_ppo(study.ask(), 2, 1000, exploring=False)
     hp = resolve_hyperparams({**TINY, "residual": {"policy": "tripod", "exploration": 0.1}, **kept}, "ppo", "t")
     assert hp.model_kwargs["policy_kwargs"]["log_std_init"] == pytest.approx(math.log(0.1))
+
+
+def test_the_entrys_own_values_are_played_as_near_as_the_space_allows():
+    """A value the space lacks takes the nearest choice (on a log scale), a number outside a range its nearest end, a
+    schedule a draw; each is said, as is a rollout cut to the trial's budget."""
+    entry = {**TINY, "n_epochs": 7, "gamma": 0.97, "learning_rate": "lin_3e-4", "ent_coef": 0.5,
+             "policy_kwargs": "dict(net_arch=[100, 100], log_std_init=-1.5)"}  # fmt: skip
+    params, moved = shipped_params("ppo", resolve_hyperparams(entry, "ppo", "t"), 1000, True)
+    assert (params["n_epochs"], params["gamma"], params["ent_coef"], params["net_width"]) == (5, 0.98, 1e-2, 128)
+    assert params["log_std_init"] in (-2.0, -1.0) and "learning_rate" not in params
+    assert "learning_rate: drawn (the entry's is not a plain number)" in moved
+    assert "n_epochs: 5 for the entry's 7" in moved and "ent_coef: 0.01 for the entry's 0.5" in moved
+    assert "n_steps: 500 (the draw 128 cut to the budget)" not in moved, "128 an env fits 1000 steps of 2 envs"
+    _, cut = shipped_params("ppo", resolve_hyperparams({**TINY, "n_steps": 1024}, "ppo", "t"), 1000, True)
+    assert "n_steps: 500 (the draw 1024 cut to the budget)" in cut
 
 
 def test_a_trial_below_the_pruners_bar_stops_training():
