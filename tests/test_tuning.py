@@ -56,7 +56,8 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     first = trials_csv(folder)[0]
     assert first["user_attrs_shipped"] == "True" and study["shipped"]["trial"] == 0
     assert study["shipped"]["value"] == float(first["value"])
-    assert (int(first["params_n_steps"]), int(first["params_batch_size"]), int(first["params_n_epochs"])) == (128, 64, 10)
+    played = (int(first["params_n_steps"]), int(first["params_batch_size"]), int(first["params_n_epochs"]))
+    assert played == (128, 64, 10)
     assert float(first["params_learning_rate"]) == 3e-4 and float(first["params_log_std_init"]) == 0.0
     assert study["shipped"]["moved"] == ["ent_coef: 1e-08 for the entry's 0"], "PPO's 0 lies below the log range"
     assert "The entry's own values (trial 0)" in (folder / "best.yml").read_text()
