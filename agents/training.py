@@ -636,7 +636,7 @@ def build_model(algo: str, hp: Hyperparams, venv: VecEnv, seed: int) -> BaseAlgo
 # --- run folders, checkpoints, saving ---------------------------------------------------------------------------
 
 
-RUN_CODE = RunCode(resolve_hyperparams, make_env, build_model, TORCH_THREADS)
+RUN_CODE = RunCode(resolve_hyperparams, make_env, build_model, TORCH_THREADS, algo_defaults)
 """The functions a tuning trial trains with (agents/tuning.py): a run's own."""
 
 

@@ -52,6 +52,7 @@ class RunCode:
     make_env: Callable[..., VecEnv]
     build_model: Callable[..., Any]
     torch_threads: int
+    algo_defaults: Callable[[str], dict[str, Any]]  # an algorithm's constructor arguments and their defaults
 
 
 class Diverged(RuntimeError):
@@ -133,13 +134,13 @@ def _entry_value(algo: str, name: str, model_kwargs: dict[str, Any], defaults: d
     return value if isinstance(value, int | float) and not isinstance(value, bool) else None
 
 
-def shipped_params(algo: str, hp: Any, timesteps: int, exploring: bool) -> tuple[dict[str, Any], list[str]]:
+def shipped_params(algo: str, hp: Any, timesteps: int, exploring: bool,
+                   defaults: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:  # fmt: skip
     """The entry's own values as the search space's draws, for a trial that plays them (the study's yardstick), and
     what could not be played as written: a choice the space lacks takes the nearest one, a number outside a range
-    the nearest end, a value that is no plain number (a schedule) a draw."""
+    the nearest end, a value that is no plain number (a schedule) a draw. ``defaults``: the algorithm's constructor
+    arguments and their defaults, for what the entry leaves out."""
     import optuna
-
-    from agents.training import algo_defaults
 
     verbosity = optuna.logging.get_verbosity()
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
@@ -148,7 +149,6 @@ def shipped_params(algo: str, hp: Any, timesteps: int, exploring: bool) -> tuple
     finally:
         optuna.logging.set_verbosity(verbosity)
     SPACES[algo](probe, hp.n_envs, timesteps, exploring)
-    defaults = algo_defaults(algo)
     params, moved = {}, []
     for name, dist in probe.distributions.items():
         value = _entry_value(algo, name, hp.model_kwargs, defaults)
@@ -287,7 +287,7 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     # the entry's own values are the study's first trial, the yardstick of its draws (once a study; workers that
     # share one may each queue it, and Optuna keeps one: skip_if_exists)
     if not any(t.user_attrs.get(SHIPPED) for t in the_study.trials):
-        params, moved = shipped_params(algo, hp0, timesteps, exploring)
+        params, moved = shipped_params(algo, hp0, timesteps, exploring, code.algo_defaults(algo))
         the_study.enqueue_trial(params, user_attrs={SHIPPED: True, "moved": moved}, skip_if_exists=True)
 
     def objective(trial: optuna.Trial) -> float:

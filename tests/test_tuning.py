@@ -92,18 +92,22 @@ def test_ppo_trials_draw_the_initial_exploration_unless_the_entrys_residual_sets
     assert hp.model_kwargs["policy_kwargs"]["log_std_init"] == pytest.approx(math.log(0.1))
 
 
+PPO_DEFAULTS = RUN_CODE.algo_defaults("ppo")
+
+
 def test_the_entrys_own_values_are_played_as_near_as_the_space_allows():
     """A value the space lacks takes the nearest choice (on a log scale), a number outside a range its nearest end, a
     schedule a draw; each is said, as is a rollout cut to the trial's budget."""
     entry = {**TINY, "n_epochs": 7, "gamma": 0.97, "learning_rate": "lin_3e-4", "ent_coef": 0.5,
              "policy_kwargs": "dict(net_arch=[100, 100], log_std_init=-1.5)"}  # fmt: skip
-    params, moved = shipped_params("ppo", resolve_hyperparams(entry, "ppo", "t"), 1000, True)
+    params, moved = shipped_params("ppo", resolve_hyperparams(entry, "ppo", "t"), 1000, True, PPO_DEFAULTS)
     assert (params["n_epochs"], params["gamma"], params["ent_coef"], params["net_width"]) == (5, 0.98, 1e-2, 128)
     assert params["log_std_init"] in (-2.0, -1.0) and "learning_rate" not in params
     assert "learning_rate: drawn (the entry's is not a plain number)" in moved
     assert "n_epochs: 5 for the entry's 7" in moved and "ent_coef: 0.01 for the entry's 0.5" in moved
     assert "n_steps: 500 (the draw 128 cut to the budget)" not in moved, "128 an env fits 1000 steps of 2 envs"
-    _, cut = shipped_params("ppo", resolve_hyperparams({**TINY, "n_steps": 1024}, "ppo", "t"), 1000, True)
+    _, cut = shipped_params("ppo", resolve_hyperparams({**TINY, "n_steps": 1024}, "ppo", "t"), 1000, True,
+                            PPO_DEFAULTS)  # fmt: skip
     assert "n_steps: 500 (the draw 1024 cut to the budget)" in cut
 
 
