@@ -142,12 +142,7 @@ def shipped_params(algo: str, hp: Any, timesteps: int, exploring: bool,
     arguments and their defaults, for what the entry leaves out."""
     import optuna
 
-    verbosity = optuna.logging.get_verbosity()
-    optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
-    try:
-        probe = optuna.create_study().ask()
-    finally:
-        optuna.logging.set_verbosity(verbosity)
+    probe = optuna.create_study().ask()
     SPACES[algo](probe, hp.n_envs, timesteps, exploring)
     params, moved = {}, []
     for name, dist in probe.distributions.items():
@@ -284,11 +279,10 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     the_study.sampler = optuna.samplers.TPESampler(seed=seed + len(the_study.trials), n_startup_trials=STARTUP_TRIALS)
 
     exploring = hp0.residual is None or hp0.residual.exploration is None  # else the entry's residual sets it
-    # the entry's own values are the study's first trial, the yardstick of its draws (once a study; workers that
-    # share one may each queue it, and Optuna keeps one: skip_if_exists)
-    if not any(t.user_attrs.get(SHIPPED) for t in the_study.trials):
-        params, moved = shipped_params(algo, hp0, timesteps, exploring, code.algo_defaults(algo))
-        the_study.enqueue_trial(params, user_attrs={SHIPPED: True, "moved": moved}, skip_if_exists=True)
+    # the entry's own values are the study's first trial, the yardstick of its draws: queued once a study (Optuna
+    # skips a trial whose values the study holds already, also when workers that share it each queue it)
+    params, moved = shipped_params(algo, hp0, timesteps, exploring, code.algo_defaults(algo))
+    the_study.enqueue_trial(params, user_attrs={SHIPPED: True, "moved": moved}, skip_if_exists=True)
 
     def objective(trial: optuna.Trial) -> float:
         drawn = SPACES[algo](trial, hp0.n_envs, timesteps, exploring)
