@@ -33,6 +33,8 @@ GENERIC_METRICS = {
     "energy": "electrical energy over the episode, J (an academy episode ends when its task is done: what it took)",
     "falls": "1 if the task ended the episode: the robot fell (tilted past its limit) or broke a ground rule",
 }
+LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power", "energy", "falls")
+"""The metrics (generic or a task's) where a smaller value is the better one; every other is better larger."""
 
 
 def metric_descriptions(env) -> dict[str, str]:

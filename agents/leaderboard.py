@@ -56,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.evaluation import GENERIC_METRICS
+from agents.evaluation import GENERIC_METRICS, LOWER_IS_BETTER
 from envs.common.batch import THREADS_VARIABLE
 from envs.common.cluster import ClusterError, check_address, ensure_ray, init_ray
 from envs.common.io import ToolParser, atomic_write, parent_problem, write_json, write_text
@@ -973,9 +973,6 @@ def _paired(diff: dict[str, Any], metric: str) -> str:
     if not d or d.get("mean") is None or d.get("ci_low") is None:
         return "-"
     return f"{d['mean']:+.3f} [{d['ci_low']:+.3f}, {d['ci_high']:+.3f}]"
-
-
-LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power", "energy")
 
 
 def at_least_as_good(diff: dict[str, Any], metric: str) -> bool | None:

@@ -1149,7 +1149,8 @@ def start_tuning(args: argparse.Namespace) -> Path:
         base["residual"] = residual_override(args.residual, args.env, hyperparams_file, env_kwargs, key)
     return tune(RUN_CODE, args.env, args.algo, base, f"{hyperparams_file}: {key}", args.tune, args.timesteps,
                 Path(args.runs_dir), args.storage, args.study, 0 if args.seed is None else args.seed,
-                args.evaluations, args.eval_episodes, args.minutes, command_line())  # fmt: skip
+                args.evaluations, args.eval_episodes, args.minutes, command_line(),
+                args.tune_metric or "return")  # fmt: skip
 
 
 def start_selfplay(args: Any) -> Path:
@@ -1459,6 +1460,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     tuning.add_argument("--eval-episodes", type=_positive_int,
                         help=f"episodes per evaluation (default {TUNE_EVAL_EPISODES})")  # fmt: skip
+    tuning.add_argument("--tune-metric", metavar="METRIC",
+                        help="what a trial scores: the mean return (default), or an episode metric of the env, "
+                             "such as speed or yaw_rate_error (minimized where smaller is better)")  # fmt: skip
     soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
     soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
     soccer.add_argument("--players", type=_positive_int, help="players a side, 1 to 4 (default 3)")
@@ -1524,7 +1528,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.eval_episodes = TUNE_EVAL_EPISODES if args.eval_episodes is None else args.eval_episodes
     else:
         for flag, value in (("--storage", args.storage), ("--study", args.study), ("--evaluations", args.evaluations),
-                            ("--eval-episodes", args.eval_episodes)):  # fmt: skip
+                            ("--eval-episodes", args.eval_episodes), ("--tune-metric", args.tune_metric)):  # fmt: skip
             if value is not None:
                 parser.error(f"{flag} goes with --tune")
     for flag, value in (("--runs-dir", args.runs_dir), ("--resume", args.resume)):

@@ -4,9 +4,13 @@ Each trial draws hyperparameters (:data:`SPACES`) on top of the id's entry in th
 ``normalize``, ``env_kwargs`` and ``policy`` stay), trains a model for ``--timesteps`` env steps with a run's own code
 (agents/training.py: the same envs, normalization and model building), and evaluates it ``--evaluations`` times on
 the way, each time on ``--eval-episodes`` deterministic episodes of an env of its own (seeded :data:`EVAL_SEED`, the
-same episodes for every trial). Each evaluation's mean return goes to Optuna, whose median pruner stops a trial whose
-return lies below the median of the earlier trials' at the same step (after :data:`STARTUP_TRIALS` trials and the
-first third of a trial's steps). A trial's value is its last evaluation's mean return; the study maximizes it.
+same episodes for every trial). Each evaluation's score goes to Optuna, whose median pruner stops a trial that scores
+worse than the median of the earlier trials at the same step (after :data:`STARTUP_TRIALS` trials and the first
+third of a trial's steps). A trial's value is its last evaluation's score. The score is the mean return by default;
+``--tune-metric NAME`` makes it the mean of an episode metric instead (``evaluate.py``'s: ``speed``,
+``cost_of_transport``, the task's own such as ``yaw_rate_error`` or ``success``), minimized where smaller is better
+(:data:`agents.evaluation.LOWER_IS_BETTER`), else maximized. A return pays for what its terms pay for, which on some
+tasks is standing still; the task's metric is what its leaderboard row is judged on.
 
 Storage: an SQLite file by default (``sqlite:///<runs-dir>/tuning.db``) or any database URL that SQLAlchemy takes,
 such as ``postgresql://user@host:5432/db`` (the ``psycopg`` driver ships with skitter): every process that names the
@@ -14,12 +18,12 @@ same ``--study`` there shares the study, each running its own trials (on several
 resumable: run the command again and it adds its trials to those done (a trial cut short by Ctrl-C is recorded as
 failed and not counted). The sampler is Optuna's TPE, seeded with ``--seed`` plus the number of trials the study
 already holds (a command run again draws anew; processes sharing a study should use different seeds). A study is
-one env's, algorithm's, env kwargs' and budget's: a command with another is refused.
+one env's, algorithm's, env kwargs', budget's and metric's: a command with another is refused.
 
 Writes ``<runs-dir>/tuning/<study>/`` (each file written whole, or not at all): ``best.yml``, the id's
 hyperparameter entry with the best trial's values, ready to go into ``hyperparams/<algo>.yml`` (its header says how
 the entry's own values scored: a new study's first trial plays them, :func:`shipped_params`); ``trials.csv``,
-every trial of the study with its values, state and return; ``study.json``, the best trial, the counts and the
+every trial of the study with its values, state and score; ``study.json``, the best trial, the counts and the
 command. Nothing in ``hyperparams/`` is changed.
 """
 
@@ -37,6 +41,7 @@ from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.config import ConfigError
+from agents.evaluation import LOWER_IS_BETTER, episode_metrics, metric_descriptions
 from envs.common.io import write_json, write_text
 
 if TYPE_CHECKING:
@@ -173,21 +178,43 @@ def shipped_params(algo: str, hp: Any, timesteps: int, exploring: bool,
 
 
 class TrialEvalCallback(EvalCallback):
-    """SB3's evaluation every ``eval_freq`` calls, each result reported to the trial; a trial the pruner stops ends
-    its training (``pruned``)."""
+    """SB3's evaluation every ``eval_freq`` calls, each score reported to the trial (``last_score``: the mean return,
+    or the mean of episode metric ``metric`` over the evaluation's episodes); a trial the pruner stops ends its
+    training (``pruned``)."""
 
-    def __init__(self, trial: optuna.Trial, eval_env: VecEnv, eval_freq: int, n_eval_episodes: int):
+    def __init__(self, trial: optuna.Trial, eval_env: VecEnv, eval_freq: int, n_eval_episodes: int,
+                 metric: str = "return"):  # fmt: skip
         super().__init__(eval_env, n_eval_episodes=n_eval_episodes, eval_freq=eval_freq, deterministic=True,
                          verbose=0, warn=False)  # fmt: skip
         self.trial = trial
+        self.metric = metric
         self.pruned = False
         self.reported = 0
+        self.last_score = float("nan")
+        self._ended: list[dict[str, Any]] = []  # the last info of each episode of the evaluation under way
+
+    def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        super()._log_success_callback(locals_, globals_)
+        if locals_["done"]:
+            self._ended.append(locals_["info"])
+
+    def _score(self) -> float:
+        if self.metric == "return":
+            return float(self.last_mean_reward)
+        env = self.eval_env.get_attr("unwrapped", [0])[0]
+        values = [episode_metrics(env, 0.0, info, bool(info.get("fallen", False)))[self.metric]
+                  for info in self._ended if not info.get("sim_unstable", False)]  # fmt: skip
+        finite = [v for v in values if math.isfinite(v)]
+        return sum(finite) / len(finite) if finite else float("nan")
 
     def _on_step(self) -> bool:
+        self._ended = []
         going = super()._on_step()
         if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
             self.reported += 1
-            self.trial.report(float(self.last_mean_reward), self.num_timesteps)
+            self.last_score = self._score()
+            if math.isfinite(self.last_score):
+                self.trial.report(self.last_score, self.num_timesteps)
             if self.trial.should_prune():
                 self.pruned = True
                 return False
@@ -233,7 +260,8 @@ def study_name(env_id: str, algo: str) -> str:
 
 def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str, trials: int, timesteps: int,
          runs_dir: Path, storage: str | None = None, study: str | None = None, seed: int = 0, evaluations: int = 4,
-         eval_episodes: int = 5, minutes: float | None = None, command: str = "") -> Path:  # fmt: skip
+         eval_episodes: int = 5, minutes: float | None = None, command: str = "", metric: str = "return",
+         ) -> Path:  # fmt: skip
     """Run ``trials`` trials of the study (see the module docstring) and write its files; returns their folder.
 
     Args:
@@ -241,6 +269,8 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
         base: the id's entry in the hyperparameter file (``where`` names it in messages); each trial's draws
             replace its fields.
         minutes: stop starting trials after this much wall time (a running trial finishes).
+        metric: what a trial scores: ``return``, or an episode metric of the env (minimized if in
+            :data:`~agents.evaluation.LOWER_IS_BETTER`).
     """
     import optuna
     import torch
@@ -251,14 +281,21 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
         raise ConfigError("--evaluations and --eval-episodes must be at least 1")
     torch.set_num_threads(code.torch_threads)  # as a run trains
     hp0 = code.resolve_hyperparams(base, algo, where)  # the entry itself must hold before any trial runs
-    code.make_env(env_id, hp0, seed).close()  # and its env_kwargs
+    venv = code.make_env(env_id, hp0, seed)  # and its env_kwargs
+    try:
+        known = metric_descriptions(venv.get_attr("unwrapped", [0])[0])
+    finally:
+        venv.close()
+    if metric not in known:
+        raise ConfigError(f"--tune-metric {metric!r}: {env_id} reports {', '.join(known)}")
+    direction = "minimize" if metric in LOWER_IS_BETTER else "maximize"
     name = study or study_name(env_id, algo)
     url = storage_url(storage, runs_dir)
     runs_dir.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     pruner = optuna.pruners.MedianPruner(n_startup_trials=STARTUP_TRIALS, n_warmup_steps=timesteps // 3)
     try:  # its sampler is set below, seeded by how many trials the study holds
-        the_study = optuna.create_study(storage=url, study_name=name, direction="maximize", pruner=pruner,
+        the_study = optuna.create_study(storage=url, study_name=name, direction=direction, pruner=pruner,
                                         load_if_exists=True)  # fmt: skip
     except ImportError as exc:
         raise ConfigError(f"--storage {_shown(url)}: {_first_line(exc)}") from None
@@ -267,8 +304,11 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
                           f"{_first_line(exc)})") from None  # fmt: skip
     # a study is one env's: a process that shares it with another env id, algorithm or env kwargs (another action
     # space, say) is refused before it adds a trial
-    made = {"env_id": env_id, "algo": algo, "env_kwargs": hp0.env_kwargs, "timesteps": timesteps}
-    clash = {k: the_study.user_attrs[k] for k, v in made.items() if the_study.user_attrs.get(k, v) != v}
+    made = {"env_id": env_id, "algo": algo, "env_kwargs": hp0.env_kwargs, "timesteps": timesteps, "metric": metric}
+    held = dict(the_study.user_attrs)
+    if held and "metric" not in held:  # a study made before metrics could be tuned scored the return
+        held["metric"] = "return"
+    clash = {k: held[k] for k, v in made.items() if held.get(k, v) != v}
     if clash:
         raise ConfigError(f"--study {name} in {_shown(url)} was made with {clash}, not "
                           f"{ {k: made[k] for k in clash} }: give another --study")  # fmt: skip
@@ -295,7 +335,7 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
         try:
             model = code.build_model(algo, hp, venv, seed + trial.number)
             every = max(1, timesteps // (evaluations * hp.n_envs))
-            callback = TrialEvalCallback(trial, evaluation, every, eval_episodes)
+            callback = TrialEvalCallback(trial, evaluation, every, eval_episodes, metric)
             try:
                 model.learn(timesteps, callback=callback)
             except ConfigError:
@@ -304,8 +344,11 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
                 raise Diverged(str(exc).splitlines()[0]) from None
             if callback.pruned:
                 raise optuna.TrialPruned()
-            value = float(callback.last_mean_reward)
-            if not math.isfinite(value):
+            value = callback.last_score
+            if not math.isfinite(value):  # diverged, or no episode gave the metric a value
+                if metric != "return":
+                    trial.set_user_attr("unscored", f"no evaluation episode gave {metric} a finite value (an "
+                                                    "episode shorter than the metric's warm-up has none)")  # fmt: skip
                 raise optuna.TrialPruned()
             return value
         finally:
@@ -317,7 +360,7 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
             objective, n_trials=trials, timeout=None if minutes is None else 60.0 * minutes, catch=(Diverged,)
         )
     finally:
-        folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command)
+        folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command, metric)
     return folder
 
 
@@ -328,7 +371,7 @@ def _as_entry(base: dict[str, Any], hyperparams: dict[str, Any]) -> dict[str, An
 
 
 def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder: Path, url: str,
-                command: str) -> Path:  # fmt: skip
+                command: str, metric: str = "return") -> Path:  # fmt: skip
     """The study's files (see the module docstring) in ``folder``."""
     import optuna
 
@@ -338,14 +381,15 @@ def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder
     states = [t.state for t in study.trials]
     counts = {s.name.lower(): states.count(s) for s in optuna.trial.TrialState}
     summary: dict[str, Any] = {"study": study.study_name, "env_id": env_id, "algo": algo, "storage": _shown(url),
-                               "trials": counts, "command": command}  # fmt: skip
+                               "metric": metric, "direction": study.direction.name.lower(), "trials": counts,
+                               "command": command}  # fmt: skip
     complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
     if complete:
         best = study.best_trial
         entry = _as_entry(base, best.user_attrs.get("hyperparams", {}))
         summary["best"] = {"trial": best.number, "value": best.value, "hyperparams": entry}
         header = (f"# {algo} for {env_id}: the best of {len(complete)} complete trials of study {study.study_name} "
-                  f"(trial {best.number}, mean return {best.value:.4g}).\n# Its trial was run by: "
+                  f"(trial {best.number}, mean {metric} {best.value:.4g}).\n# Its trial was run by: "
                   f"{best.user_attrs.get('command', command)}\n")  # fmt: skip
         shipped = next((t for t in study.trials if t.user_attrs.get(SHIPPED)), None)
         if shipped is not None:

@@ -80,6 +80,45 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     assert json.loads((folder / "study.json").read_text())["trials"]["complete"] == 3
 
 
+def test_a_study_can_score_the_tasks_own_metric_and_minimizes_an_error(tmp_path, monkeypatch, capsys):
+    turn = "skitter/RoachTurn-v4"
+    # episodes of 1.5 s: a turn's yaw-rate error leaves out its first second
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({turn: {**TINY, "env_kwargs": {"max_episode_steps": 75}},
+                                                       WALK: TINY}))  # fmt: skip
+    common = ("--env", turn, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs",
+              "--evaluations", 1, "--eval-episodes", 2)  # fmt: skip
+    assert train_py("--tune", 2, *common, "--tune-metric", "yaw_rate_error", cwd=tmp_path, monkeypatch=monkeypatch) == 0
+    folder = tmp_path / "runs" / "tuning" / "skitter_RoachTurn-v4__ppo"
+    study = json.loads((folder / "study.json").read_text())
+    values = [float(row["value"]) for row in trials_csv(folder)]
+    assert (study["metric"], study["direction"]) == ("yaw_rate_error", "minimize")
+    assert study["best"]["value"] == min(values) and all(0.0 <= v < 20.0 for v in values), "an error in rad/s"
+    assert "mean yaw_rate_error" in (folder / "best.yml").read_text()
+    # the same study scoring another metric: its values would not compare, so it is refused before a trial
+    assert train_py("--tune", 1, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 2
+    assert "was made with {'metric': 'yaw_rate_error'}" in capsys.readouterr().err
+    # a metric the env does not report: one line naming those it does, and no study
+    assert train_py("--tune", 1, *common[:1], WALK, *common[2:], "--tune-metric", "yaw_rate_eror", cwd=tmp_path,
+                    monkeypatch=monkeypatch) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "--tune-metric 'yaw_rate_eror': skitter/RoachWalk-v3 reports return, speed," in err, err
+    assert len(err.strip().splitlines()) == 1 and not (folder.parent / "skitter_RoachWalk-v3__ppo").exists()
+
+
+def test_a_trial_scores_the_mean_of_its_evaluation_episodes_metric():
+    hp = resolve_hyperparams(TINY, "ppo", "tiny")
+    study = optuna.create_study(direction="maximize")
+    venv, evaluation = make_env(WALK, hp, 0), eval_env(WALK, hp, RUN_CODE)
+    model = PPO(env=venv, seed=0, device="cpu", **hp.model_kwargs)
+    callback = TrialEvalCallback(study.ask(), evaluation, eval_freq=128, n_eval_episodes=3, metric="speed")
+    model.learn(128, callback=callback)
+    ended = callback._ended
+    assert callback.reported == 1 and len(ended) == 3, "one evaluation of three episodes, each seen at its end"
+    speeds = [info["distance"] / info["elapsed"] for info in ended]
+    assert callback.last_score == pytest.approx(sum(speeds) / 3)
+    assert callback.last_score != pytest.approx(callback.last_mean_reward), "the speed, not the return"
+
+
 def test_ppo_trials_draw_the_initial_exploration_unless_the_entrys_residual_sets_it():
     study = optuna.create_study()
     trial = study.ask()
@@ -147,6 +186,7 @@ def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, arg
     (("--study", "x"), "--study goes with --tune"),
     (("--evaluations", 3), "--evaluations goes with --tune"),  # not a normal run that ignores it
     (("--eval-episodes", 3), "--eval-episodes goes with --tune"),
+    (("--tune-metric", "speed"), "--tune-metric goes with --tune"),
     (("--tune", 1, "--run-name", "foo"), "--run-name is for one training run"),  # not a study that ignores it
     (("--tune", 1, "--checkpoint-freq", 64), "--checkpoint-freq is for one training run"),
 ])  # fmt: skip
