@@ -107,6 +107,7 @@ bench: setup
 	$(BIN)/python -m benchmarks.soccer_api
 	$(BIN)/python -m benchmarks.soccer_speed
 	$(BIN)/python -m benchmarks.soccer_dm_control
+	$(BIN)/python -m benchmarks.soccer_stability
 	$(BIN)/python -m benchmarks.soccer_scripted
 	$(BIN)/python -m benchmarks.ground_rules
 	$(BIN)/python -m benchmarks.bioloid_cpg_experiments

@@ -420,3 +420,26 @@ def test_the_soccer_benchmark_measures_each_robot_against_its_raw_physics():
         assert many["agent_steps_per_second"] > 0 and many["raw_share"] > 0 and r["single"]["reset_ms"] > 0
         dt = match.parallel_env(robot=r["robot"], players_per_team=1).dt
         assert many["substeps"] * many["physics_timestep"] == pytest.approx(dt)
+
+
+def test_the_stability_benchmark_counts_each_unstable_scene_once_and_gives_its_rate_an_exact_interval(monkeypatch):
+    """benchmarks/soccer_stability.py, tiny: a scene made to go unstable is counted at its step, its match starts
+    again, and the rate's interval is the exact Poisson one."""
+    from benchmarks import soccer_stability
+    from envs.soccer.match import Matches
+
+    step = Matches.step
+
+    def blow_up_match_one_at_step_three(self, actions):
+        if self.cycles.max() == 2:  # the third step: match 1's scene is given a velocity no solver survives
+            self.scene.sim.qvel[1] = 1e12
+        return step(self, actions)
+
+    monkeypatch.setattr(Matches, "step", blow_up_match_one_at_step_three)
+    run = soccer_stability.random_play("xjus", matches=2, steps=5, seed=0)
+    assert run["unstable"] == [{"match": 1, "step": 2}], "once, at its step: the match is started again after it"
+    assert run["match_seconds"] == pytest.approx(2 * 5 * run["dt"])
+    rate, low, high = soccer_stability.rate_per_hour(0, 3600.0)
+    assert (rate, low, high) == (0.0, 0.0, pytest.approx(3.689, abs=1e-3))  # Garwood's upper bound for none seen
+    rate, low, high = soccer_stability.rate_per_hour(14, 7200.0)
+    assert rate == 7.0 and (low, high) == (pytest.approx(7.654 / 2, abs=1e-3), pytest.approx(23.49 / 2, abs=1e-2))
