@@ -2,15 +2,15 @@
 
 Each trial draws hyperparameters (:data:`SPACES`) on top of the id's entry in the hyperparameter file (its ``n_envs``,
 ``normalize``, ``env_kwargs`` and ``policy`` stay), trains a model for ``--timesteps`` env steps with a run's own code
-(agents/training.py: the same envs, normalization and model building), and evaluates it ``--evaluations`` times on
-the way, each time on the next ``--eval-episodes`` deterministic episodes of an env of its own (seeded
-:data:`EVAL_SEED`: a trial's k-th evaluation plays the same episodes in every trial). Each evaluation's score goes to Optuna, whose median pruner stops a trial that scores
-worse than the median of the earlier trials at the same step (after :data:`STARTUP_TRIALS` trials and the first
-third of a trial's steps). A trial's value is its last evaluation's score. The score is the mean return by default;
-``--tune-metric NAME`` makes it the mean of an episode metric instead (``evaluate.py``'s: ``speed``,
-``cost_of_transport``, the task's own such as ``yaw_rate_error`` or ``success``), minimized where smaller is better
-(:data:`agents.evaluation.LOWER_IS_BETTER`), else maximized. A return pays for what its terms pay for, which on some
-tasks is standing still; the task's metric is what its leaderboard row is judged on.
+(agents/training.py: the same envs, normalization and model building), and evaluates it ``--evaluations`` times on the
+way, each time on the next ``--eval-episodes`` deterministic episodes of an env of its own (seeded :data:`EVAL_SEED`: a
+trial's k-th evaluation plays the same episodes in every trial). Each evaluation's score goes to Optuna, whose median
+pruner stops a trial that scores worse than the median of the earlier trials at the same step (after
+:data:`STARTUP_TRIALS` trials and the first third of a trial's steps). A trial's value is its last evaluation's score.
+The score is the mean return by default; ``--tune-metric NAME`` makes it the mean of an episode metric instead
+(``evaluate.py``'s: ``speed``, ``cost_of_transport``, the task's own such as ``yaw_rate_error`` or ``success``),
+minimized where smaller is better (:data:`agents.evaluation.LOWER_IS_BETTER`), else maximized. A return pays for what
+its terms pay for, which on some tasks is standing still; the task's metric is what its leaderboard row is judged on.
 
 Storage: an SQLite file by default (``sqlite:///<runs-dir>/tuning.db``) or any database URL that SQLAlchemy takes,
 such as ``postgresql://user@host:5432/db`` (the ``psycopg`` driver ships with skitter): every process that names the
