@@ -208,9 +208,11 @@ class TrialEvalCallback(EvalCallback):
         return sum(finite) / len(finite) if finite else float("nan")
 
     def _on_step(self) -> bool:
-        self._ended = []
+        evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0  # SB3's evaluation runs in this step
+        if evaluating:
+            self._ended = []
         going = super()._on_step()
-        if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+        if evaluating:
             self.reported += 1
             self.last_score = self._score()
             if math.isfinite(self.last_score):
@@ -360,7 +362,7 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
             objective, n_trials=trials, timeout=None if minutes is None else 60.0 * minutes, catch=(Diverged,)
         )
     finally:
-        folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command, metric)
+        folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command)
     return folder
 
 
@@ -371,9 +373,11 @@ def _as_entry(base: dict[str, Any], hyperparams: dict[str, Any]) -> dict[str, An
 
 
 def write_study(study: Any, env_id: str, algo: str, base: dict[str, Any], folder: Path, url: str,
-                command: str, metric: str = "return") -> Path:  # fmt: skip
+                command: str) -> Path:  # fmt: skip
     """The study's files (see the module docstring) in ``folder``."""
     import optuna
+
+    metric = study.user_attrs["metric"]
 
     folder.mkdir(parents=True, exist_ok=True)
     frame = study.trials_dataframe(attrs=("number", "value", "state", "params", "duration", "user_attrs"))
