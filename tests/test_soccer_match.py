@@ -2,8 +2,10 @@
 
 import functools
 import types
+from pathlib import Path
 
 import imageio.v2 as imageio
+import mujoco
 import numpy as np
 import pytest
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test, seed_test
@@ -404,6 +406,31 @@ def test_a_scene_that_goes_unstable_ends_its_match_with_nothing_counted():
     assert env.score == {"home": 0, "away": 0} and env.agents == []
     obs, _ = env.reset(seed=1)
     assert all(np.isfinite(o).all() for o in obs.values())
+
+
+def test_the_xjus_wedge_that_blew_a_scene_up_holds_at_shorter_steps():
+    """A control block recorded from random two-a-side xJüs play (seed 0, match 28 of 32, step 426), where a leg
+    wedged between two robots throws a joint to 5,000 rad/s within the 2 ms steps: run again from its start at the
+    match's shorter steps, it holds, and a match's scene runs such blocks again by itself."""
+    from envs.common.simulation import diverged, refined_block, run_at_shorter_steps
+
+    recorded = np.load(Path(__file__).parent / "data" / "xjus_wedge_block.npz")
+    env = match.parallel_env(robot="xjus", players_per_team=2)
+    model = env.engine.scene.model
+    assert (model.nq, model.nv, model.nu) == (recorded["nq"], recorded["nv"], recorded["nu"]), "the scene changed"
+    assert env.engine.scene.sim.refine == match.REFINE_UNSTABLE > 1
+    start = mujoco.MjData(model)
+    mujoco.mj_setState(model, start, recorded["state"], mujoco.mjtState.mjSTATE_INTEGRATION)
+    assert not diverged(start.qvel)
+    assert run_at_shorter_steps(model, start, recorded["ctrl"], 1) is None, "at the model's own step it diverges"
+    held = refined_block(model, start, recorded["ctrl"], match.REFINE_UNSTABLE)
+    assert held is not None
+    end = mujoco.MjData(model)
+    mujoco.mj_setState(model, end, held[0], mujoco.mjtState.mjSTATE_INTEGRATION)
+    assert np.abs(end.qvel).max() < 200 and end.time == pytest.approx(start.time + len(recorded["ctrl"]) * 0.002)
+    env.reset(seed=0)
+    _, _, _, _, infos = env.step({a: env.action_space(a).sample() for a in env.agents})
+    assert all(info["sim_refined"] is False and info["sim_unstable"] is False for info in infos.values())
 
 
 def test_the_soccer_benchmark_measures_each_robot_against_its_raw_physics():

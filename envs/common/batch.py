@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 from mujoco import batch
 
-from envs.common.simulation import CTRL_SPEC
+from envs.common.simulation import CTRL_SPEC, check_refine, diverged, refined_block
 
 THREADS_VARIABLE = "SKITTER_THREADS"  # caps the threads of every batch and calibration rollout of this process
 
@@ -43,12 +43,16 @@ class BatchSimulation:
         sensordata: the sensor values after the last block, (num_sims, nsensordata), as ``mj_step`` leaves them.
     """
 
-    def __init__(self, model: mujoco.MjModel, n_substeps: int, num_sims: int, nthread: int | None = None):
+    def __init__(
+        self, model: mujoco.MjModel, n_substeps: int, num_sims: int, nthread: int | None = None, refine: int = 1
+    ):
         for name, value in (("num_sims", num_sims), ("nthread", 1 if nthread is None else nthread)):
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
                 raise ValueError(f"{name} must be a whole number of at least 1, got {value!r}")
         self.model = model
+        self.refine = check_refine(refine)  # run an unstable block again at shorter steps (envs/common/simulation.py)
         self.num_sims = int(num_sims)
+        self.refined = np.zeros(num_sims, dtype=bool)  # whether each simulation's last block was run again
         self.n_substeps = n_substeps
         self.nthread = default_threads() if nthread is None else int(nthread)
         self.batch = batch.Batch(model, num_sims, self.nthread)
@@ -62,6 +66,7 @@ class BatchSimulation:
         self._time = b.bind("time")
         # an output field is refreshed after every call once bound (bound later, it reads zero until the next call)
         self._sensordata = b.bind("sensordata")
+        self._start = np.empty_like(b.state) if self.refine > 1 else None
         self._out = {"sensordata": self.substep_sensordata}
         self._block_time = self.n_substeps * self.model.opt.timestep
 
@@ -110,15 +115,37 @@ class BatchSimulation:
         """Run the control blocks of simulations ``ids`` (default all). (num_sims,) bool: False where one went
         numerically unstable (MuJoCo stopped it; its episode should end); True for those not stepped."""
         end = self._time + self._block_time
+        start = None
+        if self.refine > 1:  # the blocks' starts, to run one again
+            start = self._start
+            np.copyto(start, self.batch.state)
         if ids is None:
             self.batch.rollout(self.n_substeps, self.ctrl, CTRL_SPEC, record=("sensordata",), out=self._out)
-            return np.abs(self._time - end) < 0.5 * self.model.opt.timestep
-        stable = np.ones(self.num_sims, dtype=bool)
-        if len(ids):
-            out = self.batch.rollout(self.n_substeps, self.ctrl[ids], CTRL_SPEC, record=("sensordata",), ids=ids)
-            self.substep_sensordata[ids] = out["sensordata"]
-            stable[ids] = np.abs(self._time[ids] - end[ids]) < 0.5 * self.model.opt.timestep
+            stable = np.abs(self._time - end) < 0.5 * self.model.opt.timestep
+        else:
+            stable = np.ones(self.num_sims, dtype=bool)
+            if len(ids):
+                out = self.batch.rollout(self.n_substeps, self.ctrl[ids], CTRL_SPEC, record=("sensordata",), ids=ids)
+                self.substep_sensordata[ids] = out["sensordata"]
+                stable[ids] = np.abs(self._time[ids] - end[ids]) < 0.5 * self.model.opt.timestep
+        self.refined[:] = False
+        if start is not None:
+            stable &= ~diverged(self.qvel)
+        if start is not None and not stable.all():
+            self._refine(np.flatnonzero(~stable), start, stable)
         return stable
+
+    def _refine(self, sims: np.ndarray, start: np.ndarray, stable: np.ndarray) -> None:
+        """Run the blocks of simulations ``sims``, which diverged, again from their starts at shorter physics steps;
+        keep each run that does not (its state, its record, stable again)."""
+        for s in sims.tolist():
+            model = self.batch.get_model(s)
+            data = mujoco.MjData(model)
+            mujoco.mj_setState(model, data, start[s], mujoco.mjtState.mjSTATE_INTEGRATION)
+            finer = refined_block(model, data, self.ctrl[s], self.refine)
+            if finer is not None:
+                self.batch.state[s], self.substep_sensordata[s] = finer
+                stable[s] = self.refined[s] = True
 
     def expand(self, field: str) -> np.ndarray:
         """Per-simulation values of a model field, (num_sims, ...) (see ``Batch.expand``)."""

@@ -25,7 +25,7 @@ import numpy as np
 from envs.common.batch import BatchSimulation
 from envs.common.mujoco_utils import sensor_slices
 from envs.common.robot import _BATCH, GROUND_SENSOR, add_ground_contact_sensors, hosted_robots
-from envs.common.simulation import Simulation
+from envs.common.simulation import Simulation, check_refine
 
 if TYPE_CHECKING:
     from envs.common.robot import Robot
@@ -78,6 +78,9 @@ class SharedScene:
             :func:`~envs.common.robot.batched_robots` says).
         nthread, batched: threads of the batch; run on ``mujoco.batch.Batch`` even for one scene (default: when
             ``num_scenes > 1``).
+        refine: a scene's control block that goes numerically unstable is run again from its start at physics
+            steps this many times shorter, and kept where it stays stable (1: not run again; see
+            envs/common/simulation.py).
     """
 
     def __init__(
@@ -88,6 +91,7 @@ class SharedScene:
         num_scenes: int | None = None,
         nthread: int | None = None,
         batched: bool | None = None,
+        refine: int = 1,
     ):
         if not players or len(set(players)) != len(players) or not all(isinstance(p, str) and p for p in players):
             raise ValueError(f"players must be distinct non-empty names, got {players!r}")
@@ -103,6 +107,7 @@ class SharedScene:
         self.num_sims = self.num_scenes * self.num_players  # the robot's simulations: every player of every scene
         self.batched = self.num_scenes > 1 if batched is None else bool(batched)
         self.nthread = nthread
+        self.refine = check_refine(refine)
         self._edits = tuple(edits)
         # each player's place (x, y, heading) for its next reset, (num_scenes * players, 3); the task sets it
         self.placement = np.zeros((self.num_sims, 3))
@@ -143,10 +148,10 @@ class SharedScene:
         self.objects = self._object_joints(model)
         if self.batched:
             self.sim: Simulation | BatchSimulation = BatchSimulation(
-                model, robot.n_substeps, self.num_scenes, self.nthread
+                model, robot.n_substeps, self.num_scenes, self.nthread, self.refine
             )
         elif self.num_scenes == 1:
-            self.sim = Simulation(model, robot.n_substeps)
+            self.sim = Simulation(model, robot.n_substeps, self.refine)
         else:
             raise ValueError(f"one MjData runs one scene, not {self.num_scenes}: pass batched=True")
         self.view = PlayerSimulation(self, robot)

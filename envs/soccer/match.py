@@ -46,6 +46,10 @@ MATCH_SECONDS = 60.0  # the default time limit
 PENALTY_SECONDS = 10.0  # how long a fallen player stays off the field (assumed)
 RETURN_CLEARANCE = 2.0  # body lengths between a player put back and anyone else (a body length each way; assumed)
 RETURN_ROWS = 3  # rows of places a player may come back to: its touch line, then two further in
+# a control step whose scene diverges is run again from its start at physics steps this many times shorter
+# (envs/common/simulation.py): the xJüs's 2 ms step let legs wedged between two robots blow a scene up 14 times in
+# 1280 s of random two-a-side play; from the start of such a block, 0.25 ms steps hold (docs/soccer.md)
+REFINE_UNSTABLE = 8
 # kickoff places of the home team, (x / half length, y / half width), by team size; the away team's are these turned
 # by half a turn about the centre spot. The last player of a team of three or more keeps goal.
 FORMATIONS = {
@@ -153,6 +157,7 @@ class Matches:
             num_scenes=self.num_matches,
             nthread=nthread,
             batched=batched,
+            refine=REFINE_UNSTABLE,
         )
         self.robot = self.scene.robot
         # the commands mode: forward speed and turn rate, run by the robot's reference gait (envs/soccer/steering.py)
@@ -313,7 +318,8 @@ class Matches:
         sent :attr:`rest`). Returns per row ``reward``, ``fallen``, ``off`` and the shaping terms, and per match
         ``goal_home``, ``goal_away``, ``throw_in`` (the referee put the ball back), ``ended`` (by ``max_goals``),
         ``truncated`` (by ``max_cycles``, or by the
-        scene going unstable, when MuJoCo resets its data: then its rewards are 0) and ``unstable``."""
+        scene going unstable, when MuJoCo resets its data: then its rewards are 0), ``unstable``, and ``refined``
+        (the step went unstable and was run again at shorter physics steps, which held: it counts as any step)."""
         chosen = np.where(np.isnan(self.off_until)[:, None], actions, self.rest)
         if self.commands is None:
             self.robot.command(self.robot.mode.to_command(chosen))
@@ -322,6 +328,7 @@ class Matches:
         stable = self.robot.step()
         # a scene that went unstable (MuJoCo reset its data) ends its match: nothing after it counts
         unstable = ~np.asarray(stable, dtype=bool).reshape(self.num_matches, -1).all(axis=1)
+        refined = np.asarray(self.scene.sim.refined, dtype=bool).copy()
         placed = self._place_pending()
         stepped = ~placed
         any_placed = bool(placed.any())
@@ -362,6 +369,7 @@ class Matches:
             "throw_in": thrown,
             "truncated": ((self.cycles >= self.max_cycles) | unstable) & ~ended,
             "unstable": unstable,
+            "refined": refined,
         }
 
     def _throw_in(self, touched: np.ndarray, skip: np.ndarray, readings: dict[str, np.ndarray]) -> np.ndarray:
@@ -465,7 +473,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v6",
+        "name": "skitter_soccer_v7",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,
@@ -564,6 +572,7 @@ class SoccerParallelEnv(ParallelEnv):
                 "fallen": bool(out["fallen"][i]),
                 "reward_goal": float(out["reward"][i]),
                 "sim_unstable": bool(out["unstable"][0]),
+                "sim_refined": bool(out["refined"][0]),
                 "throw_in": bool(out["throw_in"][0]),
                 **{key: float(out[key][i]) for key in ("approach", "ball_progress", "touched", "ball_distance")},
             }
