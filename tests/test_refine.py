@@ -107,9 +107,10 @@ def test_the_batch_runs_again_only_the_simulations_that_diverged(model):
     assert np.array_equal(sims.qpos[1], expected.qpos) and np.array_equal(sims.qvel[1], expected.qvel)
     assert np.array_equal(sims.substep_sensordata[1], record)
     assert np.all(sims.qpos[[0, 2]] == 0.0) and sims.time.tolist() == pytest.approx([SUBSTEPS * 0.01] * 3)
-    # stepping a subset: the others are neither stepped nor run again
+    # stepping a subset: the others are neither stepped nor run again, even one whose state is past the limit
+    sims.qvel[2, 0] = 10 * DIVERGED_SPEED
     assert sims.step(np.array([1])).tolist() == [True, True, True]
-    assert sims.refined.tolist() == [False, True, False]
+    assert sims.refined.tolist() == [False, True, False] and sims.qvel[2, 0] == 10 * DIVERGED_SPEED
     plain = BatchSimulation(model, SUBSTEPS, 3, nthread=1)
     plain.qpos[:, 0] = [0.0, 0.01, 0.0]
     assert plain.step().tolist() == [True, False, True] and plain.refined.tolist() == [False, False, False]

@@ -113,7 +113,8 @@ class BatchSimulation:
 
     def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control blocks of simulations ``ids`` (default all). (num_sims,) bool: False where one went
-        numerically unstable (MuJoCo stopped it; its episode should end); True for those not stepped."""
+        numerically unstable (MuJoCo stopped it; its episode should end) and, with ``refine``, diverged again when
+        run at shorter steps (:attr:`refined` says where that held); True for those not stepped."""
         end = self._time + self._block_time
         start = None
         if self.refine > 1:  # the blocks' starts, to run one again
@@ -129,8 +130,11 @@ class BatchSimulation:
                 self.substep_sensordata[ids] = out["sensordata"]
                 stable[ids] = np.abs(self._time[ids] - end[ids]) < 0.5 * self.model.opt.timestep
         self.refined[:] = False
-        if start is not None:
-            stable &= ~diverged(self.qvel)
+        if start is not None:  # a block stepped that ends with a joint at an impossible speed diverged too
+            if ids is None:
+                stable &= ~diverged(self.qvel)
+            elif len(ids):
+                stable[ids] &= ~diverged(self.qvel[ids])
         if start is not None and not stable.all():
             self._refine(np.flatnonzero(~stable), start, stable)
         return stable

@@ -120,7 +120,9 @@ class Simulation:
 
     def step(self, ids: np.ndarray | None = None) -> np.ndarray:
         """Run the control block in ``ctrl``. Returns, per simulation, whether it stayed numerically stable; an
-        unstable one has been reset by MuJoCo and should end its episode. ``ids``: [0] or empty (step nothing)."""
+        unstable one has been reset by MuJoCo and should end its episode. With ``refine``, a block that diverged is
+        run again at shorter steps first (:attr:`refined` says where that held). ``ids``: [0] or empty (step
+        nothing)."""
         if ids is not None and len(ids) == 0:
             return np.array([True])
         m, d = self.model, self.data
