@@ -3,9 +3,10 @@
 For each robot, ``--matches`` (32) two-a-side matches in the robot's own action mode run as one
 :class:`~agents.soccer.vec_env.SoccerVecEnv` from uniform random actions, for ``--steps`` control steps (1250) from
 each of ``--seeds`` (0 1). A control step whose scene goes unstable (MuJoCo's bad-acceleration warning: it resets
-that scene's data) is run again at physics steps four times shorter; where that holds, the match goes on (counted
-as refined), else it ends, truncated, with nothing of that step counted (docs/soccer.md). The matches that end are
-started again, so that every match plays the whole time. Reported: the scenes lost to instability per hour of match
+that scene's data) or ends with a joint faster than 1,000 rad/s is run again at physics steps 8 times shorter (32
+where those diverge too); where that holds, the match goes on (counted as refined), else it ends, truncated, with
+nothing of that step counted (docs/soccer.md). The matches that end are started again, so that every match plays
+the whole time. Reported: the scenes lost to instability per hour of match
 play, with the exact Poisson 95% interval of that rate, and the steps run again. Goal: none lost.
 
 Random play is the hardest case a learner's first updates meet: players run into each other at every heading. It
@@ -26,6 +27,8 @@ from scipy import stats
 from agents.soccer.vec_env import SoccerVecEnv
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
+from envs.common.simulation import DIVERGED_SPEED, REFINE_AGAIN
+from envs.soccer.match import REFINE_UNSTABLE
 
 CONFIGURATIONS: dict[str, list[str]] = {"soccer_stability": []}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
@@ -76,6 +79,27 @@ def summarize(runs: list[dict]) -> list[dict]:
     return rows
 
 
+def report(rows: list[dict], matches: int, steps: int, seeds: list[int]) -> str:
+    """The benchmark's page: a row per robot, and the verdict."""
+    missed = [r["robot"] for r in rows if r["unstable"]]
+    table = md_table(
+        ["robot", "match time, s", "steps run again at shorter steps (held)", "scenes lost to instability",
+         "lost per hour of match play [95% CI]"],
+        [[r["robot"], f"{r['match_seconds']:.0f}", r["refined"], r["unstable"],
+          f"{r['per_hour']:.1f} [{r['per_hour_ci'][0]:.1f}, {r['per_hour_ci'][1]:.1f}]"] for r in rows],
+    )  # fmt: skip
+    verdict = "goal met: no scene lost to instability" if not missed else "MISSED (goal: none): " + ", ".join(missed)
+    return (
+        "# Soccer stability\n\n"
+        f"{matches} two-a-side matches of each robot in its own action mode, uniform random actions, "
+        f"{steps} control steps from each of seeds {', '.join(map(str, seeds))}; a match that ends is "
+        "started again. A step whose scene diverges (MuJoCo resets it, or a joint ends it faster than "
+        f"{DIVERGED_SPEED:,.0f} rad/s) is run again at physics steps {REFINE_UNSTABLE} times shorter "
+        f"({REFINE_UNSTABLE * REFINE_AGAIN} where those diverge too); where every run diverges, the scene is lost: its "
+        "match ends with nothing of that step counted.\n\n" + table + f"\n{verdict}.\n"
+    )
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--robots", nargs="+", choices=ROBOTS, default=list(ROBOTS))
@@ -96,21 +120,7 @@ def main(argv: list[str] | None = None) -> None:
     runs = [random_play(robot, args.matches, args.steps, seed) for robot in args.robots for seed in args.seeds]
     rows = summarize(runs)
     missed = [r["robot"] for r in rows if r["unstable"]]
-    table = md_table(
-        ["robot", "match time, s", "steps run again at shorter steps (held)", "scenes lost to instability",
-         "lost per hour of match play [95% CI]"],
-        [[r["robot"], f"{r['match_seconds']:.0f}", r["refined"], r["unstable"],
-          f"{r['per_hour']:.1f} [{r['per_hour_ci'][0]:.1f}, {r['per_hour_ci'][1]:.1f}]"] for r in rows],
-    )  # fmt: skip
-    verdict = "goal met: no scene lost to instability" if not missed else "MISSED (goal: none): " + ", ".join(missed)
-    md = (
-        "# Soccer stability\n\n"
-        f"{args.matches} two-a-side matches of each robot in its own action mode, uniform random actions, "
-        f"{args.steps} control steps from each of seeds {', '.join(map(str, args.seeds))}; a match that ends is "
-        "started again. A step whose scene goes unstable (MuJoCo resets it) is run again at physics steps four times "
-        "shorter; where that goes unstable too, the scene is lost: its match ends with nothing of that step "
-        "counted.\n\n" + table + f"\n{verdict}.\n"
-    )
+    md = report(rows, args.matches, args.steps, args.seeds)
     output.save({"runs": runs, "rows": rows, "met": not missed}, md)
 
 
