@@ -150,7 +150,7 @@ class Simulation:
         self.refined[0] = False
         if self.refine > 1 and stable:
             stable = not diverged(d.qvel)
-        if not stable and self.refine > 1 and spec == CTRL_SPEC:
+        if not stable and self.refine > 1 and spec == CTRL_SPEC:  # (a block under applied forces: not again)
             start = mujoco.MjData(m)
             mujoco.mj_setState(m, start, self._start0, STATE_SPEC)
             start.qacc_warmstart[:] = self._warmstart0
@@ -201,7 +201,7 @@ class Simulation:
 def diverged(qvel: np.ndarray) -> np.ndarray | bool:
     """Whether a state's velocities (nv,) or each row of them (n, nv) hold a joint faster than
     :data:`DIVERGED_SPEED`."""
-    return np.abs(qvel).max(axis=-1) > DIVERGED_SPEED
+    return np.abs(qvel).max(axis=-1, initial=0.0) > DIVERGED_SPEED
 
 
 def check_refine(refine: int) -> int:
