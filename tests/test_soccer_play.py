@@ -70,6 +70,8 @@ def test_a_match_that_goes_unstable_is_stopped_there_and_said_so(monkeypatch):
         calls.append(None)
         if len(calls) == 2:  # match 1's scene blows up at the second step
             out["unstable"][1] = True
+        if len(calls) in (1, 3):  # match 0's first and third steps diverged and held at shorter steps
+            out["refined"][0] = True
         if len(calls) == 4:  # a goal in each match afterwards: only match 0's counts
             self.scores[:, 0] += 1
         return out
@@ -83,6 +85,8 @@ def test_a_match_that_goes_unstable_is_stopped_there_and_said_so(monkeypatch):
     args = argparse.Namespace(soccer="roach", players=1, home="random", away="random", match_seconds=0.2, seed=3,
                               matches=2)  # fmt: skip
     assert "1 of 2 matches went numerically unstable" in report(args, result) and "seed 4 at" in report(args, result)
+    assert result["refined_steps"] == [2, 0]
+    assert "2 control steps in 1 match diverged and held" in report(args, result)
 
 
 def test_evaluate_plays_matches_and_writes_one_folder(tmp_path, capsys):

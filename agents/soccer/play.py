@@ -170,10 +170,12 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
     # abandon it: its score stands as it was, and the record says when; nothing after it counts
     stopped = np.full(matches, np.nan)
     final = np.zeros((matches, 2), dtype=np.int64)
+    refined = np.zeros(matches, dtype=np.int64)  # steps that diverged and held when run again at shorter steps
     for cycle in range(engine.max_cycles):
         for team in teams:
             team.act(engine.obs, actions)
         out = engine.step(actions)
+        refined += out["refined"] & np.isnan(stopped)
         new = out["unstable"] & np.isnan(stopped)
         if new.any():
             stopped[new] = (cycle + 1) * engine.dt
@@ -191,7 +193,7 @@ def play(robot: str, players: int, home: str, away: str, matches: int, seed: int
     cut = [{"match": int(m), "seed": seed + int(m), "seconds": float(stopped[m]), "score": scores[m]}
            for m in np.flatnonzero(~played)]  # fmt: skip
     return {"scores": scores, "played_seconds": engine.max_cycles * engine.dt, "stopped_unstable": cut,
-            **statistics(final)}  # fmt: skip
+            "refined_steps": refined.tolist(), **statistics(final)}  # fmt: skip
 
 
 def _renderer(engine: Matches):
@@ -238,8 +240,19 @@ def report(args: argparse.Namespace, result: dict[str, Any]) -> str:
         "the home team's record, 95% Wilson intervals; goal difference home minus away, 95% bootstrap interval.\n\n"
         "| wins | draws | losses | goal difference | goals (home-away) |\n|---|---|---|---|---|\n"
         f"| {' | '.join(row)} | {gd['mean']:+.2f} [{gd['ci_low']:+.2f}, {gd['ci_high']:+.2f}] | "
-        f"{result['goals']['home']}-{result['goals']['away']} |\n" + _stopped_note(args, result["stopped_unstable"])
+        f"{result['goals']['home']}-{result['goals']['away']} |\n"
+        + _stopped_note(args, result["stopped_unstable"])
+        + _refined_note(result.get("refined_steps", []))
     )
+
+
+def _refined_note(refined: list[int]) -> str:
+    """The steps that diverged and were run again at shorter physics steps, where any were (docs/soccer.md)."""
+    steps, matches = sum(refined), sum(1 for r in refined if r)
+    if not steps:
+        return ""
+    return (f"\n{steps} control step{'s' * (steps != 1)} in {matches} match{'es' * (matches != 1)} diverged and "
+            "held when run again at shorter physics steps; those matches went on.\n")  # fmt: skip
 
 
 def _stopped_note(args: argparse.Namespace, stopped: list[dict[str, Any]]) -> str:
