@@ -411,7 +411,9 @@ def test_a_scene_that_goes_unstable_ends_its_match_with_nothing_counted():
 def test_the_xjus_wedge_that_blew_a_scene_up_holds_at_shorter_steps():
     """A control block recorded from random two-a-side xJüs play (seed 0, match 28 of 32, step 426), where a leg
     wedged between two robots throws a joint to 5,000 rad/s within the 2 ms steps: run again from its start at the
-    match's shorter steps, it holds, and a match's scene runs such blocks again by itself."""
+    match's shorter steps, it holds, and a match's scene runs such blocks again by itself. The file holds the
+    block's start (``Batch.state`` row, mjSTATE_INTEGRATION) and controls, taken in ``soccer_stability.random_play``'s
+    play with the scene's ``refine`` set to 1; a change to the xJüs's scene means taking them again."""
     from envs.common.simulation import diverged, refined_block, run_at_shorter_steps
 
     recorded = np.load(Path(__file__).parent / "data" / "xjus_wedge_block.npz")
