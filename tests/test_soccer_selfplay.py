@@ -79,6 +79,27 @@ def test_the_learners_matches_are_the_pettingzoo_matches_against_the_scripted_te
     assert all(info["match"]["score"] == [0, 0] for info in infos)
 
 
+def test_a_match_step_run_again_or_lost_is_said_in_its_first_learners_info(monkeypatch):
+    """What self-play's TensorBoard counts (selfplay/steps_run_again, selfplay/matches_lost_unstable): a match's step
+    that diverged and held at shorter physics steps, or was lost, flagged once, on its first learner's info."""
+    step = match.Matches.step
+
+    def flagged(self, actions):
+        out = step(self, actions)
+        out["refined"][1] = True
+        out["unstable"][0] = True
+        return out
+
+    monkeypatch.setattr(match.Matches, "step", flagged)
+    venv = SelfPlayVecEnv(2, robot="roach", players_per_team=2, action_mode="commands", scripted_share=1.0,
+                          match_seconds=0.3)  # fmt: skip
+    venv.seed(0)
+    venv.reset()
+    _, _, _, infos = venv.step(np.zeros((venv.num_envs, 2)))
+    assert [bool(i.get("sim_refined")) for i in infos] == [False, False, True, False]
+    assert [bool(i.get("sim_unstable")) for i in infos] == [True, False, False, False]
+
+
 def test_train_soccer_runs_self_play_and_evaluate_plays_the_team(tmp_path):
     """A short self-play run: checkpoints, snapshots in pool/, ratings.json, the self-play scalars in TensorBoard;
     then evaluate.py's matches take the trained model as a team, and refuse it for another team size (the Bioloid:

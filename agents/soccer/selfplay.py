@@ -240,6 +240,11 @@ class SelfPlayVecEnv(MatchesVecEnv):
         obs = engine.obs[self.home].copy()
         infos: list[dict[str, Any]] = [{f"reward_{t}": float(v[i]) for t, v in terms.items()}
                                        for i in range(self.num_envs)]  # fmt: skip
+        # a match whose step diverged and held at shorter physics steps, or was lost to it (envs/soccer/match.py),
+        # says so in its first learner's info
+        for key, flags in (("sim_refined", out["refined"]), ("sim_unstable", out["unstable"])):
+            for m in np.flatnonzero(flags):
+                infos[m * self.k][key] = True
         finished = np.flatnonzero(done_match)
         for m in finished:
             home, away = (int(g) for g in engine.scores[m])
@@ -261,7 +266,9 @@ class SelfPlayVecEnv(MatchesVecEnv):
 
 class SelfPlayCallback(BaseCallback):
     """Takes a snapshot of the learner into the pool every ``snapshot_freq`` steps (saved as ``pool/<name>.zip`` in
-    the run folder), logs the matches and the ratings to TensorBoard, and writes ``ratings.json``."""
+    the run folder), logs the matches and the ratings to TensorBoard, and writes ``ratings.json``. Per rollout it
+    also logs the match steps that diverged and held at shorter physics steps (``selfplay/steps_run_again``) and the
+    matches lost to instability (``selfplay/matches_lost_unstable``)."""
 
     def __init__(self, pool: Pool, run_dir: Path, snapshot_freq: int, manifest: dict[str, Any]):
         super().__init__()
@@ -270,11 +277,14 @@ class SelfPlayCallback(BaseCallback):
     def _on_training_start(self) -> None:
         self._last = self.num_timesteps
         self._returns = np.zeros(self.training_env.num_envs)
+        self._refined = self._lost = 0
 
     def _on_step(self) -> bool:
         infos, dones = self.locals["infos"], self.locals["dones"]
         self._returns += self.locals["rewards"]
         for i, (info, done) in enumerate(zip(infos, dones, strict=True)):
+            self._refined += int(info.get("sim_refined", False))
+            self._lost += int(info.get("sim_unstable", False))
             match = info.get("match")
             if match is not None:
                 home, away = match["score"]
@@ -294,6 +304,9 @@ class SelfPlayCallback(BaseCallback):
         if snapshots:
             self.logger.record("selfplay/elo_best_snapshot", max(snapshots))
         self.logger.record("selfplay/pool_size", len(self.pool.drawable))
+        self.logger.record("selfplay/steps_run_again", self._refined)
+        self.logger.record("selfplay/matches_lost_unstable", self._lost)
+        self._refined = self._lost = 0
 
     def _on_training_end(self) -> None:
         self.write_ratings()
