@@ -335,8 +335,10 @@ def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], t
     """A side-by-side video of the task's reference gait and its best row's model, on the first evaluation seed
     (``OUT/videos/<task>/``); made again when the best row changes and its model is in ``OUT/runs/`` (a checkout
     keeps the records, not the runs: there the published video stays)."""
+    if is_soccer(task):  # a soccer row is rated in matches, and has no return to pick a best row by
+        return None
     done = [(rec["mean_return"], row) for row, rec in rows.items() if rec is not None and row.task == task]
-    if not done or is_soccer(task):
+    if not done:
         return None
     _, best = max(done, key=lambda pair: pair[0])
     folder = out / "videos" / task.replace("/", "_")

@@ -912,3 +912,11 @@ def test_a_second_command_waits_for_the_table_and_says_so(tmp_path, monkeypatch,
         assert not taken.is_set(), "the second waits while the first holds the lock"
     waiting.join(timeout=60)
     assert taken.is_set()
+
+
+def test_a_soccer_task_gets_no_video_and_its_row_breaks_nothing(tmp_path):
+    """--videos with a soccer task: its finished row (rated in matches, no mean return) makes no video."""
+    plan = leaderboard.Plan(("soccer/xjus",), ("ppo",), (0,), (("soccer/xjus", 10),), None, 2, 1000, None)
+    row = leaderboard.Row("soccer/xjus", "ppo", 0)
+    assert leaderboard.task_video(plan, "soccer/xjus", tmp_path, {row: {"soccer": True, "elo": 785.0}}, 1) is None
+    assert not (tmp_path / "videos").exists()
