@@ -60,10 +60,8 @@ demo: setup
 LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v4 skitter/RoachScoreEmptyGoal-v3 skitter/RoachScoreVsKeeper-v2 \
 	skitter/XjusGoToBall-v3 skitter/XjusScoreEmptyGoal-v2 skitter/XjusScoreVsKeeper-v1 \
 	skitter/BioloidGoToBall-v4 skitter/BioloidScoreEmptyGoal-v3 skitter/BioloidScoreVsKeeper-v2
-# self-play soccer, one a side, rated against the scripted team (Elo); the xJüs's, the fastest to train, so far
-LEADERBOARD_SOCCER = soccer/xjus
 LEADERBOARD_ALL = skitter/RoachWalk-v3 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v4 \
-	skitter/XjusTurn-v2 skitter/BioloidTurn-v5 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY) $(LEADERBOARD_SOCCER)
+	skitter/XjusTurn-v2 skitter/BioloidTurn-v5 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY)
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
 LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
 	skitter/RoachTurn-v4=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v5=7000000 \
@@ -71,7 +69,7 @@ LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 s
 	skitter/RoachGoToBall-v4=3000000 skitter/RoachScoreEmptyGoal-v3=3000000 skitter/RoachScoreVsKeeper-v2=3000000 \
 	skitter/XjusGoToBall-v3=7000000 skitter/XjusScoreEmptyGoal-v2=7000000 skitter/XjusScoreVsKeeper-v1=7000000 \
 	skitter/BioloidGoToBall-v4=5000000 skitter/BioloidScoreEmptyGoal-v3=5000000 \
-	skitter/BioloidScoreVsKeeper-v2=5000000 soccer/xjus=2000000
+	skitter/BioloidScoreVsKeeper-v2=5000000
 LEADERBOARD_SEEDS ?= 0 1 2
 LEADERBOARD_ALGOS_ALL = ppo ppo+residual
 LEADERBOARD_ALGOS ?= $(LEADERBOARD_ALGOS_ALL)
