@@ -47,7 +47,8 @@ demo: setup
 
 # the leaderboard (agents/leaderboard.py): PPO, plain and as a residual on the reference, on each robot's walk and
 # turn, the xJüs's rough ground and each robot's soccer academy (in the commands mode, against the scripted player),
-# 3 seeds, an hour of 2 cores a row as env steps (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach
+# and each robot's one-a-side self-play (PPO alone, 2M steps, rated against the scripted team), 3 seeds, an hour of
+# 2 cores a row as env steps (PPO's throughput with train.py on a 2-core host, 2026-11-29: roach
 # 1,140, Bioloid 2,100, xJüs 3,000 steps/s; XjusRough 8% slower than XjusWalk, 2026-11-30; PPO on each academy in
 # the commands mode trained at 0.71, 0.72 and 0.73 of its walk's speed over 61,440 steps each, 2026-11-30; but a
 # whole XjusGoToBall-v2 row trains at 1,260 steps/s, 0.42, on one core's worth, so its 7M steps take 95 minutes,
@@ -60,8 +61,10 @@ demo: setup
 LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v4 skitter/RoachScoreEmptyGoal-v3 skitter/RoachScoreVsKeeper-v2 \
 	skitter/XjusGoToBall-v3 skitter/XjusScoreEmptyGoal-v2 skitter/XjusScoreVsKeeper-v1 \
 	skitter/BioloidGoToBall-v4 skitter/BioloidScoreEmptyGoal-v3 skitter/BioloidScoreVsKeeper-v2
+# self-play (one a side, rated against the scripted team) trains with ppo alone: the plan skips its +residual rows
+LEADERBOARD_SOCCER = soccer/roach soccer/xjus soccer/bioloid
 LEADERBOARD_ALL = skitter/RoachWalk-v3 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v4 \
-	skitter/XjusTurn-v2 skitter/BioloidTurn-v5 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY)
+	skitter/XjusTurn-v2 skitter/BioloidTurn-v5 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY) $(LEADERBOARD_SOCCER)
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
 LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
 	skitter/RoachTurn-v4=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v5=7000000 \
@@ -69,7 +72,7 @@ LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 s
 	skitter/RoachGoToBall-v4=3000000 skitter/RoachScoreEmptyGoal-v3=3000000 skitter/RoachScoreVsKeeper-v2=3000000 \
 	skitter/XjusGoToBall-v3=7000000 skitter/XjusScoreEmptyGoal-v2=7000000 skitter/XjusScoreVsKeeper-v1=7000000 \
 	skitter/BioloidGoToBall-v4=5000000 skitter/BioloidScoreEmptyGoal-v3=5000000 \
-	skitter/BioloidScoreVsKeeper-v2=5000000
+	skitter/BioloidScoreVsKeeper-v2=5000000 soccer/roach=2000000 soccer/xjus=2000000 soccer/bioloid=2000000
 LEADERBOARD_SEEDS ?= 0 1 2
 LEADERBOARD_ALGOS_ALL = ppo ppo+residual
 LEADERBOARD_ALGOS ?= $(LEADERBOARD_ALGOS_ALL)
@@ -79,7 +82,8 @@ leaderboard: setup
 	$(BIN)/python -m agents.leaderboard --tasks $(LEADERBOARD_TASKS) --seeds $(LEADERBOARD_SEEDS) \
 		--algos $(LEADERBOARD_ALGOS) $(LEADERBOARD_PLAN) --videos
 	$(MAKE) leaderboard-table
-# docs/results.md: the table of the whole plan (every robot's walk, turn and academy, the rough ground, seeds 0-2),
+# docs/results.md: the table of the whole plan (every robot's walk, turn, academy and self-play, the
+# rough ground, seeds 0-2),
 # from the rows done so far, even after a run of fewer tasks or seeds (LEADERBOARD_TASKS=..., LEADERBOARD_SEEDS=...);
 # trains nothing but the tasks' reference and random baselines
 leaderboard-table: setup

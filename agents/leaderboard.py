@@ -70,6 +70,7 @@ CURVE_TAG = "rollout/ep_rew_mean"  # SB3's mean training-episode return (the raw
 BOOTSTRAP_REPS = 2000
 CHILD_GRACE = 120.0  # s a stopped train.py or evaluate.py may take to save its checkpoint and end
 SOCCER = "soccer/"  # a task ``soccer/<robot>``: self-play (train.py --soccer), one a side, rated against the script
+SELFPLAY_ALGOS = ("ppo",)  # what self-play trains a soccer task with (a plan's other algorithms skip its soccer tasks)
 SOCCER_PLAYERS = 1
 SCRIPTED_ELO = 1000.0  # the scripted team: the anchor of every rating (agents/soccer/selfplay.py)
 
@@ -173,7 +174,12 @@ class Plan:
 
     @property
     def rows(self) -> list[Row]:
-        return [Row(t, a, s) for t in self.tasks for a in self.algos for s in self.seeds]
+        return [Row(t, a, s) for t in self.tasks for a in self.algos_of(t) for s in self.seeds]
+
+    def algos_of(self, task: str) -> tuple[str, ...]:
+        """The plan's algorithms that train ``task``: all of them on a gym task; on a soccer task those self-play
+        trains (:data:`SELFPLAY_ALGOS`), so that one plan holds the gym tasks' residual rows and the soccer rows."""
+        return tuple(a for a in self.algos if a in SELFPLAY_ALGOS) if is_soccer(task) else self.algos
 
     def steps(self, task: str) -> int:
         """The env steps a row of ``task`` trains."""
@@ -1201,8 +1207,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         if is_soccer(task):
             if task.removeprefix(SOCCER) not in SOCCER_ROBOTS:
                 parser.error(f"--tasks {task!r}: soccer/ROBOT takes one of {', '.join(SOCCER_ROBOTS)}")
-            if any(a != "ppo" for a in args.algos):
-                parser.error(f"--tasks {task!r}: self-play trains with ppo alone, not {', '.join(args.algos)}")
+            if not any(a in SELFPLAY_ALGOS for a in args.algos):
+                parser.error(f"--tasks {task!r}: self-play trains with {' or '.join(SELFPLAY_ALGOS)} alone, and "
+                             f"--algos has none of it ({', '.join(args.algos)}); the plan's other algorithms train "
+                             "its gym tasks only")  # fmt: skip
         elif task not in gym.registry:
             parser.error(f"--tasks: unknown env {task!r} (an env id, or soccer/ROBOT)")
     args.timesteps = _task_budgets(

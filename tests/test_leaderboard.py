@@ -623,11 +623,22 @@ def test_soccer_tasks_are_checked_before_anything_runs(tmp_path, capsys):
     for argv, message in (
         (["--tasks", "soccer/nope", "--timesteps", "10"], "soccer/ROBOT takes one of"),
         (["--tasks", "soccer/roach", "--algos", "sac", "--timesteps", "10"], "self-play trains with ppo alone"),
+        (["--tasks", "soccer/roach", WALK, "--algos", "ppo+residual", "--timesteps", "10"], "has none of it"),
     ):
         with pytest.raises(SystemExit) as exited:
             leaderboard.main([*argv, "--out", str(tmp_path / "b")])
         assert exited.value.code == 2 and message in capsys.readouterr().err
     assert leaderboard.parse_args(["--tasks", "soccer/xjus", WALK, "--timesteps", "10"]).tasks[0] == "soccer/xjus"
+
+
+def test_one_plan_holds_the_gym_tasks_residual_rows_and_the_soccer_rows():
+    args = leaderboard.parse_args(["--tasks", WALK, "soccer/xjus", "--algos", "ppo", "ppo+residual", "--seeds", "0",
+                                   "1", "--timesteps", "10"])  # fmt: skip
+    plan = leaderboard.Plan(tuple(args.tasks), tuple(args.algos), tuple(args.seeds), args.timesteps, None, 2, 1000,
+                            None)  # fmt: skip
+    soccer = [r for r in plan.rows if r.task == "soccer/xjus"]
+    assert [r.algo for r in soccer] == ["ppo", "ppo"] and [r.seed for r in soccer] == [0, 1]
+    assert {r.algo for r in plan.rows if r.task == WALK} == {"ppo", "ppo+residual"} and len(plan.rows) == 6
 
 
 @pytest.mark.slow  # a minute or more: a self-play run, the scripted team's matches and the row's
