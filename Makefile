@@ -41,8 +41,8 @@ test-slow: setup
 	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m slow
 
 demo: setup
-	$(BIN)/python train.py --env skitter/RoachWalk-v3 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
-	$(BIN)/python evaluate.py --env skitter/RoachWalk-v3 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
+	$(BIN)/python train.py --env skitter/RoachWalk-v4 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
+	$(BIN)/python evaluate.py --env skitter/RoachWalk-v4 --policy tripod --policy runs/$(DEMO_ID)/model.zip \
 		--episodes $(DEMO_EPISODES) --seed 1000 --out results/$(DEMO_ID)
 
 # the leaderboard (agents/leaderboard.py): PPO, plain and as a residual on the reference, on each robot's walk and
@@ -58,18 +58,18 @@ demo: setup
 # LEADERBOARD_TASKS, LEADERBOARD_SEEDS and LEADERBOARD_ALGOS pick rows; works in results/leaderboard/, keeps the
 # finished rows' records in docs/results/records/ (commit them: a fresh checkout then skips those rows) and writes
 # docs/results.md
-LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v4 skitter/RoachScoreEmptyGoal-v3 skitter/RoachScoreVsKeeper-v2 \
+LEADERBOARD_ACADEMY = skitter/RoachGoToBall-v5 skitter/RoachScoreEmptyGoal-v4 skitter/RoachScoreVsKeeper-v3 \
 	skitter/XjusGoToBall-v3 skitter/XjusScoreEmptyGoal-v2 skitter/XjusScoreVsKeeper-v1 \
 	skitter/BioloidGoToBall-v4 skitter/BioloidScoreEmptyGoal-v3 skitter/BioloidScoreVsKeeper-v2
 # self-play (one a side, rated against the scripted team) trains with ppo alone: the plan skips its +residual rows
 LEADERBOARD_SOCCER = soccer/roach soccer/xjus soccer/bioloid
-LEADERBOARD_ALL = skitter/RoachWalk-v3 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v4 \
+LEADERBOARD_ALL = skitter/RoachWalk-v4 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 skitter/RoachTurn-v5 \
 	skitter/XjusTurn-v2 skitter/BioloidTurn-v5 skitter/XjusRough-v1 $(LEADERBOARD_ACADEMY) $(LEADERBOARD_SOCCER)
 LEADERBOARD_TASKS ?= $(LEADERBOARD_ALL)
-LEADERBOARD_STEPS ?= skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
-	skitter/RoachTurn-v4=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v5=7000000 \
+LEADERBOARD_STEPS ?= skitter/RoachWalk-v4=4000000 skitter/XjusWalk-v1=10000000 skitter/BioloidWalk-v2=7000000 \
+	skitter/RoachTurn-v5=4000000 skitter/XjusTurn-v2=10000000 skitter/BioloidTurn-v5=7000000 \
 	skitter/XjusRough-v1=9000000 \
-	skitter/RoachGoToBall-v4=3000000 skitter/RoachScoreEmptyGoal-v3=3000000 skitter/RoachScoreVsKeeper-v2=3000000 \
+	skitter/RoachGoToBall-v5=3000000 skitter/RoachScoreEmptyGoal-v4=3000000 skitter/RoachScoreVsKeeper-v3=3000000 \
 	skitter/XjusGoToBall-v3=7000000 skitter/XjusScoreEmptyGoal-v2=7000000 skitter/XjusScoreVsKeeper-v1=7000000 \
 	skitter/BioloidGoToBall-v4=5000000 skitter/BioloidScoreEmptyGoal-v3=5000000 \
 	skitter/BioloidScoreVsKeeper-v2=5000000 soccer/roach=2000000 soccer/xjus=2000000 soccer/bioloid=2000000

@@ -1,7 +1,7 @@
 """Evaluate policies (scripted gaits and trained models) on the same episode seeds, with honest statistics: the code
 of the ``evaluate.py`` command.
 
-    python evaluate.py --env skitter/RoachWalk-v3 --policy tripod --policy runs/.../model.zip \
+    python evaluate.py --env skitter/RoachWalk-v4 --policy tripod --policy runs/.../model.zip \
         --episodes 10 --seed 0 --out results/walk [--video] [--telemetry]
 
 With ``--soccer ROBOT`` it plays matches between two teams' policies instead (agents/soccer/play.py).
@@ -66,7 +66,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = ToolParser(prog="evaluate.py", description="Compare policies on the same seeds.",
                    epilog="With --soccer ROBOT, evaluate.py plays matches between two teams' policies instead: "
                    "evaluate.py --soccer ROBOT --help lists that mode's options.")  # fmt: skip
-    p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v3")
+    p.add_argument("--env", required=True, help="env id, e.g. skitter/RoachWalk-v4")
     p.add_argument(
         "--policy", action="append", required=True, help=f"scripted gait ({describe_policies()}) or a model.zip; repeat"
     )

@@ -1,7 +1,7 @@
 """The leaderboard: learning on every task against its reference, in one command that anyone can rerun.
 
-    python -m agents.leaderboard --tasks skitter/RoachWalk-v3 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
-        --algos ppo --seeds 0 1 2 --timesteps skitter/RoachWalk-v3=4000000 skitter/XjusWalk-v1=10000000 \\
+    python -m agents.leaderboard --tasks skitter/RoachWalk-v4 skitter/XjusWalk-v1 skitter/BioloidWalk-v2 \\
+        --algos ppo --seeds 0 1 2 --timesteps skitter/RoachWalk-v4=4000000 skitter/XjusWalk-v1=10000000 \\
         skitter/BioloidWalk-v2=7000000 --out results/leaderboard --records docs/results/records \\
         --docs docs/results.md
 

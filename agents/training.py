@@ -1,7 +1,7 @@
 """Train a Stable-Baselines3 agent (PPO, SAC or TD3) on a skitter environment: the code of the ``train.py`` command.
 
-    python train.py --env skitter/RoachWalk-v3 --algo ppo --timesteps 500000 --seed 0
-    python train.py --resume runs/skitter_RoachWalk-v3__ppo__0__20250101-120000 --timesteps 1000000
+    python train.py --env skitter/RoachWalk-v4 --algo ppo --timesteps 500000 --seed 0
+    python train.py --resume runs/skitter_RoachWalk-v4__ppo__0__20250101-120000 --timesteps 1000000
     tensorboard --logdir runs
 
 Hyperparameters come from ``hyperparams/<algo>.yml`` (RL Baselines3 Zoo style: one entry per env id, YAML anchors
@@ -1414,7 +1414,7 @@ def _seed(text: str) -> int:
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = ToolParser(prog="train.py", description="Train an SB3 agent on a skitter env (see the module docstring).")
-    parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v3")
+    parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v4")
     parser.add_argument("--algo", choices=sorted(ALGOS), help="algorithm")
     parser.add_argument("--timesteps", type=_positive_int, help="total env steps (with --resume: default the run's)")
     parser.add_argument("--seed", type=_seed, help="random seed, >= 0 (default 0)")

@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> None:
     output = resolve_output(parser, args, "realtime", CONFIGURATIONS)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     policy = load_policy("tripod:45", env)
     rtfs, speeds = [], []
     for seed in range(args.episodes):
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> None:
         ["[roach-sim] V-REP model", 0.1, ""],
     ]
     text = (
-        "# Real-time factor, RoachWalk-v3, tripod at 45 Hz, one core\n\n"
+        "# Real-time factor, RoachWalk-v4, tripod at 45 Hz, one core\n\n"
         + md_table(["what", "real-time factor (x)", "goal >= 10x"], rows)
         + f"\nMean forward speed in these episodes: {np.mean(speeds):.2f} m/s.\n"
     )

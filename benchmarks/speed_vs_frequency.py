@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     output = resolve_output(parser, args, "speed_vs_frequency", CONFIGURATIONS, files=FILES)
     freqs = np.arange(5.0, 46.0, 5.0)
-    env = gym.make("skitter/RoachWalk-v3", episode_seconds=args.seconds)
+    env = gym.make("skitter/RoachWalk-v4", episode_seconds=args.seconds)
     layout = TripodContext.from_env(env)
     results = {}
     for f in freqs:
@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> None:
     ]
     top = results[45.0]
     text = (
-        "# Tripod speed against stride frequency (RoachWalk-v3, gait mode)\n\n"
+        "# Tripod speed against stride frequency (RoachWalk-v4, gait mode)\n\n"
         f"{args.seeds} seeds x {args.seconds:g} s per frequency, first {WARMUP:g} s left out. Real robot: "
         f"{constants.TOP_SPEED} m/s at up to {constants.MAX_STRIDE_FREQUENCY:g} Hz (ICRA 2013); model at 45 Hz: "
         f"{np.nanmean([r['speed'] for r in top]):.2f} m/s. Falls: episodes that tipped over (speed and other columns "

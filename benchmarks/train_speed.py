@@ -37,7 +37,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"train_speed": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--env", default="skitter/RoachWalk-v3")
+    parser.add_argument("--env", default="skitter/RoachWalk-v4")
     parser.add_argument("--steps", type=int, default=40960)
     parser.add_argument("--n-envs", type=int, nargs="+", default=[4, 16])
     add_output_options(parser)

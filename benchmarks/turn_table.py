@@ -43,7 +43,7 @@ def yaw_rate(env, policy: TripodGait, seed: int) -> float:
 def fingerprint() -> list[float]:
     """The body's pose after a short turning run: it changes when the model or the firmware changes, so a table
     measured on another model or firmware shows itself (tests/test_tripod.py)."""
-    env = gym.make("skitter/RoachWalk-v3", sensor_noise=False, max_episode_steps=25)
+    env = gym.make("skitter/RoachWalk-v4", sensor_noise=False, max_episode_steps=25)
     policy = TripodGait(TripodContext.from_env(env), frequency=10.0, phase=np.radians(160.0))
     obs, info = env.reset(seed=0)
     for _ in range(25):
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.table_frequency not in args.frequencies:
         parser.error(f"--table-frequency {args.table_frequency:g} must be one of --frequencies {args.frequencies}")
     output = resolve_output(parser, args, "turn_table", CONFIGURATIONS, files=FILES)
-    env = gym.make("skitter/RoachWalk-v3", episode_seconds=args.seconds)
+    env = gym.make("skitter/RoachWalk-v4", episode_seconds=args.seconds)
     layout = TripodContext.from_env(env)
     curves = {}
     for f in args.frequencies:

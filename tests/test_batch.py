@@ -64,7 +64,7 @@ def test_n_single_envs_and_one_batched_env_of_n_give_identical_results_across_re
 
 
 def test_vector_info_carries_every_step_key_with_masks():
-    venv = make_batched("skitter/RoachTurn-v4", max_episode_steps=5)
+    venv = make_batched("skitter/RoachTurn-v5", max_episode_steps=5)
     venv.reset(seed=0)
     for _ in range(5):
         *_, info = venv.step(venv.action_space.sample())
@@ -88,7 +88,7 @@ def test_gymnasium_vector_checks_and_spaces(env_id=ENV_IDS[0]):
 
 
 def test_reset_mask_resets_only_the_chosen_simulations():
-    venv = make_batched("skitter/RoachWalk-v3")
+    venv = make_batched("skitter/RoachWalk-v4")
     venv.reset(seed=0)
     for _ in range(10):
         before, *_ = venv.step(venv.action_space.sample())
@@ -100,7 +100,7 @@ def test_reset_mask_resets_only_the_chosen_simulations():
 
 
 def test_an_unstable_simulation_ends_its_own_episode_and_the_others_go_on():
-    venv = make_batched("skitter/RoachWalk-v3")
+    venv = make_batched("skitter/RoachWalk-v4")
     venv.reset(seed=0)
     action = np.zeros((N, 3), dtype=np.float32)
     *_, good = venv.step(action)
@@ -117,7 +117,7 @@ def test_an_unstable_simulation_ends_its_own_episode_and_the_others_go_on():
 
 
 def test_randomize_draws_per_simulation_through_the_batch_model_fields():
-    venv = make_batched("skitter/RoachWalk-v3", randomize={"foot_friction": (0.3, 0.5)})
+    venv = make_batched("skitter/RoachWalk-v4", randomize={"foot_friction": (0.3, 0.5)})
     venv.reset(seed=0)
     drawn = [p["foot_friction"] for p in venv.unwrapped.parameter_values]
     assert len(set(drawn)) == N
@@ -127,7 +127,7 @@ def test_randomize_draws_per_simulation_through_the_batch_model_fields():
 
 
 def test_batched_motor_constants_follow_randomized_parameters():
-    venv = make_batched("skitter/RoachWalk-v3", randomize={"motor_resistance": (2.0, 6.0)})
+    venv = make_batched("skitter/RoachWalk-v4", randomize={"motor_resistance": (2.0, 6.0)})
     venv.reset(seed=0)
     robot = venv.unwrapped.robot
     drawn = [p["motor_resistance"] for p in venv.unwrapped.parameter_values]
@@ -135,7 +135,7 @@ def test_batched_motor_constants_follow_randomized_parameters():
 
 
 def test_seeding_per_simulation():
-    venv = make_batched("skitter/RoachWalk-v3")
+    venv = make_batched("skitter/RoachWalk-v4")
     a, _ = venv.reset(seed=[5, 6, 7])
     b, _ = venv.reset(seed=5)
     np.testing.assert_array_equal(a, b)
@@ -144,7 +144,7 @@ def test_seeding_per_simulation():
 
 
 def test_telemetry_per_simulation_and_render_one():
-    venv = make_batched("skitter/RoachWalk-v3", telemetry=True, render_mode="rgb_array", render_sim=2, width=160,
+    venv = make_batched("skitter/RoachWalk-v4", telemetry=True, render_mode="rgb_array", render_sim=2, width=160,
                         height=120)  # fmt: skip
     venv.reset(seed=0)
     for _ in range(5):
@@ -160,7 +160,7 @@ def test_telemetry_per_simulation_and_render_one():
 def test_pickling_gives_a_clear_error():
     import pickle
 
-    venv = make_batched("skitter/RoachWalk-v3")
+    venv = make_batched("skitter/RoachWalk-v4")
     with pytest.raises(TypeError, match="cannot be pickled"):
         pickle.dumps(venv.unwrapped)
 
@@ -176,20 +176,20 @@ def test_pickling_gives_a_clear_error():
 )
 def test_bad_batch_arguments_are_refused_by_name(bad, needle):
     with pytest.raises(ValueError, match=needle):
-        gym.make_vec("skitter/RoachWalk-v3", vectorization_mode="vector_entry_point", **bad)
+        gym.make_vec("skitter/RoachWalk-v4", vectorization_mode="vector_entry_point", **bad)
 
 
 def test_threads_default_to_the_machines_cores():
     import os
 
-    venv = make_batched("skitter/RoachWalk-v3")
+    venv = make_batched("skitter/RoachWalk-v4")
     assert venv.unwrapped.robot.sim.nthread == len(os.sched_getaffinity(0))
 
 
 def test_gymnasium_vector_wrappers_work_on_it():
     from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 
-    venv = DictInfoToList(RecordEpisodeStatistics(make_batched("skitter/RoachWalk-v3", max_episode_steps=4)))
+    venv = DictInfoToList(RecordEpisodeStatistics(make_batched("skitter/RoachWalk-v4", max_episode_steps=4)))
     venv.reset(seed=0)
     for _ in range(4):
         *_, infos = venv.step(venv.action_space.sample())
@@ -216,7 +216,7 @@ def test_sb3_vec_env_trains_ppo_on_every_id(env_id):
 def test_sb3_vec_env_resets_finished_envs_in_the_same_step():
     from agents.vec_env import SkitterVecEnv
 
-    vec = SkitterVecEnv(make_batched("skitter/RoachWalk-v3", n=2, max_episode_steps=3))
+    vec = SkitterVecEnv(make_batched("skitter/RoachWalk-v4", n=2, max_episode_steps=3))
     vec.seed(4)
     obs = vec.reset()
     for _ in range(3):
@@ -225,7 +225,7 @@ def test_sb3_vec_env_resets_finished_envs_in_the_same_step():
     for i, info in enumerate(infos):
         assert info["TimeLimit.truncated"] and "distance" in info
         assert not np.array_equal(info["terminal_observation"], obs[i]), "the returned observation starts anew"
-    single = gym.make("skitter/RoachWalk-v3", max_episode_steps=3)
+    single = gym.make("skitter/RoachWalk-v4", max_episode_steps=3)
     single.reset(seed=4)
     for _ in range(3):
         single.step(np.zeros(3, dtype=np.float32))
@@ -233,7 +233,7 @@ def test_sb3_vec_env_resets_finished_envs_in_the_same_step():
     np.testing.assert_array_equal(again, obs[0])
 
 
-@pytest.mark.parametrize("env_id", ["skitter/RoachTurn-v4", "skitter/RoachWalkDuty-v2"])
+@pytest.mark.parametrize("env_id", ["skitter/RoachTurn-v5", "skitter/RoachWalkDuty-v3"])
 def test_episodes_run_together_match_episodes_run_one_by_one(env_id):
     """evaluate.py runs a policy's episodes as one batch: the metrics equal those of single envs, seed by seed."""
     from agents import load_policy

@@ -57,8 +57,8 @@ def _write(path, effects=EFFECTS, robot="velociroach", **extra):
 def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json")
     before = path.read_bytes()
-    nominal = gym.make("skitter/RoachWalk-v3").unwrapped.robot
-    robot = gym.make("skitter/RoachWalk-v3", calibration=str(path)).unwrapped.robot
+    nominal = gym.make("skitter/RoachWalk-v4").unwrapped.robot
+    robot = gym.make("skitter/RoachWalk-v4", calibration=str(path)).unwrapped.robot
     m0, m = nominal.model, robot.model
     left = m.joint(constants.CRANK_JOINTS["left"]).dofadr[0]
     right = m.joint(constants.CRANK_JOINTS["right"]).dofadr[0]
@@ -77,7 +77,7 @@ def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     assert robot.model_hash != nominal.model_hash and robot.metadata()["calibration"] == str(path)
     # nothing written to the file; a new nominal env is still nominal
     assert path.read_bytes() == before
-    again = gym.make("skitter/RoachWalk-v3").unwrapped.robot.model
+    again = gym.make("skitter/RoachWalk-v4").unwrapped.robot.model
     assert again.dof_frictionloss[left] == m0.dof_frictionloss[left] and again.actuator_delay[a_left] == 0
 
 
@@ -135,7 +135,7 @@ def test_calibrated_bioloid_adds_its_effects_and_leaves_the_nominal_model(tmp_pa
 # seed and steps, and the info entry the effects move, by at least how much
 MOTIONS = {
     # the right side is stronger: it turns
-    "velociroach": ("skitter/RoachWalk-v3", EFFECTS, np.array([0.5, 0.5, 0.0], dtype=np.float32), 3, 50, "yaw", 0.05),
+    "velociroach": ("skitter/RoachWalk-v4", EFFECTS, np.array([0.5, 0.5, 0.0], dtype=np.float32), 3, 50, "yaw", 0.05),
     "xjus": ("skitter/XjusWalk-v1", XJUS_EFFECTS, np.array([0.0, 0.3, 0.3]), 5, 60, "x_position", 1e-3),
     # a softer servo under a heavier body sags
     "bioloid": ("skitter/BioloidWalk-v2", BIOLOID_EFFECTS, None, 5, 50, "z_position", 1e-4),
@@ -165,14 +165,14 @@ def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
 @pytest.mark.parametrize(
     "env_id, robot, change, needles",
     [
-        ("skitter/RoachWalk-v3", "velociroach", {"robot": "servo"}, ["'robot'"]),
-        ("skitter/RoachWalk-v3", "velociroach", {"effects": {"warp_drive": {"level": 1.0}}}, ["'effects.warp_drive'"]),
-        ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
-        ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
-        ("skitter/RoachWalk-v3", "velociroach", {"version": 7}, ["'version'"]),
-        ("skitter/RoachWalk-v3", "velociroach", {"effects": {"delay": {"seconds": {"ci95": 0.01}}}},
+        ("skitter/RoachWalk-v4", "velociroach", {"robot": "servo"}, ["'robot'"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"effects": {"warp_drive": {"level": 1.0}}}, ["'effects.warp_drive'"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"effects": {"delay": {"seconds": 5.0}}}, ["'effects.delay.seconds'"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"effects": {"delay": {"minutes": 0.0}}}, ["'effects.delay.minutes'"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"version": 7}, ["'version'"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"effects": {"delay": {"seconds": {"ci95": 0.01}}}},
          ["'effects.delay.seconds': no 'value'"]),
-        ("skitter/RoachWalk-v3", "velociroach", {"version": "1"}, ["'version': '1' (a string, not a number)"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"version": "1"}, ["'version': '1' (a string, not a number)"]),
         ("skitter/XjusWalk-v1", "xjus", {"effects": {"viscous_friction_left": {"damping": 5.0}}},
          ["viscous_friction_left.damping", "outside its range"]),
         ("skitter/BioloidWalk-v2", "bioloid", {"effects": {"servo_gain": {"scale": 9.0}}},
@@ -199,15 +199,15 @@ def test_a_calibration_file_may_name_the_roach_as_calibrate_py_does(tmp_path):
 
 def test_a_calibration_that_is_not_a_file_is_refused():
     with pytest.raises(ValueError, match="calibration must be the path of a calibration file, got 3"):
-        gym.make("skitter/RoachWalk-v3", calibration=3)
+        gym.make("skitter/RoachWalk-v4", calibration=3)
     with pytest.raises(ValueError, match="no such calibration file"):
-        gym.make("skitter/RoachWalk-v3", calibration="nowhere.json")
+        gym.make("skitter/RoachWalk-v4", calibration="nowhere.json")
 
 
 def test_evaluate_refuses_a_bad_calibration_before_writing(tmp_path, capsys):
     bad = _write(tmp_path / "bad.json", robot="motor", effects={"viscous_friction": {"damping": 1e-4}})
     out = tmp_path / "results"
-    argv = ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out", str(out),
+    argv = ["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "1", "--out", str(out),
             "--max-episode-steps", "5", "--calibration", str(bad)]  # fmt: skip
     assert evaluate.main(argv) == 2
     err = capsys.readouterr().err
@@ -223,7 +223,7 @@ def test_evaluate_runs_the_calibrated_model(tmp_path):
     runs = {}
     for name, extra in (("nominal", []), ("calibrated", ["--calibration", str(path)])):
         out = tmp_path / name
-        argv = ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "2", "--out", str(out),
+        argv = ["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "2", "--out", str(out),
                 "--max-episode-steps", "100", *extra]  # fmt: skip
         assert evaluate.main(argv) == 0
         runs[name] = json.loads((out / "results.json").read_text())
@@ -262,7 +262,7 @@ def test_a_calibrated_roach_keeps_its_sides_and_its_firmware_law_under_drawn_par
     from envs.actuators.dcmotor import GAIN_KD, GAIN_KI, GAIN_R
     from envs.velociroach.robot import FIRMWARE_PID
 
-    robot = gym.make("skitter/RoachWalk-v3", calibration=str(_write(tmp_path / "cal.json"))).unwrapped.robot
+    robot = gym.make("skitter/RoachWalk-v4", calibration=str(_write(tmp_path / "cal.json"))).unwrapped.robot
     m = robot.model
     left, right = (m.actuator(constants.MOTORS[s]).id for s in ("left", "right"))
     k0 = float(m.actuator_gainprm[left, GAIN_K])

@@ -369,7 +369,7 @@ def test_the_motors_torque_constant_below_nominal_is_one_effect_with_a_rotor_ine
 
 def _evaluate(tmp_path, name: str, calibration: str | None) -> dict[str, float]:
     out = tmp_path / name
-    argv = ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "2", "--out", str(out),
+    argv = ["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "2", "--out", str(out),
             "--max-episode-steps", "150", *(["--calibration", calibration] if calibration else [])]  # fmt: skip
     assert evaluate.main(argv) == 0
     summary = json.loads((out / "results.json").read_text())["policies"]["tripod"]["summary"]

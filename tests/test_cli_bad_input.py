@@ -279,7 +279,7 @@ def test_evaluate_overwrite_keeps_a_users_images_where_no_earlier_run_was(tmp_pa
     out = tmp_path / "out"
     (out / "plots").mkdir(parents=True)
     (out / "plots" / "my_figure.png").write_bytes(b"a user's figure")
-    base = ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--out", str(out)]
+    base = ["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--out", str(out)]
     for extra in ([], ["--overwrite"]):
         with pytest.raises(SystemExit) as exit_:
             evaluate.parse_args([*base, *extra])
@@ -293,7 +293,7 @@ def test_evaluate_overwrite_keeps_a_users_images_where_no_earlier_run_was(tmp_pa
 def test_the_current_folder_is_refused_as_out(tmp_path, monkeypatch, capsys, out):
     monkeypatch.chdir(tmp_path)
     for parse in (
-        lambda: evaluate.parse_args(["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--out", out]),
+        lambda: evaluate.parse_args(["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--out", out]),
         lambda: calibrate.parse_args(["--robot", "motor", "--train", "a.csv", "--test", "b.csv", "--out", out]),
     ):
         with pytest.raises(SystemExit) as exit_:

@@ -17,10 +17,10 @@ N_STEPS = 60
 
 def test_registry_has_walk_and_turn_in_both_action_modes():
     assert {
-        "skitter/RoachWalk-v3",
-        "skitter/RoachTurn-v4",
-        "skitter/RoachWalkDuty-v2",
-        "skitter/RoachTurnDuty-v3",
+        "skitter/RoachWalk-v4",
+        "skitter/RoachTurn-v5",
+        "skitter/RoachWalkDuty-v3",
+        "skitter/RoachTurnDuty-v4",
     } <= set(ENV_IDS)
 
 
@@ -110,7 +110,7 @@ def test_non_finite_actions_raise(env_id, bad):
 
 
 def test_wrong_action_shape_raises():
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
         env.step(np.zeros(5))
@@ -145,10 +145,10 @@ def test_unstable_simulation_ends_the_episode_with_finite_observations(env_id):
 
 
 def test_world_pose_is_in_info_not_in_the_observation():
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     obs, info = env.reset(seed=0)
     assert obs.shape == (21,)
-    priv = gym.make("skitter/RoachWalk-v3", privileged_obs=True)
+    priv = gym.make("skitter/RoachWalk-v4", privileged_obs=True)
     obs_p, _ = priv.reset(seed=0)
     assert obs_p.shape == (28,)
     np.testing.assert_array_equal(obs_p[:21], obs)
@@ -184,7 +184,7 @@ def test_env_exposes_model_and_data_like_mujoco_env(env_id):
 
 def test_heading_error_follows_the_gyro_and_drifts_with_its_bias():
     """The observed heading error tracks the true yaw within the drift the gyro's bias allows."""
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     obs, _ = env.reset(seed=5)
     layout = env.unwrapped.task.layout
     action = env.unwrapped.robot.mode.to_action([10.0, 10.0, 2.8])  # a turning gait
@@ -196,7 +196,7 @@ def test_heading_error_follows_the_gyro_and_drifts_with_its_bias():
     assert abs(info["yaw"]) > 0.3, "the gait turned"
     # the firmware integrates the body's z rate, not the world's yaw rate: a few percent apart while the body rocks
     assert abs(estimate - info["yaw"]) < abs(bias) * info["time"] + 0.05 * abs(info["yaw"])
-    perfect = gym.make("skitter/RoachWalk-v3", sensor_noise=False)
+    perfect = gym.make("skitter/RoachWalk-v4", sensor_noise=False)
     obs, _ = perfect.reset(seed=5)
     for _ in range(200):
         obs, _, _, _, info = perfect.step(action)
@@ -205,7 +205,7 @@ def test_heading_error_follows_the_gyro_and_drifts_with_its_bias():
 
 
 def test_gait_commands_are_bounded_to_the_real_robots_strides():
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     mode = env.unwrapped.robot.mode
     low = mode.to_command(-np.ones(3))
     high = mode.to_command(np.ones(3))
@@ -214,7 +214,7 @@ def test_gait_commands_are_bounded_to_the_real_robots_strides():
 
 
 def test_randomize_draws_parameters_at_every_reset_and_is_checked():
-    env = gym.make("skitter/RoachWalk-v3", randomize={"foot_friction": (0.3, 0.5), "battery_voltage": (3.4, 3.9)})
+    env = gym.make("skitter/RoachWalk-v4", randomize={"foot_friction": (0.3, 0.5), "battery_voltage": (3.4, 3.9)})
     base = env.unwrapped
     drawn = []
     for seed in range(3):
@@ -227,7 +227,7 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
     assert len({d["foot_friction"] for d in drawn}) == 3
     env.reset(seed=1)
     assert base.parameter_values == drawn[1], "same seed, same draw"
-    off = gym.make("skitter/RoachWalk-v3")
+    off = gym.make("skitter/RoachWalk-v4")
     off.reset(seed=0)
     assert off.unwrapped.parameter_values == {}
     for bad, message in [
@@ -237,7 +237,7 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
         ({"foot_friction": "rough"}, "pair of numbers"),
     ]:
         with pytest.raises(ValueError, match=message):
-            gym.make("skitter/RoachWalk-v3", randomize=bad)
+            gym.make("skitter/RoachWalk-v4", randomize=bad)
 
 
 @pytest.mark.parametrize(
@@ -264,11 +264,11 @@ def test_randomize_draws_parameters_at_every_reset_and_is_checked():
 )
 def test_nonsense_constructor_arguments_are_refused_at_once(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        gym.make("skitter/RoachWalk-v3", **kwargs)
+        gym.make("skitter/RoachWalk-v4", **kwargs)
 
 
 def test_turn_command_is_sampled_in_range_and_settable():
-    env = gym.make("skitter/RoachTurn-v4")
+    env = gym.make("skitter/RoachTurn-v5")
     index = env.unwrapped.task.layout["yaw_rate_command"].start
     commands = []
     for seed in range(20):
@@ -288,7 +288,7 @@ def test_turn_command_is_sampled_in_range_and_settable():
 def test_the_bioloid_turn_pays_for_staying_upright_and_the_other_turns_do_not():
     """BioloidTurn pays its body's uprightness each step, as BioloidWalk does (a fall must cost the steps it ends);
     the roach's and the xJüs's turns, which stand on their own, keep a zero upright term by default."""
-    turns = (("skitter/BioloidTurn-v5", 1.0), ("skitter/RoachTurn-v4", 0.0), ("skitter/XjusTurn-v2", 0.0))
+    turns = (("skitter/BioloidTurn-v5", 1.0), ("skitter/RoachTurn-v5", 0.0), ("skitter/XjusTurn-v2", 0.0))
     for env_id, weight in turns:
         env = gym.make(env_id)
         env.reset(seed=3)
@@ -336,7 +336,7 @@ def test_time_limits_are_durations_at_any_control_rate(env_id):
 
 def test_default_rate_episodes_keep_their_step_counts():
     """At the default rates the limits are the step counts they always were (10 s of control steps)."""
-    steps = {"skitter/RoachWalk-v3": 500, "skitter/RoachWalkDuty-v2": 10000, "skitter/XjusWalk-v1": 1250,
+    steps = {"skitter/RoachWalk-v4": 500, "skitter/RoachWalkDuty-v3": 10000, "skitter/XjusWalk-v1": 1250,
              "skitter/BioloidWalk-v2": 500}  # fmt: skip
     for env_id, expected in steps.items():
         assert gym.make(env_id).spec.max_episode_steps == expected
@@ -368,23 +368,23 @@ def test_episodes_truncate_at_their_duration_not_a_step_count(env_id, freq):
 @pytest.mark.parametrize("seconds", [0, -1, float("nan"), "10", True])
 def test_episode_seconds_must_be_a_positive_duration(seconds):
     with pytest.raises(ValueError, match="episode_seconds"):
-        gym.make("skitter/RoachWalk-v3", episode_seconds=seconds)
+        gym.make("skitter/RoachWalk-v4", episode_seconds=seconds)
     with pytest.raises(ValueError, match="episode_seconds"):
-        gym.make_vec("skitter/RoachWalk-v3", vectorization_mode="vector_entry_point", episode_seconds=seconds)
+        gym.make_vec("skitter/RoachWalk-v4", vectorization_mode="vector_entry_point", episode_seconds=seconds)
 
 
 def test_episode_seconds_none_and_an_explicit_step_limit():
     """``episode_seconds=None`` leaves no limit of the env's own; ``max_episode_steps`` (Gymnasium's) still cuts
     episodes, single and batched alike: whichever limit comes first ends the episode."""
-    env = gym.make("skitter/RoachWalk-v3", episode_seconds=None)
+    env = gym.make("skitter/RoachWalk-v4", episode_seconds=None)
     assert env.spec.max_episode_steps is None
-    assert gym.make("skitter/RoachWalk-v3", max_episode_steps=7).spec.max_episode_steps == 7
+    assert gym.make("skitter/RoachWalk-v4", max_episode_steps=7).spec.max_episode_steps == 7
     batched = "vector_entry_point"
-    venv = gym.make_vec("skitter/RoachWalk-v3", vectorization_mode=batched, max_episode_steps=700, episode_seconds=None)
+    venv = gym.make_vec("skitter/RoachWalk-v4", vectorization_mode=batched, max_episode_steps=700, episode_seconds=None)
     assert venv.unwrapped.max_episode_steps == 700
     for steps in (300, 700):  # 10 s at 50 Hz is 500 steps
-        single = gym.make("skitter/RoachWalk-v3", max_episode_steps=steps, max_tilt=np.pi)
-        venv = gym.make_vec("skitter/RoachWalk-v3", vectorization_mode=batched, max_episode_steps=steps, max_tilt=np.pi)
+        single = gym.make("skitter/RoachWalk-v4", max_episode_steps=steps, max_tilt=np.pi)
+        venv = gym.make_vec("skitter/RoachWalk-v4", vectorization_mode=batched, max_episode_steps=steps, max_tilt=np.pi)
         single.reset(seed=0)
         count, truncated = 0, False
         while not truncated:
@@ -396,7 +396,7 @@ def test_episode_seconds_none_and_an_explicit_step_limit():
 @pytest.mark.parametrize(("width", "height"), [(160, 120), (800, 600)])
 def test_rgb_array_renders_headless_at_any_size(width, height):
     """Frames larger than the model's default 640x480 offscreen buffer come back whole, not black-padded."""
-    env = gym.make("skitter/RoachWalk-v3", render_mode="rgb_array", width=width, height=height)
+    env = gym.make("skitter/RoachWalk-v4", render_mode="rgb_array", width=width, height=height)
     env.reset(seed=0)
     frame = env.render()
     env.close()
@@ -443,9 +443,9 @@ def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
     is the scene (the frame a second render gives), not black."""
     kwargs = {"render_mode": "rgb_array", "width": 160, "height": 120}
     if batched:
-        env = gym.make_vec("skitter/RoachWalk-v3", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+        env = gym.make_vec("skitter/RoachWalk-v4", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
     else:
-        env = gym.make("skitter/RoachWalk-v3", **kwargs)
+        env = gym.make("skitter/RoachWalk-v4", **kwargs)
     env.reset(seed=0)
     env.render()
     base = env.unwrapped
@@ -465,7 +465,7 @@ def test_the_first_frame_after_the_camera_jumps_far_shows_the_scene(batched):
 @pytest.mark.parametrize("bounds", ["34", ("0.02", "0.03"), (True, 1.0), b"12"])
 def test_randomize_bounds_must_be_numbers_not_strings_or_bools(bounds):
     with pytest.raises(ValueError, match=r"randomize\['battery_voltage'\] must be a \(low, high\) pair of numbers"):
-        gym.make("skitter/RoachWalk-v3", randomize={"battery_voltage": bounds})
+        gym.make("skitter/RoachWalk-v4", randomize={"battery_voltage": bounds})
 
 
 def test_class_docstrings_state_the_version_history_and_the_time_limit(env_id):

@@ -40,9 +40,9 @@ def model_zip(tmp_path_factory) -> Path:
 
     runs = tmp_path_factory.mktemp("runs")
     hp = runs / "ppo.yml"
-    hp.write_text("skitter/RoachWalk-v3:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  normalize: true\n")
+    hp.write_text("skitter/RoachWalk-v4:\n  n_envs: 1\n  n_steps: 64\n  batch_size: 32\n  normalize: true\n")
     done = main_in_process(training.main, [
-        "--env", "skitter/RoachWalk-v3", "--algo", "ppo", "--timesteps", "128", "--seed", "0", "--hyperparams",
+        "--env", "skitter/RoachWalk-v4", "--algo", "ppo", "--timesteps", "128", "--seed", "0", "--hyperparams",
         str(hp), "--runs-dir", str(runs), "--run-name", "tiny", "--checkpoint-freq", "64", "--no-progress",
     ])  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -53,14 +53,14 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     """In this process (``run_here``): the comparison is what is tested; the command line itself is run by
     test_bad_input_gets_a_clear_message_and_no_traceback."""
     out = tmp_path / "walk"
-    done = run_here("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--policy", str(model_zip),
+    done = run_here("--env", "skitter/RoachWalk-v4", "--policy", "tripod:20", "--policy", str(model_zip),
                     "--episodes", "3", "--seed", "5", "--out", str(out), "--max-episode-steps", "30", "--video",
                     "--telemetry")  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "tripod:20" in done.stdout and "speed_bl" in done.stdout and "[" in done.stdout  # the table, with CIs
     results = json.loads((out / "results.json").read_text())
     assert results["seeds"] == [5, 6, 7]
-    with gym.make("skitter/RoachWalk-v3") as env:
+    with gym.make("skitter/RoachWalk-v4") as env:
         weight = env.unwrapped.metrics_context()["mass"] * 9.81
     for spec in ("tripod:20", str(model_zip)):
         policy = results["policies"][spec]
@@ -84,7 +84,7 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert tripod > 0.5, "the 20 Hz tripod runs forward"
     diff = results["paired_differences"]["policies"][str(model_zip)]["speed"]
     assert diff["n"] == 3
-    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v3")
+    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v4")
     pngs = sorted(p.name for p in (out / "plots").iterdir())
     assert len(pngs) == 2 and all(p.endswith(".png") for p in pngs)
     mp4s = sorted((out / "videos").glob("*.mp4"))
@@ -100,7 +100,7 @@ def test_compares_a_scripted_gait_and_a_trained_model_on_the_same_seeds(model_zi
     assert len(list((out / "telemetry").glob("*.parquet"))) == 2
     assert not [p for p in tmp_path.iterdir() if p.name != "walk"], "no temporary folder left beside the results"
     # a second run into the same directory is refused, not silently overwritten
-    again = run_here("--env", "skitter/RoachWalk-v3", "--policy", "tripod:20", "--episodes", "1", "--out",
+    again = run_here("--env", "skitter/RoachWalk-v4", "--policy", "tripod:20", "--episodes", "1", "--out",
                      str(out))  # fmt: skip
     assert again.returncode != 0 and "already holds" in again.stderr
     assert json.loads((out / "results.json").read_text())["seeds"] == [5, 6, 7]
@@ -126,7 +126,7 @@ def test_runs_on_every_registered_env(env_id, tmp_path):
 def test_turn_reports_the_yaw_rate_error(tmp_path):
     import evaluate
 
-    assert evaluate.main(["--env", "skitter/RoachTurn-v4", "--policy", "tripod", "--episodes", "2", "--out",
+    assert evaluate.main(["--env", "skitter/RoachTurn-v5", "--policy", "tripod", "--episodes", "2", "--out",
                           str(tmp_path / "t"), "--max-episode-steps", "100"]) == 0  # fmt: skip
     summary = json.loads((tmp_path / "t" / "results.json").read_text())["policies"]["tripod"]["summary"]
     assert 0 <= summary["yaw_rate_error"]["mean"] < 1.0
@@ -140,7 +140,7 @@ def test_two_models_with_the_same_file_name_get_their_own_plots(model_zip, tmp_p
     out = tmp_path / "both"
     import evaluate
 
-    assert evaluate.main(["--env", "skitter/RoachWalk-v3", "--policy", str(checkpoint / "model.zip"), "--policy",
+    assert evaluate.main(["--env", "skitter/RoachWalk-v4", "--policy", str(checkpoint / "model.zip"), "--policy",
                           str(other / "model.zip"), "--episodes", "1", "--out", str(out), "--max-episode-steps", "20",
                           "--telemetry"]) == 0  # fmt: skip
     assert len(list((out / "plots").glob("*.png"))) == 2
@@ -156,7 +156,7 @@ def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip
             if item.filename != "vecnormalize.pkl":
                 dst.writestr(item, src.read(item))
     done = run_here(
-        *("--env", "skitter/RoachWalk-v3", "--policy", str(stripped), "--episodes", "1", "--out", str(tmp_path / "o")),
+        *("--env", "skitter/RoachWalk-v4", "--policy", str(stripped), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2
     assert "lacks the statistics" in done.stderr and "Traceback" not in done.stderr
@@ -166,7 +166,7 @@ def test_a_model_without_its_statistics_is_an_error_not_a_silent_score(model_zip
 def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path, capsys):
     truncated = tmp_path / "truncated.zip"
     truncated.write_bytes(model_zip.read_bytes()[: model_zip.stat().st_size // 2])
-    args = ("--env", "skitter/RoachWalk-v3", "--policy", str(truncated), "--episodes", "1", "--out", tmp_path / "o")
+    args = ("--env", "skitter/RoachWalk-v4", "--policy", str(truncated), "--episodes", "1", "--out", tmp_path / "o")
     done = run_here(*map(str, args))
     assert done.returncode == 2
     assert "truncated or corrupt" in done.stderr and "Traceback" not in done.stderr
@@ -175,34 +175,34 @@ def test_a_truncated_model_is_a_one_line_error(model_zip, tmp_path, capsys):
 
 def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
     done = run_here(
-        *("--env", "skitter/RoachTurn-v4", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")),
+        *("--env", "skitter/RoachTurn-v5", "--policy", str(model_zip), "--episodes", "1", "--out", str(tmp_path / "o")),
     )
     assert done.returncode == 2 and "Traceback" not in done.stderr
-    assert "trained on skitter/RoachWalk-v3" in done.stderr and "not on skitter/RoachTurn-v4" in done.stderr
+    assert "trained on skitter/RoachWalk-v4" in done.stderr and "not on skitter/RoachTurn-v5" in done.stderr
 
 
 @pytest.mark.parametrize(
     ("args", "message", "command_line"),
     [
         (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "not registered", True),
-        (["--env", "roachwalk-v3", "--policy", "tripod"], "(did you mean 'skitter/RoachWalk-v3'?)", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "no/such/model.zip"], "no trained model", True),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "moonwalk"], "unknown policy", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "0"], "--episodes", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--seed", "-1"], "--seed", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--policy", "tripod"], "given twice", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "tripod:fast"], "not a number", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "tripod:"], "nothing after ':'", False),
-        (["--env", "skitter/RoachWalk-v3", "--policy", "tests"], "is a folder: give the path of a model.zip", False),
+        (["--env", "roachwalk-v3", "--policy", "tripod"], "(did you mean 'skitter/RoachWalk-v4'?)", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "no/such/model.zip"], "no trained model", True),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "moonwalk"], "unknown policy", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "0"], "--episodes", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--seed", "-1"], "--seed", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--policy", "tripod"], "given twice", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "tripod:fast"], "not a number", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "tripod:"], "nothing after ':'", False),
+        (["--env", "skitter/RoachWalk-v4", "--policy", "tests"], "is a folder: give the path of a model.zip", False),
         (
-            ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--env-kwargs", '{"telemetry": true}'],
+            ["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--env-kwargs", '{"telemetry": true}'],
             "--env-kwargs 'telemetry': evaluate.py sets it from --telemetry",
             False,
         ),
         (
             [
                 "--env",
-                "skitter/RoachWalk-v3",
+                "skitter/RoachWalk-v4",
                 "--policy",
                 "tripod",
                 "--max-episode-steps",
@@ -230,7 +230,7 @@ def test_an_existing_telemetry_file_is_caught_before_any_episode_runs(tmp_path, 
     out = tmp_path / "out"
     (out / "telemetry").mkdir(parents=True)
     (out / "telemetry" / "tripod.parquet").write_bytes(b"a user's file")
-    args = ("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out", out, "--telemetry")
+    args = ("--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "1", "--out", out, "--telemetry")
     done = run_here(*map(str, args))
     # no results.json beside it: the user's folder, not an earlier run's
     assert done.returncode == 2 and "holds files evaluate.py does not write (telemetry/)" in done.stderr
@@ -244,7 +244,7 @@ def test_an_out_path_under_a_file_is_refused_before_any_episode_runs(tmp_path, c
         (tmp_path / "somefile.txt" / "out", f"{tmp_path / 'somefile.txt'} is a file, not a directory"),
         (tmp_path / "somefile.txt", "exists and is not a directory"),
     ]:
-        done = run_here("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--out",
+        done = run_here("--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "1", "--out",
                         str(out))  # fmt: skip
         assert done.returncode == 2 and f"--out {out}" in done.stderr and message in done.stderr
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
@@ -257,7 +257,7 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path, capsys):
     (out / "plots").mkdir(parents=True)
     (out / "results.json").write_text("{}")
     (out / "plots" / "old.png").write_bytes(b"an earlier plot")
-    args = ("--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "1", "--max-episode-steps", "10")
+    args = ("--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "1", "--max-episode-steps", "10")
     # without --overwrite: only what is there is named
     done = run_here(*args, "--out", str(out))
     assert done.returncode == 2 and "already holds plots/, results.json of an earlier run" in done.stderr
@@ -279,7 +279,7 @@ def test_overwrite_replaces_only_an_earlier_runs_results(tmp_path, capsys):
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == [
         "plots", "plots/tripod.png", "results.json", "results.md"
     ]  # fmt: skip
-    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v3")
+    assert (out / "results.md").read_text().startswith("# skitter/RoachWalk-v4")
 
 
 # --- a model must fit --env: train.py's record of it, its spaces; a damaged policy file ---------------------------
@@ -295,7 +295,7 @@ def copy_model(src: Path, dst: Path, drop: tuple[str, ...] = (), replace: dict |
     return dst
 
 
-def evaluate_main(capsys, model: Path, out: Path, env_id: str = "skitter/RoachWalk-v3") -> tuple[int, str]:
+def evaluate_main(capsys, model: Path, out: Path, env_id: str = "skitter/RoachWalk-v4") -> tuple[int, str]:
     from agents import compare as evaluate
 
     code = evaluate.main(["--env", env_id, "--policy", str(model), "--episodes", "1", "--out", str(out)])
@@ -310,7 +310,7 @@ def test_a_model_trained_on_another_env_with_the_same_shapes_is_refused_naming_b
     model = copy_model(model_zip, tmp_path / "model.zip", replace={"skitter.json": json.dumps(manifest).encode()})
     code, err = evaluate_main(capsys, model, tmp_path / "out")
     assert code == 2 and len(err.strip().splitlines()) == 1
-    assert "trained on skitter/RoachWalk-v0 (its manifest skitter.json says so), not on skitter/RoachWalk-v3" in err
+    assert "trained on skitter/RoachWalk-v0 (its manifest skitter.json says so), not on skitter/RoachWalk-v4" in err
     assert not (tmp_path / "out").exists()
 
     # a model without a manifest, in a run folder whose config.json names another env
@@ -321,7 +321,7 @@ def test_a_model_trained_on_another_env_with_the_same_shapes_is_refused_naming_b
     code, err = evaluate_main(capsys, model, tmp_path / "out")
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert f"trained on skitter/RoachWalk-v0 (its run's {run_dir / 'config.json'} says so)" in err
-    assert "not on skitter/RoachWalk-v3" in err and not (tmp_path / "out").exists()
+    assert "not on skitter/RoachWalk-v4" in err and not (tmp_path / "out").exists()
 
 
 def test_a_damaged_manifest_or_a_zip_that_is_no_model_is_named_for_what_it_is(model_zip, tmp_path, capsys):
@@ -344,7 +344,7 @@ def test_a_model_without_metadata_must_match_the_envs_action_space(model_zip, tm
     from agents.sb3 import ModelFileError, SB3Policy
 
     foreign = copy_model(model_zip, tmp_path / "zoo" / "model.zip", drop=("skitter.json",))  # no record of its env
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     assert SB3Policy(foreign, env).predict(env.reset(seed=0)[0])[0].shape == (3,)  # works as before
     with pytest.raises(ModelFileError, match=r"the model acts in Box\(-1\.0, 1\.0, \(3,\), float32\) but .* takes Box"):
         SB3Policy(foreign, RescaleAction(env, np.full(3, -2.0, np.float32), np.full(3, 2.0, np.float32)))
@@ -386,7 +386,7 @@ def test_a_model_trained_with_env_kwargs_is_evaluated_with_them_or_warned_of(mod
     config = json.loads((model_zip.parent / "config.json").read_text())
     config["hyperparams"]["env_kwargs"] = {"sensor_noise": False}
     (run_dir / "config.json").write_text(json.dumps(config))
-    base = ["--env", "skitter/RoachWalk-v3", "--policy", str(model), "--episodes", "1", "--max-episode-steps", "5"]
+    base = ["--env", "skitter/RoachWalk-v4", "--policy", str(model), "--episodes", "1", "--max-episode-steps", "5"]
     code = evaluate.main([*base, "--out", str(tmp_path / "a")])
     err = capsys.readouterr().err
     assert code == 0 and "was trained with env_kwargs {'sensor_noise': False}; it is evaluated with {}" in err
@@ -443,7 +443,7 @@ def test_results_are_strict_json_and_a_mean_over_some_episodes_says_how_many(tmp
 
     monkeypatch.setattr(compare, "run_episodes", first_without_a_distance)
     out = tmp_path / "r"
-    argv = ["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--policy", "tripod:20", "--episodes", "3",
+    argv = ["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--policy", "tripod:20", "--episodes", "3",
             "--max-episode-steps", "10", "--out", str(out)]  # fmt: skip
     assert compare.main(argv) == 0
     text = (out / "results.json").read_text()
@@ -472,7 +472,7 @@ def test_telemetry_at_the_physics_rate(tmp_path):
     import evaluate
     from envs.common.telemetry import read_telemetry
 
-    assert evaluate.main(["--env", "skitter/RoachWalk-v3", "--policy", "tripod", "--episodes", "2", "--out",
+    assert evaluate.main(["--env", "skitter/RoachWalk-v4", "--policy", "tripod", "--episodes", "2", "--out",
                           str(tmp_path / "r"), "--max-episode-steps", "20", "--telemetry", "--telemetry-rate",
                           "physics"]) == 0  # fmt: skip
     df, meta = read_telemetry(tmp_path / "r" / "telemetry" / "tripod.parquet")

@@ -22,7 +22,7 @@ from envs.xjus import constants as xjus_constants
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results" / "ground_rules.json"
 WALKS = {
-    "skitter/RoachWalk-v3": roach_constants,
+    "skitter/RoachWalk-v4": roach_constants,
     "skitter/XjusWalk-v1": xjus_constants,
     "skitter/BioloidWalk-v2": bioloid_constants,
 }
@@ -135,7 +135,7 @@ def test_the_roach_cannot_crawl_and_its_paddling_scores_below_the_tripod():
         swing = 0.3 * np.sin(2 * np.pi * 3.0 * step * base.dt)
         return np.array([swing, swing], dtype=np.float32)
 
-    env_id = "skitter/RoachWalkDuty-v2"
+    env_id = "skitter/RoachWalkDuty-v3"
     crawl = crawl_episode(env_id, paddle, {"crank_left": np.pi / 2, "phase": 0.0}, episode_seconds=2.0)
     env = gym.make(env_id, episode_seconds=2.0)
     tripod = load_policy("tripod", env)

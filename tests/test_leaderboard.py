@@ -17,7 +17,7 @@ from envs.common import host
 
 ROOT = Path(__file__).resolve().parents[1]
 
-WALK = "skitter/RoachWalk-v3"
+WALK = "skitter/RoachWalk-v4"
 XJUS = "skitter/XjusWalk-v1"
 
 
@@ -42,7 +42,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     tuning = ["--tune", "2", "--env", WALK, "--algo", "ppo", "--timesteps", "256", "--hyperparams", "tiny.yml",
               "--runs-dir", "runs", "--evaluations", "1", "--eval-episodes", "1"]  # fmt: skip
     assert train_main(tuning) == 0
-    best = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v3__ppo" / "best.yml"
+    best = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v4__ppo" / "best.yml"
     out, docs = tmp_path / "board", tmp_path / "docs" / "results.md"
     argv = ["--tasks", WALK, "--algos", "ppo", "--seeds", "0", "1", "--timesteps", "256", "--episodes", "2",
             "--max-episode-steps", "50", "--hyperparams", str(best), "--videos", "--out", str(out), "--docs",
@@ -50,7 +50,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert leaderboard.main(argv) == 0
     summary = json.loads((out / "results.json").read_text())
     rows = summary["rows"]
-    assert sorted(rows) == ["skitter_RoachWalk-v3__ppo__0", "skitter_RoachWalk-v3__ppo__1"]
+    assert sorted(rows) == ["skitter_RoachWalk-v4__ppo__0", "skitter_RoachWalk-v4__ppo__1"]
     base = summary["baselines"][WALK]
     assert base["reference"] == "tripod" and base["reference_return"] > base["random_return"]
     for record in rows.values():
@@ -64,16 +64,16 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert cell["low"] <= cell["iqm"] <= cell["high"]
     assert set(summary["overall"]) == {"ppo"}
     text = docs.read_text()
-    assert "| `skitter/RoachWalk-v3` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
+    assert "| `skitter/RoachWalk-v4` | tripod |" in text and "--rerun" in (out / "results.json").read_text()
     assert text.startswith(leaderboard.PAGE_START) and leaderboard.docs_problem(docs) is None  # its own: replaceable
-    for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v3.png"):
+    for plot in ("performance_profiles.png", "curve_skitter_RoachWalk-v4.png"):
         assert (out / "plots" / plot).stat().st_size > 5_000
-    video = out / "videos" / "skitter_RoachWalk-v3" / "eval" / "videos" / "side_by_side.mp4"
+    video = out / "videos" / "skitter_RoachWalk-v4" / "eval" / "videos" / "side_by_side.mp4"
     assert video.stat().st_size > 10_000 and "side_by_side.mp4" in (out / "results.md").read_text()
     # the page's media beside it (the leaderboard's folder is a run's output, not a checkout's)
     media = docs.parent / "results"
-    assert (media / "videos" / "skitter_RoachWalk-v3.mp4").read_bytes() == video.read_bytes()
-    assert "](results/videos/skitter_RoachWalk-v3.mp4)" in text and "](results/plots/performance_profiles.png)" in text
+    assert (media / "videos" / "skitter_RoachWalk-v4.mp4").read_bytes() == video.read_bytes()
+    assert "](results/videos/skitter_RoachWalk-v4.mp4)" in text and "](results/plots/performance_profiles.png)" in text
     assert (media / "plots" / "performance_profiles.png").is_file()
     for record in rows.values():  # trained in seconds: its policy after an hour is its final model
         assert record["one_hour"]["final"] and record["one_hour"]["timesteps"] == record["timesteps"]
@@ -83,13 +83,13 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert leaderboard.main(argv) == 0
     assert "(0 to run)" in capsys.readouterr().out
     # one row again, from nothing, with the same seeds: the same model, so the same evaluation
-    kept = rows["skitter_RoachWalk-v3__ppo__1"]["returns"]
+    kept = rows["skitter_RoachWalk-v4__ppo__1"]["returns"]
     assert leaderboard.main([*argv, "--rerun", f"{WALK}:ppo:1"]) == 0
-    again = json.loads((tmp_path / "kept" / "rows" / "skitter_RoachWalk-v3__ppo__1" / "row.json").read_text())
+    again = json.loads((tmp_path / "kept" / "rows" / "skitter_RoachWalk-v4__ppo__1" / "row.json").read_text())
     assert "(1 to run)" in capsys.readouterr().out
     assert again["returns"] == pytest.approx(kept)
     assert again["reproduction"]["within"] and again["reproduction"]["again"]["value"] == pytest.approx(
-        rows["skitter_RoachWalk-v3__ppo__1"]["mean_return"]
+        rows["skitter_RoachWalk-v4__ppo__1"]["mean_return"]
     )
     # the same folder with another budget: refused, naming the row, before anything runs
     other = [*argv]
@@ -165,7 +165,7 @@ def test_rows_run_on_a_ray_cluster_as_they_run_here(tmp_path, monkeypatch, ray_h
     assert done.returncode == 0, done.stderr[-3000:]
     assert f"on Ray at {address}" in done.stdout
     here, there = (json.loads((tmp_path / out / "results.json").read_text()) for out in ("here", "ray"))
-    row = "skitter_RoachWalk-v3__ppo__0"
+    row = "skitter_RoachWalk-v4__ppo__0"
     assert there["rows"][row]["returns"] == here["rows"][row]["returns"]
     assert there["rows"][row]["timesteps"] == here["rows"][row]["timesteps"] >= 256
     assert (tmp_path / "ray" / "runs" / row / "model.zip").is_file(), "the task wrote into the command's folder"
@@ -342,7 +342,7 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     assert cell["iqm"] == pytest.approx(0.75) and cell["low"] <= 0.75 <= cell["high"]
     assert set(summary["overall"]) == {"ppo"}, "sac misses a row: no score over all tasks"
     text = (tmp_path / "results.md").read_text()
-    assert "| skitter_RoachWalk-v3__sac__2 | not run |" in text
+    assert "| skitter_RoachWalk-v4__sac__2 | not run |" in text
     assert leaderboard.normalized(10.0, baselines[WALK]) == 0.0
     assert leaderboard.normalized(110.0, baselines[WALK]) == 1.0
     assert "(2 of 3 seeds)" in text
@@ -362,7 +362,7 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
 def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_path):
     """A walk's row shows its speed against the reference's, a turn's its yaw-rate error, an academy task's its
     success: each the paired difference its evaluation recorded."""
-    turn, academy = "skitter/RoachTurn-v4", "skitter/RoachGoToBall-v4"
+    turn, academy = "skitter/RoachTurn-v5", "skitter/RoachGoToBall-v5"
     plan = leaderboard.Plan((WALK, turn, academy), ("ppo",), (0,), ((WALK, 100), (turn, 100), (academy, 100)), None,
                             5, 1000, None)  # fmt: skip
     baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
@@ -382,10 +382,10 @@ def test_each_row_is_judged_on_its_tasks_own_metric_beside_the_reference(tmp_pat
     rows_table = (tmp_path / "results.md").read_text().split("## Rows")[1].split("\n## ")[0]
     lines = {line.split(" |")[0][2:]: line for line in rows_table.splitlines() if line.startswith("| skitter_")}
     walk = "| speed +0.500 [+0.490, +0.510] m/s | cost of transport -0.200 [-0.210, -0.190] |"
-    assert walk in lines["skitter_RoachWalk-v3__ppo__0"]
+    assert walk in lines["skitter_RoachWalk-v4__ppo__0"]
     turning = "| yaw_rate_error -0.250 [-0.260, -0.240] rad/s | power -0.100 [-0.110, -0.090] W |"  # a turn's energy
-    assert turning in lines["skitter_RoachTurn-v4__ppo__0"]
-    assert "| success +0.400 [+0.390, +0.410] | cost of transport" in lines["skitter_RoachGoToBall-v4__ppo__0"]
+    assert turning in lines["skitter_RoachTurn-v5__ppo__0"]
+    assert "| success +0.400 [+0.390, +0.410] | cost of transport" in lines["skitter_RoachGoToBall-v5__ppo__0"]
 
 
 def test_a_resumed_row_is_credited_the_training_behind_its_checkpoint(tmp_path):
@@ -543,7 +543,7 @@ def test_the_hour_is_judged_on_the_tasks_metric_and_its_energy(tmp_path):
     assert not leaderboard.at_least_as_good({"cost_of_transport": {"ci_low": 0.1, "ci_high": 0.2}},
                                             "cost_of_transport")  # fmt: skip
     assert leaderboard.at_least_as_good({}, "speed") is None
-    turn = "skitter/RoachTurn-v4"
+    turn = "skitter/RoachTurn-v5"
     plan = leaderboard.Plan((WALK, turn), ("ppo",), (0,), ((WALK, 100), (turn, 100)), None, 20, 1000, None)
     baselines = {t: {"reference": "tripod", "reference_return": 10.0, "random_return": 0.0} for t in plan.tasks}
     faster = {"speed": {"mean": 0.1, "ci_low": 0.05, "ci_high": 0.15},
@@ -556,10 +556,10 @@ def test_the_hour_is_judged_on_the_tasks_metric_and_its_energy(tmp_path):
                            "one_hour": {"timesteps": 60, "training_minutes": 59.5, "final": False,
                                         "mean_return": 5.0, "paired_differences": turning}}}  # fmt: skip
     text = "\n".join(leaderboard._hour_section(baselines, rows))
-    assert "| skitter_RoachWalk-v3__ppo__0 | 100 (its final model) | 30 | 1.20 |" in text
+    assert "| skitter_RoachWalk-v4__ppo__0 | 100 (its final model) | 30 | 1.20 |" in text
     assert ("speed +0.100 [+0.050, +0.150] m/s | cost of transport +0.500 [+0.200, +0.800] | no: cost of transport "
             "worse |") in text  # fmt: skip
-    assert "| skitter_RoachTurn-v4__ppo__0 | 60 | 60 | 0.50 | yaw_rate_error" in text and text.endswith("| yes |")
+    assert "| skitter_RoachTurn-v5__ppo__0 | 60 | 60 | 0.50 | yaw_rate_error" in text and text.endswith("| yes |")
     # the same turn with its power: judged on the power (here worse), whatever its cost of transport says
     turning["power"] = {"mean": 0.3, "ci_low": 0.1, "ci_high": 0.5}
     text = "\n".join(leaderboard._hour_section(baselines, rows))
@@ -693,7 +693,7 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     leaderboard.write_json(leaderboard.row_file(kept, row), {**record, "training_attempts": 3})
     leaderboard.write_text(leaderboard.video_marker(kept, WALK), row.name + "\n")
     (docs.parent / "results" / "videos").mkdir(parents=True)
-    (docs.parent / "results" / "videos" / "skitter_RoachWalk-v3.mp4").write_bytes(b"published")
+    (docs.parent / "results" / "videos" / "skitter_RoachWalk-v4.mp4").write_bytes(b"published")
     ran = []
     monkeypatch.setattr(leaderboard, "run_row", lambda plan, row, *args: ran.append(row) or {**record, "curve": None})
     argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--episodes", "2", "--out",
@@ -711,8 +711,8 @@ def test_a_fresh_checkout_keeps_the_finished_rows_from_their_records(tmp_path, m
     text = docs.read_text()
     assert f"| {row.name} | 100 | 1 | 85.0 | 0.75 |" in text
     assert "Rows trained in several attempts (killed and resumed" in text and f"{row.name} (3)." in text
-    assert f"[the reference and {row.name}](results/videos/skitter_RoachWalk-v3.mp4)" in text
-    assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v3.png").stat().st_size > 5_000
+    assert f"[the reference and {row.name}](results/videos/skitter_RoachWalk-v4.mp4)" in text
+    assert (docs.parent / "results" / "plots" / "curve_skitter_RoachWalk-v4.png").stat().st_size > 5_000
     assert not (tmp_path / "fresh" / "runs").exists()
 
 
@@ -810,10 +810,10 @@ def test_a_row_computed_again_says_which_library_versions_each_ran_on(tmp_path):
             leaderboard.Row(WALK, "ppo", 2): None,
             leaderboard.Row(WALK, "ppo+residual", 0): record(1.0, avx512)}  # fmt: skip
     lines = leaderboard._software_lines(rows)
-    assert f"- {leaderboard.libraries(ran)}: skitter_RoachWalk-v3__ppo__0." in lines
+    assert f"- {leaderboard.libraries(ran)}: skitter_RoachWalk-v4__ppo__0." in lines
     assert (f"- {leaderboard.libraries(ran)}; CPU code paths numpy X86_V3 X86_V4 baseline(X86_V2), torch AVX512: "
-            "skitter_RoachWalk-v3__ppo+residual__0.") in lines  # fmt: skip
-    assert "- not recorded (rows trained before records kept them): skitter_RoachWalk-v3__ppo__1." in lines
+            "skitter_RoachWalk-v4__ppo+residual__0.") in lines  # fmt: skip
+    assert "- not recorded (rows trained before records kept them): skitter_RoachWalk-v4__ppo__1." in lines
 
 
 def test_a_rows_command_computes_that_row_alone_into_its_own_folders():

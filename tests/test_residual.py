@@ -12,7 +12,7 @@ from agents.residual import ResidualPolicy, ResidualVecEnv, gym_env
 from agents.training import main as train_main
 from agents.training import make_env, resolve_hyperparams
 
-TURN = "skitter/RoachTurn-v4"
+TURN = "skitter/RoachTurn-v5"
 TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 40},
         "n_steps": 64, "batch_size": 64}  # fmt: skip
 
@@ -151,7 +151,7 @@ def test_a_bad_residual_on_the_command_line_is_named_as_itself(tmp_path, monkeyp
     assert status == 2 and "--residual nope: unknown policy 'nope'" in err and not (tmp_path / "runs").exists()
 
 
-@pytest.mark.parametrize(("env_id", "gait"), [("skitter/BioloidWalk-v2", "ik-trot"), ("skitter/RoachWalkDuty-v2",
+@pytest.mark.parametrize(("env_id", "gait"), [("skitter/BioloidWalk-v2", "ik-trot"), ("skitter/RoachWalkDuty-v3",
                                                                                     "tripod")])  # fmt: skip
 def test_a_gait_with_a_state_of_its_own_restarts_with_each_episode(env_id, gait):
     """The IK trot's clock and the duty-mode tripod's firmware state: with no correction, the residual env plays

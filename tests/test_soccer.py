@@ -108,7 +108,7 @@ def make(env_id: str, **kwargs):
 def test_a_goal_is_seen_between_control_steps_and_ends_the_episode():
     """The ball rolled fast at the goal: a goal at the physics rate, +1, success and no fall; the other way an own
     goal, -1."""
-    env = make("skitter/RoachScoreEmptyGoal-v3")
+    env = make("skitter/RoachScoreEmptyGoal-v4")
     field = FIELDS["Roach"]
     hl = field.half_length
     for side, key, reward in ((1, "scored", 1.0), (-1, "conceded", -1.0)):
@@ -186,7 +186,7 @@ def test_players_collide_with_each_other_but_not_with_themselves():
 
 @pytest.mark.parametrize(
     "env_id",
-    ["skitter/BioloidGoToBall-v4", "skitter/RoachScoreEmptyGoal-v3", "skitter/XjusScoreVsKeeper-v1",
+    ["skitter/BioloidGoToBall-v4", "skitter/RoachScoreEmptyGoal-v4", "skitter/XjusScoreVsKeeper-v1",
      "skitter/BioloidScoreVsKeeper-v2"],
 )  # fmt: skip
 def test_the_academy_in_the_commands_mode_is_batched_like_single_across_resets(env_id):
@@ -309,8 +309,8 @@ def test_a_fallen_keeper_is_put_back_beside_its_goal_and_the_episode_goes_on(on_
 
 def test_a_scripted_keeper_takes_only_the_gaits_mode_or_commands():
     with pytest.raises(ValueError, match="action_mode must be 'gait' or 'commands'"):
-        gym.make("skitter/RoachScoreVsKeeper-v2", action_mode="duty")
-    env = gym.make("skitter/RoachScoreVsKeeper-v2")
+        gym.make("skitter/RoachScoreVsKeeper-v3", action_mode="duty")
+    env = gym.make("skitter/RoachScoreVsKeeper-v3")
     for bad in ([0.0, 0.0], {"x": 1.0}, [1.0, "a", 0.0]):
         with pytest.raises(ValueError, match=r"options\['keeper'\]"):
             env.reset(seed=0, options={"keeper": bad})

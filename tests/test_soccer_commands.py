@@ -344,7 +344,7 @@ def test_the_scripted_player_is_a_policy_by_name_on_academy_tasks_in_the_command
 
     from agents import env_reference, load_policy
 
-    single = gym.make("skitter/RoachGoToBall-v4", action_mode="commands")
+    single = gym.make("skitter/RoachGoToBall-v5", action_mode="commands")
     batched = gym.make_vec("skitter/XjusScoreVsKeeper-v1", num_envs=2, vectorization_mode="vector_entry_point",
                            action_mode="commands", nthread=1)  # fmt: skip
     for env, shape in ((single, (2,)), (batched, (2, 2))):
@@ -352,9 +352,9 @@ def test_the_scripted_player_is_a_policy_by_name_on_academy_tasks_in_the_command
         action, state = load_policy("scripted", env).predict(obs)
         assert action.shape == shape and np.isfinite(action).all() and state.shape[-1] == len(MEMORY)
         assert env_reference(env) == "scripted"
-    joints = gym.make("skitter/RoachGoToBall-v4")
+    joints = gym.make("skitter/RoachGoToBall-v5")
     assert env_reference(joints) == "tripod"
-    for env, message in ((joints, "commands mode"), (gym.make("skitter/RoachWalk-v3"), "academy")):
+    for env, message in ((joints, "commands mode"), (gym.make("skitter/RoachWalk-v4"), "academy")):
         with pytest.raises(ValueError, match=message):
             load_policy("scripted", env)
     with pytest.raises(ValueError, match="no argument"):

@@ -314,15 +314,18 @@ def test_a_set_piece_places_players_and_ball_and_refuses_places_outside_the_wall
             env.reset(seed=0, options=options)
 
 
-def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
-    """Two Bioloid matches (2 a side) on one mujoco.batch, as an SB3 VecEnv of 8 players, against two PettingZoo
-    matches seeded as SB3 seeds them: the same observations and rewards at every step, across the time limit (SB3
-    starts a match again in the same step, with its last observation in the info)."""
+@pytest.mark.parametrize("robot", ["bioloid", "roach"])
+def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit(robot):
+    """Two matches (2 a side) on one mujoco.batch, as an SB3 VecEnv of 8 players, against two PettingZoo matches
+    seeded as SB3 seeds them: the same observations and rewards at every step, across the time limit (SB3 starts a
+    match again in the same step, with its last observation in the info). The roach's firmware gains follow each
+    player's own sagging battery, written into its own actuators of the shared scene."""
     from agents.soccer.vec_env import SoccerVecEnv
 
-    vec = SoccerVecEnv(2, robot="bioloid", players_per_team=2, max_cycles=8)
+    vec = SoccerVecEnv(2, robot=robot, players_per_team=2, max_cycles=8)
     vec.seed(10)
-    singles = [match.parallel_env(robot="bioloid", players_per_team=2, max_cycles=8) for _ in range(2)]
+    singles = [match.parallel_env(robot=robot, players_per_team=2, max_cycles=8) for _ in range(2)]
+    width = vec.action_space.shape[0]
 
     def rows(observations, env):
         return [observations[a] for a in env.possible_agents]
@@ -332,7 +335,7 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
                                                   for m, env in enumerate(singles)]))  # fmt: skip
     rng = np.random.default_rng(0)
     for _ in range(12):
-        actions = rng.uniform(-1, 1, (8, 16)).astype(np.float32)
+        actions = rng.uniform(-1, 1, (8, width)).astype(np.float32)
         obs, rewards, dones, infos = vec.step(actions)
         for m, env in enumerate(singles):
             o, r, term, trunc, _ = env.step({a: actions[4 * m + i] for i, a in enumerate(env.possible_agents)})
@@ -343,8 +346,17 @@ def test_batched_matches_are_the_pettingzoo_matches_bit_for_bit():
                 np.testing.assert_array_equal([info["terminal_observation"] for info in infos[mine]], rows(o, env))
                 o = env.reset()[0]
             np.testing.assert_array_equal(obs[mine], rows(o, env))
-    with pytest.raises(ValueError, match=r"actions must be \(8, 16\) \(an action per player of every match\)"):
-        vec.step(np.zeros((3, 16)))
+    with pytest.raises(ValueError, match=rf"actions must be \(8, {width}\) \(an action per player of every match\)"):
+        vec.step(np.zeros((3, width)))
+    if robot == "roach":  # each player's actuators of the scene hold the gains of its own sagging battery
+        from envs.actuators.dcmotor import SUPPLY_SLOTS
+
+        players, scene = vec.engine.robot, vec.engine.scene
+        assert np.ptp(players.battery) > 0, "each player's battery sags under its own load"
+        per_scene = scene.sim.batch.expanded("actuator_gainprm")
+        ids = players.sim._actuators[:, players.motors.ids]  # (players, motors): the scene's actuators
+        written = per_scene[:, ids][..., SUPPLY_SLOTS].reshape(players.num_sims, len(players.motors.ids), -1)
+        np.testing.assert_array_equal(written, players.motors.supply_gains(players.battery))
 
 
 def test_matches_reset_in_any_order_give_each_player_its_own_noisy_view():

@@ -141,14 +141,14 @@ def test_train_soccer_offers_every_robot_that_plays_soccer():
 
 
 def test_train_soccer_refuses_nonsense_before_making_anything(tmp_path):
-    for args, word in ((("--env", "skitter/RoachWalk-v3"), "not both"), (("--algo", "sac"), "PPO"),
+    for args, word in ((("--env", "skitter/RoachWalk-v4"), "not both"), (("--algo", "sac"), "PPO"),
                        (("--players", "5"), "--players"), (("--scripted-share", "2"), "--scripted-share"),
                        (("--resume", "x"), "without --soccer"),
                        (("--players", "3", "--n-envs", "1"), "(matches) x players = 256 x 1 x 3")):  # fmt: skip
         done = train_in_process("--soccer", "roach", "--timesteps", "10", "--runs-dir", tmp_path, *args)
         assert done.returncode == 2 and word in done.stderr, (args, done.stderr)
     for flag in ("--players", "--match-seconds", "--scripted-share", "--snapshot-freq"):  # not ignored without it
-        done = train_in_process("--env", "skitter/RoachWalk-v3", "--timesteps", "10", "--runs-dir", tmp_path, flag, "2")
+        done = train_in_process("--env", "skitter/RoachWalk-v4", "--timesteps", "10", "--runs-dir", tmp_path, flag, "2")
         assert done.returncode == 2 and f"{flag} is a self-play option: give --soccer" in done.stderr, done.stderr
         done = train_in_process("--resume", tmp_path / "a_run", flag, "2")  # a run keeps its own, self-play or not
         assert done.returncode == 2 and "--resume takes the run's settings from its folder" in done.stderr

@@ -68,9 +68,9 @@ def _sim_episode(env_id: str, action: np.ndarray, steps: int):
 @pytest.fixture(scope="module")
 def sim_gait():
     """2 s of tripod at 6 strides/s in gait mode (50 Hz)."""
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     action = env.unwrapped.robot.mode.to_action([6.0, 6.0, math.pi])
-    return _sim_episode("skitter/RoachWalk-v3", action, 100)
+    return _sim_episode("skitter/RoachWalk-v4", action, 100)
 
 
 # --- the real files --------------------------------------------------------------------------------------------
@@ -230,7 +230,7 @@ def test_sim_to_real_csv_round_trip(sim_gait, tmp_path):
 
 
 def test_duty_mode_commanded_angles_written_as_zero(tmp_path):
-    _, recorder = _sim_episode("skitter/RoachWalkDuty-v2", np.array([0.8, -0.3]), 200)
+    _, recorder = _sim_episode("skitter/RoachWalkDuty-v3", np.array([0.8, -0.3]), 200)
     df = recorder.frame()
     assert df["leg_angle_cmd_left"].isna().all()
     path = write_roach_csv(df, tmp_path / "duty.txt", recorder.meta)
@@ -402,7 +402,7 @@ def test_physics_rate_telemetry_resolves_a_45_hz_stride_that_control_rate_aliase
 
     tables = {}
     for rate in ("control", "physics"):
-        env = gym.make("skitter/RoachWalk-v3", telemetry=rate)
+        env = gym.make("skitter/RoachWalk-v4", telemetry=rate)
         policy = load_policy("tripod", env)
         obs, _ = env.reset(seed=0)
         for _ in range(100):

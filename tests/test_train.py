@@ -23,10 +23,10 @@ from agents.sb3 import ModelFileError, SB3Policy, read_model_file
 from tests.conftest import main_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
-WALK = "skitter/RoachWalk-v3"
+WALK = "skitter/RoachWalk-v4"
 # SAC/TD3 on a budget: learning starts after 100 steps, small networks and buffer
 TINY_OFF_POLICY = """
-skitter/RoachWalk-v3:
+skitter/RoachWalk-v4:
   normalize: {norm_obs: true, norm_reward: false}
   buffer_size: 1000
   learning_starts: 100
@@ -93,7 +93,7 @@ def ppo_run(tmp_path_factory) -> Path:
 
 
 def test_ppo_run_writes_model_config_checkpoints_and_logs(ppo_run):
-    assert re.fullmatch(r"skitter_RoachWalk-v3__ppo__3__\d{8}-\d{6}", ppo_run.name)
+    assert re.fullmatch(r"skitter_RoachWalk-v4__ppo__3__\d{8}-\d{6}", ppo_run.name)
     for name in ("model.zip", "config.json", "command.txt"):
         assert (ppo_run / name).is_file(), name
     assert not (ppo_run / "vecnormalize.pkl").exists(), "the statistics live inside model.zip"
@@ -165,7 +165,7 @@ BAD_INPUTS = {
     "an old version": (
         {},
         ["--env", "skitter/RoachWalk-v2"],
-        ["'skitter/RoachWalk-v2' (did you mean 'skitter/RoachWalk-v3'?)"],
+        ["'skitter/RoachWalk-v2' (did you mean 'skitter/RoachWalk-v4'?)"],
     ),
     "bad env_kwargs value": ({WALK: "  env_kwargs: {max_tilt: -1.0}"}, [], ["bad.yml", "env_kwargs", "max_tilt"]),
     "unknown env_kwargs": ({WALK: "  env_kwargs: {legs: 8}"}, [], ["bad.yml", "env_kwargs", "legs"]),
@@ -386,7 +386,7 @@ def test_a_model_torch_cannot_build_is_a_config_error_naming_the_field(tmp_path,
 def test_resume_refuses_a_checkpoint_of_another_env(tiny_run, tmp_path):
     run_dir = shutil.copytree(tiny_run, tmp_path / "run")
     config = run_dir / "config.json"
-    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v4"))  # 22 observations, not 21
+    config.write_text(config.read_text().replace(WALK, "skitter/RoachTurn-v5"))  # 22 observations, not 21
     before = files(run_dir)
     result = train_in_process("--resume", run_dir, "--timesteps", 256)
     model = run_dir / "checkpoints" / "step_0000000128" / "model.zip"

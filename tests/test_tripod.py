@@ -24,7 +24,7 @@ def run(env_id: str, policy_spec: str, seed: int = 0, seconds: float = SECONDS, 
 def speeds() -> dict[float, float]:
     out = {}
     for f in (5.0, 10.0, 20.0, 45.0):
-        episode = run("skitter/RoachWalk-v3", f"tripod:{f:g}")
+        episode = run("skitter/RoachWalk-v4", f"tripod:{f:g}")
         assert not episode.unstable, f"{f} Hz: simulation unstable"
         assert episode.metrics["falls"] == 0, f"{f} Hz: the robot fell"
         assert episode.length == round(SECONDS * 50), f"{f} Hz: episode ended early"
@@ -40,8 +40,8 @@ def test_tripod_runs_forward_at_5_to_45_hz_and_faster_with_frequency(speeds):
 
 def test_tripod_works_in_duty_mode_as_the_firmware_would():
     """In duty mode the policy itself runs the leg clock and PID at 1 kHz."""
-    gait = run("skitter/RoachWalk-v3", "tripod:10", seconds=2.0)
-    duty = run("skitter/RoachWalkDuty-v2", "tripod:10", seconds=2.0)
+    gait = run("skitter/RoachWalk-v4", "tripod:10", seconds=2.0)
+    duty = run("skitter/RoachWalkDuty-v3", "tripod:10", seconds=2.0)
     assert duty.metrics["falls"] == 0
     assert duty.metrics["speed"] == pytest.approx(gait.metrics["speed"], rel=0.25)
 
@@ -49,7 +49,7 @@ def test_tripod_works_in_duty_mode_as_the_firmware_would():
 def yaw_rate(phase_deg: float, seed: int) -> float:
     """The mean yaw rate over seconds 1 to 4 of a 10 Hz tripod's episode (the turns are steady by then: their means
     over seconds 1 to 6 differ by under 0.03 rad/s, against turns of 0.55 rad/s)."""
-    env = gym.make("skitter/RoachWalk-v3", max_episode_steps=round(SECONDS * 50))
+    env = gym.make("skitter/RoachWalk-v4", max_episode_steps=round(SECONDS * 50))
     policy = TripodGait(TripodContext.from_env(env), frequency=10.0, phase=np.radians(phase_deg))
     return benchmark_yaw_rate(env, policy, seed)
 
@@ -64,7 +64,7 @@ def test_turning_direction_follows_the_sign_of_the_offset_from_180_deg():
 
 
 def test_turning_tripod_maps_the_command_through_the_measured_table():
-    env = gym.make("skitter/RoachTurn-v4")
+    env = gym.make("skitter/RoachTurn-v5")
     policy = load_policy("tripod", env)
     assert isinstance(policy, TripodTurn)
     obs, _ = env.reset(seed=0)
@@ -78,7 +78,7 @@ def test_turning_tripod_maps_the_command_through_the_measured_table():
 
 @pytest.mark.parametrize("command", [0.6, -0.6])
 def test_turning_tripod_turns_the_commanded_way(command):
-    env = gym.make("skitter/RoachTurn-v4", max_episode_steps=300)
+    env = gym.make("skitter/RoachTurn-v5", max_episode_steps=300)
     policy = load_policy("tripod", env)
     obs, info = env.reset(seed=1, options={"yaw_rate": command})
     rates = []
@@ -90,7 +90,7 @@ def test_turning_tripod_turns_the_commanded_way(command):
 
 
 def test_predict_follows_sb3_shapes_single_and_batched():
-    env = gym.make("skitter/RoachWalkDuty-v2")
+    env = gym.make("skitter/RoachWalkDuty-v3")
     policy = load_policy("tripod:10", env)
     obs, _ = env.reset(seed=0)
     action, state = policy.predict(obs)
@@ -103,7 +103,7 @@ def test_predict_follows_sb3_shapes_single_and_batched():
 
 
 def test_unknown_policy_names_are_rejected_clearly():
-    env = gym.make("skitter/RoachWalk-v3")
+    env = gym.make("skitter/RoachWalk-v4")
     with pytest.raises(ValueError, match=r"unknown policy .hexapod-magic. for the velociroach: .*tripod"):
         load_policy("hexapod-magic", env)
     with pytest.raises(ValueError, match="not a number"):
@@ -130,7 +130,7 @@ def test_duty_tripod_reads_its_inputs_by_name_not_position():
     from agents.velociroach.tripod import TripodContext
     from envs.common.task import ObservationLayout
 
-    env = gym.make("skitter/RoachWalkDuty-v2")
+    env = gym.make("skitter/RoachWalkDuty-v3")
     obs, _ = env.reset(seed=0)
     context = TripodContext.from_env(env)
     names = list(context.layout.slices)

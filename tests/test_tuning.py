@@ -21,7 +21,7 @@ from stable_baselines3 import PPO
 from agents.training import RUN_CODE, load_hyperparams, main, make_env, resolve_hyperparams
 from agents.tuning import LOG_STDS, TrialEvalCallback, eval_env, sample_ppo, shipped_params, tune
 
-WALK = "skitter/RoachWalk-v3"
+WALK = "skitter/RoachWalk-v4"
 # a tiny entry: 2 envs, episodes of 50 steps (1 s), so that a trial of 256 steps evaluates in a blink
 TINY = {"policy": "MlpPolicy", "n_envs": 2, "normalize": True, "env_kwargs": {"max_episode_steps": 50},
         "n_steps": 128, "batch_size": 64}  # fmt: skip
@@ -43,7 +43,7 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
     common = ("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs",
               "--evaluations", 2, "--eval-episodes", 1)  # fmt: skip
     assert train_py("--tune", 2, *common, cwd=tmp_path, monkeypatch=monkeypatch) == 0
-    folder = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v3__ppo"
+    folder = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v4__ppo"
     assert [row["state"] for row in trials_csv(folder)] == ["COMPLETE", "COMPLETE"]
     assert (tmp_path / "runs" / "tuning.db").is_file(), "SQLite by default"
     # best.yml is an entry train.py takes as it is, with the drawn values over the file's own
@@ -81,14 +81,14 @@ def test_a_tiny_study_writes_its_best_entry_and_continues_where_it_stopped(tmp_p
 
 
 def test_a_study_can_score_the_tasks_own_metric_and_minimizes_an_error(tmp_path, monkeypatch, capsys):
-    turn = "skitter/RoachTurn-v4"
+    turn = "skitter/RoachTurn-v5"
     # episodes of 1.5 s: a turn's yaw-rate error leaves out its first second
     (tmp_path / "tiny.yml").write_text(yaml.safe_dump({turn: {**TINY, "env_kwargs": {"max_episode_steps": 75}},
                                                        WALK: TINY}))  # fmt: skip
     common = ("--env", turn, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs",
               "--evaluations", 1, "--eval-episodes", 2)  # fmt: skip
     assert train_py("--tune", 2, *common, "--tune-metric", "yaw_rate_error", cwd=tmp_path, monkeypatch=monkeypatch) == 0
-    folder = tmp_path / "runs" / "tuning" / "skitter_RoachTurn-v4__ppo"
+    folder = tmp_path / "runs" / "tuning" / "skitter_RoachTurn-v5__ppo"
     study = json.loads((folder / "study.json").read_text())
     values = [float(row["value"]) for row in trials_csv(folder)]
     assert (study["metric"], study["direction"]) == ("yaw_rate_error", "minimize")
@@ -101,8 +101,8 @@ def test_a_study_can_score_the_tasks_own_metric_and_minimizes_an_error(tmp_path,
     assert train_py("--tune", 1, *common[:1], WALK, *common[2:], "--tune-metric", "yaw_rate_eror", cwd=tmp_path,
                     monkeypatch=monkeypatch) == 2  # fmt: skip
     err = capsys.readouterr().err
-    assert "--tune-metric 'yaw_rate_eror': skitter/RoachWalk-v3 reports return, speed," in err, err
-    assert len(err.strip().splitlines()) == 1 and not (folder.parent / "skitter_RoachWalk-v3__ppo").exists()
+    assert "--tune-metric 'yaw_rate_eror': skitter/RoachWalk-v4 reports return, speed," in err, err
+    assert len(err.strip().splitlines()) == 1 and not (folder.parent / "skitter_RoachWalk-v4__ppo").exists()
 
 
 def test_a_trial_scores_the_mean_of_its_evaluation_episodes_metric():

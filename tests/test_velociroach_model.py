@@ -155,3 +155,82 @@ def test_the_parameter_map_alone_writes_the_firmwares_derivative_gain():
     expected = m.derivative_gain(3.3, 1.5 * r0, 1.2 * k0, m.gear)
     np.testing.assert_allclose(model.actuator_gainprm[m.ids, GAIN_KD], expected, rtol=1e-12)
     assert robot.model.actuator_gainprm[m.ids[0], GAIN_KD] != model.actuator_gainprm[m.ids[0], GAIN_KD]
+
+
+def test_the_battery_voltage_balances_the_cells_power():
+    """V = E - R I with P = V I: the larger root, E at no load or with no resistance, E/2 beyond what the cell can
+    deliver (E^2 / 4R)."""
+    from envs.actuators.battery import loaded_voltage
+
+    e, r = 3.7, 0.2
+    power = np.array([0.0, 1.5, 8.0, 20.0])
+    v = loaded_voltage(e, r, power)
+    np.testing.assert_allclose(v[:3] * (e - v[:3]) / r, power[:3], rtol=1e-12, atol=1e-15)
+    assert v[0] == e and v[3] == e / 2 and np.all(np.diff(v) < 0)
+    assert 3.6 < v[1] < 3.7, "1.5 W, the tripod's draw at 45 Hz, sags a 0.2-ohm cell by under 0.1 V"
+    assert loaded_voltage(e, 0.0, 8.0) == e
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_battery_sags_under_the_power_drawn_and_the_firmware_follows_it(batched):
+    """Each control step holds the voltage the cell sags to under the power the motors drew over the step before:
+    the battery sense reads it, and the firmware's torque-space gains carry it, per simulation; a reset starts from
+    the open-circuit voltage (and its gains), and an ideal cell (0 ohm) never sags."""
+    from envs.actuators.battery import loaded_voltage
+    from envs.actuators.dcmotor import SUPPLY_SLOTS
+
+    robot = VelociRoach("gait", num_sims=2, batched=True) if batched else VelociRoach("gait")
+    n = robot.num_sims
+    ids = np.arange(n)
+    m = robot.motors
+    compiled = robot.field("actuator_gainprm")[:, m.ids][:, :, SUPPLY_SLOTS].copy()
+    np.testing.assert_allclose(m.supply_gains(np.full(n, robot.nominal_battery)), compiled, rtol=1e-14)
+    robot.reset(ids, RNG * n)
+    assert robot.nominal_battery_resistance == 0.2 and np.all(robot.battery == robot.nominal_battery)
+    command = np.array([[45.0, 45.0, np.pi], [30.0, 30.0, np.pi]])[:n]
+    drawn = np.zeros(n)
+    for _ in range(15):
+        robot.command(command)
+        expected = loaded_voltage(robot.nominal_battery, 0.2, drawn)
+        np.testing.assert_array_equal(robot.battery, expected)
+        written = robot.field("actuator_gainprm")[:, m.ids][:, :, SUPPLY_SLOTS]
+        np.testing.assert_array_equal(written, m.supply_gains(expected))
+        robot.sim.step()
+        readings = robot.read(RNG * n)
+        np.testing.assert_array_equal(readings["senses"][:, 14], expected)
+        drawn = readings["power"]
+    sag = robot.nominal_battery - robot.battery
+    assert np.all((sag > 0.02) & (sag < 0.3)), sag
+    robot.reset(ids, RNG * n)
+    assert np.all(robot.battery == robot.nominal_battery)
+    np.testing.assert_array_equal(robot.field("actuator_gainprm")[:, m.ids][:, :, SUPPLY_SLOTS],
+                                  m.supply_gains(robot.battery))  # fmt: skip
+    ideal = VelociRoach("gait", battery_resistance=0.0)
+    ideal.reset(np.arange(1), RNG)
+    for _ in range(5):
+        ideal.command(np.array([[45.0, 45.0, np.pi]]))
+        ideal.sim.step()
+        ideal.read(RNG)
+    assert ideal.battery[0] == ideal.nominal_battery
+
+
+def test_a_sagged_battery_lets_the_legs_lag_their_clock_more_at_45_hz_only():
+    """At 45 Hz the tripod draws about 1.5 W, which sags a 0.2-ohm cell by under 0.1 V: the legs lag the firmware's
+    clock a little more than on an ideal cell; at 10 Hz (0.2 W) hardly at all."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401
+
+    def lag(resistance: float, hz: float) -> float:
+        env = gym.make("skitter/RoachWalk-v4", battery_resistance=resistance, sensor_noise=False)
+        env.reset(seed=0)
+        robot = env.unwrapped.robot
+        action = robot.mode.to_action(np.array([hz, hz, np.pi]))
+        lags = []
+        for _ in range(50):
+            env.step(action)
+            lags.append(np.mean(robot.clock[0] - robot.leg_angles()[0]))
+        return float(np.degrees(np.mean(lags[25:])))
+
+    fast, slow = lag(0.2, 45.0) - lag(0.0, 45.0), lag(0.2, 10.0) - lag(0.0, 10.0)
+    assert 0.3 < fast < 6.0 and abs(slow) < 0.1, (fast, slow)

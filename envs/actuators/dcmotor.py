@@ -14,6 +14,8 @@ Two ways to drive it here, both through ``ctrl`` only:
   a firmware's PWM PID does, ``duty = kp e + ki int(e) + kd (v_cmd - w) + ff``. Its velocity setpoint and constant
   feed-forward go through the controller's feed-forward input, ``-(K^2/R) u_vel + (K/R) supply ff`` (written with the
   setpoints at every physics step), which cancels what the extra ``K^2/R`` adds to the setpoint's term.
+  A supply that changes during an episode (a sagging battery) changes those gains: :meth:`DCMotors.supply_gains`
+  gives them for any supply, for a robot to write between control blocks (the model's only writes in an episode).
 
 Electrical readouts come from the motor's torque and speed sensors (``actuatorfrc``, ``actuatorvel``) at every
 physics step. The H-bridge returns no braking energy to the supply: battery power is ``max(v i, 0)`` per motor.
@@ -35,6 +37,8 @@ INPUT_POS, INPUT_VEL, INPUT_FF, INPUT_VOLTAGE = 1, 2, 4, 8
 # where the compiler keeps a dcmotor's constants and controller (checked likewise)
 GAIN_R, GAIN_K = 0, 1
 GAIN_KP, GAIN_KI, GAIN_KD, GAIN_VMAX = 4, 5, 6, 7
+# the controller's slots that follow the supply voltage, in the order :meth:`DCMotors.supply_gains` gives them
+SUPPLY_SLOTS = np.array([GAIN_KP, GAIN_KI, GAIN_KD, GAIN_VMAX])
 DYN_SLEW, DYN_IMAX = 7, 8
 
 
@@ -143,6 +147,9 @@ class DCMotors:
         # the feed-forward input's factors, K/R and K^2/R, taken with R and K rather than at every step
         self._k_over_r = np.zeros((num_sims, len(self.ids)))
         self._k2_over_r = np.zeros((num_sims, len(self.ids)))
+        # the controller's supply-following gains (supply_gains) per volt and at no volt, (num_sims, motors, 4)
+        self._per_volt = np.zeros((num_sims, len(self.ids), 4))
+        self._at_no_volt = np.zeros((num_sims, len(self.ids), 4))
         self.refresh(
             np.arange(num_sims), np.broadcast_to(model.actuator_gainprm, (num_sims, *model.actuator_gainprm.shape))
         )
@@ -156,6 +163,19 @@ class DCMotors:
         self._power_coefficient[ids] = r / (k * k)  # v i = R tau^2 / K^2 + w tau
         self._k_over_r[ids] = k / r
         self._k2_over_r[ids] = k * k / r
+        g = self.pid
+        if g is not None:  # supply_gains: affine in the supply, per simulation and motor
+            to_torque = self._k_over_r[ids] / self.gear  # per volt of supply
+            self._per_volt[ids] = np.stack([g.kp * to_torque, g.ki * to_torque, g.kd * to_torque,
+                                            np.full_like(to_torque, g.max_duty)], axis=-1)  # fmt: skip
+            self._at_no_volt[ids, :, 2] = 0.0 if g.compensate_back_emf else self._k2_over_r[ids]
+
+    def supply_gains(self, supply: np.ndarray) -> np.ndarray:
+        """PID mode: the controller's torque-space gains and output bound for the supplies ``supply`` (num_sims,) V
+        and each simulation's R and K, as :meth:`configure` writes them for its nominal supply: (num_sims, motors, 4)
+        in the order of :data:`SUPPLY_SLOTS` (kp, ki, kd, Vmax). Affine in the supply; the integral's bound, in
+        motor-shaft units, does not depend on it."""
+        return self._per_volt * np.asarray(supply, dtype=np.float64)[:, None, None] + self._at_no_volt
 
     # --- commands into the control block ------------------------------------------------------------------------
     def set_duty(self, ctrl: np.ndarray, duty: np.ndarray, supply: np.ndarray) -> None:

@@ -67,6 +67,7 @@ class BatchSimulation:
         # an output field is refreshed after every call once bound (bound later, it reads zero until the next call)
         self._sensordata = b.bind("sensordata")
         self._start = np.empty_like(b.state) if self.refine > 1 else None
+        self._gains: np.ndarray | None = None  # the per-simulation actuator gains, once a robot writes them
         self._out = {"sensordata": self.substep_sensordata}
         self._block_time = self.n_substeps * self.model.opt.timestep
 
@@ -154,6 +155,13 @@ class BatchSimulation:
     def expand(self, field: str) -> np.ndarray:
         """Per-simulation values of a model field, (num_sims, ...) (see ``Batch.expand``)."""
         return self.batch.expand(field)
+
+    def set_actuator_gains(self, actuators: np.ndarray, slots: np.ndarray, values: np.ndarray) -> None:
+        """Write the gain parameters ``slots`` of ``actuators`` in each simulation before the next block: ``values``
+        (num_sims, actuators, slots) (see :meth:`envs.common.simulation.Simulation.set_actuator_gains`)."""
+        if self._gains is None:
+            self._gains = self.batch.expand("actuator_gainprm")
+        self._gains[:, actuators[:, None], slots] = values
 
     def set_const(self, ids: np.ndarray) -> None:
         self.batch.set_const(ids)

@@ -302,6 +302,13 @@ class PlayerSimulation:
         free = joint >= 0 and single.jnt_type[joint] == mujoco.mjtJoint.mjJNT_FREE
         # the robot's root free joint: moved to each player's place as it resets
         self._root = (int(single.jnt_qposadr[joint]), int(single.jnt_dofadr[joint])) if free else None
+        # the scene's actuator of each player's robot actuator, (players, robot actuators)
+        names = [single.actuator(i).name or _unnamed("actuators", i) for i in range(single.nactuator)]
+        actuator = mujoco.mjtObj.mjOBJ_ACTUATOR
+        self._actuators = np.array(
+            [[mujoco.mj_name2id(scene.model, actuator, f"{p}/{a}") for a in names] for p in scene.players],
+            dtype=np.int64,
+        )
         self._refresh()
 
     @property
@@ -416,6 +423,14 @@ class PlayerSimulation:
 
     def expand(self, field: str) -> np.ndarray:
         raise ValueError("robots on a shared scene take no per-robot physical parameters (randomize, set_parameters)")
+
+    def set_actuator_gains(self, actuators: np.ndarray, slots: np.ndarray, values: np.ndarray) -> None:
+        """Write the gain parameters ``slots`` of the robot's ``actuators`` in every player before the next block:
+        ``values`` (num_sims, actuators, slots), players scene-major (see
+        :meth:`envs.common.simulation.Simulation.set_actuator_gains`)."""
+        scene = self._actuators[:, np.asarray(actuators)].reshape(-1)  # each player's, player-major
+        n = self.scene.num_scenes
+        self.scene.sim.set_actuator_gains(scene, slots, values.reshape(n, len(scene), len(slots)))
 
     def set_const(self, ids: np.ndarray) -> None:
         self.expand("")

@@ -172,6 +172,12 @@ class Simulation:
         block[0, :, : self.model.nu] = self.ctrl[0]
         return block
 
+    def set_actuator_gains(self, actuators: np.ndarray, slots: np.ndarray, values: np.ndarray) -> None:
+        """Write the gain parameters ``slots`` of ``actuators`` before the next block: ``values`` (1, actuators,
+        slots). For a controller whose gains follow a quantity that changes during an episode (a sagging battery),
+        written between control blocks, never within one."""
+        self.model.actuator_gainprm[actuators[:, None], slots] = values[0]
+
     def __getstate__(self):
         state = self.__dict__.copy()
         for name in (

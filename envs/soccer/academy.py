@@ -360,13 +360,24 @@ MANUAL = """{title}: {task}
 {history}"""
 
 
+# revisions of a robot's model that every one of its academy ids takes after its own history (a task's later change
+# of its own goes after these)
+MODEL_REVISIONS: dict[str, tuple[str, ...]] = {
+    "Roach": ("the robot's battery sags under its load (an internal resistance of 0.2 ohm, measured on the real "
+              "logs), as in RoachWalk-v4: its battery sense reads the sagged voltage and its firmware's duty "
+              "multiplies it.",),
+    "Xjus": (),
+    "Bioloid": (),
+}  # fmt: skip
+
+
 def history(robot: str, task_class: type[AcademyTask] | None = None) -> tuple[str, ...]:
     """The version history of a robot's academy id (its name in ids, as ``Bioloid``): the task's own where it has one
-    (a task added after the others starts at v1), else the robot's academy's."""
+    (a task added after the others starts at v1), else the robot's academy's; then the robot's model revisions."""
     own = None if task_class is None else task_class.history
     if isinstance(own, Mapping):  # a task's history per robot
         own = own[robot]
-    return tuple(HISTORY[robot]) if own is None else own
+    return (*(tuple(HISTORY[robot]) if own is None else own), *MODEL_REVISIONS[robot])
 
 
 def version(robot: str, task_class: type[AcademyTask] | None = None) -> int:

@@ -473,7 +473,7 @@ class SoccerParallelEnv(ParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "name": "skitter_soccer_v7",
+        "name": "skitter_soccer_v8",
         "render_modes": ["rgb_array"],
         "is_parallelizable": True,
         "render_fps": 50,

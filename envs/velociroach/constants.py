@@ -42,6 +42,7 @@ SENSOR_BODY_QUAT = "body_quat"
 SENSOR_BODY_VEL = "body_vel"
 SENSOR_GRF = {leg: f"grf_{leg}" for leg in LEGS}
 NUMERIC_BATTERY = "battery_voltage"
+NUMERIC_BATTERY_RESISTANCE = "battery_resistance"
 NUMERIC_SWEEP = "sweep_amplitude"
 NUMERIC_LIFT = "lift_amplitude"
 

@@ -9,7 +9,8 @@ from typing import ClassVar
 import mujoco
 import numpy as np
 
-from envs.actuators.dcmotor import GAIN_K, GAIN_KD, GAIN_KP, GAIN_R, DCMotors, PIDGains
+from envs.actuators.battery import loaded_voltage
+from envs.actuators.dcmotor import GAIN_K, GAIN_KD, GAIN_KP, GAIN_R, SUPPLY_SLOTS, DCMotors, PIDGains
 from envs.common.calibration import Calibration
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
@@ -61,14 +62,23 @@ class VelociRoach(Robot):
       ``PHASE_SLEW``; a PID per side tracks its clock. The PID is the firmware's voltage-mode law (a PWM duty from
       P, I, D on the clock's angle and rate; no back-EMF compensation; clipped to the battery voltage) on MuJoCo's
       dcmotor controller, evaluated at every physics step; the clock is its setpoint, given for every physics step
-      of the control block. No Python runs per physics step and nothing
-      writes the model.
+      of the control block. No Python runs per physics step; between control steps the controller's torque-space
+      gains follow the battery's voltage (the model's only writes during an episode).
     - ``duty`` (1 kHz): the PWM duty cycle per side in [-1, 1]; the motor sees duty x battery voltage.
+
+    The battery is a cell with an internal resistance (the MJCF's ``battery_resistance``, measured on the real logs):
+    over each control step it holds the voltage it sags to under the power the motors drew over the step before
+    (:func:`envs.actuators.battery.loaded_voltage`), which the ``battery`` sense reads, as the real board's does, and
+    which the firmware's duty multiplies: in duty mode through ``ctrl`` (duty x voltage), in gait mode through the
+    controller's torque-space gains and output bound, written for each control step (:meth:`block_gains` says what
+    a replay writes).
 
     Args:
         action_mode: ``"gait"`` or ``"duty"``.
         control_freq: control steps per second (default 50 in gait mode, 1000 in duty mode).
-        battery_voltage: supply voltage, V (default the model's nominal 3.7 V).
+        battery_voltage: the battery's open-circuit voltage, V (default the model's nominal 3.7 V).
+        battery_resistance: the battery's internal resistance, ohm (default the model's, 0.2 ohm; 0: an ideal
+            source).
         calibration: a calibration file from ``calibrate.py --robot roach`` (docs/calibration.md): its friction,
             rotor inertia, motor constant, delay, supply scale (on the battery voltage), foot friction, ground
             contact, leg stiffness, mass and centre-of-mass effects are added to the nominal model; its sensor
@@ -100,6 +110,7 @@ class VelociRoach(Robot):
         action_mode: str = GAIT,
         control_freq: float | None = None,
         battery_voltage: float | None = None,
+        battery_resistance: float | None = None,
         imu_noise: ImuNoise | None = ImuNoise(),  # noqa: B008 (frozen dataclass)
         spec_edits: Sequence[SpecEdit] = (),
         num_sims: int | None = None,
@@ -109,6 +120,9 @@ class VelociRoach(Robot):
     ):
         self._battery_arg = (
             None if battery_voltage is None else check_number("battery_voltage", battery_voltage, 0, strict=True)
+        )
+        self._resistance_arg = (
+            None if battery_resistance is None else check_number("battery_resistance", battery_resistance, 0)
         )
         self.imu_noise = imu_noise
         super().__init__(action_mode, control_freq, spec_edits, num_sims, nthread, batched, calibration)
@@ -120,6 +134,8 @@ class VelociRoach(Robot):
     # --- building -----------------------------------------------------------------------------------------------
     def configure(self, spec: mujoco.MjSpec) -> None:
         nominal = float(spec.numeric(constants.NUMERIC_BATTERY).data[0])
+        resistance = float(spec.numeric(constants.NUMERIC_BATTERY_RESISTANCE).data[0])
+        self.nominal_battery_resistance = resistance if self._resistance_arg is None else self._resistance_arg
         self.nominal_battery = nominal if self._battery_arg is None else self._battery_arg
         if self.calibration is not None:  # what reaches the motors of the calibrated robot's battery
             self.nominal_battery *= self.calibration.setting.get("supply_voltage.scale", 1.0)
@@ -166,7 +182,10 @@ class VelociRoach(Robot):
         self._i_motor = np.concatenate([self._i_torque, self._i_speed, self._i_gyro[2:]])
         self._mass = float(m.body_subtreemass[m.body(constants.ROOT_BODY).id])
         # per-simulation firmware state
-        self.battery = np.full(n, self.nominal_battery)
+        self.open_circuit = np.full(n, self.nominal_battery)  # the battery's open-circuit voltage, V
+        self.battery_resistance = np.full(n, self.nominal_battery_resistance)  # its internal resistance, ohm
+        self.battery = self.open_circuit.copy()  # its voltage over the current control step, V
+        self._drawn = np.zeros(n)  # the power the motors drew over the last control step, W
         self.clock = np.zeros((n, 2))  # firmware leg clocks, rad at the leg (gait mode)
         self.phase = np.full(n, constants.STRAIGHT_PHASE)  # firmware's current left/right phase
         self.last_duty = np.zeros((n, 2))  # duty mode: the duty of the last command
@@ -211,8 +230,11 @@ class VelociRoach(Robot):
         gain = (ids, slice(GAIN_KP, GAIN_KD))
         p = ParameterMap()
         p.add(Parameter("battery_voltage", "V", self.nominal_battery, 2.5, 4.5,
-                        "supply voltage (1-cell LiPo, 3.5-3.9 V in the real logs)",
-                        self.motors.supply_fields(), attribute="battery"))  # fmt: skip
+                        "the battery's open-circuit voltage (1-cell LiPo, 3.6-3.8 V in the real logs)",
+                        self.motors.supply_fields(), attribute="open_circuit"))  # fmt: skip
+        p.add(Parameter("battery_resistance", "ohm", self.nominal_battery_resistance, 0.0, 0.5,
+                        "the battery's internal resistance (0.11-0.34 ohm measured on the real logs)",
+                        attribute="battery_resistance"))  # fmt: skip
         firmware_r = (FieldRef("actuator_gainprm", gain, "inverse"),) if pid else ()
         firmware_k = (FieldRef("actuator_gainprm", gain, "scale"),) if pid else ()
 
@@ -345,6 +367,9 @@ class VelociRoach(Robot):
         cranks = qpos[:, self._crank_qpos]
         self.clock[ids] = cranks
         self.last_duty[ids] = 0.0
+        self.battery[ids] = self.open_circuit[ids]  # nothing drawn yet
+        self._drawn[ids] = 0.0
+        self._write_gains()  # the reset state's controller is the full battery's, whatever ran before it
         state = {"qpos": qpos, "qvel": qvel, "act": np.zeros((len(ids), m.na))}
         ctrl = np.zeros((len(ids), m.nu))
         if self.action_mode == GAIT:
@@ -356,6 +381,7 @@ class VelociRoach(Robot):
     def command(self, command: np.ndarray) -> None:
         """Gait mode: (n, 3) stride frequencies (Hz) and phase (rad); duty mode: (n, 2) duty per side."""
         ctrl = self.sim.ctrl
+        self.battery[:] = loaded_voltage(self.open_circuit, self.battery_resistance, self._drawn)
         if self.action_mode == DUTY:
             self.last_duty[:] = np.minimum(np.maximum(command, -1.0), 1.0)
             self.motors.set_duty(ctrl, self.last_duty, self.battery)
@@ -368,8 +394,24 @@ class VelociRoach(Robot):
         rate[:, 1] -= dphi / dt  # the right clock falls behind by the phase change over the step
         # as the firmware advances its clock, then runs its PID: the clock at the end of each physics step is the
         # setpoint during that step (the last one ends the block at the new clock)
+        self._write_gains()
         self.motors.set_ramps(ctrl, self.clock, rate, self._substep_times, self.battery)
         self.clock += rate * dt
+
+    def block_gains(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """What the robot writes into the model for the current control block, for a replay to write too: (actuators,
+        gain slots, values (num_sims, actuators, slots)) in gait mode (the firmware's gains for the battery's
+        voltage), None in duty mode (every input a ``ctrl`` value)."""
+        if self.action_mode != GAIT:
+            return None
+        return self.motors.ids, SUPPLY_SLOTS, self.motors.supply_gains(self.battery)
+
+    def _write_gains(self) -> None:
+        """Gait mode: the firmware's duty gains in MuJoCo's torque space carry the voltage the duty multiplies, each
+        simulation's battery now (a simulation whose battery has not changed keeps the same values)."""
+        gains = self.block_gains()
+        if gains is not None:
+            self.sim.set_actuator_gains(*gains)
 
     def read(self, rngs: Sequence[np.random.Generator], stepped: bool | np.ndarray = True) -> dict[str, np.ndarray]:
         v = self.sim.sensordata[:, self._i_read]  # every sensor the readings use, in one gather
@@ -380,6 +422,7 @@ class VelociRoach(Robot):
             power = self.motors.battery_power(sub[:, :, :2], sub[:, :, 2:4]).sum(axis=(1, 2)) / self.n_substeps
             if stepped is not True:
                 power = np.where(stepped, power, 0.0)
+        self._drawn[:] = power  # the battery's load over the next control step
         imu = self.imu.update(v[:, 4:10], sub[:, :, 4], rngs, stepped)
         self._imu = imu
         senses = self._senses

@@ -52,6 +52,7 @@ class RoachTurnEnv(SkitterEnv):
     ``speed_reward_weight`` (0.01).
 
     ## Version History
+    - v5: (duty mode v4) as RoachWalk-v4 (the battery sags under its load).
     - v4: (gait mode; duty mode stays v3) as RoachWalk-v3 (the real firmware's voltage-mode PID and gains).
     - v3: tracking of the mean yaw rate over ``tracking_window`` (0.5 s) within 0.3 rad/s, and a speed weight of 0.01
       (v2: the rate over each 20 ms step within 0.5 rad/s, and 0.1). Under v2 the tripod run straight at 45 Hz,
@@ -78,6 +79,7 @@ class RoachTurnEnv(SkitterEnv):
         grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         battery_voltage: float | None = None,
+        battery_resistance: float | None = None,
         sensor_noise: bool = True,
         randomize: Mapping[str, Sequence[float]] | None = None,
         calibration: str | None = None,
@@ -91,6 +93,7 @@ class RoachTurnEnv(SkitterEnv):
             action_mode,
             control_freq,
             battery_voltage,
+            battery_resistance,
             ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             calibration=calibration,
         )

@@ -96,18 +96,23 @@ class RoachWalkEnv(SkitterEnv):
     of steps) and ``body_height`` (mean, m).
 
     ## Arguments
-    ``gymnasium.make("skitter/RoachWalk-v3", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
+    ``gymnasium.make("skitter/RoachWalk-v4", **kwargs)``: ``action_mode``, ``control_freq`` (Hz; default 50 in gait
     mode, 1000 in duty mode), ``privileged_obs``, ``forward_reward_weight`` (1.0), ``energy_cost_weight`` (0.1 per W),
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``battery_voltage`` (V,
-    default the model's 3.7), ``sensor_noise`` (True: the IMU's noise and bias), ``randomize`` (parameter name ->
-    (low, high)), ``calibration`` (a calibration file from ``calibrate.py --robot roach``: the model with its
-    effects, docs/calibration.md), ``episode_seconds`` (the time limit, s; default 10, None for none),
-    ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode`` (``"human"``, ``"rgb_array"``),
-    ``width``, ``height``.
+    the battery's open-circuit voltage, default the model's 3.7), ``battery_resistance`` (ohm, its internal
+    resistance, default the model's 0.2; 0 for an ideal source), ``sensor_noise`` (True: the IMU's noise and
+    bias), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a calibration file from ``calibrate.py
+    --robot roach``: the model with its effects, docs/calibration.md), ``episode_seconds`` (the time limit, s;
+    default 10, None for none), ``telemetry`` (record telemetry, see docs/telemetry.md), ``render_mode``
+    (``"human"``, ``"rgb_array"``), ``width``, ``height``.
     The ground rules: ``terminate_when_unhealthy`` (True), ``height_band`` ((low, high) m, default the robot's),
     ``grace_time`` (1.5 s).
 
     ## Version History
+    - v4: (duty mode v3) the battery sags under its load: a cell with an internal resistance of 0.2 ohm (measured
+      on the real logs, 0.11-0.34 ohm), holding over each control step the voltage it sags to under the power the
+      motors drew over the step before; the ``battery`` sense reads it and the firmware's duty multiplies it (v3: an
+      ideal 3.7 V source). ``battery_voltage`` is the open-circuit voltage; ``battery_resistance`` is new.
     - v3: (gait mode; duty mode stays v2) the firmware's PID is the real one, a voltage-mode PWM law with the lab's
       gains (Kp 1800, Ki 200, Kd 100 in its units; no back-EMF compensation), where v2 ran a current-mode PID with
       stiffer gains of our own; the legs now lag the clock (about 4 deg at 15 Hz and 12 at 45 Hz, against 1.3 and
@@ -137,6 +142,7 @@ class RoachWalkEnv(SkitterEnv):
         grace_time: float = GRACE_TIME,
         reset_noise_scale: float = 0.1,
         battery_voltage: float | None = None,
+        battery_resistance: float | None = None,
         sensor_noise: bool = True,
         randomize: Mapping[str, Sequence[float]] | None = None,
         calibration: str | None = None,
@@ -149,6 +155,7 @@ class RoachWalkEnv(SkitterEnv):
             action_mode,
             control_freq,
             battery_voltage,
+            battery_resistance,
             ImuNoise() if check_flag("sensor_noise", sensor_noise) else None,
             calibration=calibration,
         )

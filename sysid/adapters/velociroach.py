@@ -1,5 +1,5 @@
 """Calibration of the VelociRoACH against its telemetry (``calibrate.py --robot roach``), and the calibrated model
-(``gym.make("skitter/RoachWalk-v3", calibration=PATH)``).
+(``gym.make("skitter/RoachWalk-v4", calibration=PATH)``).
 
 **Replay.** The real logs hold the firmware's commanded leg angles (its leg clock), the measured leg angles, the PWM
 duty it applied and the battery voltage, at 1 kHz. They are replayed through the firmware's own PID law with the

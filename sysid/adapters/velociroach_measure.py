@@ -54,6 +54,8 @@ class Nominal:
     full_scale: int  # PWM counts of full duty
     source_bemf: str
     source_resistance: str
+    battery_voltage: float = 3.7  # V, the battery's open-circuit voltage
+    battery_resistance: float = 0.0  # ohm, its internal resistance
 
     @classmethod
     @functools.cache
@@ -73,6 +75,8 @@ class Nominal:
             source_bemf="assets/velociroach/velociroach.xml: Kt = 1.41 mN m/A (the lab's scaling script, unchecked) "
             "x gear 7 (chosen for 45 Hz strides)",
             source_resistance="assets/velociroach/velociroach.xml: R = 3.3 ohm (the lab's scaling script)",
+            battery_voltage=float(model.numeric(constants.NUMERIC_BATTERY).data[0]),
+            battery_resistance=float(model.numeric(constants.NUMERIC_BATTERY_RESISTANCE).data[0]),
         )
 
 
@@ -169,10 +173,11 @@ def measure_roach(
     x = np.column_stack([np.ones_like(t), -current])
     coef = lstsq(x, vb)
     ci = bootstrap(lambda x, y: lstsq(x, y), block, x, vb, seed=seed)
-    add("battery_open_circuit", "", coef[0], ci[:, 0], "V", 3.7, "assets/velociroach/velociroach.xml: a 1-cell "
-        "LiPo, nominal 3.7 V")  # fmt: skip
-    add("battery_resistance", "", coef[1], ci[:, 1], "ohm", 0.0, "assets/velociroach/velociroach.xml: the supply "
-        "is an ideal source", f"with the winding's nominal {nominal.resistance:g} ohm")  # fmt: skip
+    add("battery_open_circuit", "", coef[0], ci[:, 0], "V", nominal.battery_voltage, "assets/velociroach/"
+        f"velociroach.xml: a 1-cell LiPo, nominal {nominal.battery_voltage:g} V")  # fmt: skip
+    add("battery_resistance", "", coef[1], ci[:, 1], "ohm", nominal.battery_resistance, "assets/velociroach/"
+        f"velociroach.xml: {nominal.battery_resistance:g} ohm, the middle of the three real logs' measurements",
+        f"with the winding's nominal {nominal.resistance:g} ohm")  # fmt: skip
     # the drive balance: a braking driver's mean terminal voltage over the mean back-EMF, per side
     for side in SIDES:
         d = df[f"duty_{side}"].to_numpy(dtype=float)
