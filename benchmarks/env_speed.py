@@ -42,24 +42,30 @@ def time_env(env, actions: np.ndarray) -> float:
     return len(actions) / (time.perf_counter() - start)
 
 
-def record_blocks(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The control block of every step, whether the env reset before it, and the env's final qpos."""
+def record_blocks(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The control block of every step, whether the env reset before it, the env's final qpos, and the actuator
+    gains of every block where the robot writes them between blocks (the roach's gait mode; else None)."""
     sim = env.unwrapped.robot.sim
+    model = env.unwrapped.model
     env.reset(seed=0)
-    blocks, resets, reset = [], [], False
+    blocks, resets, gains, reset = [], [], [], False
     for a in actions:
         _, _, terminated, truncated, _ = env.step(a)
         blocks.append(sim.ctrl[0].copy())
+        gains.append(model.actuator_gainprm.copy())
         resets.append(reset)
         final = sim.data.qpos.copy()
         reset = terminated or truncated
         if reset:
             env.reset(seed=0)
-    return np.array(blocks), np.array(resets), final
+    written = any(not np.array_equal(g, gains[0]) for g in gains)
+    return np.array(blocks), np.array(resets), final, np.array(gains) if written else None
 
 
-def time_raw(model, start: mujoco.MjData, blocks: np.ndarray, resets: np.ndarray) -> tuple[float, np.ndarray]:
-    """One native call per control step, as a hand-written loop would make it."""
+def time_raw(model, start: mujoco.MjData, blocks: np.ndarray, resets: np.ndarray,
+             gains: np.ndarray | None = None) -> tuple[float, np.ndarray]:  # fmt: skip
+    """One native call per control step, as a hand-written loop would make it (writing each block's actuator gains
+    first where the robot does)."""
     data = mujoco.MjData(model)
     mujoco.mj_copyData(data, model, start)
     nstep = blocks.shape[1]
@@ -71,6 +77,8 @@ def time_raw(model, start: mujoco.MjData, blocks: np.ndarray, resets: np.ndarray
     for i, block in enumerate(blocks):
         if resets[i]:
             mujoco.mj_copyData(data, model, start)
+        if gains is not None:
+            model.actuator_gainprm[:] = gains[i]
         if constant:
             data.ctrl[:] = block[0]
             mujoco.mj_step(model, data, nstep=nstep)
@@ -104,11 +112,11 @@ def measure_skitter(env_id: str, steps: int, rounds: int) -> dict:
     env.reset(seed=0)
     start = mujoco.MjData(model)
     mujoco.mj_copyData(start, model, base.data)
-    blocks, resets, final = record_blocks(env, actions)
+    blocks, resets, final, gains = record_blocks(env, actions)
     env_sps, raw_sps, one_sps = [], [], []
     for _ in range(rounds):
         env_sps.append(time_env(env, actions))
-        sps, raw_final = time_raw(model, start, blocks, resets)
+        sps, raw_final = time_raw(model, start, blocks, resets, gains)
         raw_sps.append(sps)
         one_sps.append(time_one_call(model, start, blocks))
     ratios = np.array(env_sps) / np.array(raw_sps)
