@@ -166,9 +166,11 @@ class DCMotors:
         g = self.pid
         if g is not None:  # supply_gains: affine in the supply, per simulation and motor
             to_torque = self._k_over_r[ids] / self.gear  # per volt of supply
-            self._per_volt[ids] = np.stack([g.kp * to_torque, g.ki * to_torque, g.kd * to_torque,
+            kd_at_no_volt = self.derivative_gain(0.0, r, k, self.gear)
+            kd_per_volt = self.derivative_gain(1.0, r, k, self.gear) - kd_at_no_volt
+            self._per_volt[ids] = np.stack([g.kp * to_torque, g.ki * to_torque, kd_per_volt,
                                             np.full_like(to_torque, g.max_duty)], axis=-1)  # fmt: skip
-            self._at_no_volt[ids, :, 2] = 0.0 if g.compensate_back_emf else self._k2_over_r[ids]
+            self._at_no_volt[ids, :, 2] = kd_at_no_volt
 
     def supply_gains(self, supply: np.ndarray) -> np.ndarray:
         """PID mode: the controller's torque-space gains and output bound for the supplies ``supply`` (num_sims,) V

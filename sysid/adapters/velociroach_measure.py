@@ -52,10 +52,10 @@ class Nominal:
     bemf_constant: float  # V s/rad at the leg: motor constant x gear
     resistance: float  # ohm, the winding
     full_scale: int  # PWM counts of full duty
+    battery_voltage: float  # V, the battery's open-circuit voltage
+    battery_resistance: float  # ohm, its internal resistance
     source_bemf: str
     source_resistance: str
-    battery_voltage: float = 3.7  # V, the battery's open-circuit voltage
-    battery_resistance: float = 0.0  # ohm, its internal resistance
 
     @classmethod
     @functools.cache
