@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -101,41 +102,88 @@ def _spectral_peak(r: np.ndarray, t: np.ndarray) -> tuple[float, float]:
     return float(k / (len(r) * dt)), float(spectrum[k] / spectrum.sum())
 
 
-def summarize(diagnostics: Mapping[str, dict], limit: int = 3) -> list[str]:
-    """The strongest findings, as sentences."""
-    findings: list[tuple[float, str]] = []
+@dataclass(frozen=True)
+class Finding:
+    """One diagnostic that stands out: on ``channel``, of kind ``key`` (a key of :data:`MECHANISMS`), weighing
+    ``weight`` (its correlation or ratio times the channel's RMS, in noise levels), read as ``text``."""
+
+    weight: float
+    channel: str
+    key: str
+    text: str
+
+
+# what each kind of finding points to, and the catalog effects (envs/common/effects.py) that make a residual of that
+# kind: the mechanism a report names when what remains is unexplained, and the effects it asks the outcome about
+MECHANISMS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "bias": ("an offset in the sensor or its zero", ("sensor_bias", "com_offset")),
+    "with_sign_of_velocity": ("dry friction, backlash or a deadband",
+                              ("coulomb_friction", "asymmetric_friction", "stribeck_friction", "load_friction",
+                               "backlash", "deadband")),
+    "with_velocity": ("speed-proportional losses or the back-EMF",
+                      ("viscous_friction", "back_emf_constant", "torque_constant", "pwm_decay", "sensor_gain")),
+    "with_acceleration": ("inertia or lag", ("armature", "delay", "mass", "servo_gain")),
+    "with_command": ("the drive's strength", ("torque_constant", "supply_voltage", "gearbox_efficiency", "deadband",
+                                              "servo_gain", "sensor_coupling")),
+    "drift_with_time": ("a slow change over the run (the supply sagging, the motor heating)",
+                        ("supply_sag", "supply_voltage")),
+    "with_supply": ("the supply", ("supply_voltage", "supply_sag")),
+    "with_load": ("what the drive carries: its losses, the legs' compliance, the body and the ground they move",
+                  ("gearbox_efficiency", "load_friction", "coulomb_friction", "viscous_friction", "torque_constant",
+                   "supply_sag", "leg_stiffness", "ground_contact", "foot_friction", "mass",
+                   "com_offset", "terrain_bump")),
+    "stance": ("the contacts: legs, feet and ground",
+               ("foot_friction", "ground_contact", "leg_stiffness", "mass", "com_offset", "terrain_bump")),
+    "swing": ("the legs' own motion in the air: inertia, lag, friction",
+              ("armature", "delay", "viscous_friction", "coulomb_friction")),
+    "sides": ("a difference between the sides", ()),
+    "spectral": ("a periodic disturbance", ("disturbance", "terrain_bump")),
+}  # fmt: skip
+_CORRELATIONS = (
+    ("with_sign_of_velocity", "follows the sign of velocity (dry friction, backlash, deadband)"),
+    ("with_velocity", "grows with velocity (viscous friction, back-EMF)"),
+    ("with_acceleration", "follows acceleration (inertia, armature, delay)"),
+    ("with_command", "follows the command (torque constant, supply, deadband)"),
+    ("drift_with_time", "drifts over time (supply sag, heating)"),
+    ("with_supply", "follows the supply voltage"),
+    ("with_load", "follows the load (compliance, current limit)"),
+)
+
+
+def findings(diagnostics: Mapping[str, dict]) -> list[Finding]:
+    """The diagnostics that stand out, strongest first."""
+    found: list[Finding] = []
     for channel, d in diagnostics.items():
         if d.get("rms", 0.0) <= 1.2:
             continue
         if abs(d.get("bias", 0.0)) > 0.5 * d["rms"]:
-            findings.append((abs(d["bias"]), f"{channel}: a constant offset ({d['bias']:+.2f} noise levels)"))
-        for key, text in (
-            ("with_sign_of_velocity", "follows the sign of velocity (dry friction, backlash, deadband)"),
-            ("with_velocity", "grows with velocity (viscous friction, back-EMF)"),
-            ("with_acceleration", "follows acceleration (inertia, armature, delay)"),
-            ("with_command", "follows the command (torque constant, supply, deadband)"),
-            ("drift_with_time", "drifts over time (supply sag, heating)"),
-            ("with_supply", "follows the supply voltage"),
-            ("with_load", "follows the load (compliance, current limit)"),
-        ):
+            found.append(Finding(abs(d["bias"]), channel, "bias", f"{channel}: a constant offset ({d['bias']:+.2f} "
+                                 "noise levels)"))  # fmt: skip
+        for key, text in _CORRELATIONS:
             c = d.get(key)
             if c is not None and abs(c) > 0.3:
-                findings.append((abs(c) * d["rms"], f"{channel}: the residual {text}, correlation {c:+.2f}"))
+                found.append(Finding(abs(c) * d["rms"], channel, key, f"{channel}: the residual {text}, correlation "
+                                     f"{c:+.2f}"))  # fmt: skip
         ratio = d.get("stance_over_swing")
         if ratio is not None and (ratio > 1.5 or ratio < 1 / 1.5):
             where = "stance" if ratio > 1 else "swing"
-            findings.append((abs(math.log(ratio)) * d["rms"] / 2, f"{channel}: the residual is larger in {where} "
-                             f"({max(ratio, 1 / ratio):.1f} times; contacts, legs, feet)"))  # fmt: skip
+            times = max(ratio, 1 / ratio)
+            text = f"{channel}: the residual is larger in {where} ({times:.1f} times; contacts, legs, feet)"
+            found.append(Finding(abs(math.log(ratio)) * d["rms"] / 2, channel, where, text))
         ratio = d.get("left_over_right")
         if ratio is not None and (ratio > 2 or ratio < 0.5):
             side, other = ("left", "right") if ratio > 1 else ("right", "left")
-            findings.append((abs(math.log(ratio)) * d["rms"] / 2, f"{channel[:-5]}: the {side} side's residual is "
-                             f"{max(ratio, 1 / ratio):.1f} times the {other}'s (a per-side effect)"))  # fmt: skip
+            found.append(Finding(abs(math.log(ratio)) * d["rms"] / 2, channel, "sides", f"{channel[:-5]}: the {side} "
+                                 f"side's residual is {max(ratio, 1 / ratio):.1f} times the {other}'s (a per-side "
+                                 "effect)"))  # fmt: skip
         if d.get("spectral_peak_share", 0.0) > 0.2:
-            findings.append(
-                (d["spectral_peak_share"] * d["rms"],
-                 f"{channel}: a spectral peak at {d['spectral_peak_hz']:.2f} Hz holds "
-                 f"{d['spectral_peak_share']:.0%} of the residual's power")
-            )  # fmt: skip
-    findings.sort(key=lambda x: -x[0])
-    return [text for _, text in findings[:limit]]
+            found.append(Finding(d["spectral_peak_share"] * d["rms"], channel, "spectral",
+                                 f"{channel}: a spectral peak at {d['spectral_peak_hz']:.2f} Hz holds "
+                                 f"{d['spectral_peak_share']:.0%} of the residual's power"))  # fmt: skip
+    found.sort(key=lambda f: -f.weight)
+    return found
+
+
+def summarize(diagnostics: Mapping[str, dict], limit: int = 3) -> list[str]:
+    """The strongest findings, as sentences."""
+    return [f.text for f in findings(diagnostics)[:limit]]

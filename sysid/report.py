@@ -59,7 +59,7 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
                 "score": _round(choice.score, 4),
             }
         )
-    test_diag = diagnostics.diagnose(result.test_problem, result.after.residuals, adapter.context)
+    test_diag = result.diagnostics_after()
     before_diag = diagnostics.diagnose(result.test_problem, result.before.residuals, adapter.context)
     return {
         "robot": adapter.name,
@@ -81,6 +81,8 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         "rejected": list(out.rejected),
         "unexplained": result.unexplained,
         "unexplained_reason": result.where(),
+        # what the remaining residual points to, and what became of each catalog effect of that kind
+        "trace": result.trace() if result.unexplained else None,
         # the effects kept on the training logs leave the held-out error above the starting model's (the nominal
         # one, or the calibration started from), by more than the reported precision
         "worse_on_test": bool(result.after.error > result.before.error * (1.0 + WORSE_BY)),
@@ -208,6 +210,18 @@ def report_markdown(report: Mapping[str, Any]) -> str:
     if r["rejected"]:
         lines += ["", "## Tried and rejected", ""]
         lines += [f"- **{x['name']}**: {x['reason']}" for x in r["rejected"]]
+    if r.get("trace"):
+        t = r["trace"]
+        lines += [
+            "",
+            "## What the remaining residual points to",
+            "",
+            f"{t['text'][0].upper() + t['text'][1:]}: {t['mechanism']}. The catalog's effects of that kind:",
+            "",
+        ]
+        lines += [f"- **{name}**: {e['words']}" for name, e in t["effects"].items()] or ["- none"]
+        if t["missing"]:
+            lines += ["", f"Kinds of effect this robot's catalog lacks: {', '.join(t['missing'])}."]
     if r["diagnostics"]["findings_before"]:
         lines += ["", "## What the residual pointed to (held-out, before)", ""]
         lines += [f"- {x}" for x in r["diagnostics"]["findings_before"]]

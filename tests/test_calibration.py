@@ -568,6 +568,14 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
     assert "**The calibrated model is worse on the held-out logs than the nominal model**" in report_markdown(worse)
     started = {**worse, "start": "earlier/calibration.json"}
     assert "than the calibration it started from (earlier/calibration.json)**" in report_markdown(started)
+    # an unexplained result's trace: its mechanism and each effect of that kind, with what became of it
+    assert (report["trace"] is None) == (not report["unexplained"])
+    kept = {"coulomb_friction": {"fate": "kept", "words": "kept (torque 0.2)"}}
+    trace = {"text": "speed: the residual follows the load", "mechanism": "what the drive carries",
+             "missing": ["load_friction"], "effects": kept}  # fmt: skip
+    text = report_markdown({**report, "trace": trace})
+    assert "## What the remaining residual points to\n\nSpeed: the residual follows the load: what the drive" in text
+    assert "- **coulomb_friction**: kept (torque 0.2)" in text and "catalog lacks: load_friction." in text
     assert set(report["per_channel"]) == {"angle", "speed"}
     first = report["chosen"][0]
     assert base_name(make_adapter("motor").effects()[first["name"]]) in ("coulomb_friction", "backlash", "deadband")
