@@ -116,7 +116,8 @@ class Finding:
 # what each kind of finding points to, and the catalog effects (envs/common/effects.py) that make a residual of that
 # kind: the mechanism a report names when what remains is unexplained, and the effects it asks the outcome about
 MECHANISMS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "bias": ("an offset in the sensor or its zero", ("sensor_bias", "com_offset")),
+    "bias": ("a constant offset (a sensor's zero, or an output the model holds too low or too high throughout)",
+             ("sensor_bias", "com_offset", "coulomb_friction")),
     "with_sign_of_velocity": ("dry friction, backlash or a deadband",
                               ("coulomb_friction", "asymmetric_friction", "stribeck_friction", "load_friction",
                                "backlash", "deadband")),
@@ -130,15 +131,21 @@ MECHANISMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "with_supply": ("the supply", ("supply_voltage", "supply_sag")),
     "with_load": ("what the drive carries: its losses, the legs' compliance, the body and the ground they move",
                   ("gearbox_efficiency", "load_friction", "coulomb_friction", "viscous_friction", "torque_constant",
-                   "supply_sag", "leg_stiffness", "ground_contact", "foot_friction", "mass",
-                   "com_offset", "terrain_bump")),
+                   "supply_sag", "sensor_coupling", "leg_stiffness", "spine_stiffness", "ground_contact",
+                   "foot_friction", "mass", "com_offset", "terrain_bump")),
     "stance": ("the contacts: legs, feet and ground",
-               ("foot_friction", "ground_contact", "leg_stiffness", "mass", "com_offset", "terrain_bump")),
+               ("foot_friction", "ground_contact", "leg_stiffness", "spine_stiffness", "mass", "com_offset",
+                "terrain_bump")),
     "swing": ("the legs' own motion in the air: inertia, lag, friction",
               ("armature", "delay", "viscous_friction", "coulomb_friction")),
     "sides": ("a difference between the sides", ()),
-    "spectral": ("a periodic disturbance", ("disturbance", "terrain_bump")),
+    "spectral": ("a periodic disturbance, or a mode of the body on its legs",
+                 ("disturbance", "terrain_bump", "ground_contact", "leg_stiffness", "spine_stiffness")),
 }  # fmt: skip
+# the kinds that act on a body standing on the ground: a robot with none in its catalog (a bench rig) lacks them by
+# nature, and a trace does not name them as missing
+BODY_KINDS = frozenset({"leg_stiffness", "spine_stiffness", "ground_contact", "foot_friction", "mass", "com_offset",
+                        "terrain_bump"})  # fmt: skip
 _CORRELATIONS = (
     ("with_sign_of_velocity", "follows the sign of velocity (dry friction, backlash, deadband)"),
     ("with_velocity", "grows with velocity (viscous friction, back-EMF)"),
@@ -173,7 +180,8 @@ def findings(diagnostics: Mapping[str, dict]) -> list[Finding]:
         ratio = d.get("left_over_right")
         if ratio is not None and (ratio > 2 or ratio < 0.5):
             side, other = ("left", "right") if ratio > 1 else ("right", "left")
-            found.append(Finding(abs(math.log(ratio)) * d["rms"] / 2, channel, "sides", f"{channel[:-5]}: the {side} "
+            larger = channel if ratio > 1 else channel[:-5] + "_right"
+            found.append(Finding(abs(math.log(ratio)) * d["rms"] / 2, larger, "sides", f"{channel[:-5]}: the {side} "
                                  f"side's residual is {max(ratio, 1 / ratio):.1f} times the {other}'s (a per-side "
                                  "effect)"))  # fmt: skip
         if d.get("spectral_peak_share", 0.0) > 0.2:

@@ -10,7 +10,7 @@ import numpy as np
 
 from envs.common.effects import Effect
 from sysid import diagnostics
-from sysid.diagnostics import MECHANISMS
+from sysid.diagnostics import BODY_KINDS, MECHANISMS
 from sysid.fit import evaluate, fit
 from sysid.logs import Log
 from sysid.problem import Adapter, Problem, Residual
@@ -67,8 +67,12 @@ class Result:
             kept = ", ".join(c.effect.name for c in self.outcome.chosen)
             text += (f". The effects kept ({kept}) take the held-out error from {self.before.error:.2f} to "
                      f"{after.error:.2f} but do not explain it")  # fmt: skip
+        text += ": what remains lies outside the catalog or in effects these logs cannot tell apart" + (
+            ", and what was kept may stand in for it" if self.outcome.chosen else ""
+        )
         traced = self.trace()
-        return text + (". " + traced["why"] if traced else ": what remains lies outside the catalog") + "."
+        return text + (f". The strongest finding, on {traced['channel']}, points to " + traced["why"] if traced
+                       else "") + "."  # fmt: skip
 
     def diagnostics_after(self) -> dict[str, dict]:
         """The diagnostics of the held-out residual after calibration (sysid/diagnostics.py)."""
@@ -82,89 +86,80 @@ class Result:
         return trace(self.adapter, self.outcome, diagnostics.findings(self.diagnostics_after()))
 
 
-def _relevant(effect: Effect, channel: str, channels: Sequence[str]) -> bool:
-    """Whether an effect acts on a channel: it has no target, the target is the channel or its suffix (``left`` of
-    ``duty_left``), or its target names no channel's suffix at all (a joint group), so that it may act on any."""
-    t = effect.target
-    if not t or channel == t or channel.endswith("_" + t):
-        return True
-    return not any(c == t or c.endswith("_" + t) for c in channels)
-
-
-def _fate(effect: Effect, outcome: Outcome, start: Mapping[str, float]) -> tuple[str, str]:
-    """What became of one catalog effect in a calibration: (kind, words). Kinds: kept, start, refused, aliased,
-    ranked, unranked."""
+def _fate(effect: Effect, outcome: Outcome) -> tuple[str, str]:
+    """What became of one catalog effect in a calibration: (kind, words). Kinds: kept, start, refused, refused
+    together (only in a chain with others), aliased, ranked (not kept), unranked."""
     for choice in outcome.chosen:
         if choice.effect.name == effect.name:
             values = ", ".join(f"{k.split('.', 1)[1]} {v:.3g}" for k, v in choice.values.items()
                                if k in effect.nominal())  # fmt: skip
             return "kept", f"kept ({values})"
-    if any(k in start for k in effect.nominal()):
-        return "start", "held at the calibration the run started from"
-    reasons = [r["reason"] for r in outcome.rejected if r["name"] == effect.name]
-    reasons = reasons or [r["reason"] for r in outcome.rejected if effect.name in r["name"].split(" + ")]
-    if reasons:
-        return "refused", f"refused: {reasons[0]}"
-    ranked = [entry for round_ in outcome.rounds for entry in round_ if entry["effect"] == effect.name]
+    if any(k in outcome.started for k in effect.nominal()):
+        return "start", "held at the calibration the run started from (not offered again)"
+    alone = [r["reason"] for r in outcome.rejected if r["name"] == effect.name]
+    if alone:
+        return "refused", f"refused: {alone[0]}"
+    chains = [r for r in outcome.rejected if effect.name in r["name"].split(" + ")]
+    if chains:
+        others = " + ".join(n for n in chains[0]["name"].split(" + ") if n != effect.name)
+        reason = chains[0]["reason"].removeprefix("together: ")
+        return "together", f"refused in a chain with {others}: {reason}"
+    ranked = [(entry, len(round_), round_.index(entry)) for round_ in outcome.rounds for entry in round_
+              if entry["effect"] == effect.name]  # fmt: skip
     taken = [c.effect.name for c in outcome.chosen if c.effect.alias == effect.alias
              and (not effect.target or c.effect.target in ("", effect.target))]  # fmt: skip
     if ranked and len(ranked) < len(outcome.rounds) and taken:
         return "aliased", f"not offered once {taken[0]} was kept (its alias group, {effect.alias})"
     if ranked:
-        share = ranked[-1]["explained_fraction"]
-        text = f"ranked, not tried: it explains {share:.1%} of the training residual at best"
+        entry, of, place = ranked[-1]
+        share, p = entry["explained_fraction"], entry["p_value"]
+        text = (f"not kept: ranked {place + 1} of {of} in the last ranking it was in, where it explains "
+                f"{share:.1%} of the training residual at best (p {p:.2g})")  # fmt: skip
         return "ranked", text + (f"; barely seen on this robot ({effect.weak})" if effect.weak else "")
     if outcome.mode == "fit":
         return "unranked", "not tried: the run fitted only the effects it was given (--fit)"
-    return "unranked", "not ranked"
+    return "unranked", "never ranked (the training residual was at its noise floor from the start)"
 
 
 def trace(adapter: Adapter, outcome: Outcome, found: Sequence[diagnostics.Finding]) -> dict | None:
     """The mechanism the strongest finding points to (:data:`sysid.diagnostics.MECHANISMS`), every catalog effect of
-    that kind on the finding's channel with what became of it in ``outcome``, the kinds of effect the robot's
-    catalog lacks, and a sentence on why none of them explains what remains."""
-    from envs.common.effects import TEMPLATES, base_name
+    that kind acting on the finding's channel (:meth:`Adapter.acts_on`) with what became of it in ``outcome``, the
+    kinds of effect the robot declares out of its catalog or lacks, and a sentence on what became of them."""
+    from envs.common.effects import base_name
 
     strongest = next((f for f in found if MECHANISMS.get(f.key, ("", ()))[1] or f.key == "sides"), None)
     if strongest is None:
         return None
     mechanism, kinds = MECHANISMS[strongest.key]
     catalog = adapter.catalog()
-    channels = list(adapter.channels)
-    catalog_nominal = adapter.catalog_nominal()  # a calibration the run started from moves the outcome's nominal
-    start = {k: v for k, v in outcome.nominal.items() if k in catalog_nominal and v != catalog_nominal[k]}
-    if strongest.key == "sides":  # a per-side effect: every effect with a side
-        effects = [e for e in catalog.values() if e.target]
+    if strongest.key == "sides":  # a per-side effect: every effect on the finding's side
+        effects = [e for e in catalog.values() if e.target and adapter.acts_on(e, strongest.channel)]
     else:
-        effects = [e for e in catalog.values() if base_name(e) in kinds and _relevant(e, strongest.channel, channels)]
-    fates = {e.name: _fate(e, outcome, start) for e in effects}
-    have = {base_name(e) for e in catalog.values()}
-    missing = [k for k in kinds if k in TEMPLATES and k not in have]
-    counts = {kind: [n for n, (k, _) in fates.items() if k == kind] for kind in
-              ("kept", "start", "refused", "aliased", "ranked", "unranked")}  # fmt: skip
-    parts = []
-    if counts["kept"]:
-        parts.append(f"{', '.join(counts['kept'])} kept, and a residual of this kind remains")
-    if counts["refused"]:
-        parts.append(f"{', '.join(counts['refused'])} refused (the report gives each one's reason)")
-    if counts["ranked"]:
-        parts.append(f"{', '.join(counts['ranked'])} ranked too low to try")
-    if counts["aliased"]:
-        parts.append(f"{', '.join(counts['aliased'])} taken by an effect kept in its alias group")
-    if counts["start"]:
-        parts.append(f"{', '.join(counts['start'])} held at the calibration the run started from")
-    if counts["unranked"]:
-        parts.append(f"{', '.join(counts['unranked'])} not tried")
-    why = f"It points to {mechanism} ({strongest.text})"
+        effects = [e for e in catalog.values() if base_name(e) in kinds and adapter.acts_on(e, strongest.channel)]
+    fates = {e.name: _fate(e, outcome) for e in effects}
+    declared = {base_name(e): e for e in adapter.effects().values()}
+    held_out = [k for k in kinds if k in declared and not declared[k].catalogued]
+    # a robot with no effect on a body (a bench rig) is not asked for the body's kinds
+    body = any(base_name(e) in BODY_KINDS for e in catalog.values())
+    lacking = [k for k in kinds if k not in declared and (body or k not in BODY_KINDS)]
+    named = {kind: [n for n, (k, _) in fates.items() if k == kind] for kind in
+             ("kept", "start", "refused", "together", "aliased", "ranked", "unranked")}  # fmt: skip
+    words = {"kept": "kept, and a residual of this kind remains", "start": "held at the starting calibration",
+             "refused": "refused", "together": "refused in a chain only", "aliased": "not offered once an effect "
+             "of its alias group was kept", "ranked": "ranked but not kept", "unranked": "not tried"}  # fmt: skip
+    parts = [f"{', '.join(names)} {words[kind]}" for kind, names in named.items() if names]
+    why = mechanism
     if effects:
         why += ": of the catalog's effects of that kind, " + "; ".join(parts)
     else:
         why += ": this robot's catalog has no effect of that kind"
-    if missing:
-        why += f"; not in this robot's catalog: {', '.join(missing)}"
+    if held_out:
+        why += f"; declared but kept out of the catalog: {', '.join(held_out)}"
+    if lacking:
+        why += f"; not declared for this robot: {', '.join(lacking)}"
     return {"channel": strongest.channel, "finding": strongest.key, "text": strongest.text, "mechanism": mechanism,
-            "effects": {n: {"fate": k, "words": w} for n, (k, w) in fates.items()}, "missing": missing,
-            "why": why}  # fmt: skip
+            "effects": {n: {"fate": k, "words": w} for n, (k, w) in fates.items()}, "out_of_catalog": held_out,
+            "missing": lacking, "why": why}  # fmt: skip
 
 
 def held_out(problem: Problem, setting: Mapping[str, float]) -> HeldOut:

@@ -363,6 +363,13 @@ class Adapter(ABC):
         voltage), as a key (segments with equal keys share a model) and spec edits; default nothing."""
         return (), []
 
+    def acts_on(self, effect: Effect, channel: str) -> bool:
+        """Whether a catalog effect acts on a compared channel (a report's trace of what remains asks only those).
+        Default: an effect on no target acts on every channel; one with a target, on the channel it names and on
+        those its target ends or starts (``left``: ``duty_left``; ``current``: ``current_FL``)."""
+        t = effect.target
+        return not t or channel == t or channel.endswith("_" + t) or channel.startswith(t + "_")
+
     def measure_log(self, log: Log, seed: int = 0) -> list:
         """What the log measures by itself, before any replay (``sysid.measurement.Measurement`` records beside the
         nominal model's values: ``python -m sysid.measure``, and a section of every calibration report); ValueError

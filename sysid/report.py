@@ -212,16 +212,14 @@ def report_markdown(report: Mapping[str, Any]) -> str:
         lines += [f"- **{x['name']}**: {x['reason']}" for x in r["rejected"]]
     if r.get("trace"):
         t = r["trace"]
-        lines += [
-            "",
-            "## What the remaining residual points to",
-            "",
-            f"{t['text'][0].upper() + t['text'][1:]}: {t['mechanism']}. The catalog's effects of that kind:",
-            "",
-        ]
+        lines += ["", "## What the remaining residual points to", "",
+                  f"The strongest finding on the held-out residual after calibration, `{t['text']}`, points to "
+                  f"{t['mechanism']}. The catalog's effects of that kind acting on {t['channel']}:", ""]  # fmt: skip
         lines += [f"- **{name}**: {e['words']}" for name, e in t["effects"].items()] or ["- none"]
+        if t.get("out_of_catalog"):
+            lines += ["", f"Declared for this robot but kept out of its catalog: {', '.join(t['out_of_catalog'])}."]
         if t["missing"]:
-            lines += ["", f"Kinds of effect this robot's catalog lacks: {', '.join(t['missing'])}."]
+            lines += ["", f"Kinds of effect not declared for this robot: {', '.join(t['missing'])}."]
     if r["diagnostics"]["findings_before"]:
         lines += ["", "## What the residual pointed to (held-out, before)", ""]
         lines += [f"- {x}" for x in r["diagnostics"]["findings_before"]]

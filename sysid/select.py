@@ -90,6 +90,7 @@ class Outcome:
     mode: str = "select"  # "fit": the effects were named by the user (calibrate.py --fit), not selected
     diagnostics_before: dict = field(default_factory=dict)
     diagnostics_after: dict = field(default_factory=dict)
+    started: list[str] = field(default_factory=list)  # the parameters a starting calibration held (not offered)
 
 
 def _floor_band(problem: Problem) -> float:
@@ -191,7 +192,8 @@ def calibrate(
     if nuisance:  # what the log does not hold is fitted on every segment that shows it
         current = fit(whole, current, nuisance).values
         nominal.update({k: current[k] for k in nuisance})
-    outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance})
+    outcome = Outcome(setting=current, nominal=nominal, nuisance={k: current[k] for k in nuisance},
+                      started=sorted(start or {}))  # fmt: skip
     outcome.history.append(dict(current))
     everything = evaluate(whole, current)
     before = everything if on_all else evaluate(problem, current, fitting)
@@ -409,7 +411,8 @@ def fit_chosen(
     current.update({k: p.nominal for k, p in nuisance.items() if k not in current})
     if nuisance:
         current = fit(problem, current, nuisance).values
-    outcome = Outcome(setting=current, nominal=dict(current), nuisance={k: current[k] for k in nuisance}, mode="fit")
+    outcome = Outcome(setting=current, nominal=dict(current), nuisance={k: current[k] for k in nuisance}, mode="fit",
+                      started=sorted(start or {}))  # fmt: skip
     outcome.history.append(dict(current))
     before = evaluate(problem, current)
     outcome.training_errors.append(before.error)

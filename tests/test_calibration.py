@@ -465,6 +465,8 @@ def test_out_of_catalog_disturbance_is_unexplained(robot: str, seed: int):
     result = run(make_adapter(robot), train, test, say=lambda s: None)
     assert result.unexplained and result.after.error > UNEXPLAINED_ABOVE
     assert "above the noise floor" in result.where()
+    traced = result.trace()  # what remains is traced to a mechanism, and the verdict ends with it
+    assert traced is None or result.where().endswith(traced["why"] + ".")
     # no catalog effect claims to have fixed it: whatever was kept leaves most of the excess
     assert relative_excess(result.before.error, result.after.error) > 0.5
 
@@ -569,13 +571,17 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
     started = {**worse, "start": "earlier/calibration.json"}
     assert "than the calibration it started from (earlier/calibration.json)**" in report_markdown(started)
     # an unexplained result's trace: its mechanism and each effect of that kind, with what became of it
-    assert (report["trace"] is None) == (not report["unexplained"])
+    assert report["unexplained"] or report["trace"] is None
     kept = {"coulomb_friction": {"fate": "kept", "words": "kept (torque 0.2)"}}
-    trace = {"text": "speed: the residual follows the load", "mechanism": "what the drive carries",
-             "missing": ["load_friction"], "effects": kept}  # fmt: skip
+    trace = {"text": "speed: the residual follows the load", "mechanism": "what the drive carries", "channel": "speed",
+             "out_of_catalog": ["disturbance"], "missing": ["load_friction"], "effects": kept}  # fmt: skip
     text = report_markdown({**report, "trace": trace})
-    assert "## What the remaining residual points to\n\nSpeed: the residual follows the load: what the drive" in text
-    assert "- **coulomb_friction**: kept (torque 0.2)" in text and "catalog lacks: load_friction." in text
+    assert (
+        "## What the remaining residual points to\n\nThe strongest finding on the held-out residual after "
+        "calibration, `speed: the residual follows the load`, points to what the drive carries."
+    ) in text
+    assert "- **coulomb_friction**: kept (torque 0.2)" in text and "out of its catalog: disturbance." in text
+    assert "not declared for this robot: load_friction." in text
     assert set(report["per_channel"]) == {"angle", "speed"}
     first = report["chosen"][0]
     assert base_name(make_adapter("motor").effects()[first["name"]]) in ("coulomb_friction", "backlash", "deadband")

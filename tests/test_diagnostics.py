@@ -82,10 +82,18 @@ def _outcome(adapter, chosen=(), rejected=(), ranked=()):
                    history=[dict(nominal)])  # fmt: skip
 
 
+def test_every_mechanism_names_catalog_templates():
+    from envs.common.effects import TEMPLATES
+
+    for key, (_, kinds) in diagnostics.MECHANISMS.items():
+        assert set(kinds) <= set(TEMPLATES), (key, set(kinds) - set(TEMPLATES))
+    assert diagnostics.BODY_KINDS <= set(TEMPLATES)
+
+
 def test_trace_names_the_mechanism_and_each_effect_of_its_kind():
     """The strongest finding on what remains (the right duty follows the load) names its mechanism and, for every
     catalog effect of that kind on the right side or on no side, what became of it; effects of other kinds and of
-    the left side are not asked about, and kinds the robot's catalog lacks are named."""
+    the left side are not asked about; kinds the robot declares out of its catalog, and those it lacks, are named."""
     from sysid.pipeline import trace
     from sysid.robots import adapter
 
@@ -93,9 +101,10 @@ def test_trace_names_the_mechanism_and_each_effect_of_its_kind():
     outcome = _outcome(
         roach,
         chosen=[("gearbox_efficiency_right", {"efficiency": 0.4})],
-        rejected=[("coulomb_friction_right", "coulomb_friction_right.torque pushes against the end of its range")],
+        rejected=[("coulomb_friction_right", "coulomb_friction_right.torque pushes against the end of its range"),
+                  ("armature_left + ground_contact", "together: ground_contact.timeconst pushes against the end")],
         ranked=[("mass", 0.004), ("leg_stiffness", 0.001), ("coulomb_friction_left", 0.2)],
-    )
+    )  # fmt: skip
     found = [
         diagnostics.Finding(9.0, "duty_right", "with_load", "duty_right: the residual follows the load"),
         diagnostics.Finding(2.0, "bemf_left", "bias", "bemf_left: a constant offset"),
@@ -103,32 +112,61 @@ def test_trace_names_the_mechanism_and_each_effect_of_its_kind():
     t = trace(roach, outcome, found)
     assert t["channel"] == "duty_right" and t["mechanism"] == diagnostics.MECHANISMS["with_load"][0]
     fates = {name: e["fate"] for name, e in t["effects"].items()}
-    assert fates["gearbox_efficiency_right"] == "kept" and "0.4" in t["effects"]["gearbox_efficiency_right"]["words"]
-    assert fates["coulomb_friction_right"] == "refused"
-    assert "end of its range" in t["effects"]["coulomb_friction_right"]["words"]
-    assert fates["mass"] == fates["leg_stiffness"] == "ranked" and "0.4%" in t["effects"]["mass"]["words"]
+    words = {name: e["words"] for name, e in t["effects"].items()}
+    assert fates["gearbox_efficiency_right"] == "kept" and "0.4" in words["gearbox_efficiency_right"]
+    assert fates["coulomb_friction_right"] == "refused" and "end of its range" in words["coulomb_friction_right"]
+    # refused only in a chain: said so, with its partner
+    assert fates["ground_contact"] == "together" and "in a chain with armature_left" in words["ground_contact"]
+    assert fates["mass"] == fates["leg_stiffness"] == "ranked" and "ranked 1 of 3" in words["mass"]
+    assert "0.4%" in words["mass"] and "barely seen" in words["mass"]
     assert "gearbox_efficiency_left" not in fates and "coulomb_friction_left" not in fates  # the other side
     assert "sensor_bias_bemf_right" not in fates and "delay" not in fates  # other kinds
-    # the load kinds the roach's catalog has no effect of
-    assert set(t["missing"]) == {"load_friction", "supply_sag", "terrain_bump"}
-    assert "gearbox_efficiency_right kept" in t["why"] and "coulomb_friction_right refused" in t["why"]
-    assert "load_friction" in t["why"]
+    assert "sensor_coupling_bemf_right" not in fates  # a load kind, but it acts on the back-EMF reading alone
+    assert t["out_of_catalog"] == ["terrain_bump"] and set(t["missing"]) == {
+        "load_friction",
+        "supply_sag",
+        "spine_stiffness",
+    }
+    assert t["why"].startswith(t["mechanism"] + ": of the catalog's effects of that kind, gearbox_efficiency_right")
+    assert "coulomb_friction_right refused" in t["why"] and "ground_contact refused in a chain only" in t["why"]
+
+
+def test_trace_asks_only_the_effects_on_the_finding_s_legs():
+    """The xJüs's and the Bioloid's side effects act on their side's legs, whose channels do not end with the side."""
+    from sysid.pipeline import trace
+    from sysid.robots import adapter
+
+    xjus = adapter("xjus")
+    finding = [diagnostics.Finding(5.0, "leg_angle_FL", "with_sign_of_velocity", "leg_angle_FL: sign of velocity")]
+    t = trace(xjus, _outcome(xjus), finding)
+    assert "coulomb_friction_left" in t["effects"] and "coulomb_friction_right" not in t["effects"]
+    t = trace(xjus, _outcome(xjus), [diagnostics.Finding(5.0, "current_MR", "bias", "current_MR: offset")])
+    assert not any(name.endswith("_left") or name.startswith("sensor_bias_angle") for name in t["effects"])
+    bioloid = adapter("bioloid")
+    finding = [diagnostics.Finding(5.0, "present_position_B_R_2", "bias", "present_position_B_R_2: offset")]
+    t = trace(bioloid, _outcome(bioloid), finding)
+    assert "sensor_bias_position_right" in t["effects"] and "sensor_bias_position_left" not in t["effects"]
+    t = trace(bioloid, _outcome(bioloid), [diagnostics.Finding(5.0, "present_position_HEAD", "bias", "HEAD")])
+    assert not any(name.endswith(("_left", "_right")) for name in t["effects"])
 
 
 def test_trace_says_when_the_catalog_has_no_effect_of_the_kind():
-    """A periodic residual on a robot whose catalog holds no disturbance: the trace says so, and nothing is listed
-    as tried; with nothing standing out there is no trace."""
+    """A periodic residual on the gearmotor rig, whose catalog holds no disturbance: the trace says so, names the
+    disturbance declared out of the catalog and no body effect (a rig has no body); with nothing standing out there
+    is no trace."""
     from sysid.pipeline import trace
     from sysid.robots import adapter
 
     motor = adapter("motor")
-    assert not any(name.startswith(("disturbance", "terrain_bump")) for name in motor.catalog())
     t = trace(motor, _outcome(motor), [diagnostics.Finding(5.0, "speed", "spectral", "speed: a spectral peak")])
     assert t["effects"] == {} and "has no effect of that kind" in t["why"]
-    assert t["missing"] == ["disturbance", "terrain_bump"]
+    assert t["out_of_catalog"] == ["disturbance"] and t["missing"] == []
     assert trace(motor, _outcome(motor), []) is None
     # an effect of the calibration the run started from is said to be held there
     started = _outcome(motor)
-    started.nominal["supply_sag.resistance"] = 0.5
+    started.started = ["supply_sag.resistance"]
     t = trace(motor, started, [diagnostics.Finding(5.0, "speed", "with_supply", "speed: follows the supply")])
     assert t["effects"]["supply_sag"]["fate"] == "start" and t["effects"]["supply_voltage"]["fate"] == "unranked"
+    started.mode = "fit"
+    t = trace(motor, started, [diagnostics.Finding(5.0, "speed", "with_supply", "speed: follows the supply")])
+    assert "--fit" in t["effects"]["supply_voltage"]["words"]

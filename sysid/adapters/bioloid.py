@@ -103,6 +103,13 @@ class BioloidAdapter(Adapter):
     stepwise = True  # its fits cost seconds, not minutes: each candidate fitted with the kept effects (sysid/select.py)
     sample_lag = 1  # telemetry reads the sensors of its control step's last physics step (as the xJüs's)
 
+    def acts_on(self, effect: Effect, channel: str) -> bool:
+        """A side's effect acts on that side's leg servos (``left``: ``present_position_F_L_1``)."""
+        side = next((s for s in SIDE_SERVOS if effect.target == s or effect.target.endswith("_" + s)), None)
+        if side is None:
+            return super().acts_on(effect, channel)
+        return _side(channel.removeprefix("present_position_")) == side
+
     def __init__(self) -> None:
         super().__init__()
         from envs.bioloid.robot import Bioloid

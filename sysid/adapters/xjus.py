@@ -97,6 +97,16 @@ class XjusAdapter(Adapter):
     # sensors MuJoCo computed at the start of the step's last physics step: a physics step older
     sample_lag = 1
 
+    def acts_on(self, effect: Effect, channel: str) -> bool:
+        """A side's effect acts on that side's legs (``left``: ``leg_angle_FL``), a quantity's on its channels
+        (``angle_left``: the left legs' angles; ``current``: every leg's current)."""
+        leg = channel.rsplit("_", 1)[-1]
+        side = next((s for s in LEGS_OF if effect.target == s or effect.target.endswith("_" + s)), None)
+        if side is not None and leg not in LEGS_OF[side]:
+            return False
+        quantity = effect.target.removesuffix(side or "").rstrip("_")
+        return not quantity or channel.startswith((quantity + "_", "leg_" + quantity + "_"))
+
     def __init__(self) -> None:
         super().__init__()
         from envs.xjus.robot import Xjus
