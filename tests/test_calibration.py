@@ -618,6 +618,11 @@ def test_roach_report_compares_tracking_and_body_rates():
     window = (t >= 1.1 + 1.0) & (t <= 4.0)  # the legs are commanded from 1.1 s (data/real/README.md)
     error = np.degrees(np.abs(log.df["leg_angle_cmd_left"] - log.df["leg_angle_left"]).to_numpy()[window])
     assert table["log"]["error_median_left"] == pytest.approx(np.median(error), rel=0.05)
+    # the share of the time the firmware's output is held at its clip (MAXTHROT, the header's)
+    duty = np.abs(log.df["duty_right"].to_numpy())[window]
+    clipped = 100 * np.mean(duty >= 0.995 * log.meta["duty_clip"])
+    assert table["log"]["duty_at_clip_right"] == pytest.approx(clipped, abs=2.0)
+    assert all(0 <= table[s][f"duty_at_clip_{side}"] <= 100 for s in table for side in ("left", "right"))
     # the back-EMF constant doubles with the motor constant
     for side in ("left", "right"):
         ratio = table["calibrated"][f"bemf_per_speed_{side}"] / table["nominal"][f"bemf_per_speed_{side}"]

@@ -73,6 +73,7 @@ def test_planted_constants_come_back_within_their_intervals():
         truths |= {("bemf_constant", side): BEMF, ("bemf_duty", side): BEMF_DUTY}
         assert found[("duty_sign", side)].value == 1.0
         assert found[("drive_balance", side)].value > 0
+        assert found[("duty_at_clip", side)].value < 1.0  # the planted law seldom reaches its clip
         m = found[("bemf_constant", side)]
         assert m.ratio == pytest.approx(BEMF / m.nominal, rel=0.05), "compared with the model's K x gear"
         for gain in ("kp", "ki", "kd"):
@@ -85,6 +86,18 @@ def test_planted_constants_come_back_within_their_intervals():
         assert abs(m.value - truth) < max(0.03 * abs(truth), m.high - m.low), (m, truth)
         covered += m.low <= truth <= m.high
     assert covered >= 0.7 * len(truths), f"{covered} of {len(truths)} intervals hold their planted value"
+
+
+def test_the_time_a_leg_is_held_at_full_throttle():
+    """A right leg held back for one second of the four-second run, its duty at the firmware's clip: a quarter of the
+    running part, within the interval; the left leg, free, hardly ever there."""
+    df, meta = synthetic_log()
+    held = (df["time"] >= 2.0) & (df["time"] < 3.0)
+    df.loc[held, "duty_right"] = meta["duty_clip"]
+    found = _by_key(roach.measure_roach(df, meta, "synthetic"))
+    m = found[("duty_at_clip", "right")]
+    assert m.value == pytest.approx(25.0, abs=1.0) and m.low <= 25.0 <= m.high and m.unit == "%"
+    assert found[("duty_at_clip", "left")].value < 1.0
 
 
 def test_a_firmware_at_another_rate_is_found_at_its_rate():

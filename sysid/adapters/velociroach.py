@@ -51,6 +51,7 @@ from envs.common.effects import Effect, Param
 from envs.velociroach import constants
 from envs.velociroach.effects import effects_edit, roach_effects
 from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (its names here too)
+from sysid.adapters.velociroach_measure import CLIPPED
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
 
@@ -259,7 +260,7 @@ class RoachAdapter(Adapter):
         there (the integrator is then not observable)."""
         g = self._gains(segment, side)
         duty = float(segment.data[f"duty_{side}"][0])
-        if g["ki"] <= 0 or abs(duty) >= 0.995 * float(segment.data["duty_clip"][0]):
+        if g["ki"] <= 0 or abs(duty) >= CLIPPED * float(segment.data["duty_clip"][0]):
             return None
         t0 = np.zeros(1)
         e = float(segment.command_at(f"leg_angle_cmd_{side}", t0, delay)[0] - segment.data[f"leg_angle_{side}"][0])
@@ -333,7 +334,8 @@ class RoachAdapter(Adapter):
         nothing re-measured) under the nominal and the calibrated model:
 
         - **tracking**, the quantities of the tracking table: the leg's tracking error (median and 95th percentile,
-          deg), the mean |duty|, and the back-EMF per leg speed (the reading's least-squares ratio to the leg's
+          deg), the mean |duty|, the share of the time the duty is held at its clip (%), and the back-EMF per leg
+          speed (the reading's least-squares ratio to the leg's
           rate, mV s/rad), per side, over the commanded stretch from its first second on;
         - **body rates compared as distributions**: the body's pose is not logged, so its rates cannot be aligned
           in time with the model's; the gyro readings are compared with the log's by spread (standard deviation),
@@ -358,14 +360,15 @@ class RoachAdapter(Adapter):
                 covered[segment.samples] = True
             window = self._commanded(log) & covered
             # rates from the simulated rows alone: a difference across the first row not simulated would be a jump
-            tracking[log.path] = {"log": self._tracking(log.df[covered], t[covered], window[covered])}
+            clip = float(log.meta["duty_clip"])
+            tracking[log.path] = {"log": self._tracking(log.df[covered], t[covered], window[covered], clip)}
             has_rates = all(c in log.df for c in self.BODY_RATES)
             for name, setting in (("nominal", result.outcome.nominal), ("calibrated", result.outcome.setting)):
                 sim = simulate(self, setting, log.df, log.meta, channels_and_rates)
                 model = log.df.copy()
                 for i, c in enumerate(self.channels):
                     model[c] = sim[:, i]
-                tracking[log.path][name] = self._tracking(model[covered], t[covered], window[covered])
+                tracking[log.path][name] = self._tracking(model[covered], t[covered], window[covered], clip)
                 if not has_rates:
                     continue
                 measured = log.df[list(self.BODY_RATES)].to_numpy(dtype=float)
@@ -401,9 +404,12 @@ class RoachAdapter(Adapter):
         first, last = t[np.flatnonzero(moving)[[0, -1]]]
         return (t >= first + min(1.0, 0.5 * (last - first))) & (t <= last)
 
-    def _tracking(self, df, t: np.ndarray, window: np.ndarray) -> dict[str, float]:
+    def _tracking(self, df, t: np.ndarray, window: np.ndarray, clip: float) -> dict[str, float]:
         out = {}
         for side in SIDES:
+            duty = np.abs(df[f"duty_{side}"].to_numpy(dtype=float))[window]
+            # the firmware's output held at its clip (MAXTHROT): a leg the drive cannot keep on its clock
+            out[f"duty_at_clip_{side}"] = 100.0 * float(np.mean(duty >= CLIPPED * clip)) if len(duty) else float("nan")
             angle = df[f"leg_angle_{side}"].to_numpy(dtype=float)
             error = np.degrees(np.abs(df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float) - angle))[window]
             rate = np.gradient(angle, t)[window]
@@ -481,6 +487,7 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]]) -
     rows = [("leg tracking error, median (deg)", "error_median", ".1f"),
             ("leg tracking error, 95th percentile (deg)", "error_p95", ".0f"),
             ("mean \\|duty\\|", "duty_mean_abs", ".2f"),
+            ("time at the duty's clip (%)", "duty_at_clip", ".0f"),
             ("back-EMF per leg speed (mV s/rad)", "bemf_per_speed", ".0f")]  # fmt: skip
     out = []
     for path, entry in tracking.items():

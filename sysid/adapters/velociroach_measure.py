@@ -18,6 +18,8 @@ window ``FILE@START:END``) and side:
 - **The battery's internal resistance** (``battery_resistance``, ohm) and open-circuit voltage: the logged battery
   voltage regressed on the battery current the duty draws, ``sum over sides of max(d (d Vb - E) / R, 0)`` with ``E``
   the measured back-EMF and ``R`` the motor's nominal winding resistance (an assumption the result scales with).
+- **The time at the clip** (``duty_at_clip``, %): the share of the running part the duty is held at the firmware's
+  clip (MAXTHROT): a leg held back, at full throttle, by more than the drive can carry.
 - **The drive balance** (``drive_balance``): the mean terminal voltage a braking (synchronous) H-bridge would apply,
   ``duty x Vb`` at the nominal 3900-count full scale, over the mean back-EMF. Legs that do work need it above 1; below
   1 the driver cannot be braking at that full scale: it coasts through its off-time (the motor then sees its
@@ -39,6 +41,8 @@ import numpy as np
 from envs.velociroach import constants
 from envs.velociroach.firmware import TICK, duty_gains
 from sysid.measurement import Measurement, bootstrap, lstsq
+
+CLIPPED = 0.995  # a duty at this share of the clip or above is held at the clip (the PWM's count and rounding)
 
 SIDES = constants.SIDES
 MIN_STRIDES = 3  # strides of running a log needs: the bootstrap resamples whole strides
@@ -178,6 +182,14 @@ def measure_roach(
     add("battery_resistance", "", coef[1], ci[:, 1], "ohm", nominal.battery_resistance, "assets/velociroach/"
         f"velociroach.xml: {nominal.battery_resistance:g} ohm, the middle of the three real logs' measurements",
         f"with the winding's nominal {nominal.resistance:g} ohm")  # fmt: skip
+    # the share of the running part the firmware's output is held at its clip (MAXTHROT): a leg the motor cannot
+    # keep on its clock at full throttle (stalled or held back)
+    for side in SIDES:
+        d = np.abs(df[f"duty_{side}"].to_numpy(dtype=float))
+        at_clip = (d >= CLIPPED * (np.max(d) if clip is None else float(clip)))[run].astype(float)
+        ci = bootstrap(lambda a: np.array([100.0 * a.mean()]), block, at_clip, seed=seed)
+        add("duty_at_clip", side, 100.0 * at_clip.mean(), ci[:, 0], "%", None,
+            "a leg the drive keeps on its clock never needs full throttle", "share of the running part")  # fmt: skip
     # the drive balance: a braking driver's mean terminal voltage over the mean back-EMF, per side
     for side in SIDES:
         d = df[f"duty_{side}"].to_numpy(dtype=float)
