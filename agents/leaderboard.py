@@ -73,6 +73,8 @@ SOCCER = "soccer/"  # a task ``soccer/<robot>``: self-play (train.py --soccer), 
 SELFPLAY_ALGOS = ("ppo",)  # what self-play trains a soccer task with (a plan's other algorithms skip its soccer tasks)
 SOCCER_PLAYERS = 1
 SCRIPTED_ELO = 1000.0  # the scripted team: the anchor of every rating (agents/soccer/selfplay.py)
+MATCH_SECONDS = 60.0  # a soccer task's matches, in training and evaluation, unless the plan says otherwise (--match-
+# seconds): train.py's and evaluate.py's default (envs.soccer.match.MATCH_SECONDS; a test holds them equal)
 
 
 def is_soccer(task: str) -> bool:
@@ -171,6 +173,7 @@ class Plan:
     eval_seed: int
     hyperparams: str | None
     max_episode_steps: int | None = None  # cut evaluation episodes short (a smoke test's budget), else the task's
+    match_seconds: tuple[tuple[str, float], ...] = ()  # (soccer task, its matches' length, s) where not MATCH_SECONDS
 
     @property
     def rows(self) -> list[Row]:
@@ -185,6 +188,10 @@ class Plan:
         """The env steps a row of ``task`` trains."""
         return dict(self.timesteps)[task]
 
+    def match_length(self, task: str) -> float:
+        """How long a soccer task's matches last, in training and evaluation (s)."""
+        return dict(self.match_seconds).get(task, MATCH_SECONDS)
+
     def row_settings(self, task: str) -> dict[str, Any]:
         """What a row's numbers depend on besides its task, algorithm and seed."""
         return {"timesteps": self.steps(task), "minutes": self.minutes, "hyperparams": self.hyperparams,
@@ -194,7 +201,10 @@ class Plan:
         """What a task's evaluation episodes depend on: :attr:`eval_settings`, and the env kwargs it is made with
         (a soccer academy task's commands mode)."""
         kwargs = task_kwargs(task)
-        return {**self.eval_settings, **({"env_kwargs": kwargs} if kwargs else {})}
+        # a record without a match length holds MATCH_SECONDS matches (it was made before the length could change)
+        length = self.match_length(task) if is_soccer(task) else MATCH_SECONDS
+        return {**self.eval_settings, **({"env_kwargs": kwargs} if kwargs else {}),
+                **({"match_seconds": length} if length != MATCH_SECONDS else {})}  # fmt: skip
 
     @property
     def eval_settings(self) -> dict[str, Any]:
@@ -278,9 +288,15 @@ def _soccer(task: str, *args: Any) -> list[Any]:
     return ["--soccer", task.removeprefix(SOCCER), "--players", SOCCER_PLAYERS, *args]
 
 
-def _matches(plan: Plan) -> list[Any]:
+def _matches(plan: Plan, task: str) -> list[Any]:
     """evaluate.py --soccer's options that choose the evaluation matches (the same for every row of a task)."""
-    return ["--matches", plan.episodes, "--seed", plan.eval_seed]
+    return ["--matches", plan.episodes, "--seed", plan.eval_seed, *_match_length(plan, task)]
+
+
+def _match_length(plan: Plan, task: str) -> list[Any]:
+    """train.py's and evaluate.py's ``--match-seconds`` for a soccer task whose matches are not MATCH_SECONDS long."""
+    length = plan.match_length(task)
+    return [] if length == MATCH_SECONDS else ["--match-seconds", f"{length:g}"]
 
 
 def task_file(records: Path, task: str) -> Path:
@@ -308,8 +324,8 @@ def task_baselines(plan: Plan, task: str, out: Path, threads: int, records: Path
 def _work_out_baselines(plan: Plan, task: str, folder: Path, record: Path, threads: int) -> dict[str, Any]:
     if is_soccer(task):
         evaluation = folder / "eval"
-        _run(_tool("evaluate.py", *_soccer(task, "--home", "scripted", "--away", "random"), *_matches(plan), "--out",
-                   evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+        _run(_tool("evaluate.py", *_soccer(task, "--home", "scripted", "--away", "random"), *_matches(plan, task),
+                   "--out", evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
         result = json.loads((evaluation / "results.json").read_text())
         counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
         random_elo = elo_against(*reversed(counts))  # the random team's record against the scripted one
@@ -407,7 +423,8 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
             command = _tool("train.py", "--resume", run_dir, "--no-progress", *budget)
         elif is_soccer(row.task):
             command = _tool("train.py", "--soccer", row.task.removeprefix(SOCCER), "--players", SOCCER_PLAYERS,
-                            *_algo_options(plan, row.algo), "--seed", row.seed, "--timesteps",
+                            *_match_length(plan, row.task), *_algo_options(plan, row.algo), "--seed", row.seed,
+                            "--timesteps",
                             plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name, "--no-progress",
                             *budget)  # fmt: skip
         else:
@@ -568,7 +585,7 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
     run_dir = out / "runs" / row.name
     evaluation = folder / "eval"
     _run(_tool("evaluate.py", *_soccer(row.task, "--home", run_dir / "model.zip", "--away", "scripted"),
-               *_matches(plan), "--out", evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
+               *_matches(plan, row.task), "--out", evaluation, "--overwrite"), threads, folder / "log.txt")  # fmt: skip
     result = json.loads((evaluation / "results.json").read_text())
     counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
     ratings = json.loads((run_dir / RATINGS_FILE).read_text()) if (run_dir / RATINGS_FILE).is_file() else {}
@@ -578,9 +595,9 @@ def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, t
               "reproduce": [
                   shlex.join(["python", "train.py", "--soccer", row.task.removeprefix(SOCCER), "--players",
                               str(SOCCER_PLAYERS), "--seed", str(row.seed), "--timesteps", str(trained),
-                              "--run-name", row.name]),
+                              *map(str, _match_length(plan, row.task)), "--run-name", row.name]),
                   shlex.join(["python", "evaluate.py", *map(str, _soccer(row.task, "--home",
-                              f"runs/{row.name}/model.zip", "--away", "scripted")), *map(str, _matches(plan)),
+                              f"runs/{row.name}/model.zip", "--away", "scripted")), *map(str, _matches(plan, row.task)),
                               "--out", f"results/{row.name}"])]}  # fmt: skip
     write_json(row_file(records, row), record)
     return record
@@ -602,6 +619,9 @@ def _check_run_plan(run_dir: Path, plan: Plan, row: Row) -> None:
         "residual": residual,
         "env_kwargs": task_kwargs(row.task),
     }
+    if is_soccer(row.task):  # a self-play run's matches
+        started["match_seconds"] = (config.get("soccer") or {}).get("match_seconds", MATCH_SECONDS)
+        wanted["match_seconds"] = plan.match_length(row.task)
     if started != wanted:
         raise StaleResult(f"{run_dir}: a killed row's run started with {started}, not {wanted}: give --rerun for it, "
                           "or another --out")  # fmt: skip
@@ -733,6 +753,8 @@ def plan_arguments(plan: Plan) -> list[str]:
         args += ["--hyperparams", plan.hyperparams]
     if plan.max_episode_steps is not None:
         args += ["--max-episode-steps", str(plan.max_episode_steps)]
+    if plan.match_seconds:
+        args += ["--match-seconds", *(f"{t}={n:g}" for t, n in plan.match_seconds)]
     return args
 
 
@@ -951,7 +973,8 @@ def _soccer_section(plan: Plan, baselines: dict, rows: dict[Row, dict | None]) -
              f"its score over the {plan.episodes} evaluation matches (wins 1, draws 1/2) against the scripted team, "
              "with the score's 95% Wilson interval carried through (an open end where every match went one way). "
              "The random team is rated from the scripted team's record against it. Self-play's own rating is "
-             "against its pool.",
+             "against its pool. Matches last " + ", ".join(f"{plan.match_length(t):g} s ({t})" for t in tasks)
+             + ", in training and evaluation.",
              "", "| row | steps trained | wall time (min) | wins-draws-losses vs scripted | goal difference | Elo "
              "(95%) | Elo in self-play |", "|---" * 7 + "|"]  # fmt: skip
     for task in tasks:
@@ -1190,6 +1213,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--videos", action="store_true",
                         help="a video per task: its reference and its best row side by side")  # fmt: skip
     parser.add_argument("--rerun", nargs="+", default=[], metavar="TASK:ALGO:SEED", help="compute these rows again")
+    parser.add_argument("--match-seconds", nargs="+", default=[], metavar="TASK=S",
+                        help=f"a soccer task's matches in training and evaluation, s (default {MATCH_SECONDS:g}): "
+                             "as long as its robot needs to score")  # fmt: skip
     parser.add_argument(
         "--table-only",
         action="store_true",
@@ -1219,6 +1245,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.timesteps,
         lambda t: t in gym.registry or (is_soccer(t) and t.removeprefix(SOCCER) in SOCCER_ROBOTS),
     )
+    args.match_seconds = _match_lengths(parser, args.tasks, args.match_seconds)
     checks = (
         ("--episodes", args.episodes, 2),
         ("--workers", args.workers, 1),
@@ -1294,12 +1321,33 @@ def _task_budgets(
     return tuple((t, budgets[t]) for t in tasks)
 
 
+def _match_lengths(parser, tasks: list[str], given: list[str]) -> tuple[tuple[str, float], ...]:
+    """``--match-seconds TASK=S ...``: each a soccer task of the plan, once, in (0, 3600] s; those equal to
+    MATCH_SECONDS are left out (a plan's settings hold only a length that is not the default)."""
+    lengths: dict[str, float] = {}
+    for item in given:
+        task, sep, text = item.rpartition("=")
+        if not sep or task not in tasks or not is_soccer(task):
+            parser.error(f"--match-seconds {item!r}: expected TASK=S for a soccer task of --tasks (soccer/ROBOT)")
+        if task in lengths:
+            parser.error(f"--match-seconds {item!r}: {task} is given twice")
+        try:
+            seconds = float(text)
+        except ValueError:
+            parser.error(f"--match-seconds {item!r}: {text!r} is not a number of seconds")
+        if not 0 < seconds <= 3600:
+            parser.error(f"--match-seconds {item!r}: must be in (0, 3600] s, got {text}")
+        lengths[task] = seconds
+    return tuple((t, lengths[t]) for t in tasks if t in lengths and lengths[t] != MATCH_SECONDS)
+
+
 def main(argv: list[str] | None = None) -> int:
     from envs.common.io import Busy, interrupted_exit_code, sigterm_as_interrupt
 
     args = parse_args(argv)
     plan = Plan(tuple(args.tasks), tuple(args.algos), tuple(args.seeds), args.timesteps, args.minutes,
-                args.episodes, args.eval_seed, args.hyperparams, args.max_episode_steps)  # fmt: skip
+                args.episodes, args.eval_seed, args.hyperparams, args.max_episode_steps,
+                args.match_seconds)  # fmt: skip
     out = Path(args.out)
     records = Path(args.records) if args.records else out
     try:

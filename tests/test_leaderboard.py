@@ -619,6 +619,37 @@ def test_soccer_tasks_are_rated_beside_the_normalized_table(tmp_path):
     assert "`soccer/roach` | scripted" not in text.split("## Soccer")[0], "not in the normalized table"
 
 
+def test_a_soccer_task_s_matches_last_as_long_as_its_plan_says(capsys):
+    """``--match-seconds TASK=S``: the task's settings (which make older records stale), its training and evaluation
+    commands, the command that reproduces the plan, and the table's soccer section carry the length; the default
+    length is left out of all of them, so that records made before the option still hold."""
+    from envs.soccer.match import MATCH_SECONDS
+
+    assert leaderboard.MATCH_SECONDS == MATCH_SECONDS
+    args = leaderboard.parse_args(["--tasks", "soccer/bioloid", "soccer/roach", "--timesteps", "10",
+                                   "--match-seconds", "soccer/bioloid=600", "soccer/roach=60"])  # fmt: skip
+    assert args.match_seconds == (("soccer/bioloid", 600.0),)
+    plan = leaderboard.Plan(tuple(args.tasks), ("ppo",), (0,), args.timesteps, None, 20, 1000, None,
+                            match_seconds=args.match_seconds)  # fmt: skip
+    assert plan.task_settings("soccer/bioloid")["match_seconds"] == 600.0
+    assert "match_seconds" not in plan.task_settings("soccer/roach")
+    assert leaderboard._matches(plan, "soccer/bioloid")[-2:] == ["--match-seconds", "600"]
+    assert "--match-seconds" not in leaderboard._matches(plan, "soccer/roach")
+    again = leaderboard.plan_arguments(plan)
+    assert again[again.index("--match-seconds") + 1 :] == ["soccer/bioloid=600"]
+    assert leaderboard.parse_args([*again]).match_seconds == plan.match_seconds
+    section = "\n".join(leaderboard._soccer_section(plan, {t: {"scripted_vs_random": {
+        "wins": {"count": 1}, "draws": {"count": 0}, "losses": {"count": 0}, "goal_difference": {"mean": 1.0}},
+        "random_elo": leaderboard.elo_against(0, 0, 1)} for t in plan.tasks}, {}))  # fmt: skip
+    assert "Matches last 600 s (soccer/bioloid), 60 s (soccer/roach), in training and evaluation." in section
+    for bad, message in ((["soccer/bioloid=0"], "must be in (0, 3600]"), (["soccer/xjus=600"], "a soccer task of"),
+                         (["soccer/bioloid"], "expected TASK=S"), (["soccer/bioloid=long"], "not a number"),
+                         (["soccer/bioloid=600", "soccer/bioloid=300"], "given twice")):  # fmt: skip
+        with pytest.raises(SystemExit):
+            leaderboard.parse_args(["--tasks", "soccer/bioloid", "--timesteps", "10", "--match-seconds", *bad])
+        assert message in capsys.readouterr().err
+
+
 def test_soccer_tasks_are_checked_before_anything_runs(tmp_path, capsys):
     for argv, message in (
         (["--tasks", "soccer/nope", "--timesteps", "10"], "soccer/ROBOT takes one of"),
