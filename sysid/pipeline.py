@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envs.common.effects import Effect
+from envs.common.effects import Effect, base_name
 from sysid import diagnostics
 from sysid.diagnostics import BODY_KINDS, MECHANISMS
 from sysid.fit import evaluate, fit
@@ -125,8 +125,6 @@ def trace(adapter: Adapter, outcome: Outcome, found: Sequence[diagnostics.Findin
     """The mechanism the strongest finding points to (:data:`sysid.diagnostics.MECHANISMS`), every catalog effect of
     that kind acting on the finding's channel (:meth:`Adapter.acts_on`) with what became of it in ``outcome``, the
     kinds of effect the robot declares out of its catalog or lacks, and a sentence on what became of them."""
-    from envs.common.effects import base_name
-
     strongest = next((f for f in found if MECHANISMS.get(f.key, ("", ()))[1] or f.key == "sides"), None)
     if strongest is None:
         return None

@@ -418,7 +418,7 @@ class RoachAdapter(Adapter):
             # at one steady rate (a 5 Hz clock tracked closely)
             slope = float(np.dot(rate, bemf) / np.dot(rate, rate)) if np.any(rate) else float("nan")
             out.update({f"error_median_{side}": float(np.median(error)), f"error_p95_{side}": float(np.percentile(
-                error, 95)), f"duty_mean_abs_{side}": float(np.mean(np.abs(df[f"duty_{side}"].to_numpy()[window]))),
+                error, 95)), f"duty_mean_abs_{side}": float(np.mean(duty)),
                 f"bemf_per_speed_{side}": 1e3 * slope})  # fmt: skip
         return out
 
