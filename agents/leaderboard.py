@@ -1322,13 +1322,18 @@ def _task_budgets(
 
 
 def _match_lengths(parser, tasks: list[str], given: list[str]) -> tuple[tuple[str, float], ...]:
-    """``--match-seconds TASK=S ...``: each a soccer task of the plan, once, in (0, 3600] s; those equal to
-    MATCH_SECONDS are left out (a plan's settings hold only a length that is not the default)."""
+    """``--match-seconds TASK=S ...``: each a soccer task (soccer/ROBOT), once, in (0, 3600] s; those equal to
+    MATCH_SECONDS are left out (a plan's settings hold only a length that is not the default). As with
+    ``--timesteps``, a length for a soccer task outside ``--tasks`` is ignored, so that the Makefile's one list
+    serves a run of any of its tasks."""
+    from agents.training import SOCCER_ROBOTS
+
     lengths: dict[str, float] = {}
     for item in given:
         task, sep, text = item.rpartition("=")
-        if not sep or task not in tasks or not is_soccer(task):
-            parser.error(f"--match-seconds {item!r}: expected TASK=S for a soccer task of --tasks (soccer/ROBOT)")
+        if not sep or not is_soccer(task) or task.removeprefix(SOCCER) not in SOCCER_ROBOTS:
+            parser.error(f"--match-seconds {item!r}: expected TASK=S for a soccer task (soccer/ROBOT: ROBOT one of "
+                         f"{', '.join(SOCCER_ROBOTS)})")  # fmt: skip
         if task in lengths:
             parser.error(f"--match-seconds {item!r}: {task} is given twice")
         try:

@@ -13,7 +13,8 @@ For each robot, ``--matches`` (8, then 32) two-a-side matches in the robot's own
 - a reset of every match at once, per match (goal: under 1 ms).
 
 Then a three-a-side Bioloid match in the ``commands`` mode, the scripted team on both sides, one PettingZoo env on
-one thread: simulated seconds per wall second, the players' ``predict`` included (goal: 5 or more).
+one thread: simulated seconds per wall second, the scripted team's moves included (its players acting in one call
+per role, :class:`~envs.soccer.scripted.ScriptedTeam`; goal: 5 or more).
 
 Run: ``python -m benchmarks.soccer_speed`` (about 5 minutes).
 """
@@ -32,7 +33,7 @@ from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
 from envs.common.simulation import CTRL_SPEC
 from envs.soccer import match
-from envs.soccer.scripted import scripted_team
+from envs.soccer.scripted import ScriptedTeam
 
 CONFIGURATIONS: dict[str, list[str]] = {"soccer_speed": []}
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py)."""
@@ -101,15 +102,13 @@ def realtime(seconds: float, seed: int) -> dict:
     """A three-a-side Bioloid match, commands mode, the scripted team on both sides, one thread."""
     env = match.parallel_env(robot="bioloid", players_per_team=3, action_mode="commands")
     obs, _ = env.reset(seed=seed)
-    teams = {**scripted_team(env, "home"), **scripted_team(env, "away")}
-    memory = dict.fromkeys(teams)
+    teams, agents = ScriptedTeam.of(env)  # both teams' players, one call per role (field player, keeper)
+    memory = None
     steps = round(seconds / env.dt)
     began = time.perf_counter()
     for _ in range(steps):
-        moves = {}
-        for agent, player in teams.items():
-            moves[agent], memory[agent] = player.predict(obs[agent], memory[agent])
-        obs, *_ = env.step(moves)
+        actions, memory = teams.act(np.stack([obs[agent] for agent in agents])[None], memory)
+        obs, *_ = env.step(dict(zip(agents, actions[0], strict=True)))
     wall = time.perf_counter() - began
     return {"seconds": seconds, "wall": wall, "realtime": seconds / wall, "score": env.score}
 

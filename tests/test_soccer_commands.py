@@ -12,7 +12,7 @@ from envs.bioloid.kick import LEFT, RIGHT, Kick
 from envs.common.task import ObservationLayout
 from envs.soccer import match
 from envs.soccer.robots import ROBOTS
-from envs.soccer.scripted import AIM_DEPTH, MEMORY, ScriptedPlayer, scripted_team
+from envs.soccer.scripted import AIM_DEPTH, MEMORY, ScriptedPlayer, ScriptedTeam, scripted_team
 from envs.soccer.steering import KICK_THRESHOLD, MAPS, STEERING, BioloidSteering, Commands, GaitMap
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -335,6 +335,27 @@ def test_the_scripted_team_plays_in_the_commands_mode_only():
     assert [p.keeper for p in team.values()] == [False, False, True]
     with pytest.raises(ValueError, match="commands mode"):
         scripted_team(match.parallel_env(robot="bioloid", players_per_team=1), "home")
+
+
+def test_a_scripted_team_acting_together_moves_each_player_as_its_own_predict_would():
+    """ScriptedTeam calls each role once on its players' observations stacked (both teams' field players in one
+    call, their keepers in another): every action and memory bit for bit those of the players' own calls."""
+    env = match.parallel_env(robot="bioloid", players_per_team=3, action_mode="commands")
+    obs, _ = env.reset(seed=4)
+    team, agents = ScriptedTeam.of(env)
+    assert agents == env.possible_agents and [len(c) for _, c in team.roles] == [4, 2]
+    players = {**scripted_team(env, "home"), **scripted_team(env, "away")}
+    memory, alone = None, dict.fromkeys(agents)
+    for _ in range(40):
+        actions, memory = team.act(np.stack([obs[a] for a in agents])[None], memory)
+        for i, agent in enumerate(agents):
+            action, alone[agent] = players[agent].predict(obs[agent], alone[agent])
+            assert np.array_equal(action, actions[0, i]) and np.array_equal(alone[agent], memory[0, i])
+        obs, *_ = env.step(dict(zip(agents, actions[0], strict=True)))
+    with pytest.raises(ValueError, match="expected 6 players"):
+        team.act(np.zeros((1, 5, env.task.layout.size)))
+    with pytest.raises(ValueError, match="memory: expected"):
+        team.act(np.stack([obs[a] for a in agents])[None], memory[:, :3])
 
 
 def test_the_scripted_player_is_a_policy_by_name_on_academy_tasks_in_the_commands_mode_only():

@@ -37,7 +37,7 @@ from envs.common.io import (
 )
 from envs.soccer.match import MATCH_SECONDS, MAX_PLAYERS, Matches, action_modes
 from envs.soccer.robots import BY_NAME
-from envs.soccer.scripted import scripted_team
+from envs.soccer.scripted import ScriptedTeam, scripted_team
 from envs.soccer.steering import COMMANDS
 
 TEAMS = ("scripted", "random")
@@ -58,9 +58,8 @@ class TeamPolicy:
             self.model = trained_team(spec, engine)
             self.residual = residual_scale(spec, self.model.manifest)
         if spec == "scripted" or self.residual is not None:
-            players = scripted_team(engine, team)
-            self.players = [players[a] for a in agents]
-            self.memory: list[np.ndarray | None] = [None] * len(agents)  # each player's, over every match
+            self.script = ScriptedTeam(list(scripted_team(engine, team).values()))  # in the order of ``agents``
+            self.memory: np.ndarray | None = None  # each match's players' (matches, players, len(MEMORY))
         if spec == "random":
             # each match's own stream, from that match's seed: match i of SEED replays as match 0 of SEED + i
             self.rngs = [np.random.default_rng([seed + m, 0 if team == "home" else 1])
@@ -70,8 +69,10 @@ class TeamPolicy:
     def act(self, obs: np.ndarray, actions: np.ndarray) -> None:
         """Write the team's actions into ``actions`` (rows, size) from the observations (rows, size)."""
         if self.spec == "scripted" or self.residual is not None:
-            for i, (rows, player) in enumerate(zip(self.rows, self.players, strict=True)):
-                actions[rows], self.memory[i] = player.predict(obs[rows], self.memory[i])
+            by_player = np.stack([obs[rows] for rows in self.rows], axis=1)  # (matches, players, size)
+            moves, self.memory = self.script.act(by_player, self.memory)
+            for i, rows in enumerate(self.rows):
+                actions[rows] = moves[:, i]
             if self.spec == "scripted":
                 return
         if self.spec not in TEAMS:  # one shared policy for every player of the team, every match in one call

@@ -43,7 +43,7 @@ from agents.soccer.vec_env import MatchesVecEnv
 from envs.common.io import write_json
 from envs.soccer.academy import APPROACH_WEIGHT, PROGRESS_WEIGHT
 from envs.soccer.match import MATCH_SECONDS, Matches
-from envs.soccer.scripted import MEMORY, scripted_team
+from envs.soccer.scripted import MEMORY, ScriptedTeam
 from envs.soccer.steering import COMMANDS
 
 SCRIPTED = "scripted"
@@ -61,8 +61,8 @@ class ScriptedOpponent:
     ``restart`` clears."""
 
     def __init__(self, engine: Matches, team: str = "away"):
-        self.players = list(scripted_team(engine, team).values())
-        self.memory = np.zeros((engine.num_matches, len(self.players), len(MEMORY)))
+        self.team = ScriptedTeam.of(engine, (team,))[0]
+        self.memory = np.zeros((engine.num_matches, len(self.team.players), len(MEMORY)))
         self.fresh = np.ones(engine.num_matches, dtype=bool)
 
     def restart(self, matches: np.ndarray) -> None:
@@ -70,15 +70,10 @@ class ScriptedOpponent:
         self.fresh[matches] = True
 
     def act(self, obs: np.ndarray, matches: np.ndarray) -> np.ndarray:
-        k = len(self.players)
-        by_player = obs.reshape(-1, k, obs.shape[-1])
-        start = self.fresh[matches]
-        actions = []
-        for i, player in enumerate(self.players):
-            action, self.memory[matches, i] = player.predict(by_player[:, i], self.memory[matches, i], start)
-            actions.append(action)
+        by_player = obs.reshape(len(matches), len(self.team.players), obs.shape[-1])
+        actions, self.memory[matches] = self.team.act(by_player, self.memory[matches], self.fresh[matches])
         self.fresh[matches] = False
-        return np.stack(actions, axis=1).reshape(len(obs), -1)
+        return actions.reshape(len(obs), -1)
 
 
 class SnapshotOpponent:

@@ -24,6 +24,9 @@ escapes.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
 from envs.common.robot import ActionMode
@@ -268,6 +271,61 @@ def scripted_team(env, team: str) -> dict[str, ScriptedPlayer]:
     keeper = len(players) - 1 if len(players) >= 3 else None
     return {agent: scripted_player(layout, base.mode, length, base.field, base.commands, keeper=i == keeper)
             for i, agent in enumerate(players)}  # fmt: skip
+
+
+class ScriptedTeam:
+    """Scripted players acting together, in one :meth:`ScriptedPlayer.predict` call per role rather than one per
+    player: every field player of the team (or of both teams: a player's view does not depend on its side) in one,
+    every keeper in another, on their observations stacked. Each player's actions and memory are bit for bit those
+    of its own ``predict``; only the calls are fewer, which is most of a scripted match's time besides its physics.
+
+    Args:
+        players: the players in their order (:func:`scripted_team`'s values, of one team or of both), those of a
+            role alike but for their memory (the same robot, mode and field).
+    """
+
+    def __init__(self, players: Sequence[ScriptedPlayer]):
+        self.players = list(players)
+        if not self.players:
+            raise ValueError("players: a scripted team needs at least one player")
+        roles: dict[bool, list[int]] = {}
+        for i, player in enumerate(self.players):
+            roles.setdefault(player.keeper, []).append(i)
+        self.roles = [(self.players[i[0]], np.array(i)) for i in roles.values()]
+
+    @classmethod
+    def of(cls, env: Any, teams: Sequence[str] = ("home", "away")) -> tuple[ScriptedTeam, list[str]]:
+        """The scripted players of ``teams`` of a match in the commands mode, and their agents in the order of
+        :meth:`act`'s columns."""
+        players = {agent: p for team in teams for agent, p in scripted_team(env, team).items()}
+        return cls(list(players.values())), list(players)
+
+    def act(self, obs: np.ndarray, memory: np.ndarray | None = None,
+            episode_start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Every player's action in each of ``n`` matches: ``obs`` (n, players, size), ``memory`` (n, players,
+        ``len(MEMORY)``) as this returned it (None: every player starts afresh), ``episode_start`` (n,) for matches
+        that start again; returns the actions (n, players, action size) and the memory."""
+        obs = np.asarray(obs, dtype=np.float64)
+        n, k = obs.shape[:2]
+        if k != len(self.players):
+            raise ValueError(f"obs: expected {len(self.players)} players in axis 1, got shape {obs.shape}")
+        if memory is None:  # as ScriptedPlayer.predict without a state: every row afresh
+            memory, start = np.zeros((n, k, len(MEMORY))), np.ones(n, dtype=bool)
+        else:
+            memory = np.array(memory, dtype=np.float64)
+            if memory.shape != (n, k, len(MEMORY)):
+                raise ValueError(f"memory: expected {(n, k, len(MEMORY))} as act returned it, got {memory.shape}")
+            start = np.zeros(n, dtype=bool) if episode_start is None else np.asarray(episode_start, bool).reshape(n)
+        actions: np.ndarray | None = None
+        for player, columns in self.roles:
+            rows = obs[:, columns].reshape(n * len(columns), -1)
+            action, state = player.predict(rows, memory[:, columns].reshape(len(rows), -1),
+                                           np.repeat(start, len(columns)))  # fmt: skip
+            if actions is None:
+                actions = np.empty((n, k, action.shape[-1]))
+            actions[:, columns] = action.reshape(n, len(columns), -1)
+            memory[:, columns] = state.reshape(n, len(columns), -1)
+        return actions, memory
 
 
 def scripted_player(layout: ObservationLayout, mode: ActionMode, length: float, field: Field,
