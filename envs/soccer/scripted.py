@@ -280,17 +280,19 @@ class ScriptedTeam:
     of its own ``predict``; only the calls are fewer, which is most of a scripted match's time besides its physics.
 
     Args:
-        players: the players in their order (:func:`scripted_team`'s values, of one team or of both), those of a
-            role alike but for their memory (the same robot, mode and field).
+        players: the players in their order (:func:`scripted_team`'s values, of one team or of both); those that
+            play alike (the same role, observation layout, mode, body length, field, kick and push) share a call.
     """
 
     def __init__(self, players: Sequence[ScriptedPlayer]):
         self.players = list(players)
         if not self.players:
             raise ValueError("players: a scripted team needs at least one player")
-        roles: dict[bool, list[int]] = {}
-        for i, player in enumerate(self.players):
-            roles.setdefault(player.keeper, []).append(i)
+        roles: dict[tuple, list[int]] = {}
+        for i, p in enumerate(self.players):
+            alike = (p.keeper, id(p.layout), id(p.mode), p.length, repr(p.kick), p.push, p.ball_radius, p.aim_depth,
+                     p.goal_half_width, p.inside)  # fmt: skip
+            roles.setdefault(alike, []).append(i)
         self.roles = [(self.players[i[0]], np.array(i)) for i in roles.values()]
 
     @classmethod
