@@ -330,7 +330,7 @@ def _work_out_baselines(plan: Plan, task: str, folder: Path, record: Path, threa
         counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
         random_elo = elo_against(*reversed(counts))  # the random team's record against the scripted one
         baselines = {"task": task, "soccer": True, "reference": "scripted", "scripted_vs_random": result,
-                     "random_elo": random_elo, "settings": plan.eval_settings}  # fmt: skip
+                     "random_elo": random_elo, "settings": plan.task_settings(task)}  # fmt: skip
         write_json(record, baselines)
         return baselines
     reference = reference_name(task)
@@ -956,10 +956,13 @@ def _cell(cell: dict[str, float] | None, seeds: int, comparable: bool) -> str:
 
 
 def _rating(r: dict[str, float]) -> str:
-    def one(x: float) -> str:
-        return "-inf" if x == -np.inf else "+inf" if x == np.inf else f"{x:.0f}"
-
-    return f"{one(r['elo'])} [{one(r['low'])}, {one(r['high'])}]"
+    """An Elo with its 95% interval; a record of one way only (every match lost, or won) has no finite estimate, and
+    is given by the interval's one finite end."""
+    if r["elo"] == -np.inf:
+        return f"at most {r['high']:.0f} (no point scored)"
+    if r["elo"] == np.inf:
+        return f"at least {r['low']:.0f} (every match won)"
+    return f"{r['elo']:.0f} [{r['low']:.0f}, {r['high']:.0f}]"
 
 
 def _soccer_section(plan: Plan, baselines: dict, rows: dict[Row, dict | None]) -> list[str]:

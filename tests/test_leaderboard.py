@@ -589,6 +589,10 @@ def test_elo_against_the_scripted_team_follows_the_record():
     sweep = leaderboard.elo_against(20, 0, 0)
     assert sweep["elo"] == np.inf and np.isfinite(sweep["low"]) and sweep["low"] > 1000.0
     assert leaderboard.elo_against(0, 0, 20)["elo"] == -np.inf
+    # written by the interval's finite end, not as an infinite rating
+    assert leaderboard._rating(leaderboard.elo_against(0, 0, 20)).startswith("at most ")
+    assert leaderboard._rating(sweep) == f"at least {sweep['low']:.0f} (every match won)"
+    assert leaderboard._rating(even) == f"1000 [{even['low']:.0f}, {even['high']:.0f}]"
 
 
 def test_soccer_tasks_are_rated_beside_the_normalized_table(tmp_path):
@@ -652,6 +656,29 @@ def test_a_soccer_task_s_matches_last_as_long_as_its_plan_says(capsys):
         with pytest.raises(SystemExit):
             leaderboard.parse_args(["--tasks", "soccer/bioloid", "--timesteps", "10", "--match-seconds", *bad])
         assert message in capsys.readouterr().err
+
+
+def test_a_soccer_task_s_baselines_keep_the_match_length_they_were_played_with(tmp_path, monkeypatch):
+    """The scripted team's record against random, played with 600 s matches, is kept under the task's settings
+    (its match length among them): the next command of the same plan reuses it, one of another length refuses it."""
+    played = []
+
+    def evaluate(command, threads, log):  # the matches' results, as evaluate.py --soccer writes them
+        played.append(command)
+        out = Path(command[command.index("--out") + 1])
+        counts = {k: {"count": n} for k, n in (("wins", 3), ("draws", 1), ("losses", 0))}
+        leaderboard.write_json(out / "results.json", {**counts, "goal_difference": {"mean": 1.0}})
+
+    monkeypatch.setattr(leaderboard, "_run", evaluate)
+    plan = leaderboard.Plan(("soccer/bioloid",), ("ppo",), (0,), (("soccer/bioloid", 10),), None, 4, 1000, None,
+                            match_seconds=(("soccer/bioloid", 600.0),))  # fmt: skip
+    first = leaderboard.task_baselines(plan, "soccer/bioloid", tmp_path, 1)
+    assert played[0][played[0].index("--match-seconds") + 1] == "600"
+    assert first["settings"]["match_seconds"] == 600.0
+    assert leaderboard.task_baselines(plan, "soccer/bioloid", tmp_path, 1) == first and len(played) == 1
+    shorter = dataclasses.replace(plan, match_seconds=())  # the default 60 s matches
+    with pytest.raises(leaderboard.StaleResult, match="match_seconds"):
+        leaderboard.task_baselines(shorter, "soccer/bioloid", tmp_path, 1)
 
 
 def test_soccer_tasks_are_checked_before_anything_runs(tmp_path, capsys):
