@@ -1230,11 +1230,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     import envs  # noqa: F401
     from agents.training import SOCCER_ROBOTS
 
+    def robot_soccer(task: str) -> bool:  # soccer/ROBOT of a robot that plays
+        return is_soccer(task) and task.removeprefix(SOCCER) in SOCCER_ROBOTS
+
     if len(set(args.tasks)) != len(args.tasks):
         parser.error(f"--tasks must not repeat a task: {' '.join(args.tasks)}")
     for task in args.tasks:
         if is_soccer(task):
-            if task.removeprefix(SOCCER) not in SOCCER_ROBOTS:
+            if not robot_soccer(task):
                 parser.error(f"--tasks {task!r}: soccer/ROBOT takes one of {', '.join(SOCCER_ROBOTS)}")
             if not any(a in SELFPLAY_ALGOS for a in args.algos):
                 parser.error(f"--tasks {task!r}: self-play trains with {' or '.join(SELFPLAY_ALGOS)} alone, and "
@@ -1242,13 +1245,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "its gym tasks only")  # fmt: skip
         elif task not in gym.registry:
             parser.error(f"--tasks: unknown env {task!r} (an env id, or soccer/ROBOT)")
-    args.timesteps = _task_budgets(
-        parser,
-        args.tasks,
-        args.timesteps,
-        lambda t: t in gym.registry or (is_soccer(t) and t.removeprefix(SOCCER) in SOCCER_ROBOTS),
-    )
-    args.match_seconds = _match_lengths(parser, args.tasks, args.match_seconds)
+    args.timesteps = _task_budgets(parser, args.tasks, args.timesteps, lambda t: t in gym.registry or robot_soccer(t))
+    args.match_seconds = _match_lengths(parser, args.tasks, args.match_seconds, robot_soccer)
     checks = (
         ("--episodes", args.episodes, 2),
         ("--workers", args.workers, 1),
@@ -1324,19 +1322,17 @@ def _task_budgets(
     return tuple((t, budgets[t]) for t in tasks)
 
 
-def _match_lengths(parser, tasks: list[str], given: list[str]) -> tuple[tuple[str, float], ...]:
+def _match_lengths(parser, tasks: list[str], given: list[str],
+                   robot_soccer: Callable[[str], bool]) -> tuple[tuple[str, float], ...]:  # fmt: skip
     """``--match-seconds TASK=S ...``: each a soccer task (soccer/ROBOT), once, in (0, 3600] s; those equal to
     MATCH_SECONDS are left out (a plan's settings hold only a length that is not the default). As with
     ``--timesteps``, a length for a soccer task outside ``--tasks`` is ignored, so that the Makefile's one list
-    serves a run of any of its tasks."""
-    from agents.training import SOCCER_ROBOTS
-
+    serves a run of any of its tasks; ``robot_soccer`` says which names are soccer tasks."""
     lengths: dict[str, float] = {}
     for item in given:
         task, sep, text = item.rpartition("=")
-        if not sep or not is_soccer(task) or task.removeprefix(SOCCER) not in SOCCER_ROBOTS:
-            parser.error(f"--match-seconds {item!r}: expected TASK=S for a soccer task (soccer/ROBOT: ROBOT one of "
-                         f"{', '.join(SOCCER_ROBOTS)})")  # fmt: skip
+        if not sep or not robot_soccer(task):
+            parser.error(f"--match-seconds {item!r}: expected TASK=S for a soccer task (soccer/ROBOT)")
         if task in lengths:
             parser.error(f"--match-seconds {item!r}: {task} is given twice")
         try:

@@ -60,6 +60,7 @@ class TeamPolicy:
         if spec == "scripted" or self.residual is not None:
             self.script = ScriptedTeam(list(scripted_team(engine, team).values()))  # in the order of ``agents``
             self.memory: np.ndarray | None = None  # each match's players' (matches, players, len(MEMORY))
+            self.grid = np.stack(self.rows, axis=1)  # each match's row of each player (matches, players)
         if spec == "random":
             # each match's own stream, from that match's seed: match i of SEED replays as match 0 of SEED + i
             self.rngs = [np.random.default_rng([seed + m, 0 if team == "home" else 1])
@@ -69,10 +70,7 @@ class TeamPolicy:
     def act(self, obs: np.ndarray, actions: np.ndarray) -> None:
         """Write the team's actions into ``actions`` (rows, size) from the observations (rows, size)."""
         if self.spec == "scripted" or self.residual is not None:
-            by_player = np.stack([obs[rows] for rows in self.rows], axis=1)  # (matches, players, size)
-            moves, self.memory = self.script.act(by_player, self.memory)
-            for i, rows in enumerate(self.rows):
-                actions[rows] = moves[:, i]
+            actions[self.grid], self.memory = self.script.act(obs[self.grid], self.memory)
             if self.spec == "scripted":
                 return
         if self.spec not in TEAMS:  # one shared policy for every player of the team, every match in one call
