@@ -1255,8 +1255,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     for name, value, least in checks:
         if value is not None and value < least:
             parser.error(f"{name} must be at least {least}, got {value}")
-    if args.minutes is not None and not args.minutes > 0:
-        parser.error(f"--minutes must be positive, got {args.minutes}")
+    if args.minutes is not None and not 0 < args.minutes < 10**6:  # train.py's own bound: finite
+        parser.error(f"--minutes must be a positive number of minutes under 10**6, got {args.minutes}")
     negative = [s for s in (*args.seeds, args.eval_seed) if s < 0]
     if negative:
         parser.error(f"seeds must be whole numbers >= 0, got {negative[0]}")
@@ -1268,6 +1268,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.hyperparams = None  # the shipped files, however named: the same rows as without the option
     for name in ("out", "records"):
         value = getattr(args, name)
+        if value is not None and not Path(value).name:  # '', '.', '/': the current folder or a root
+            parser.error(f"--{name} {value!r}: give the name of a folder for the leaderboard's files")
+        if value is not None and Path(value).resolve() in (Path.cwd(), *Path.cwd().parents):
+            parser.error(f"--{name} {value!r} is the current folder or holds it; give the name of a folder for the "
+                         "leaderboard's files")  # fmt: skip
         if value is not None and Path(value).exists() and not Path(value).is_dir():
             parser.error(f"--{name} {value}: exists and is not a folder")
     if args.docs is not None:

@@ -1300,25 +1300,55 @@ def resume_run(args: argparse.Namespace) -> Path:
     config_path = run_dir / "config.json"
     if not config_path.is_file():  # not a run folder: refused before its lock file is made in it
         raise ConfigError(f"--resume {run_dir}: cannot read {config_path} (no such file: not a run folder)")
+    read_run_config(run_dir)  # a damaged config.json is refused before the lock file is made, too
     with contextlib.ExitStack() as stack:
         lock_run(run_dir, stack)
         return _resume_locked(args, run_dir)
 
 
-def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
+SOCCER_NUMBERS = ("match_seconds", "scripted_share", "residual")  # a self-play run's numeric match settings
+
+
+def read_run_config(run_dir: Path) -> dict[str, Any]:
+    """A run's ``config.json``, checked for what ``--resume`` reads from it; a :class:`ConfigError` names the file,
+    the field and its value."""
     config_path = run_dir / "config.json"
     try:
         config = json.loads(config_path.read_text())
-        algo, seed, env_id = config["algo"], int(config["seed"]), config["env_id"]
-        hyperparams = config["hyperparams"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError) as exc:
         raise ConfigError(f"--resume {run_dir}: cannot read {config_path} ({exc})") from None
+    if not isinstance(config, dict):
+        raise ConfigError(f"{config_path}: expected a JSON object of the run's settings, got {type(config).__name__}")
+    missing = [key for key in ("algo", "seed", "env_id", "hyperparams") if key not in config]
+    if missing:
+        raise ConfigError(f"{config_path}: field {missing[0]!r} is missing")
+    seed = config["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f"{config_path}: field 'seed' = {seed!r}: expected a whole number of at least 0")
     for key in ("timesteps", "n_envs"):  # what the checks below read
         value = config.get(key)
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise ConfigError(f"{config_path}: field {key!r} = {value!r}: expected a whole number of at least 1")
-    if algo not in ALGOS:
-        raise ConfigError(f"{config_path}: unknown algo {algo!r}")
+    if config["algo"] not in ALGOS:
+        raise ConfigError(f"{config_path}: field 'algo' = {config['algo']!r}: expected one of {', '.join(ALGOS)}")
+    env_id = config["env_id"]
+    if isinstance(env_id, str) and env_id.startswith("soccer/"):  # a self-play run: its matches' settings
+        soccer = config.get("soccer")
+        if not isinstance(soccer, dict):
+            raise ConfigError(f"{config_path}: field 'soccer' = {soccer!r}: a self-play run ({env_id}) needs its "
+                              "match settings as a JSON object")  # fmt: skip
+        for key in SOCCER_NUMBERS:
+            value = soccer.get(key)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                      or not math.isfinite(value)):  # fmt: skip
+                raise ConfigError(f"{config_path}: field 'soccer.{key}' = {value!r}: expected a finite number")
+    return config
+
+
+def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
+    config_path = run_dir / "config.json"
+    config = read_run_config(run_dir)
+    algo, seed, env_id, hyperparams = config["algo"], config["seed"], config["env_id"], config["hyperparams"]
     check_resume_flags(args, config)
     if "soccer" not in config:
         check_env_id(env_id)

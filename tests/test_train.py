@@ -551,6 +551,24 @@ def test_resume_names_a_bad_field_of_config_json(ppo_run, tmp_path, key, value):
     assert f"config.json: field '{key}' = {value!r}" in result.stderr
 
 
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda c: [c], "expected a JSON object of the run's settings, got list"),
+        (lambda c: {k: v for k, v in c.items() if k != "soccer"}, "field 'soccer' = None: a self-play run"),
+        (lambda c: {**c, "soccer": {**c["soccer"], "match_seconds": "abc"}}, "field 'soccer.match_seconds' = 'abc'"),
+        (lambda c: {**c, "algo": "dqn"}, "field 'algo' = 'dqn': expected one of"),
+    ],
+)
+def test_a_damaged_config_json_is_named_before_the_run_folder_is_locked(ppo_run, tmp_path, edit, message):
+    config = json.loads((ppo_run / "config.json").read_text())
+    config.update(env_id="soccer/bioloid", soccer={"robot": "bioloid", "players_per_team": 1, "match_seconds": 60.0})
+    (tmp_path / "config.json").write_text(json.dumps(edit(config)))
+    result = train_in_process("--resume", tmp_path)
+    assert_one_line_error(result, f"{tmp_path / 'config.json'}: ", message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["config.json"]  # no lock file left in the user's folder
+
+
 def test_a_bad_thread_cap_is_named_as_itself(tmp_path, monkeypatch):
     monkeypatch.setenv("SKITTER_THREADS", "abc")  # read as train.main starts: in this process as in a new one
     result = train_in_process("--env", WALK, "--algo", "ppo", "--timesteps", 64, "--runs-dir", tmp_path)
