@@ -12,9 +12,8 @@ scripted against away random and against away scripted, two robots' sets at a ti
 Bioloid plays again with its kick (``kick=True``: both teams have the action, the scripted team kicks), in the
 academy and against random.
 
-Run: ``python -m benchmarks.soccer_scripted`` (82 minutes on 2 idle cores, 2026-12-01; the roach's two sets
-take 45 minutes each). ``--robots bioloid`` runs one robot's sets (13 minutes for the Bioloid), under
-``runs/benchmarks/``.
+Run: ``python -m benchmarks.soccer_scripted`` (41 minutes on 2 idle cores, 2026-12-03; 82 beside a training job).
+``--robots bioloid`` runs one robot's sets (13 minutes for the Bioloid), under ``runs/benchmarks/``.
 """
 
 from __future__ import annotations
