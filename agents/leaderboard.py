@@ -59,7 +59,7 @@ import numpy as np
 from agents.evaluation import GENERIC_METRICS, LOWER_IS_BETTER
 from envs.common.batch import THREADS_VARIABLE
 from envs.common.cluster import ClusterError, check_address, ensure_ray, init_ray
-from envs.common.io import ToolParser, atomic_write, parent_problem, write_json, write_text
+from envs.common.io import ToolParser, atomic_write, current_folder_problem, parent_problem, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RETURN = "return"
@@ -1268,11 +1268,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.hyperparams = None  # the shipped files, however named: the same rows as without the option
     for name in ("out", "records"):
         value = getattr(args, name)
-        if value is not None and not Path(value).name:  # '', '.', '/': the current folder or a root
-            parser.error(f"--{name} {value!r}: give the name of a folder for the leaderboard's files")
-        if value is not None and Path(value).resolve() in (Path.cwd(), *Path.cwd().parents):
-            parser.error(f"--{name} {value!r} is the current folder or holds it; give the name of a folder for the "
-                         "leaderboard's files")  # fmt: skip
+        problem = None if value is None else current_folder_problem(value, f"--{name}")
+        if problem:
+            parser.error(problem)
         if value is not None and Path(value).exists() and not Path(value).is_dir():
             parser.error(f"--{name} {value}: exists and is not a folder")
     if args.docs is not None:

@@ -1322,13 +1322,10 @@ def read_run_config(run_dir: Path) -> dict[str, Any]:
     missing = [key for key in ("algo", "seed", "env_id", "hyperparams") if key not in config]
     if missing:
         raise ConfigError(f"{config_path}: field {missing[0]!r} is missing")
-    seed = config["seed"]
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"{config_path}: field 'seed' = {seed!r}: expected a whole number of at least 0")
-    for key in ("timesteps", "n_envs"):  # what the checks below read
+    for key, least in (("seed", 0), ("timesteps", 1), ("n_envs", 1)):  # what the resume reads
         value = config.get(key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ConfigError(f"{config_path}: field {key!r} = {value!r}: expected a whole number of at least 1")
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ConfigError(f"{config_path}: field {key!r} = {value!r}: expected a whole number of at least {least}")
     if config["algo"] not in ALGOS:
         raise ConfigError(f"{config_path}: field 'algo' = {config['algo']!r}: expected one of {', '.join(ALGOS)}")
     env_id = config["env_id"]

@@ -220,14 +220,14 @@ def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys)
         (["--tasks", WALK, "--timesteps", "10", "--seeds", "0", "-1"], "seeds must be whole numbers >= 0, got -1"),
         (["--tasks", WALK, "--timesteps", "10", "--hyperparams", str(tmp_path / "none.yml")], "no such file"),
         (["--tasks", WALK, "--timesteps", "10", "--minutes", "inf"], "--minutes must be a positive number"),
-        (["--tasks", WALK, "--timesteps", "10", "--records", ""], "--records '': give the name of a folder"),
+        (["--tasks", WALK, "--timesteps", "10", "--records", ""], "--records '' is the current folder"),
     ):
         with pytest.raises(SystemExit) as exited:
             leaderboard.main([*argv, "--out", str(tmp_path / "b")])
         assert exited.value.code == 2 and message in capsys.readouterr().err
     here = tmp_path / "here"
     here.mkdir()
-    for out, message in (("", "--out '': give the name"), (".", "--out '.': give the name"),
+    for out, message in (("", "--out '' is the current folder"), (".", "--out '.' is the current folder"),
                          ("..", "--out '..' is the current folder or holds it")):  # fmt: skip
         with pytest.raises(SystemExit) as exited, contextlib.chdir(here):
             leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--out", out])

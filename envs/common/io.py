@@ -239,6 +239,15 @@ def results_foreign(out: str | Path, files: Sequence[str], folders: Mapping[str,
     return foreign
 
 
+def current_folder_problem(out: str | Path, flag: str = "--out") -> str | None:
+    """Why ``out`` cannot be a tool's own folder, or None: it is empty, ``.`` or a root, or the current folder or
+    one that holds it (the tool would write among, or replace, the user's files)."""
+    given, out = str(out), Path(out)
+    if not out.name or out.resolve() in (Path.cwd(), *Path.cwd().parents):
+        return f"{flag} {given!r} is the current folder or holds it; give the name of a folder for the results"
+    return None
+
+
 def results_folder_problem(
     out: str | Path, overwrite: bool, tool: str, foreign: Callable[[Path], list[str]], flag: str = "--out"
 ) -> str | None:
@@ -247,8 +256,9 @@ def results_folder_problem(
     refused even with ``overwrite`` (replacing it would delete the user's files); one holding an earlier run's
     results only with ``overwrite``. Checked before anything is computed."""
     out = Path(out)
-    if not out.name or out.resolve() in (Path.cwd(), *Path.cwd().parents):
-        return f"{flag} {str(out)!r} is the current folder or holds it; give the name of a folder for the results"
+    problem = current_folder_problem(out, flag)
+    if problem:
+        return problem
     if out.is_dir():
         held = sorted(out.iterdir())
         others = [name for entry in held for name in foreign(entry)]
