@@ -41,6 +41,7 @@ import contextlib
 import functools
 import json
 import os
+import re
 import shlex
 import shutil
 import signal
@@ -906,7 +907,13 @@ def publish_media(text: str, out: Path, docs: Path, records: Path | None = None)
         if (media / "videos" / f"{task}.mp4").is_file():
             text = text.replace(f"](videos/{task}/eval/videos/side_by_side.mp4)",
                                 f"]({media.name}/videos/{task}.mp4)")  # fmt: skip
-    return text
+    # a link still into the run folder: the row's run that makes the video is not kept here (a fresh checkout's
+    # records name the row, its mp4 was never published); say so rather than link to nothing
+    return re.sub(
+        r"\[the reference and ([^\]]+)\]\(videos/[^)]+/eval/videos/side_by_side\.mp4\)",
+        r"no video: \1's run, which makes it, is not kept here (`--videos` on a `--rerun` of the row makes it again)",
+        text,
+    )
 
 
 PAGE_START = "# Results\n\nLearning against each task's reference"  # how every page :func:`render` writes begins

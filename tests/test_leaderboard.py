@@ -1004,3 +1004,23 @@ def test_a_soccer_task_gets_no_video_and_its_row_breaks_nothing(tmp_path):
     row = leaderboard.Row("soccer/xjus", "ppo", 0)
     assert leaderboard.task_video(plan, "soccer/xjus", tmp_path, {row: {"soccer": True, "elo": 785.0}}, 1) is None
     assert not (tmp_path / "videos").exists()
+
+
+def test_the_page_names_a_video_whose_run_is_not_kept_instead_of_linking_to_nothing(tmp_path):
+    """A fresh checkout has a row's video marker but neither the run that made the mp4 nor a published copy: the
+    page says so and how to make it, and a published video is still linked."""
+    docs, out, records = tmp_path / "docs" / "results.md", tmp_path / "run", tmp_path / "records"
+    media = docs.with_suffix("")
+    for task in ("skitter_Kept-v1", "skitter_Gone-v1"):
+        (records / "videos" / task).mkdir(parents=True)
+        (records / "videos" / task / "row.txt").write_text(f"{task}__ppo__0\n")
+    (media / "videos").mkdir(parents=True)
+    (media / "videos" / "skitter_Kept-v1.mp4").write_bytes(b"published")
+    text = "\n".join(
+        f"- `{t}`: [the reference and {t}__ppo__0](videos/{t}/eval/videos/side_by_side.mp4)"
+        for t in ("skitter_Kept-v1", "skitter_Gone-v1")
+    )
+    page = leaderboard.publish_media(text, out, docs, records)
+    assert "[the reference and skitter_Kept-v1__ppo__0](results/videos/skitter_Kept-v1.mp4)" in page
+    assert "side_by_side.mp4" not in page, "no link into a run folder that is not there"
+    assert "`skitter_Gone-v1`: no video: skitter_Gone-v1__ppo__0's run" in page and "--rerun" in page
