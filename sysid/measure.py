@@ -2,6 +2,14 @@
 the nominal model's values (the robot's ``Adapter.measure_log``; the VelociRoACH's:
 sysid/adapters/velociroach_measure.py).
 Logs are whole files or windows ``FILE@START:END``; ``--out`` also writes the measurements as JSON, a new file.
+
+``--calibration-out FILE`` writes a calibration file (``gym.make(id, calibration=FILE)``, ``calibrate.py
+--calibration FILE``) from the measurements alone: the robot's measurements that read a catalog effect's parameter
+directly (``Adapter.effect_readings``; the roach's back-EMF reading's scale and duty coupling per side), pooled over
+the logs by inverse variance. A parameter is written only where its interval excludes the nominal value, the logs
+agree (their intervals overlap) and the value lies in the effect's range; each decision is printed. With ``--test
+LOG ...`` (logs not measured) it also replays the test logs in the nominal and the measured model and reports both
+held-out errors, as ``calibrate.py`` does, and writes them into the file's provenance.
 """
 
 from __future__ import annotations
@@ -11,13 +19,14 @@ import os
 import sys
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
-from sysid.measurement import Measurement, table
+from sysid.measurement import MeasuredEffect, Measurement, pool, table
 
 
 def main(argv: list[str] | None = None) -> int:
     from envs.common.io import ToolParser, parent_problem
-    from sysid.cli import read_logs
+    from sysid.cli import check_disjoint, read_logs
     from sysid.logs import LogError
     from sysid.robots import adapter as make_adapter
     from sysid.robots import adapters
@@ -36,31 +45,124 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("logs", nargs="+", metavar="LOG", help="logs, whole or FILE@START:END")
     parser.add_argument("--out", help="also write the measurements here as JSON (a new file)")
     parser.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (default 0)")
+    parser.add_argument(
+        "--calibration-out",
+        metavar="FILE",
+        help="also write a calibration file (a new file) of the effects the measurements read directly",
+    )
+    parser.add_argument(
+        "--test",
+        nargs="+",
+        metavar="LOG",
+        default=[],
+        help="with --calibration-out: held-out logs (not among those measured) on which the nominal and the "
+        "measured model are replayed and their errors reported",
+    )
+    parser.add_argument("--threads", type=int, help="rollout threads for --test (default: the machine's cores)")
     args = parser.parse_args(argv)
     if args.seed < 0:
         parser.error(f"--seed must be a whole number >= 0, got {args.seed}")
-    if args.out is not None:
-        if os.path.lexists(args.out):  # a dangling link too: never written through
-            parser.error(f"--out {args.out}: already exists; choose another path or remove it first")
-        problem = parent_problem(args.out)
+    if args.threads is not None and args.threads < 1:
+        parser.error(f"--threads must be at least 1, got {args.threads}")
+    if args.test and args.calibration_out is None:
+        parser.error("--test replays the measured model: give --calibration-out FILE too")
+    for flag, path in (("--out", args.out), ("--calibration-out", args.calibration_out)):
+        if path is None:
+            continue
+        if os.path.lexists(path):  # a dangling link too: never written through
+            parser.error(f"{flag} {path}: already exists; choose another path or remove it first")
+        problem = parent_problem(path)
         if problem:
-            parser.error(f"--out {args.out}: {problem}")
+            parser.error(f"{flag} {path}: {problem}")
+    if args.out is not None and args.out == args.calibration_out:
+        parser.error(f"--out and --calibration-out are both {args.out}: give two files")
     robot = make_adapter(args.robot)
     measurements: list[Measurement] = []
-    for text in args.logs:
-        try:
+    test = []
+    try:
+        if args.test:
+            check_disjoint([Path(t) for t in args.logs], [Path(t) for t in args.test])
+        for text in args.logs:
             (log,) = read_logs([Path(text)], robot.required(), None, tool="measure")
             measurements += robot.measure_log(log, seed=args.seed)
-        except (LogError, ValueError) as exc:
-            print(f"measure: error: {exc}", file=sys.stderr)
-            return 2
+        if args.test:
+            test = read_logs([Path(t) for t in args.test], robot.required(), None, robot.channel_limits(), "measure")
+            robot.check_logs(test)
+            robot.check_length(test)
+    except (LogError, ValueError) as exc:
+        print(f"measure: error: {exc}", file=sys.stderr)
+        return 2
     if not measurements:
         print(f"measure: the {args.robot}'s logs measure nothing by themselves here (its adapter has no measure_log)")
     else:
         print(table(measurements), end="")
+    code = 0
     if args.out is not None:
-        return _write_new(Path(args.out), json.dumps([asdict(m) for m in measurements], indent=1) + "\n")
-    return 0
+        code = _write_new(Path(args.out), json.dumps([asdict(m) for m in measurements], indent=1) + "\n")
+    if args.calibration_out is not None:
+        code = max(code, _write_calibration(robot, measurements, test, args))
+    return code
+
+
+def measured_effects(robot: Any, measurements: list[Measurement]) -> tuple[dict[str, dict], list[MeasuredEffect]]:
+    """The calibration's effects (``effect -> param -> {value, ci95, unit}``) from the measurements that read a
+    catalog effect directly, and every pooled reading; each decision is printed, a disagreement as a warning."""
+    known = {name: {p.name: p for p in effect.params} for name, effect in robot.catalog().items()}
+    pooled = pool(robot.effect_readings(measurements))
+    effects: dict[str, dict] = {}
+    for m in pooled:
+        name = f"{m.effect}.{m.param}"
+        where = f"{m.value:.4g} [{m.low:.4g}, {m.high:.4g}] from {', '.join(m.logs)}"
+        param = known.get(m.effect, {}).get(m.param)
+        if m.logs_disagree:
+            print(f"measure: warning: {name}: the logs' intervals do not overlap ({where}): they measure different "
+                  "robots or conditions; not written (measure them one at a time)", file=sys.stderr)  # fmt: skip
+        elif not m.significant:
+            print(f"{name}: {where}; its interval holds the nominal {m.nominal:g}: left nominal")
+        elif param is None or not param.low <= m.value <= param.high:
+            span = "" if param is None else f" [{param.low:g}, {param.high:g}]"
+            print(f"{name}: {where}; outside the effect's range{span}: not written (the catalog's range, or the "
+                  "model's form, is wrong for this robot)")  # fmt: skip
+        else:
+            print(f"{name}: {where}; nominal {m.nominal:g}: written")
+            effects.setdefault(m.effect, {})[m.param] = {"value": m.value, "ci95": [m.low, m.high],
+                                                         "unit": param.unit}  # fmt: skip
+    return effects, pooled
+
+
+def held_out_errors(robot: Any, test: list, setting: dict[str, float], threads: int | None) -> tuple[Any, Any]:
+    """The held-out error (``sysid.pipeline.HeldOut``) of the nominal and of the measured model on ``test``, in
+    noise levels, each log's nuisance parameters fitted first, against the replay floor of the measured model (as
+    ``calibrate.py`` measures it)."""
+    from sysid.pipeline import held_out
+    from sysid.problem import Problem
+
+    problem = Problem(robot, test, threads, floor_setting=setting)
+    return held_out(problem, {}), held_out(problem, setting)
+
+
+def _write_calibration(robot: Any, measurements: list[Measurement], test: list, args: Any) -> int:
+    from envs.common.calibration import calibration_record
+
+    effects, pooled = measured_effects(robot, measurements)
+    provenance: dict[str, Any] = {
+        "tool": "python -m sysid.measure",
+        "logs": list(args.logs),
+        "seed": args.seed,
+        "readings": [asdict(m) for m in pooled],
+    }
+    if test:
+        setting = {f"{e}.{p}": v["value"] for e, params in effects.items() for p, v in params.items()}
+        before, after = held_out_errors(robot, test, setting, args.threads)
+        print(f"held-out error (noise levels): nominal {before.error:.3g}, measured {after.error:.3g}")
+        for log, error in before.per_log.items():
+            print(f"  {log}: {error:.3g} -> {after.per_log.get(log, float('nan')):.3g}")
+        provenance |= {"test": list(args.test), "error_nominal": before.error, "error_measured": after.error,
+                       "per_log": {log: [e, after.per_log.get(log)] for log, e in before.per_log.items()}}  # fmt: skip
+    if not effects:
+        print("measure: no effect measured away from nominal; the calibration file holds none")
+    record = calibration_record(robot.robot, effects, provenance)
+    return _write_new(Path(args.calibration_out), json.dumps(record, indent=1) + "\n")
 
 
 def _write_new(path: Path, text: str) -> int:

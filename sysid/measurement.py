@@ -62,3 +62,64 @@ def table(measurements: Sequence[Measurement]) -> str:
         lines.append(f"| {m.log} | {m.quantity} | {m.side or '-'} | {m.value:.4g} [{m.low:.4g}, {m.high:.4g}] "
                      f"{m.unit} | {nominal} | {ratio} | {m.source} |")  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+# --- measurements as a calibration ------------------------------------------------------------------------------
+Z95 = 1.959963984540054  # the normal's 97.5% point: a 95% interval is +-Z95 standard errors
+
+
+@dataclass(frozen=True)
+class EffectReading:
+    """One log's measurement read as a catalog effect's parameter (``Adapter.effect_readings``): the value a
+    calibration file would hold, its 95% interval, and the parameter's value in the nominal model."""
+
+    log: str
+    effect: str
+    param: str
+    value: float
+    low: float
+    high: float
+    nominal: float
+    quantity: str  # the measurement it is read from
+
+
+@dataclass(frozen=True)
+class MeasuredEffect:
+    """An effect's parameter measured on one log or pooled over several (:func:`pool`)."""
+
+    effect: str
+    param: str
+    value: float
+    low: float
+    high: float
+    nominal: float
+    logs: tuple[str, ...]
+    logs_disagree: bool  # two logs' intervals do not overlap: the logs measure different robots or conditions
+
+    @property
+    def significant(self) -> bool:
+        """The interval excludes the nominal value: the measurement says the nominal model is wrong."""
+        return not self.low <= self.nominal <= self.high
+
+
+def pool(readings: Sequence[EffectReading]) -> list[MeasuredEffect]:
+    """Each effect parameter's readings combined, in the order first read: one log's as it is; several logs' by
+    their inverse-variance weighted mean, each log's standard error taken from its interval's width (the pooled
+    interval assumes the logs measure one value, which ``logs_disagree`` questions)."""
+    groups: dict[tuple[str, str], list[EffectReading]] = {}
+    for r in readings:
+        groups.setdefault((r.effect, r.param), []).append(r)
+    out = []
+    for (effect, param), group in groups.items():
+        logs = tuple(r.log for r in group)
+        if len(group) == 1:
+            (r,) = group
+            out.append(MeasuredEffect(effect, param, r.value, r.low, r.high, r.nominal, logs, False))
+            continue
+        se = np.array([max(r.high - r.low, 1e-12) / (2 * Z95) for r in group])
+        weights = 1.0 / se**2
+        value = float(np.sum(weights * [r.value for r in group]) / weights.sum())
+        half = Z95 / float(np.sqrt(weights.sum()))
+        disagree = any(a.high < b.low or b.high < a.low for i, a in enumerate(group) for b in group[i + 1 :])
+        out.append(MeasuredEffect(effect, param, value, value - half, value + half, group[0].nominal, logs, disagree))
+    return out

@@ -376,6 +376,12 @@ class Adapter(ABC):
         naming the log where it holds too little. Default: nothing."""
         return []
 
+    def effect_readings(self, measurements: Sequence) -> list:
+        """The measurements of :meth:`measure_log` that read a catalog effect's parameter directly
+        (``sysid.measurement.EffectReading`` records: ``python -m sysid.measure --calibration-out`` writes them as a
+        calibration). Default: none."""
+        return []
+
     def report_extra(self, result) -> dict:
         """Robot-specific additions to the report: ``{"sections": {title: markdown}, ...}`` (e.g. channels
         compared as distributions)."""

@@ -203,3 +203,74 @@ def test_the_back_emf_readings_scale_scales_only_the_reading_of_its_side():
     assert np.array_equal(scaled[:, others], plain[:, others]) and right in others
     effect = robot.effects()["sensor_gain_bemf_left"]
     assert (effect.params[0].low, effect.params[0].high) == (0.5, 3.0) and effect.catalogued
+
+
+def _bemf(log: str, side: str, ratio: float, low: float, high: float, nominal: float = 0.01) -> Measurement:
+    return Measurement(log, "bemf_constant", side, ratio * nominal, low * nominal, high * nominal, "V s/rad",
+                       nominal, "the model")  # fmt: skip
+
+
+def test_logs_are_pooled_by_inverse_variance_and_disagreeing_logs_are_flagged():
+    from sysid.measurement import EffectReading, pool
+
+    def reading(log: str, value: float, half: float) -> EffectReading:
+        return EffectReading(log, "gain", "scale", value, value - half, value + half, 1.0, "q")
+
+    (one,) = pool([reading("a", 2.0, 0.5)])
+    assert (one.value, one.low, one.high, one.logs, one.logs_disagree) == (2.0, 1.5, 2.5, ("a",), False)
+    assert one.significant
+    (two,) = pool([reading("a", 2.0, 0.2), reading("b", 2.3, 0.4)])  # weights 4:1 by the intervals' widths
+    assert two.value == pytest.approx((4 * 2.0 + 2.3) / 5) and not two.logs_disagree
+    assert two.high - two.low == pytest.approx(0.4 / np.sqrt(1.25)), "narrower than either log's"
+    (apart,) = pool([reading("a", 2.0, 0.1), reading("b", 3.0, 0.1)])
+    assert apart.logs_disagree and apart.logs == ("a", "b")
+
+
+def test_only_what_the_measurements_show_goes_into_the_calibration(capsys):
+    """Of the back-EMF reading's scale per side: measured away from nominal and in range, written; an interval
+    holding the nominal, left nominal; a value outside the effect's range, not written; two logs that disagree, not
+    written and warned about."""
+    robot = make_adapter("roach")
+    shown = [_bemf("a", "left", 2.0, 1.8, 2.2), _bemf("a", "right", 1.2, 0.9, 1.5)]
+    effects, pooled = measure.measured_effects(robot, shown)
+    unit = robot.catalog()["sensor_gain_bemf_left"].params[0].unit
+    written = {"value": pytest.approx(2.0), "ci95": [pytest.approx(1.8), pytest.approx(2.2)], "unit": unit}
+    assert effects == {"sensor_gain_bemf_left": {"scale": written}}
+    assert "holds the nominal 1: left nominal" in capsys.readouterr().out and len(pooled) == 2
+    effects, _ = measure.measured_effects(robot, [_bemf("a", "left", 5.0, 4.5, 5.5)])
+    assert effects == {} and "outside the effect's range [0.5, 3]: not written" in capsys.readouterr().out
+    effects, _ = measure.measured_effects(robot, [_bemf("a", "left", 2.0, 1.9, 2.1), _bemf("b", "left", 2.6, 2.5, 2.7)])
+    assert effects == {} and "the logs' intervals do not overlap" in capsys.readouterr().err
+
+
+def test_planted_back_emf_constants_become_a_calibration_file(tmp_path, capsys):
+    """A synthetic log's planted back-EMF per leg speed and duty coupling come back as the catalog's parameters, and
+    the file they are written to is a calibration the roach reads; the real 2 Hz log's too, from the command line."""
+    from envs.common.calibration import read_calibration
+
+    df, meta = synthetic_log()
+    robot = make_adapter("roach")
+    effects, _ = measure.measured_effects(robot, roach.measure_roach(df, meta, "synthetic"))
+    nominal = roach.Nominal.from_model().bemf_constant
+    for side in ("left", "right"):
+        assert effects[f"sensor_gain_bemf_{side}"]["scale"]["value"] == pytest.approx(BEMF / nominal, rel=0.05)
+        assert effects[f"sensor_coupling_bemf_{side}"]["per_unit"]["value"] == pytest.approx(BEMF_DUTY, abs=0.05)
+    out = tmp_path / "measured.json"
+    assert measure.main(["--robot", "roach", f"{REAL_2HZ}@0:6", "--calibration-out", str(out)]) == 0
+    calibration = read_calibration(out, robot.robot)
+    calibration.check(robot.known_effects())
+    assert calibration.effects and calibration.provenance["tool"] == "python -m sysid.measure"
+    assert calibration.setting.get("sensor_coupling_bemf_right.per_unit", 0.0) < 0
+    capsys.readouterr()
+    for bad, message in (
+        (["--test", f"{REAL_2HZ}@6:"], "--test replays the measured model: give --calibration-out FILE too"),
+        (["--calibration-out", str(out)], "already exists"),
+        (["--out", str(tmp_path / "x.json"), "--calibration-out", str(tmp_path / "x.json")], "give two files"),
+    ):
+        with pytest.raises(SystemExit) as exited:
+            measure.main(["--robot", "roach", f"{REAL_2HZ}@0:6", *bad])
+        assert exited.value.code == 2 and message in capsys.readouterr().err
+    overlapping = ["--calibration-out", str(tmp_path / "y.json"), "--test", f"{REAL_2HZ}@5:"]
+    assert measure.main(["--robot", "roach", f"{REAL_2HZ}@0:6", *overlapping]) == 2
+    assert "the test logs must be data the fit does not see" in capsys.readouterr().err
+    assert not (tmp_path / "y.json").exists() and not (tmp_path / "x.json").exists()

@@ -392,6 +392,22 @@ class RoachAdapter(Adapter):
 
         return measure_roach(log.df, log.meta, log.path, seed=seed)
 
+    def effect_readings(self, measurements: Sequence) -> list:
+        """The back-EMF reading's scale and its duty coupling per side, as the catalog's ``sensor_gain_bemf_<side>``
+        (the measured back-EMF per leg speed over the model's motor constant x gear) and
+        ``sensor_coupling_bemf_<side>`` (the measured volts per unit duty, the effect's own unit)."""
+        from sysid.measurement import EffectReading
+
+        out = []
+        for m in measurements:
+            if m.quantity == "bemf_constant" and m.nominal:
+                out.append(EffectReading(m.log, f"sensor_gain_bemf_{m.side}", "scale", m.value / m.nominal,
+                                         m.low / m.nominal, m.high / m.nominal, 1.0, m.quantity))  # fmt: skip
+            elif m.quantity == "bemf_duty":
+                out.append(EffectReading(m.log, f"sensor_coupling_bemf_{m.side}", "per_unit", m.value, m.low, m.high,
+                                         0.0, m.quantity))  # fmt: skip
+        return out
+
     def _commanded(self, log: Log) -> np.ndarray:
         """The samples from one second after the legs were first commanded to move to the last commanded move; in a
         run shorter than two seconds, its second half."""
