@@ -108,14 +108,17 @@ def measured_effects(robot: Any, measurements: list[Measurement]) -> tuple[dict[
     """The calibration's effects (``effect -> param -> {value, ci95, unit}``) from the measurements that read a
     catalog effect directly, and every pooled reading; each decision is printed, a disagreement as a warning."""
     known = {name: {p.name: p for p in effect.params} for name, effect in robot.catalog().items()}
-    pooled = pool(robot.effect_readings(measurements))
+    readings = robot.effect_readings(measurements)
+    pooled = pool(readings)
     effects: dict[str, dict] = {}
     for m in pooled:
         name = f"{m.effect}.{m.param}"
         where = f"{m.value:.4g} [{m.low:.4g}, {m.high:.4g}] from {', '.join(m.logs)}"
         param = known.get(m.effect, {}).get(m.param)
         if m.logs_disagree:
-            print(f"measure: warning: {name}: the logs' intervals do not overlap ({where}): they measure different "
+            each = "; ".join(f"{r.value:.4g} [{r.low:.4g}, {r.high:.4g}] from {r.log}" for r in readings
+                             if (r.effect, r.param) == (m.effect, m.param))  # fmt: skip
+            print(f"measure: warning: {name}: the logs' intervals do not overlap ({each}): they measure different "
                   "robots or conditions; not written (measure them one at a time)", file=sys.stderr)  # fmt: skip
         elif not m.significant:
             print(f"{name}: {where}; its interval holds the nominal {m.nominal:g}: left nominal")
