@@ -24,6 +24,7 @@ from envs.common.telemetry import read_telemetry, write_telemetry
 from sysid import cli as calibrate
 from sysid import fit as fit_module
 from sysid import synth
+from sysid.adapters import velociroach as roach_adapter
 from sysid.cases import TEST_SEED_OFFSET, Case, pair, run_case
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.logs import Log
@@ -606,10 +607,15 @@ def test_roach_report_compares_tracking_and_body_rates():
     (log,) = calibrate.read_logs([Path("data/real/velociroach_behavior4_2Hz.txt@0:4")], adapter.required(), None)
     nominal = adapter.catalog_nominal()
     stronger = {**nominal, "torque_constant_left.scale": 2.0, "torque_constant_right.scale": 2.0}
-    result = SimpleNamespace(train=[], test=[log], outcome=SimpleNamespace(nominal=nominal, setting=stronger))
+    outcome = SimpleNamespace(nominal=nominal, setting=stronger, started=[])
+    result = SimpleNamespace(train=[], test=[log], outcome=outcome)
     extra = report_extra(adapter, result)  # the adapter's own sections, and what the logs measure by themselves
     assert set(extra["sections"]) == {"Tracking on the held-out logs", "Body rates compared as distributions",
                                       "Measured directly (no simulator)"}  # fmt: skip
+    assert "| | log | nominal model | calibrated model |" in extra["sections"]["Tracking on the held-out logs"]
+    # a run from an earlier calibration compares with that calibration's model, and says so
+    started = roach_adapter._tracking_table(extra["tracking"], "starting calibration")
+    assert "| | log | starting calibration | calibrated model |" in started
     measured = {(m["quantity"], m["side"]) for m in extra["measured"]}
     assert {("kp", "left"), ("bemf_constant", "right"), ("battery_resistance", "")} <= measured
     assert "| bemf_constant |" in extra["sections"]["Measured directly (no simulator)"]

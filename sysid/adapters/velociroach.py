@@ -380,7 +380,9 @@ class RoachAdapter(Adapter):
                     entry[name]["wasserstein"] = float(
                         wasserstein_distance(sim[window, n + axis], measured[window, axis]) / scale
                     )
-        sections = {"Tracking on the held-out logs": _tracking_table(tracking)}
+        # a run from an earlier calibration compares with that calibration's model: it is the "nominal" setting here
+        before = "starting calibration" if result.outcome.started else "nominal model"
+        sections = {"Tracking on the held-out logs": _tracking_table(tracking, before)}
         if rates:
             sections["Body rates compared as distributions"] = _rates_table(rates, self.BANDS)
         return {"tracking": tracking, "distributions": rates, "sections": sections}
@@ -499,7 +501,7 @@ def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
     return {"std": float(np.std(x)), "bands": [float(power[(f >= lo) & (f < hi)].sum() / total) for lo, hi in bands]}
 
 
-def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]]) -> str:
+def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], before: str = "nominal model") -> str:
     rows = [("leg tracking error, median (deg)", "error_median", ".1f"),
             ("leg tracking error, 95th percentile (deg)", "error_p95", ".0f"),
             ("mean \\|duty\\|", "duty_mean_abs", ".2f"),
@@ -507,7 +509,7 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]]) -
             ("back-EMF per leg speed (mV s/rad)", "bemf_per_speed", ".0f")]  # fmt: skip
     out = []
     for path, entry in tracking.items():
-        out.append(f"{path} (left \\| right):\n\n| | log | nominal model | calibrated model |\n|---|---|---|---|")
+        out.append(f"{path} (left \\| right):\n\n| | log | {before} | calibrated model |\n|---|---|---|---|")
         for label, key, fmt in rows:
             cells = [f"{format(entry[s][f'{key}_left'], fmt)} \\| {format(entry[s][f'{key}_right'], fmt)}"
                      for s in ("log", "nominal", "calibrated")]  # fmt: skip
