@@ -108,16 +108,14 @@ def measured_effects(robot: Any, measurements: list[Measurement]) -> tuple[dict[
     """The calibration's effects (``effect -> param -> {value, ci95, unit}``) from the measurements that read a
     catalog effect directly, and every pooled reading; each decision is printed, a disagreement as a warning."""
     known = {name: {p.name: p for p in effect.params} for name, effect in robot.catalog().items()}
-    readings = robot.effect_readings(measurements)
-    pooled = pool(readings)
+    pooled = pool(robot.effect_readings(measurements))
     effects: dict[str, dict] = {}
     for m in pooled:
         name = f"{m.effect}.{m.param}"
         where = f"{m.value:.4g} [{m.low:.4g}, {m.high:.4g}] from {', '.join(m.logs)}"
         param = known.get(m.effect, {}).get(m.param)
         if m.logs_disagree:
-            each = "; ".join(f"{r.value:.4g} [{r.low:.4g}, {r.high:.4g}] from {r.log}" for r in readings
-                             if (r.effect, r.param) == (m.effect, m.param))  # fmt: skip
+            each = "; ".join(f"{r.value:.4g} [{r.low:.4g}, {r.high:.4g}] from {r.log}" for r in m.readings)
             print(f"measure: warning: {name}: the logs' intervals do not overlap ({each}): they measure different "
                   "robots or conditions; not written (measure them one at a time)", file=sys.stderr)  # fmt: skip
         elif not m.significant:
@@ -152,7 +150,17 @@ def _write_calibration(robot: Any, measurements: list[Measurement], test: list, 
         "tool": "python -m sysid.measure",
         "logs": list(args.logs),
         "seed": args.seed,
-        "readings": [asdict(m) for m in pooled],
+        "measured": [
+            {
+                "effect": m.effect,
+                "param": m.param,
+                "value": m.value,
+                "ci95": [m.low, m.high],
+                "logs_disagree": m.logs_disagree,
+                "readings": [asdict(r) for r in m.readings],
+            }
+            for m in pooled
+        ],
     }
     if test:
         setting = {f"{e}.{p}": v["value"] for e, params in effects.items() for p, v in params.items()}

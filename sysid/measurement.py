@@ -65,9 +65,6 @@ def table(measurements: Sequence[Measurement]) -> str:
 
 
 # --- measurements as a calibration ------------------------------------------------------------------------------
-Z95 = 1.959963984540054  # the normal's 97.5% point: a 95% interval is +-Z95 standard errors
-
-
 @dataclass(frozen=True)
 class EffectReading:
     """One log's measurement read as a catalog effect's parameter (``Adapter.effect_readings``): the value a
@@ -85,16 +82,36 @@ class EffectReading:
 
 @dataclass(frozen=True)
 class MeasuredEffect:
-    """An effect's parameter measured on one log or pooled over several (:func:`pool`)."""
+    """An effect's parameter measured on one log or pooled over several (:func:`pool`): the readings it comes from
+    and their combined value and 95% interval."""
 
-    effect: str
-    param: str
+    readings: tuple[EffectReading, ...]
     value: float
     low: float
     high: float
-    nominal: float
-    logs: tuple[str, ...]
-    logs_disagree: bool  # two logs' intervals do not overlap: the logs measure different robots or conditions
+
+    @property
+    def effect(self) -> str:
+        return self.readings[0].effect
+
+    @property
+    def param(self) -> str:
+        return self.readings[0].param
+
+    @property
+    def nominal(self) -> float:
+        return self.readings[0].nominal
+
+    @property
+    def logs(self) -> tuple[str, ...]:
+        return tuple(r.log for r in self.readings)
+
+    @property
+    def logs_disagree(self) -> bool:
+        """Two logs' intervals do not overlap: the logs measure different robots or conditions."""
+        return any(
+            a.high < b.low or b.high < a.low for i, a in enumerate(self.readings) for b in self.readings[i + 1 :]
+        )
 
     @property
     def significant(self) -> bool:
@@ -106,20 +123,19 @@ def pool(readings: Sequence[EffectReading]) -> list[MeasuredEffect]:
     """Each effect parameter's readings combined, in the order first read: one log's as it is; several logs' by
     their inverse-variance weighted mean, each log's standard error taken from its interval's width (the pooled
     interval assumes the logs measure one value, which ``logs_disagree`` questions)."""
+    from sysid.select import Z95
+
     groups: dict[tuple[str, str], list[EffectReading]] = {}
     for r in readings:
         groups.setdefault((r.effect, r.param), []).append(r)
     out = []
-    for (effect, param), group in groups.items():
-        logs = tuple(r.log for r in group)
+    for group in groups.values():
         if len(group) == 1:
             (r,) = group
-            out.append(MeasuredEffect(effect, param, r.value, r.low, r.high, r.nominal, logs, False))
+            out.append(MeasuredEffect((r,), r.value, r.low, r.high))
             continue
-        se = np.array([max(r.high - r.low, 1e-12) / (2 * Z95) for r in group])
-        weights = 1.0 / se**2
+        weights = np.array([(2 * Z95 / max(r.high - r.low, 1e-12)) ** 2 for r in group])  # 1 / standard error^2
         value = float(np.sum(weights * [r.value for r in group]) / weights.sum())
         half = Z95 / float(np.sqrt(weights.sum()))
-        disagree = any(a.high < b.low or b.high < a.low for i, a in enumerate(group) for b in group[i + 1 :])
-        out.append(MeasuredEffect(effect, param, value, value - half, value + half, group[0].nominal, logs, disagree))
+        out.append(MeasuredEffect(tuple(group), value, value - half, value + half))
     return out
