@@ -25,6 +25,7 @@ from sysid import cli as calibrate
 from sysid import fit as fit_module
 from sysid import synth
 from sysid.adapters import velociroach as roach_adapter
+from sysid.adapters import velociroach_measure as roach_measure
 from sysid.cases import TEST_SEED_OFFSET, Case, pair, run_case
 from sysid.fit import FitResult, _plateau_reach, _profile_walk, fit, half_widths
 from sysid.logs import Log
@@ -629,6 +630,14 @@ def test_roach_report_compares_tracking_and_body_rates():
     clipped = 100 * np.mean(duty >= 0.995 * log.meta["duty_clip"])
     assert table["log"]["duty_at_clip_right"] == pytest.approx(clipped, abs=2.0)
     assert all(0 <= table[s][f"duty_at_clip_{side}"] <= 100 for s in table for side in ("left", "right"))
+    # how the error splits: what repeats every stride and what lasts strides, shares of its variance
+    clock, leg = log.df["leg_angle_cmd_left"].to_numpy(), log.df["leg_angle_left"].to_numpy()
+    parts = roach_measure.tracking_parts(t[window], (clock - leg)[window], clock[window])
+    assert table["log"]["error_stride_left"] == pytest.approx(parts["stride"], abs=5.0)
+    assert all(0 <= table[s][f"error_{part}_{side}"] <= 100 for s in table for side in ("left", "right")
+               for part in ("stride", "slow"))  # fmt: skip
+    assert "| tracking error repeating every stride (% of its variance) |" in extra["sections"][
+        "Tracking on the held-out logs"]  # fmt: skip
     # the back-EMF constant doubles with the motor constant
     for side in ("left", "right"):
         ratio = table["calibrated"][f"bemf_per_speed_{side}"] / table["nominal"][f"bemf_per_speed_{side}"]

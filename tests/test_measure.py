@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import signal
 
 from envs.velociroach.firmware import duty_gains
 from sysid import measure
@@ -274,3 +275,36 @@ def test_planted_back_emf_constants_become_a_calibration_file(tmp_path, capsys):
     assert measure.main(["--robot", "roach", f"{REAL_2HZ}@0:6", *overlapping]) == 2
     assert "the test logs must be data the fit does not see" in capsys.readouterr().err
     assert not (tmp_path / "y.json").exists() and not (tmp_path / "x.json").exists()
+
+
+def test_how_the_tracking_error_splits_a_stride_load_or_strides_held_back():
+    """A leg's error that repeats every stride (a ripple at the stride's first and third harmonics) is found to
+    repeat; one that holds the leg back for strides at a time (a smooth wander under half a hertz, against 5 Hz
+    strides) is found to last strides; in their sum each planted share comes back inside its interval. Five strides
+    are enough to split; two are not."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 20.0, 1e-3)
+    clock = 2 * np.pi * 5.0 * t
+    ripple = 0.1 * np.sin(clock) + 0.05 * np.sin(3 * clock + 1.0)
+    wide = signal.sosfiltfilt(signal.butter(4, 0.5, fs=1e3, output="sos"), rng.normal(0, 1, len(t) + 10_000))
+    slow = wide[5_000:-5_000]  # clear of the filter's start and end
+    slow *= 0.1 / slow.std()
+    noise = rng.normal(0, 0.01, len(t))
+    locked = roach.tracking_parts(t, ripple + noise, clock)
+    held = roach.tracking_parts(t, slow + noise, clock)
+    mixed = roach.tracking_parts(t, ripple + slow + noise, clock)
+    assert locked["stride_hz"] == pytest.approx(5.0)
+    assert locked["stride"] > 95 and locked["slow"] < 2
+    assert held["slow"] > 90 and held["stride"] < 5
+    # variances: the ripple 0.1^2/2 + 0.05^2/2, the wander 0.1^2, the noise 0.01^2
+    ripple_var, slow_var = 0.1**2 / 2 + 0.05**2 / 2, 0.1**2
+    total = ripple_var + slow_var + 0.01**2
+    for part, planted in (("stride", 100 * ripple_var / total), ("slow", 100 * slow_var / total)):
+        low, high = mixed[f"{part}_ci"]
+        assert low <= planted <= high and abs(mixed[part] - planted) < 5, (part, mixed, planted)
+    five = t < 1.0
+    short = roach.tracking_parts(t[five], (ripple + noise)[five], clock[five])
+    assert short["stride"] > 90 and np.isfinite(short["stride_ci"]).all()
+    two = t < 0.4
+    assert roach.tracking_parts(t[two], ripple[two], clock[two]) is None, "two strides are too few to split"
+    assert roach.tracking_parts(t, ripple, np.zeros_like(t)) is None, "a clock that does not run has no stride"

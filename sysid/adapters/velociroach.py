@@ -51,7 +51,7 @@ from envs.common.effects import Effect, Param
 from envs.velociroach import constants
 from envs.velociroach.effects import effects_edit, roach_effects
 from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (its names here too)
-from sysid.adapters.velociroach_measure import CLIPPED
+from sysid.adapters.velociroach_measure import CLIPPED, tracking_parts
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
 
@@ -336,7 +336,9 @@ class RoachAdapter(Adapter):
         - **tracking**, the quantities of the tracking table: the leg's tracking error (median and 95th percentile,
           deg), the mean |duty|, the share of the time the duty is held at its clip (%), and the back-EMF per leg
           speed (the reading's least-squares ratio to the leg's
-          rate, mV s/rad), per side, over the commanded stretch from its first second on;
+          rate, mV s/rad), and the shares of the tracking error that repeat every stride and that last strides
+          (:func:`~sysid.adapters.velociroach_measure.tracking_parts`), per side, over the commanded stretch from
+          its first second on;
         - **body rates compared as distributions**: the body's pose is not logged, so its rates cannot be aligned
           in time with the model's; the gyro readings are compared with the log's by spread (standard deviation),
           the share of power in three bands and the Wasserstein distance between the samples (over the log's
@@ -438,6 +440,11 @@ class RoachAdapter(Adapter):
             out.update({f"error_median_{side}": float(np.median(error)), f"error_p95_{side}": float(np.percentile(
                 error, 95)), f"duty_mean_abs_{side}": float(np.mean(duty)),
                 f"bemf_per_speed_{side}": 1e3 * slope})  # fmt: skip
+            # how the error splits: what repeats every stride, and what lasts strides
+            clock = df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float)
+            parts = tracking_parts(t[window], (clock - angle)[window], clock[window]) if window.sum() > 2 else None
+            out[f"error_stride_{side}"] = parts["stride"] if parts else float("nan")
+            out[f"error_slow_{side}"] = parts["slow"] if parts else float("nan")
         return out
 
     # --- synthetic logs ---------------------------------------------------------------------------------------------
@@ -506,7 +513,9 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], b
             ("leg tracking error, 95th percentile (deg)", "error_p95", ".0f"),
             ("mean \\|duty\\|", "duty_mean_abs", ".2f"),
             ("time at the duty's clip (%)", "duty_at_clip", ".0f"),
-            ("back-EMF per leg speed (mV s/rad)", "bemf_per_speed", ".0f")]  # fmt: skip
+            ("back-EMF per leg speed (mV s/rad)", "bemf_per_speed", ".0f"),
+            ("tracking error repeating every stride (% of its variance)", "error_stride", ".0f"),
+            ("tracking error lasting strides (% of its variance)", "error_slow", ".0f")]  # fmt: skip
     out = []
     for path, entry in tracking.items():
         out.append(f"{path} (left \\| right):\n\n| | log | {before} | calibrated model |\n|---|---|---|---|")

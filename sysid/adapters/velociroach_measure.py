@@ -24,6 +24,11 @@ window ``FILE@START:END``) and side:
   ``duty x Vb`` at the nominal 3900-count full scale, over the mean back-EMF. Legs that do work need it above 1; below
   1 the driver cannot be braking at that full scale: it coasts through its off-time (the motor then sees its
   back-EMF, not 0 V), or the full scale is smaller.
+- **How the tracking error splits** (``tracking_stride``, ``tracking_slow``, % of the variance of the leg's error
+  against its clock; :func:`tracking_parts`): the part that repeats every stride, and the part that lasts strides
+  (a leg held back, or let run ahead, for strides at a time). A load that repeats every stride (the body's weight
+  in stance, friction that depends on the crank's angle) gives an error that repeats; obstacles, uneven ground and
+  slips do not.
 
 The running part is where the commanded legs move; before and after it the motors are off (the firmware still logs
 its PID's output). Intervals are 95% circular block bootstrap intervals (``arch``) with blocks of one stride, since
@@ -47,6 +52,9 @@ CLIPPED = 0.995  # a duty at this share of the clip or above is held at the clip
 SIDES = constants.SIDES
 MIN_STRIDES = 3  # strides of running a log needs: the bootstrap resamples whole strides
 MIN_SPEED = 1.0  # rad/s: slower running rows do not enter the back-EMF regression's moving part
+HARMONICS = 5  # harmonics of the clock's angle that the tracking error's part repeating every stride is fitted on
+BLOCK_STRIDES = 4  # strides a bootstrap block of the tracking error spans: its slow part lasts strides
+ROWS_PER_STRIDE = 40  # the tracking error resampled at most this finely: eight samples a period of the fifth harmonic
 
 
 @dataclass(frozen=True)
@@ -199,7 +207,55 @@ def measure_roach(
         add("drive_balance", side, drive.mean() / back.mean(), ci[:, 0], "1", None,
             f"above 1 for a braking driver at {nominal.full_scale} counts full scale",
             "mean duty x Vb over mean back-EMF")  # fmt: skip
+    for side in SIDES:
+        error = df[f"leg_angle_cmd_{side}"].to_numpy(dtype=float) - df[f"leg_angle_{side}"].to_numpy(dtype=float)
+        parts = tracking_parts(t[run], error[run], cmd[run, SIDES.index(side)], seed=seed)
+        if parts is None:
+            continue
+        src = "a load that repeats every stride (stance, the crank's angle) gives an error that repeats"
+        add("tracking_stride", side, parts["stride"], parts["stride_ci"], "%", None, src,
+            f"of the tracking error's variance: what repeats every stride ({parts['stride_hz']:.3g} Hz)")  # fmt: skip
+        add("tracking_slow", side, parts["slow"], parts["slow_ci"], "%", None, src,
+            "of the tracking error's variance: its mean over a stride (a leg held back for strides)")  # fmt: skip
     return out
+
+
+def tracking_parts(t: np.ndarray, error: np.ndarray, clock: np.ndarray, seed: int = 0) -> dict[str, Any] | None:
+    """How a leg's tracking error (``error``, rad, against its ``clock``, the commanded angle, at times ``t``)
+    splits: ``stride``, the share (%) of its variance that repeats every stride (its least-squares fit on the first
+    ``HARMONICS`` harmonics of the clock's angle, which follows the stride through changes of frequency); ``slow``,
+    the share of the error averaged over one stride (a running mean one stride long, at the clock's median rate,
+    which cancels what repeats every stride): the leg held back, or let run ahead, for strides at a time. The rest
+    varies within a stride without repeating. 95% intervals from a circular block bootstrap of the rows in blocks of
+    ``BLOCK_STRIDES`` strides (a third of a shorter record). None where the clock does not run or the record holds
+    under three strides."""
+    rate = np.abs(np.gradient(clock, t)) if len(t) > 2 else np.zeros(len(t))
+    if not (rate > 0).any():
+        return None
+    stride_hz = float(np.median(rate[rate > 0])) / (2 * np.pi)
+    if not stride_hz > 0 or t[-1] - t[0] < MIN_STRIDES / stride_hz:
+        return None
+    # the log's step, or ROWS_PER_STRIDE rows a stride where it is finer: enough for the harmonics, and fast
+    dt = max(float(np.median(np.diff(t))), 1.0 / (ROWS_PER_STRIDE * stride_hz))
+    grid = np.arange(t[0], t[-1], dt)
+    e, phase = np.interp(grid, t, error), np.interp(grid, t, clock)
+    per = max(round(1.0 / (stride_hz * dt)), 1)  # rows a stride
+    averaged = np.convolve(e, np.ones(per) / per, mode="valid")
+    lead = (per - 1) // 2  # the rows the running mean is centred on
+    e, phase = e[lead : lead + len(averaged)], phase[lead : lead + len(averaged)]
+    k = np.arange(1, HARMONICS + 1)
+    x = np.column_stack([np.ones_like(phase), np.cos(np.outer(phase, k)), np.sin(np.outer(phase, k))])
+
+    def shares(x: np.ndarray, e: np.ndarray, averaged: np.ndarray) -> np.ndarray:
+        spread = max(float(np.var(e)), 1e-300)
+        repeat = x @ lstsq(x, e)
+        return 100.0 * np.array([np.var(repeat), np.var(averaged)]) / spread
+
+    value = shares(x, e, averaged)
+    block = min(BLOCK_STRIDES * per, max(len(e) // 3, 1))  # a short record: at least three blocks to resample
+    ci = bootstrap(shares, block, x, e, averaged, seed=seed)
+    return {"stride": float(value[0]), "slow": float(value[1]), "stride_ci": ci[:, 0], "slow_ci": ci[:, 1],
+            "stride_hz": stride_hz}  # fmt: skip
 
 
 def _stride_seconds(meta: dict[str, Any]) -> float:
