@@ -81,6 +81,43 @@ def test_calibration_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     assert again.dof_frictionloss[left] == m0.dof_frictionloss[left] and again.actuator_delay[a_left] == 0
 
 
+def test_a_roach_leg_phase_puts_its_legs_ahead_of_the_cranks_reading(tmp_path):
+    """``leg_phase_<side>``: the legs of that side stand, at a reading of the crank, where the nominal model's stand
+    that much further on; the reading (the crank joint the firmware and the telemetry read) starts from the clock,
+    the linkage's equalities hold at the reset, and the other side is unchanged."""
+    offset = 1.0
+    path = _write(tmp_path / "cal.json", {"leg_phase_left": {"offset": offset}})
+    nominal = gym.make("skitter/RoachWalk-v4").unwrapped
+    shifted = gym.make("skitter/RoachWalk-v4", calibration=str(path)).unwrapped
+    for env in (nominal, shifted):
+        env.reset(seed=0, options={"crank_left": 0.3, "phase": np.pi})
+    crank = shifted.robot.model.joint(constants.CRANK_JOINTS["left"]).qposadr[0]
+    assert shifted.robot.model.qpos0[crank] == pytest.approx(-offset)
+    assert shifted.robot.leg_angles()[0, 0] == pytest.approx(0.3)  # the reading: the clock's start
+
+    def legs(env, crank_left: float) -> np.ndarray:
+        """Each leg's place in the chassis' frame, the cranks at (crank_left, crank_left - pi) by their readings."""
+        robot = env.robot
+        data = mujoco.MjData(robot.model)
+        data.qpos[:] = robot.linkage_qpos(crank_left, crank_left - np.pi)
+        mujoco.mj_kinematics(robot.model, data)
+        chassis = robot.model.body(constants.ROOT_BODY).id
+        rot = data.xmat[chassis].reshape(3, 3)
+        return np.array([rot.T @ (data.xpos[robot.model.body(f"{leg}_leg").id] - data.xpos[chassis])
+                         for leg in constants.LEGS])  # fmt: skip
+
+    left = [i for i, leg in enumerate(constants.LEGS) if leg.endswith("L")]
+    right = [i for i in range(len(constants.LEGS)) if i not in left]
+    ahead = legs(shifted, 0.3)
+    np.testing.assert_allclose(ahead[left], legs(nominal, 0.3 + offset)[left], atol=1e-9)
+    np.testing.assert_allclose(ahead[right], legs(nominal, 0.3)[right], atol=1e-9)
+    assert np.abs(ahead[left] - legs(nominal, 0.3)[left]).max() > 1e-3, "the legs moved"
+    data = shifted.robot.sim.get_data(0)
+    mujoco.mj_forward(shifted.robot.model, data)
+    rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    assert np.abs(data.efc_pos[rows]).max() < 1e-6, "the linkage's equalities hold at the reset"
+
+
 def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json", XJUS_EFFECTS, "xjus")
     nominal = gym.make("skitter/XjusWalk-v1").unwrapped.robot

@@ -636,6 +636,10 @@ def test_roach_report_compares_tracking_and_body_rates():
     assert table["log"]["error_stride_left"] == pytest.approx(parts["stride"], abs=5.0)
     assert all(0 <= table[s][f"error_{part}_{side}"] <= 100 for s in table for side in ("left", "right")
                for part in ("stride", "slow"))  # fmt: skip
+    # the models' stride patterns of the error against the log's: a correlation, the log's own 1
+    assert table["log"]["error_pattern_left"] == 1.0
+    models = [table[s][f"error_pattern_{side}"] for s in ("nominal", "calibrated") for side in ("left", "right")]
+    assert all(-1 <= r <= 1 for r in models), models
     assert "| tracking error repeating every stride (% of its variance) |" in extra["sections"][
         "Tracking on the held-out logs"]  # fmt: skip
     # the back-EMF constant doubles with the motor constant

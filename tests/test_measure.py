@@ -280,8 +280,8 @@ def test_planted_back_emf_constants_become_a_calibration_file(tmp_path, capsys):
 def test_how_the_tracking_error_splits_a_stride_load_or_strides_held_back():
     """A leg's error that repeats every stride (a ripple at the stride's first and third harmonics) is found to
     repeat; one that holds the leg back for strides at a time (a smooth wander under half a hertz, against 5 Hz
-    strides) is found to last strides; in their sum each planted share comes back inside its interval. Five strides
-    are enough to split; two are not."""
+    strides) is found to last strides; in their sum each planted share comes back inside its interval. The repeating
+    part's pattern is the ripple's. Five strides are enough to split; two are not."""
     rng = np.random.default_rng(3)
     t = np.arange(0.0, 20.0, 1e-3)
     clock = 2 * np.pi * 5.0 * t
@@ -295,6 +295,8 @@ def test_how_the_tracking_error_splits_a_stride_load_or_strides_held_back():
     mixed = roach.tracking_parts(t, ripple + slow + noise, clock)
     assert locked["stride_hz"] == pytest.approx(5.0)
     assert locked["stride"] > 95 and locked["slow"] < 2
+    grid = np.linspace(0, 2 * np.pi, len(locked["pattern"]), endpoint=False)  # the ripple's own pattern
+    np.testing.assert_allclose(locked["pattern"], 0.1 * np.sin(grid) + 0.05 * np.sin(3 * grid + 1.0), atol=2e-3)
     assert held["slow"] > 90 and held["stride"] < 5
     # variances: the ripple 0.1^2/2 + 0.05^2/2, the wander 0.1^2, the noise 0.01^2
     ripple_var, slow_var = 0.1**2 / 2 + 0.05**2 / 2, 0.1**2

@@ -201,6 +201,15 @@ TEMPLATES: dict[str, Effect] = {
             "motor's circuit the same as a winding resistance of 1/efficiency times nominal",
         ),
         Effect(
+            "leg_phase",
+            (Param("offset", "rad", 0.0, -3.141592653589793, 3.141592653589793),),
+            "leg phase",
+            "a stride-periodic residual, its pattern shifted along the stride: the legs meet the ground at another "
+            "reading of their angle",
+            "where the legs are at a reading of the leg angle: the encoder's zero against the legs (a magnet's or a "
+            "leg's mounting), the legs that far ahead of the reading",
+        ),
+        Effect(
             "sensor_coupling",
             (Param("per_unit", "channel unit", 0.0, -1.0, 1.0),),
             "sensor coupling",

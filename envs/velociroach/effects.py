@@ -4,6 +4,8 @@ calibration adapter in sysid/adapters/velociroach.py, alike)."""
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 
 from envs.actuators.dcmotor import GAIN_K, GAIN_R
@@ -82,13 +84,19 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         make("terrain_bump", height=(0.0, 0.0, 0.03)),
         make("disturbance", torque=(0.0, 0.0, 2e-3), frequency=(3.0, 0.5, 10.0)),
     ]
+    for side in SIDES:
+        # where the legs are at a reading of the crank's encoder: the sources give neither the magnet's mounting on
+        # the crank nor the linkage's phase against it, and the model's stand-in linkage (assets/velociroach) puts
+        # tripod A's mid-stance at its own zero. Any phase, a full turn: on the 2 Hz real log the model's
+        # stride-periodic tracking error runs against the robot's (python -m sysid.measure, docs/real-logs.md)
+        out.append(make("leg_phase", side, offset=(0.0, -math.pi, math.pi)))
     return {e.name: e for e in out}
 
 
 def effects_edit(setting: Setting):
     """Spec edit of a setting's model effects (calibration and the calibrated envs alike), added to the nominal
-    spec's values: each crank's Coulomb and viscous friction, each motor's rotor inertia, motor constant and
-    gearbox efficiency (as its winding resistance over the efficiency), the
+    spec's values: each crank's Coulomb and viscous friction and its reading's phase against the legs, each motor's
+    rotor inertia, motor constant and gearbox efficiency (as its winding resistance over the efficiency), the
     feet's and floor's friction, the floor's contact time constant and damping ratio, the C-legs' stiffness, and the
     chassis' mass (its inertia with it) and centre of mass (its inertial written explicitly, from the compiled
     nominal body)."""
@@ -97,6 +105,10 @@ def effects_edit(setting: Setting):
         for side in SIDES:
             crank = spec.joint(constants.CRANK_JOINTS[side])
             crank.frictionloss += setting.get(f"coulomb_friction_{side}.torque", 0.0)
+            # the legs ahead of the crank's reading: the joint's value (what its encoder, the firmware and the
+            # telemetry read) is its turn from the model's zero less its reference, and the linkage's equalities
+            # follow the turn
+            crank.ref -= setting.get(f"leg_phase_{side}.offset", 0.0)
             crank.damping[0] += setting.get(f"viscous_friction_{side}.damping", 0.0)
             motor = spec.actuator(constants.MOTORS[side])
             motor.armature += setting.get(f"armature_{side}.inertia", 0.0)

@@ -134,7 +134,6 @@ class RoachAdapter(Adapter):
         self._linkage = robot._linkage
         self._crank_qpos = {s: int(robot.model.joint(constants.CRANK_JOINTS[s]).qposadr[0]) for s in SIDES}
         self._crank_dof = {s: int(robot.model.joint(constants.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
-        self._home = robot.linkage_qpos(0.0, -np.pi)
         self._motor = {s: robot.model.actuator(constants.MOTORS[s]).id for s in SIDES}
         self._gear = float(robot.model.actuator_gear[self._motor["left"], 0])
         names = (
@@ -237,17 +236,20 @@ class RoachAdapter(Adapter):
         """The measured leg angles and rates (the linkage moved with them); the body carried over, or standing at
         rest on the first segment; the firmware's integrator read off the logged duty."""
         if not carried:
-            data.qpos[:] = self._home
+            data.qpos[:] = model.qpos0  # standing; the cranks and the linkage set below
             data.qvel[:] = 0.0
+        q0 = model.qpos0  # the model's own: a leg phase moves the cranks' references
         for k, side in enumerate(SIDES):
             crank = self._crank_qpos[side]
-            target = float(segment.data[f"leg_angle_{side}"][0]) + setting.get(f"crank_offset.{side}", 0.0)
+            target = float(segment.data[f"leg_angle_{side}"][0])
             rate = float(segment.data[f"leg_rate_{side}"][0])
             shift = target - data.qpos[crank]
             data.qpos[crank] = target
             data.qvel[self._crank_dof[side]] = rate
-            for adr, _c0, c1 in self._linkage[k]:
-                data.qpos[adr] += c1 * shift
+            for adr, c0, c1 in self._linkage[k]:
+                # the equality's q - q0 = c0 + c1 (crank - crank0) from rest; a carried linkage turned with its crank
+                rest = q0[adr] + c0 + c1 * (target - q0[crank])
+                data.qpos[adr] = data.qpos[adr] + c1 * shift if carried else rest
                 dof = int(np.flatnonzero(model.jnt_qposadr == adr)[0])
                 data.qvel[model.jnt_dofadr[dof]] = c1 * rate
             integral = self._integral(segment, side, setting.get("delay.seconds", 0.0))
@@ -287,8 +289,7 @@ class RoachAdapter(Adapter):
             g = firmware_gains(self._gains(segment, side), battery, model.actuator_gainprm[a, GAIN_R],
                                model.actuator_gainprm[a, GAIN_K], self._gear)  # fmt: skip
             adr = model.actuator_ctrladr[a]
-            offset = setting.get(f"crank_offset.{side}", 0.0)
-            ctrl[:, adr] = self._gear * (segment.command_at(f"leg_angle_cmd_{side}", t, delay) + offset)
+            ctrl[:, adr] = self._gear * segment.command_at(f"leg_angle_cmd_{side}", t, delay)
             rate = segment.command_at(f"leg_rate_cmd_{side}", t, delay)
             ctrl[:, adr + 1] = g["vel_per_cmd"] * rate + g["vel_offset"]
         if setting.get("disturbance.torque", 0.0) > 0:
@@ -301,8 +302,7 @@ class RoachAdapter(Adapter):
     def observe(self, sensordata: np.ndarray, segment: Segment, setting: Setting) -> np.ndarray:
         gains = self._nominal_gains
         battery = self._battery(segment, setting)
-        columns = [sensordata[:, self._sensors[constants.SENSOR_LEG_POS[s]]] - setting.get(f"crank_offset.{s}", 0.0)
-                   for s in SIDES]  # fmt: skip
+        columns = [sensordata[:, self._sensors[constants.SENSOR_LEG_POS[s]]] for s in SIDES]
         duty = {}
         for side in SIDES:
             a = self._motor[side]
@@ -336,9 +336,9 @@ class RoachAdapter(Adapter):
         - **tracking**, the quantities of the tracking table: the leg's tracking error (median and 95th percentile,
           deg), the mean |duty|, the share of the time the duty is held at its clip (%), and the back-EMF per leg
           speed (the reading's least-squares ratio to the leg's
-          rate, mV s/rad), and the shares of the tracking error that repeat every stride and that last strides
-          (:func:`~sysid.adapters.velociroach_measure.tracking_parts`), per side, over the commanded stretch from
-          its first second on;
+          rate, mV s/rad), the shares of the tracking error that repeat every stride and that last strides
+          (:func:`~sysid.adapters.velociroach_measure.tracking_parts`) and how the repeating part's pattern over a
+          stride correlates with the log's, per side, over the commanded stretch from its first second on;
         - **body rates compared as distributions**: the body's pose is not logged, so its rates cannot be aligned
           in time with the model's; the gyro readings are compared with the log's by spread (standard deviation),
           the share of power in three bands and the Wasserstein distance between the samples (over the log's
@@ -382,6 +382,7 @@ class RoachAdapter(Adapter):
                     entry[name]["wasserstein"] = float(
                         wasserstein_distance(sim[window, n + axis], measured[window, axis]) / scale
                     )
+            _compare_patterns(tracking[log.path])
         # a run from an earlier calibration compares with that calibration's model: it is the "nominal" setting here
         before = "starting calibration" if result.outcome.started else "nominal model"
         sections = {"Tracking on the held-out logs": _tracking_table(tracking, before)}
@@ -445,6 +446,7 @@ class RoachAdapter(Adapter):
             parts = tracking_parts(t[window], (clock - angle)[window], clock[window]) if window.sum() > 2 else None
             out[f"error_stride_{side}"] = parts["stride"] if parts else float("nan")
             out[f"error_slow_{side}"] = parts["slow"] if parts else float("nan")
+            out[f"_pattern_{side}"] = parts["pattern"] if parts else None  # compared with the log's, then dropped
         return out
 
     # --- synthetic logs ---------------------------------------------------------------------------------------------
@@ -508,6 +510,18 @@ def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
     return {"std": float(np.std(x)), "bands": [float(power[(f >= lo) & (f < hi)].sum() / total) for lo, hi in bands]}
 
 
+def _compare_patterns(entry: dict[str, dict]) -> None:
+    """Each model's stride pattern of the tracking error (what repeats every stride, over the log's clock angle)
+    against the log's: their correlation per side (the log's own 1), the patterns themselves dropped."""
+    for side in SIDES:
+        ours = entry["log"].pop(f"_pattern_{side}")
+        entry["log"][f"error_pattern_{side}"] = 1.0 if ours is not None else float("nan")
+        for name in ("nominal", "calibrated"):
+            theirs = entry[name].pop(f"_pattern_{side}")
+            usable = ours is not None and theirs is not None and np.std(ours) > 0 and np.std(theirs) > 0
+            entry[name][f"error_pattern_{side}"] = float(np.corrcoef(ours, theirs)[0, 1]) if usable else float("nan")
+
+
 def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], before: str = "nominal model") -> str:
     rows = [("leg tracking error, median (deg)", "error_median", ".1f"),
             ("leg tracking error, 95th percentile (deg)", "error_p95", ".0f"),
@@ -515,7 +529,8 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], b
             ("time at the duty's clip (%)", "duty_at_clip", ".0f"),
             ("back-EMF per leg speed (mV s/rad)", "bemf_per_speed", ".0f"),
             ("tracking error repeating every stride (% of its variance)", "error_stride", ".0f"),
-            ("tracking error lasting strides (% of its variance)", "error_slow", ".0f")]  # fmt: skip
+            ("tracking error lasting strides (% of its variance)", "error_slow", ".0f"),
+            ("the repeating part's pattern, correlation with the log's", "error_pattern", "+.2f")]  # fmt: skip
     out = []
     for path, entry in tracking.items():
         out.append(f"{path} (left \\| right):\n\n| | log | {before} | calibrated model |\n|---|---|---|---|")

@@ -54,6 +54,7 @@ MIN_STRIDES = 3  # strides of running a log needs: the bootstrap resamples whole
 MIN_SPEED = 1.0  # rad/s: slower running rows do not enter the back-EMF regression's moving part
 HARMONICS = 5  # harmonics of the clock's angle that the tracking error's part repeating every stride is fitted on
 BLOCK_STRIDES = 4  # strides a bootstrap block of the tracking error spans: its slow part lasts strides
+PATTERN_POINTS = 72  # the repeating part's pattern, every 5 degrees of the clock's angle
 ROWS_PER_STRIDE = 40  # the tracking error resampled at most this finely: eight samples a period of the fifth harmonic
 
 
@@ -227,7 +228,8 @@ def tracking_parts(t: np.ndarray, error: np.ndarray, clock: np.ndarray, seed: in
     the share of the error averaged over one stride (a running mean one stride long, at the clock's median rate,
     which cancels what repeats every stride): the leg held back, or let run ahead, for strides at a time. The rest
     varies within a stride without repeating. 95% intervals from a circular block bootstrap of the rows in blocks of
-    ``BLOCK_STRIDES`` strides (a third of a shorter record). None where the clock does not run or the record holds
+    ``BLOCK_STRIDES`` strides (a third of a shorter record); ``pattern``, the repeating part over one turn of the
+    clock's angle (``PATTERN_POINTS`` points from 0), rad. None where the clock does not run or the record holds
     under three strides."""
     rate = np.abs(np.gradient(clock, t)) if len(t) > 2 else np.zeros(len(t))
     if not (rate > 0).any():
@@ -252,10 +254,14 @@ def tracking_parts(t: np.ndarray, error: np.ndarray, clock: np.ndarray, seed: in
         return 100.0 * np.array([np.var(repeat), np.var(averaged)]) / spread
 
     value = shares(x, e, averaged)
+    # the part that repeats, over one stride of the clock's angle: its pattern, to compare with another's
+    grid = np.linspace(0.0, 2 * np.pi, PATTERN_POINTS, endpoint=False)
+    beta = lstsq(x, e)[1:]
+    pattern = np.column_stack([np.cos(np.outer(grid, k)), np.sin(np.outer(grid, k))]) @ beta
     block = min(BLOCK_STRIDES * per, max(len(e) // 3, 1))  # a short record: at least three blocks to resample
     ci = bootstrap(shares, block, x, e, averaged, seed=seed)
     return {"stride": float(value[0]), "slow": float(value[1]), "stride_ci": ci[:, 0], "slow_ci": ci[:, 1],
-            "stride_hz": stride_hz}  # fmt: skip
+            "stride_hz": stride_hz, "pattern": pattern}  # fmt: skip
 
 
 def _stride_seconds(meta: dict[str, Any]) -> float:
