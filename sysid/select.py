@@ -48,6 +48,7 @@ NOISE_FLOOR = 1.05  # stop when the training error is this close to the noise fl
 # estimate's uncertainty (``explained_below``).
 UNEXPLAINED_ABOVE = 1.1
 SCORE_GRID = 5  # grid points across the range of a non-smooth effect in the ranking
+SCORE_GRID_PERIODIC = 12  # around the turn of a periodic parameter (Param.periodic): 30 degrees apart
 SCORE_GRID_SMOOTH = 3  # and of a smooth one (which also has its Jacobian), unless it is a scale over decades
 # (``Param.log``), whose grid is SCORE_GRID points spread geometrically: a linear grid over decades misses a basin
 # below nominal
@@ -436,11 +437,13 @@ def fit_chosen(
 def score_grid(effect: Effect, points: int | None = None) -> list[dict[str, float]]:
     """The ranking's grid points across an effect's range (a diagonal for several parameters): SCORE_GRID of them
     for a non-smooth effect or a scale over decades (spread geometrically: ``Param.log``), SCORE_GRID_SMOOTH for
-    another smooth one (which has its Jacobian too); at least ``points`` (a robot's ``Adapter.score_grid``)."""
+    another smooth one (which has its Jacobian too), SCORE_GRID_PERIODIC around the turn of a periodic one (its two
+    ends one point, counted once); at least ``points`` (a robot's ``Adapter.score_grid``)."""
     n = SCORE_GRID if not effect.smooth or any(p.log for p in effect.params) else SCORE_GRID_SMOOTH
-    n = max(n, points or 0)
+    periodic = any(p.periodic for p in effect.params)
+    n = max(n, points or 0, SCORE_GRID_PERIODIC if periodic else 0)
     return [{effect.key(p.name): float(p.low * (p.high / p.low) ** f if p.log else p.low + f * p.span)
-             for p in effect.params} for f in np.linspace(0.0, 1.0, n)]  # fmt: skip
+             for p in effect.params} for f in np.linspace(0.0, 1.0, n, endpoint=not periodic)]  # fmt: skip
 
 
 def score(
@@ -616,7 +619,8 @@ def _fit_candidate(
     trial = fit(problem, current, {**params, **nuisance}, fitting, start=start, intervals=False)
     for k, p in params.items():
         value = trial.values[k]
-        if p.span > 0 and min(value - p.low, p.high - value) < 0.01 * p.span and not np.isclose(value, p.nominal):
+        at_end = not p.periodic and min(value - p.low, p.high - value) < 0.01 * p.span  # a turn has no end
+        if p.span > 0 and at_end and not np.isclose(value, p.nominal):
             asked = _asked_for(problem, current, params, nuisance, fitting, trial, k) if len(effects) == 1 else ""
             return (
                 f"{k} pushes against the end of its range ({value:.3g} {p.unit}, range [{p.low:g}, {p.high:g}])"

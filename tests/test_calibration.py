@@ -739,6 +739,18 @@ def test_a_scale_over_decades_is_ranked_on_a_geometric_grid():
         make("spine_stiffness", scale=(1.0, 0.0, 10.0), log=True)
 
 
+def test_a_phase_is_ranked_around_its_turn():
+    """A periodic parameter (the roach's leg phase) is ranked on twelve points 30 degrees apart, its two ends (one
+    angle) counted once: a three-point grid (-pi, 0, pi) would try one phase, nominal's."""
+    from envs.common.effects import make
+    from sysid.select import score_grid
+
+    phase = make("leg_phase", "left", offset=(0.0, -math.pi, math.pi))
+    assert phase.params[0].periodic
+    grid = [p["leg_phase_left.offset"] for p in score_grid(phase)]
+    assert grid == pytest.approx(np.radians(np.arange(-180, 180, 30)))
+
+
 @pytest.mark.slow  # a Ray head's start-up is most of it; make bench runs the matrix as Ray tasks (--workers 2)
 def test_the_matrix_gives_the_same_cases_on_ray_as_in_turn():
     """benchmarks/calibration_matrix.py --workers K runs its cases as Ray tasks, each on its share of the cores: same

@@ -16,6 +16,7 @@ unexplained.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -40,6 +41,9 @@ class Param:
     # a scale over a decade or more (a stiffness from a tenth to ten times nominal): the ranking's grid across its
     # range is geometric, as evenly spread in the ratio as a linear grid is in the difference (select.score)
     log: bool = False
+    # an angle whose range is one whole turn, its two ends one point: the ranking spaces its grid around the turn, a
+    # fit at an end is not pushing against anything, and its basins are as narrow as the pattern it shifts
+    periodic: bool = False
 
     @property
     def span(self) -> float:
@@ -202,7 +206,7 @@ TEMPLATES: dict[str, Effect] = {
         ),
         Effect(
             "leg_phase",
-            (Param("offset", "rad", 0.0, -3.141592653589793, 3.141592653589793),),
+            (Param("offset", "rad", 0.0, -math.pi, math.pi, periodic=True),),
             "leg phase",
             "a stride-periodic residual, its pattern shifted along the stride: the legs meet the ground at another "
             "reading of their angle",
