@@ -343,7 +343,8 @@ def report(args, output: Output, minutes: float, plan: list[Job], done: Mapping[
     if weak_rows:
         md.append(
             "\n## Effects declared weak on a robot's channels (`Effect.weak`)\n\nEach set at the far end of its "
-            "range (the bound farther from nominal); the declaration holds if the nominal model's error on its "
+            "range (the bound farther from nominal; a phase at the strongest of its quarter and half turns); the "
+            "declaration holds if the nominal model's error on its "
             "synthetic log stays under 3 noise levels (the generator's threshold for a visible effect).\n\n"
         )
         md.append(md_table(["robot", "effect", "value", "nominal error (median)", f"on seeds {WEAK_SEEDS}",
