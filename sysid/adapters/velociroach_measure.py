@@ -255,9 +255,9 @@ def tracking_parts(t: np.ndarray, error: np.ndarray, clock: np.ndarray, seed: in
 
     value = shares(x, e, averaged)
     # the part that repeats, over one stride of the clock's angle: its pattern, to compare with another's
-    grid = np.linspace(0.0, 2 * np.pi, PATTERN_POINTS, endpoint=False)
+    angles = np.linspace(0.0, 2 * np.pi, PATTERN_POINTS, endpoint=False)
     beta = lstsq(x, e)[1:]
-    pattern = np.column_stack([np.cos(np.outer(grid, k)), np.sin(np.outer(grid, k))]) @ beta
+    pattern = np.column_stack([np.cos(np.outer(angles, k)), np.sin(np.outer(angles, k))]) @ beta
     block = min(BLOCK_STRIDES * per, max(len(e) // 3, 1))  # a short record: at least three blocks to resample
     ci = bootstrap(shares, block, x, e, averaged, seed=seed)
     return {"stride": float(value[0]), "slow": float(value[1]), "stride_ci": ci[:, 0], "slow_ci": ci[:, 1],
