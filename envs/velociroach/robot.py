@@ -32,6 +32,17 @@ def wrap_angle(x: np.ndarray | float) -> np.ndarray | float:
     return np.arctan2(np.sin(x), np.cos(x))
 
 
+def set_crank(
+    q: np.ndarray, q0: np.ndarray, crank: int, tied: Sequence[tuple[int, float, float]], theta: float
+) -> None:
+    """Put a crank (its qpos address) at ``theta`` in ``q`` and the joints ``tied`` to it, (address, c0, c1), where
+    their equalities hold them: q - q0 = c0 + c1 (crank - crank0), with the model's ``q0`` (a leg phase moves the
+    crank's)."""
+    q[crank] = theta
+    for adr, c0, c1 in tied:
+        q[adr] = q0[adr] + c0 + c1 * (theta - q0[crank])
+
+
 def _telemetry_channels() -> dict[str, str]:
     cols = {"time": "s"}
     channels = (("leg_angle_cmd", "rad"), ("leg_angle", "rad"), ("duty", "1"), ("torque", "N m"), ("bemf", "V"))
@@ -340,9 +351,7 @@ class VelociRoach(Robot):
         q0 = self.model.qpos0
         q = q0.copy()
         for tied, theta, crank in zip(self._linkage, (left, right), self._crank_qpos, strict=True):
-            q[crank] = theta
-            for adr, c0, c1 in tied:
-                q[adr] = q0[adr] + c0 + c1 * (theta - q0[crank])
+            set_crank(q, q0, crank, tied, theta)
         return q
 
     def reset(

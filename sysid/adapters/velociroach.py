@@ -51,6 +51,7 @@ from envs.common.effects import Effect, Param
 from envs.velociroach import constants
 from envs.velociroach.effects import effects_edit, roach_effects
 from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (its names here too)
+from envs.velociroach.robot import set_crank
 from sysid.adapters.velociroach_measure import CLIPPED, tracking_parts
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
@@ -238,18 +239,18 @@ class RoachAdapter(Adapter):
         if not carried:
             data.qpos[:] = model.qpos0  # standing; the cranks and the linkage set below
             data.qvel[:] = 0.0
-        q0 = model.qpos0  # the model's own: a leg phase moves the cranks' references
         for k, side in enumerate(SIDES):
             crank = self._crank_qpos[side]
             target = float(segment.data[f"leg_angle_{side}"][0])
             rate = float(segment.data[f"leg_rate_{side}"][0])
-            shift = target - data.qpos[crank]
-            data.qpos[crank] = target
+            if carried:  # the carried linkage turned with its crank
+                for adr, _c0, c1 in self._linkage[k]:
+                    data.qpos[adr] += c1 * (target - data.qpos[crank])
+                data.qpos[crank] = target
+            else:  # from rest, by the model's own references (a leg phase moves the cranks')
+                set_crank(data.qpos, model.qpos0, crank, self._linkage[k], target)
             data.qvel[self._crank_dof[side]] = rate
-            for adr, c0, c1 in self._linkage[k]:
-                # the equality's q - q0 = c0 + c1 (crank - crank0) from rest; a carried linkage turned with its crank
-                rest = q0[adr] + c0 + c1 * (target - q0[crank])
-                data.qpos[adr] = data.qpos[adr] + c1 * shift if carried else rest
+            for adr, _c0, c1 in self._linkage[k]:
                 dof = int(np.flatnonzero(model.jnt_qposadr == adr)[0])
                 data.qvel[model.jnt_dofadr[dof]] = c1 * rate
             integral = self._integral(segment, side, setting.get("delay.seconds", 0.0))
@@ -363,14 +364,17 @@ class RoachAdapter(Adapter):
             window = self._commanded(log) & covered
             # rates from the simulated rows alone: a difference across the first row not simulated would be a jump
             clip = float(log.meta["duty_clip"])
-            tracking[log.path] = {"log": self._tracking(log.df[covered], t[covered], window[covered], clip)}
+            tracking[log.path], patterns = {}, {}
+            tracking[log.path]["log"], patterns["log"] = self._tracking(log.df[covered], t[covered], window[covered],
+                                                                        clip)  # fmt: skip
             has_rates = all(c in log.df for c in self.BODY_RATES)
             for name, setting in (("nominal", result.outcome.nominal), ("calibrated", result.outcome.setting)):
                 sim = simulate(self, setting, log.df, log.meta, channels_and_rates)
                 model = log.df.copy()
                 for i, c in enumerate(self.channels):
                     model[c] = sim[:, i]
-                tracking[log.path][name] = self._tracking(model[covered], t[covered], window[covered], clip)
+                tracking[log.path][name], patterns[name] = self._tracking(model[covered], t[covered],
+                                                                          window[covered], clip)  # fmt: skip
                 if not has_rates:
                     continue
                 measured = log.df[list(self.BODY_RATES)].to_numpy(dtype=float)
@@ -382,7 +386,7 @@ class RoachAdapter(Adapter):
                     entry[name]["wasserstein"] = float(
                         wasserstein_distance(sim[window, n + axis], measured[window, axis]) / scale
                     )
-            _compare_patterns(tracking[log.path])
+            _compare_patterns(tracking[log.path], patterns)
         # a run from an earlier calibration compares with that calibration's model: it is the "nominal" setting here
         before = "starting calibration" if result.outcome.started else "nominal model"
         sections = {"Tracking on the held-out logs": _tracking_table(tracking, before)}
@@ -425,8 +429,9 @@ class RoachAdapter(Adapter):
         first, last = t[np.flatnonzero(moving)[[0, -1]]]
         return (t >= first + min(1.0, 0.5 * (last - first))) & (t <= last)
 
-    def _tracking(self, df, t: np.ndarray, window: np.ndarray, clip: float) -> dict[str, float]:
-        out = {}
+    def _tracking(self, df, t: np.ndarray, window: np.ndarray, clip: float) -> tuple[dict[str, float], dict]:
+        """The tracking table's quantities, and per side the pattern of the error's repeating part (or None)."""
+        out, patterns = {}, {}
         for side in SIDES:
             duty = np.abs(df[f"duty_{side}"].to_numpy(dtype=float))[window]
             # the firmware's output held at its clip (MAXTHROT): a leg the drive cannot keep on its clock
@@ -446,8 +451,8 @@ class RoachAdapter(Adapter):
             parts = tracking_parts(t[window], (clock - angle)[window], clock[window]) if window.sum() > 2 else None
             out[f"error_stride_{side}"] = parts["stride"] if parts else float("nan")
             out[f"error_slow_{side}"] = parts["slow"] if parts else float("nan")
-            out[f"_pattern_{side}"] = parts["pattern"] if parts else None  # compared with the log's, then dropped
-        return out
+            patterns[side] = parts["pattern"] if parts else None
+        return out, patterns
 
     # --- synthetic logs ---------------------------------------------------------------------------------------------
     SYNTH_GAINS = (1800, 100, 200, 0, 200)  # the 2 Hz real log's, per side
@@ -510,14 +515,14 @@ def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
     return {"std": float(np.std(x)), "bands": [float(power[(f >= lo) & (f < hi)].sum() / total) for lo, hi in bands]}
 
 
-def _compare_patterns(entry: dict[str, dict]) -> None:
+def _compare_patterns(entry: dict[str, dict], patterns: Mapping[str, Mapping[str, np.ndarray | None]]) -> None:
     """Each model's stride pattern of the tracking error (what repeats every stride, over the log's clock angle)
-    against the log's: their correlation per side (the log's own 1), the patterns themselves dropped."""
+    against the log's: their correlation per side, into ``entry`` (the log's own 1)."""
     for side in SIDES:
-        ours = entry["log"].pop(f"_pattern_{side}")
+        ours = patterns["log"][side]
         entry["log"][f"error_pattern_{side}"] = 1.0 if ours is not None else float("nan")
         for name in ("nominal", "calibrated"):
-            theirs = entry[name].pop(f"_pattern_{side}")
+            theirs = patterns[name][side]
             usable = ours is not None and theirs is not None and np.std(ours) > 0 and np.std(theirs) > 0
             entry[name][f"error_pattern_{side}"] = float(np.corrcoef(ours, theirs)[0, 1]) if usable else float("nan")
 
