@@ -601,6 +601,31 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
     assert np.isfinite(report2["error_after"])
 
 
+def test_roach_report_tables_mark_what_a_log_cannot_give_and_name_each_log():
+    """A held-out log too short for the tracking error's split shows "-" in those rows, with a note that says why,
+    not "nan"; the body rates' table names the log each row is from."""
+    keys = ("error_median", "error_p95", "duty_mean_abs", "duty_at_clip", "bemf_per_speed", "error_stride",
+            "error_slow", "error_pattern")  # fmt: skip
+    full = {f"{k}_{side}": 1.0 for k in keys for side in ("left", "right")}
+    short = {**full, "error_stride_left": math.nan, "error_stride_right": math.nan, "error_pattern_left": math.nan}
+    text = roach_adapter._tracking_table({"a.txt": {s: full for s in ("log", "nominal", "calibrated")},
+                                          "b.txt": {"log": short, "nominal": full, "calibrated": full}})  # fmt: skip
+    assert "nan" not in text
+    assert "| tracking error repeating every stride (% of its variance) | - \\| - | 1 \\| 1 | 1 \\| 1 |" in text
+    first, second = text.split("b.txt (left")
+    assert "- : not measured" not in first
+    assert "- : not measured on this log's compared rows (tracking error repeating every stride" in second
+    assert "lasting strides" not in second.split("- : not measured")[1].split(").")[0]
+    spread = {"std": 1.0, "bands": [0.5, 0.5]}
+    rates = {f"{path}:{rate}": {"log": spread, "nominal": {**spread, "wasserstein": 0.25},
+                                "calibrated": {**spread, "wasserstein": 0.125}}
+             for path in ("a.txt@8:", "b.txt") for rate in ("gyro_x", "gyro_z")}  # fmt: skip
+    table = roach_adapter._rates_table(rates, [(0.5, 5), (5, 20)])
+    assert "a.txt@8: (body rates):\n\n| rate | source |" in table and "b.txt (body rates):\n\n| rate |" in table
+    assert "| gyro_z | log | 1 | 50% | 50% | - |" in table and "| gyro_z | nominal | 1 | 50% | 50% | 0.25 |" in table
+    assert table.split("b.txt (body")[1].count("| gyro_x |") == 3 and "nan" not in table
+
+
 def test_roach_report_compares_tracking_and_body_rates():
     """The roach's report: the tracking table (log, nominal and calibrated model), and the gyro, which cannot
     be aligned in time with a log whose body pose is unknown, compared by spread, band power and distribution."""

@@ -52,7 +52,7 @@ from envs.velociroach import constants
 from envs.velociroach.effects import effects_edit, roach_effects
 from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (its names here too)
 from envs.velociroach.robot import set_crank
-from sysid.adapters.velociroach_measure import CLIPPED, tracking_parts
+from sysid.adapters.velociroach_measure import CLIPPED, MIN_STRIDES, tracking_parts
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
 
@@ -536,30 +536,49 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], b
             ("tracking error repeating every stride (% of its variance)", "error_stride", ".0f"),
             ("tracking error lasting strides (% of its variance)", "error_slow", ".0f"),
             ("the repeating part's pattern, correlation with the log's", "error_pattern", "+.2f")]  # fmt: skip
+
     out = []
     for path, entry in tracking.items():
         out.append(f"{path} (left \\| right):\n\n| | log | {before} | calibrated model |\n|---|---|---|---|")
+        blank = []
         for label, key, fmt in rows:
-            cells = [f"{format(entry[s][f'{key}_left'], fmt)} \\| {format(entry[s][f'{key}_right'], fmt)}"
+            cells = [f"{_cell(entry[s][f'{key}_left'], fmt)} \\| {_cell(entry[s][f'{key}_right'], fmt)}"
                      for s in ("log", "nominal", "calibrated")]  # fmt: skip
             out.append(f"| {label} | " + " | ".join(cells) + " |")
+            if any("-" in c.replace("\\| ", "").split() for c in cells):
+                blank.append(label)
+        if blank:
+            out.append(f"\n- : not measured on this log's compared rows ({'; '.join(blank)}). How the tracking "
+                       f"error splits needs {MIN_STRIDES} strides of the clock running in the rows compared (from "
+                       "a second, or half the commanded time if shorter, after the commands start); a pattern's "
+                       "correlation needs both patterns.")  # fmt: skip
         out.append("")
     return "\n".join(out) + "\n"
 
 
 def _rates_table(rates: Mapping[str, Mapping[str, Mapping]], bands) -> str:
-    rows = []
+    """Per held-out log, each body rate's spread and band powers under the log and both models."""
+    by_log: dict[str, list[str]] = {}
     for key, entry in rates.items():
+        path, rate = key.rsplit(":", 1)
         for name in ("log", "nominal", "calibrated"):
             e = entry[name]
-            rows.append(f"| {key.rsplit(':', 1)[1]} | {name} | {e['std']:.3g} | "
-                        + " | ".join(f"{x:.0%}" for x in e["bands"])
-                        + f" | {e.get('wasserstein', float('nan')):.2f} |")  # fmt: skip
+            by_log.setdefault(path, []).append(
+                f"| {rate} | {name} | {e['std']:.3g} | " + " | ".join(f"{x:.0%}" for x in e["bands"])
+                + f" | {_cell(e.get('wasserstein', float('nan')), '.2f')} |"
+            )  # fmt: skip
     header = " | ".join(f"{lo:g}-{hi:g} Hz" for lo, hi in bands)
-    return ("Body rates cannot be aligned in time with the log (the body's pose is not logged): the held-out logs "
-            "are simulated without a break under each model and the distributions compared.\n\n"
-            f"| rate | source | std (rad/s) | {header} | Wasserstein / log std |\n"
-            + "|---" * (4 + len(bands)) + "|\n" + "\n".join(rows) + "\n")  # fmt: skip
+    head = f"| rate | source | std (rad/s) | {header} | Wasserstein / log std |\n" + "|---" * (4 + len(bands)) + "|\n"
+    tables = [f"{path} (body rates):\n\n{head}" + "\n".join(rows) + "\n" for path, rows in by_log.items()]
+    return (
+        "Body rates cannot be aligned in time with the log (the body's pose is not logged): the held-out logs "
+        "are simulated without a break under each model and the distributions compared.\n\n" + "\n".join(tables)
+    )
+
+
+def _cell(value: float, fmt: str) -> str:
+    """A table cell, "-" where there is no number (a quantity the rows cannot give; the log against itself)."""
+    return format(value, fmt) if math.isfinite(value) else "-"
 
 
 ADAPTERS = {"roach": RoachAdapter}
