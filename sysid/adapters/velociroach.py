@@ -536,7 +536,6 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], b
             ("tracking error repeating every stride (% of its variance)", "error_stride", ".0f"),
             ("tracking error lasting strides (% of its variance)", "error_slow", ".0f"),
             ("the repeating part's pattern, correlation with the log's", "error_pattern", "+.2f")]  # fmt: skip
-
     out = []
     for path, entry in tracking.items():
         out.append(f"{path} (left \\| right):\n\n| | log | {before} | calibrated model |\n|---|---|---|---|")
@@ -545,7 +544,8 @@ def _tracking_table(tracking: Mapping[str, Mapping[str, Mapping[str, float]]], b
             cells = [f"{_cell(entry[s][f'{key}_left'], fmt)} \\| {_cell(entry[s][f'{key}_right'], fmt)}"
                      for s in ("log", "nominal", "calibrated")]  # fmt: skip
             out.append(f"| {label} | " + " | ".join(cells) + " |")
-            if any("-" in c.replace("\\| ", "").split() for c in cells):
+            if not all(math.isfinite(entry[s][f"{key}_{side}"]) for s in ("log", "nominal", "calibrated")
+                       for side in SIDES):  # fmt: skip
                 blank.append(label)
         if blank:
             out.append(f"\n- : not measured on this log's compared rows ({'; '.join(blank)}). How the tracking "
