@@ -109,7 +109,7 @@ def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=200, help="control steps of each measurement")
     parser.add_argument("--rounds", type=int, default=3,
-                        help="alternating rounds of the batched matches and their raw replay")  # fmt: skip
+                        help="rounds of the batched matches, each with its raw replay interleaved")  # fmt: skip
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--venv", type=Path, default=Path("runs") / "dm_control_venv",
                         help="dm_control's virtualenv (made if missing)")  # fmt: skip

@@ -5,11 +5,12 @@ For each robot, ``--matches`` (8, then 32) two-a-side matches in the robot's own
 :class:`~agents.soccer.vec_env.SoccerVecEnv` on one thread, from random actions, for ``--steps`` control steps:
 
 - agent-steps per second (players x steps / wall time, one core);
-- the same physics replayed raw: one ``mujoco.batch.Batch`` of the same model, from the same start, run through the
-  very control blocks the env gave the physics (``Batch.rollout``, one call per control step); the ratio of the
-  env's speed to the raw replay's is the share of a step that is physics (goal: 0.9 or more). The host's speed
-  drifts, so the matches and their replay alternate in ``--rounds`` rounds (3), each from the same seed (the rounds
-  are checked to give the same control blocks); the share is the median round's, the rates the best rounds';
+- the same physics replayed raw: one ``mujoco.batch.Batch`` of the same model, run through the very control block
+  the env gave the physics right after each control step (``Batch.rollout``, one call per control step), from the
+  state and with the per-simulation parameters the env started that block with; the ratio of the two times is the
+  share of a step that is physics (goal: 0.9 or more). Interleaved step by step, the host's drift falls on both
+  alike; the replay is checked to give the env's sensor values bit for bit. ``--rounds`` rounds (3), each from the
+  same seed (checked to give the same control blocks); the share is the median round's, the rates the best rounds';
 - a reset of every match at once, per match (goal: under 1 ms).
 
 Then a three-a-side Bioloid match in the ``commands`` mode, the scripted team on both sides, one PettingZoo env on
@@ -40,9 +41,23 @@ CONFIGURATIONS: dict[str, list[str]] = {"soccer_speed": []}
 GOALS = {"raw_share": 0.9, "reset_ms": 1.0, "realtime": 5.0}
 
 
+def mirror_parameters(source: batch.Batch, target: batch.Batch) -> None:
+    """Give ``target`` the per-simulation model parameters ``source`` holds (those it expanded, such as the gains a
+    robot's motors are driven through, set for each block)."""
+    for name in batch.MODEL_FIELDS:
+        values = source.expanded(name)
+        if values is not None:
+            target.expand(name)[:] = values
+
+
 def batched(robot: str, matches: int, steps: int, seed: int, rounds: int) -> dict:
-    """The batched matches and their raw replay, one thread, in alternating rounds (the host's speed drifts): each
-    round runs the matches from the same seed, then replays the physics raw; the share is the median round's."""
+    """The batched matches and their raw replay, one thread. Each control step of the matches is followed at once by
+    the raw replay of the very block it gave the physics, from the state the matches started it in and with the model
+    parameters the robot set for it (a motor's gains; both copied over untimed), and each is timed on its own: the
+    two interleave every few milliseconds, so a shared host's drift and its other jobs' bursts fall on both alike,
+    and the replay runs exactly the matches' physics (checked: the same sensor values after every block). Each round
+    runs the matches from the same seed (the rounds are checked to give the same control blocks); the share is the
+    median round's."""
     vec = SoccerVecEnv(matches, nthread=1, robot=robot, players_per_team=2, max_cycles=10 * steps)
     engine = vec.engine
     sim = engine.scene.sim
@@ -54,25 +69,31 @@ def batched(robot: str, matches: int, steps: int, seed: int, rounds: int) -> dic
     # sensor values the env needs (and reads its players' senses, the ball and the goals from)
     raw = batch.Batch(model, matches, 1)
     record = {"sensordata": np.empty((matches, sim.n_substeps, model.nsensordata))}
-    env_times, raw_times, same = [], [], True
+    env_times, raw_times, same, tracks = [], [], True, True
+    clock = time.perf_counter
+    state = ("time", "qpos", "qvel", "act", "qacc_warmstart")  # what a block's physics starts from
+    views = [(raw.bind(name), sim.batch.bind(name)) for name in state]
     for r in range(rounds):
         vec.seed(seed)
         vec.reset()
-        start = {name: sim.batch.bind(name).copy() for name in ("time", "qpos", "qvel", "act")}
         first = blocks.copy() if r else None
-        began = time.perf_counter()
+        env_time = raw_time = 0.0
         for t in range(steps):
+            for mine, theirs in views:  # where the matches start this block (a goal or throw-in moved them)
+                mine[:] = theirs
+            began = clock()
             vec.step(actions[t])
+            stepped = clock()
+            mirror_parameters(sim.batch, raw)
+            resumed = clock()
+            raw.rollout(sim.n_substeps, sim.ctrl, CTRL_SPEC, record=("sensordata",), out=record)
+            env_time += stepped - began
+            raw_time += clock() - resumed
             blocks[t] = sim.ctrl
-        env_times.append(time.perf_counter() - began)
+            tracks &= bool(np.array_equal(record["sensordata"], sim.substep_sensordata))
+        env_times.append(env_time)
+        raw_times.append(raw_time)
         same &= first is None or np.array_equal(first, blocks)
-        for name, value in start.items():
-            raw.bind(name)[:] = value
-        raw.forward(np.arange(matches))
-        began = time.perf_counter()
-        for t in range(steps):
-            raw.rollout(sim.n_substeps, blocks[t], CTRL_SPEC, record=("sensordata",), out=record)
-        raw_times.append(time.perf_counter() - began)
     shares = np.array(raw_times) / np.array(env_times)
     env_seconds, raw_seconds = min(env_times), min(raw_times)
     resets = []
@@ -93,6 +114,7 @@ def batched(robot: str, matches: int, steps: int, seed: int, rounds: int) -> dic
         "raw_share": float(np.median(shares)),
         "raw_shares": shares.tolist(),
         "rounds_repeat": bool(same),
+        "replay_tracks": tracks,
         "reset_ms_per_match": 1e3 * float(np.median(resets)),
         "simulated_seconds_per_wall_second": steps * engine.dt / env_seconds * matches,
     }
@@ -118,7 +140,7 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--matches", type=int, nargs="+", default=[8, 32], help="two-a-side matches per robot, batched")
     parser.add_argument("--steps", type=int, default=200, help="control steps of the batched matches")
     parser.add_argument("--match-seconds", type=float, default=20.0, help="simulated seconds of the Bioloid match")
-    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds of the matches and their raw replay")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of the matches, each with its replay")
     parser.add_argument("--seed", type=int, default=0)
     add_output_options(parser)
     return parser
@@ -136,6 +158,8 @@ def main(argv: list[str] | None = None) -> None:
     match_run = realtime(args.match_seconds, args.seed)
     missed = [f"{r['robot']} raw share at {r['matches']} matches" for r in rows if r["raw_share"] < GOALS["raw_share"]]
     missed += [f"{r['robot']} at {r['matches']} matches: its rounds differ" for r in rows if not r["rounds_repeat"]]
+    missed += [f"{r['robot']} at {r['matches']} matches: the replay left the matches' physics" for r in rows
+               if not r["replay_tracks"]]  # fmt: skip
     missed += [
         f"{r['robot']} reset at {r['matches']} matches" for r in rows if r["reset_ms_per_match"] > GOALS["reset_ms"]
     ]
@@ -153,9 +177,10 @@ def main(argv: list[str] | None = None) -> None:
         "# Soccer speed\n\n"
         f"Two-a-side matches of each robot in its own action mode, {' and '.join(map(str, args.matches))} batched "
         "on one thread, "
-        f"{args.steps} control steps of random actions; the raw replay runs the same model from the same start "
-        f"through the same control blocks, alternating with the matches in {args.rounds} rounds (env / raw: the "
-        "median round's; rates: the best rounds'). Goals: env / raw at least "
+        f"{args.steps} control steps of random actions; after each control step the raw replay runs the same model "
+        "through the very block the matches ran, from their state and parameters (the same sensor values, bit for "
+        f"bit), each timed on its own; {args.rounds} rounds (env / raw: the median round's; rates: the best "
+        "rounds'). Goals: env / raw at least "
         f"{GOALS['raw_share']}, a reset under {GOALS['reset_ms']:g} ms a match.\n\n"
         + table
         + f"\nA three-a-side Bioloid match in the commands mode, the scripted team on both sides, one thread: "

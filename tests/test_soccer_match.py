@@ -449,15 +449,15 @@ def test_the_xjus_wedge_that_blew_a_scene_up_holds_at_shorter_steps():
 
 def test_the_soccer_benchmark_measures_each_robot_against_its_raw_physics():
     """benchmarks/soccer_dm_control.py's side of the comparison, tiny: each robot's one match and its batched matches,
-    whose alternating rounds replay the same control blocks bit for bit, and whose physics steps make up the robot's
-    control step."""
+    whose rounds repeat the same control blocks bit for bit, whose raw replay runs the matches' very physics (the same
+    sensor values after every block), and whose physics steps make up the robot's control step."""
     from benchmarks.soccer_dm_control import our_rows
 
     rows = our_rows(steps=2, seed=0, rounds=2, matches=2)
     assert [r["robot"] for r in rows] == ["roach", "xjus", "bioloid"]
     for r in rows:
         many = r["batched"]
-        assert many["rounds_repeat"] and many["matches"] == 2 and many["players"] == 4
+        assert many["rounds_repeat"] and many["replay_tracks"] and many["matches"] == 2 and many["players"] == 4
         assert many["agent_steps_per_second"] > 0 and many["raw_share"] > 0 and r["single"]["reset_ms"] > 0
         dt = match.parallel_env(robot=r["robot"], players_per_team=1).dt
         assert many["substeps"] * many["physics_timestep"] == pytest.approx(dt)
