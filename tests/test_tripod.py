@@ -1,6 +1,7 @@
 """The reference policies: the alternating tripod gait and its turning variant."""
 
 import itertools
+import json
 
 import gymnasium as gym
 import numpy as np
@@ -141,3 +142,15 @@ def test_duty_tripod_reads_its_inputs_by_name_not_position():
     a = TripodGait(context, frequency=10.0).predict(obs)[0]
     b = TripodGait(TripodContext(shuffled, context.mode, context.control_dt), 10.0)
     np.testing.assert_array_equal(a, b.predict(shuffled_obs)[0])
+
+
+def test_the_realtime_benchmark_replays_the_episode_it_times(tmp_path):
+    """benchmarks/realtime.py, one round: its raw reference is the tripod episode's own physics (the control blocks
+    and motor gains the env gave it end where the env ended)."""
+    from benchmarks import realtime
+
+    realtime.main(["--rounds", "1", "--out", str(tmp_path)])
+    result = json.loads((tmp_path / "realtime.json").read_text())
+    assert result["replay_matches"] is True
+    assert result["rtf_rounds"][0] > 0 and result["rtf_raw_rounds"][0] > 0
+    assert 2.0 < result["speed"] < 4.0  # the 45 Hz tripod runs about 3 m/s
