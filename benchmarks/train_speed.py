@@ -1,7 +1,7 @@
 """PPO training throughput on RoachWalk: env steps per second including the updates, SB3's DummyVecEnv against the
 batched env (agents/vec_env.py), the same hyperparameters (hyperparams/ppo.yml), in one run.
 
-The foundation's DummyVecEnv trained at 865 steps/s on this machine (the first training demo). Run:
+The first training demo's DummyVecEnv trained at 865 steps/s on this machine. Run:
 ``python -m benchmarks.train_speed``.
 """
 
@@ -18,7 +18,7 @@ from agents.training import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hy
 from benchmarks.common import add_output_options, md_table, resolve_output
 from envs.common.io import ToolParser
 
-FOUNDATION_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
+FIRST_DEMO_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
 
 
 def throughput(env_id: str, vec_env: str, steps: int, n_envs: int | None) -> float:
@@ -55,10 +55,10 @@ def main(argv: list[str] | None = None) -> None:
         rows.append({"n_envs": n, "dummy_steps_per_s": dummy, "batched_steps_per_s": batched})
         print(rows[-1])
     table = md_table(
-        ["n_envs", "DummyVecEnv steps/s", "batched steps/s", "batched / DummyVecEnv", "batched / foundation's 865"],
+        ["n_envs", "DummyVecEnv steps/s", "batched steps/s", "batched / DummyVecEnv", "batched / the first demo's 865"],
         [[r["n_envs"], round(r["dummy_steps_per_s"]), round(r["batched_steps_per_s"]),
           round(r["batched_steps_per_s"] / r["dummy_steps_per_s"], 2),
-          round(r["batched_steps_per_s"] / FOUNDATION_DUMMY, 2)] for r in rows],
+          round(r["batched_steps_per_s"] / FIRST_DEMO_DUMMY, 2)] for r in rows],
     )  # fmt: skip
     text = (
         f"# PPO training throughput on {args.env} (env steps per second, updates included)\n\n"

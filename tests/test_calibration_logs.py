@@ -585,7 +585,7 @@ def test_the_channel_kinds_agree_with_what_the_robots_declare():
             assert unit in set(UNIT_KINDS.values()), unit
 
 
-# --- found by a new user's review -----------------------------------------------------------------------------------
+# --- logs whose clock misbehaves ------------------------------------------------------------------------------------
 def test_a_roach_log_whose_clock_goes_back_for_good_is_refused_naming_the_time_column(tmp_path):
     """A few rows that go back and rejoin are a broken sample (dropped); a clock that goes back and stays (a second
     recording appended) is time running backwards, refused like every other reader's."""

@@ -32,15 +32,15 @@ POLICIES = {
     **{
         f"ik-{name}": ScriptedPolicy(
             ("bioloid",),
-            f"the seed's IK {name} (ellipse, eqs. 3-8) at 1.5 Hz; ik-{name}:<Hz> at another stride frequency",
+            f"[bioloid-webots]'s IK {name} (ellipse, eqs. 3-8) at 1.5 Hz; ik-{name}:<Hz> at another stride frequency",
             partial(_ik, name),
         )
         for name in GAITS
     },
     "cpg": ScriptedPolicy(
         ("bioloid",),
-        "the seed's coupled oscillators (eq. 14): cpg (experiment 5's coupling, mid parameters), cpg:<coupling or "
-        "policy file>",
+        "[bioloid-webots]'s coupled oscillators (eq. 14): cpg (experiment 5's coupling, mid parameters), "
+        "cpg:<coupling or policy file>",
         _cpg,
     ),
 }

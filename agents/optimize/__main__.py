@@ -3,7 +3,7 @@
 Examples::
 
     python -m agents.optimize --config agents/bioloid/optimize/experiment5.json --optimizer pso \\
-        --iterations 240 --particles 50                       # the seed's experiment 5 at its scale, this machine
+        --iterations 240 --particles 50                       # [bioloid-webots]'s experiment 5 at its scale
     python -m agents.optimize --config ... --backend ray --address HEAD:6379 --workers 50   # split over a cluster
 
 The run folder (``--out``, default ``runs/optimize/<config>__<optimizer>__<seed>`` under the working folder) holds
@@ -41,7 +41,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                 epilog=__doc__)  # fmt: skip
     p.add_argument("--config", required=True, help="a run configuration (JSON; agents/optimize/problem.py)")
     p.add_argument("--optimizer", choices=sorted(OPTIMIZERS), default="pso")
-    p.add_argument("--iterations", type=int, default=240, help="iterations (the seed's PSO: 240)")
+    p.add_argument("--iterations", type=int, default=240, help="iterations ([bioloid-webots]'s PSO: 240)")
     p.add_argument("--particles", type=int, default=50, help="swarm or population size (the seed: 50)")
     p.add_argument("--workers", type=int, default=None,
                    help="local: the batch's threads (default: the machine's cores); ray: the batches the swarm is "

@@ -10,7 +10,7 @@ def _buehler(env, arg: str):
 
 
 _DESCRIPTION = (
-    "the seed's Buehler clock, PD and motor model: walk at T = 0.5 s on walking tasks, turn by a different ground "
+    "[xjus-report]'s Buehler clock, PD and motor model: walk at T = 0.5 s on walking tasks, turn by a different ground "
     "sweep per side on a turning task; buehler:stand, buehler:walk, buehler:turn, buehler:T (walk at period T s)"
 )
 
