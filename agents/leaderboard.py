@@ -1093,6 +1093,35 @@ def _interval(a: dict[str, float]) -> str:
     return f"{a['iqm']:.2f} [{a['low']:.2f}, {a['high']:.2f}]"
 
 
+def residual_comparison(plan: Plan, baselines: dict, per_task: dict) -> list[str]:
+    """The page's lines comparing each residual variant with its plain algorithm, task by task where both have rows:
+    their normalized IQMs with intervals and whether the intervals tell them apart (two seeds or more on each)."""
+    lines = []
+    tasks = [t for t in plan.tasks if not is_soccer(t) and comparable(baselines[t])]
+    for base in [a for a in plan.algos if not a.endswith(RESIDUAL) and a + RESIDUAL in plan.algos]:
+        residual = base + RESIDUAL
+        both = [t for t in tasks if {base, residual} <= set(per_task.get(t, {}))]
+        lines += ["", f"{residual} against {base}, on the {len(both)} of {len(tasks)} tasks with rows of both "
+                  "(normalized IQM over seeds, 95% interval; told apart only where the intervals of two seeds or more "
+                  "on each side do not overlap)" + (":" if both else "."), ""]  # fmt: skip
+        for task in both:
+            r, b = per_task[task][residual], per_task[task][base]
+            if min(r["seeds"], b["seeds"]) < 2:
+                verdict = "not told apart: one seed on a side"
+            elif r["low"] > b["high"]:
+                verdict = "the residual ahead"
+            elif r["high"] < b["low"]:
+                verdict = "the residual behind"
+            else:
+                verdict = "not told apart: the intervals overlap"
+            n = r["seeds"]
+            lines.append(f"- `{task}`: {residual} {_interval(r)} ({n} seed{'s' * (n != 1)}) against {base} "
+                         f"{_interval(b)} ({b['seeds']}): {verdict}")  # fmt: skip
+        if not both:
+            lines.pop()
+    return lines
+
+
 def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
            overall: dict, command: str, records: Path) -> str:  # fmt: skip
     budget = _budget(plan) + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
@@ -1130,6 +1159,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   + ": a normalized score there magnifies a lead in return; read the returns beside it."]  # fmt: skip
     if seeds < 4:
         lines += ["", f"Over {seeds} seeds or fewer the interquartile mean trims nothing: it is the mean."]
+    lines += residual_comparison(plan, baselines, per_task)
     missing = [a for a in plan.algos if a not in overall]
     if overall:
         lines += ["", "Over all tasks: " + "; ".join(f"{a} {_interval(v)}" for a, v in overall.items()) + ".", "",

@@ -1024,3 +1024,29 @@ def test_the_page_names_a_video_whose_run_is_not_kept_instead_of_linking_to_noth
     assert "[the reference and skitter_Kept-v1__ppo__0](results/videos/skitter_Kept-v1.mp4)" in page
     assert "side_by_side.mp4" not in page, "no link into a run folder that is not there"
     assert "`skitter_Gone-v1`: no video: skitter_Gone-v1__ppo__0's run" in page and "--rerun" in page
+
+
+def test_a_residual_variant_is_compared_with_its_plain_algorithm_where_both_have_rows(tmp_path):
+    """Per task with rows of both: each one's IQM and interval, told apart only by intervals of two seeds or more that
+    do not overlap; one seed on a side is said to tell nothing; a task missing one of them is counted out."""
+    xjus = "skitter/XjusWalk-v1"
+    plan = leaderboard.Plan((WALK, xjus), ("ppo", "ppo+residual"), (0, 1, 2), ((WALK, 100), (xjus, 100)), None, 5,
+                            1000, None)  # fmt: skip
+    baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
+    rows = {}
+    for row in plan.rows:
+        if row.task == xjus and (row.algo == "ppo+residual" or row.seed > 0):
+            rows[row] = None  # xJüs: one plain seed, no residual row
+            continue
+        level = 2.0 if row.algo == "ppo+residual" else 1.0  # the residual well ahead on the walk
+        rows[row] = {"mean_return": 10.0 + 100.0 * (level + 0.01 * row.seed), "timesteps": 100, "capped": False,
+                     "paired_differences": {}}  # fmt: skip
+    leaderboard.build_table(plan, tmp_path, baselines, rows, tmp_path / "results.md")
+    text = (tmp_path / "results.md").read_text()
+    assert "ppo+residual against ppo, on the 1 of 2 tasks with rows of both" in text
+    assert f"- `{WALK}`: ppo+residual 2.01 [" in text and "(3 seeds) against ppo 1.01 [" in text
+    assert text.count("the residual ahead") == 1 and f"`{xjus}`: ppo+residual" not in text
+    # one seed on a side tells nothing, whatever the gap
+    one = {r: (v if r.seed == 0 else None) for r, v in rows.items()}
+    leaderboard.build_table(plan, tmp_path, baselines, one, tmp_path / "results.md")
+    assert "not told apart: one seed on a side" in (tmp_path / "results.md").read_text()
