@@ -62,6 +62,34 @@ def record_blocks(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return np.array(blocks), np.array(resets), final, np.array(gains) if written else None
 
 
+def policy_episode(env, policy, seed: int = 0, record: bool = False) -> dict:
+    """One episode of ``policy`` from ``seed``, timed with the policy's moves: the real-time factor, the simulated
+    seconds, the forward speed and the final qpos; with ``record``, the control block of every step and the actuator
+    gains of every block where the robot writes them between blocks (the roach's gait mode; else None), for
+    :func:`time_raw` to replay the very physics the episode ran."""
+    base = env.unwrapped
+    sim, model = base.robot.sim, base.model
+    obs, _ = env.reset(seed=seed)
+    blocks, gains, state, start = [], [], None, np.array([True])
+    began = time.perf_counter()
+    while True:
+        action, state = policy.predict(obs, state, start)
+        start = np.array([False])
+        obs, _, terminated, truncated, info = env.step(action)
+        if record:
+            blocks.append(sim.ctrl[0].copy())
+            gains.append(model.actuator_gainprm.copy())
+        if terminated or truncated:
+            break
+    wall = time.perf_counter() - began
+    out = {"rtf": info["time"] / wall, "seconds": float(info["time"]), "speed": info["x_position"] / info["time"],
+           "final_qpos": sim.data.qpos.copy()}  # fmt: skip
+    if record:
+        written = any(not np.array_equal(g, gains[0]) for g in gains)
+        out["blocks"], out["gains"] = np.array(blocks), np.array(gains) if written else None
+    return out
+
+
 def time_raw(model, start: mujoco.MjData, blocks: np.ndarray, resets: np.ndarray,
              gains: np.ndarray | None = None) -> tuple[float, np.ndarray]:  # fmt: skip
     """One native call per control step, as a hand-written loop would make it (writing each block's actuator gains

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
 import gymnasium as gym
 import mujoco
@@ -24,7 +23,7 @@ import numpy as np
 import envs  # noqa: F401
 from agents import load_policy
 from benchmarks.common import add_output_options, md_table, resolve_output
-from benchmarks.env_speed import time_raw
+from benchmarks.env_speed import policy_episode, time_raw
 from envs.common.io import ToolParser
 
 GOAL = 10.0
@@ -42,28 +41,6 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def episode(env, policy, record: bool = False) -> dict:
-    """One tripod episode from seed 0, timed; with ``record``, the control blocks and gains it gave the physics."""
-    base = env.unwrapped
-    sim, model = base.robot.sim, base.model
-    obs, _ = env.reset(seed=0)
-    blocks, gains = [], []
-    began = time.perf_counter()
-    while True:
-        obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
-        if record:
-            blocks.append(sim.ctrl[0].copy())
-            gains.append(model.actuator_gainprm.copy())
-        if terminated or truncated:
-            break
-    wall = time.perf_counter() - began
-    out = {"rtf": info["time"] / wall, "seconds": float(info["time"]), "speed": info["x_position"] / info["time"],
-           "final_qpos": sim.data.qpos.copy()}  # fmt: skip
-    if record:
-        out["blocks"], out["gains"] = np.array(blocks), np.array(gains)
-    return out
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
@@ -75,7 +52,7 @@ def main(argv: list[str] | None = None) -> None:
     env = gym.make(ENV_ID)
     policy = load_policy("tripod:45", env)
     base = env.unwrapped
-    recorded = episode(env, policy, record=True)
+    recorded = policy_episode(env, policy, record=True)
     env.reset(seed=0)
     start = mujoco.MjData(base.model)
     mujoco.mj_copyData(start, base.model, base.data)
@@ -83,7 +60,7 @@ def main(argv: list[str] | None = None) -> None:
     blocks, resets = recorded["blocks"], np.zeros(len(recorded["blocks"]), dtype=bool)
     env_rtfs, raw_rtfs, same = [], [], True
     for _ in range(args.rounds):
-        run = episode(env, policy)
+        run = policy_episode(env, policy)
         env_rtfs.append(run["rtf"])
         same &= bool(np.array_equal(run["final_qpos"], recorded["final_qpos"]))
         rate, final = time_raw(base.model, start, blocks, resets, recorded["gains"])
