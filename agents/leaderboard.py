@@ -1259,7 +1259,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--table-only",
         action="store_true",
-        help="train nothing: write the table of the rows done so far (the others listed as not run)",
+        help="train nothing: write the table of the rows done so far (the others listed as not run; a task's reference "
+        "is evaluated where no earlier run has)",
     )
     args = parser.parse_args(argv)
     import gymnasium as gym
@@ -1310,6 +1311,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(problem)
         if value is not None and Path(value).exists() and not Path(value).is_dir():
             parser.error(f"--{name} {value}: exists and is not a folder")
+        problem = None if value is None else parent_problem(Path(value) / "row")  # in it, or where it is made
+        if problem:
+            parser.error(f"--{name} {value}: {problem}")
     if args.docs is not None:
         problem = docs_problem(Path(args.docs))
         if problem:
@@ -1323,6 +1327,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     args.rerun = reruns
     if args.table_only and args.rerun:
         parser.error("--table-only trains nothing: it cannot --rerun rows")
+    if args.table_only and args.address is not None:
+        parser.error(f"--table-only trains nothing: it runs nothing on Ray (--address {args.address})")
     return args
 
 

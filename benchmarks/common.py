@@ -26,12 +26,45 @@ from typing import Any
 import mujoco
 
 from envs.common.host import numerics
-from envs.common.io import json_default, write_json, write_text
+from envs.common.io import json_default, parent_problem, write_json, write_text
 
 RESULTS = Path(__file__).resolve().parent / "results"
 RUNS = Path("runs") / "benchmarks"  # relative to the working folder: a configuration kept nowhere else
 STANDARD_FILES = ("{name}.json", "{name}.md")
 OUTPUT_OPTIONS = frozenset({"out", "name"})
+
+
+def count(text: str) -> int:
+    """An argparse type: a whole number of at least 1 (steps, rounds, episodes, simulations)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+def seed(text: str) -> int:
+    """An argparse type: a whole number of at least 0 (a seed, a number of extra draws)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {value}")
+    return value
+
+
+def positive(text: str) -> float:
+    """An argparse type: a finite number above 0 (seconds, frequencies)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
+    return value
 
 
 def robot_task_ids() -> list[str]:
@@ -184,6 +217,9 @@ def resolve_output(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
     if kept and name not in matches:
         parser.error(f"--out {folder}: benchmarks/results/ keeps only the configurations {module} declares "
                      f"({', '.join(configurations) or 'none'}), each under its name; give another --out")  # fmt: skip
+    problem = parent_problem(folder / name)  # where nothing can be written, refused before the benchmark runs
+    if problem:
+        parser.error(f"--out {folder}: {problem}")
     output = Output(folder, name, config, kept=kept)
     _refuse_another_configuration(parser, output, files, known)
     return output

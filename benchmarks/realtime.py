@@ -22,7 +22,7 @@ import numpy as np
 
 import envs  # noqa: F401
 from agents import load_policy
-from benchmarks.common import add_output_options, md_table, resolve_output
+from benchmarks.common import add_output_options, count, md_table, resolve_output
 from benchmarks.env_speed import policy_episode, time_raw
 from envs.common.io import ToolParser
 
@@ -36,7 +36,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"realtime": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds of the episode and its replay")
+    parser.add_argument("--rounds", type=count, default=3, help="alternating rounds of the episode and its replay")
     add_output_options(parser)
     return parser
 
@@ -44,8 +44,6 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> None:
     parser = make_parser()
     args = parser.parse_args(argv)
-    if args.rounds < 1:
-        parser.error(f"--rounds must be at least 1, got {args.rounds}")
     output = resolve_output(parser, args, "realtime", CONFIGURATIONS)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core

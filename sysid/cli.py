@@ -53,7 +53,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--test", required=True, nargs="+", type=Path, help="held-out logs the errors are measured on")
     p.add_argument("--out", required=True, type=Path, help="output directory")
     p.add_argument("--calibration", type=Path, help="start from an earlier calibration.json of the same robot")
-    p.add_argument("--columns", type=Path, help="JSON column map for logs of a format skitter has no reader for")
+    p.add_argument("--columns", type=Path,
+                   help="a JSON file: the column map for logs of a format skitter has no reader for")  # fmt: skip
     p.add_argument("--fit", nargs="+", metavar="EFFECT", help="fit these catalog effects, without selecting")
     p.add_argument("--threads", type=int, help="rollout threads (default: the machine's cores)")
     p.add_argument(
@@ -123,6 +124,9 @@ def read_logs(
             if (start is not None and start > t[-1]) or (end is not None and end < t[0]):
                 raise LogError(f"{spec}: the window lies outside the log, which runs from {t[0]:.3g} s to "
                                f"{t[-1]:.3g} s")  # fmt: skip
+            if start is not None and start < min(0.0, t[0]):  # a typo, not a window that begins with the log
+                raise LogError(f"{spec}: the window starts at {start:g} s, before the log, which runs from "
+                               f"{t[0]:.3g} s to {t[-1]:.3g} s")  # fmt: skip
             log = log.between(t[0] if start is None else start, t[-1] + 1.0 if end is None else end)
             log.path = str(spec)
             log = check_log(log, required)
@@ -168,7 +172,6 @@ def _run(args: argparse.Namespace) -> int:
     say = (lambda s: None) if args.quiet else (lambda s: print(s, flush=True))
     adapter = make_adapter(args.robot)
     try:
-        check_disjoint(args.train, args.test)
         column_map = ColumnMap.load(args.columns) if args.columns else None
         if column_map is not None:
             reads = adapter.reads()
@@ -178,8 +181,11 @@ def _run(args: argparse.Namespace) -> int:
                       f"{', '.join(map(repr, unread))}; those columns are ignored (it reads "
                       f"{', '.join(sorted(reads - {'episode'}))})", file=sys.stderr)  # fmt: skip
         limits = adapter.channel_limits()  # a sample the robot could not produce is dropped, with a warning
+        # each window is found in its log before the windows are compared: a window past its log is that error
         train = read_logs(args.train, adapter.required(), column_map, limits)
+        check_disjoint(args.train, [])
         test = read_logs(args.test, adapter.required(), column_map, limits)
+        check_disjoint(args.train, args.test)
         start = None
         if args.calibration is not None:
             start = read_calibration(args.calibration, adapter.robot)

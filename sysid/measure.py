@@ -80,15 +80,14 @@ def main(argv: list[str] | None = None) -> int:
     measurements: list[Measurement] = []
     test = []
     try:
-        if args.test:
-            check_disjoint([Path(t) for t in args.logs], [Path(t) for t in args.test])
-        for text in args.logs:
-            (log,) = read_logs([Path(text)], robot.required(), None, tool="measure")
-            measurements += robot.measure_log(log, seed=args.seed)
+        logs = [read_logs([Path(text)], robot.required(), None, tool="measure")[0] for text in args.logs]
         if args.test:
             test = read_logs([Path(t) for t in args.test], robot.required(), None, robot.channel_limits(), "measure")
+            check_disjoint([Path(t) for t in args.logs], [Path(t) for t in args.test])
             robot.check_logs(test)
             robot.check_length(test)
+        for log in logs:
+            measurements += robot.measure_log(log, seed=args.seed)
     except (LogError, ValueError) as exc:
         print(f"measure: error: {exc}", file=sys.stderr)
         return 2

@@ -291,6 +291,12 @@ def test_out_dir_with_files_is_not_overwritten(capsys, tmp_path):
          '"effects": {"viscous_friction": {"damping": {"value": 99}}}}', "'effects.viscous_friction.damping': 99"),
         ('{"format": "skitter calibration", "version": 1, "robot": "motor", '
          '"effects": {"viscous_friction": {"damping": "lots"}}}', "'lots' is not a finite number"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "motor", "effect": {}}',
+         "unknown field 'effect' (did you mean 'effects'?)"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "motor"}', "no field 'effects'"),
+        ('{"format": "skitter calibration", "version": 1, "robot": "motor", "effects": '
+         '{"viscous_friction": {"damping": 1e-5}, "viscous_friction": {"damping": 2e-5}}}',
+         "field 'viscous_friction' is given twice"),
     ],
 )  # fmt: skip
 def test_bad_calibration_file_is_refused(capsys, tmp_path, content, needle):
@@ -671,6 +677,15 @@ def test_a_channel_that_never_moves_has_no_noise_level_and_one_that_rests_takes_
         adapter.noise(frozen)
     stepped = Log("stepped.csv", rest.df.assign(angle=np.where(np.arange(len(rest.df)) < 50, 1.0, 1.25)), {})
     assert adapter.noise(stepped)["angle"] == pytest.approx(0.25 / np.sqrt(12))
+
+
+def test_a_window_before_or_past_its_log_is_refused_as_such(capsys, tmp_path):
+    """A window must lie in its log: one that starts before the log (a negative time) is a typo, not the log's
+    start, and one past its end says so before any overlap with another window is judged."""
+    code, err = _run(capsys, tmp_path, "motor", Path(f"{GEARMOTOR}@-3:2"), Path(f"{GEARMOTOR}@5:"))
+    assert code == 2 and "@-3:2: the window starts at -3 s, before the log, which runs from" in err
+    code, err = _run(capsys, tmp_path, "motor", Path(f"{GEARMOTOR}@500:600"), Path(f"{GEARMOTOR}@5:"))
+    assert code == 2 and "@500:600: the window lies outside the log" in err and "overlaps" not in err
 
 
 def test_file_arguments_that_are_not_files_or_windows_say_so(capsys, tmp_path):

@@ -310,6 +310,21 @@ def test_a_docs_page_that_is_not_the_leaderboards_own_is_refused_before_anything
     assert leaderboard.docs_problem(page) is None and leaderboard.docs_problem(tmp_path / "new" / "page.md") is None
 
 
+def test_an_out_or_records_folder_nothing_can_be_made_in_is_refused_before_anything_runs(tmp_path, capsys):
+    (tmp_path / "file").write_text("a user's file")
+    for flag in ("--out", "--records"):
+        argv = ["--tasks", WALK, "--timesteps", "10", "--out", str(tmp_path / "b"), flag, str(tmp_path / "file" / "x")]
+        with pytest.raises(SystemExit) as exited:
+            leaderboard.main(argv)
+        err = capsys.readouterr().err
+        assert exited.value.code == 2 and f"{flag} {tmp_path / 'file' / 'x'}: " in err and "is a file" in err, err
+    with pytest.raises(SystemExit) as exited:  # a table is written here: nothing goes to a cluster
+        leaderboard.main(["--tasks", WALK, "--timesteps", "10", "--out", str(tmp_path / "b"), "--table-only",
+                          "--address", "notahost:6379"])  # fmt: skip
+    assert exited.value.code == 2 and "--table-only trains nothing" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists() and (tmp_path / "file").read_text() == "a user's file"
+
+
 def test_a_hyperparameter_entry_train_py_would_refuse_is_refused_before_anything_runs(tmp_path, capsys):
     bad = tmp_path / "ppo.yml"
     bad.write_text(f'{WALK}:\n  n_envs: "four"\n')

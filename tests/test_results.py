@@ -140,6 +140,35 @@ def test_writing_under_another_configurations_name_is_refused(toy, capsys, argv,
     assert message in err and "Traceback" not in err
 
 
+def test_an_out_folder_nothing_can_be_written_in_is_refused_before_the_benchmark_runs(toy, capsys):
+    (toy / "afile").write_text("a user's file")
+    with pytest.raises(SystemExit) as exit_info:
+        _resolve(["--out", "afile/results"])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "--out afile/results: " in err and "is a file, not a directory" in err
+    assert (toy / "afile").read_text() == "a user's file"
+
+
+@pytest.mark.parametrize(
+    ("kind", "text", "message"),
+    [
+        (common.count, "0", "a whole number >= 1, got 0"),
+        (common.count, "-5", "a whole number >= 1, got -5"),
+        (common.count, "x", "a whole number >= 1, got 'x'"),
+        (common.seed, "-1", "a whole number >= 0, got -1"),
+        (common.positive, "nan", "a finite number > 0, got nan"),
+        (common.positive, "0", "a finite number > 0, got 0"),
+    ],
+)
+def test_counts_seeds_and_durations_of_a_benchmark_are_checked_as_parsed(kind, text, message, capsys):
+    parser = argparse.ArgumentParser(prog="toy")
+    parser.add_argument("--value", type=kind)
+    with pytest.raises(SystemExit) as exit_info:
+        parser.parse_args(["--value", text])
+    assert exit_info.value.code == 2 and f"argument --value: expected {message}" in capsys.readouterr().err
+    assert parser.parse_args(["--value", "3"]).value == 3
+
+
 def test_a_folder_with_another_configurations_results_is_refused_before_anything_runs(toy, capsys):
     out = _resolve(["--size", "1", "--out", "x"])
     out.save({"value": 1}, "# one\n", echo=False)

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from envs.common.io import nearest
+
 FORMAT = "skitter calibration"
 VERSION = 1
 # the robot's name in a calibration file is the robot's own (``velociroach``); ``calibrate.py --robot`` takes the
@@ -67,6 +69,23 @@ class Calibration:
                     )
 
 
+FIELDS = ("format", "version", "robot", "effects", "provenance")  # a calibration file's, as calibration_file writes
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's pairs as a dict, refusing a key given twice (json keeps the last silently)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
 def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     """Read and check a calibration file (for ``robot`` if given)."""
     path = Path(path)
@@ -74,7 +93,9 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
         what = "a directory, not a calibration file" if path.is_dir() else "no such calibration file"
         raise CalibrationError(f"{path}: {what}")
     try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"))
+        data = json.loads(path.read_text(encoding="utf-8-sig"), object_pairs_hook=_unique_keys)
+    except _DuplicateKey as exc:
+        raise CalibrationError(f"{path}: field {exc.args[0]!r} is given twice: give each field once") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationError(f"{path}: not a readable JSON calibration file ({exc})") from None
     if not isinstance(data, dict):
@@ -85,6 +106,11 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
         given = data.get("version")
         kind = " (a string, not a number)" if isinstance(given, str) else ""
         raise CalibrationError(f"{path}: field 'version': {given!r}{kind}; this skitter reads version {VERSION}")
+    unknown = [key for key in data if key not in FIELDS]
+    if unknown:
+        near = nearest(unknown[0], FIELDS)
+        raise CalibrationError(f"{path}: unknown field {unknown[0]!r}" + (f" (did you mean {near!r}?)" if near else "")
+                               + f"; a calibration file has {', '.join(map(repr, FIELDS))}")  # fmt: skip
     name = data.get("robot")
     if not isinstance(name, str):
         raise CalibrationError(f"{path}: field 'robot': {name!r} is not a robot name")
@@ -92,6 +118,8 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     if robot is not None and name != robot:
         raise CalibrationError(f"{path}: field 'robot': the file calibrates {name!r}, not {robot!r}")
     raw = data.get("effects")
+    if "effects" not in data:
+        raise CalibrationError(f"{path}: no field 'effects' (an object of effects, each an object of parameters)")
     if not isinstance(raw, dict):
         raise CalibrationError(f"{path}: field 'effects': {raw!r} is not an object of effects")
     effects: dict[str, dict[str, float]] = {}
