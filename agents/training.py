@@ -103,12 +103,14 @@ from envs.common.io import (
     TEMP_RANDOM,
     Busy,
     ToolParser,
+    at_least_one,
     atomic_write_leftovers,
     current_umask,
     folder_lock,
     interrupted_exit_code,
     json_object,
     nearest,
+    non_negative,
     parent_problem,
     refuse_overwrite,
     sigterm_as_interrupt,
@@ -1419,33 +1421,13 @@ def check_resume_flags(args: argparse.Namespace, config: dict[str, Any]) -> None
 # --- command line -----------------------------------------------------------------------------------------------
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer (numpy seeds are), got {value}")
-    return value
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = ToolParser(prog="train.py", description="Train an SB3 agent on a skitter env (see the module docstring).")
     parser.add_argument("--env", help="gymnasium env id, e.g. skitter/RoachWalk-v4")
     parser.add_argument("--algo", choices=sorted(ALGOS), help="algorithm")
-    parser.add_argument("--timesteps", type=_positive_int, help="total env steps (with --resume: default the run's)")
-    parser.add_argument("--seed", type=_seed, help="random seed, >= 0 (default 0)")
-    parser.add_argument("--n-envs", type=_positive_int, help="override the hyperparameter file's n_envs")
+    parser.add_argument("--timesteps", type=at_least_one, help="total env steps (with --resume: default the run's)")
+    parser.add_argument("--seed", type=non_negative, help="random seed, >= 0 (default 0)")
+    parser.add_argument("--n-envs", type=at_least_one, help="override the hyperparameter file's n_envs")
     parser.add_argument("--hyperparams", help="hyperparameter YAML file (default hyperparams/<algo>.yml)")
     parser.add_argument(
         "--resume",
@@ -1461,7 +1443,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--run-name", help="run folder name (default <env>__<algo>__<seed>__<date-time>)")
     parser.add_argument(
         "--checkpoint-freq",
-        type=_positive_int,
+        type=at_least_one,
         help=f"env steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ})",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -1476,23 +1458,23 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--minutes", type=float,
                         help="stop after this much wall time (the model is saved as at --timesteps)")  # fmt: skip
     tuning = parser.add_argument_group("hyperparameter tuning (agents/tuning.py; Optuna, PPO and SAC)")
-    tuning.add_argument("--tune", type=_positive_int, metavar="TRIALS",
+    tuning.add_argument("--tune", type=at_least_one, metavar="TRIALS",
                         help="run this many Optuna trials of --timesteps each instead of one run")  # fmt: skip
     tuning.add_argument("--storage", help="the study's database URL (default sqlite:///<runs-dir>/tuning.db)")
     tuning.add_argument("--study", help="the study's name (default <env>__<algo>); processes sharing it share trials")
     tuning.add_argument(
         "--evaluations",
-        type=_positive_int,
+        type=at_least_one,
         help=f"evaluations per trial, each reported to the pruner (default {TUNE_EVALUATIONS})",
     )
-    tuning.add_argument("--eval-episodes", type=_positive_int,
+    tuning.add_argument("--eval-episodes", type=at_least_one,
                         help=f"episodes per evaluation (default {TUNE_EVAL_EPISODES})")  # fmt: skip
     tuning.add_argument("--tune-metric", metavar="METRIC",
                         help="what a trial scores: the mean return (default), or an episode metric of the env, "
                              "such as speed or yaw_rate_error (minimized where smaller is better)")  # fmt: skip
     soccer = parser.add_argument_group("soccer self-play (agents/soccer/selfplay.py; PPO, the commands mode)")
     soccer.add_argument("--soccer", choices=SOCCER_ROBOTS, help="train a team of this robot by self-play")
-    soccer.add_argument("--players", type=_positive_int, help="players a side, 1 to 4 (default 3)")
+    soccer.add_argument("--players", type=at_least_one, help="players a side, 1 to 4 (default 3)")
     soccer.add_argument("--match-seconds", type=float, help="each match's length, s (default 60)")
     soccer.add_argument(
         "--scripted-share",
@@ -1501,7 +1483,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     soccer.add_argument(
         "--snapshot-freq",
-        type=_positive_int,
+        type=at_least_one,
         help="env steps between the learner's snapshots into its pool (default --checkpoint-freq)",
     )
     args = parser.parse_args(argv)

@@ -24,9 +24,9 @@ import mujoco
 import numpy as np
 
 import envs  # noqa: F401
-from benchmarks.common import add_output_options, count, md_table, resolve_output, robot_task_ids
+from benchmarks.common import add_output_options, md_table, resolve_output, robot_task_ids
 from envs.common.batch import default_threads
-from envs.common.io import ToolParser
+from envs.common.io import ToolParser, at_least_one
 from envs.common.simulation import CTRL_SPEC
 
 GOAL_RAW = 0.9
@@ -156,9 +156,9 @@ CONFIGURATIONS: dict[str, list[str]] = {"batch_speed": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--num-envs", type=count, nargs="+", default=[4, 16, 64, 128])
-    parser.add_argument("--steps", type=count, default=150, help="control steps per timing (duty ids: x10)")
-    parser.add_argument("--rounds", type=count, default=3)
+    parser.add_argument("--num-envs", type=at_least_one, nargs="+", default=[4, 16, 64, 128])
+    parser.add_argument("--steps", type=at_least_one, default=150, help="control steps per timing (duty ids: x10)")
+    parser.add_argument("--rounds", type=at_least_one, default=3)
     add_output_options(parser)
     return parser
 

@@ -30,8 +30,8 @@ import numpy as np
 
 from agents.bioloid.cpg import AMPLITUDE_SCALE, CPG, parse_coupling
 from benchmarks.bioloid_cpg_check import check, drop_rebound, markdown
-from benchmarks.common import Output, add_output_options, count, md_table, resolve_output
-from envs.common.io import ToolParser, write_text
+from benchmarks.common import Output, add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, at_least_one, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = (5, 6)
@@ -163,7 +163,7 @@ reference trot, and per experiment the best policy and its frames."""
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--no-check", action="store_true", help="skip the physical checks and the evaluation")
-    parser.add_argument("--episodes", type=count, default=20, help="evaluate.py episodes per policy")
+    parser.add_argument("--episodes", type=at_least_one, default=20, help="evaluate.py episodes per policy")
     add_output_options(parser)
     return parser
 

@@ -19,8 +19,8 @@ import numpy as np
 
 from agents.bioloid.ik import IKRollouts
 from agents.optimize.problem import Evaluator, parse_config
-from benchmarks.common import add_output_options, md_table, resolve_output, seed
-from envs.common.io import ToolParser
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, non_negative
 
 FREQUENCIES = (0.5, 1.0, 1.5, 2.0)
 ORDER = ("trot", "walk", "gallop", "canter", "pace", "bound", "pronk")
@@ -108,7 +108,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_figure30": [], "bioloid_figure3
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--seeds", type=seed, default=4, help="perturbed starts per cell beside the nominal one")
+    parser.add_argument("--seeds", type=non_negative, default=4, help="perturbed starts per cell beside the nominal")
     parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant (seed IV.A)")
     add_output_options(parser)
     return parser

@@ -35,9 +35,9 @@ from agents import load_policy
 from agents.optimize.problem import read_config
 from agents.optimize.run import LocalBackend, Settings, run
 from benchmarks.batch_speed import time_raw as time_raw_batch
-from benchmarks.common import add_output_options, count, md_table, resolve_output
+from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import policy_episode, time_raw
-from envs.common.io import ToolParser
+from envs.common.io import ToolParser, at_least_one
 
 WALK = "skitter/BioloidWalk-v2"
 EPISODE = 500  # control steps: 10 s at 50 Hz
@@ -188,7 +188,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_speed": []}
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="fewer rounds and PSO iterations")
-    parser.add_argument("--pso-iterations", type=count, default=None, help="seed-scale PSO iterations to time")
+    parser.add_argument("--pso-iterations", type=at_least_one, default=None, help="seed-scale PSO iterations to time")
     add_output_options(parser)
     return parser
 

@@ -18,8 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.common import add_output_options, md_table, positive, resolve_output, seed
-from envs.common.io import ToolParser
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, non_negative, positive_number
 from envs.common.telemetry import write_telemetry
 from sysid import cli as calibrate_cli
 from sysid import synth
@@ -35,9 +35,9 @@ CONFIGURATIONS: dict[str, list[str]] = {"calibrate_speed": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--seconds", type=positive, default=60.0)
+    parser.add_argument("--seconds", type=positive_number, default=60.0)
     parser.add_argument("--effect", default="coulomb_friction_right")
-    parser.add_argument("--seed", type=seed, default=0)
+    parser.add_argument("--seed", type=non_negative, default=0)
     add_output_options(parser)
     return parser
 

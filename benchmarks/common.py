@@ -34,39 +34,6 @@ STANDARD_FILES = ("{name}.json", "{name}.md")
 OUTPUT_OPTIONS = frozenset({"out", "name"})
 
 
-def count(text: str) -> int:
-    """An argparse type: a whole number of at least 1 (steps, rounds, episodes, simulations)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
-    return value
-
-
-def seed(text: str) -> int:
-    """An argparse type: a whole number of at least 0 (a seed, a number of extra draws)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {value}")
-    return value
-
-
-def positive(text: str) -> float:
-    """An argparse type: a finite number above 0 (seconds, frequencies)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
-    return value
-
-
 def robot_task_ids() -> list[str]:
     """The registered ids of the robots' own tasks (walking, turning, rough ground), sorted; the soccer academy's
     ids step a shared scene with a field and a ball, which ``benchmarks.soccer_speed`` measures."""

@@ -25,8 +25,8 @@ import numpy as np
 from mujoco import rollout
 
 import envs  # noqa: F401
-from benchmarks.common import add_output_options, count, md_table, resolve_output, robot_task_ids
-from envs.common.io import ToolParser
+from benchmarks.common import add_output_options, md_table, resolve_output, robot_task_ids
+from envs.common.io import ToolParser, at_least_one
 from envs.common.simulation import CTRL_SPEC, STATE_SPEC
 
 GOAL = 0.9
@@ -195,8 +195,8 @@ CONFIGURATIONS: dict[str, list[str]] = {"env_speed": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--steps", type=count, default=600, help="control steps per round (duty envs: x10)")
-    parser.add_argument("--rounds", type=count, default=9)
+    parser.add_argument("--steps", type=at_least_one, default=600, help="control steps per round (duty envs: x10)")
+    parser.add_argument("--rounds", type=at_least_one, default=9)
     add_output_options(parser)
     return parser
 

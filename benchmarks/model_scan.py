@@ -16,8 +16,8 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
-from benchmarks.common import add_output_options, count, md_table, positive, resolve_output
-from envs.common.io import ToolParser
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, at_least_one, positive_number
 from envs.common.locomotion import quat_up, quat_yaw
 from envs.velociroach import constants
 from envs.velociroach.robot import VelociRoach
@@ -131,8 +131,8 @@ CONFIGURATIONS: dict[str, list[str]] = {"model_scan": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--seeds", type=count, default=4)
-    parser.add_argument("--seconds", type=positive, default=4.0)
+    parser.add_argument("--seeds", type=at_least_one, default=4)
+    parser.add_argument("--seconds", type=positive_number, default=4.0)
     add_output_options(parser)
     return parser
 

@@ -22,9 +22,9 @@ import numpy as np
 
 import envs  # noqa: F401
 from agents import load_policy
-from benchmarks.common import add_output_options, count, md_table, resolve_output
+from benchmarks.common import add_output_options, md_table, resolve_output
 from benchmarks.env_speed import policy_episode, time_raw
-from envs.common.io import ToolParser
+from envs.common.io import ToolParser, at_least_one
 
 GOAL = 10.0
 ENV_ID = "skitter/RoachWalk-v4"
@@ -36,7 +36,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"realtime": []}
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--rounds", type=count, default=3, help="alternating rounds of the episode and its replay")
+    parser.add_argument("--rounds", type=at_least_one, default=3, help="rounds of the episode and its replay, in turn")
     add_output_options(parser)
     return parser
 

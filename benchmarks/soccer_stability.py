@@ -25,8 +25,8 @@ import numpy as np
 from scipy import stats
 
 from agents.soccer.vec_env import SoccerVecEnv
-from benchmarks.common import add_output_options, md_table, resolve_output, seed
-from envs.common.io import ToolParser
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, non_negative
 from envs.common.simulation import DIVERGED_SPEED, REFINE_AGAIN
 from envs.soccer.match import REFINE_UNSTABLE
 
@@ -105,7 +105,7 @@ def make_parser() -> argparse.ArgumentParser:
     parser.add_argument("--robots", nargs="+", choices=ROBOTS, default=list(ROBOTS))
     parser.add_argument("--matches", type=int, default=32, help="two-a-side matches per robot, batched")
     parser.add_argument("--steps", type=int, default=1250, help="control steps from each seed")
-    parser.add_argument("--seeds", type=seed, nargs="+", default=[0, 1])
+    parser.add_argument("--seeds", type=non_negative, nargs="+", default=[0, 1])
     add_output_options(parser)
     return parser
 

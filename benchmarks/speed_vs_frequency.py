@@ -15,8 +15,8 @@ import numpy as np
 
 import envs  # noqa: F401
 from agents.velociroach.tripod import TripodContext, TripodGait
-from benchmarks.common import add_output_options, count, md_table, positive, resolve_output
-from envs.common.io import ToolParser, atomic_write
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, at_least_one, atomic_write, positive_number
 from envs.velociroach import constants
 
 WARMUP = 1.0
@@ -66,8 +66,8 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--seeds", type=count, default=5)
-    parser.add_argument("--seconds", type=positive, default=6.0)
+    parser.add_argument("--seeds", type=at_least_one, default=5)
+    parser.add_argument("--seconds", type=positive_number, default=6.0)
     add_output_options(parser)
     return parser
 

@@ -15,8 +15,8 @@ import torch
 
 import envs  # noqa: F401
 from agents.training import HYPERPARAMS_DIR, TORCH_THREADS, build_model, load_hyperparams, make_env
-from benchmarks.common import add_output_options, count, md_table, resolve_output
-from envs.common.io import ToolParser
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, at_least_one
 
 FIRST_DEMO_DUMMY = 865.0  # steps/s, the first training demo (DummyVecEnv, same hyperparameters)
 
@@ -38,8 +38,8 @@ CONFIGURATIONS: dict[str, list[str]] = {"train_speed": []}
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--env", default="skitter/RoachWalk-v4")
-    parser.add_argument("--steps", type=count, default=40960)
-    parser.add_argument("--n-envs", type=count, nargs="+", default=[4, 16])
+    parser.add_argument("--steps", type=at_least_one, default=40960)
+    parser.add_argument("--n-envs", type=at_least_one, nargs="+", default=[4, 16])
     add_output_options(parser)
     return parser
 

@@ -16,8 +16,8 @@ from scipy.optimize import isotonic_regression
 
 import envs  # noqa: F401  (registers the envs)
 from agents.velociroach.tripod import TURN_TABLE, TripodContext, TripodGait
-from benchmarks.common import add_output_options, count, md_table, positive, resolve_output
-from envs.common.io import ToolParser, atomic_write, write_json
+from benchmarks.common import add_output_options, md_table, resolve_output
+from envs.common.io import ToolParser, at_least_one, atomic_write, positive_number, write_json
 
 PHASES_DEG = np.arange(90, 271, 10)
 # The table spans 130..230 deg: beyond it the model falls into fast spinning modes (about +-150 deg/s near 110 and
@@ -66,10 +66,10 @@ FILES = ("{name}.json", "{name}.md", "{name}.png")
 
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
-    parser.add_argument("--frequencies", type=positive, nargs="+", default=[5.0, 10.0, 20.0])
-    parser.add_argument("--table-frequency", type=positive, default=10.0)
-    parser.add_argument("--seeds", type=count, default=6)
-    parser.add_argument("--seconds", type=positive, default=8.0)
+    parser.add_argument("--frequencies", type=positive_number, nargs="+", default=[5.0, 10.0, 20.0])
+    parser.add_argument("--table-frequency", type=positive_number, default=10.0)
+    parser.add_argument("--seeds", type=at_least_one, default=6)
+    parser.add_argument("--seconds", type=positive_number, default=8.0)
     add_output_options(parser)
     return parser
 

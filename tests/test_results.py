@@ -20,7 +20,7 @@ import pytest
 
 import benchmarks
 from benchmarks import common
-from envs.common import host
+from envs.common import host, io
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
 
@@ -152,12 +152,12 @@ def test_an_out_folder_nothing_can_be_written_in_is_refused_before_the_benchmark
 @pytest.mark.parametrize(
     ("kind", "text", "message"),
     [
-        (common.count, "0", "a whole number >= 1, got 0"),
-        (common.count, "-5", "a whole number >= 1, got -5"),
-        (common.count, "x", "a whole number >= 1, got 'x'"),
-        (common.seed, "-1", "a whole number >= 0, got -1"),
-        (common.positive, "nan", "a finite number > 0, got nan"),
-        (common.positive, "0", "a finite number > 0, got 0"),
+        (io.at_least_one, "0", "a whole number >= 1, got 0"),
+        (io.at_least_one, "-5", "a whole number >= 1, got -5"),
+        (io.at_least_one, "x", "a whole number >= 1, got 'x'"),
+        (io.non_negative, "-1", "a whole number >= 0, got -1"),
+        (io.positive_number, "nan", "a finite number > 0, got nan"),
+        (io.positive_number, "0", "a finite number > 0, got 0"),
     ],
 )
 def test_counts_seeds_and_durations_of_a_benchmark_are_checked_as_parsed(kind, text, message, capsys):

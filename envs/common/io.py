@@ -339,6 +339,37 @@ def json_object(text: str, flag: str) -> dict[str, Any]:
     return value
 
 
+def _whole_number(text: str, least: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= {least}, got {text!r}") from None
+    if value < least:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= {least}, got {value}")
+    return value
+
+
+def at_least_one(text: str) -> int:
+    """An argparse type: a whole number of at least 1 (steps, rounds, episodes, simulations)."""
+    return _whole_number(text, 1)
+
+
+def non_negative(text: str) -> int:
+    """An argparse type: a whole number of at least 0 (a seed, as numpy takes it; a number of extra draws)."""
+    return _whole_number(text, 0)
+
+
+def positive_number(text: str) -> float:
+    """An argparse type: a finite number above 0 (seconds, frequencies)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
+    return value
+
+
 class ToolParser(argparse.ArgumentParser):
     """The command-line parser of every skitter tool: a bad argument is one line, ``PROG: error: ... (see --help)``,
     and exit code 2, without argparse's usage block. A ``description`` is a module's docstring: ``--help`` shows its
