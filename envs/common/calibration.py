@@ -69,7 +69,7 @@ class Calibration:
                     )
 
 
-FIELDS = ("format", "version", "robot", "effects", "provenance")  # a calibration file's, as calibration_file writes
+FIELDS = ("format", "version", "robot", "effects", "provenance")  # as calibration_record writes a file
 
 
 class _DuplicateKey(ValueError):
