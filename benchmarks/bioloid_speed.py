@@ -36,7 +36,7 @@ from agents.optimize.problem import read_config
 from agents.optimize.run import LocalBackend, Settings, run
 from benchmarks.batch_speed import time_raw as time_raw_batch
 from benchmarks.common import add_output_options, md_table, resolve_output
-from benchmarks.env_speed import policy_episode, time_raw
+from benchmarks.env_speed import alternate_with_replay, time_raw
 from envs.common.io import ToolParser, at_least_one
 
 WALK = "skitter/BioloidWalk-v2"
@@ -128,23 +128,11 @@ def real_time_factor(rounds: int) -> dict:
     env = gym.make(WALK)
     policy = load_policy("ik-trot", env)
     base = env.unwrapped
-    recorded = policy_episode(env, policy, record=True)
-    env.reset(seed=0)
-    start = mujoco.MjData(base.model)
-    mujoco.mj_copyData(start, base.model, base.data)
-    blocks = recorded["blocks"]
-    resets = np.zeros(len(blocks), dtype=bool)
-    env_rtfs, raw_rtfs, same = [], [], True
-    for _ in range(rounds):
-        run = policy_episode(env, policy)
-        env_rtfs.append(run["rtf"])
-        same &= bool(np.array_equal(run["final_qpos"], recorded["final_qpos"]))
-        rate, final = time_raw(base.model, start, blocks, resets, recorded["gains"])
-        raw_rtfs.append(rate * recorded["seconds"] / len(blocks))
-        same &= bool(np.allclose(final, recorded["final_qpos"], atol=1e-6))
+    run = alternate_with_replay(env, policy, rounds)
+    env_rtfs = run["env_rtfs"]
     return {"physics_dt": float(base.model.opt.timestep), "rtf_best": max(env_rtfs),
-            "rtf_mean": float(np.mean(env_rtfs)), "rtf_raw_physics": max(raw_rtfs),
-            "share": float(np.median(np.array(env_rtfs) / np.array(raw_rtfs))), "replay_matches": same}  # fmt: skip
+            "rtf_mean": float(np.mean(env_rtfs)), "rtf_raw_physics": max(run["raw_rtfs"]), "share": run["share"],
+            "replay_matches": run["same"]}  # fmt: skip
 
 
 def pso_fraction(iterations: int, threads: int) -> dict:

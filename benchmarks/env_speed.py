@@ -90,6 +90,32 @@ def policy_episode(env, policy, seed: int = 0, record: bool = False) -> dict:
     return out
 
 
+def alternate_with_replay(env, policy, rounds: int) -> dict:
+    """``policy``'s episode from seed 0 and its physics replayed raw (:func:`time_raw`: its control blocks and gains
+    from its start), alternating in ``rounds`` rounds so that a shared host's drift falls on both: the recorded
+    episode, each round's real-time factors (``env_rtfs``, ``raw_rtfs``), the env's share of the raw speed (the
+    median round's) and whether every replay and episode ended where the recorded one did (``same``)."""
+    base = env.unwrapped
+    recorded = policy_episode(env, policy, record=True)
+    env.reset(seed=0)
+    start = mujoco.MjData(base.model)
+    mujoco.mj_copyData(start, base.model, base.data)
+    nominal_gains = base.model.actuator_gainprm.copy()
+    blocks = recorded["blocks"]
+    resets = np.zeros(len(blocks), dtype=bool)
+    env_rtfs, raw_rtfs, same = [], [], True
+    for _ in range(rounds):
+        run = policy_episode(env, policy)
+        env_rtfs.append(run["rtf"])
+        same &= bool(np.array_equal(run["final_qpos"], recorded["final_qpos"]))
+        rate, final = time_raw(base.model, start, blocks, resets, recorded["gains"])
+        base.model.actuator_gainprm[:] = nominal_gains  # the replay wrote the blocks' gains into the env's model
+        raw_rtfs.append(rate * recorded["seconds"] / len(blocks))
+        same &= bool(np.allclose(final, recorded["final_qpos"], atol=1e-6))
+    share = float(np.median(np.array(env_rtfs) / np.array(raw_rtfs)))
+    return {"recorded": recorded, "env_rtfs": env_rtfs, "raw_rtfs": raw_rtfs, "share": share, "same": same}
+
+
 def time_raw(model, start: mujoco.MjData, blocks: np.ndarray, resets: np.ndarray,
              gains: np.ndarray | None = None) -> tuple[float, np.ndarray]:  # fmt: skip
     """One native call per control step, as a hand-written loop would make it (writing each block's actuator gains

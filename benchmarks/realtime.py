@@ -17,13 +17,12 @@ import argparse
 import os
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 import envs  # noqa: F401
 from agents import load_policy
 from benchmarks.common import add_output_options, md_table, resolve_output
-from benchmarks.env_speed import policy_episode, time_raw
+from benchmarks.env_speed import alternate_with_replay
 from envs.common.io import ToolParser, at_least_one
 
 GOAL = 10.0
@@ -49,23 +48,8 @@ def main(argv: list[str] | None = None) -> None:
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # one core
     env = gym.make(ENV_ID)
     policy = load_policy("tripod:45", env)
-    base = env.unwrapped
-    recorded = policy_episode(env, policy, record=True)
-    env.reset(seed=0)
-    start = mujoco.MjData(base.model)
-    mujoco.mj_copyData(start, base.model, base.data)
-    nominal_gains = base.model.actuator_gainprm.copy()
-    blocks, resets = recorded["blocks"], np.zeros(len(recorded["blocks"]), dtype=bool)
-    env_rtfs, raw_rtfs, same = [], [], True
-    for _ in range(args.rounds):
-        run = policy_episode(env, policy)
-        env_rtfs.append(run["rtf"])
-        same &= bool(np.array_equal(run["final_qpos"], recorded["final_qpos"]))
-        rate, final = time_raw(base.model, start, blocks, resets, recorded["gains"])
-        base.model.actuator_gainprm[:] = nominal_gains  # the replay wrote the blocks' gains into the env's model
-        raw_rtfs.append(rate * recorded["seconds"] / len(blocks))
-        same &= bool(np.allclose(final, recorded["final_qpos"], atol=1e-6))
-    shares = np.array(env_rtfs) / np.array(raw_rtfs)
+    run = alternate_with_replay(env, policy, args.rounds)
+    recorded, env_rtfs, raw_rtfs, same = run["recorded"], run["env_rtfs"], run["raw_rtfs"], run["same"]
     best = max(env_rtfs)
     rows = [
         ["env + tripod, best round", round(best, 1), "met" if best >= GOAL else "MISSED"],
@@ -76,11 +60,11 @@ def main(argv: list[str] | None = None) -> None:
     text = (
         f"# Real-time factor, {ENV_ID}, tripod at 45 Hz, one core\n\n"
         + md_table(["what", "real-time factor (x)", f"goal >= {GOAL:g}x"], rows)
-        + f"\nThe env's share of the raw speed: {np.median(shares):.3f} (median of {args.rounds} alternating rounds; "
+        + f"\nThe env's share of the raw speed: {run['share']:.3f} (median of {args.rounds} alternating rounds; "
         f"the replay {'ends where the env ended' if same else 'DID NOT end where the env ended'}). Forward speed in "
         f"the episode: {recorded['speed']:.2f} m/s.\n"
     )
-    output.save({"goal": GOAL, "rtf_rounds": env_rtfs, "rtf_raw_rounds": raw_rtfs, "share": float(np.median(shares)),
+    output.save({"goal": GOAL, "rtf_rounds": env_rtfs, "rtf_raw_rounds": raw_rtfs, "share": run["share"],
                  "replay_matches": same, "speed": float(recorded["speed"])}, text)  # fmt: skip
 
 
