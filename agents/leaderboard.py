@@ -432,6 +432,9 @@ def run_row(plan: Plan, row: Row, out: Path, threads: int, records: Path | None 
             command = _tool("train.py", *_env(row.task), *_algo_options(plan, row.algo), "--seed", row.seed,
                             "--timesteps", plan.steps(row.task), "--runs-dir", runs, "--run-name", row.name,
                             "--no-progress", *budget)  # fmt: skip
+        start = "resuming from its last checkpoint" if resuming else "training"
+        print(f"leaderboard: {row.name}: {start}, to {plan.steps(row.task):,} steps; its progress is in {log}",
+              flush=True)  # fmt: skip
         _run(command, threads, log)
     trained = _trained_steps(run_dir)
     if is_soccer(row.task):

@@ -888,6 +888,62 @@ class TimeBudgetCallback(BaseCallback):
         return False
 
 
+PROGRESS_SECONDS = 60.0  # wall time between two of ProgressLineCallback's lines
+
+
+class ProgressLineCallback(BaseCallback):
+    """Without a progress bar (``--no-progress``, or output that is not a terminal), one line of progress every
+    ``seconds`` of wall time, at the end of a rollout: the steps taken of the run's total, the rate since this process
+    started learning, the time left at that rate and the mean return of the last episodes (SB3's
+    ``ep_info_buffer``). A log file (``nohup``, the leaderboard's rows) then says how far a run of hours has come."""
+
+    def __init__(self, total: int, seconds: float | None = None):
+        super().__init__()
+        self.total = int(total)
+        self.seconds = PROGRESS_SECONDS if seconds is None else float(seconds)
+
+    def _on_training_start(self) -> None:
+        self._start = self._last = time.monotonic()
+        self._steps_at_start = self.num_timesteps
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_end(self) -> None:
+        now = time.monotonic()
+        if now - self._last >= self.seconds:
+            self._last = now
+            print(self.line(now - self._start), flush=True)
+
+    def line(self, elapsed: float) -> str:
+        """The progress line after ``elapsed`` seconds of this process's learning."""
+        done = self.num_timesteps
+        rate = (done - self._steps_at_start) / elapsed if elapsed > 0 else 0.0
+        text = f"step {done:,} of {self.total:,} ({100.0 * done / self.total:.0f}%), {rate:.0f} steps/s"
+        if rate > 0 and done < self.total:
+            left = (self.total - done) / rate
+            ends = time.strftime("%H:%M", time.localtime(time.time() + left))
+            text += f", {_duration(left)} left (ends about {ends})"
+        episodes = self.model.ep_info_buffer
+        if episodes:
+            mean = float(np.mean([e["r"] for e in episodes]))
+            shown = f"{mean:,.0f}" if abs(mean) >= 1000 else f"{mean:.3g}"
+            text += f", mean return {shown} over the last {len(episodes)} episodes"
+        return text
+
+
+def progress_bar(args: argparse.Namespace) -> bool:
+    """Whether training shows SB3's progress bar: on a terminal, unless ``--no-progress``; elsewhere (a log file)
+    :class:`ProgressLineCallback`'s lines take its place."""
+    return not args.no_progress and sys.stdout.isatty()
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` as ``1 h 05 min`` or ``7 min``."""
+    minutes = round(seconds / 60.0)
+    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
+
+
 class RunCheckpointCallback(BaseCallback):
     """Save a checkpoint folder of the run (:func:`save_checkpoint`) every ``freq`` env steps (all envs together)
     and at the end of training."""
@@ -971,6 +1027,8 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
     logging = [EpisodeMetricsCallback()] if callbacks is None else callbacks
     if config.get("minutes"):
         logging = [*logging, TimeBudgetCallback(config["minutes"])]
+    if not progress:
+        logging = [*logging, ProgressLineCallback(config["timesteps"])]
     _say_whole_rollouts(model, config["timesteps"])
     try:
         model.learn(
@@ -1040,7 +1098,7 @@ def start_run(args: argparse.Namespace) -> Path:
         lock_run(run_dir, stack)
         config = new_run_config(args, args.env, seed, hp, hyperparams_file, run_dir, {"hyperparams_entry": key})
         print(f"run folder: {run_dir}")
-        return train(model, run_dir, config, progress=not args.no_progress)
+        return train(model, run_dir, config, progress=progress_bar(args))
 
 
 def buffer_bytes(hp: Hyperparams, algo: str, observation: gym.Space, action: gym.Space,
@@ -1189,7 +1247,7 @@ def start_selfplay(args: Any) -> Path:
         config = new_run_config(args, key, seed, hp, hyperparams_file, run_dir, extra)
         print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
         callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], run_manifest(config))
-        return train(model, run_dir, config, progress=not args.no_progress, callbacks=[callback])
+        return train(model, run_dir, config, progress=progress_bar(args), callbacks=[callback])
 
 
 def selfplay_residual(name: str, key: str, hyperparams_file: Path) -> dict[str, Any]:
@@ -1393,7 +1451,7 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     previous = command_file.read_text() if command_file.is_file() else ""
     write_text(command_file, previous + command_line() + "\n")
     print(f"resuming {run_dir} from {checkpoint.folder.name} ({done} steps) to {timesteps} steps")
-    return train(model, run_dir, config, progress=not args.no_progress, callbacks=callbacks)
+    return train(model, run_dir, config, progress=progress_bar(args), callbacks=callbacks)
 
 
 def check_env_id(env_id: str) -> None:
@@ -1446,7 +1504,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         type=at_least_one,
         help=f"env steps between checkpoints (default {DEFAULT_CHECKPOINT_FREQ})",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar: a line of progress a minute instead (as when the output is not a terminal)",
+    )
     parser.add_argument("--residual", metavar="GAIT",
                         help="train a residual policy on top of this scripted gait ('reference': the env's own, the "
                              "robot's reference gait or on a soccer academy task in the commands mode the scripted "

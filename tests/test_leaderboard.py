@@ -79,7 +79,8 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     for record in rows.values():  # trained in seconds: its policy after an hour is its final model
         assert record["one_hour"]["final"] and record["one_hour"]["timesteps"] == record["timesteps"]
     assert "## After an hour of training" in text and "(its final model)" in text
-    capsys.readouterr()
+    log = out / "rows" / "skitter_RoachWalk-v4__ppo__0" / "log.txt"  # where a row's training says how far it is
+    assert f"skitter_RoachWalk-v4__ppo__0: training, to 256 steps; its progress is in {log}" in capsys.readouterr().out
     # again: every row is done, nothing trains
     assert leaderboard.main(argv) == 0
     assert "(0 to run)" in capsys.readouterr().out

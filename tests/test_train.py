@@ -322,6 +322,21 @@ def test_batched_and_dummy_vec_envs_train_the_same_model(tmp_path):
         assert torch.equal(tensor, weights["dummy"][name]), name
 
 
+def test_without_a_progress_bar_a_run_prints_a_line_of_progress(tmp_path, monkeypatch):
+    """With ``--no-progress`` (or output to a file) the run says how far it has come, at the end of a rollout."""
+    from agents import training
+
+    monkeypatch.setattr(training, "PROGRESS_SECONDS", 0.0)  # a line every rollout, not every minute
+    hyperparams = tmp_path / "ppo.yml"
+    hyperparams.write_text(TINY_PPO)
+    result = train_ok("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--runs-dir", tmp_path / "runs",
+                      "--hyperparams", hyperparams)  # fmt: skip
+    lines = [line for line in result.stdout.splitlines() if line.startswith("step ")]
+    steps = [int(re.match(r"step ([\d,]+) of 256 \(\d+%\), \d+ steps/s", line)[1]) for line in lines]
+    assert steps == [64, 128, 192, 256], lines
+    assert all(" left (ends about " in line for line in lines[:-1]) and " left " not in lines[-1]
+
+
 # --- bad input, damaged checkpoints, SIGTERM ----------------------------------------------------------------------
 
 
