@@ -64,6 +64,67 @@ def table(measurements: Sequence[Measurement]) -> str:
     return "\n".join(lines) + "\n"
 
 
+# --- the conditions of training and held-out logs -----------------------------------------------------------------
+@dataclass(frozen=True)
+class ConditionCheck:
+    """One held-out log's measurement of a condition quantity (a log's load, its ground) against the training logs'
+    measurements of it: ``outside`` where its interval overlaps none of theirs and lies beyond all of them."""
+
+    quantity: str
+    side: str
+    unit: str
+    training: tuple[Measurement, ...]
+    held_out: Measurement
+
+    @property
+    def outside(self) -> bool:
+        low, high = min(m.low for m in self.training), max(m.high for m in self.training)
+        return self.held_out.high < low or self.held_out.low > high
+
+    @property
+    def direction(self) -> str:
+        """ "above" or "below" the training logs (meaningful where :attr:`outside`)."""
+        return "above" if self.held_out.low > max(m.high for m in self.training) else "below"
+
+
+def compare_conditions(train: Sequence[Measurement], test: Sequence[Measurement],
+                       quantities: Sequence[str]) -> list[ConditionCheck]:  # fmt: skip
+    """Each held-out log's measurement of each condition quantity (and side) against the training logs' of it; only
+    quantities measured on at least one training log and the held-out log."""
+    checks = []
+    for q in quantities:
+        for m in test:
+            if m.quantity != q:
+                continue
+            training = tuple(t for t in train if t.quantity == q and t.side == m.side)
+            if training:
+                checks.append(ConditionCheck(q, m.side, m.unit, training, m))
+    return checks
+
+
+def conditions_table(checks: Sequence[ConditionCheck]) -> str:
+    """A markdown table of :func:`compare_conditions`' checks and a sentence naming those outside."""
+
+    def shown(m: Measurement) -> str:
+        return f"{m.value:.3g} [{m.low:.3g}, {m.high:.3g}]"
+
+    lines = ["| quantity | side | training logs (95%) | held-out log | held-out (95%) | |", "|---|---|---|---|---|---|"]
+    for c in checks:
+        training = "; ".join(shown(m) for m in c.training)
+        verdict = f"**outside, {c.direction}**" if c.outside else "within"
+        lines.append(f"| {c.quantity} ({c.unit}) | {c.side or '-'} | {training} | {c.held_out.log} | "
+                     f"{shown(c.held_out)} | {verdict} |")  # fmt: skip
+    outside = [c for c in checks if c.outside]
+    if outside:
+        named = "; ".join(f"{c.quantity} {c.side} on {c.held_out.log} ({shown(c.held_out)}, {c.direction})"
+                          for c in outside)  # fmt: skip
+        lines += ["", f"Held-out logs ran under conditions no training log holds: {named}. What the training logs "
+                  "asked of the model was asked under other conditions, and need not carry over to them."]  # fmt: skip
+    else:
+        lines += ["", "Every held-out log ran under conditions within the training logs'."]
+    return "\n".join(lines) + "\n"
+
+
 # --- measurements as a calibration ------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class EffectReading:

@@ -135,6 +135,10 @@ class Adapter(ABC):
     # the first segment of a log (or of a window of one) starts from a guessed body state, since the log does not
     # hold it: with ``burn_in`` it is replayed only to carry its end over, and its residual is not counted
     burn_in: bool = False
+    # the measurements of :meth:`measure_log` that describe what a log ran under (the load on the legs, the ground),
+    # not the robot: a held-out log whose interval lies outside every training log's ran under conditions the
+    # training did not hold, and the report names it (sysid.measurement.compare_conditions)
+    condition_quantities: tuple[str, ...] = ()
     # a log too short for segments of ``segment_seconds`` is cut into shorter ones, each of at least this many of
     # its strides (:meth:`stride_seconds`), so that a short run still holds a burn-in and a scored segment; 0: never
     min_segment_strides: float = 0.0

@@ -150,21 +150,37 @@ def report_extra(adapter, result) -> dict[str, Any]:
     records and a section, with the logs too short for it named."""
     from dataclasses import asdict
 
-    from sysid.measurement import table
+    from sysid.measurement import compare_conditions, conditions_table, table
 
     extra = dict(adapter.report_extra(result))
-    found, skipped = [], []
-    for log in [*result.train, *result.test]:
-        try:
-            found += adapter.measure_log(log)
-        except ValueError as exc:
-            skipped.append(f"- {exc}")
+    measured: dict[str, list] = {"train": [], "test": []}
+    skipped = []
+    for which, logs in (("train", result.train), ("test", result.test)):
+        for log in logs:
+            try:
+                measured[which] += adapter.measure_log(log)
+            except ValueError as exc:
+                skipped.append(f"- {exc}")
+    found = measured["train"] + measured["test"]
     if found or skipped:
         extra["measured"] = [asdict(m) for m in found]
         extra["sections"] = {**extra.get("sections", {}), "Measured directly (no simulator)": (
             "What the logs measure by themselves, beside the nominal model's values (`python -m sysid.measure`).\n\n"
             + (table(found) if found else "") + ("\n" + "\n".join(skipped) + "\n" if skipped else ""))}  # fmt: skip
+    checks = compare_conditions(measured["train"], measured["test"], adapter.condition_quantities)
+    if checks:
+        extra["conditions"] = [{"quantity": c.quantity, "side": c.side, "log": c.held_out.log, "outside": c.outside,
+                                "held_out": [c.held_out.value, c.held_out.low, c.held_out.high],
+                                "training": [[m.log, m.value, m.low, m.high] for m in c.training]}
+                               for c in checks]  # fmt: skip
+        extra["sections"][CONDITIONS] = (
+            "What each held-out log measures by itself of the conditions it ran under (the robot's "
+            f"{', '.join(adapter.condition_quantities)}), against the training logs' (`python -m sysid.measure`).\n\n"
+            + conditions_table(checks))  # fmt: skip
     return extra
+
+
+CONDITIONS = "Held-out logs against the training logs' conditions"
 
 
 def report_markdown(report: Mapping[str, Any]) -> str:
@@ -220,6 +236,11 @@ def report_markdown(report: Mapping[str, Any]) -> str:
             lines += ["", f"Declared for this robot but kept out of its catalog: {', '.join(t['out_of_catalog'])}."]
         if t["missing"]:
             lines += ["", f"Kinds of effect not declared for this robot: {', '.join(t['missing'])}."]
+        outside = [c for c in (r.get("extra") or {}).get("conditions", []) if c["outside"]]
+        if outside:
+            named = ", ".join(sorted({f"{c['quantity']} {c['side']}".strip() for c in outside}))
+            lines += ["", f"The held-out logs ran under conditions no training log holds ({named}; section "
+                      f"\"{CONDITIONS}\"): a residual there may be the conditions', not the model's."]  # fmt: skip
     if r["diagnostics"]["findings_before"]:
         lines += ["", "## What the residual pointed to (held-out, before)", ""]
         lines += [f"- {x}" for x in r["diagnostics"]["findings_before"]]

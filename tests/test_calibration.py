@@ -1176,3 +1176,38 @@ def test_an_effect_refused_at_the_end_of_its_range_says_what_the_data_ask_for():
     assert reason is not None and "pushes against the end of its range (2 1, range [0.5, 2])" in reason, reason
     asked = float(re.search(r"over \[0\.5, 3\.5\] the data ask for ([\d.]+)", reason).group(1))
     assert asked == pytest.approx(3.4, abs=0.02) and "again at that end" not in reason
+
+
+def test_a_report_names_held_out_logs_run_under_conditions_no_training_log_holds():
+    """The report measures every training and held-out log by itself and compares the adapter's condition
+    quantities: a held-out log outside every training log's interval is named in its own section, in report.json,
+    and beside the trace of what the residual points to."""
+    from sysid.measurement import Measurement
+    from sysid.report import CONDITIONS
+
+    def measured(log: str, value: float) -> list[Measurement]:
+        return [Measurement(log, "duty_at_clip", "right", value, value - 2.0, value + 2.0, "%", None, "-"),
+                Measurement(log, "kp", "right", 1.0, 0.9, 1.1, "duty/rad", 1.0, "-")]  # fmt: skip
+
+    values = {"a": 10.0, "b": 12.0, "c": 11.0, "d": 30.0}
+    adapter = SimpleNamespace(report_extra=lambda result: {}, condition_quantities=("duty_at_clip",),
+                              measure_log=lambda log: measured(log.path, values[log.path]))  # fmt: skip
+    logs = {name: SimpleNamespace(path=name) for name in values}
+    result = SimpleNamespace(train=[logs["a"], logs["b"]], test=[logs["c"], logs["d"]])
+    extra = report_extra(adapter, result)
+    assert [(c["log"], c["outside"]) for c in extra["conditions"]] == [("c", False), ("d", True)]
+    section = extra["sections"][CONDITIONS]
+    assert "| duty_at_clip (%) | right | 10 [8, 12]; 12 [10, 14] | d | 30 [28, 32] | **outside, above** |" in section
+    assert "duty_at_clip right on d (30 [28, 32], above)" in section
+    trace = {"text": "duty_right: follows the load", "mechanism": "what the drive carries", "channel": "duty_right",
+             "out_of_catalog": [], "missing": [], "effects": {}}  # fmt: skip
+    report = {"robot": "roach", "train": ["a", "b"], "test": ["c", "d"], "error_before": 5.0, "error_after": 4.0,
+              "unexplained": True, "unexplained_reason": "", "per_channel": {}, "mode": "select", "chosen": [],
+              "rejected": [], "trace": trace, "diagnostics": {"findings_before": []}, "ranking": [], "extra": extra,
+              "segments": {"train": 1, "test": 1, "seconds_each": 1.0}, "rollouts": 1, "wall_seconds": 1.0}  # fmt: skip
+    text = report_markdown(report)
+    assert f'ran under conditions no training log holds (duty_at_clip right; section "{CONDITIONS}")' in text
+    assert f"## {CONDITIONS}" in text
+    # without a training log's measurement of the quantity, nothing is compared
+    lone = report_extra(adapter, SimpleNamespace(train=[], test=[logs["c"]]))
+    assert "conditions" not in lone and CONDITIONS not in lone["sections"]

@@ -310,3 +310,43 @@ def test_how_the_tracking_error_splits_a_stride_load_or_strides_held_back():
     two = t < 0.4
     assert roach.tracking_parts(t[two], ripple[two], clock[two]) is None, "two strides are too few to split"
     assert roach.tracking_parts(t, ripple, np.zeros_like(t)) is None, "a clock that does not run has no stride"
+
+
+def test_a_held_out_log_under_a_load_no_training_log_holds_is_named():
+    """A held-out log whose right leg is held back at full throttle for a quarter of its run, against training logs
+    of free legs: its time at the clip lies above every training log's, and the table names it; the left leg's
+    does not. A held-out log of free legs is within the training logs' conditions."""
+    from sysid.measurement import compare_conditions, conditions_table
+
+    quantities = make_adapter("roach").condition_quantities
+    assert "duty_at_clip" in quantities
+    train = [m for seed in (0, 1) for m in roach.measure_roach(*synthetic_log(seed), f"train{seed}")]
+    df, meta = synthetic_log(2)
+    free = roach.measure_roach(df, meta, "free")
+    df.loc[(df["time"] >= 2.0) & (df["time"] < 3.0), "duty_right"] = meta["duty_clip"]
+    held = roach.measure_roach(df, meta, "held")
+    checks = {(c.quantity, c.side, c.held_out.log): c for c in compare_conditions(train, free + held, ["duty_at_clip"])}
+    assert len(checks) == 4 and all(len(c.training) == 2 for c in checks.values())
+    assert checks[("duty_at_clip", "right", "held")].outside
+    assert checks[("duty_at_clip", "right", "held")].direction == "above"
+    assert not any(c.outside for key, c in checks.items() if key != ("duty_at_clip", "right", "held"))
+    text = conditions_table(list(checks.values()))
+    assert "duty_at_clip right on held" in text and "**outside, above**" in text
+    within = conditions_table([checks[("duty_at_clip", "left", "free")]])
+    assert "no training log holds" not in within and "within the training logs'" in within
+
+
+def test_the_13_hz_runs_load_moves_from_the_left_legs_to_the_right_between_its_windows():
+    """The real 13 Hz run on grass and obstacles: its first 8 s hold the left legs at the clip an eighth of the time,
+    its last part hardly ever (the right legs, held more there, are what its held-out part asks of a model)."""
+    from sysid.cli import read_logs
+    from sysid.measurement import compare_conditions
+
+    adapter = make_adapter("roach")
+    path = ROOT / "data/real/velociroach_13Hz_beetleshell_grass_run3.txt"
+    train, test = read_logs([Path(f"{path}@0:8"), Path(f"{path}@8:")], adapter.required(), None)
+    checks = compare_conditions(adapter.measure_log(train), adapter.measure_log(test), ["duty_at_clip"])
+    by_side = {c.side: c for c in checks}
+    assert by_side["left"].outside and by_side["left"].direction == "below"
+    assert by_side["left"].training[0].value > 5.0 > 1.0 > by_side["left"].held_out.value
+    assert by_side["right"].held_out.value > by_side["right"].training[0].value

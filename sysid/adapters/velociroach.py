@@ -123,6 +123,9 @@ class RoachAdapter(Adapter):
     fd_step = 0.02  # contacts make the cost rough at small scales: difference over 2% of each range,
     rough_cost = True  # and fit without derivatives
     chain_search = (1, 1, 1)  # each joint fit costs minutes (thousands of segment rollouts): one chain per length
+    # a leg held back at full throttle, and for strides at a time: the load of the ground it ran on, which a flat
+    # floor's replay does not have (the back-EMF, the gains and the battery are the robot's own)
+    condition_quantities = ("duty_at_clip", "tracking_slow")
 
     def __init__(self) -> None:
         super().__init__()
