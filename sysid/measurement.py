@@ -83,7 +83,8 @@ class ConditionCheck:
 
     @property
     def direction(self) -> str:
-        """ "above" or "below" the training logs (meaningful where :attr:`outside`)."""
+        """Where the held-out log lies against the training logs, ``above`` or ``below`` (meaningful where
+        :attr:`outside`)."""
         return "above" if self.held_out.low > max(m.high for m in self.training) else "below"
 
 
