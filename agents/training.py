@@ -102,6 +102,7 @@ from envs.common.host import numerics
 from envs.common.io import (
     TEMP_RANDOM,
     Busy,
+    ProgressLines,
     ToolParser,
     at_least_one,
     atomic_write_leftovers,
@@ -112,6 +113,7 @@ from envs.common.io import (
     nearest,
     non_negative,
     parent_problem,
+    progress_bar_wanted,
     refuse_overwrite,
     sigterm_as_interrupt,
     write_json,
@@ -888,60 +890,35 @@ class TimeBudgetCallback(BaseCallback):
         return False
 
 
-PROGRESS_SECONDS = 60.0  # wall time between two of ProgressLineCallback's lines
-
-
 class ProgressLineCallback(BaseCallback):
-    """Without a progress bar (``--no-progress``, or output that is not a terminal), one line of progress every
-    ``seconds`` of wall time, at the end of a rollout: the steps taken of the run's total, the rate since this process
-    started learning, the time left at that rate and the mean return of the last episodes (SB3's
-    ``ep_info_buffer``). A log file (``nohup``, the leaderboard's rows) then says how far a run of hours has come."""
+    """Without a progress bar (``--no-progress``, or output that is not a terminal), a line of progress a minute, at
+    the end of a rollout (:class:`envs.common.io.ProgressLines`: the steps taken of the run's total, the rate, the
+    time left) with the mean return of the last episodes (SB3's ``ep_info_buffer``). A log file (``nohup``, the
+    leaderboard's rows) then says how far a run of hours has come."""
 
     def __init__(self, total: int, seconds: float | None = None):
         super().__init__()
-        self.total = int(total)
-        self.seconds = PROGRESS_SECONDS if seconds is None else float(seconds)
+        self.lines = ProgressLines(total, "step", seconds)
 
     def _on_training_start(self) -> None:
-        self._start = self._last = time.monotonic()
-        self._steps_at_start = self.num_timesteps
+        self.lines.start(self.num_timesteps)
 
     def _on_step(self) -> bool:
         return True
 
     def _on_rollout_end(self) -> None:
-        now = time.monotonic()
-        if now - self._last >= self.seconds:
-            self._last = now
-            print(self.line(now - self._start), flush=True)
-
-    def line(self, elapsed: float) -> str:
-        """The progress line after ``elapsed`` seconds of this process's learning."""
-        done = self.num_timesteps
-        rate = (done - self._steps_at_start) / elapsed if elapsed > 0 else 0.0
-        text = f"step {done:,} of {self.total:,} ({100.0 * done / self.total:.0f}%), {rate:.0f} steps/s"
-        if rate > 0 and done < self.total:
-            left = (self.total - done) / rate
-            ends = time.strftime("%H:%M", time.localtime(time.time() + left))
-            text += f", {_duration(left)} left (ends about {ends})"
         episodes = self.model.ep_info_buffer
+        extra = ""
         if episodes:
             mean = float(np.mean([e["r"] for e in episodes]))
             shown = f"{mean:,.0f}" if abs(mean) >= 1000 else f"{mean:.3g}"
-            text += f", mean return {shown} over the last {len(episodes)} episodes"
-        return text
+            extra = f"mean return {shown} over the last {len(episodes)} episodes"
+        self.lines.update(self.num_timesteps, extra)
 
 
 def progress_bar(args: argparse.Namespace) -> bool:
-    """Whether training shows SB3's progress bar: on a terminal, unless ``--no-progress``; elsewhere (a log file)
-    :class:`ProgressLineCallback`'s lines take its place."""
-    return not args.no_progress and sys.stdout.isatty()
-
-
-def _duration(seconds: float) -> str:
-    """``seconds`` as ``1 h 05 min`` or ``7 min``."""
-    minutes = round(seconds / 60.0)
-    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
+    """Whether training shows SB3's progress bar (:func:`envs.common.io.progress_bar_wanted`)."""
+    return progress_bar_wanted(args.no_progress)
 
 
 class RunCheckpointCallback(BaseCallback):

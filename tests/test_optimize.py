@@ -137,6 +137,20 @@ def test_the_default_out_is_in_the_working_folder(tmp_path, monkeypatch):
     assert (work / "runs" / "optimize" / "tiny__pso__0" / "best.json").is_file()
 
 
+def test_without_a_progress_bar_a_run_prints_a_line_of_progress(tmp_path, monkeypatch, capsys):
+    """With ``--no-progress`` (or output to a file) each iteration, here every one, is a line: how many of the run's
+    iterations are done, the rate and the best score so far."""
+    from envs.common import io
+
+    monkeypatch.setattr(io, "PROGRESS_SECONDS", 0.0)
+    config = write_config(tmp_path, seconds=0.5, sample_interval=0.5)
+    args = ["--config", str(config), "--iterations", "2", "--particles", "2", "--out", str(tmp_path / "run")]
+    assert main([*args, "--no-progress"]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("iteration ")]
+    assert [line.split(" (")[0] for line in lines] == ["iteration 1 of 2", "iteration 2 of 2"]
+    assert " left (ends about " in lines[0] and lines[-1].split(", ")[-1].startswith("best score ")
+
+
 def test_pso_inertia_decreases_and_the_social_term_follows_the_best_of_the_nearest():
     pso = PSO(dimension=2, particles=6, iterations=5, seed=0, neighbours=3)
     assert pso.inertia() == pytest.approx(0.9)

@@ -324,9 +324,9 @@ def test_batched_and_dummy_vec_envs_train_the_same_model(tmp_path):
 
 def test_without_a_progress_bar_a_run_prints_a_line_of_progress(tmp_path, monkeypatch):
     """With ``--no-progress`` (or output to a file) the run says how far it has come, at the end of a rollout."""
-    from agents import training
+    from envs.common import io
 
-    monkeypatch.setattr(training, "PROGRESS_SECONDS", 0.0)  # a line every rollout, not every minute
+    monkeypatch.setattr(io, "PROGRESS_SECONDS", 0.0)  # a line every rollout, not every minute
     hyperparams = tmp_path / "ppo.yml"
     hyperparams.write_text(TINY_PPO)
     result = train_ok("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--runs-dir", tmp_path / "runs",

@@ -26,7 +26,7 @@ from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import ConfigError, read_config
 from agents.optimize.run import CHECKPOINT, LOCK, RunError, Settings, run
 from envs.common.cluster import ClusterError, check_address
-from envs.common.io import ToolParser, parent_problem
+from envs.common.io import ToolParser, parent_problem, progress_bar_wanted
 
 PROG = "python -m agents.optimize"
 # one batch holds a simulation per particle (the local backend: all of them in this process): the Bioloid report's
@@ -53,7 +53,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="run folder (default runs/optimize/<config>__<opt>__<seed> in the working folder)")  # fmt: skip
     p.add_argument("--stop-after", type=int, default=None,
                    help="run at most this many iterations now, then stop (the same command resumes)")  # fmt: skip
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar: a line of progress a minute instead (as when the output is not a terminal)",
+    )
     return p.parse_args(argv)
 
 
@@ -110,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
             return LocalBackend(config, args.particles, args.workers)
 
         command = f"{PROG} " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
-        result = run(config, settings, args.out, backend, progress=not args.no_progress, command=command,
+        progress = progress_bar_wanted(args.no_progress)
+        result = run(config, settings, args.out, backend, progress=progress, command=command,
                      stop_after=args.stop_after)  # fmt: skip
     except (ConfigError, RunError, ClusterError) as error:
         print(f"{PROG}: error: {error}", file=sys.stderr)

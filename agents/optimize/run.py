@@ -26,7 +26,7 @@ import numpy as np
 from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import DEPRECATED_OBJECTIVES, Evaluator, RunConfig
 from envs.common.cluster import ensure_ray
-from envs.common.io import Busy, atomic_write, folder_lock, write_json
+from envs.common.io import Busy, ProgressLines, atomic_write, folder_lock, write_json
 
 CHECKPOINT, BEST, HISTORY, LOCK = "checkpoint.pkl", "best.json", "history.json", ".lock"
 TOOL = "python -m agents.optimize"
@@ -225,8 +225,11 @@ def _run_locked(
         state = {"version": VERSION, "settings": settings.as_dict(), "optimizer": optimizer, "best": None,
                  "history": [], "wall_seconds": 0.0, "command": command}  # fmt: skip
     optimizer = state["optimizer"]
-    bar = None
-    if progress:
+    bar, lines = None, None
+    if not progress:  # a line a minute, for a log file
+        lines = ProgressLines(settings.iterations, "iteration")
+        lines.start(optimizer.iteration)
+    else:
         from tqdm import tqdm
 
         bar = tqdm(total=settings.iterations, initial=optimizer.iteration, desc=f"{settings.optimizer}",
@@ -252,6 +255,8 @@ def _run_locked(
         if bar is not None:
             bar.update(1)
             bar.set_postfix(best=f"{state['best']['score']:.3f}")
+        if lines is not None:
+            lines.update(optimizer.iteration, f"best score {state['best']['score']:.4g}")
     if bar is not None:
         bar.close()
     if state["best"] is not None and not all((out / name).is_file() for name in (BEST, HISTORY)):

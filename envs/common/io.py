@@ -464,3 +464,67 @@ def folder_lock(folder: str | Path, tool: str, lock_name: str = ".lock", wait: b
         yield path
     finally:
         handle.close()
+
+
+# --- progress in a log file -------------------------------------------------------------------------------------
+PROGRESS_SECONDS = 60.0  # wall time between two lines of :class:`ProgressLines`
+
+
+class ProgressLines:
+    """A long command's progress as a line every ``seconds`` (default :data:`PROGRESS_SECONDS`) of wall time, for
+    output that is no terminal (``nohup``, a log file), where a progress bar would be one line redrawn: ``step 120,000
+    of 4,000,000 (3%), 620 steps/s, 1 h 44 min left (ends about 16:49)``, and what the tool adds. The rate is over
+    this process's work (a resumed run's earlier work is not in it)."""
+
+    def __init__(self, total: int, unit: str = "step", seconds: float | None = None):
+        self.total, self.unit = int(total), unit
+        self.seconds = PROGRESS_SECONDS if seconds is None else float(seconds)
+        self._start: float | None = None
+        self._done_at_start = 0
+
+    def start(self, done: int) -> None:
+        """Begin timing at ``done`` of the total."""
+        import time
+
+        self._start = self._last = time.monotonic()
+        self._done_at_start = int(done)
+
+    def update(self, done: int, extra: str = "") -> str | None:
+        """Print (and return) the line if ``seconds`` have passed since the last one."""
+        import time
+
+        now = time.monotonic()
+        if self._start is None:
+            self.start(done)
+            return None
+        if now - self._last < self.seconds:
+            return None
+        self._last = now
+        line = self.line(done, now - self._start) + (f", {extra}" if extra else "")
+        print(line, flush=True)
+        return line
+
+    def line(self, done: int, elapsed: float) -> str:
+        """The line after ``elapsed`` seconds of this process's work, at ``done`` of the total."""
+        import time
+
+        rate = (done - self._done_at_start) / elapsed if elapsed > 0 else 0.0
+        per = f"{rate:.0f} {self.unit}s/s" if rate >= 10 else f"{rate * 60:.3g} {self.unit}s/min"
+        text = f"{self.unit} {done:,} of {self.total:,} ({100.0 * done / max(self.total, 1):.0f}%), {per}"
+        if rate > 0 and done < self.total:
+            left = (self.total - done) / rate
+            ends = time.strftime("%H:%M", time.localtime(time.time() + left))
+            text += f", {duration_text(left)} left (ends about {ends})"
+        return text
+
+
+def duration_text(seconds: float) -> str:
+    """``seconds`` as ``1 h 05 min`` or ``7 min``."""
+    minutes = round(seconds / 60.0)
+    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
+
+
+def progress_bar_wanted(no_progress: bool) -> bool:
+    """Whether a command shows a progress bar: on a terminal, unless ``--no-progress``; elsewhere (a log file)
+    :class:`ProgressLines` takes its place."""
+    return not no_progress and sys.stdout.isatty()
