@@ -19,7 +19,8 @@ window ``FILE@START:END``) and side:
   voltage regressed on the battery current the duty draws, ``sum over sides of max(d (d Vb - E) / R, 0)`` with ``E``
   the measured back-EMF and ``R`` the motor's nominal winding resistance (an assumption the result scales with).
 - **The time at the clip** (``duty_at_clip``, %): the share of the running part the duty is held at the firmware's
-  clip (MAXTHROT): a leg held back, at full throttle, by more than the drive can carry.
+  clip (MAXTHROT): a leg held back, at full throttle, by more than the drive can carry. A log never at the clip
+  has the interval [0, 3/n] (n its bootstrap blocks: the rule of three), not the point 0.
 - **The drive balance** (``drive_balance``): the mean terminal voltage a braking (synchronous) H-bridge would apply,
   ``duty x Vb`` at the nominal 3900-count full scale, over the mean back-EMF. Legs that do work need it above 1; below
   1 the driver cannot be braking at that full scale: it coasts through its off-time (the motor then sees its
@@ -197,6 +198,10 @@ def measure_roach(
         d = np.abs(df[f"duty_{side}"].to_numpy(dtype=float))
         at_clip = (d >= CLIPPED * (np.max(d) if clip is None else float(clip)))[run].astype(float)
         ci = bootstrap(lambda a: np.array([100.0 * a.mean()]), block, at_clip, seed=seed)
+        if at_clip.min() == at_clip.max():  # never (or always) at the clip: every resample agrees, the interval is
+            # the point; the rule of three over the log's independent blocks bounds the share the log cannot see
+            bound = 100.0 * min(1.0, 3.0 / max(len(at_clip) / max(block, 1), 1.0))
+            ci[:, 0] = (0.0, bound) if at_clip.max() == 0 else (100.0 - bound, 100.0)
         add("duty_at_clip", side, 100.0 * at_clip.mean(), ci[:, 0], "%", None,
             "a leg the drive keeps on its clock never needs full throttle", "share of the running part")  # fmt: skip
     # the drive balance: a braking driver's mean terminal voltage over the mean back-EMF, per side
