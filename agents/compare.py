@@ -36,6 +36,7 @@ from agents.config import closest_env
 from agents.evaluation import (
     MIN_BOOTSTRAP,
     Episode,
+    binary_metrics,
     episode_record,
     metric_descriptions,
     paired_difference,
@@ -291,7 +292,13 @@ def fmt(s: dict[str, float], total: int) -> str:
 
 
 def report(
-    env_id: str, results: dict[str, list[Episode]], summaries, comparisons, seeds, metrics: dict[str, str]
+    env_id: str,
+    results: dict[str, list[Episode]],
+    summaries,
+    comparisons,
+    seeds,
+    metrics: dict[str, str],
+    binary: tuple[str, ...] = (),
 ) -> str:
     specs = list(results)
     names = [m for m in metrics if m in summaries[specs[0]]]
@@ -306,6 +313,12 @@ def report(
             else f"Student's t intervals (fewer than {MIN_BOOTSTRAP} episodes: a bootstrap would be too narrow)."
             if total < MIN_BOOTSTRAP
             else "bootstrap (BCa)."
+        )
+        + (
+            f" {', '.join(n for n in binary if n in names)}: 1 or 0 an episode, Wilson's interval of the proportion, "
+            "and Newcombe's of a paired difference."
+            if total >= 2 and any(n in names for n in binary)
+            else ""
         ),
         "",
         "| metric | " + " | ".join(specs) + " |",
@@ -385,15 +398,16 @@ def _run(args: argparse.Namespace) -> int:
                 staging / "videos" / f"{SIDE_BY_SIDE}.mp4",
                 fps=fps / video_stride(fps),
             )
-        summaries = {s: summarize(eps) for s, eps in results.items()}
+        binary = binary_metrics(next(iter(prepared.values()))[1])  # proportions: Wilson's and Newcombe's intervals
+        summaries = {s: summarize(eps, binary) for s, eps in results.items()}
         reference = args.policy[0]
         comparisons = {
-            s: {m: paired_difference(results[reference], eps, m) for m in summaries[s]}
+            s: {m: paired_difference(results[reference], eps, m, m in binary) for m in summaries[s]}
             for s, eps in results.items()
             if s != reference
         }
         seeds = [args.seed + i for i in range(args.episodes)]
-        text = report(args.env, results, summaries, comparisons, seeds, metrics)
+        text = report(args.env, results, summaries, comparisons, seeds, metrics, binary)
         record = {
             "env": args.env,
             "calibration": None if args.calibration is None else str(args.calibration),

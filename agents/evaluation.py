@@ -2,7 +2,10 @@
 
 Every policy is run on the same episode seeds, so two policies can be compared episode by episode (paired).
 Confidence intervals are 95% bootstrap intervals (scipy.stats.bootstrap, BCa; percentile when BCa is undefined)
-from 10 episodes up, Student's t intervals below that, and none from one episode.
+from 10 episodes up, Student's t intervals below that, and none from one episode. A metric that is 1 or 0 an episode
+(a fall, a task's success: ``BINARY_METRICS`` and the task's ``binary_metrics``) is a proportion: its interval is
+Wilson's score interval, and a paired difference of two policies' is Newcombe's (1998, method 10, from the Wilson
+intervals of each and the pairs' correlation), so that 20 successes of 20 read [0.84, 1], not the point 1.
 
 Metrics come from the env's own metadata (the robot's mass and length, the task's metrics), never from one robot's
 constants: the generic ones below from the running sums every task reports in ``info``, the task's own from
@@ -34,12 +37,19 @@ GENERIC_METRICS = {
     "falls": "1 if the task ended the episode: the robot fell (tilted past its limit) or broke a ground rule",
 }
 LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power", "energy", "falls")
+BINARY_METRICS = ("falls",)
+"""The generic metrics that are 1 or 0 an episode (a task adds its own: ``Task.binary_metrics``)."""
 """The metrics (generic or a task's) where a smaller value is the better one; every other is better larger."""
 
 
 def metric_descriptions(env) -> dict[str, str]:
     """Every metric an episode of ``env`` reports: the generic ones, then the task's."""
     return {**GENERIC_METRICS, **env.unwrapped.task.metrics}
+
+
+def binary_metrics(env) -> tuple[str, ...]:
+    """The metrics of ``env``'s episodes that are 1 or 0 an episode: the generic ones and the task's."""
+    return (*BINARY_METRICS, *getattr(env.unwrapped.task, "binary_metrics", ()))
 
 
 def episode_metrics(env, total_reward: float, info: Mapping[str, Any], fallen: bool) -> dict[str, float]:
@@ -177,13 +187,64 @@ def bootstrap_ci(values: np.ndarray, confidence: float = 0.95, seed: int = 0) ->
     return float("nan"), float("nan")
 
 
-def summarize(episodes: list[Episode]) -> dict[str, dict[str, float]]:
-    """Mean, 95% bootstrap CI and count of each metric."""
+Z95 = float(stats.norm.ppf(0.975))
+
+
+def proportion_ci(values: np.ndarray, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson's score interval of the share of ones among ``values`` (each 1 or 0); none (NaN) from no value."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if len(x) == 0:
+        return float("nan"), float("nan")
+    _check_binary(x)
+    ci = stats.binomtest(int(x.sum()), len(x)).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def paired_proportion_ci(first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
+    """95% interval of the difference of two paired proportions, mean(second) - mean(first), over pairs of 1 or 0
+    (the same episode seeds): Newcombe's hybrid score interval (method 10 of Newcombe 1998, Stat. Med. 17:2635),
+    from each proportion's Wilson interval and the phi coefficient of the pairs' 2 x 2 table (0 where a margin is
+    empty; a positive one corrected as Newcombe gives, ad - bc less n/2). Unlike a bootstrap it has a width where
+    every pair agrees: 20 pairs of successes give about +-0.16. Its coverage, simulated on 20 correlated pairs,
+    stays at 0.95 or above where the bootstrap's falls to 0.78 (tests/test_evaluate.py)."""
+    a_, b_ = np.asarray(first, dtype=float), np.asarray(second, dtype=float)
+    keep = np.isfinite(a_) & np.isfinite(b_)
+    a_, b_ = a_[keep], b_[keep]
+    n = len(a_)
+    if n == 0:
+        return float("nan"), float("nan")
+    _check_binary(a_)
+    _check_binary(b_)
+    p1, p2 = b_.mean(), a_.mean()  # the difference is second - first
+    l1, u1 = proportion_ci(b_)
+    l2, u2 = proportion_ci(a_)
+    both, only_second = float(np.sum((a_ == 1) & (b_ == 1))), float(np.sum((a_ == 0) & (b_ == 1)))
+    only_first, neither = float(np.sum((a_ == 1) & (b_ == 0))), float(np.sum((a_ == 0) & (b_ == 0)))
+    margins = (both + only_second) * (only_first + neither) * (both + only_first) * (only_second + neither)
+    cross = both * neither - only_second * only_first
+    if cross > 0:  # Newcombe's correction of a positive correlation, which a few discordant pairs overstate
+        cross = max(cross - n / 2, 0.0)
+    phi = cross / math.sqrt(margins) if margins > 0 else 0.0
+    theta = p1 - p2
+    low = theta - math.sqrt(max((p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2) + (u2 - p2) ** 2, 0.0))
+    high = theta + math.sqrt(max((u1 - p1) ** 2 - 2 * phi * (u1 - p1) * (p2 - l2) + (p2 - l2) ** 2, 0.0))
+    return float(max(low, -1.0)), float(min(high, 1.0))
+
+
+def _check_binary(x: np.ndarray) -> None:
+    if not np.isin(x, (0.0, 1.0)).all():
+        raise ValueError(f"a proportion's values are 1 or 0, not {sorted(set(x.tolist()) - {0.0, 1.0})[:3]}")
+
+
+def summarize(episodes: list[Episode], binary: tuple[str, ...] | frozenset[str] = ()) -> dict[str, dict[str, float]]:
+    """Mean, 95% interval and count of each metric: a bootstrap's (:func:`bootstrap_ci`), or for the metrics in
+    ``binary`` (1 or 0 an episode) Wilson's (:func:`proportion_ci`)."""
     out = {}
     for name in episodes[0].metrics:
         values = np.array([e.metrics[name] for e in episodes], dtype=float)
         finite = values[np.isfinite(values)]
-        low, high = bootstrap_ci(finite)
+        low, high = proportion_ci(finite) if name in binary else bootstrap_ci(finite)
         out[name] = {
             "mean": float(finite.mean()) if len(finite) else float("nan"),
             "ci_low": low,
@@ -193,12 +254,14 @@ def summarize(episodes: list[Episode]) -> dict[str, dict[str, float]]:
     return out
 
 
-def paired_difference(a: list[Episode], b: list[Episode], metric: str) -> dict[str, float]:
-    """Mean and 95% bootstrap CI of metric(b) - metric(a) over the episodes both ran with the same seed."""
+def paired_difference(a: list[Episode], b: list[Episode], metric: str, binary: bool = False) -> dict[str, float]:
+    """Mean and 95% interval of metric(b) - metric(a) over the episodes both ran with the same seed: a bootstrap's,
+    or where the metric is 1 or 0 an episode (``binary``) Newcombe's (:func:`paired_proportion_ci`)."""
     by_seed = {e.seed: e.metrics[metric] for e in a}
-    diffs = np.array([e.metrics[metric] - by_seed[e.seed] for e in b if e.seed in by_seed], dtype=float)
-    diffs = diffs[np.isfinite(diffs)]
-    low, high = bootstrap_ci(diffs)
+    pairs = np.array([(by_seed[e.seed], e.metrics[metric]) for e in b if e.seed in by_seed], dtype=float)
+    pairs = pairs[np.isfinite(pairs).all(axis=1)] if len(pairs) else np.empty((0, 2))
+    diffs = pairs[:, 1] - pairs[:, 0]
+    low, high = paired_proportion_ci(pairs[:, 0], pairs[:, 1]) if binary else bootstrap_ci(diffs)
     return {"mean": float(diffs.mean()) if len(diffs) else float("nan"), "ci_low": low, "ci_high": high,
             "n": len(diffs)}  # fmt: skip
 

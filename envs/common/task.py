@@ -58,10 +58,13 @@ class Task(ABC):
     Attributes:
         metrics: name -> description of the task's own episode metrics (beside the generic ones in
             agents/evaluation.py).
+        binary_metrics: those of them that are 1 or 0 an episode (a success): their intervals are a proportion's
+            (agents/evaluation.py), not a bootstrap's, which collapses to a point when every episode agrees.
     """
 
     name: ClassVar[str]
     metrics: ClassVar[dict[str, str]] = {}
+    binary_metrics: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, robot: Robot):
         self.robot = robot

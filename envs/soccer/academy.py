@@ -69,6 +69,7 @@ class AcademyTask(SoccerTask):
         "success": "1 if the episode ended in the task's success (the ball touched, a goal scored), else 0",
         "ball_distance": "the ball's distance from the robot at the episode's end, body lengths",
     }
+    binary_metrics: ClassVar[tuple[str, ...]] = ("success",)
     players: ClassVar[tuple[str, ...]] = (PLAYER,)  # the scene's players: the learner's first
     # the task's own version history, or one per robot (None: the robot's academy's)
     history: ClassVar[tuple[str, ...] | Mapping[str, tuple[str, ...]] | None] = None

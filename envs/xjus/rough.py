@@ -29,6 +29,7 @@ class RoughTask(WalkTask):
         "progress": "how far along +x the robot got, m",
         "obstacle_cleared": "1 if it got past the step, the stairs or the course's last obstacle (none: not reported)",
     }
+    binary_metrics: ClassVar[tuple[str, ...]] = ("obstacle_cleared",)
 
     def __init__(
         self,
