@@ -531,7 +531,8 @@ def _row_record(plan: Plan, row: Row, trained: int, started: float, run_dir: Pat
             "curve": {"steps": steps[keep].tolist(), "values": values[keep].tolist()} if len(steps) else None,
             "capped": trained < plan.steps(row.task), "wall_seconds": time.time() - started,
             "model_sha256": _sha256(run_dir / "model.zip"), "software": software(run_dir),
-            "command": row_command(plan, row, out, records), "settings": plan.row_settings(row.task)}  # fmt: skip
+            "command": row_command(plan, row, out, records), "settings": plan.row_settings(row.task),
+            "intervals": INTERVALS}  # fmt: skip
 
 
 LIBRARIES = ("python", "stable-baselines3", "torch", "mujoco", "gymnasium", "numpy")
@@ -577,6 +578,96 @@ def backfill_software(row: Row, record: dict[str, Any], out: Path, records: Path
     record = {**record, "software": found}
     write_json(row_file(records, row), record)
     return record
+
+
+INTERVALS = "1-or-0 metrics: Wilson, paired Newcombe"
+"""What a record's intervals of metrics that are 1 or 0 an episode are (evaluate.py's; agents/evaluation.py)."""
+
+
+@functools.cache
+def task_binary_metrics(task: str) -> tuple[str, ...]:
+    """The metrics of a task's episodes that are 1 or 0 an episode (:func:`agents.evaluation.binary_metrics`)."""
+    import gymnasium as gym
+
+    import envs  # noqa: F401  (registers the ids)
+    from agents.evaluation import binary_metrics
+
+    try:
+        env = gym.make(task, **task_kwargs(task))
+    except gym.error.Error:  # an id no longer registered (an earlier version's record): none known
+        return ()
+    try:
+        return binary_metrics(env)
+    finally:
+        env.close()
+
+
+def backfill_intervals(row: Row, record: dict[str, Any], out: Path, records: Path) -> dict[str, Any]:
+    """A record judged before evaluate.py gave a 1-or-0 metric (a fall, a success) a proportion's intervals, brought
+    to them (:data:`INTERVALS`) where its numbers determine them: a summary's Wilson interval from its mean and
+    count; a paired difference's Newcombe interval from the evaluation's episodes where they are kept
+    (``OUT/rows/<row>/eval``, ``one_hour``: the same returns as the record's), or else from the record alone where
+    every pair agreed (a bootstrap's point: then the pairs are known from the mean). A paired difference whose
+    pairs disagreed and whose episodes are gone keeps its bootstrap interval, named in
+    ``bootstrap_intervals_kept``."""
+    from agents.evaluation import paired_proportion_ci, proportion_ci
+
+    if is_soccer(row.task) or record.get("intervals") == INTERVALS:
+        return record
+    binary = task_binary_metrics(row.task)
+    updated = json.loads(json.dumps(record))
+    kept = []
+    for part, folder in ((updated, "eval"), (updated.get("one_hour") or {}, "one_hour")):
+        summary, paired = part.get("summary") or {}, part.get("paired_differences") or {}
+        episodes = _kept_episodes(out / "rows" / row.name / folder, part.get("returns"))
+        for metric in binary:
+            s = summary.get(metric)
+            if s and s.get("n"):
+                k = round(s["mean"] * s["n"])
+                s["ci_low"], s["ci_high"] = proportion_ci(np.r_[np.ones(k), np.zeros(s["n"] - k)])
+            d = paired.get(metric)
+            if not (d and d.get("n")):
+                continue
+            if episodes is not None:
+                first, second = (np.array([np.nan if e.get(metric) is None else e[metric] for e in side], dtype=float)
+                                 for side in episodes)  # fmt: skip
+                keep = np.isfinite(first) & np.isfinite(second)
+                d["ci_low"], d["ci_high"] = paired_proportion_ci(first[keep], second[keep])
+            elif d["ci_low"] == d["ci_high"] and s and s.get("n") == d["n"]:  # every pair agreed, or every pair
+                k = round(s["mean"] * s["n"])  # differed alike: the model's values and the difference give both
+                second = np.r_[np.ones(k), np.zeros(d["n"] - k)]
+                d["ci_low"], d["ci_high"] = paired_proportion_ci(second - d["mean"], second)
+            else:
+                kept.append(f"{folder}:{metric}")
+    updated["intervals"] = INTERVALS
+    if kept:
+        updated["bootstrap_intervals_kept"] = kept
+    write_json(row_file(records, row), updated)
+    print(f"leaderboard: {row.name}: intervals of {', '.join(binary)} made a proportion's"
+          + (f" (a bootstrap's kept: {', '.join(kept)})" if kept else ""))  # fmt: skip
+    return updated
+
+
+def _bootstrap_note(rows: dict[Row, dict | None]) -> str:
+    """The rows whose paired intervals of a 1-or-0 metric are still a bootstrap's (:func:`backfill_intervals`)."""
+    old = sorted(row.name for row, rec in rows.items() if rec and rec.get("bootstrap_intervals_kept"))
+    return f"; in {', '.join(old)}, judged before it and its episodes not kept, a bootstrap's" if old else ""
+
+
+def _kept_episodes(evaluation: Path, returns: list[float] | None) -> tuple[list[dict], list[dict]] | None:
+    """The reference's and the model's episode metrics, paired by seed, from an evaluation kept in ``evaluation``
+    that gave ``returns``; None where there is none, or it is another."""
+    try:
+        result = json.loads((evaluation / "results.json").read_text())
+        reference, model = list(result["policies"])[:2]
+        by_seed = {e["seed"]: e["metrics"] for e in result["policies"][reference]["episodes"]}
+        ours = result["policies"][model]["episodes"]
+    except (OSError, ValueError, KeyError):
+        return None
+    if returns is None or [e["metrics"].get(RETURN) for e in ours] != returns:
+        return None
+    pairs = [(by_seed[e["seed"]], e["metrics"]) for e in ours if e["seed"] in by_seed]
+    return [a for a, _ in pairs], [b for _, b in pairs]
 
 
 def _soccer_row(plan: Plan, row: Row, out: Path, threads: int, started: float, trained: int,
@@ -1172,7 +1263,8 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
     lines += ["", "## Rows", "", "The task's metric is a walk's speed, a turn's yaw-rate error (lower is better) or an "
               "academy task's success (1 or 0 an episode); it and the energy (the cost of transport, a turn's "
               "mean electrical power or an academy episode's energy) are the model's less the reference's, paired "
-              "over the evaluation seeds, with 95% intervals. A row's falls and the time its "
+              "over the evaluation seeds, with 95% intervals (of a success, Newcombe's for paired proportions"
+              + _bootstrap_note(rows) + "). A row's falls and the time its "
               "body touched the ground with more than its feet are its model's over the evaluation episodes; the "
               "reference's are in brackets.", "",
               "| row | steps trained | wall time (min) | mean return | normalized | the task's metric vs reference | "
@@ -1608,6 +1700,7 @@ def _finished(plan: Plan, row: Row, out: Path, records: Path, threads: int, reco
         with row_lock(out, row):
             record = json.loads(path.read_text()) if path.is_file() else record  # as written last
             record = backfill_software(row, record, out, records)
+            record = backfill_intervals(row, record, out, records)
             return backfill_judgment(plan, row, record, out, records, threads) if judge else record
     except Busy:
         return record

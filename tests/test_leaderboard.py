@@ -1066,3 +1066,47 @@ def test_a_residual_variant_is_compared_with_its_plain_algorithm_where_both_have
     one = {r: (v if r.seed == 0 else None) for r, v in rows.items()}
     leaderboard.build_table(plan, tmp_path, baselines, one, tmp_path / "results.md")
     assert "not told apart: one seed on a side" in (tmp_path / "results.md").read_text()
+
+
+def test_a_record_judged_with_bootstrap_intervals_gets_a_proportions_where_its_numbers_determine_them(tmp_path):
+    """An academy row judged when a success's and a fall's intervals were a bootstrap's: the summaries get Wilson's
+    (from mean and count), the paired falls that agreed on every seed get Newcombe's (0 +- 0.16, not [0, 0]); the
+    paired success, whose pairs disagreed, keeps its bootstrap interval and says so, unless the evaluation's
+    episodes are kept, from which it is computed. The record is written, once."""
+    from agents.evaluation import Z95, paired_proportion_ci
+
+    task = "skitter/RoachGoToBall-v5"
+    row = leaderboard.Row(task, "ppo", 0)
+    records, out = tmp_path / "records", tmp_path / "board"
+    point = {"mean": 0.0, "ci_low": 0.0, "ci_high": 0.0, "n": 20}
+    record = {"task": task, "algo": "ppo", "seed": 0, "returns": [1.0] * 20,
+              "summary": {"falls": dict(point), "success": {"mean": 0.75, "ci_low": 0.55, "ci_high": 0.9, "n": 20}},
+              "paired_differences": {"falls": dict(point),
+                                     "success": {"mean": -0.2, "ci_low": -0.4, "ci_high": -0.05, "n": 20}}}  # fmt: skip
+    updated = leaderboard.backfill_intervals(row, record, out, records)
+    wilson = 1 - 20 / (20 + Z95**2)
+    assert updated["summary"]["falls"]["ci_high"] == pytest.approx(wilson)
+    assert (updated["paired_differences"]["falls"]["ci_low"], updated["paired_differences"]["falls"]["ci_high"]) == (
+        pytest.approx(-wilson),
+        pytest.approx(wilson),
+    )
+    assert updated["paired_differences"]["success"]["ci_low"] == -0.4
+    assert updated["bootstrap_intervals_kept"] == ["eval:success"] and updated["intervals"] == leaderboard.INTERVALS
+    assert json.loads(leaderboard.row_file(records, row).read_text()) == updated
+    assert leaderboard.backfill_intervals(row, updated, out, records) is updated  # done once
+    # the evaluation kept: the paired success from its episodes (the reference scores on every seed, the model on 16)
+    evaluation = out / "rows" / row.name / "eval"
+    evaluation.mkdir(parents=True)
+    episodes = {"scripted": [{"seed": s, "metrics": {"return": 1.4, "success": 1.0, "falls": 0.0}} for s in range(20)],
+                "model.zip": [{"seed": s, "metrics": {"return": 1.0, "success": float(s < 16), "falls": 0.0}}
+                              for s in range(20)]}  # fmt: skip
+    (evaluation / "results.json").write_text(
+        json.dumps({"policies": {k: {"episodes": v} for k, v in episodes.items()}})
+    )
+    again = leaderboard.backfill_intervals(row, record, out, records)
+    expected = paired_proportion_ci(np.ones(20), np.r_[np.ones(16), np.zeros(4)])
+    assert (again["paired_differences"]["success"]["ci_low"], again["paired_differences"]["success"]["ci_high"]) == (
+        pytest.approx(expected[0]),
+        pytest.approx(expected[1]),
+    )
+    assert "bootstrap_intervals_kept" not in again
