@@ -37,9 +37,9 @@ GENERIC_METRICS = {
     "falls": "1 if the task ended the episode: the robot fell (tilted past its limit) or broke a ground rule",
 }
 LOWER_IS_BETTER = ("yaw_rate_error", "cost_of_transport", "power", "energy", "falls")
+"""The metrics (generic or a task's) where a smaller value is the better one; every other is better larger."""
 BINARY_METRICS = ("falls",)
 """The generic metrics that are 1 or 0 an episode (a task adds its own: ``Task.binary_metrics``)."""
-"""The metrics (generic or a task's) where a smaller value is the better one; every other is better larger."""
 
 
 def metric_descriptions(env) -> dict[str, str]:
