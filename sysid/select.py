@@ -661,18 +661,26 @@ def _asked_for(
     key: str,
 ) -> str:
     """What the data ask of a parameter that a fit pushed to an end of its range: the fit again with that end moved
-    out by the range's span (not below 0 for a quantity whose range starts at or above 0), for this question only;
-    the model keeps its range, widened only with a physical reason written beside it."""
+    out by the range's span, for this question only; the model keeps its range, widened only with a physical reason
+    written beside it. A range that starts at 0 is not moved below it; one that starts above 0 (a scale, a mass)
+    stays above it, its low end moved out by the range's ratio instead (a scale's [0.5, 2] to [0.125, 2]): a scale
+    of 0 is no model (a body without mass does not compile). Where the wider range's model still cannot be built,
+    the report says so rather than the run ending."""
     p = params[key]
     value = trial.values[key]
     if abs(p.high - value) <= abs(value - p.low):
         low, high = p.low, p.high + p.span
+    elif p.low > 0:
+        low, high = p.low * p.low / p.high, p.high
     else:
-        low, high = (max(p.low - p.span, 0.0) if p.low >= 0 else p.low - p.span), p.high
+        low, high = (0.0 if p.low == 0 else p.low - p.span), p.high
     if np.isclose(low, p.low) and np.isclose(high, p.high):
         return ""
     wide = replace(p, low=low, high=high)
-    again = fit(problem, current, {**params, key: wide, **nuisance}, fitting, start=trial.values, intervals=False)
+    try:
+        again = fit(problem, current, {**params, key: wide, **nuisance}, fitting, start=trial.values, intervals=False)
+    except ValueError as exc:  # MuJoCo refuses a model of the wider range (its compiler's errors are ValueErrors)
+        return f"; over [{low:.3g}, {high:.3g}] the model cannot be built ({str(exc).splitlines()[0]})"
     asked = again.values[key]
     still = ", again at that end" if min(asked - low, high - asked) < 0.01 * wide.span else ""
     return f"; over [{low:.3g}, {high:.3g}] the data ask for {asked:.3g}{still}"

@@ -1178,6 +1178,45 @@ def test_an_effect_refused_at_the_end_of_its_range_says_what_the_data_ask_for():
     assert asked == pytest.approx(3.4, abs=0.02) and "again at that end" not in reason
 
 
+class _BelowProblem(_BeyondProblem):
+    """The data want a mass scale of 0.2, below its range (from 0.5); a model below ``unbuildable`` does not compile,
+    as a body of (nearly) no mass does not."""
+
+    truth = 0.2
+    unbuildable = 0.0
+
+    def residuals(self, settings, segments=None, anchor=None):
+        for s in settings:
+            if s.get("mass.scale", 1.0) <= self.unbuildable:
+                raise ValueError("Error: mass and inertia of moving bodies must be larger than mjMINVAL\nElement")
+        return super().residuals(settings, segments, anchor)
+
+
+@pytest.mark.parametrize("unbuildable", [0.0, 0.3])
+def test_what_the_data_ask_below_a_positive_range_stays_above_zero(unbuildable):
+    """A scale pushed to the low end of its range (0.5, the data wanting 0.2) is asked about over a range moved out by
+    its ratio, [0.125, 2], not down to 0, where a body has no mass and the model no longer compiles (which ended a
+    calibration run); where the wider range's model cannot be built at all, the reason says so and the run goes
+    on."""
+    from envs.common.effects import make
+    from sysid import select
+    from sysid.fit import FitResult
+
+    effect = make("mass", scale=(1.0, 0.5, 2.0))
+    before = FitResult({}, 1.0, n=200, n_eff=200)
+    problem = _BelowProblem()
+    problem.unbuildable = unbuildable
+    reason, trial, _ = select._fit_candidate(problem, {"mass.scale": 1.0}, [effect], {}, None, before,
+                                             {"mass.scale": 0.8})  # fmt: skip
+    assert trial.values["mass.scale"] == pytest.approx(0.5, abs=0.02)
+    assert reason is not None and "range [0.5, 2]" in reason, reason
+    if unbuildable == 0.0:
+        asked = float(re.search(r"over \[0\.125, 2\] the data ask for ([\d.]+)", reason).group(1))
+        assert asked == pytest.approx(0.2, abs=0.02)
+    else:
+        assert "over [0.125, 2] the model cannot be built (Error: mass and inertia" in reason, reason
+
+
 def test_a_report_names_held_out_logs_run_under_conditions_no_training_log_holds():
     """The report measures every training and held-out log by itself and compares the adapter's condition
     quantities: a held-out log outside every training log's interval is named in its own section, in report.json,
