@@ -197,7 +197,12 @@ def proportion_ci(values: np.ndarray, confidence: float = 0.95) -> tuple[float, 
     if len(x) == 0:
         return float("nan"), float("nan")
     _check_binary(x)
-    ci = stats.binomtest(int(x.sum()), len(x)).proportion_ci(confidence_level=confidence, method="wilson")
+    return wilson_interval(int(x.sum()), len(x), confidence)
+
+
+def wilson_interval(count: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson's score interval of a proportion of ``count`` in ``n`` (scipy's ``binomtest``)."""
+    ci = stats.binomtest(int(count), int(n)).proportion_ci(confidence_level=confidence, method="wilson")
     return float(ci.low), float(ci.high)
 
 

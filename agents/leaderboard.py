@@ -610,7 +610,7 @@ def backfill_intervals(row: Row, record: dict[str, Any], out: Path, records: Pat
     every pair agreed (a bootstrap's point: then the pairs are known from the mean). A paired difference whose
     pairs disagreed and whose episodes are gone keeps its bootstrap interval, named in
     ``bootstrap_intervals_kept``."""
-    from agents.evaluation import paired_proportion_ci, proportion_ci
+    from agents.evaluation import paired_proportion_ci, wilson_interval
 
     if is_soccer(row.task) or record.get("intervals") == INTERVALS:
         return record
@@ -623,8 +623,7 @@ def backfill_intervals(row: Row, record: dict[str, Any], out: Path, records: Pat
         for metric in binary:
             s = summary.get(metric)
             if s and s.get("n"):
-                k = round(s["mean"] * s["n"])
-                s["ci_low"], s["ci_high"] = proportion_ci(np.r_[np.ones(k), np.zeros(s["n"] - k)])
+                s["ci_low"], s["ci_high"] = wilson_interval(round(s["mean"] * s["n"]), s["n"])
             d = paired.get(metric)
             if not (d and d.get("n")):
                 continue

@@ -916,11 +916,6 @@ class ProgressLineCallback(BaseCallback):
         self.lines.update(self.num_timesteps, extra)
 
 
-def progress_bar(args: argparse.Namespace) -> bool:
-    """Whether training shows SB3's progress bar (:func:`envs.common.io.progress_bar_wanted`)."""
-    return progress_bar_wanted(args.no_progress)
-
-
 class RunCheckpointCallback(BaseCallback):
     """Save a checkpoint folder of the run (:func:`save_checkpoint`) every ``freq`` env steps (all envs together)
     and at the end of training."""
@@ -1075,7 +1070,7 @@ def start_run(args: argparse.Namespace) -> Path:
         lock_run(run_dir, stack)
         config = new_run_config(args, args.env, seed, hp, hyperparams_file, run_dir, {"hyperparams_entry": key})
         print(f"run folder: {run_dir}")
-        return train(model, run_dir, config, progress=progress_bar(args))
+        return train(model, run_dir, config, progress=progress_bar_wanted(args.no_progress))
 
 
 def buffer_bytes(hp: Hyperparams, algo: str, observation: gym.Space, action: gym.Space,
@@ -1224,7 +1219,7 @@ def start_selfplay(args: Any) -> Path:
         config = new_run_config(args, key, seed, hp, hyperparams_file, run_dir, extra)
         print(f"run folder: {run_dir} ({hp.n_envs} matches, {args.players} a side, {venv.num_envs} learner players)")
         callback = SelfPlayCallback(pool, run_dir, config["snapshot_freq"], run_manifest(config))
-        return train(model, run_dir, config, progress=progress_bar(args), callbacks=[callback])
+        return train(model, run_dir, config, progress=progress_bar_wanted(args.no_progress), callbacks=[callback])
 
 
 def selfplay_residual(name: str, key: str, hyperparams_file: Path) -> dict[str, Any]:
@@ -1428,7 +1423,7 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     previous = command_file.read_text() if command_file.is_file() else ""
     write_text(command_file, previous + command_line() + "\n")
     print(f"resuming {run_dir} from {checkpoint.folder.name} ({done} steps) to {timesteps} steps")
-    return train(model, run_dir, config, progress=progress_bar(args), callbacks=callbacks)
+    return train(model, run_dir, config, progress=progress_bar_wanted(args.no_progress), callbacks=callbacks)
 
 
 def check_env_id(env_id: str) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from agents.evaluation import wilson_interval
 from envs.common.io import (
     ToolParser,
     publish_folder,
@@ -215,8 +216,8 @@ def statistics(scores: np.ndarray) -> dict[str, Any]:
     out: dict[str, Any] = {"matches": n}
     for name, count in (("wins", int((diff > 0).sum())), ("draws", int((diff == 0).sum())),
                         ("losses", int((diff < 0).sum()))):  # fmt: skip
-        interval = stats.binomtest(count, n).proportion_ci(confidence_level=0.95, method="wilson")
-        out[name] = {"count": count, "fraction": count / n, "ci_low": interval.low, "ci_high": interval.high}
+        low, high = wilson_interval(count, n)
+        out[name] = {"count": count, "fraction": count / n, "ci_low": low, "ci_high": high}
     mean = float(diff.mean())
     if n > 1 and np.ptp(diff) > 0:
         boot = stats.bootstrap((diff,), np.mean, confidence_level=0.95, method="percentile", random_state=0)
