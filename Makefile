@@ -33,12 +33,15 @@ lint: setup
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports --no-cache
 
-# slow cases (marked) are covered by the calibration matrix benchmark; `make test-slow` runs them too
+# slow cases (marked) are covered by the calibration matrix benchmark; `make test-slow` runs them too. Two workers
+# on two cores, each with one BLAS/OpenMP thread: a worker's small least-squares problems on OpenBLAS's own threads
+# fight the other worker for the cores (the suite took 618 s against 534 s, beside a training job, 2026-12-04)
+ONE_THREAD = OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 test: lint
-	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m "not slow"
+	$(ONE_THREAD) $(BIN)/python -m pytest -n 2 --dist loadgroup -q -m "not slow"
 
 test-slow: setup
-	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m slow
+	$(ONE_THREAD) $(BIN)/python -m pytest -n 2 --dist loadgroup -q -m slow
 
 demo: setup
 	$(BIN)/python train.py --env skitter/RoachWalk-v4 --algo ppo --timesteps $(DEMO_STEPS) --seed 0 --run-name $(DEMO_ID)
