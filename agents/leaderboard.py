@@ -60,6 +60,7 @@ import numpy as np
 from agents.evaluation import GENERIC_METRICS, LOWER_IS_BETTER
 from envs.common.batch import THREADS_VARIABLE
 from envs.common.cluster import ClusterError, check_address, ensure_ray, init_ray
+from envs.common.host import numerics
 from envs.common.io import ToolParser, atomic_write, current_folder_problem, parent_problem, write_json, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -331,7 +332,7 @@ def _work_out_baselines(plan: Plan, task: str, folder: Path, record: Path, threa
         counts = [result[k]["count"] for k in ("wins", "draws", "losses")]
         random_elo = elo_against(*reversed(counts))  # the random team's record against the scripted one
         baselines = {"task": task, "soccer": True, "reference": "scripted", "scripted_vs_random": result,
-                     "random_elo": random_elo, "settings": plan.task_settings(task)}  # fmt: skip
+                     "random_elo": random_elo, "settings": plan.task_settings(task), "host": numerics()}  # fmt: skip
         write_json(record, baselines)
         return baselines
     reference = reference_name(task)
@@ -343,7 +344,7 @@ def _work_out_baselines(plan: Plan, task: str, folder: Path, record: Path, threa
     baselines = {"task": task, "reference": reference, "reference_return": float(np.mean(returns[reference])),
                  "random_return": float(np.mean(returns["random"])), "returns": returns,
                  "reference_summary": results["policies"][reference]["summary"],
-                 "settings": plan.task_settings(task)}  # fmt: skip
+                 "settings": plan.task_settings(task), "host": numerics()}  # fmt: skip
     write_json(record, baselines)
     return baselines
 
@@ -1299,6 +1300,7 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   "fall outside, as the spread over seeds shows:", ""]  # fmt: skip
         lines += [f"- {row.name}: {verdict(r)}." for row, r in again]
     lines += _software_lines(rows)
+    lines += _baseline_host_lines(plan, baselines)
     lines += _hour_section(baselines, rows)
     lines += _soccer_section(plan, baselines, rows)
     lines += ["", "## Learning curves", ""]
@@ -1562,6 +1564,25 @@ def _software_lines(rows: dict[Row, dict | None]) -> list[str]:
     lines += [f"- {found}: {', '.join(names)}." for found, names in groups.items() if found]
     if "" in groups:
         lines.append(f"- not recorded (rows trained before records kept them): {', '.join(groups[''])}.")
+    return lines
+
+
+def _baseline_host_lines(plan: Plan, baselines: dict[str, dict]) -> list[str]:
+    """Where each task's reference and random returns (the normalization's 1 and 0) were played: numpy's code paths
+    on that host, grouped, and the tasks whose records do not say. A row's paired comparison plays the reference
+    again on the row's own host, so its reference return there can differ from the task's where the paths do."""
+    groups: dict[str, list[str]] = {}
+    for task in plan.tasks:
+        host = baselines[task].get("host")
+        key = f"numpy {host.get('numpy_simd', '?')}" if isinstance(host, dict) else ""
+        groups.setdefault(key, []).append(f"`{task}`")
+    lines = ["", "The tasks' reference and random returns (a normalized 1 and 0) are played once per task; a row's "
+             "paired comparison plays the reference again, on the row's host. Where the two hosts' numpy code paths "
+             "differ, the last bits of a long episode differ, and the reference's return in a row's evaluation may "
+             "differ from the task's. The tasks' own, by the code paths they were played on:", ""]  # fmt: skip
+    lines += [f"- {key}: {', '.join(tasks)}." for key, tasks in groups.items() if key]
+    if "" in groups:
+        lines.append(f"- not recorded (played before the records kept them): {', '.join(groups[''])}.")
     return lines
 
 

@@ -54,6 +54,7 @@ def test_the_whole_pipeline_on_a_tiny_budget(tmp_path, monkeypatch, capsys):
     assert sorted(rows) == ["skitter_RoachWalk-v4__ppo__0", "skitter_RoachWalk-v4__ppo__1"]
     base = summary["baselines"][WALK]
     assert base["reference"] == "tripod" and base["reference_return"] > base["random_return"]
+    assert base["host"]["numpy_simd"] == host.numpy_simd()  # where the reference and random were played
     for record in rows.values():
         assert record["timesteps"] >= 256 and len(record["returns"]) == 2
         assert record["software"]["torch"] == metadata.version("torch")  # what its training ran on
@@ -373,6 +374,15 @@ def test_the_table_normalizes_to_random_and_reference_and_lists_rows_not_run(tmp
     assert leaderboard.normalized(10.0, baselines[WALK]) == 0.0
     assert leaderboard.normalized(110.0, baselines[WALK]) == 1.0
     assert "(2 of 3 seeds)" in text
+    # where each task's reference and random were played: neither baseline here records it
+    assert f"- not recorded (played before the records kept them): `{WALK}`, `{XJUS}`." in text
+    played = {**baselines, XJUS: {**baselines[XJUS], "host": {"numpy_simd": "X86_V3", "cpu": "some"}}}
+    leaderboard.build_table(plan, tmp_path, played, rows, None)
+    text = (tmp_path / "results.md").read_text()
+    assert (
+        f"- numpy X86_V3: `{XJUS}`." in text
+        and f"not recorded (played before the records kept them): `{WALK}`." in text
+    )
     # a task whose reference is no better than random: not normalized, and said so
     xjus = "skitter/XjusWalk-v1"
     flat = {**baselines, xjus: {"reference": "gait", "reference_return": 5.0, "random_return": 5.0}}
