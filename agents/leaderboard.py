@@ -1558,12 +1558,19 @@ def _software_lines(rows: dict[Row, dict | None]) -> list[str]:
             groups.setdefault(key, []).append(row.name)
     if not groups:
         return []
-    lines = ["", "Library versions the rows trained on (train.py's config.json), and the CPU code paths where the "
-             "record keeps them (numpy's SIMD targets and torch's CPU capability: the same seed gives the same bits "
-             "only on the same versions and paths):", ""]  # fmt: skip
-    lines += [f"- {found}: {', '.join(names)}." for found, names in groups.items() if found]
+    intro = ("Library versions the rows trained on (train.py's config.json), and the CPU code paths where the record "
+             "keeps them (numpy's SIMD targets and torch's CPU capability: the same seed gives the same bits only on "
+             "the same versions and paths):")  # fmt: skip
+    return _grouped(intro, groups, "rows trained before records kept them")
+
+
+def _grouped(intro: str, groups: dict[str, list[str]], unrecorded: str) -> list[str]:
+    """A paragraph ``intro`` and a bullet per group (what they share: their names), the group without a key (its
+    records do not say) last, as ``unrecorded``."""
+    lines = ["", intro, ""]
+    lines += [f"- {key}: {', '.join(names)}." for key, names in groups.items() if key]
     if "" in groups:
-        lines.append(f"- not recorded (rows trained before records kept them): {', '.join(groups[''])}.")
+        lines.append(f"- not recorded ({unrecorded}): {', '.join(groups[''])}.")
     return lines
 
 
@@ -1576,14 +1583,11 @@ def _baseline_host_lines(plan: Plan, baselines: dict[str, dict]) -> list[str]:
         host = baselines[task].get("host")
         key = f"numpy {host.get('numpy_simd', '?')}" if isinstance(host, dict) else ""
         groups.setdefault(key, []).append(f"`{task}`")
-    lines = ["", "The tasks' reference and random returns (a normalized 1 and 0) are played once per task; a row's "
+    intro = ("The tasks' reference and random returns (a normalized 1 and 0) are played once per task; a row's "
              "paired comparison plays the reference again, on the row's host. Where the two hosts' numpy code paths "
              "differ, the last bits of a long episode differ, and the reference's return in a row's evaluation may "
-             "differ from the task's. The tasks' own, by the code paths they were played on:", ""]  # fmt: skip
-    lines += [f"- {key}: {', '.join(tasks)}." for key, tasks in groups.items() if key]
-    if "" in groups:
-        lines.append(f"- not recorded (played before the records kept them): {', '.join(groups[''])}.")
-    return lines
+             "differ from the task's. The tasks' own, by the code paths they were played on:")  # fmt: skip
+    return _grouped(intro, groups, "played before the records kept them")
 
 
 def reproduction(previous: dict[str, Any], record: dict[str, Any]) -> dict[str, Any]:
