@@ -49,7 +49,7 @@ def bootstrap(fn: Callable[..., np.ndarray], block: int, *arrays: np.ndarray, se
 
     bs = CircularBlockBootstrap(max(block, 1), *arrays, seed=seed)
     # one BLAS thread: each replicate's fit is small (thousands of rows, a dozen columns), and OpenBLAS's threads for
-    # it made a log's measurements four times slower on a host whose other core is busy (24.7 s against 6.0 s for
+    # it made a log's measurements four times slower on a host whose other core is busy (24.7 s against 6.4 s for
     # `python -m sysid.measure --robot roach` on the two 2015 logs, beside a training job, 2026-12-04)
     with warnings.catch_warnings(), threadpool_limits(limits=1, user_api="blas"):
         warnings.simplefilter("ignore")  # arch warns when a replicate's regression is rank-deficient; its NaN drops
