@@ -32,7 +32,7 @@ import pandas as pd
 
 import envs  # noqa: F401  (registers the envs)
 from agents import describe_policies, load_policy
-from agents.config import closest_env
+from agents.config import skitter_env_problem
 from agents.evaluation import (
     MIN_BOOTSTRAP,
     Episode,
@@ -116,9 +116,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         p.error(f"--seed must be >= 0 (numpy seeds are non-negative), got {args.seed}")
     if args.max_episode_steps is not None and args.max_episode_steps < 1:
         p.error(f"--max-episode-steps must be at least 1, got {args.max_episode_steps}")
-    if args.env not in gym.registry:
-        known = sorted(k for k in gym.registry if k.startswith("skitter/"))
-        p.error(f"--env {args.env!r} is not registered{closest_env(args.env, known)}; known: {', '.join(known)}")
+    problem = skitter_env_problem(args.env)
+    if problem is not None:
+        p.error(f"--env: {problem}")
     if args.calibration is not None:
         try:
             read_calibration(args.calibration)

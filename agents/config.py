@@ -17,3 +17,19 @@ def closest_env(env_id: str, registered: list[str]) -> str:
     asked = env_id.lower() if "/" in env_id else f"skitter/{env_id.lower()}"  # the namespace left out
     close = nearest(asked, lowered, cutoff=0.8)
     return f" (did you mean {lowered[close]!r}?)" if close else ""
+
+
+def skitter_env_problem(env_id: str) -> str | None:
+    """Why ``env_id`` is not one of skitter's registered envs (unknown, or another package's: skitter's tools run
+    its own envs, whose telemetry, batching and references they rely on), with the ids that are; None if it is."""
+    import gymnasium as gym
+
+    skitter = sorted(name for name in gym.registry if name.startswith("skitter/"))
+    if env_id in skitter:
+        return None
+    if env_id in gym.registry:
+        return (
+            f"{env_id!r} is not a skitter env (these tools run skitter's own); the skitter envs are "
+            f"{', '.join(skitter)}"
+        )
+    return f"unknown env {env_id!r}{closest_env(env_id, skitter)}; the skitter envs are {', '.join(skitter)}"

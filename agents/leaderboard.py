@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.config import skitter_env_problem
 from agents.evaluation import GENERIC_METRICS, LOWER_IS_BETTER
 from envs.common.batch import THREADS_VARIABLE
 from envs.common.cluster import ClusterError, check_address, ensure_ray, init_ray
@@ -1377,8 +1378,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                 parser.error(f"--tasks {task!r}: self-play trains with {' or '.join(SELFPLAY_ALGOS)} alone, and "
                              f"--algos has none of it ({', '.join(args.algos)}); the plan's other algorithms train "
                              "its gym tasks only")  # fmt: skip
-        elif task not in gym.registry:
-            parser.error(f"--tasks: unknown env {task!r} (an env id, or soccer/ROBOT)")
+        elif skitter_env_problem(task) is not None:
+            parser.error(f"--tasks: {skitter_env_problem(task)} (or soccer/ROBOT)")
     args.timesteps = _task_budgets(parser, args.tasks, args.timesteps, lambda t: t in gym.registry or robot_soccer(t))
     args.match_seconds = _match_lengths(parser, args.tasks, args.match_seconds, robot_soccer)
     checks = (

@@ -82,7 +82,7 @@ from torch.utils.tensorboard import SummaryWriter
 
 import envs  # noqa: F401  (registers the skitter envs)
 from agents import residual_reference
-from agents.config import ConfigError, closest_env
+from agents.config import ConfigError, skitter_env_problem
 from agents.evaluation import episode_metrics
 from agents.residual import (
     SETTINGS,
@@ -1380,7 +1380,7 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     algo, seed, env_id, hyperparams = config["algo"], config["seed"], config["env_id"], config["hyperparams"]
     check_resume_flags(args, config)
     if "soccer" not in config:
-        check_env_id(env_id)
+        check_env_id(env_id, f"{config_path}: field 'env_id': ")
     players = config["soccer"].get("players_per_team", 1) if isinstance(config.get("soccer"), dict) else 1
     hp = resolve_hyperparams(hyperparams, algo, where=str(config_path), players=players)
     checkpoint = latest_checkpoint(run_dir, algo, hp.model_kwargs.get("device", "cpu"))
@@ -1426,11 +1426,11 @@ def _resume_locked(args: argparse.Namespace, run_dir: Path) -> Path:
     return train(model, run_dir, config, progress=progress_bar_wanted(args.no_progress), callbacks=callbacks)
 
 
-def check_env_id(env_id: str) -> None:
-    if env_id not in gym.registry:
-        skitter = [name for name in gym.registry if name.startswith("skitter/")]
-        raise ConfigError(f"unknown env {env_id!r}{closest_env(env_id, skitter)}; the skitter envs are "
-                          f"{', '.join(skitter)}")  # fmt: skip
+def check_env_id(env_id: str, source: str = "") -> None:
+    """Refuse an id that is not a skitter env; ``source`` names where it came from (a run's config.json)."""
+    problem = skitter_env_problem(env_id)
+    if problem is not None:
+        raise ConfigError(f"{source}{problem}")
 
 
 def check_resume_flags(args: argparse.Namespace, config: dict[str, Any]) -> None:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -293,15 +294,18 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
     direction = "minimize" if metric in LOWER_IS_BETTER else "maximize"
     name = study or study_name(env_id, algo)
     url = storage_url(storage, runs_dir)
-    runs_dir.mkdir(parents=True, exist_ok=True)
+    made_dir = next((p for p in reversed([runs_dir, *runs_dir.parents]) if not p.exists()), None)
+    runs_dir.mkdir(parents=True, exist_ok=True)  # the default storage's file lives there
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     pruner = optuna.pruners.MedianPruner(n_startup_trials=STARTUP_TRIALS, n_warmup_steps=timesteps // 3)
     try:  # its sampler is set below, seeded by how many trials the study holds
         the_study = optuna.create_study(storage=url, study_name=name, direction=direction, pruner=pruner,
                                         load_if_exists=True)  # fmt: skip
-    except ImportError as exc:
-        raise ConfigError(f"--storage {_shown(url)}: {_first_line(exc)}") from None
     except Exception as exc:  # SQLAlchemy's errors: a server that does not answer, a bad URL, a locked file
+        if made_dir is not None:  # a refused study leaves nothing behind: not the folders made for it
+            shutil.rmtree(made_dir, ignore_errors=True)
+        if isinstance(exc, ImportError):
+            raise ConfigError(f"--storage {_shown(url)}: {_first_line(exc)}") from None
         raise ConfigError(f"--storage {_shown(url)}: cannot open the study ({type(exc).__name__}: "
                           f"{_first_line(exc)})") from None  # fmt: skip
     # a study is one env's: a process that shares it with another env id, algorithm or env kwargs (another action

@@ -190,6 +190,11 @@ def _run(args: argparse.Namespace) -> int:
         if args.calibration is not None:
             start = read_calibration(args.calibration, adapter.robot)
             start.check(adapter.known_effects())
+        for log in [*train, *test]:  # a telemetry file names the robot it was recorded on
+            declared = log.meta.get("robot")
+            if isinstance(declared, str) and declared not in (args.robot, adapter.robot):
+                print(f"calibrate.py: warning: {log.path}: its metadata says it was recorded on the {declared!r}; "
+                      f"calibrating the {args.robot!r} on it", file=sys.stderr)  # fmt: skip
         adapter.check_logs([*train, *test])
         adapter.check_length([*train, *test])
         known = adapter.known_effects()

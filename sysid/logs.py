@@ -275,6 +275,9 @@ def read_log(
     native = _native_reader(path, formats)
     if native is not None:
         log = native(path)
+        if column_map is not None:  # a map meant for another file, or for this one by a user who thinks it is used
+            warnings.warn(f"{path}: read as {log.meta.get('format', 'a format skitter knows')}; the column map "
+                          "(--columns) is not used for it", stacklevel=2)  # fmt: skip
     elif column_map is not None:
         log = _read_mapped(path, column_map, required)
     else:
@@ -383,6 +386,11 @@ def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLim
             f"{log.path}: column {missing[0]!r} is missing (needed: {', '.join(required)}; "
             f"the file has: {', '.join(map(str, log.df.columns))})"
         )
+    for column in ("time", *required):
+        values = log.df[column]
+        if not (pd.api.types.is_numeric_dtype(values) or pd.api.types.is_bool_dtype(values)):
+            raise LogError(f"{log.path}: column {column!r} holds text, not numbers (row 1: "
+                           f"{values.iloc[0] if len(values) else ''!r})")  # fmt: skip
     rows = len(log.df)
     log = _drop_non_finite(log, ("time", *required))
     log = _drop_time_glitches(log)
@@ -402,8 +410,8 @@ def check_log(log: Log, required: Sequence[str], limits: Mapping[str, ChannelLim
         raise LogError(f"{log.path}: {dropped} of {rows} rows are malformed (more than {MAX_BAD_FRACTION:.0%}), "
                        "counting every kind dropped above")  # fmt: skip
     if len(t) < MIN_ROWS or not log.duration > 0:
-        raise LogError(f"{log.path}: too short: {len(t)} rows over {log.duration:.3g} s (at least "
-                       f"{MIN_ROWS} rows)")  # fmt: skip
+        raise LogError(f"{log.path}: too short: {len(t)} row{'' if len(t) == 1 else 's'} over {log.duration:.3g} s "
+                       f"(at least {MIN_ROWS} rows)")  # fmt: skip
     return log
 
 
@@ -565,11 +573,69 @@ def _read_parquet(path: Path) -> Log:
         df, meta = read_telemetry(path)
     except ValueError as exc:
         raise LogError(str(exc)) from None
+    _check_parquet_meta(path, meta)
+    df, unparsed = _numeric_columns(path, df)
+    if unparsed:
+        meta = {**meta, "unparsed": unparsed}
     if "episode" in df.columns and df["episode"].nunique() > 1:
         first = int(df["episode"].iloc[0])
         warnings.warn(f"{path}: holds {df['episode'].nunique()} episodes; using episode {first}", stacklevel=3)
         df = df[df["episode"] == first].reset_index(drop=True)
     return Log(str(path), df, {**meta, "format": "skitter telemetry"})
+
+
+# the fields of a telemetry file's record that the calibration reads, each a channel -> number map, and whether
+# 0 is a value it may hold (a noise level of 0 would divide an error by nothing)
+_PER_CHANNEL_FIELDS = {"noise_sigma": False, "quantisation": True, "file_white": True}
+
+
+def _check_parquet_meta(path: Path, meta: Mapping[str, Any]) -> None:
+    """The fields of a telemetry file's record that the calibration uses, checked: its schema, the units of the
+    channels it names (skitter's SI units, as it writes them) and the per-channel numbers."""
+    from envs.common.telemetry import METADATA_KEY, SCHEMA_VERSION
+
+    where = f"{path}: metadata '{METADATA_KEY.decode()}'"
+    version = meta.get("schema_version", SCHEMA_VERSION)
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= SCHEMA_VERSION:
+        raise LogError(f"{where} field 'schema_version' = {version!r}: this skitter reads telemetry of schema "
+                       f"1 to {SCHEMA_VERSION}")  # fmt: skip
+    units = meta.get("units", {})
+    if not isinstance(units, Mapping):
+        raise LogError(f"{where} field 'units' = {units!r}: expected a channel -> unit object")
+    for channel, unit in units.items():
+        si = channel_unit(str(channel))
+        if si is not None and unit != si:
+            raise LogError(f"{where} field 'units.{channel}' = {unit!r}: skitter telemetry holds {channel!r} in "
+                           f"{si!r}")  # fmt: skip
+    for name, zero_allowed in _PER_CHANNEL_FIELDS.items():
+        values = meta.get(name)
+        if values is None:
+            continue
+        if not isinstance(values, Mapping):
+            raise LogError(f"{where} field {name!r} = {values!r}: expected a channel -> number object")
+        for channel, value in values.items():
+            number = value if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+            if not (math.isfinite(number) and (number > 0 or (zero_allowed and number == 0))):
+                need = "a finite number, 0 or more" if zero_allowed else "a positive finite number"
+                raise LogError(f"{where} field '{name}.{channel}' = {value!r}: must be {need}")
+
+
+def _numeric_columns(path: Path, df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, dict[str, str]]]:
+    """A telemetry table whose columns of text (an exporter's numbers written as strings, an "N/A") are numbers:
+    each cell that does not parse is NaN, and kept as the file has it (column -> {row: text}) for the warning that
+    drops its row. A column none of whose cells parse is left as text; refused if a channel needs it."""
+    unparsed: dict[str, dict[str, str]] = {}
+    for column in df.columns:
+        if pd.api.types.is_numeric_dtype(df[column]) or pd.api.types.is_bool_dtype(df[column]):
+            continue
+        numbers = pd.to_numeric(df[column], errors="coerce")
+        failed = np.flatnonzero((numbers.isna() & df[column].notna()).to_numpy())
+        if len(failed) == len(df):
+            continue
+        texts = df[column].to_numpy()
+        unparsed[str(column)] = {str(i + 1): str(texts[i]) for i in failed}
+        df = df.assign(**{column: numbers.astype(float)})
+    return df, unparsed
 
 
 # a plotted item's column -> our channel, where the adapters expect another name than the item's own

@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         for log in logs:
             measurements += robot.measure_log(log, seed=args.seed)
     except (LogError, ValueError) as exc:
-        print(f"measure: error: {exc}", file=sys.stderr)
+        print(f"python -m sysid.measure: error: {exc}", file=sys.stderr)
         return 2
     if not measurements:
         print(f"measure: the {args.robot}'s logs measure nothing by themselves here (its adapter has no measure_log)")
@@ -181,8 +181,8 @@ def _write_new(path: Path, text: str) -> int:
 
     where, written = atomic_write_new(path, lambda tmp: tmp.write_text(text))
     if not written:
-        print(f"measure: error: {path} appeared during the run and is left as it was; the measurements are in "
-              f"{where}", file=sys.stderr)  # fmt: skip
+        print(f"python -m sysid.measure: error: {path} appeared during the run and is left as it was; the "
+              f"measurements are in {where}", file=sys.stderr)  # fmt: skip
         return 1
     return 0
 

@@ -128,6 +128,8 @@ def test_policy_files_load_by_name_and_parameters_are_checked(tmp_path):
     bad.write_text(json.dumps({**record, "parameters": [1.5] * coupling.dimension}))
     with pytest.raises(CouplingError, match="parameters"):
         read_policy_file(bad)
+    with pytest.raises(CouplingError, match="a directory, not a file"):
+        read_policy_file(tmp_path)
 
 
 def test_the_cpg_policy_runs_an_episode_and_replays_the_same():

@@ -316,6 +316,68 @@ def test_parquet_telemetry_is_a_log(tmp_path):
     assert len(log.df) == 200 and log.meta["format"] == "skitter telemetry"
 
 
+def _telemetry_with(tmp_path: Path, df: pd.DataFrame, record: bytes | None = None, **fields) -> Path:
+    """A telemetry file of ``df`` whose metadata record is ``record`` as given, or the writer's with ``fields``."""
+    import pyarrow.parquet as pq
+
+    path = tmp_path / "t.parquet"
+    write_telemetry(path, df, {"robot": "motor"})
+    table = pq.read_table(path)
+    meta = dict(table.schema.metadata)
+    meta[b"skitter"] = record if record is not None else json.dumps({**json.loads(meta[b"skitter"]), **fields}).encode()
+    pq.write_table(table.replace_schema_metadata(meta), path)
+    return path
+
+
+def _motor_frame(n: int = 200) -> pd.DataFrame:
+    t = np.arange(n) * 0.01
+    return pd.DataFrame({"time": t, "duty": 0.5, "angle": t, "speed": 1.0})
+
+
+def test_telemetry_numbers_stored_as_text_read_and_a_cell_that_is_not_one_is_a_malformed_row(tmp_path):
+    df = _motor_frame().astype({"angle": str, "time": str})
+    df.loc[5, "angle"] = "N/A"
+    with pytest.warns(UserWarning, match=r"t\.parquet: dropped malformed row at line 6: column 'angle': 'N/A'"):
+        log = read_log(_telemetry_with(tmp_path, df), ("duty", "angle", "speed"))
+    assert len(log.df) == 199 and log.df["time"].dtype == float and log.df["angle"].iloc[5] == 0.06
+
+
+def test_a_telemetry_channel_of_text_is_refused_naming_file_column_and_value(tmp_path):
+    df = _motor_frame().astype({"angle": str})
+    df["angle"] = "fast"
+    with pytest.raises(LogError, match=r"t\.parquet: column 'angle' holds text, not numbers \(row 1: 'fast'\)"):
+        read_log(_telemetry_with(tmp_path, df), ("duty", "angle", "speed"))
+
+
+@pytest.mark.parametrize(
+    ("record", "fields", "message"),
+    [
+        (b"{not json", {}, "its 'skitter' metadata record is not JSON"),
+        (b"[1]", {}, "its 'skitter' metadata record is a JSON list, not an object"),
+        (None, {"noise_sigma": 5}, "field 'noise_sigma' = 5: expected a channel -> number object"),
+        (None, {"noise_sigma": {"angle": 0.0}}, "field 'noise_sigma.angle' = 0.0: must be a positive finite number"),
+        (None, {"noise_sigma": {"speed": "x"}}, "field 'noise_sigma.speed' = 'x': must be a positive"),
+        (None, {"quantisation": {"angle": -1}}, "field 'quantisation.angle' = -1: must be a finite number, 0 or"),
+        (None, {"schema_version": 99}, "field 'schema_version' = 99: this skitter reads telemetry of schema 1 to"),
+        (None, {"units": {"time": "ms"}}, "field 'units.time' = 'ms': skitter telemetry holds 'time' in 's'"),
+    ],
+)
+def test_a_telemetry_record_the_calibration_cannot_use_is_refused_naming_the_field(tmp_path, record, fields, message):
+    path = _telemetry_with(tmp_path, _motor_frame(), record, **fields)
+    with pytest.raises(LogError, match=re.escape(message)) as caught:
+        read_log(path, ("duty", "angle", "speed"))
+    assert str(caught.value).startswith(str(path))
+
+
+def test_calibrate_warns_of_a_log_recorded_on_another_robot(capsys, tmp_path):
+    path = _telemetry_with(tmp_path, _motor_frame(400), robot="xjus")
+    code = calibrate.main(["--robot", "motor", "--train", f"{path}@0:2", "--test", f"{path}@2:",
+                           "--fit", "no_such_effect", "--out", str(tmp_path / "out")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "--fit 'no_such_effect'" in err and not (tmp_path / "out").exists()
+    assert "its metadata says it was recorded on the 'xjus'; calibrating the 'motor' on it" in err
+
+
 # --- real logs the readers were not written against (tests/data/logs/README.md) -------------------------------------
 UNSEEN = Path(__file__).parent / "data" / "logs"
 
@@ -502,11 +564,12 @@ def test_a_repeated_timestamp_is_named_as_such_and_dropped_like_any_malformed_ro
     )
 
 
-def test_a_column_map_applies_only_to_the_logs_of_no_native_format(tmp_path):
+def test_a_column_map_applies_only_to_the_logs_of_no_native_format(tmp_path, capsys, monkeypatch):
     t = np.arange(0, 2, 0.01)
     telemetry = tmp_path / "t.parquet"
     write_telemetry(telemetry, pd.DataFrame({"time": t, "duty": 0.5, "angle": t, "speed": 1.0}), {"robot": "motor"})
     mapped, mapping = _mapped(tmp_path, _mapped_rows())
+    monkeypatch.setattr(calibrate, "_WARNED", set())  # each warning is printed once a process
     logs = calibrate.read_logs([mapped, GEARMOTOR, AX12A, ROACH_2HZ, telemetry], (), mapping)
     formats = [log.meta["format"] for log in logs]
     assert formats[0] == "mapped csv" and formats[2:] == [
@@ -515,15 +578,19 @@ def test_a_column_map_applies_only_to_the_logs_of_no_native_format(tmp_path):
         "skitter telemetry",
     ]
     assert formats[1].startswith("gearmotor CSV") and len(logs[1].df) == 1047
+    unused = [line for line in capsys.readouterr().err.splitlines() if "the column map (--columns) is not used" in line]
+    assert [m.split(": ")[2] for m in unused] == [str(p) for p in (GEARMOTOR, AX12A, ROACH_2HZ, telemetry)], unused
 
 
-def test_a_log_without_the_column_maps_columns_is_named(capsys, tmp_path):
-    """The native training log reads past the map; the test log of no known format lacks the map's columns."""
+def test_a_log_without_the_column_maps_columns_is_named(capsys, tmp_path, monkeypatch):
+    """The native training log reads past the map (said so); the test log of no known format lacks its columns."""
+    monkeypatch.setattr(calibrate, "_WARNED", set())  # each warning is printed once a process
     mapping = _write(tmp_path, "map.json", [json.dumps(MAP)])
     other = _write(tmp_path, "other.csv", ["stamp,enc", *_mapped_rows()])
     code, err = _run(capsys, tmp_path, "motor", GEARMOTOR, other, "--columns", str(mapping))
-    assert code == 2 and len(err.splitlines()) == 1
-    assert f"{other}: the column map's column 't_ms' (for 'time') is missing; the file has ['stamp', 'enc']" in err
+    warning, error = err.splitlines()
+    assert code == 2 and f"warning: {GEARMOTOR}: read as gearmotor CSV" in warning and "--columns" in warning
+    assert f"{other}: the column map's column 't_ms' (for 'time') is missing; the file has ['stamp', 'enc']" in error
 
 
 # --- column map units: of the channel's kind ----------------------------------------------------------------------

@@ -325,6 +325,7 @@ def test_optimize_errors_begin_like_the_other_tools(capsys, tmp_path):
     out = tmp_path / "out"
     for args, needle in [
         (["--config", str(tmp_path / "nope.json")], "nope.json: no such run configuration"),
+        (["--config", str(tmp_path)], f"{tmp_path}: a directory, not a run configuration"),
         (["--config", str(tmp_path / "nope.json"), "--iterations", "x"], "argument --iterations: invalid int value"),
     ]:
         code, err = call(optimize, capsys, *args, "--out", str(out), "--no-progress")

@@ -184,7 +184,8 @@ def test_a_model_of_another_env_is_refused(model_zip, tmp_path, capsys):
 @pytest.mark.parametrize(
     ("args", "message", "command_line"),
     [
-        (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "not registered", True),
+        (["--env", "skitter/NoSuchRobot-v0", "--policy", "tripod"], "unknown env 'skitter/NoSuchRobot-v0'", True),
+        (["--env", "CartPole-v1", "--policy", "random"], "'CartPole-v1' is not a skitter env", False),
         (["--env", "roachwalk-v3", "--policy", "tripod"], "(did you mean 'skitter/RoachWalk-v4'?)", False),
         (["--env", "skitter/RoachWalk-v4", "--policy", "no/such/model.zip"], "no trained model", True),
         (["--env", "skitter/RoachWalk-v4", "--policy", "moonwalk"], "unknown policy", False),

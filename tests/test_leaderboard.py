@@ -210,6 +210,7 @@ def test_an_academy_row_trains_a_residual_on_the_scripted_player_and_is_judged_a
 def test_bad_leaderboard_input_is_refused_before_anything_runs(tmp_path, capsys):
     for argv, message in (
         (["--tasks", "skitter/Nope-v1", "--timesteps", "10"], "unknown env"),
+        (["--tasks", "CartPole-v1", "--timesteps", "10"], "'CartPole-v1' is not a skitter env"),
         (["--tasks", WALK, "--timesteps", "0"], "--timesteps '0': must be at least 1, got 0"),
         (["--tasks", WALK, XJUS, "--timesteps", f"{XJUS}=abc", f"{WALK}=1"], f"--timesteps '{XJUS}=abc': expected"),
         (["--tasks", WALK, WALK, "--timesteps", "10"], "must not repeat a task"),

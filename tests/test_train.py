@@ -162,6 +162,7 @@ def test_off_policy_algorithms_train(algo, tmp_path):
 
 BAD_INPUTS = {
     "unknown env": ({}, ["--env", "skitter/NoSuchEnv-v0"], ["skitter/NoSuchEnv-v0"]),
+    "another package's env": ({}, ["--env", "CartPole-v1"], ["'CartPole-v1' is not a skitter env"]),
     "an old version": (
         {},
         ["--env", "skitter/RoachWalk-v2"],

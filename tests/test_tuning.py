@@ -179,7 +179,7 @@ def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, arg
     err = capsys.readouterr().err
     assert status == 2 and message in err and "Traceback" not in err, err
     assert "s3cret" not in err and len(err.strip().splitlines()) == 1, "one line, and no password"
-    assert not (tmp_path / "runs" / "tuning").exists(), "nothing written"
+    assert not (tmp_path / "runs").exists(), "nothing written, not even the runs folder"
 
 
 @pytest.mark.parametrize(("args", "message"), [

@@ -224,7 +224,7 @@ def parse_coupling(raw: Any, path: str = "<inline>") -> Coupling:
 def _load_json(path: str | Path) -> Any:
     p = Path(path)
     if not p.is_file():
-        raise CouplingError(f"{p}: no such file")
+        raise CouplingError(f"{p}: {'a directory, not a file' if p.is_dir() else 'no such file'}")
     try:
         return json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as error:

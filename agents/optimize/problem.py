@@ -170,7 +170,7 @@ def parse_config(raw: Any, path: str = "<inline>") -> RunConfig:
 def read_config(path: str | Path) -> RunConfig:
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(f"{p}: no such run configuration")
+        raise ConfigError(f"{p}: {'a directory, not a' if p.is_dir() else 'no such'} run configuration")
     try:
         raw = json.loads(p.read_text(), object_pairs_hook=functools.partial(_unique_keys, p))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:

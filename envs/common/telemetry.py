@@ -115,4 +115,11 @@ def read_telemetry(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
     raw = (table.schema.metadata or {}).get(METADATA_KEY)
     if raw is None:
         raise ValueError(f"{path}: Parquet file has no '{METADATA_KEY.decode()}' metadata record")
-    return table.to_pandas(), json.loads(raw)
+    try:
+        record = json.loads(raw)
+    except ValueError as exc:  # json's error, or bytes that are not text
+        raise ValueError(f"{path}: its '{METADATA_KEY.decode()}' metadata record is not JSON ({exc})") from None
+    if not isinstance(record, dict):
+        raise ValueError(f"{path}: its '{METADATA_KEY.decode()}' metadata record is a JSON {type(record).__name__}, "
+                         "not an object of named fields")  # fmt: skip
+    return table.to_pandas(), record

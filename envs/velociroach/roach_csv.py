@@ -334,7 +334,8 @@ def _number_list(path: Path, number: int, what: str, value: str, kind: type) -> 
         try:
             out.append(kind(item))
         except ValueError:
-            raise ValueError(f"{path}, line {number}: {what} holds {item!r}, not a {kind.__name__}") from None
+            wanted = "an integer" if kind is int else "a number"
+            raise ValueError(f"{path}, line {number}: {what} holds {item!r}, not {wanted}") from None
     if kind is float:
         out = [int(x) if float(x).is_integer() else x for x in out]
     return out
