@@ -359,10 +359,20 @@ def task_video(plan: Plan, task: str, out: Path, rows: dict[Row, dict | None], t
                records: Path | None = None) -> Path | None:  # fmt: skip
     """A side-by-side video of the task's reference gait and its best row's model, on the first evaluation seed
     (``OUT/videos/<task>/``); made again when the best row changes and its model is in ``OUT/runs/`` (a checkout
-    keeps the records, not the runs: there the published video stays)."""
+    keeps the records, not the runs: there the published video stays). The best row is the best of all the
+    task's finished rows under the plan's settings, this command's and those recorded before it: a command that
+    computes one row does not take the video from a better row it did not plan."""
     if is_soccer(task):  # a soccer row is rated in matches, and has no return to pick a best row by
         return None
     done = [(rec["mean_return"], row) for row, rec in rows.items() if rec is not None and row.task == task]
+    planned = {row.name for row in rows}
+    for path in sorted(((records or out) / "rows").glob(f"{task.replace('/', '_')}__*/row.json")):
+        try:
+            record = _load_done(path, plan.row_settings(task), f"row {path.parent.name}")
+        except (StaleResult, ValueError):  # another budget's row, or a record being written: not this table's
+            continue
+        if record is not None and record.get("task") == task and path.parent.name not in planned:
+            done.append((record["mean_return"], Row(task, record["algo"], int(record["seed"]))))
     if not done:
         return None
     _, best = max(done, key=lambda pair: pair[0])

@@ -1033,6 +1033,32 @@ def test_a_soccer_task_gets_no_video_and_its_row_breaks_nothing(tmp_path):
     assert not (tmp_path / "videos").exists()
 
 
+def test_a_command_of_one_row_leaves_the_video_to_a_better_row_recorded_before(tmp_path):
+    """The task's video shows its best finished row over every record under the plan's settings: a command that
+    computes one worse row (its model at hand) does not take the video from a better one it did not plan."""
+    plan = leaderboard.Plan((WALK,), ("ppo",), (0,), ((WALK, 100),), None, 2, 1000, None)
+    worse, better = leaderboard.Row(WALK, "ppo", 0), leaderboard.Row(WALK, "ppo+residual", 0)
+    records = tmp_path / "records"
+    for row, mean in ((worse, 1.0), (better, 2.0)):
+        path = leaderboard.row_file(records, row)
+        path.parent.mkdir(parents=True)
+        record = {"task": WALK, "algo": row.algo, "seed": 0, "mean_return": mean, "settings": plan.row_settings(WALK)}
+        path.write_text(json.dumps(record))
+    other = leaderboard.Row(WALK, "sac", 0)  # another budget's record: not this table's, whatever its return
+    leaderboard.row_file(records, other).parent.mkdir(parents=True)
+    leaderboard.row_file(records, other).write_text(json.dumps({**record, "algo": "sac", "mean_return": 9.0,
+                                                                "settings": {"timesteps": 5}}))  # fmt: skip
+    marker = leaderboard.video_marker(records, WALK)
+    marker.parent.mkdir(parents=True)
+    marker.write_text(better.name + "\n")
+    (tmp_path / "runs" / worse.name).mkdir(parents=True)
+    (tmp_path / "runs" / worse.name / "model.zip").write_bytes(b"a model")  # the planned row's run is at hand
+    rows = {worse: json.loads(leaderboard.row_file(records, worse).read_text())}
+    folder = leaderboard.task_video(plan, WALK, tmp_path, rows, 1, records)
+    assert folder == tmp_path / "videos" / WALK.replace("/", "_") and not folder.exists(), "nothing made again"
+    assert marker.read_text() == better.name + "\n"
+
+
 def test_the_page_names_a_video_whose_run_is_not_kept_instead_of_linking_to_nothing(tmp_path):
     """A fresh checkout has a row's video marker but neither the run that made the mp4 nor a published copy: the
     page says so and how to make it, and a published video is still linked."""
