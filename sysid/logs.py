@@ -574,7 +574,7 @@ def _read_parquet(path: Path) -> Log:
     except ValueError as exc:
         raise LogError(str(exc)) from None
     _check_parquet_meta(path, meta)
-    df, unparsed = _numeric_columns(path, df)
+    df, unparsed = _numeric_columns(df)
     if unparsed:
         meta = {**meta, "unparsed": unparsed}
     if "episode" in df.columns and df["episode"].nunique() > 1:
@@ -620,7 +620,7 @@ def _check_parquet_meta(path: Path, meta: Mapping[str, Any]) -> None:
                 raise LogError(f"{where} field '{name}.{channel}' = {value!r}: must be {need}")
 
 
-def _numeric_columns(path: Path, df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, dict[str, str]]]:
+def _numeric_columns(df: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, dict[str, str]]]:
     """A telemetry table whose columns of text (an exporter's numbers written as strings, an "N/A") are numbers:
     each cell that does not parse is NaN, and kept as the file has it (column -> {row: text}) for the warning that
     drops its row. A column none of whose cells parse is left as text; refused if a channel needs it."""
