@@ -1388,8 +1388,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                 parser.error(f"--tasks {task!r}: self-play trains with {' or '.join(SELFPLAY_ALGOS)} alone, and "
                              f"--algos has none of it ({', '.join(args.algos)}); the plan's other algorithms train "
                              "its gym tasks only")  # fmt: skip
-        elif skitter_env_problem(task) is not None:
-            parser.error(f"--tasks: {skitter_env_problem(task)} (or soccer/ROBOT)")
+        elif (problem := skitter_env_problem(task)) is not None:
+            parser.error(f"--tasks: {problem} (or soccer/ROBOT)")
     args.timesteps = _task_budgets(parser, args.tasks, args.timesteps, lambda t: t in gym.registry or robot_soccer(t))
     args.match_seconds = _match_lengths(parser, args.tasks, args.match_seconds, robot_soccer)
     checks = (

@@ -58,6 +58,7 @@ import numpy as np
 
 from envs.bioloid import constants
 from envs.bioloid.robot import GOAL
+from envs.common.io import not_a_file
 
 CONFIGS = Path(__file__).resolve().parent / "cpg_configs"
 DEFAULT_CONFIG = "experiment5"  # the policy ``cpg`` without a file: experiment 5's model at the middle of its box
@@ -224,7 +225,7 @@ def parse_coupling(raw: Any, path: str = "<inline>") -> Coupling:
 def _load_json(path: str | Path) -> Any:
     p = Path(path)
     if not p.is_file():
-        raise CouplingError(f"{p}: {'a directory, not a file' if p.is_dir() else 'no such file'}")
+        raise CouplingError(f"{p}: {not_a_file(p)}")
     try:
         return json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as error:

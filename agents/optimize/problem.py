@@ -52,6 +52,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.config import ConfigError
+from envs.common.io import not_a_file
 from envs.common.locomotion import leaky_count
 from envs.common.parameters import sample
 
@@ -170,7 +171,7 @@ def parse_config(raw: Any, path: str = "<inline>") -> RunConfig:
 def read_config(path: str | Path) -> RunConfig:
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(f"{p}: {'a directory, not a' if p.is_dir() else 'no such'} run configuration")
+        raise ConfigError(f"{p}: {not_a_file(p, 'run configuration')}")
     try:
         raw = json.loads(p.read_text(), object_pairs_hook=functools.partial(_unique_keys, p))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:

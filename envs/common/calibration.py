@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from envs.common.io import nearest
+from envs.common.io import nearest, not_a_file
 
 FORMAT = "skitter calibration"
 VERSION = 1
@@ -90,8 +90,7 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     """Read and check a calibration file (for ``robot`` if given)."""
     path = Path(path)
     if not path.is_file():
-        what = "a directory, not a calibration file" if path.is_dir() else "no such calibration file"
-        raise CalibrationError(f"{path}: {what}")
+        raise CalibrationError(f"{path}: {not_a_file(path, 'calibration file')}")
     try:
         data = json.loads(path.read_text(encoding="utf-8-sig"), object_pairs_hook=_unique_keys)
     except _DuplicateKey as exc:

@@ -24,6 +24,12 @@ def nearest(word: str, choices: Iterable[str], cutoff: float = 0.6) -> str | Non
     return close[0] if close else None
 
 
+def not_a_file(path: str | Path, what: str = "file") -> str:
+    """Why ``path``, which is not a file, cannot be read as ``what``: ``"a directory, not a <what>"`` or
+    ``"no such <what>"``."""
+    return f"a directory, not a {what}" if Path(path).is_dir() else f"no such {what}"
+
+
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call ``write(tmp_path)`` and move the result to ``path`` in one rename, so readers never see half a file."""
     path = Path(path)
