@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from envs.common.telemetry import MAX_REPEATED_ROWS, ChannelLimit
+from envs.common.telemetry import MAX_REPEATED_ROWS, METADATA_KEY, SCHEMA_VERSION, ChannelLimit
 
 MAX_BAD_FRACTION = 0.05
 # fewer rows cannot be a log of motion; how long a log must be to replay is the robot's (Adapter.check_length: a
@@ -592,8 +592,6 @@ _PER_CHANNEL_FIELDS = {"noise_sigma": False, "quantisation": True, "file_white":
 def _check_parquet_meta(path: Path, meta: Mapping[str, Any]) -> None:
     """The fields of a telemetry file's record that the calibration uses, checked: its schema, the units of the
     channels it names (skitter's SI units, as it writes them) and the per-channel numbers."""
-    from envs.common.telemetry import METADATA_KEY, SCHEMA_VERSION
-
     where = f"{path}: metadata '{METADATA_KEY.decode()}'"
     version = meta.get("schema_version", SCHEMA_VERSION)
     if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= SCHEMA_VERSION:
