@@ -1186,6 +1186,10 @@ def _share(record: dict[str, Any], baselines: dict[str, Any], metric: str) -> st
     return f"{mine:.0%}" + ("" if reference is None else f" ({reference:.0%})")
 
 
+def _rows(count: int) -> str:
+    return f"{count} row" if count == 1 else f"{count} rows"
+
+
 def _budget(plan: Plan) -> str:
     """The steps a row trains, in words: one number, or one per task."""
     budgets = {n for _, n in plan.timesteps}
@@ -1668,10 +1672,10 @@ def _run_plan(plan: Plan, args: argparse.Namespace, out: Path, records: Path) ->
     todo = sorted((r for r in plan.rows if r in args.rerun or not row_file(records, r).is_file()),
                   key=lambda r: plan.seeds.index(r.seed))  # fmt: skip
     if args.table_only:
-        print(f"leaderboard: --table-only: {len(todo)} rows not run are listed as such")
+        print(f"leaderboard: --table-only: not run, so listed as such: {_rows(len(todo))}")
         todo = []
     worst = "" if plan.minutes is None else f"; at most {len(todo) * plan.minutes / args.workers:.1f} min of training"
-    print(f"leaderboard: {len(plan.rows)} rows ({len(todo)} to run), {_budget(plan)}{worst}, "
+    print(f"leaderboard: {_rows(len(plan.rows))} ({len(todo)} to run), {_budget(plan)}{worst}, "
           f"{args.workers} at a time on {threads} threads each" + (f" on Ray at {args.address}" if args.address
                                                                     else ""))  # fmt: skip
     baselines = {task: task_baselines(plan, task, out, cores, records) for task in plan.tasks}

@@ -769,7 +769,7 @@ def test_table_only_trains_nothing_and_lists_the_rows_not_run(tmp_path, monkeypa
     out = tmp_path / "board"
     argv = ["--tasks", WALK, "--seeds", "0", "1", "--timesteps", "100", "--out", str(out), "--table-only"]
     assert leaderboard.main(argv) == 0
-    assert "2 rows not run are listed as such" in capsys.readouterr().out
+    assert "not run, so listed as such: 2 rows" in capsys.readouterr().out
     text = (out / "results.md").read_text()
     assert f"| {WALK.replace('/', '_')}__ppo__0 | not run |" in text
     with pytest.raises(SystemExit):
