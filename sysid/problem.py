@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -308,8 +309,9 @@ class Adapter(ABC):
         disturbance: Callable[[mujoco.MjSpec], None] | None = None,
     ) -> list[Callable[[mujoco.MjSpec], None]]:
         """The spec edits of a setting's structural effects (:meth:`structure`), from the robot's own makers of
-        each: ``backlash(gap)``, ``bump(height)`` and the ``disturbance`` edit."""
-        gap, height, disturbed = self.structure(setting)
+        each: ``backlash(gap)``, ``bump(height)`` and the ``disturbance`` edit (the first three entries of
+        :meth:`structure`, which an adapter extends with structure its own edits add)."""
+        gap, height, disturbed = Adapter.structure(self, setting)
         return [*([backlash(gap)] if gap and backlash else []), *([bump(height)] if height and bump else []),
                 *([disturbance] if disturbed and disturbance else [])]  # fmt: skip
 
@@ -480,6 +482,14 @@ def _missing(keys: Sequence[tuple], settings: Sequence[Setting], cache: Mapping)
         if key not in cache:
             out.setdefault(key, setting)
     return out
+
+
+MODEL_SIZE_FIELDS = tuple(name for name in dir(mujoco.MjModel) if re.fullmatch(r"n[a-zA-Z0-9_]+", name))
+
+
+def model_sizes(model: mujoco.MjModel) -> tuple[int, ...]:
+    """Every size of a model (``nq``, ``ntendon``, ``nconmax``...): models alike in all of them can share MjData."""
+    return tuple(v for v in (getattr(model, name) for name in MODEL_SIZE_FIELDS) if isinstance(v, int))
 
 
 def run_rollout(
@@ -899,7 +909,7 @@ class Problem:
             if (k, i) not in controls:
                 controls[(k, i)] = adapter.controls(model, seg, setting)
             control[row] = controls[(k, i)]
-        size = (m0.nq, m0.nv, m0.na, m0.nu, m0.nsensordata, m0.nbody, m0.njnt, m0.neq)
+        size = model_sizes(m0)  # every size its data is allocated by: a spring adds a tendon and no joint
         if size not in self._datas:
             self._datas[size] = [mujoco.MjData(m0) for _ in range(self.nthread)]
         datas = self._datas[size]

@@ -118,6 +118,36 @@ def test_a_roach_leg_phase_puts_its_legs_ahead_of_the_cranks_reading(tmp_path):
     assert np.abs(data.efc_pos[rows]).max() < 1e-6, "the linkage's equalities hold at the reset"
 
 
+def test_a_roach_periodic_load_is_the_torque_its_coefficients_give(tmp_path):
+    """``periodic_load_<side>``: at every reading q of that crank (a leg phase moving its reference), the passive
+    torque reaching it is sin1 sin q + cos1 cos q + sin2 sin 2q + cos2 cos 2q, the second harmonic's through the
+    joint geared 2:1 to the crank; the reset puts that joint where its equality holds it; the other crank feels
+    nothing, and a setting without the effect compiles the nominal model's sizes."""
+    coef = {"sin1": 1e-3, "cos1": 2e-3, "sin2": 5e-4, "cos2": -1e-3}
+    path = _write(tmp_path / "cal.json", {"periodic_load_left": coef, "leg_phase_left": {"offset": 0.7}})
+    env = gym.make("skitter/RoachWalk-v4", calibration=str(path)).unwrapped
+    nominal = gym.make("skitter/RoachWalk-v4").unwrapped.robot.model
+    m = env.robot.model
+    assert m.nq == nominal.nq + 1 and m.ntendon == nominal.ntendon + 2
+    crank = {s: m.joint(constants.CRANK_JOINTS[s]) for s in constants.SIDES}
+    geared = m.joint(f"{constants.CRANK_JOINTS['left']}_h2").dofadr[0]
+    data = mujoco.MjData(m)
+    for q in np.linspace(-3.0, 3.0, 9):
+        data.qpos[:] = env.robot.linkage_qpos(q, q + 1.0)
+        mujoco.mj_forward(m, data)
+        torque = data.qfrc_passive[crank["left"].dofadr[0]] + 2.0 * data.qfrc_passive[geared]
+        want = sum(coef[f"sin{h}"] * np.sin(h * q) + coef[f"cos{h}"] * np.cos(h * q) for h in (1, 2))
+        assert torque == pytest.approx(want, abs=1e-12)
+        assert data.qfrc_passive[crank["right"].dofadr[0]] == 0.0
+    env.reset(seed=0)
+    data = env.robot.sim.get_data(0)
+    mujoco.mj_forward(m, data)
+    rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    assert np.abs(data.efc_pos[rows]).max() < 1e-6, "the geared joint starts where its equality holds it"
+    zero = _write(tmp_path / "zero.json", {"periodic_load_left": dict.fromkeys(coef, 0.0)})
+    assert gym.make("skitter/RoachWalk-v4", calibration=str(zero)).unwrapped.robot.model.nq == nominal.nq
+
+
 def test_calibrated_xjus_adds_its_effects_and_leaves_the_nominal_model(tmp_path):
     path = _write(tmp_path / "cal.json", XJUS_EFFECTS, "xjus")
     nominal = gym.make("skitter/XjusWalk-v1").unwrapped.robot

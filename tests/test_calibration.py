@@ -818,6 +818,24 @@ def test_the_run_cache_keeps_what_a_call_asks_for_when_it_overflows():
     assert np.array_equal(out[0][0].data, problem.residuals([first[0]])[0][0].data)
 
 
+def test_a_setting_that_adds_only_a_spring_rolls_out_beside_the_nominal_model():
+    """A roach periodic load of the first harmonic adds a tendon and two sites and no joint: its rollouts get MjData
+    of their own sizes (data shared by models that differ in any size is written out of bounds), and its
+    residuals differ from the nominal model's, with the same segments."""
+    from sysid.problem import model_sizes
+
+    adapter = make_adapter("roach")
+    log, _ = synth.synthesize("roach", {}, 0, seconds=4.0)
+    problem = Problem(adapter, [log], nthread=1)
+    nominal = adapter.catalog_nominal()
+    loaded = {**nominal, "periodic_load_right.cos1": -3e-3}
+    assert model_sizes(adapter.model_for(loaded)) != model_sizes(adapter.model_for(nominal))
+    plain, spring = problem.residuals([nominal, loaded])
+    assert len(plain) == len(spring) > 0
+    assert all(np.isfinite(r.data).all() for r in spring)
+    assert total_objective(spring) != total_objective(plain)
+
+
 def test_two_logs_with_one_path_are_kept_apart():
     """A problem tells its logs apart by their place, not their path: two logs that share a path (two windows of one
     file, two synthetic runs) are scored, carried over and given a replay floor each as if their paths differed."""

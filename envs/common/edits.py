@@ -5,9 +5,10 @@ and the deepest contact of a state (for starting a segment out of the ground).""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import mujoco
+import numpy as np
 
 from envs.common.parameters import SpecEdit
 
@@ -75,6 +76,48 @@ def add_site_disturbance(site: str, axis: int) -> SpecEdit:
         a.gear = gear
 
     return edit
+
+
+def add_periodic_torque(spec: mujoco.MjSpec, joint: str, harmonics: Mapping[int, tuple[float, float]],
+                        radius: float = 0.004) -> None:  # fmt: skip
+    """A torque on hinge ``joint`` that depends on where it is: sum over ``harmonics`` {h: (s, c)} of s sin(h q) + c
+    cos(h q) N m at its reading q, in MuJoCo's own passive forces (no Python per step). Harmonic h is a tendon spring
+    of zero rest length between a site ``radius`` off the axis on a body turning h times as fast as the joint and a
+    site as far off the axis on the joint's parent: its energy k L^2 / 2, with L^2 = 2 r^2 (1 - cos(h (q - ref) -
+    a)), turns the body with the torque -k r^2 sin(h (q - ref) - a), h times that at the joint. The first harmonic's
+    site rides on the joint's own body; a higher one's on a light body of its own (1 mg, 1e-10 kg m^2) that a joint
+    equality turns h times as fast, as the model's linkage ties its joints (its joint ``<joint>_h<h>``: a reset puts
+    it where the equality holds it, as it does a linkage joint's)."""
+    hinge = spec.joint(joint)
+    body = hinge.parent
+    parent = body.parent
+    axis = np.asarray(hinge.axis, dtype=float) / np.linalg.norm(hinge.axis)
+    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 0.0, 1.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(axis, u)  # where u turns to at a quarter turn
+    for h, (s, c) in sorted(harmonics.items()):
+        amplitude = math.hypot(s, c)
+        if amplitude == 0.0:
+            continue
+        # -sin(h (q - ref) - a) = sin(h q + b), with s = A cos b, c = A sin b
+        a = math.pi - math.atan2(c, s) - h * hinge.ref
+        turning = body
+        if h != 1:
+            turning = parent.add_body(name=f"{joint}_h{h}", pos=body.pos, quat=body.quat, mass=1e-6,
+                                      inertia=[1e-10, 1e-10, 1e-10], explicitinertial=True)  # fmt: skip
+            turning.add_joint(name=f"{joint}_h{h}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=hinge.axis,
+                              pos=hinge.pos)  # fmt: skip
+            spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1=f"{joint}_h{h}", name2=joint,
+                              data=[0.0, float(h), 0.0, 0.0, 0.0] + [0.0] * 7, solref=[0.002, 1.0],
+                              solimp=[0.9999, 0.9999, 0.001, 0.5, 2.0])  # fmt: skip
+        on = turning.add_site(name=f"{joint}_h{h}_spring", pos=np.asarray(hinge.pos) + radius * u)
+        fixed = np.asarray(hinge.pos) + radius * (math.cos(a) * u + math.sin(a) * w)  # in the body's frame at rest
+        where = np.zeros(3)
+        mujoco.mju_rotVecQuat(where, fixed, np.asarray(body.quat, dtype=float))
+        anchor = parent.add_site(name=f"{joint}_h{h}_anchor", pos=np.asarray(body.pos) + where)
+        tendon = spec.add_tendon(name=f"{joint}_h{h}", stiffness=amplitude / (h * radius**2), springlength=[0.0, 0.0])
+        tendon.wrap_site(on.name)
+        tendon.wrap_site(anchor.name)
 
 
 def deepest_contact(model: mujoco.MjModel, data: mujoco.MjData) -> float:

@@ -205,6 +205,17 @@ TEMPLATES: dict[str, Effect] = {
             "motor's circuit the same as a winding resistance of 1/efficiency times nominal",
         ),
         Effect(
+            "periodic_load",
+            tuple(Param(f"{f}{h}", "N m", 0.0, -1.0, 1.0) for h in (1, 2) for f in ("sin", "cos")),
+            "periodic load",
+            "a residual on the drive that repeats with the crank's angle, the same at every stride: the duty rises "
+            "and falls at the same readings of the angle whatever the speed",
+            "a torque on a crank that depends on where the crank is, sin1 sin(q) + cos1 cos(q) + sin2 sin(2q) + "
+            "cos2 cos(2q) at its reading q: a linkage's flexure hinges, which bend and spring back as the crank "
+            "turns, or the legs' stance load in a shape the contacts miss (tendon springs on joints geared 1:1 and "
+            "2:1 to the crank)",
+        ),
+        Effect(
             "leg_phase",
             (Param("offset", "rad", 0.0, -math.pi, math.pi, periodic=True),),
             "leg phase",

@@ -9,7 +9,7 @@ import math
 import mujoco
 
 from envs.actuators.dcmotor import GAIN_K, GAIN_R
-from envs.common.edits import delay_actuators, scale_mass
+from envs.common.edits import add_periodic_torque, delay_actuators, scale_mass
 from envs.common.effects import Effect, Setting, make
 from envs.velociroach import constants
 from envs.velociroach.constants import SIDES
@@ -96,6 +96,16 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         # shifts, is a few degrees; on its own synthetic logs it reaches 1.4-1.7 noise levels (python -m
         # benchmarks.calibration_matrix --robots roach --kinds effect --effects leg_phase_left leg_phase_right)
         out.append(make("leg_phase", side, offset=(0.0, -math.pi, math.pi), weak=stance))
+    for side in SIDES:
+        # a load that depends on where the crank is: the real robot's linkage is a folded laminate whose flexure
+        # hinges bend and spring back as the crank turns [roach-sim: "planarizing four-bar linkages"], which the
+        # model's rigid hinges lack, and the legs' stance load the model's contacts may give another shape. On the
+        # 2 Hz real log the duty swings between 0.1 and 0.6 with the crank's angle, the same at every stride (the
+        # nominal model's between 0.0 and 0.15): a first harmonic of about 2.8 mN m on its right crank, a second of
+        # 1.6 mN m on its left (docs/real-logs.md). Each coefficient up to half the motor's stall torque at the
+        # crank (11 mN m at 3.7 V)
+        out.append(make("periodic_load", side, **{f"{f}{h}": (0.0, -5.5e-3, 5.5e-3) for h in (1, 2)
+                                                    for f in ("sin", "cos")}))  # fmt: skip
     return {e.name: e for e in out}
 
 
@@ -105,7 +115,7 @@ def effects_edit(setting: Setting):
     rotor inertia, motor constant and gearbox efficiency (as its winding resistance over the efficiency), the
     feet's and floor's friction, the floor's contact time constant and damping ratio, the C-legs' stiffness, and the
     chassis' mass (its inertia with it) and centre of mass (its inertial written explicitly, from the compiled
-    nominal body)."""
+    nominal body), and each crank's periodic load (tendon springs, :func:`~envs.common.edits.add_periodic_torque`)."""
 
     def edit(spec: mujoco.MjSpec) -> None:
         for side in SIDES:
@@ -134,8 +144,23 @@ def effects_edit(setting: Setting):
             if joint.name.endswith("_spring"):
                 joint.stiffness[0] *= stiffness
         scale_mass(spec, [constants.ROOT_BODY], setting.get("mass.scale", 1.0), setting.get("com_offset.x", 0.0))
+        for side in SIDES:  # last: its springs are placed from the crank's reference, which a leg phase moves
+            harmonics = periodic_load(setting, side)
+            if harmonics:
+                add_periodic_torque(spec, constants.CRANK_JOINTS[side], harmonics)
 
     return edit
+
+
+def periodic_load(setting: Setting, side: str) -> dict[int, tuple[float, float]]:
+    """A setting's periodic load on a side's crank, {harmonic: (sin, cos)} (N m), the harmonics it holds (none: the
+    model has no springs for it, so that a setting without the effect compiles the nominal model's sizes)."""
+    out = {}
+    for h in (1, 2):
+        s, c = (float(setting.get(f"periodic_load_{side}.{f}{h}", 0.0)) for f in ("sin", "cos"))
+        if s or c:
+            out[h] = (s, c)
+    return out
 
 
 def delay_edit(seconds: float):

@@ -43,6 +43,15 @@ def set_crank(
         q[adr] = q0[adr] + c0 + c1 * (theta - q0[crank])
 
 
+def linkage(model: mujoco.MjModel, crank: int) -> list[tuple[int, float, float]]:
+    """Every joint a model's equalities tie to a crank (its qpos address), (address, c0, c1) with q = q0 + c0 + c1
+    (crank - crank0): the linkage's, and a calibration's springs geared to the crank."""
+    joint = int(np.flatnonzero(model.jnt_qposadr == crank)[0])
+    return [(int(model.jnt_qposadr[model.eq_obj1id[e]]), float(model.eq_data[e, 0]), float(model.eq_data[e, 1]))
+            for e in range(model.neq)
+            if model.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and model.eq_obj2id[e] == joint]  # fmt: skip
+
+
 def _telemetry_channels() -> dict[str, str]:
     cols = {"time": "s"}
     channels = (("leg_angle_cmd", "rad"), ("leg_angle", "rad"), ("duty", "1"), ("torque", "N m"), ("bemf", "V"))
@@ -163,15 +172,7 @@ class VelociRoach(Robot):
         self._root_qvel = int(m.jnt_dofadr[root]) if root >= 0 else None  # a bench clamp removes the free joint
         self.sweep_amplitude = float(m.numeric(constants.NUMERIC_SWEEP).data[0])
         self.lift_amplitude = float(m.numeric(constants.NUMERIC_LIFT).data[0])
-        # every joint the linkage ties to a crank: q = q0 + c0 + c1 (crank - crank0), read off the equalities
-        self._linkage = []
-        for crank in self._crank_qpos:
-            crank_joint = int(np.flatnonzero(m.jnt_qposadr == crank)[0])
-            tied = []
-            for e in range(m.neq):
-                if m.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and m.eq_obj2id[e] == crank_joint:
-                    tied.append((int(m.jnt_qposadr[m.eq_obj1id[e]]), float(m.eq_data[e, 0]), float(m.eq_data[e, 1])))
-            self._linkage.append(tied)
+        self._linkage = [linkage(m, crank) for crank in self._crank_qpos]
 
         def idx(*names: str) -> np.ndarray:
             return np.concatenate([np.arange(self.sensors[k].start, self.sensors[k].stop) for k in names])

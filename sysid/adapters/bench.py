@@ -518,13 +518,6 @@ class ServoAdapter(RigAdapter):
         """The structural effects of :class:`~sysid.problem.Adapter`, and the Stribeck friction's bristle state."""
         return (*super().structure(setting), self._bristles(setting))
 
-    def structural_edits(self, setting: Setting, backlash=None, bump=None, disturbance=None) -> list:
-        """As :meth:`Adapter.structural_edits` reads the first three entries of :meth:`structure` (the bristle
-        state comes with the servo's own edit, :meth:`spec_edits`)."""
-        gap, height, disturbed = super().structure(setting)
-        return [*([backlash(gap)] if gap and backlash else []), *([bump(height)] if height and bump else []),
-                *([disturbance] if disturbed and disturbance else [])]  # fmt: skip
-
     def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
         """Goal steps of random size and length, sampled every 12 to 20 ms (irregular, as the Wizard samples)."""
         t = np.cumsum(rng.uniform(0.012, 0.020, int(seconds / 0.012) + 10))

@@ -49,9 +49,9 @@ from envs.actuators.dcmotor import (
 from envs.common import edits
 from envs.common.effects import Effect, Param
 from envs.velociroach import constants
-from envs.velociroach.effects import effects_edit, roach_effects
+from envs.velociroach.effects import effects_edit, periodic_load, roach_effects
 from envs.velociroach.firmware import COUNTS_PER_RAD, PWM_PERIOD, TICK, duty_gains  # noqa: F401 (its names here too)
-from envs.velociroach.robot import set_crank
+from envs.velociroach.robot import linkage, set_crank
 from sysid.adapters.velociroach_measure import CLIPPED, MIN_STRIDES, tracking_parts
 from sysid.logs import Log, LogError
 from sysid.problem import Adapter, Segment, Setting, simulate
@@ -135,7 +135,6 @@ class RoachAdapter(Adapter):
         robot = self.nominal_robot = self._make_robot(())
         self._nominal_gains = robot.model.actuator_gainprm.copy()
         self._h = float(robot.model.opt.timestep)
-        self._linkage = robot._linkage
         self._crank_qpos = {s: int(robot.model.joint(constants.CRANK_JOINTS[s]).qposadr[0]) for s in SIDES}
         self._crank_dof = {s: int(robot.model.joint(constants.CRANK_JOINTS[s]).dofadr[0]) for s in SIDES}
         self._motor = {s: robot.model.actuator(constants.MOTORS[s]).id for s in SIDES}
@@ -210,6 +209,11 @@ class RoachAdapter(Adapter):
         return out
 
     # --- replay -----------------------------------------------------------------------------------------------------
+    def structure(self, setting: Setting) -> tuple:
+        """The structural effects of :class:`~sysid.problem.Adapter`, and the harmonics of each crank's periodic load
+        (each adds a spring, and a higher one a joint)."""
+        return (*super().structure(setting), *(tuple(periodic_load(setting, side)) for side in SIDES))
+
     def spec_edits(self, setting: Setting) -> list:
         return [effects_edit(setting), *self.structural_edits(setting, bump=add_bump, disturbance=add_disturbance)]
 
@@ -242,18 +246,19 @@ class RoachAdapter(Adapter):
         if not carried:
             data.qpos[:] = model.qpos0  # standing; the cranks and the linkage set below
             data.qvel[:] = 0.0
-        for k, side in enumerate(SIDES):
+        for side in SIDES:
             crank = self._crank_qpos[side]
+            tied = linkage(model, crank)  # the model's own: a periodic load's springs are geared to the crank
             target = float(segment.data[f"leg_angle_{side}"][0])
             rate = float(segment.data[f"leg_rate_{side}"][0])
             if carried:  # the carried linkage turned with its crank
-                for adr, _c0, c1 in self._linkage[k]:
+                for adr, _c0, c1 in tied:
                     data.qpos[adr] += c1 * (target - data.qpos[crank])
                 data.qpos[crank] = target
             else:  # from rest, by the model's own references (a leg phase moves the cranks')
-                set_crank(data.qpos, model.qpos0, crank, self._linkage[k], target)
+                set_crank(data.qpos, model.qpos0, crank, tied, target)
             data.qvel[self._crank_dof[side]] = rate
-            for adr, _c0, c1 in self._linkage[k]:
+            for adr, _c0, c1 in tied:
                 dof = int(np.flatnonzero(model.jnt_qposadr == adr)[0])
                 data.qvel[model.jnt_dofadr[dof]] = c1 * rate
             integral = self._integral(segment, side, setting.get("delay.seconds", 0.0))
