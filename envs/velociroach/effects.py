@@ -10,7 +10,7 @@ import mujoco
 
 from envs.actuators.dcmotor import GAIN_K, GAIN_R
 from envs.common.edits import add_periodic_torque, delay_actuators, scale_mass
-from envs.common.effects import Effect, Setting, make
+from envs.common.effects import TEMPLATES, Effect, Setting, make
 from envs.velociroach import constants
 from envs.velociroach.constants import SIDES
 
@@ -101,11 +101,11 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         # hinges bend and spring back as the crank turns [roach-sim: "planarizing four-bar linkages"], which the
         # model's rigid hinges lack, and the legs' stance load the model's contacts may give another shape. On the
         # 2 Hz real log the duty swings between 0.1 and 0.6 with the crank's angle, the same at every stride (the
-        # nominal model's between 0.0 and 0.15): a first harmonic of about 2.8 mN m on its right crank, a second of
-        # 1.6 mN m on its left (docs/real-logs.md). Each coefficient up to half the motor's stall torque at the
-        # crank (11 mN m at 3.7 V)
-        out.append(make("periodic_load", side, **{f"{f}{h}": (0.0, -5.5e-3, 5.5e-3) for h in (1, 2)
-                                                    for f in ("sin", "cos")}))  # fmt: skip
+        # nominal model's between 0.0 and 0.16): fitted, a first harmonic of 2.7 +- 1.1 mN m on its right crank, a
+        # second of 2.3 +- 1.1 mN m on its left (docs/real-logs.md). Each coefficient up to half the motor's stall
+        # torque at the crank (11 mN m at 3.7 V)
+        load = dict.fromkeys((p.name for p in TEMPLATES["periodic_load"].params), (0.0, -5.5e-3, 5.5e-3))
+        out.append(make("periodic_load", side, **load))
     return {e.name: e for e in out}
 
 
