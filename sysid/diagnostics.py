@@ -1,6 +1,6 @@
 """Residual diagnostics that point to a cause: lag, dependence on the sign of velocity, on velocity, acceleration,
 command and load, drift with time or supply voltage, spectral peaks, constant bias, stance against swing, left against
-right.
+right, and a residual confined to one moment of a log (an event, not a property of the robot).
 
 Each is a number per channel with a plain reading; the report lists the strongest, and the effect ranking (a score
 statistic of each effect's parameters, sysid/select.py) is explained by them.
@@ -37,6 +37,8 @@ def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[s
     times = np.concatenate([s.data["time"] for s in segs])
     dt = np.gradient(times) if len(times) > 1 else np.ones_like(times)
     dt[dt <= 0] = np.median(dt[dt > 0]) if (dt > 0).any() else 1.0
+    logs = np.concatenate([np.full(len(s.data["time"]), getattr(s, "source", 0)) for s in segs])
+    names = {getattr(s, "source", 0): getattr(s, "log", "the log") for s in segs}
 
     def column(key: str, channel: str) -> np.ndarray | None:
         name = context.get(key)
@@ -73,11 +75,59 @@ def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[s
                 entry["stance_over_swing"] = float(np.sqrt(np.mean(r[stance] ** 2) / max(np.mean(r[~stance] ** 2),
                                                                                           1e-12)))  # fmt: skip
         entry["spectral_peak_hz"], entry["spectral_peak_share"] = _spectral_peak(r, times)
+        entry.update(_event(r, times, logs, names, column("velocity", name), column("load", name)))
         out[name] = entry
     for name, entry in out.items():
         if name.endswith("_left") and name[:-5] + "_right" in out:
             right = out[name[:-5] + "_right"]["rms"]
             entry["left_over_right"] = entry["rms"] / right if right > 0 else float("inf")
+    return out
+
+
+EVENT_WINDOW = 0.1  # the event window: this share of the residual's time (summed over its logs)
+EVENT_SHARE = 0.4  # an event holds at least this share of a channel's squared residual (4 times a spread one's)
+AT_LIMIT = 0.97  # a drive "at its limit": its effort within 3% of the largest the log holds
+
+
+def _event(r: np.ndarray, t: np.ndarray, logs: np.ndarray, names: Mapping[int, str], velocity: np.ndarray | None,
+           load: np.ndarray | None) -> dict[str, Any]:  # fmt: skip
+    """Where a channel's squared residual gathers most: the window of a tenth of the residual's time (within one
+    log) holding the largest share of it, narrowed to the span between its 5th and 95th percentiles of that share.
+    ``event_share`` is the span's share of the whole, ``event_start`` and ``event_end`` its times (s, the log's own
+    time), ``event_fraction`` its share of the time tested, ``event_log`` the log, and ``event_stall`` whether the
+    drive's effort was at its limit for a quarter of the span or more and the joint, while it was, did not move the
+    way it pushed (the robot held or blocked). A residual spread over the run holds about a tenth in the window;
+    one growing linearly over the run, about a quarter."""
+    energy = r * r
+    total = float(energy.sum())
+    spans = {k: float(np.ptp(t[logs == k])) for k in np.unique(logs)}
+    width = EVENT_WINDOW * sum(spans.values())
+    if total <= 0 or width <= 0:
+        return {}
+    best = (0.0, 0, np.zeros(0, dtype=int))
+    for k in spans:
+        index = np.flatnonzero(logs == k)
+        index = index[np.argsort(t[index], kind="stable")]
+        cumulative = np.concatenate([[0.0], np.cumsum(energy[index])])
+        end = np.searchsorted(t[index], t[index] + width, side="right")
+        held = cumulative[end] - cumulative[:-1]
+        i = int(np.argmax(held))
+        if held[i] > best[0]:
+            best = (float(held[i]), k, index[i : end[i]])
+    held, k, window = best
+    inner = np.cumsum(energy[window]) / held
+    span = window[int(np.searchsorted(inner, 0.05)) : int(np.searchsorted(inner, 0.95)) + 1]
+    in_log = logs == k
+    step = float(np.median(np.diff(np.sort(t[in_log])))) if in_log.sum() > 1 else 0.0
+    out: dict[str, Any] = {"event_share": float(energy[span].sum()) / total, "event_start": float(t[span[0]]),
+                           "event_end": float(t[span[-1]]), "event_log": str(names.get(k, k)),
+                           "event_fraction": len(span) * step / sum(spans.values())}  # fmt: skip
+    if velocity is not None and load is not None:
+        limit = float(np.max(np.abs(load[in_log])))
+        at_limit = np.abs(load[span]) >= AT_LIMIT * limit
+        pushed = (np.sign(load[span]) * velocity[span])[at_limit]
+        typical = float(np.mean(np.abs(velocity[in_log])))
+        out["event_stall"] = bool(limit > 0 and at_limit.mean() >= 0.25 and pushed.mean() < 0.1 * typical)
     return out
 
 
@@ -105,7 +155,8 @@ def _spectral_peak(r: np.ndarray, t: np.ndarray) -> tuple[float, float]:
 @dataclass(frozen=True)
 class Finding:
     """One diagnostic that stands out: on ``channel``, of kind ``key`` (a key of :data:`MECHANISMS`), weighing
-    ``weight`` (its correlation or ratio times the channel's RMS, in noise levels), read as ``text``."""
+    ``weight`` (its correlation or ratio times the channel's RMS, in noise levels; an event's, the root of its share
+    of the squared residual beyond a spread residual's), read as ``text``."""
 
     weight: float
     channel: str
@@ -139,6 +190,9 @@ MECHANISMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "swing": ("the legs' own motion in the air: inertia, lag, friction",
               ("armature", "delay", "viscous_friction", "coulomb_friction")),
     "sides": ("a difference between the sides", ()),
+    "event": ("an event at one moment of a log, not a property of the robot (something it met: a bump, an obstacle, "
+              "a hand; a trip, a slip, or a glitch in the logging), which no effect acting throughout a run makes; a "
+              "window of the log that leaves it out (FILE@START:END) tests the model on the rest", ("terrain_bump",)),
     "spectral": ("a periodic disturbance, or a mode of the body on its legs",
                  ("disturbance", "terrain_bump", "ground_contact", "leg_stiffness", "spine_stiffness")),
 }  # fmt: skip
@@ -184,6 +238,20 @@ def findings(diagnostics: Mapping[str, dict]) -> list[Finding]:
             found.append(Finding(abs(math.log(ratio)) * d["rms"] / 2, larger, "sides", f"{channel[:-5]}: the {side} "
                                  f"side's residual is {max(ratio, 1 / ratio):.1f} times the {other}'s (a per-side "
                                  "effect)"))  # fmt: skip
+        share = d.get("event_share", 0.0)
+        if share >= EVENT_SHARE:
+            stall = (", with the drive at its limit and the joint not moving the way it pushes (a stall: the robot "
+                     "held or blocked)") if d.get("event_stall") else ""  # fmt: skip
+            found.append(
+                Finding(
+                    math.sqrt((share - EVENT_WINDOW) / (1 - EVENT_WINDOW)) * d["rms"],
+                    channel,
+                    "event",
+                    f"{channel}: {share:.0%} of the residual lies in {d['event_log']} between "
+                    f"{d['event_start']:.2f} and {d['event_end']:.2f} s, {d['event_fraction']:.0%} of the time tested"
+                    f"{stall}",
+                )
+            )
         if d.get("spectral_peak_share", 0.0) > 0.2:
             found.append(Finding(d["spectral_peak_share"] * d["rms"], channel, "spectral",
                                  f"{channel}: a spectral peak at {d['spectral_peak_hz']:.2f} Hz holds "

@@ -71,8 +71,17 @@ class Result:
             ", and what was kept may stand in for it" if self.outcome.chosen else ""
         )
         traced = self.trace()
-        return text + (f". The strongest finding, on {traced['channel']}, points to " + traced["why"] if traced
-                       else "") + "."  # fmt: skip
+        text += (f". The strongest finding, on {traced['channel']}, points to " + traced["why"] if traced
+                 else "")  # fmt: skip
+        event = next((f for f in diagnostics.findings(self.diagnostics_after()) if f.key == "event"), None)
+        if event is not None and (traced is None or traced["finding"] != "event"):
+            mechanism = MECHANISMS["event"][0]
+            if event.text in found:
+                text += f". The moment found on {event.channel} is {mechanism}"
+            else:
+                moment = event.text.split(": ", 1)[1]
+                text += f". The residual on {event.channel} gathers at one moment ({moment}); that is {mechanism}"
+        return text + "."
 
     def diagnostics_after(self) -> dict[str, dict]:
         """The diagnostics of the held-out residual after calibration (sysid/diagnostics.py)."""

@@ -64,6 +64,89 @@ def test_lag_of_command():
     assert d["angle_left"]["lag_of_command"] == pytest.approx(lag, abs=2e-3)
 
 
+def _two_logs(residual: np.ndarray, rate: np.ndarray, effort: np.ndarray):
+    """Diagnostics of one channel over two logs of 4 s each (the second's residual is noise), with a velocity and a
+    drive effort column."""
+    noise = np.random.default_rng(7).normal(0, 1, len(T))
+    segments, residuals = [], []
+    for source, (r, v, u) in enumerate(
+        [(residual, rate, effort), (noise, np.full_like(T, RATE), np.full_like(T, 0.5))]
+    ):
+        data = {"time": T, "rate": v, "effort": u}
+        segments.append(SimpleNamespace(data=data, source=source, log=f"run{source}.txt"))
+        residuals.append(SimpleNamespace(data=r[:, None]))
+    problem = SimpleNamespace(segments=segments, scored=[0, 1], channels=["angle"])
+    return diagnostics.diagnose(problem, residuals, {"velocity": "rate", "load": "effort"})["angle"]
+
+
+def test_a_residual_confined_to_a_moment_is_an_event_and_a_held_drive_a_stall():
+    """A residual gathered in 0.3 s of one of two 4 s logs is an event found in that log at that time; with the
+    drive's effort at its clip and the joint still there, a stall. A residual spread over the run, or growing
+    steadily with time, is no event."""
+    rng = np.random.default_rng(5)
+    moment = (T >= 2.5) & (T < 2.8)
+    residual = rng.normal(0, 1, len(T)) + np.where(moment, 12.0, 0.0)
+    rate = np.where(moment, 0.0, RATE)
+    effort = np.where(moment, 1.0, 0.4 + 0.2 * np.sin(RATE * T))  # held at its clip at the moment
+    d = _two_logs(residual, rate, effort)
+    assert d["event_share"] > 0.6 and d["event_log"] == "run0.txt"  # the moment holds 84%; the span, 90% of it
+    assert d["event_start"] == pytest.approx(2.5, abs=0.05) and d["event_end"] == pytest.approx(2.8, abs=0.05)
+    assert d["event_fraction"] == pytest.approx(0.3 / 8, abs=0.01)
+    assert d["event_stall"]
+    found = [f for f in diagnostics.findings({"angle": d}) if f.key == "event"]
+    assert len(found) == 1 and "run0.txt between" in found[0].text and "a stall" in found[0].text
+    # the same moment with the joint moving the way the drive pushes: an event, no stall
+    moving = _two_logs(residual, np.full_like(T, RATE), effort)
+    assert moving["event_share"] > 0.6 and not moving["event_stall"]
+    assert "stall" not in next(f.text for f in diagnostics.findings({"angle": moving}) if f.key == "event")
+    # spread residuals: noise, a periodic one, and one growing linearly with time over both logs
+    for spread in (rng.normal(0, 3, len(T)), 4 * np.sin(RATE * T), 3 * T / T[-1] + rng.normal(0, 0.3, len(T))):
+        d = _two_logs(spread, np.full_like(T, RATE), np.full_like(T, 0.5))
+        assert d["event_share"] < diagnostics.EVENT_SHARE
+        assert not any(f.key == "event" for f in diagnostics.findings({"angle": d}))
+
+
+def test_a_leg_held_in_a_synthetic_roach_log_is_found_as_a_stall():
+    """A synthetic roach log whose right legs are held for 0.3 s (angle frozen, duty at its clip, no back-EMF), as a
+    hand or an obstacle would hold them; nobody tells the diagnostics: the nominal model's residual is found
+    gathered there, as a stall, on the right side."""
+    from sysid.fit import evaluate
+    from sysid.problem import Problem
+    from sysid.robots import adapter
+    from sysid.synth import synthesize
+
+    log, _ = synthesize("roach", {}, seed=0, seconds=4.0)  # its right legs turn throughout
+    t = log.df["time"].to_numpy()
+    # the 0.3 s inside one replayed segment (the second, 2-3 s) where the right legs turn the most (the excitation
+    # rests at times)
+    angle = log.df["leg_angle_right"].to_numpy()
+    starts = np.arange(2.1, 2.65, 0.05)
+    start = max(starts, key=lambda a: abs(np.interp(a + 0.3, t, angle) - np.interp(a, t, angle)))
+    held = (t >= start) & (t < start + 0.3)
+    log.df.loc[held, "leg_angle_right"] = log.df["leg_angle_right"][held].iloc[0]
+    log.df.loc[held, "duty_right"] = float(log.meta["duty_clip"])
+    log.df.loc[held, "bemf_right"] = 0.0
+    roach = adapter("roach")
+    problem = Problem(roach, [log], 1)
+    d = diagnostics.diagnose(problem, evaluate(problem, {}).residuals, roach.context)
+    events = [f for f in diagnostics.findings(d) if f.key == "event"]
+    assert events and events[0].channel == "leg_angle_right"
+    leg = d["leg_angle_right"]
+    assert leg["event_share"] > 0.5 and leg["event_stall"] and "a stall" in events[0].text
+    assert start - 0.05 <= leg["event_start"] and leg["event_end"] <= start + 0.35
+
+
+def test_an_event_is_traced_to_no_catalog_effect():
+    """An event's trace names no catalog effect (the catalog's act throughout a run) and the bump kept out of it."""
+    from sysid.pipeline import trace
+    from sysid.robots import adapter
+
+    roach = adapter("roach")
+    t = trace(roach, _outcome(roach), [diagnostics.Finding(9.0, "leg_angle_right", "event", "leg_angle_right: 70%")])
+    assert t["finding"] == "event" and t["effects"] == {} and t["out_of_catalog"] == ["terrain_bump"]
+    assert "not a property of the robot" in t["why"] and "has no effect of that kind" in t["why"]
+
+
 def _outcome(adapter, chosen=(), rejected=(), ranked=()):
     """An outcome as the selection leaves it: ``chosen`` effect names with values, ``rejected`` (name, reason),
     ``ranked`` names with the share of the residual each explains, in one round."""
