@@ -67,6 +67,7 @@ class SoccerVecEnv(MatchesVecEnv):
         engine = Matches(num_matches=num_matches, nthread=nthread, batched=True, **kwargs)
         super().__init__(engine, engine.players)
         self.possible_agents = engine.possible_agents
+        self._match_of = np.arange(self.num_envs) // engine.players  # each env's match
 
     def reset(self) -> np.ndarray:
         self._reset_matches()
@@ -86,17 +87,18 @@ class SoccerVecEnv(MatchesVecEnv):
     def step_wait(self):
         engine = self.engine
         out = engine.step(self._actions)
-        match_of = np.arange(self.num_envs) // engine.players
-        ended, truncated = out["ended"][match_of], out["truncated"][match_of]
-        done = ended | truncated
+        match_of = self._match_of
+        finishing = out["ended"] | out["truncated"]
+        done = finishing[match_of]
         obs = engine.obs.copy()
         columns = [out[k].tolist() for k in ("reward", "fallen", "off", "approach", "ball_progress")]
         infos: list[dict[str, Any]] = [
             {"reward_goal": r, "fallen": f, "off": o, "approach": a, "ball_progress": b}
             for r, f, o, a, b in zip(*columns, strict=True)
         ]
-        finished = np.flatnonzero(out["ended"] | out["truncated"])
-        if len(finished):
+        if finishing.any():
+            finished = np.flatnonzero(finishing)
+            truncated = out["truncated"][match_of]
             for i in np.flatnonzero(done):
                 infos[i]["terminal_observation"] = obs[i].copy()
                 infos[i]["TimeLimit.truncated"] = bool(truncated[i])

@@ -175,6 +175,7 @@ class Matches:
         self.players = n
         self._match_of = np.arange(rows) // n
         self._home = np.tile([agent.startswith("home") for agent in self.possible_agents], self.num_matches)
+        self._home_grid = self._home.reshape(self.num_matches, n)  # (matches, players): who is of the home team
         # what a player off the field is sent: standing still in the commands mode, mid-range commands otherwise
         self.rest = np.zeros(self.mode.size)  # speed 0 (the action -1), no turn, no kick
         if self.commands is not None:
@@ -320,7 +321,8 @@ class Matches:
         ``truncated`` (by ``max_cycles``, or by the
         scene going unstable, when MuJoCo resets its data: then its rewards are 0), ``unstable``, and ``refined``
         (the step went unstable and was run again at shorter physics steps, which held: it counts as any step)."""
-        chosen = np.where(np.isnan(self.off_until)[:, None], actions, self.rest)
+        on = np.isnan(self.off_until)
+        chosen = actions if on.all() else np.where(on[:, None], actions, self.rest)
         if self.commands is None:
             self.robot.command(self.robot.mode.to_command(chosen))
         else:
@@ -346,7 +348,7 @@ class Matches:
         self.scores[:, 1] += minus
         self._kickoff |= plus | minus
         fell = self.task.terminated(state) & stepped
-        if self.referee:
+        if self.referee and fell.any():
             taken = fell & np.isnan(self.off_until)
             self.off_until[taken] = self.scene.time[self._match_of[taken]] + self.penalty_seconds
             self._pending |= taken
@@ -354,13 +356,16 @@ class Matches:
         if self.max_goals is not None:
             ended = self.scores.max(axis=1) >= self.max_goals
         thrown = self._throw_in(state["touched"], plus | minus | unstable, readings)
-        quiet = unstable[self._match_of]
+        reward, approach, progress = self.task.reward_terms(state)["goal"], state["approach"], state["ball_progress"]
+        if unstable.any():
+            quiet = unstable[self._match_of]
+            reward, approach, progress = (np.where(quiet, 0.0, v) for v in (reward, approach, progress))
         return {
-            "reward": np.where(quiet, 0.0, self.task.reward_terms(state)["goal"]),
+            "reward": reward,
             "fallen": fell,
             "off": ~np.isnan(self.off_until),
-            "approach": np.where(quiet, 0.0, state["approach"]),
-            "ball_progress": np.where(quiet, 0.0, state["ball_progress"]),
+            "approach": approach,
+            "ball_progress": progress,
             "touched": state["touched"],
             "ball_distance": state["ball_distance"],
             "goal_home": plus,
@@ -379,9 +384,10 @@ class Matches:
         rest, at once (this step's observations still see it where it left); nobody has touched it since.
         (num_matches,) bool: where it was put back."""
         hit = touched.reshape(self.num_matches, self.players) > 0
-        home = self._home.reshape(self.num_matches, self.players)
-        by_home, by_away = (hit & home).any(axis=1), (hit & ~home).any(axis=1)
-        self._last_touch = np.where(by_home != by_away, np.where(by_home, 1, -1), self._last_touch)
+        if hit.any():  # nobody touched the ball (most steps): who touched it last stands
+            home = self._home_grid
+            by_home, by_away = (hit & home).any(axis=1), (hit & ~home).any(axis=1)
+            self._last_touch = np.where(by_home != by_away, np.where(by_home, 1, -1), self._last_touch)
         if not self.throw_in:
             return np.zeros(self.num_matches, dtype=bool)
         ball = self.scene.scene_sensor(BALL_POS)
@@ -410,8 +416,11 @@ class Matches:
         """After the step's physics: the kickoffs called for (every player of those matches), the players taken off
         and those whose penalty is over put back. (rows,) bool: who was placed."""
         placed = np.zeros(len(self.rngs), dtype=bool)
-        if not (self._kickoff.any() or self._pending.any()) and np.isnan(self.off_until).all():
-            return placed  # nobody to place: most steps
+        if not (self._kickoff.any() or self._pending.any()):
+            # nobody to place unless a penalty is over (a player on the field, off_until NaN, compares False)
+            due = self.off_until.reshape(self.num_matches, self.players) <= (self.scene.time + 1e-9)[:, None]
+            if not due.any():
+                return placed  # most steps
         if self._kickoff.any():
             matches = np.flatnonzero(self._kickoff)
             rows = self.rows_of(matches)

@@ -247,7 +247,11 @@ class GaitMap:
         trot turns by shortening a stride and slows with it), so a blend of neighbours in that space could be a
         setting nobody measured."""
         query = np.column_stack([np.asarray(speed) / self.max_speed, np.asarray(yaw_rate) / self.max_yaw_rate])
-        found = self._inverse(query)
+        inverse = self._inverse
+        # the interpolator's own lookup, its tree's nearest point and that point's value, without its checks of
+        # the query's shape on every call; a query it finds no point for keeps the interpolator's NaN
+        distance, nearest = inverse.tree.query(query)
+        found = inverse.values[nearest] if np.isfinite(distance).all() else inverse(query)
         return found[:, 0], found[:, 1]
 
 

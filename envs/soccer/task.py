@@ -79,6 +79,8 @@ class SoccerTask(LocomotionTask):
         self._k = k
         self._scene_of = np.arange(n) // k
         self._side = np.tile([1.0 if t == HOME else -1.0 for t in teams], n // k)  # the x each player attacks
+        self._is_home = self._side > 0
+        self._attacked_heading = np.where(self._is_home, 0.0, math.pi)  # the field heading of the x it attacks
         # for each player: the indices (in its scene) of its teammates and of its opponents, in name order
         self._mates = [[j for j in range(k) if j != i and teams[j] == teams[i]] for i in range(k)]
         self._opponents = [[j for j in range(k) if teams[j] != teams[i]] for i in range(k)]
@@ -87,7 +89,10 @@ class SoccerTask(LocomotionTask):
         )
         # every player's contact sensor with the ball: their columns in the scene's sensor values, read in one gather
         touches = [scene.sensors[f"{TOUCH}{p}"] for p in players]
-        self._touch_columns = np.concatenate([np.arange(sl.start, sl.stop) for sl in touches])
+        columns = np.concatenate([np.arange(sl.start, sl.stop) for sl in touches])
+        # in one run of columns (as the scene builds them): a slice, a view where a gather would copy
+        contiguous = len(columns) and np.array_equal(columns, np.arange(columns[0], columns[0] + len(columns)))
+        self._touch_columns = slice(int(columns[0]), int(columns[-1]) + 1) if contiguous else columns
         self._head_sensors = [f"{HEAD_AXIS}{p}" for p in players] if head is not None else None
         self._ball_obs = np.zeros((n, 5))
         self._goals_obs = np.zeros((n, 4))
@@ -97,10 +102,27 @@ class SoccerTask(LocomotionTask):
         self._goal_distance = np.zeros(n)
         self.last_scene_goals = (np.zeros(n // k, dtype=bool), np.zeros(n // k, dtype=bool))  # goals()' last
         super().__init__(robot, False, 0.0, max_tilt, terminate_when_unhealthy, height_band, grace_time)
-        self._generators: list[np.random.Generator | None] = [None] * n
         self._draws = np.empty((n, 2 * (self._k + 1)))
+        # each row's draw of what it sees: its stream's standard_normal (set at its reset) into its row of _draws
+        self._normals: list[Any] = [None] * n
+        self._draw_rows = list(self._draws)
+        self._rows = np.arange(n)
+        self._attacked_x = self._side * field.half_length  # the x of the goal each player attacks
         # the goal attacked and the own goal's centres, per player
-        self._goal_points = (self._side * field.half_length)[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
+        self._goal_points = self._attacked_x[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
+        self._goal_line = field.half_length + field.ball.radius  # the ball's centre past it: the whole ball is
+        # the ball's position and velocity sensors side by side (as the field builds them): read in one gather
+        position, velocity = scene.sensors[BALL_POS], scene.sensors[BALL_VEL]
+        self._ball_columns = slice(position.start, velocity.stop) if position.stop == velocity.start else None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        del state["_draw_rows"]  # views of _draws: made anew (a pickle would part them from it)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._draw_rows = list(self._draws)
 
     # --- layout ---------------------------------------------------------------------------------------------------
     def _command_structure(self) -> dict[str, int]:
@@ -114,14 +136,14 @@ class SoccerTask(LocomotionTask):
 
     def _target_heading(self, elapsed: np.ndarray) -> np.ndarray:
         # the heading error is the field heading (gyro heading + heading at kickoff) against the attacked direction
-        return np.where(self._side > 0, 0.0, math.pi) - self._start_yaw
+        return self._attacked_heading - self._start_yaw
 
     # --- the contract ---------------------------------------------------------------------------------------------
     def reset(self, ids: np.ndarray, rngs: Sequence[np.random.Generator], options: Mapping | None, readings) -> None:
         self._start_yaw[ids] = self.scene.placement[ids, 2]
         super().reset(ids, rngs, options, readings)
         for i, rng in zip(ids, rngs, strict=True):  # each player's stream, for what it sees at every step
-            self._generators[i] = rng
+            self._normals[i] = rng.standard_normal
         ball = self.ball_moved(readings, ids)
         self._observe(readings, ball, ids)
 
@@ -137,13 +159,13 @@ class SoccerTask(LocomotionTask):
         state = super().update(readings, stepped)
         ball, to_goal = self._ball_state(readings)
         length = self.length
-        ids = np.arange(self.robot.num_sims) if stepped is None else np.flatnonzero(stepped)
+        ids = self._rows if stepped is None else np.flatnonzero(stepped)
         approach = (self._ball_distance - ball["distance"]) / length
         progress = (self._goal_distance - to_goal) / length
         self._ball_distance, self._goal_distance = ball["distance"], to_goal
         scored, conceded = self.goals()
         touches = self._touches()
-        self._observe(readings, ball, ids)
+        self._observe(readings, ball, ids, state["yaw"])
         return {
             **state,
             "ball_x": ball["position"][:, 0].copy(),
@@ -163,10 +185,14 @@ class SoccerTask(LocomotionTask):
         return values.reshape(*values.shape[:2], self._k, -1).max(axis=(1, 3)).reshape(-1)
 
     def _ball_state(self, readings: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        position = self.scene.scene_sensor(BALL_POS)[self._scene_of]
-        velocity = self.scene.scene_sensor(BALL_VEL)[self._scene_of]
+        if self._ball_columns is None:
+            position = self.scene.scene_sensor(BALL_POS)[self._scene_of]
+            velocity = self.scene.scene_sensor(BALL_VEL)[self._scene_of]
+        else:
+            both = self.scene.sim.substep_sensordata[:, -1, self._ball_columns][self._scene_of]
+            position, velocity = both[:, :3], both[:, 3:]
         offset = position[:, :2] - readings["position"][:, :2]
-        to_goal = np.hypot(self._side * self.field.half_length - position[:, 0], position[:, 1])
+        to_goal = np.hypot(self._attacked_x - position[:, 0], position[:, 1])
         return {"position": position, "velocity": velocity, "offset": offset,
                 "distance": np.hypot(offset[:, 0], offset[:, 1])}, to_goal  # fmt: skip
 
@@ -176,28 +202,35 @@ class SoccerTask(LocomotionTask):
         f = self.field
         path = self.scene.scene_sensor(BALL_POS, substeps=True)
         x, y, z = path[..., 0], path[..., 1], path[..., 2]
+        line = self._goal_line
+        if not (np.abs(x) > line).any():  # the ball past neither goal line (most steps): no goal anywhere
+            return np.zeros(len(path), dtype=bool), np.zeros(len(path), dtype=bool)
         mouth = (np.abs(y) < 0.5 * f.goal_width) & (z < f.goal_height)
-        line = f.half_length + f.ball.radius
         return ((x > line) & mouth).any(axis=1), ((x < -line) & mouth).any(axis=1)
 
     def goals(self) -> tuple[np.ndarray, np.ndarray]:
         """(scored, conceded) per player: its team's goal, its own goal. Keeps the scenes' goals of this step in
         :attr:`last_scene_goals`, for the match that counts them."""
         plus, minus = self.last_scene_goals = self.scene_goals()
+        if not (plus.any() or minus.any()):  # no goal in any scene (most steps)
+            return np.zeros(len(self._scene_of), dtype=bool), np.zeros(len(self._scene_of), dtype=bool)
         plus, minus = plus[self._scene_of], minus[self._scene_of]
-        home = self._side > 0
+        home = self._is_home
         return np.where(home, plus, minus), np.where(home, minus, plus)
 
-    def _observe(self, readings, ball, ids: np.ndarray) -> None:
+    def _observe(self, readings, ball, ids: np.ndarray, yaw: np.ndarray | None = None) -> None:
         """The ball, the goals and the others as each player sees them, in its own frame; the noise of row ``i`` is
-        one draw from its own stream (the ball's position and velocity, then the others)."""
-        quat = readings["quaternion"]
-        w, z = quat[:, 0], quat[:, 3]
-        yaw = np.arctan2(2.0 * (w * z + quat[:, 1] * quat[:, 2]), 1.0 - 2.0 * (quat[:, 2] ** 2 + z * z))
+        one draw from its own stream (the ball's position and velocity, then the others). ``yaw``: each row's, where
+        the caller has it (the locomotion task's update computes it from the same quaternion, the same way)."""
+        if yaw is None:
+            quat = readings["quaternion"]
+            w, x, y, z = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
+            yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
         c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
         pos = readings["position"][:, :2]
         n, k = len(pos), self._k
-        rows = slice(None) if len(ids) == n else ids  # every row (the usual step) without a gather
+        every = len(ids) == n
+        rows = slice(None) if every else ids  # every row (the usual step) without a gather
         # every world-frame vector a player sees, turned into its frame in one go: the ball's offset and velocity,
         # the goals' offsets (attacked, own), the others' offsets
         world = np.empty((n, 4 + k - 1, 2))
@@ -205,15 +238,21 @@ class SoccerTask(LocomotionTask):
         np.subtract(self._goal_points, pos[:, None, :], out=world[:, 2:4])
         if k > 1:
             in_scene = pos.reshape(-1, k, 2)
-            world[:, 4:] = (in_scene[:, self._order, :] - in_scene[:, :, None, :]).reshape(n, k - 1, 2)
-        x, y = world[..., 0], world[..., 1]
+            others = world.reshape(-1, k, 4 + k - 1, 2)[:, :, 4:]  # a view of world's rows, scene by scene
+            np.subtract(in_scene[:, self._order, :], in_scene[:, :, None, :], out=others)
+        cw, sw = c[:, :, None] * world, s[:, :, None] * world  # (c x, c y) and (s x, s y) of every vector
         turned = np.empty(world.shape)
-        np.add(c * x, s * y, out=turned[..., 0])
-        np.subtract(c * y, s * x, out=turned[..., 1])
+        np.add(cw[..., 0], sw[..., 1], out=turned[..., 0])  # c x + s y
+        np.subtract(cw[..., 1], sw[..., 0], out=turned[..., 1])  # c y - s x
         seen, goals, others = turned[:, :2], turned[:, 2:4], turned[:, 4:]
         if self.ball_noise > 0 and len(ids):
-            for i in np.asarray(ids).tolist():  # standard_normal(out=) is normal(0, 1)'s values at half its cost
-                self._generators[i].standard_normal(out=self._draws[i])
+            # standard_normal(out=) is normal(0, 1)'s values at half its cost
+            if every:
+                for normal, out in zip(self._normals, self._draw_rows, strict=True):
+                    normal(out=out)
+            else:
+                for i in np.asarray(ids).tolist():
+                    self._normals[i](out=self._draw_rows[i])
             draws = self._draws[rows]
             sigma = np.empty((len(ids), k))
             sigma[:, 0] = ball["distance"][rows]
