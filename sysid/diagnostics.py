@@ -1,6 +1,6 @@
 """Residual diagnostics that point to a cause: lag, dependence on the sign of velocity, on velocity, acceleration,
 command and load, drift with time or supply voltage, spectral peaks, constant bias, stance against swing, left against
-right, and a residual confined to one moment of a log (an event, not a property of the robot).
+right, and a residual gathered at one moment of a log (a stall there: an event, not a property of the robot).
 
 Each is a number per channel with a plain reading; the report lists the strongest, and the effect ranking (a score
 statistic of each effect's parameters, sysid/select.py) is explained by them.
@@ -84,8 +84,8 @@ def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[s
     return out
 
 
-EVENT_WINDOW = 0.1  # the event window: this share of the residual's time (summed over its logs)
-EVENT_SHARE = 0.4  # an event holds at least this share of a channel's squared residual (4 times a spread one's)
+EVENT_WINDOW = 0.1  # the moment's window: this share of the residual's time (summed over its logs)
+EVENT_SHARE = 0.4  # a moment holds at least this share of a channel's squared residual (4 times a spread one's)
 AT_LIMIT = 0.97  # a drive "at its limit": its effort within 3% of the largest the log holds
 
 
@@ -155,7 +155,7 @@ def _spectral_peak(r: np.ndarray, t: np.ndarray) -> tuple[float, float]:
 @dataclass(frozen=True)
 class Finding:
     """One diagnostic that stands out: on ``channel``, of kind ``key`` (a key of :data:`MECHANISMS`), weighing
-    ``weight`` (its correlation or ratio times the channel's RMS, in noise levels; an event's, the root of its share
+    ``weight`` (its correlation or ratio times the channel's RMS, in noise levels; a moment's, the root of its share
     of the squared residual beyond a spread residual's), read as ``text``."""
 
     weight: float
@@ -190,9 +190,15 @@ MECHANISMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "swing": ("the legs' own motion in the air: inertia, lag, friction",
               ("armature", "delay", "viscous_friction", "coulomb_friction")),
     "sides": ("a difference between the sides", ()),
-    "event": ("an event at one moment of a log, not a property of the robot (something it met: a bump, an obstacle, "
-              "a hand; a trip, a slip, or a glitch in the logging), which no effect acting throughout a run makes; a "
-              "window of the log that leaves it out (FILE@START:END) tests the model on the rest", ("terrain_bump",)),
+    # a moment is often the response to a change of the command, which the drive's effects make; a stall is not
+    "moment": ("a residual gathered at one moment of a log: the response to a change of the command that the model "
+               "makes differently (a step's transient: lag, inertia, friction), a start the replay does not "
+               "reproduce, something the robot met, or a glitch in the logging; a window of the log without it "
+               "(FILE@START:END) tests the model on the rest", ("delay", "armature", "coulomb_friction",
+                                                                 "terrain_bump")),
+    "stall": ("an event at one moment of a log, not a property of the robot: held or blocked by something outside it "
+              "(an obstacle, a hand, a leg caught), which no effect acting throughout a run makes; a window of the "
+              "log that leaves it out (FILE@START:END) tests the model on the rest", ("terrain_bump",)),
     "spectral": ("a periodic disturbance, or a mode of the body on its legs",
                  ("disturbance", "terrain_bump", "ground_contact", "leg_stiffness", "spine_stiffness")),
 }  # fmt: skip
@@ -240,18 +246,14 @@ def findings(diagnostics: Mapping[str, dict]) -> list[Finding]:
                                  "effect)"))  # fmt: skip
         share = d.get("event_share", 0.0)
         if share >= EVENT_SHARE:
-            stall = (", with the drive at its limit and the joint not moving the way it pushes (a stall: the robot "
-                     "held or blocked)") if d.get("event_stall") else ""  # fmt: skip
-            found.append(
-                Finding(
-                    math.sqrt((share - EVENT_WINDOW) / (1 - EVENT_WINDOW)) * d["rms"],
-                    channel,
-                    "event",
-                    f"{channel}: {share:.0%} of the residual lies in {d['event_log']} between "
-                    f"{d['event_start']:.2f} and {d['event_end']:.2f} s, {d['event_fraction']:.0%} of the time tested"
-                    f"{stall}",
-                )
-            )
+            stall = bool(d.get("event_stall"))
+            text = (f"{channel}: {share:.0%} of the residual lies in {d['event_log']} between {d['event_start']:.2f} "
+                    f"and {d['event_end']:.2f} s, {d['event_fraction']:.0%} of the time tested")  # fmt: skip
+            if stall:
+                text += (", with the drive at its limit and the joint not moving the way it pushes (a stall: the "
+                         "robot held or blocked)")  # fmt: skip
+            weight = math.sqrt((share - EVENT_WINDOW) / (1 - EVENT_WINDOW)) * d["rms"]
+            found.append(Finding(weight, channel, "stall" if stall else "moment", text))
         if d.get("spectral_peak_share", 0.0) > 0.2:
             found.append(Finding(d["spectral_peak_share"] * d["rms"], channel, "spectral",
                                  f"{channel}: a spectral peak at {d['spectral_peak_hz']:.2f} Hz holds "

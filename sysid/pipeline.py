@@ -73,14 +73,15 @@ class Result:
         traced = self.trace()
         text += (f". The strongest finding, on {traced['channel']}, points to " + traced["why"] if traced
                  else "")  # fmt: skip
-        event = next((f for f in diagnostics.findings(self.diagnostics_after()) if f.key == "event"), None)
-        if event is not None and (traced is None or traced["finding"] != "event"):
-            mechanism = MECHANISMS["event"][0]
-            if event.text in found:
-                text += f". The moment found on {event.channel} is {mechanism}"
+        # a stall is an event, not a property: said even where the trace follows a stronger finding
+        stall = next((f for f in diagnostics.findings(self.diagnostics_after()) if f.key == "stall"), None)
+        if stall is not None and (traced is None or traced["finding"] != "stall"):
+            mechanism = MECHANISMS["stall"][0]
+            if stall.text in found:
+                text += f". The stall found on {stall.channel} is {mechanism}"
             else:
-                moment = event.text.split(": ", 1)[1]
-                text += f". The residual on {event.channel} gathers at one moment ({moment}); that is {mechanism}"
+                moment = stall.text.split(": ", 1)[1]
+                text += f". The residual on {stall.channel} gathers at a stall ({moment}); that is {mechanism}"
         return text + "."
 
     def diagnostics_after(self) -> dict[str, dict]:

@@ -79,10 +79,10 @@ def _two_logs(residual: np.ndarray, rate: np.ndarray, effort: np.ndarray):
     return diagnostics.diagnose(problem, residuals, {"velocity": "rate", "load": "effort"})["angle"]
 
 
-def test_a_residual_confined_to_a_moment_is_an_event_and_a_held_drive_a_stall():
-    """A residual gathered in 0.3 s of one of two 4 s logs is an event found in that log at that time; with the
+def test_a_residual_gathered_at_a_moment_is_found_there_and_a_held_drive_is_a_stall():
+    """A residual gathered in 0.3 s of one of two 4 s logs is a moment found in that log at that time; with the
     drive's effort at its clip and the joint still there, a stall. A residual spread over the run, or growing
-    steadily with time, is no event."""
+    steadily with time, is no moment."""
     rng = np.random.default_rng(5)
     moment = (T >= 2.5) & (T < 2.8)
     residual = rng.normal(0, 1, len(T)) + np.where(moment, 12.0, 0.0)
@@ -93,17 +93,18 @@ def test_a_residual_confined_to_a_moment_is_an_event_and_a_held_drive_a_stall():
     assert d["event_start"] == pytest.approx(2.5, abs=0.05) and d["event_end"] == pytest.approx(2.8, abs=0.05)
     assert d["event_fraction"] == pytest.approx(0.3 / 8, abs=0.01)
     assert d["event_stall"]
-    found = [f for f in diagnostics.findings({"angle": d}) if f.key == "event"]
-    assert len(found) == 1 and "run0.txt between" in found[0].text and "a stall" in found[0].text
-    # the same moment with the joint moving the way the drive pushes: an event, no stall
+    found = [f for f in diagnostics.findings({"angle": d}) if f.key in ("moment", "stall")]
+    assert len(found) == 1 and found[0].key == "stall"
+    assert "run0.txt between" in found[0].text and "a stall" in found[0].text
+    # the same moment with the joint moving the way the drive pushes (the response to a command, say): no stall
     moving = _two_logs(residual, np.full_like(T, RATE), effort)
     assert moving["event_share"] > 0.6 and not moving["event_stall"]
-    assert "stall" not in next(f.text for f in diagnostics.findings({"angle": moving}) if f.key == "event")
+    assert "stall" not in next(f.text for f in diagnostics.findings({"angle": moving}) if f.key == "moment")
     # spread residuals: noise, a periodic one, and one growing linearly with time over both logs
     for spread in (rng.normal(0, 3, len(T)), 4 * np.sin(RATE * T), 3 * T / T[-1] + rng.normal(0, 0.3, len(T))):
         d = _two_logs(spread, np.full_like(T, RATE), np.full_like(T, 0.5))
         assert d["event_share"] < diagnostics.EVENT_SHARE
-        assert not any(f.key == "event" for f in diagnostics.findings({"angle": d}))
+        assert not any(f.key in ("moment", "stall") for f in diagnostics.findings({"angle": d}))
 
 
 def test_a_leg_held_in_a_synthetic_roach_log_is_found_as_a_stall():
@@ -129,22 +130,27 @@ def test_a_leg_held_in_a_synthetic_roach_log_is_found_as_a_stall():
     roach = adapter("roach")
     problem = Problem(roach, [log], 1)
     d = diagnostics.diagnose(problem, evaluate(problem, {}).residuals, roach.context)
-    events = [f for f in diagnostics.findings(d) if f.key == "event"]
-    assert events and events[0].channel == "leg_angle_right"
+    events = [f for f in diagnostics.findings(d) if f.key in ("moment", "stall")]
+    assert events and events[0].channel == "leg_angle_right" and events[0].key == "stall"
     leg = d["leg_angle_right"]
     assert leg["event_share"] > 0.5 and leg["event_stall"] and "a stall" in events[0].text
     assert start - 0.05 <= leg["event_start"] and leg["event_end"] <= start + 0.35
 
 
-def test_an_event_is_traced_to_no_catalog_effect():
-    """An event's trace names no catalog effect (the catalog's act throughout a run) and the bump kept out of it."""
+def test_a_stall_is_traced_to_no_catalog_effect_and_a_moment_to_the_drive_s_transients():
+    """A stall's trace names no catalog effect (the catalog's act throughout a run) and the bump kept out of it; a
+    moment without a stall (a step's transient, most often) asks the lag, inertia and friction effects on its
+    channel."""
     from sysid.pipeline import trace
     from sysid.robots import adapter
 
     roach = adapter("roach")
-    t = trace(roach, _outcome(roach), [diagnostics.Finding(9.0, "leg_angle_right", "event", "leg_angle_right: 70%")])
-    assert t["finding"] == "event" and t["effects"] == {} and t["out_of_catalog"] == ["terrain_bump"]
+    t = trace(roach, _outcome(roach), [diagnostics.Finding(9.0, "leg_angle_right", "stall", "leg_angle_right: 70%")])
+    assert t["finding"] == "stall" and t["effects"] == {} and t["out_of_catalog"] == ["terrain_bump"]
     assert "not a property of the robot" in t["why"] and "has no effect of that kind" in t["why"]
+    motor = adapter("motor")
+    t = trace(motor, _outcome(motor), [diagnostics.Finding(9.0, "speed", "moment", "speed: 57%")])
+    assert {"delay", "armature", "coulomb_friction"} <= set(t["effects"]) and "change of the command" in t["why"]
 
 
 def _outcome(adapter, chosen=(), rejected=(), ranked=()):
