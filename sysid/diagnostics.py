@@ -37,8 +37,8 @@ def diagnose(problem: Problem, residuals: Sequence[Residual], context: Mapping[s
     times = np.concatenate([s.data["time"] for s in segs])
     dt = np.gradient(times) if len(times) > 1 else np.ones_like(times)
     dt[dt <= 0] = np.median(dt[dt > 0]) if (dt > 0).any() else 1.0
-    logs = np.concatenate([np.full(len(s.data["time"]), getattr(s, "source", 0)) for s in segs])
-    names = {getattr(s, "source", 0): getattr(s, "log", "the log") for s in segs}
+    logs = np.concatenate([np.full(len(s.data["time"]), s.source) for s in segs])  # each sample's log
+    names = {s.source: s.log for s in segs}
 
     def column(key: str, channel: str) -> np.ndarray | None:
         name = context.get(key)

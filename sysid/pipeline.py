@@ -53,14 +53,17 @@ class Result:
         """A sentence saying where the remaining residual lies, and (unexplained) what it points to."""
         after = self.after
         worst = max(after.per_channel, key=after.per_channel.get)
-        found = diagnostics.summarize(self.diagnostics_after())
         if not self.unexplained:
             return (f"The held-out residual is at the noise floor ({after.error:.2f} noise levels); nothing "
                     "remains to explain.")  # fmt: skip
+        found = diagnostics.findings(self.diagnostics_after())
+        # a stall is an event, not a property: named even where stronger findings come first
+        stall = next((f for f in found if f.key == "stall"), None)
+        listed = found[:3] + ([stall] if stall is not None and stall not in found[:3] else [])
         text = (f"The held-out residual stays above the noise floor ({after.error:.2f} noise levels), most on "
                 f"{worst} ({after.per_channel[worst]:.2f})")  # fmt: skip
-        if found:
-            text += "; " + "; ".join(found)
+        if listed:
+            text += "; " + "; ".join(f.text for f in listed)
         if not self.outcome.chosen:
             text += ". No catalog effect explains it"
         else:
@@ -70,18 +73,11 @@ class Result:
         text += ": what remains lies outside the catalog or in effects these logs cannot tell apart" + (
             ", and what was kept may stand in for it" if self.outcome.chosen else ""
         )
-        traced = self.trace()
-        text += (f". The strongest finding, on {traced['channel']}, points to " + traced["why"] if traced
-                 else "")  # fmt: skip
-        # a stall is an event, not a property: said even where the trace follows a stronger finding
-        stall = next((f for f in diagnostics.findings(self.diagnostics_after()) if f.key == "stall"), None)
+        traced = trace(self.adapter, self.outcome, found)
+        if traced:
+            text += f". The strongest finding, on {traced['channel']}, points to " + traced["why"]
         if stall is not None and (traced is None or traced["finding"] != "stall"):
-            mechanism = MECHANISMS["stall"][0]
-            if stall.text in found:
-                text += f". The stall found on {stall.channel} is {mechanism}"
-            else:
-                moment = stall.text.split(": ", 1)[1]
-                text += f". The residual on {stall.channel} gathers at a stall ({moment}); that is {mechanism}"
+            text += f". The stall found on {stall.channel} is {MECHANISMS['stall'][0]}"
         return text + "."
 
     def diagnostics_after(self) -> dict[str, dict]:

@@ -20,7 +20,8 @@ def _diagnose(residual_left: np.ndarray, residual_right: np.ndarray | None = Non
             "rate_right": np.full_like(T, RATE), "angle_right": phase + np.pi, "cmd_left": np.sin(2 * T),
             "load_left": np.cos(phase)}  # fmt: skip
     right = rng.normal(0, 1, len(T)) if residual_right is None else residual_right
-    problem = SimpleNamespace(segments=[SimpleNamespace(data=data)], scored=[0], channels=["angle_left", "angle_right"])
+    segment = SimpleNamespace(data=data, source=0, log="run.txt")
+    problem = SimpleNamespace(segments=[segment], scored=[0], channels=["angle_left", "angle_right"])
     residuals = [SimpleNamespace(data=np.column_stack([residual_left, right]))]
     return diagnostics.diagnose(problem, residuals, context)
 

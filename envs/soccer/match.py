@@ -416,11 +416,10 @@ class Matches:
         """After the step's physics: the kickoffs called for (every player of those matches), the players taken off
         and those whose penalty is over put back. (rows,) bool: who was placed."""
         placed = np.zeros(len(self.rngs), dtype=bool)
-        if not (self._kickoff.any() or self._pending.any()):
-            # nobody to place unless a penalty is over (a player on the field, off_until NaN, compares False)
-            due = self.off_until.reshape(self.num_matches, self.players) <= (self.scene.time + 1e-9)[:, None]
-            if not due.any():
-                return placed  # most steps
+        # whose penalty is over (a player on the field, off_until NaN, compares False)
+        due = self.off_until <= self.scene.time[self._match_of] + 1e-9
+        if not (self._kickoff.any() or self._pending.any() or due.any()):
+            return placed  # nobody to place: most steps
         if self._kickoff.any():
             matches = np.flatnonzero(self._kickoff)
             rows = self.rows_of(matches)
@@ -431,9 +430,7 @@ class Matches:
             for m in matches:
                 self._place_kickoff(int(m))
             placed[rows] = True
-        now = self.scene.time[self._match_of]
-        off = ~np.isnan(self.off_until)
-        back = off & (np.where(off, self.off_until, np.inf) <= now + 1e-9) & ~self._pending & ~placed
+        back = due & ~self._pending & ~placed  # a kickoff's players are placed already
         where = self._where.copy()
         for row in np.flatnonzero(back):
             self.off_until[row] = np.nan

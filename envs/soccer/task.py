@@ -105,24 +105,11 @@ class SoccerTask(LocomotionTask):
         self._draws = np.empty((n, 2 * (self._k + 1)))
         # each row's draw of what it sees: its stream's standard_normal (set at its reset) into its row of _draws
         self._normals: list[Any] = [None] * n
-        self._draw_rows = list(self._draws)
         self._rows = np.arange(n)
         self._attacked_x = self._side * field.half_length  # the x of the goal each player attacks
         # the goal attacked and the own goal's centres, per player
         self._goal_points = self._attacked_x[:, None, None] * np.array([[1.0, 0.0], [-1.0, 0.0]])
         self._goal_line = field.half_length + field.ball.radius  # the ball's centre past it: the whole ball is
-        # the ball's position and velocity sensors side by side (as the field builds them): read in one gather
-        position, velocity = scene.sensors[BALL_POS], scene.sensors[BALL_VEL]
-        self._ball_columns = slice(position.start, velocity.stop) if position.stop == velocity.start else None
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        del state["_draw_rows"]  # views of _draws: made anew (a pickle would part them from it)
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._draw_rows = list(self._draws)
 
     # --- layout ---------------------------------------------------------------------------------------------------
     def _command_structure(self) -> dict[str, int]:
@@ -185,12 +172,8 @@ class SoccerTask(LocomotionTask):
         return values.reshape(*values.shape[:2], self._k, -1).max(axis=(1, 3)).reshape(-1)
 
     def _ball_state(self, readings: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        if self._ball_columns is None:
-            position = self.scene.scene_sensor(BALL_POS)[self._scene_of]
-            velocity = self.scene.scene_sensor(BALL_VEL)[self._scene_of]
-        else:
-            both = self.scene.sim.substep_sensordata[:, -1, self._ball_columns][self._scene_of]
-            position, velocity = both[:, :3], both[:, 3:]
+        position = self.scene.scene_sensor(BALL_POS)[self._scene_of]
+        velocity = self.scene.scene_sensor(BALL_VEL)[self._scene_of]
         offset = position[:, :2] - readings["position"][:, :2]
         to_goal = np.hypot(self._attacked_x - position[:, 0], position[:, 1])
         return {"position": position, "velocity": velocity, "offset": offset,
@@ -247,12 +230,8 @@ class SoccerTask(LocomotionTask):
         seen, goals, others = turned[:, :2], turned[:, 2:4], turned[:, 4:]
         if self.ball_noise > 0 and len(ids):
             # standard_normal(out=) is normal(0, 1)'s values at half its cost
-            if every:
-                for normal, out in zip(self._normals, self._draw_rows, strict=True):
-                    normal(out=out)
-            else:
-                for i in np.asarray(ids).tolist():
-                    self._normals[i](out=self._draw_rows[i])
+            for i in range(n) if every else np.asarray(ids).tolist():
+                self._normals[i](out=self._draws[i])
             draws = self._draws[rows]
             sigma = np.empty((len(ids), k))
             sigma[:, 0] = ball["distance"][rows]
