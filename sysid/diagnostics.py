@@ -100,13 +100,14 @@ def _event(r: np.ndarray, t: np.ndarray, logs: np.ndarray, names: Mapping[int, s
     one growing linearly over the run, about a quarter."""
     energy = r * r
     total = float(energy.sum())
-    spans = {k: float(np.ptp(t[logs == k])) for k in np.unique(logs)}
+    masks = {k: logs == k for k in np.unique(logs)}  # each log's samples
+    spans = {k: float(np.ptp(t[m])) for k, m in masks.items()}
     width = EVENT_WINDOW * sum(spans.values())
     if total <= 0 or width <= 0:
         return {}
     best = (0.0, 0, np.zeros(0, dtype=int))
-    for k in spans:
-        index = np.flatnonzero(logs == k)
+    for k, mask in masks.items():
+        index = np.flatnonzero(mask)
         index = index[np.argsort(t[index], kind="stable")]
         cumulative = np.concatenate([[0.0], np.cumsum(energy[index])])
         end = np.searchsorted(t[index], t[index] + width, side="right")
@@ -117,7 +118,7 @@ def _event(r: np.ndarray, t: np.ndarray, logs: np.ndarray, names: Mapping[int, s
     held, k, window = best
     inner = np.cumsum(energy[window]) / held
     span = window[int(np.searchsorted(inner, 0.05)) : int(np.searchsorted(inner, 0.95)) + 1]
-    in_log = logs == k
+    in_log = masks[k]
     step = float(np.median(np.diff(np.sort(t[in_log])))) if in_log.sum() > 1 else 0.0
     out: dict[str, Any] = {"event_share": float(energy[span].sum()) / total, "event_start": float(t[span[0]]),
                            "event_end": float(t[span[-1]]), "event_log": str(names.get(k, k)),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -79,6 +80,21 @@ class Result:
         if stall is not None and (traced is None or traced["finding"] != "stall"):
             text += f". The stall found on {stall.channel} is {MECHANISMS['stall'][0]}"
         return text + "."
+
+    def without_stall(self) -> dict[str, Any] | None:
+        """The held-out error before and after calibration with the span of the stall found after it left out (every
+        channel's samples of that log between the stall's start and end): how much of what remains the stall holds.
+        None where no stall is found."""
+        found = diagnostics.findings(self.diagnostics_after())
+        stall = next((f for f in found if f.key == "stall"), None)
+        if stall is None:
+            return None
+        entry = self.diagnostics_after()[stall.channel]
+        log, start, end = entry["event_log"], entry["event_start"], entry["event_end"]
+        before, after = (
+            self.test_problem.error_outside(h.residuals, log, start, end) for h in (self.before, self.after)
+        )
+        return {"channel": stall.channel, "log": log, "start": start, "end": end, "before": before, "after": after}
 
     def diagnostics_after(self) -> dict[str, dict]:
         """The diagnostics of the held-out residual after calibration (sysid/diagnostics.py)."""

@@ -1025,6 +1025,20 @@ class Problem:
         n = data_size(residuals)
         return math.sqrt(total_cost(residuals) / n) if n else float("nan")
 
+    def error_outside(self, residuals: Sequence[Residual], log: str, start: float, end: float) -> float:
+        """:meth:`error` with every channel's samples of ``log`` between ``start`` and ``end`` (the log's own time,
+        s) left out: what the error is without one moment of one log (a stall the diagnostics found)."""
+        cost, n = 0.0, 0
+        for i, res in zip(self.scored, residuals, strict=True):
+            segment = self.segments[i]
+            data = res.data
+            if segment.log == log:
+                time = np.asarray(segment.data["time"])
+                data = data[(time < start) | (time > end)]
+            cost += float(np.sum(data * data) + res.prior @ res.prior)
+            n += data.size
+        return math.sqrt(cost / n) if n else float("nan")
+
     def log_errors(self, residuals: Sequence[Residual]) -> dict[str, float]:
         """:meth:`error` per log (its path), of the residuals of the scored segments in order."""
         by_log: dict[str, list[Residual]] = {}

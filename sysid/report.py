@@ -81,6 +81,8 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         "rejected": list(out.rejected),
         "unexplained": result.unexplained,
         "unexplained_reason": result.where(),
+        # the held-out error with the span of a stall found after calibration left out (None: no stall)
+        "without_stall": _stall_errors(result.without_stall()) if result.unexplained else None,
         # what the remaining residual points to, and what became of each catalog effect of that kind
         "trace": result.trace() if result.unexplained else None,
         # the effects kept on the training logs leave the held-out error above the starting model's (the nominal
@@ -183,6 +185,12 @@ def report_extra(adapter, result) -> dict[str, Any]:
 CONDITIONS = "Held-out logs against the training logs' conditions"
 
 
+def _stall_errors(found: Mapping[str, Any] | None) -> dict[str, Any] | None:
+    if found is None:
+        return None
+    return {k: (_round(v, 4) if isinstance(v, float) else v) for k, v in found.items()}
+
+
 def report_markdown(report: Mapping[str, Any]) -> str:
     r = report
     lines = [
@@ -199,6 +207,10 @@ def report_markdown(report: Mapping[str, Any]) -> str:
         + r["unexplained_reason"],
         "",
     ]
+    if r.get("without_stall"):
+        w = r["without_stall"]
+        lines += [f"Without the stall's span ({w['log']}, {w['start']:.2f} to {w['end']:.2f} s, every channel): "
+                  f"{w['before']:.3g} before, {w['after']:.3g} after.", ""]  # fmt: skip
     if r.get("worse_on_test"):
         lines += [WORSE.format(after=r["error_after"], before=r["error_before"], baseline=baseline(r)), ""]
     lines += [

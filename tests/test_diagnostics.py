@@ -136,6 +136,38 @@ def test_a_leg_held_in_a_synthetic_roach_log_is_found_as_a_stall():
     leg = d["leg_angle_right"]
     assert leg["event_share"] > 0.5 and leg["event_stall"] and "a stall" in events[0].text
     assert start - 0.05 <= leg["event_start"] and leg["event_end"] <= start + 0.35
+    # the held-out error without the stall's span (every channel's samples of that log, between its start and end)
+    # is the sum of squares outside it over the samples outside it, and falls with the stall left out
+    residuals = evaluate(problem, {}).residuals
+    outside = problem.error_outside(residuals, leg["event_log"], leg["event_start"], leg["event_end"])
+    kept = [
+        r.data[
+            (problem.segments[i].data["time"] < leg["event_start"])
+            | (problem.segments[i].data["time"] > leg["event_end"])
+        ]
+        for i, r in zip(problem.scored, residuals, strict=True)
+    ]
+    prior = sum(float(r.prior @ r.prior) for r in residuals)
+    expected = np.sqrt((sum(float(np.sum(k * k)) for k in kept) + prior) / sum(k.size for k in kept))
+    assert outside == pytest.approx(expected, rel=1e-12)
+    assert outside < 0.5 * problem.error(residuals)
+    assert problem.error_outside(residuals, "another.txt", leg["event_start"], leg["event_end"]) == pytest.approx(
+        problem.error(residuals), rel=1e-12
+    )
+    # the calibration result names that span and gives the error without it, before and after
+    from sysid.pipeline import HeldOut, Result
+
+    nominal = HeldOut(problem.error(residuals), problem.channel_errors(residuals), residuals)
+    result = Result(roach, [], [log], None, nominal, nominal, [], problem, problem, _diagnostics=d)
+    found = result.without_stall()
+    assert found["channel"] == "leg_angle_right" and found["log"] == leg["event_log"]
+    assert (found["start"], found["end"]) == (leg["event_start"], leg["event_end"])
+    assert found["before"] == found["after"] == pytest.approx(outside, rel=1e-12)
+    d_quiet = {k: {**v, "event_stall": False} for k, v in d.items()}
+    assert (
+        Result(roach, [], [log], None, nominal, nominal, [], problem, problem, _diagnostics=d_quiet).without_stall()
+        is None
+    )
 
 
 def test_a_stall_is_traced_to_no_catalog_effect_and_a_moment_to_the_drive_s_transients():

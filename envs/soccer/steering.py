@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
-from scipy.interpolate import NearestNDInterpolator
+from scipy.spatial import cKDTree
 
 from envs.bioloid.gait import TROT, TROT_FREQUENCY, IKGoals
 from envs.bioloid.kick import KICK_AHEAD, KICK_SIDE, KICK_WIDTH, Kick
@@ -237,21 +237,20 @@ class GaitMap:
                    float(data["max_speed"]), float(data["max_yaw_rate"]))  # fmt: skip
 
     @functools.cached_property
-    def _inverse(self) -> NearestNDInterpolator:
+    def _inverse(self) -> tuple[cKDTree, np.ndarray]:
+        """A k-d tree of the measured (speed, turn rate), each scaled by the map's largest, and each point's (drive,
+        turn): what scipy's NearestNDInterpolator builds, kept here to look up without its per-call checks."""
         scaled = np.column_stack([self.speed / self.max_speed, self.yaw_rate / self.max_yaw_rate])
-        return NearestNDInterpolator(scaled, np.column_stack([self.drive, self.turn]))
+        return cKDTree(scaled), np.column_stack([self.drive, self.turn])
 
     def controls(self, speed: np.ndarray, yaw_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(drive, turn) per row: the measured point nearest to (speed, yaw rate), each scaled by the map's largest.
         Nearest, not interpolated: several (drive, turn) can give much the same speed and turn rate (the Bioloid's
         trot turns by shortening a stride and slows with it), so a blend of neighbours in that space could be a
-        setting nobody measured."""
+        setting nobody measured. The queries must be numbers (the actions are checked finite before)."""
         query = np.column_stack([np.asarray(speed) / self.max_speed, np.asarray(yaw_rate) / self.max_yaw_rate])
-        inverse = self._inverse
-        # the interpolator's own lookup, its tree's nearest point and that point's value, without its checks of
-        # the query's shape on every call; a query it finds no point for keeps the interpolator's NaN
-        distance, nearest = inverse.tree.query(query)
-        found = inverse.values[nearest] if np.isfinite(distance).all() else inverse(query)
+        tree, values = self._inverse
+        found = values[tree.query(query)[1]]
         return found[:, 0], found[:, 1]
 
 
