@@ -40,6 +40,7 @@ class Result:
     test_problem: Problem = field(repr=False)
     train_problem: Problem = field(repr=False)
     _diagnostics: dict | None = field(default=None, repr=False, compare=False)
+    train_stall: dict | None = None  # a stall in the training logs (training_stall), found before the fit
 
     @property
     def threshold(self) -> float:
@@ -85,16 +86,14 @@ class Result:
         """The held-out error before and after calibration with the span of the stall found after it left out (every
         channel's samples of that log between the stall's start and end): how much of what remains the stall holds.
         None where no stall is found."""
-        found = diagnostics.findings(self.diagnostics_after())
-        stall = next((f for f in found if f.key == "stall"), None)
+        stall = _stall(self.diagnostics_after())
         if stall is None:
             return None
-        entry = self.diagnostics_after()[stall.channel]
-        log, start, end = entry["event_log"], entry["event_start"], entry["event_end"]
+        log, start, end = stall["log"], stall["start"], stall["end"]
         before, after = (
             self.test_problem.error_outside(h.residuals, log, start, end) for h in (self.before, self.after)
         )
-        return {"channel": stall.channel, "log": log, "start": start, "end": end, "before": before, "after": after}
+        return {**stall, "before": before, "after": after}
 
     def diagnostics_after(self) -> dict[str, dict]:
         """The diagnostics of the held-out residual after calibration (sysid/diagnostics.py)."""
@@ -106,6 +105,28 @@ class Result:
         """What the strongest finding on the held-out residual after calibration points to, and what became of
         each catalog effect of that kind (:func:`trace`); None where nothing stands out."""
         return trace(self.adapter, self.outcome, diagnostics.findings(self.diagnostics_after()))
+
+
+def _stall(found: Mapping[str, dict]) -> dict[str, Any] | None:
+    """The stall among diagnostics' findings (the strongest, if several channels show one): its channel, log, start
+    and end (s, the log's own time) and share of the channel's squared residual; None where there is none."""
+    stall = next((f for f in diagnostics.findings(found) if f.key == "stall"), None)
+    if stall is None:
+        return None
+    entry = found[stall.channel]
+    return {"channel": stall.channel, "log": entry["event_log"], "start": entry["event_start"],
+            "end": entry["event_end"], "share": entry["event_share"]}  # fmt: skip
+
+
+def training_stall(problem: Problem, start: Mapping[str, float] | None = None) -> dict[str, Any] | None:
+    """A stall in the training logs, found by the diagnostics in the residual of the model the run starts from (the
+    drive at its limit while the joint does not move its way: the robot held or blocked by something outside it).
+    No effect acting throughout a run makes one, so a fit on a log that holds one is pulled toward it; a window that
+    leaves it out (``FILE@START:END``) fits without it. None where none is found."""
+    setting = dict(start or {})
+    for k, p in problem.adapter.nuisance(problem.logs).items():
+        setting.setdefault(k, p.nominal)
+    return _stall(diagnostics.diagnose(problem, evaluate(problem, setting).residuals, problem.adapter.context))
 
 
 def _fate(effect: Effect, outcome: Outcome) -> tuple[str, str]:
@@ -208,6 +229,13 @@ def run(
     """Calibrate ``adapter``'s robot on ``train`` and measure the held-out error on ``test``; with ``effects``,
     fit those effects without selection."""
     train_problem = Problem(adapter, train, nthread)
+    stall = training_stall(train_problem, start)
+    if stall is not None:
+        say(
+            f"warning: {stall['log']} holds a stall on {stall['channel']} between {stall['start']:.2f} and "
+            f"{stall['end']:.2f} s (the drive at its limit, the joint not moving its way: held or blocked); the "
+            "fit is pulled toward it; windows of the log that leave it out (FILE@START:END) fit without it"
+        )
     if effects:
         outcome = fit_chosen(train_problem, effects, start, say=say)
     else:
@@ -225,7 +253,7 @@ def run(
         + (f" (after {', '.join(c.effect.name for c in outcome.chosen)})" if outcome.chosen else " (nothing kept)")
     )
     return Result(adapter, list(train), list(test), outcome, steps[0], steps[-1], steps[1:], test_problem,
-                  train_problem)  # fmt: skip
+                  train_problem, train_stall=stall)  # fmt: skip
 
 
 def relative_excess(before: float, after: float) -> float:

@@ -83,6 +83,8 @@ def report_dict(result: Result, seconds: float, start: str | None = None) -> dic
         "unexplained_reason": result.where(),
         # the held-out error with the span of a stall found after calibration left out (None: no stall)
         "without_stall": _stall_errors(result.without_stall()) if result.unexplained else None,
+        # a stall in the training logs, found in the starting model's residual before the fit (None: none)
+        "train_stall": _stall_errors(result.train_stall),
         # what the remaining residual points to, and what became of each catalog effect of that kind
         "trace": result.trace() if result.unexplained else None,
         # the effects kept on the training logs leave the held-out error above the starting model's (the nominal
@@ -211,6 +213,12 @@ def report_markdown(report: Mapping[str, Any]) -> str:
         w = r["without_stall"]
         lines += [f"Without the stall's span ({w['log']}, {w['start']:.2f} to {w['end']:.2f} s, every channel): "
                   f"{w['before']:.3g} before, {w['after']:.3g} after.", ""]  # fmt: skip
+    if r.get("train_stall"):
+        w = r["train_stall"]
+        lines += [f"**A training log holds a stall**: {w['log']}, {w['start']:.2f} to {w['end']:.2f} s on "
+                  f"{w['channel']} (the drive at its limit, the joint not moving its way: held or blocked). No effect "
+                  "acting throughout a run makes one, so the fit is pulled toward it; windows that leave it out "
+                  "(FILE@START:END) fit without it.", ""]  # fmt: skip
     if r.get("worse_on_test"):
         lines += [WORSE.format(after=r["error_after"], before=r["error_before"], baseline=baseline(r)), ""]
     lines += [

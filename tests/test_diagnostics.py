@@ -154,8 +154,18 @@ def test_a_leg_held_in_a_synthetic_roach_log_is_found_as_a_stall():
     assert problem.error_outside(residuals, "another.txt", leg["event_start"], leg["event_end"]) == pytest.approx(
         problem.error(residuals), rel=1e-12
     )
+    # the same log given for training: the loop finds the stall before its fit (and warns); the log unheld holds none
+    from sysid.pipeline import HeldOut, Result, training_stall
+
+    warned = training_stall(problem, {})
+    assert (warned["channel"], warned["log"], warned["start"], warned["end"]) == (
+        "leg_angle_right",
+        leg["event_log"],
+        leg["event_start"],
+        leg["event_end"],
+    )
+    assert training_stall(Problem(roach, [synthesize("roach", {}, seed=0, seconds=4.0)[0]], 1), {}) is None
     # the calibration result names that span and gives the error without it, before and after
-    from sysid.pipeline import HeldOut, Result
 
     nominal = HeldOut(problem.error(residuals), problem.channel_errors(residuals), residuals)
     result = Result(roach, [], [log], None, nominal, nominal, [], problem, problem, _diagnostics=d)
