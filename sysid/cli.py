@@ -212,7 +212,7 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         result = run(adapter, train, test, start.setting if start else None, say=say, nthread=args.threads,
-                     effects=args.fit)  # fmt: skip
+                     effects=args.fit, warn=lambda s: print(f"calibrate.py: {s}", file=sys.stderr))  # fmt: skip
     except ValueError as exc:  # e.g. logs too short to cut into segments
         print(f"calibrate.py: error: {exc}", file=sys.stderr)
         return 2

@@ -225,13 +225,15 @@ def run(
     say: Callable[[str], None] = print,
     nthread: int | None = None,
     effects: Sequence[str] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> Result:
     """Calibrate ``adapter``'s robot on ``train`` and measure the held-out error on ``test``; with ``effects``,
-    fit those effects without selection."""
+    fit those effects without selection. ``warn`` (default ``say``) takes what the user must see even when the
+    progress is not shown (a stall in a training log)."""
     train_problem = Problem(adapter, train, nthread)
     stall = training_stall(train_problem, start)
     if stall is not None:
-        say(
+        (warn or say)(
             f"warning: {stall['log']} holds a stall on {stall['channel']} between {stall['start']:.2f} and "
             f"{stall['end']:.2f} s (the drive at its limit, the joint not moving its way: held or blocked); the "
             "fit is pulled toward it; windows of the log that leave it out (FILE@START:END) fit without it"

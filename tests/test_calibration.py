@@ -545,7 +545,7 @@ def test_synth_cli_lists_every_effect_and_writes_log_and_truth(tmp_path, capsys)
     assert "outside its range" in capsys.readouterr().err
 
 
-def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
+def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path, capsys, monkeypatch):
     # logs of 4 s, not the matrix's 10: the command's files and its second run are what is tested here
     (train,), truth = synth.record("motor", {"coulomb_friction": 0.2}, 15, seconds=4.0)
     (test,), _ = synth.record("motor", truth["effects"], 15 + TEST_SEED_OFFSET, seconds=4.0, show=True)
@@ -598,6 +598,17 @@ def test_calibrate_cli_writes_its_results_as_one_folder(tmp_path):
     report2 = json.loads((out2 / "report.json").read_text())
     assert report2["error_before"] == pytest.approx(report["error_after"], rel=0.05)
     assert all(c["name"] != first["name"] for c in report2["chosen"])
+    # no stall in these logs; one found in a training log is warned of on stderr even with --quiet, and in the report
+    assert report["train_stall"] is None and "stall" not in capsys.readouterr().err
+    found = {"channel": "speed", "log": str(paths[0]), "start": 1.0, "end": 1.25, "share": 0.5}
+    monkeypatch.setattr("sysid.pipeline.training_stall", lambda problem, start=None: found)
+    out3 = tmp_path / "cal3"
+    assert calibrate.main([*argv[:6], "--out", str(out3), "--fit", "coulomb_friction", "--quiet"]) == 0
+    assert (
+        f"calibrate.py: warning: {paths[0]} holds a stall on speed between 1.00 and 1.25 s" in capsys.readouterr().err
+    )
+    assert json.loads((out3 / "report.json").read_text())["train_stall"] == found
+    assert f"**A training log holds a stall**: {paths[0]}, 1.00 to 1.25 s on speed" in (out3 / "report.md").read_text()
     assert np.isfinite(report2["error_after"])
 
 
