@@ -17,6 +17,13 @@ from sysid.logs import Log
 from sysid.problem import Adapter, Problem, Residual
 from sysid.select import Outcome, calibrate, explained_below, fit_chosen
 
+# what a stall in a training log is, and what to do about it: the console's warning and the report's line
+STALL_SIGN = "the drive at its limit, the joint not moving its way: held or blocked"
+STALL_ADVICE = (
+    "no effect acting throughout a run makes one, so the fit is pulled toward it; windows of the log that leave it "
+    "out (FILE@START:END) fit without it"
+)
+
 
 @dataclass
 class HeldOut:
@@ -60,7 +67,7 @@ class Result:
                     "remains to explain.")  # fmt: skip
         found = diagnostics.findings(self.diagnostics_after())
         # a stall is an event, not a property: named even where stronger findings come first
-        stall = next((f for f in found if f.key == "stall"), None)
+        stall = _first_stall(found)
         listed = found[:3] + ([stall] if stall is not None and stall not in found[:3] else [])
         text = (f"The held-out residual stays above the noise floor ({after.error:.2f} noise levels), most on "
                 f"{worst} ({after.per_channel[worst]:.2f})")  # fmt: skip
@@ -107,13 +114,18 @@ class Result:
         return trace(self.adapter, self.outcome, diagnostics.findings(self.diagnostics_after()))
 
 
-def _stall(found: Mapping[str, dict]) -> dict[str, Any] | None:
+def _first_stall(found: Sequence[diagnostics.Finding]) -> diagnostics.Finding | None:
+    """The strongest stall among findings (strongest first), or None."""
+    return next((f for f in found if f.key == "stall"), None)
+
+
+def _stall(diagnosed: Mapping[str, dict]) -> dict[str, Any] | None:
     """The stall among diagnostics' findings (the strongest, if several channels show one): its channel, log, start
     and end (s, the log's own time) and share of the channel's squared residual; None where there is none."""
-    stall = next((f for f in diagnostics.findings(found) if f.key == "stall"), None)
+    stall = _first_stall(diagnostics.findings(diagnosed))
     if stall is None:
         return None
-    entry = found[stall.channel]
+    entry = diagnosed[stall.channel]
     return {"channel": stall.channel, "log": entry["event_log"], "start": entry["event_start"],
             "end": entry["event_end"], "share": entry["event_share"]}  # fmt: skip
 
@@ -123,9 +135,7 @@ def training_stall(problem: Problem, start: Mapping[str, float] | None = None) -
     drive at its limit while the joint does not move its way: the robot held or blocked by something outside it).
     No effect acting throughout a run makes one, so a fit on a log that holds one is pulled toward it; a window that
     leaves it out (``FILE@START:END``) fits without it. None where none is found."""
-    setting = dict(start or {})
-    for k, p in problem.adapter.nuisance(problem.logs).items():
-        setting.setdefault(k, p.nominal)
+    setting, _ = _with_nuisance(problem, start or {})
     return _stall(diagnostics.diagnose(problem, evaluate(problem, setting).residuals, problem.adapter.context))
 
 
@@ -203,13 +213,20 @@ def trace(adapter: Adapter, outcome: Outcome, found: Sequence[diagnostics.Findin
             "missing": lacking, "why": why}  # fmt: skip
 
 
-def held_out(problem: Problem, setting: Mapping[str, float]) -> HeldOut:
-    """The error of ``setting`` on a problem's logs, their nuisance parameters (an unlogged goal) fitted first."""
+def _with_nuisance(problem: Problem, setting: Mapping[str, float]) -> tuple[dict[str, float], dict]:
+    """``setting`` with the nominal value of each nuisance parameter of the problem's logs (an unlogged goal) it
+    does not give, and those parameters."""
     nuisance = problem.adapter.nuisance(problem.logs)
     setting = dict(setting)
+    for k, p in nuisance.items():
+        setting.setdefault(k, p.nominal)
+    return setting, nuisance
+
+
+def held_out(problem: Problem, setting: Mapping[str, float]) -> HeldOut:
+    """The error of ``setting`` on a problem's logs, their nuisance parameters (an unlogged goal) fitted first."""
+    setting, nuisance = _with_nuisance(problem, setting)
     if nuisance:
-        for k, p in nuisance.items():
-            setting.setdefault(k, p.nominal)
         setting = fit(problem, setting, nuisance).values
     result = evaluate(problem, setting)
     return HeldOut(
@@ -235,8 +252,7 @@ def run(
     if stall is not None:
         (warn or say)(
             f"warning: {stall['log']} holds a stall on {stall['channel']} between {stall['start']:.2f} and "
-            f"{stall['end']:.2f} s (the drive at its limit, the joint not moving its way: held or blocked); the "
-            "fit is pulled toward it; windows of the log that leave it out (FILE@START:END) fit without it"
+            f"{stall['end']:.2f} s ({STALL_SIGN}); {STALL_ADVICE}"
         )
     if effects:
         outcome = fit_chosen(train_problem, effects, start, say=say)

@@ -10,7 +10,7 @@ from typing import Any
 from envs.common.calibration import calibration_record
 from envs.common.effects import Effect
 from sysid import diagnostics
-from sysid.pipeline import Result
+from sysid.pipeline import STALL_ADVICE, STALL_SIGN, Result
 
 
 def _round(x: float, digits: int = 6) -> float:
@@ -216,9 +216,7 @@ def report_markdown(report: Mapping[str, Any]) -> str:
     if r.get("train_stall"):
         w = r["train_stall"]
         lines += [f"**A training log holds a stall**: {w['log']}, {w['start']:.2f} to {w['end']:.2f} s on "
-                  f"{w['channel']} (the drive at its limit, the joint not moving its way: held or blocked). No effect "
-                  "acting throughout a run makes one, so the fit is pulled toward it; windows that leave it out "
-                  "(FILE@START:END) fit without it.", ""]  # fmt: skip
+                  f"{w['channel']} ({STALL_SIGN}). {STALL_ADVICE[0].upper()}{STALL_ADVICE[1:]}.", ""]  # fmt: skip
     if r.get("worse_on_test"):
         lines += [WORSE.format(after=r["error_after"], before=r["error_before"], baseline=baseline(r)), ""]
     lines += [
