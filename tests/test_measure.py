@@ -18,7 +18,7 @@ from sysid.robots import adapter as make_adapter
 ROOT = Path(__file__).resolve().parents[1]
 REAL_2HZ = ROOT / "data/real/velociroach_behavior4_2Hz.txt"
 GAINS = [1800, 100, 200, 0, 200]  # the 2 Hz log's header, per side
-BEMF, BEMF_DUTY, OPEN_CIRCUIT, BATTERY_R = 0.021, -0.4, 3.8, 0.3  # planted
+BEMF, BEMF_DUTY, BEMF_OFFSET, OPEN_CIRCUIT, BATTERY_R = 0.021, -0.4, 0.05, 3.8, 0.3  # planted
 
 
 def synthetic_log(seed: int = 0, run_seconds: float = 4.0, rate: float = 1000.0) -> tuple[pd.DataFrame, dict]:
@@ -47,7 +47,7 @@ def synthetic_log(seed: int = 0, run_seconds: float = 4.0, rate: float = 1000.0)
         df[f"leg_angle_cmd_{side}"] = clock + phase
         df[f"leg_angle_{side}"] = leg
         df[f"duty_{side}"] = duty
-        df[f"bemf_{side}"] = emf[side] + BEMF_DUTY * duty * run + rng.normal(0, 0.02, len(t))
+        df[f"bemf_{side}"] = emf[side] + BEMF_DUTY * duty * run + BEMF_OFFSET + rng.normal(0, 0.02, len(t))
     vb = np.full(len(t), OPEN_CIRCUIT)
     for _ in range(20):  # the battery's sag and the current it feeds, to their fixed point
         current = sum(np.maximum(df[f"duty_{s}"] * run * (df[f"duty_{s}"] * vb - emf[s]) / 3.3, 0) for s in emf)
@@ -72,6 +72,7 @@ def test_planted_constants_come_back_within_their_intervals():
         truths |= {(g, side): planted[g] for g in ("kp", "ki", "kd")}
         truths |= {("loop_rate_from_kd", side): 1000.0, ("loop_rate_from_ki", side): 1000.0}
         truths |= {("bemf_constant", side): BEMF, ("bemf_duty", side): BEMF_DUTY}
+        truths |= {("bemf_intercept", side): BEMF_OFFSET, ("bemf_at_rest", side): BEMF_OFFSET}
         assert found[("duty_sign", side)].value == 1.0
         assert found[("drive_balance", side)].value > 0
         assert found[("duty_at_clip", side)].value < 1.0  # the planted law seldom reaches its clip
@@ -245,8 +246,9 @@ def test_only_what_the_measurements_show_goes_into_the_calibration(capsys):
 
 
 def test_planted_back_emf_constants_become_a_calibration_file(tmp_path, capsys):
-    """A synthetic log's planted back-EMF per leg speed and duty coupling come back as the catalog's parameters, and
-    the file they are written to is a calibration the roach reads; the real 2 Hz log's too, from the command line."""
+    """A synthetic log's planted back-EMF per leg speed, duty coupling and zero come back as the catalog's
+    parameters, and the file they are written to is a calibration the roach reads; the real 2 Hz log's too, from the
+    command line."""
     from envs.common.calibration import read_calibration
 
     df, meta = synthetic_log()
@@ -256,6 +258,7 @@ def test_planted_back_emf_constants_become_a_calibration_file(tmp_path, capsys):
     for side in ("left", "right"):
         assert effects[f"sensor_gain_bemf_{side}"]["scale"]["value"] == pytest.approx(BEMF / nominal, rel=0.05)
         assert effects[f"sensor_coupling_bemf_{side}"]["per_unit"]["value"] == pytest.approx(BEMF_DUTY, abs=0.05)
+        assert effects[f"sensor_bias_bemf_{side}"]["offset"]["value"] == pytest.approx(BEMF_OFFSET, abs=0.01)
     out = tmp_path / "measured.json"
     assert measure.main(["--robot", "roach", f"{REAL_2HZ}@0:6", "--calibration-out", str(out)]) == 0
     calibration = read_calibration(out, robot.robot)

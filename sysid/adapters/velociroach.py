@@ -410,9 +410,10 @@ class RoachAdapter(Adapter):
         return measure_roach(log.df, log.meta, log.path, seed=seed)
 
     def effect_readings(self, measurements: Sequence) -> list:
-        """The back-EMF reading's scale and its duty coupling per side, as the catalog's ``sensor_gain_bemf_<side>``
-        (the measured back-EMF per leg speed over the model's motor constant x gear) and
-        ``sensor_coupling_bemf_<side>`` (the measured volts per unit duty, the effect's own unit)."""
+        """The back-EMF reading's scale, duty coupling and zero per side, as the catalog's ``sensor_gain_bemf_<side>``
+        (the measured back-EMF per leg speed over the model's motor constant x gear), ``sensor_coupling_bemf_<side>``
+        (the measured volts per unit duty, the effect's own unit) and ``sensor_bias_bemf_<side>`` (the reading at
+        rest in volts; not the running relation's intercept, which a reading that grows with the running moves)."""
         from sysid.measurement import EffectReading
 
         out = []
@@ -420,9 +421,12 @@ class RoachAdapter(Adapter):
             if m.quantity == "bemf_constant" and m.nominal:
                 out.append(EffectReading(m.log, f"sensor_gain_bemf_{m.side}", "scale", m.value / m.nominal,
                                          m.low / m.nominal, m.high / m.nominal, 1.0, m.quantity))  # fmt: skip
-            elif m.quantity == "bemf_duty":
-                out.append(EffectReading(m.log, f"sensor_coupling_bemf_{m.side}", "per_unit", m.value, m.low, m.high,
-                                         0.0, m.quantity))  # fmt: skip
+            elif m.quantity in ("bemf_duty", "bemf_at_rest"):
+                effect, param = (
+                    ("sensor_coupling", "per_unit") if m.quantity == "bemf_duty" else ("sensor_bias", "offset")
+                )
+                out.append(EffectReading(m.log, f"{effect}_bemf_{m.side}", param, m.value, m.low, m.high, 0.0,
+                                         m.quantity))  # fmt: skip
         return out
 
     def _commanded(self, log: Log) -> np.ndarray:

@@ -14,7 +14,10 @@ window ``FILE@START:END``) and side:
 - **Back-EMF per leg speed** (``bemf_constant``, V s/rad: the motor's constant times the gear ratio): the back-EMF
   reading regressed on the leg speed, the duty and a constant over the running part and the rest before and after
   it. The duty's coefficient (``bemf_duty``) is what the reading holds besides the back-EMF: a sample taken while
-  the winding's current still flows reads lower the higher the duty.
+  the winding's current still flows reads lower the higher the duty. The constant (``bemf_intercept``, V) is where
+  the running relation meets zero speed and duty; the reading's mean over the rest rows whose leg is still
+  (``bemf_at_rest``, V) is the board's zero. The model's reading is linear (its zero plus the two terms), so the two
+  agree on a board it can read; an intercept above the zero is a reading that grows with the running itself.
 - **The battery's internal resistance** (``battery_resistance``, ohm) and open-circuit voltage: the logged battery
   voltage regressed on the battery current the duty draws, ``sum over sides of max(d (d Vb - E) / R, 0)`` with ``E``
   the measured back-EMF and ``R`` the motor's nominal winding resistance (an assumption the result scales with).
@@ -53,6 +56,7 @@ CLIPPED = 0.995  # a duty at this share of the clip or above is held at the clip
 SIDES = constants.SIDES
 MIN_STRIDES = 3  # strides of running a log needs: the bootstrap resamples whole strides
 MIN_SPEED = 1.0  # rad/s: slower running rows do not enter the back-EMF regression's moving part
+REST_BLOCK = 20  # rows: the bootstrap's blocks for the reading at rest (20 ms at the logs' 1 kHz)
 HARMONICS = 5  # harmonics of the clock's angle that the tracking error's part repeating every stride is fitted on
 BLOCK_STRIDES = 4  # strides a bootstrap block of the tracking error spans: its slow part lasts strides
 PATTERN_POINTS = 72  # the repeating part's pattern, every 5 degrees of the clock's angle
@@ -173,11 +177,20 @@ def measure_roach(
         rows = (run & (np.abs(w) > MIN_SPEED)) | ~run
         x = np.column_stack([w, d * run, np.ones_like(w)])[rows]  # off: the reading holds no drive
         coef = lstsq(x, e[rows])
-        ci = bootstrap(lambda x, y: lstsq(x, y)[:2], block, x, e[rows], seed=seed)
+        ci = bootstrap(lambda x, y: lstsq(x, y)[:3], block, x, e[rows], seed=seed)
         add("bemf_constant", side, coef[0], ci[:, 0], "V s/rad", nominal.bemf_constant, nominal.source_bemf,
             "the motor's constant x gear ratio, from the back-EMF reading")  # fmt: skip
         add("bemf_duty", side, coef[1], ci[:, 1], "V", 0.0, "a back-EMF sample holds no drive",
             "what the reading holds besides the back-EMF, per unit duty")  # fmt: skip
+        add("bemf_intercept", side, coef[2], ci[:, 2], "V", 0.0, "a linear reading: its zero (bemf_at_rest)",
+            "the running relation at zero speed and duty")  # fmt: skip
+        still = ~run & (np.abs(w) <= MIN_SPEED)
+        # blocks of REST_BLOCK rows: at rest no stride correlates the noise, and a stride's blocks would leave the
+        # rest before and after the run two or three of them. A log that starts running at once has no zero to read
+        if still.sum() >= 10 * REST_BLOCK:
+            zero = bootstrap(lambda y: np.array([np.mean(y)]), REST_BLOCK, e[still], seed=seed)
+            add("bemf_at_rest", side, np.mean(e[still]), zero[:, 0], "V", 0.0, "a still leg reads no back-EMF",
+                "the board's zero: the reading with the leg still and the motor off")  # fmt: skip
         emf[side] = coef[0] * w
     # the battery: open-circuit voltage and internal resistance against the current the duty draws
     current = np.zeros_like(t)
