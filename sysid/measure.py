@@ -5,11 +5,11 @@ Logs are whole files or windows ``FILE@START:END``; ``--out`` also writes the me
 
 ``--calibration-out FILE`` writes a calibration file (``gym.make(id, calibration=FILE)``, ``calibrate.py
 --calibration FILE``) from the measurements alone: the robot's measurements that read a catalog effect's parameter
-directly (``Adapter.effect_readings``; the roach's back-EMF reading's scale and duty coupling per side), pooled over
-the logs by inverse variance. A parameter is written only where its interval excludes the nominal value, the logs
-agree (their intervals overlap) and the value lies in the effect's range; each decision is printed. With ``--test
-LOG ...`` (logs not measured) it also replays the test logs in the nominal and the measured model and reports both
-held-out errors, as ``calibrate.py`` does, and writes them into the file's provenance.
+directly (``Adapter.effect_readings``; the roach's back-EMF reading's scale, duty coupling and zero per side),
+pooled over the logs by inverse variance. A parameter is written only where its interval excludes the nominal
+value, the logs agree (their intervals overlap) and the value lies in the effect's range; each decision is printed.
+With ``--test LOG ...`` (logs not measured) it also replays the test logs in the nominal and the measured model
+and reports both held-out errors, as ``calibrate.py`` does, and writes them into the file's provenance.
 """
 
 from __future__ import annotations
