@@ -160,6 +160,9 @@ CONFIGURATIONS: dict[str, list[str]] = {
                                            "--effects", "leg_phase_left", "leg_phase_right"],
     "calibration_matrix_roach_periodic_load": ["--robots", "roach", "--kinds", "effect", "weak", "--seeds", "2",
                                                "--effects", "periodic_load_left", "periodic_load_right"],
+    "calibration_matrix_roach_running_offset": ["--robots", "roach", "--kinds", "effect", "weak", "--seeds", "2",
+                                                "--effects", "sensor_running_offset_bemf_left",
+                                                "sensor_running_offset_bemf_right"],
     "calibration_matrix_servo": ["--robots", "servo"],
 }  # fmt: skip
 """The configurations whose results benchmarks/results/ keeps: name -> arguments (benchmarks/common.py). The budget,

@@ -169,7 +169,7 @@ class Finding:
 # kind: the mechanism a report names when what remains is unexplained, and the effects it asks the outcome about
 MECHANISMS: dict[str, tuple[str, tuple[str, ...]]] = {
     "bias": ("a constant offset (a sensor's zero, or an output the model holds too low or too high throughout)",
-             ("sensor_bias", "com_offset", "coulomb_friction")),
+             ("sensor_bias", "sensor_running_offset", "com_offset", "coulomb_friction")),
     "with_sign_of_velocity": ("dry friction, backlash or a deadband",
                               ("coulomb_friction", "asymmetric_friction", "stribeck_friction", "load_friction",
                                "backlash", "deadband")),

@@ -207,6 +207,28 @@ def test_the_back_emf_readings_scale_scales_only_the_reading_of_its_side():
     assert (effect.params[0].low, effect.params[0].high) == (0.5, 3.0) and effect.catalogued
 
 
+def test_the_back_emf_readings_running_offset_acts_only_while_the_clock_runs():
+    """The roach's ``sensor_running_offset_bemf_<side>`` adds to that side's reading where its commanded leg rate is
+    not zero (the firmware's clock running, the drive switching) and nowhere else, nor on any other channel."""
+    from types import SimpleNamespace
+
+    robot = make_adapter("roach")
+    rng = np.random.default_rng(1)
+    sensordata = rng.normal(size=(40, max(robot._sensors.values()) + 1))
+    rate = np.where(np.arange(40) < 15, 0.0, 12.6)  # at rest, then running at 2 Hz
+    data = {"battery": np.array([3.7]), "leg_rate_cmd_left": rate, "leg_rate_cmd_right": rate}
+    segment = SimpleNamespace(data=data)
+    plain = robot.observe(sensordata, segment, {})
+    shifted = robot.observe(sensordata, segment, {"sensor_running_offset_bemf_right.offset": 0.2})
+    names = list(robot.channels)
+    right = names.index("bemf_right")
+    assert np.allclose(shifted[:, right] - plain[:, right], np.where(rate != 0.0, 0.2, 0.0))
+    others = [i for i in range(len(names)) if i != right]
+    assert np.array_equal(shifted[:, others], plain[:, others])
+    effect = robot.effects()["sensor_running_offset_bemf_right"]
+    assert effect.catalogued and effect.params[0].low < 0 < 0.27 < effect.params[0].high  # the 13 Hz log's intercept
+
+
 def _bemf(log: str, side: str, ratio: float, low: float, high: float, nominal: float = 0.01) -> Measurement:
     return Measurement(log, "bemf_constant", side, ratio * nominal, low * nominal, high * nominal, "V s/rad",
                        nominal, "the model")  # fmt: skip

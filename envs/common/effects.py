@@ -233,6 +233,14 @@ TEMPLATES: dict[str, Effect] = {
             "the drive's current still decays reads lower the longer the pulse)",
         ),
         Effect(
+            "sensor_running_offset",
+            (Param("offset", "channel unit", 0.0, -1.0, 1.0),),
+            "sensor offset while running",
+            "a constant residual on one channel while the drive runs, none at rest",
+            "a measured channel reads an offset only while the drive switches (a back-EMF sampled while the "
+            "winding's current still flows through the bridge reads above its line through zero)",
+        ),
+        Effect(
             "armature",
             (Param("inertia", "kg m^2", 0.0, 0.0, 1.0),),
             GROUP_LAG,

@@ -106,6 +106,12 @@ def roach_effects(dt: float) -> dict[str, Effect]:
         # torque at the crank (11 mN m at 3.7 V)
         load = dict.fromkeys((p.name for p in TEMPLATES["periodic_load"].params), (0.0, -5.5e-3, 5.5e-3))
         out.append(make("periodic_load", side, **load))
+    for side in SIDES:
+        # the back-EMF reading's offset while the firmware's clock runs: on the 2015 logs the running reading lies
+        # 0.02-0.04 V (2 Hz) and up to 0.27 V [0.12, 0.61] (13 Hz, left) above its line through zero while the
+        # reading at rest is -5 to -7 mV (python -m sysid.measure: bemf_intercept, bemf_at_rest;
+        # docs/real-logs.md). To 0.6 V, past the largest measured; down to -0.2 V for a reading that sags instead
+        out.append(make("sensor_running_offset", f"bemf_{side}", offset=(0.0, -0.2, 0.6)))
     return {e.name: e for e in out}
 
 

@@ -326,8 +326,12 @@ class RoachAdapter(Adapter):
             k = gains[a, GAIN_K] * setting.get(f"torque_constant_{side}.scale", 1.0)
             k = k * setting.get(f"sensor_gain_bemf_{side}.scale", 1.0)
             speed = sensordata[:, self._sensors[constants.SENSOR_MOTOR_VEL[side]]]
-            columns.append(k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0)
-                           + setting.get(f"sensor_coupling_bemf_{side}.per_unit", 0.0) * duty[side])  # fmt: skip
+            reading = (k * speed + setting.get(f"sensor_bias_bemf_{side}.offset", 0.0)
+                       + setting.get(f"sensor_coupling_bemf_{side}.per_unit", 0.0) * duty[side])  # fmt: skip
+            running = setting.get(f"sensor_running_offset_bemf_{side}.offset", 0.0)
+            if running:  # while the firmware's clock runs (its commanded rate not zero) the drive switches
+                reading = reading + running * (segment.data[f"leg_rate_cmd_{side}"] != 0.0)
+            columns.append(reading)
         return np.column_stack(columns)
 
     def nuisance(self, logs: Sequence[Log]) -> dict[str, Param]:
