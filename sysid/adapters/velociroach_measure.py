@@ -16,8 +16,9 @@ window ``FILE@START:END``) and side:
   it. The duty's coefficient (``bemf_duty``) is what the reading holds besides the back-EMF: a sample taken while
   the winding's current still flows reads lower the higher the duty. The constant (``bemf_intercept``, V) is where
   the running relation meets zero speed and duty; the reading's mean over the rest rows whose leg is still
-  (``bemf_at_rest``, V) is the board's zero. The model's reading is linear (its zero plus the two terms), so the two
-  agree on a board it can read; an intercept above the zero is a reading that grows with the running itself.
+  (``bemf_at_rest``, V) is the board's zero. On a reading linear in speed and duty the two agree; an intercept above
+  the zero is what the reading holds only while the motor runs (the catalog's ``sensor_running_offset_bemf_<side>``).
+  It is reported, not written: on a run at one steady speed it trades against the back-EMF constant.
 - **The battery's internal resistance** (``battery_resistance``, ohm) and open-circuit voltage: the logged battery
   voltage regressed on the battery current the duty draws, ``sum over sides of max(d (d Vb - E) / R, 0)`` with ``E``
   the measured back-EMF and ``R`` the motor's nominal winding resistance (an assumption the result scales with).
