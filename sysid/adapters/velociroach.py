@@ -425,10 +425,8 @@ class RoachAdapter(Adapter):
             if m.quantity == "bemf_constant" and m.nominal:
                 out.append(EffectReading(m.log, f"sensor_gain_bemf_{m.side}", "scale", m.value / m.nominal,
                                          m.low / m.nominal, m.high / m.nominal, 1.0, m.quantity))  # fmt: skip
-            elif m.quantity in ("bemf_duty", "bemf_at_rest"):
-                effect, param = (
-                    ("sensor_coupling", "per_unit") if m.quantity == "bemf_duty" else ("sensor_bias", "offset")
-                )
+            elif m.quantity in READ_AS_IS:
+                effect, param = READ_AS_IS[m.quantity]
                 out.append(EffectReading(m.log, f"{effect}_bemf_{m.side}", param, m.value, m.low, m.high, 0.0,
                                          m.quantity))  # fmt: skip
         return out
@@ -518,6 +516,11 @@ class RoachAdapter(Adapter):
         if channel.startswith("duty"):
             return np.round(values * PWM_PERIOD) / PWM_PERIOD
         return values
+
+
+READ_AS_IS = {"bemf_duty": ("sensor_coupling", "per_unit"), "bemf_at_rest": ("sensor_bias", "offset")}
+"""The roach's measurements that are a back-EMF reading effect's parameter of their side in its own unit:
+quantity -> (effect, parameter) (:meth:`RoachAdapter.effect_readings`)."""
 
 
 def _spread(x: np.ndarray, t: np.ndarray, bands) -> dict:
