@@ -1022,6 +1022,41 @@ def publish_media(text: str, out: Path, docs: Path, records: Path | None = None)
 
 
 PAGE_START = "# Results\n\nLearning against each task's reference"  # how every page :func:`render` writes begins
+# what the leaderboard writes in --out and in --records: name -> whether it is a folder
+OUT_ENTRIES = {"results.json": False, "results.md": False, ".table.lock": False, "plots": True, "rows": True,
+               "runs": True, "tasks": True, "videos": True}  # fmt: skip
+RECORDS_ENTRIES = {"rows": True, "tasks": True, "videos": True}
+
+
+def foreign_problem(folder: Path, entries: dict[str, bool]) -> str | None:
+    """Why the leaderboard cannot work in ``folder`` (``--out`` or ``--records``, which it adds to and rewrites the
+    table of), or None: the folder holds what the leaderboard does not write (a name not in ``entries``, a file
+    where it writes a folder or the reverse), or a ``results.json`` or ``results.md`` that is not its own, which it
+    would replace."""
+    if not folder.is_dir():
+        return None
+    others = [e.name + "/" * e.is_dir() for e in sorted(folder.iterdir()) if entries.get(e.name) is not e.is_dir()]
+    summary, page = folder / "results.json", folder / "results.md"
+    if "results.json" in entries and summary.is_file():
+        try:
+            held = json.loads(summary.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError):
+            held = None
+        if not (isinstance(held, dict) and {"plan", "rows", "command"} <= held.keys()):
+            others.append("results.json")
+    if "results.md" in entries and page.is_file():
+        try:
+            with page.open(encoding="utf-8") as text:
+                begins = text.read(len(PAGE_START))
+        except (OSError, UnicodeDecodeError):
+            begins = None
+        if begins != PAGE_START:
+            others.append("results.md")
+    if not others:
+        return None
+    shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
+    return (f"holds what the leaderboard does not write ({shown}), which it would add to or replace; give a folder "
+            "of its own (a new one, or one an earlier leaderboard command wrote)")  # fmt: skip
 
 
 def docs_problem(docs: Path) -> str | None:
@@ -1404,6 +1439,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     for name, value, least in checks:
         if value is not None and value < least:
             parser.error(f"{name} must be at least {least}, got {value}")
+    cores = os.cpu_count() or 1
+    if args.address is None and args.workers > cores:  # each row in the local pool takes a core at least
+        parser.error(f"--workers {args.workers}: this machine has {cores} cores and each row runs on one at least; "
+                     f"give at most {cores}")  # fmt: skip
     if args.minutes is not None and not 0 < args.minutes < 10**6:  # train.py's own bound: finite
         parser.error(f"--minutes must be a positive number of minutes under 10**6, got {args.minutes}")
     negative = [s for s in (*args.seeds, args.eval_seed) if s < 0]
@@ -1422,6 +1461,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(problem)
         if value is not None and Path(value).exists() and not Path(value).is_dir():
             parser.error(f"--{name} {value}: exists and is not a folder")
+        shared = name == "records" and value is not None and Path(value).resolve() == Path(args.out).resolve()
+        entries = OUT_ENTRIES if name == "out" or shared else RECORDS_ENTRIES
+        problem = None if value is None else foreign_problem(Path(value), entries)
+        if problem:
+            parser.error(f"--{name} {value}: {problem}")
         problem = None if value is None else parent_problem(Path(value) / "row")  # in it, or where it is made
         if problem:
             parser.error(f"--{name} {value}: {problem}")

@@ -513,6 +513,13 @@ def _normalize_kwargs(value: Any, gamma: float) -> dict[str, Any] | None:
             checked[key] = _like_default(key, item, known[key])
         except ValueError as exc:
             raise ValueError(f"{key}: {exc}") from None
+    # what VecNormalize divides by (epsilon) and clips to (+-clip_obs, +-clip_reward) must be above 0: 0 or less
+    # gives NaN observations, or every observation or reward one constant, and the run trains on nothing
+    for key in ("epsilon", "clip_obs", "clip_reward"):
+        if key in checked and not (math.isfinite(checked[key]) and checked[key] > 0):
+            raise ValueError(f"{key}: must be a finite number above 0, got {checked[key]!r}")
+    if "gamma" in checked and not 0 < checked["gamma"] <= 1:
+        raise ValueError(f"gamma: must lie in (0, 1], got {checked['gamma']!r}")
     return {"gamma": gamma, **checked}
 
 
@@ -981,6 +988,20 @@ def _say_whole_rollouts(model: BaseAlgorithm, timesteps: int) -> None:
               f"{n_steps}): this run ends at {end} steps, not {timesteps}", file=sys.stderr)  # fmt: skip
 
 
+class TrainingDiverged(RuntimeError):
+    """The policy's parameters or outputs became NaN or infinite during training."""
+
+
+DIVERGED = re.compile(r"Expected parameter (\w+) .* but found invalid values")  # torch's distributions, on NaN
+
+
+def diverged_cause(exc: ValueError) -> str | None:
+    """What diverged, if ``exc`` is torch's refusal of a distribution's NaN or infinite parameter (the policy
+    diverged), else None."""
+    found = DIVERGED.search(str(exc).split("\n", 1)[0])
+    return None if found is None else f"the policy's action distribution got a NaN or infinite {found.group(1)}"
+
+
 def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool,
           callbacks: list[BaseCallback] | None = None) -> Path:  # fmt: skip
     """Train ``model`` until it has taken ``config["timesteps"]`` env steps in all, logging and checkpointing into
@@ -1014,6 +1035,17 @@ def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress:
         print(f"\ninterrupted at {model.num_timesteps} steps; checkpoint saved in {folder}", file=sys.stderr)
         print(f"continue with: python train.py --resume {resume_argument(run_dir)}", file=sys.stderr)
         raise
+    except ValueError as exc:
+        cause = diverged_cause(exc)
+        if cause is None:
+            raise
+        kept = checkpoints_newest_first(run_dir)  # the model itself is NaN now: not saved
+        where = f"its last checkpoint, {kept[0]}, is kept" if kept else "no checkpoint was saved before it"
+        source = config.get("hyperparams_file", "the hyperparameter file")
+        raise TrainingDiverged(
+            f"training diverged at {model.num_timesteps} steps ({cause}); {where}. A learning rate or clip range too "
+            f"large for the task does this: lower learning_rate (or max_grad_norm) in {source}"
+        ) from None
     finally:
         model.logger.close()
     return save_model(model, run_dir / "model.zip", manifest)
@@ -1608,6 +1640,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except Busy as exc:  # another train.py writes the run folder
         print(exc, file=sys.stderr)
+        return 1
+    except TrainingDiverged as exc:
+        print(f"train.py: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:
         return interrupted_exit_code(exc)

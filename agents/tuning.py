@@ -30,8 +30,10 @@ command. Nothing in ``hyperparams/`` is changed.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import shutil
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -284,6 +286,9 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
         raise ConfigError("--evaluations and --eval-episodes must be at least 1")
     torch.set_num_threads(code.torch_threads)  # as a run trains
     hp0 = code.resolve_hyperparams(base, algo, where)  # the entry itself must hold before any trial runs
+    if evaluations > max(1, timesteps // hp0.n_envs):  # else an evaluation at every step, and the same ones again
+        raise ConfigError(f"--evaluations {evaluations}: a trial of {timesteps} steps on {hp0.n_envs} envs takes "
+                          f"{timesteps // hp0.n_envs} steps in each; evaluate at most that often")  # fmt: skip
     venv = code.make_env(env_id, hp0, seed)  # and its env_kwargs
     try:
         known = metric_descriptions(venv.get_attr("unwrapped", [0])[0])
@@ -357,17 +362,41 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
                                                     "episode shorter than the metric's warm-up has none)")  # fmt: skip
                 raise optuna.TrialPruned()
             return value
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: said below in one line, not in Optuna's failed-trial warnings
+            quiet.active = True
+            raise
         finally:
             venv.close()
             evaluation.close()
 
+    quiet = _QuietWhileStopping()
+    optuna_logger = logging.getLogger("optuna.study._optimize")
+    optuna_logger.addFilter(quiet)
+    interrupted = False
     try:
         the_study.optimize(
             objective, n_trials=trials, timeout=None if minutes is None else 60.0 * minutes, catch=(Diverged,)
         )
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
     finally:
+        optuna_logger.removeFilter(quiet)
         folder = write_study(the_study, env_id, algo, base, runs_dir / "tuning" / name, url, command)
+        if interrupted:
+            print(f"\ninterrupted: study {name} in {_shown(url)} keeps its finished trials (the one stopped "
+                  f"counts as failed), and {folder} holds them; run the same command again to go on",
+                  file=sys.stderr)  # fmt: skip
     return folder
+
+
+class _QuietWhileStopping(logging.Filter):
+    """Drops Optuna's warnings of a trial stopped by Ctrl-C (its traceback): the tuner says it in one line."""
+
+    active = False
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not self.active
 
 
 def _as_entry(base: dict[str, Any], hyperparams: dict[str, Any]) -> dict[str, Any]:

@@ -127,6 +127,10 @@ def read_logs(
             if start is not None and start < min(0.0, t[0]):  # a typo, not a window that begins with the log
                 raise LogError(f"{spec}: the window starts at {start:g} s, before the log, which runs from "
                                f"{t[0]:.3g} s to {t[-1]:.3g} s")  # fmt: skip
+            if end is not None and end > t[-1] + 1.0:  # a typo too, not a window that ends with the log
+                rest = f"{path}@{'' if start is None else f'{start:g}'}:"
+                raise LogError(f"{spec}: the window ends at {end:g} s, past the log's end at {t[-1]:.3g} s; give "
+                               f"{rest} for the rest of the log")  # fmt: skip
             log = log.between(t[0] if start is None else start, t[-1] + 1.0 if end is None else end)
             log.path = str(spec)
             log = check_log(log, required)
@@ -134,11 +138,14 @@ def read_logs(
     return logs
 
 
-def check_disjoint(train: list[Path], test: list[Path]) -> None:
+def check_disjoint(
+    train: list[Path], test: list[Path], train_flag: str = "--train", train_name: str = "training log"
+) -> None:
     """No test data may be training data, and no stretch of a file may be given twice to one of them (it would count
     twice): the same file only in windows that do not overlap (of a file that does not exist, that it does not
-    exist)."""
-    for flag, specs in (("--train", train), ("--test", test)):
+    exist). ``train_flag`` and ``train_name`` say where the training logs were given and what they are
+    (``sysid.measure``: its measured logs)."""
+    for flag, specs in ((train_flag, train), ("--test", test)):
         for i, a in enumerate(specs):
             for b in specs[i + 1 :]:
                 if _overlap(a, b):
@@ -146,7 +153,7 @@ def check_disjoint(train: list[Path], test: list[Path]) -> None:
     for a in train:
         for b in test:
             if _overlap(a, b):
-                raise LogError(f"{b} overlaps the training log {a}: the test logs must be data the fit does not see")
+                raise LogError(f"{b} overlaps the {train_name} {a}: the test logs must be data the fit does not see")
 
 
 def _overlap(a: Path, b: Path) -> bool:

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from envs.common.io import DuplicateKey, unique_keys
 from envs.common.telemetry import MAX_REPEATED_ROWS, METADATA_KEY, SCHEMA_VERSION, ChannelLimit
 
 MAX_BAD_FRACTION = 0.05
@@ -221,7 +222,9 @@ class ColumnMap:
     def load(cls, path: str | Path) -> ColumnMap:
         path = Path(path)
         try:
-            data = json.loads(path.read_text(encoding="utf-8-sig"))
+            data = json.loads(path.read_text(encoding="utf-8-sig"), object_pairs_hook=unique_keys)
+        except DuplicateKey as exc:
+            raise LogError(f"{path}: entry {exc.args[0]!r} is given twice (each channel's column once)") from None
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise LogError(f"{path}: not a readable JSON column map ({exc})") from None
         if not isinstance(data, dict) or "time" not in data:

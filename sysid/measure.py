@@ -74,16 +74,18 @@ def main(argv: list[str] | None = None) -> int:
         problem = parent_problem(path)
         if problem:
             parser.error(f"{flag} {path}: {problem}")
-    if args.out is not None and args.out == args.calibration_out:
-        parser.error(f"--out and --calibration-out are both {args.out}: give two files")
+    if args.out is not None and args.calibration_out is not None and _same_file(args.out, args.calibration_out):
+        parser.error(f"--out {args.out} and --calibration-out {args.calibration_out} are one file: give two files")
     robot = make_adapter(args.robot)
     measurements: list[Measurement] = []
     test = []
     try:
+        check_disjoint(
+            [Path(t) for t in args.logs], [Path(t) for t in args.test or []], "the measured logs", "measured log"
+        )
         logs = [read_logs([Path(text)], robot.required(), None, tool="measure")[0] for text in args.logs]
         if args.test:
             test = read_logs([Path(t) for t in args.test], robot.required(), None, robot.channel_limits(), "measure")
-            check_disjoint([Path(t) for t in args.logs], [Path(t) for t in args.test])
             robot.check_logs(test)
             robot.check_length(test)
         for log in logs:
@@ -185,6 +187,11 @@ def _write_new(path: Path, text: str) -> int:
               f"measurements are in {where}", file=sys.stderr)  # fmt: skip
         return 1
     return 0
+
+
+def _same_file(a: str, b: str) -> bool:
+    """Whether two output paths name one file (``x.json`` and ``./x.json``, or through a link to the folder)."""
+    return Path(a).resolve() == Path(b).resolve()
 
 
 if __name__ == "__main__":

@@ -130,6 +130,18 @@ def test_policy_files_load_by_name_and_parameters_are_checked(tmp_path):
         read_policy_file(bad)
     with pytest.raises(CouplingError, match="a directory, not a file"):
         read_policy_file(tmp_path)
+    # each field checked and named: parameters of the wrong kind, a robot it does not drive, a field it does not know
+    for change, needle in [
+        ({"parameters": {"a": 1}}, f"must be a list of {coupling.dimension} numbers in \\[0, 1\\]"),
+        ({"parameters": ["x", *params[1:].tolist()]}, "'parameters' item 0 must be a number in \\[0, 1\\], got 'x'"),
+        ({"parameters": [*params[:3].tolist(), math.nan, *params[4:].tolist()]}, "item 3 .* got nan"),
+        ({"parameters": [True, *params[1:].tolist()]}, "item 0 .* got True"),
+        ({"robot": "xjus"}, "field 'robot' must be 'bioloid'"),
+        ({"extra": 1}, "unknown field 'extra'"),
+    ]:
+        bad.write_text(json.dumps({**record, **change}))
+        with pytest.raises(CouplingError, match=needle):
+            read_policy_file(bad)
 
 
 def test_the_cpg_policy_runs_an_episode_and_replays_the_same():

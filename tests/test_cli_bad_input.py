@@ -417,3 +417,91 @@ def test_a_tools_help_shows_its_docstring_once():
     first = "Tune a controller's parameters by particle swarm or CMA-ES"
     assert text.count(first) == 1 and text.count("Examples::") == 1
     assert text.index(first) < text.index("options:") < text.index("Examples::")
+
+
+# --- the other tools: a user's folder, a stretch of log counted twice, a run that diverges or is stopped ----------
+REAL_2HZ = ROOT / "data" / "real" / "velociroach_behavior4_2Hz.txt"
+
+
+def test_the_leaderboard_refuses_a_folder_of_the_users_own(capsys, tmp_path):
+    """--out and --records: the leaderboard adds to them and rewrites their table, so a folder holding anything it
+    does not write (a results page of another tool, a user's file) is refused before anything is made."""
+    from agents.leaderboard import main as leaderboard
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "results.md").write_text("my own notes")
+    (mine / "results.json").write_text('{"mine": 1}')
+    theirs = tmp_path / "theirs"
+    (theirs / "rows").mkdir(parents=True)
+    (theirs / "thesis.tex").write_text("a thesis")
+    before = files(tmp_path)
+    common = ("--tasks", "skitter/RoachWalk-v4", "--timesteps", "512", "--table-only")
+    code, err = call(leaderboard, capsys, *common, "--out", str(mine))
+    assert code == 2 and f"--out {mine}: holds what the leaderboard does not write (results.json, results.md)" in err
+    code, err = call(leaderboard, capsys, *common, "--out", str(tmp_path / "new"), "--records", str(theirs))
+    assert code == 2 and f"--records {theirs}: holds what the leaderboard does not write (thesis.tex)" in err
+    assert files(tmp_path) == before
+    code, err = call(leaderboard, capsys, *common, "--out", str(mine), "--workers", str(10 * (os.cpu_count() or 1)))
+    assert code == 2 and "cores and each row runs on one at least" in err
+
+
+def test_measure_counts_each_stretch_of_a_log_once_and_writes_two_files(capsys, tmp_path):
+    from sysid.measure import main as measure
+
+    window = f"{REAL_2HZ}@0:4"
+    code, err = call(measure, capsys, "--robot", "roach", window, window, "--calibration-out", str(tmp_path / "c.json"))
+    assert code == 2 and "both given to the measured logs: each stretch of a log counts once" in err
+    code, err = call(measure, capsys, "--robot", "roach", window, "--calibration-out", str(tmp_path / "c.json"),
+                     "--test", f"{REAL_2HZ}@2:6")  # fmt: skip
+    assert code == 2 and f"overlaps the measured log {window}" in err
+    same = str(tmp_path / "." / "x.json")
+    code, err = call(measure, capsys, "--robot", "roach", window, "--out", str(tmp_path / "x.json"),
+                     "--calibration-out", same)  # fmt: skip
+    assert code == 2 and "are one file: give two files" in err
+    code, err = call(measure, capsys, "--robot", "roach", f"{REAL_2HZ}@0:1000")
+    assert code == 2 and "the window ends at 1000 s, past the log's end at 10 s; give" in err
+    assert files(tmp_path) == {}
+
+
+def test_a_column_map_that_names_a_channel_twice_is_refused(tmp_path):
+    from sysid.logs import ColumnMap, LogError
+
+    path = tmp_path / "map.json"
+    path.write_text('{"time": {"column": "t"}, "duty": {"column": "a"}, "duty": {"column": "b"}}')
+    with pytest.raises(LogError, match="entry 'duty' is given twice"):
+        ColumnMap.load(path)
+
+
+def test_train_refuses_normalization_that_trains_on_nothing_and_says_a_run_diverged(capsys, tmp_path, monkeypatch):
+    """VecNormalize's epsilon and clips must be above 0 (checked before the run folder is made); a learning rate that
+    makes the policy NaN ends the run in one line that names the file to change, not torch's traceback."""
+    from agents.training import main as train
+
+    monkeypatch.chdir(tmp_path)
+    entry = (
+        "skitter/RoachWalk-v4:\n  n_envs: 2\n  n_steps: 128\n  batch_size: 64\n  env_kwargs: {max_episode_steps: 50}\n"
+    )
+    common = ("--env", "skitter/RoachWalk-v4", "--algo", "ppo", "--runs-dir", "runs", "--no-progress")
+    for normalize, needle in [("{clip_obs: -1}", "clip_obs: must be a finite number above 0, got -1.0"),
+                              ("{epsilon: 0}", "epsilon: must be a finite number above 0"),
+                              ("{clip_reward: 0}", "clip_reward: must be a finite number above 0")]:  # fmt: skip
+        (tmp_path / "h.yml").write_text(entry + f"  normalize: {normalize}\n")
+        code, err = call(train, capsys, *common, "--timesteps", "256", "--hyperparams", "h.yml")
+        assert code == 2 and needle in err and not (tmp_path / "runs").exists(), err
+    (tmp_path / "h.yml").write_text(entry + "  learning_rate: 1000.0\n")
+    code, err = call(train, capsys, *common, "--timesteps", "1024", "--hyperparams", "h.yml")
+    assert code == 1 and "train.py: error: training diverged at " in err and "lower learning_rate" in err, err
+    assert "h.yml" in err
+
+
+def test_optimize_stopped_by_ctrl_c_says_so_in_one_line(capsys, tmp_path, monkeypatch):
+    import agents.optimize.__main__ as optimize
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(optimize, "run", stopped)
+    config = ROOT / "agents" / "bioloid" / "optimize" / "experiment5.json"
+    code, err = call(optimize.main, capsys, "--config", str(config), "--out", str(tmp_path / "out"), "--no-progress")
+    assert code == 130 and "interrupted; no iteration was finished" in err and "run the same command again" in err

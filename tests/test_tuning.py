@@ -168,6 +168,8 @@ def test_a_trial_below_the_pruners_bar_stops_training():
         (("--algo", "td3"), "--tune tunes ppo and sac, not td3"),
         (("--algo", "ppo", "--storage", "no-url"), "--storage 'no-url': expected a database URL"),
         (("--algo", "ppo", "--storage", "postgresql://nobody:s3cret@127.0.0.1:9/none"), "cannot open the study"),
+        # 128 steps on RoachWalk's 4 envs are 32 in each: an evaluation at every step is no study
+        (("--algo", "ppo", "--evaluations", 1000), "--evaluations 1000: a trial of 128 steps on 4 envs takes 32"),
     ],
 )
 def test_bad_tuning_input_is_a_one_line_error(tmp_path, monkeypatch, capsys, args, message):
@@ -262,3 +264,21 @@ def test_two_workers_share_one_study_in_postgresql(tmp_path):
         summary = json.loads((tmp_path / "runs" / "tuning" / "shared" / "study.json").read_text())
         assert summary["storage"].startswith("postgresql://skitter@127.0.0.1")
         assert summary["trials"]["complete"] == 2
+
+
+def test_a_study_stopped_by_ctrl_c_says_so_in_one_line_and_keeps_its_trials(tmp_path, monkeypatch, capsys, caplog):
+    """Ctrl-C in a trial: no traceback (Optuna logs a failed trial's), one line saying where the study is, exit 130;
+    the study's files are written and the stopped trial counts as failed."""
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({WALK: TINY}))
+
+    def interrupted(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(PPO, "learn", interrupted)
+    with caplog.at_level("WARNING", logger="optuna"):
+        status = train_py("--tune", 2, "--env", WALK, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml",
+                          "--runs-dir", "runs", cwd=tmp_path, monkeypatch=monkeypatch)  # fmt: skip
+    err = capsys.readouterr().err
+    assert status == 130 and "Traceback" not in err and "interrupted: study skitter_RoachWalk-v4__ppo" in err, err
+    assert not [r for r in caplog.records if "failed" in r.getMessage()], "Optuna's failed-trial warnings are dropped"
+    assert [row["state"] for row in trials_csv(tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v4__ppo")] == ["FAIL"]

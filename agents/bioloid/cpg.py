@@ -249,21 +249,39 @@ class PolicyFile:
     record: Mapping[str, Any]
 
 
+# what a policy file holds: :meth:`CPGRollouts.policy_record`'s fields and what agents.optimize adds to its best.json
+POLICY_FILE_FIELDS = {"policy", "robot", "coupling", "parameters", "score", "objective", "metrics", "iteration", "run"}
+
+
+def _shown(value: Any) -> str:
+    """A value for a message, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def read_policy_file(path: str | Path) -> PolicyFile:
     """A coupling file (parameters at the middle of the box, 0.5) or a policy file written by agents.optimize."""
     raw = _load_json(path)
     if isinstance(raw, Mapping) and "parameters" in raw:
         if raw.get("policy") != "cpg":
             raise CouplingError(f"{path}: field 'policy' must be 'cpg', got {raw.get('policy')!r}")
-        coupling = parse_coupling(raw.get("coupling"), f"{path} (coupling)")
-        params = np.asarray(raw["parameters"], dtype=np.float64)
-        if params.shape != (coupling.dimension,) or not np.isfinite(params).all():
+        unknown = sorted(set(raw) - POLICY_FILE_FIELDS)
+        if unknown:
             raise CouplingError(
-                f"{path}: field 'parameters' must hold {coupling.dimension} finite numbers, got shape {params.shape}"
+                f"{path}: unknown field {unknown[0]!r} (a policy file holds {sorted(POLICY_FILE_FIELDS)})"
             )
-        if (params < 0).any() or (params > 1).any():
-            raise CouplingError(f"{path}: field 'parameters' must lie in [0, 1]")
-        return PolicyFile(coupling, params, raw)
+        if raw.get("robot", "bioloid") != "bioloid":
+            raise CouplingError(f"{path}: field 'robot' must be 'bioloid' (the CPG drives its servos), got "
+                                f"{raw['robot']!r}")  # fmt: skip
+        coupling = parse_coupling(raw.get("coupling"), f"{path} (coupling)")
+        values = raw["parameters"]
+        if not isinstance(values, list) or len(values) != coupling.dimension:
+            raise CouplingError(f"{path}: field 'parameters' must be a list of {coupling.dimension} numbers in [0, 1] "
+                                f"(coupling {coupling.name!r}), got {_shown(values)}")  # fmt: skip
+        for i, v in enumerate(values):
+            if isinstance(v, bool) or not isinstance(v, int | float) or not (math.isfinite(v) and 0 <= v <= 1):
+                raise CouplingError(f"{path}: field 'parameters' item {i} must be a number in [0, 1], got {v!r}")
+        return PolicyFile(coupling, np.asarray(values, dtype=np.float64), raw)
     coupling = parse_coupling(raw, str(path))
     return PolicyFile(coupling, np.full(coupling.dimension, 0.5), {})
 

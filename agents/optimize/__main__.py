@@ -26,7 +26,13 @@ from agents.optimize.optimizers import OPTIMIZERS
 from agents.optimize.problem import ConfigError, read_config
 from agents.optimize.run import CHECKPOINT, LOCK, RunError, Settings, run
 from envs.common.cluster import ClusterError, check_address
-from envs.common.io import ToolParser, parent_problem, progress_bar_wanted
+from envs.common.io import (
+    ToolParser,
+    interrupted_exit_code,
+    parent_problem,
+    progress_bar_wanted,
+    sigterm_as_interrupt,
+)
 
 PROG = "python -m agents.optimize"
 # one batch holds a simulation per particle (the local backend: all of them in this process): the Bioloid report's
@@ -115,11 +121,16 @@ def main(argv: list[str] | None = None) -> int:
 
         command = f"{PROG} " + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:]))
         progress = progress_bar_wanted(args.no_progress)
-        result = run(config, settings, args.out, backend, progress=progress, command=command,
-                     stop_after=args.stop_after)  # fmt: skip
+        with sigterm_as_interrupt():  # SIGTERM as Ctrl-C: the checkpoint of the last whole iteration stays
+            result = run(config, settings, args.out, backend, progress=progress, command=command,
+                         stop_after=args.stop_after)  # fmt: skip
     except (ConfigError, RunError, ClusterError) as error:
         print(f"{PROG}: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as exc:
+        kept = "its last checkpoint is kept" if (args.out / CHECKPOINT).exists() else "no iteration was finished"
+        print(f"\n{PROG}: interrupted; {kept} in {args.out}: run the same command again to resume", file=sys.stderr)
+        return interrupted_exit_code(exc)
     best = result["best"]
     if best is None:
         print("no iteration run")

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from envs.common.io import nearest, not_a_file
+from envs.common.io import DuplicateKey, nearest, not_a_file, unique_keys
 
 FORMAT = "skitter calibration"
 VERSION = 1
@@ -72,28 +72,14 @@ class Calibration:
 FIELDS = ("format", "version", "robot", "effects", "provenance")  # as calibration_record writes a file
 
 
-class _DuplicateKey(ValueError):
-    pass
-
-
-def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    """A JSON object's pairs as a dict, refusing a key given twice (json keeps the last silently)."""
-    out: dict[str, Any] = {}
-    for key, value in pairs:
-        if key in out:
-            raise _DuplicateKey(key)
-        out[key] = value
-    return out
-
-
 def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     """Read and check a calibration file (for ``robot`` if given)."""
     path = Path(path)
     if not path.is_file():
         raise CalibrationError(f"{path}: {not_a_file(path, 'calibration file')}")
     try:
-        data = json.loads(path.read_text(encoding="utf-8-sig"), object_pairs_hook=_unique_keys)
-    except _DuplicateKey as exc:
+        data = json.loads(path.read_text(encoding="utf-8-sig"), object_pairs_hook=unique_keys)
+    except DuplicateKey as exc:
         raise CalibrationError(f"{path}: field {exc.args[0]!r} is given twice: give each field once") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CalibrationError(f"{path}: not a readable JSON calibration file ({exc})") from None

@@ -333,6 +333,21 @@ def foreign_unless(names: tuple[str, ...]) -> Callable[[Path], list[str]]:
     return lambda entry: [] if entry.name in names and entry.is_file() else [entry.name + "/" * entry.is_dir()]
 
 
+class DuplicateKey(ValueError):
+    """A JSON object gives one key twice (the key is the error's argument)."""
+
+
+def unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``json.loads``' ``object_pairs_hook``: a JSON object's pairs as a dict, refusing a key given twice
+    (:class:`DuplicateKey`; json keeps the last silently)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise DuplicateKey(key)
+        out[key] = value
+    return out
+
+
 def json_object(text: str, flag: str) -> dict[str, Any]:
     """A command line's JSON object of keyword arguments (the value of ``flag``, e.g. ``--env-kwargs``); ValueError
     names the flag and the value."""
