@@ -1028,6 +1028,18 @@ OUT_ENTRIES = {"results.json": False, "results.md": False, ".table.lock": False,
 RECORDS_ENTRIES = {"rows": True, "tasks": True, "videos": True}
 
 
+def _page_problem(page: Path) -> str | None:
+    """Why an existing file is not a page :func:`render` wrote (which the command may replace), or None."""
+    try:
+        with page.open(encoding="utf-8") as text:
+            begins = text.read(len(PAGE_START))
+    except (OSError, UnicodeDecodeError) as exc:
+        return f"exists and cannot be read as this command's page ({exc})"
+    if begins != PAGE_START:
+        return "exists and is not a page this command wrote (it would be replaced); give another path"
+    return None
+
+
 def foreign_problem(folder: Path, entries: dict[str, bool]) -> str | None:
     """Why the leaderboard cannot work in ``folder`` (``--out`` or ``--records``, which it adds to and rewrites the
     table of), or None: the folder holds what the leaderboard does not write (a name not in ``entries``, a file
@@ -1044,14 +1056,8 @@ def foreign_problem(folder: Path, entries: dict[str, bool]) -> str | None:
             held = None
         if not (isinstance(held, dict) and {"plan", "rows", "command"} <= held.keys()):
             others.append("results.json")
-    if "results.md" in entries and page.is_file():
-        try:
-            with page.open(encoding="utf-8") as text:
-                begins = text.read(len(PAGE_START))
-        except (OSError, UnicodeDecodeError):
-            begins = None
-        if begins != PAGE_START:
-            others.append("results.md")
+    if "results.md" in entries and page.is_file() and _page_problem(page) is not None:
+        others.append("results.md")
     if not others:
         return None
     shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
@@ -1075,13 +1081,9 @@ def docs_problem(docs: Path) -> str | None:
     if media.exists() and not media.is_dir():
         return f"its media folder {media} is a file"
     if docs.exists():
-        try:
-            with docs.open(encoding="utf-8") as page:
-                begins = page.read(len(PAGE_START))
-        except (OSError, UnicodeDecodeError) as exc:
-            return f"exists and cannot be read as this command's page ({exc})"
-        if begins != PAGE_START:
-            return "exists and is not a page this command wrote (it would be replaced); give another path"
+        problem = _page_problem(docs)
+        if problem:
+            return problem
     elif media.is_dir() and any(e.name not in ("plots", "videos") or not e.is_dir() for e in media.iterdir()):
         return f"{media} holds other files than a page's plots and videos; give another path"
     return None
