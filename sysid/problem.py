@@ -182,9 +182,10 @@ class Adapter(ABC):
         context = [c for v in self.context.values() for c in ([v] if isinstance(v, str) else v.values())]
         return frozenset(("time", "episode", *self.required(), *self.optional, *context))
 
-    def known_effects(self) -> dict[str, dict[str, tuple[float, float]]]:
-        """effect -> parameter -> (low, high), of the catalog effects (for checking calibration files)."""
-        return {n: {p.name: (p.low, p.high) for p in e.params} for n, e in self.catalog().items()}
+    def known_effects(self) -> dict[str, dict[str, Param]]:
+        """effect -> parameter -> its catalog entry (unit and range), of the catalog effects (for checking
+        calibration files)."""
+        return {n: {p.name: p for p in e.params} for n, e in self.catalog().items()}
 
     def channel_limits(self) -> dict[str, ChannelLimit]:
         """What the robot's hardware can read on each channel (range, fastest change): a log's sample beyond them is

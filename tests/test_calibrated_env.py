@@ -244,6 +244,10 @@ def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
          ["viscous_friction_left.damping", "outside its range"]),
         ("skitter/BioloidWalk-v2", "bioloid", {"effects": {"servo_gain": {"scale": 9.0}}},
          ["servo_gain.scale", "outside its range"]),
+        ("skitter/RoachWalk-v4", "velociroach", {"effects": {"delay": {"seconds": {"value": 3.0, "unit": "ms"}}}},
+         ["'effects.delay.seconds.unit': 'ms' is not the unit", "write the value in s"]),
+        ("skitter/XjusWalk-v1", "xjus", {"effects": {"delay": {"seconds": {"value": 0.01, "unit": 7}}}},
+         ["'effects.delay.seconds.unit': 7 is not a unit's name"]),
     ],
 )  # fmt: skip
 def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, env_id, robot, change, needles):
@@ -262,6 +266,20 @@ def test_a_calibration_file_may_name_the_roach_as_calibrate_py_does(tmp_path):
     path = tmp_path / "roach.json"
     path.write_text(json.dumps({"format": "skitter calibration", "version": 1, "robot": "roach", "effects": EFFECTS}))
     assert read_calibration(path, "velociroach").robot == "velociroach"
+
+
+def test_a_calibration_file_in_the_catalogs_units_is_taken_however_the_product_is_written(tmp_path):
+    """A unit is compared blind to spacing, the product's sign and a ratio's spelling; a sensor's offset is in its
+    channel's unit, whatever it is."""
+    effects = {
+        "viscous_friction_right": {"damping": {"value": 3e-5, "unit": "N\u00b7m\u00b7s/rad"}},
+        "delay": {"seconds": {"value": 0.003, "unit": "s"}},
+        "sensor_bias_bemf_left": {"offset": {"value": 0.01, "unit": "V"}},
+        "mass": {"scale": {"value": 1.1, "unit": "dimensionless"}},
+    }
+    env = gym.make("skitter/RoachWalk-v4", calibration=str(_write(tmp_path / "units.json", effects)))
+    assert env.unwrapped.robot.calibration.units["viscous_friction_right"]["damping"] == "N\u00b7m\u00b7s/rad"
+    env.close()
 
 
 def test_a_calibration_that_is_not_a_file_is_refused():

@@ -61,6 +61,15 @@ def test_calibrate_fit_of_one_effect_twice_is_refused_before_fitting(capsys, tmp
     assert not (tmp_path / "out").exists()
 
 
+def test_calibrate_starting_calibration_in_another_unit_is_refused_before_fitting(capsys, tmp_path):
+    start = tmp_path / "start.json"
+    effects = {"delay": {"seconds": {"value": 4.0, "unit": "ms"}}}
+    start.write_text(json.dumps({"format": "skitter calibration", "version": 1, "robot": "motor", "effects": effects}))
+    code, err = calibrate_with(capsys, tmp_path / "out", "--calibration", str(start))
+    assert code == 2 and f"{start}: field 'effects.delay.seconds.unit': 'ms'" in err and "in s" in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_calibrate_overwrite_refuses_a_folder_with_files_it_did_not_write(capsys, tmp_path):
     out = tmp_path / "out"
     out.mkdir()

@@ -18,6 +18,7 @@ from envs.bioloid import constants
 from envs.bioloid.effects import add_backlash, bioloid_effects, delay_edit, effects_edit
 from envs.bioloid.kinematics import Ellipse, LegGeometry
 from envs.common.calibration import Calibration
+from envs.common.effects import Effect
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_flag, check_number, standing_band
@@ -201,10 +202,9 @@ class Bioloid(Robot):
             knee_wedge_edit(self.wedge)(spec)
         self.servo.configure(spec)
 
-    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
+    def calibration_effects(self) -> dict[str, Effect]:
         dt = float(mujoco.MjSpec.from_file(str(self.xml_path())).option.timestep)
-        return {name: {p.name: (p.low, p.high) for p in e.params}
-                for name, e in bioloid_effects(dt).items() if e.catalogued}  # fmt: skip
+        return {name: e for name, e in bioloid_effects(dt).items() if e.catalogued}
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
         """The calibration's model effects as spec edits (envs/bioloid/effects.py): joint friction and inertia,

@@ -17,7 +17,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from envs.common.io import DuplicateKey, nearest, not_a_file, unique_keys
 
@@ -26,6 +26,11 @@ VERSION = 1
 # the robot's name in a calibration file is the robot's own (``velociroach``); ``calibrate.py --robot`` takes the
 # short one, and a file written by hand with it means the same robot
 ROBOT_ALIASES = {"roach": "velociroach"}
+# a catalog parameter in the unit of whatever channel it acts on (a sensor's offset) has no unit to check against
+ANY_UNIT = "channel unit"
+
+if TYPE_CHECKING:
+    from envs.common.effects import Param
 
 
 class CalibrationError(ValueError):
@@ -40,15 +45,16 @@ class Calibration:
     effects: Mapping[str, Mapping[str, float]]
     path: str = ""
     provenance: Mapping[str, Any] = field(default_factory=dict)
+    units: Mapping[str, Mapping[str, str]] = field(default_factory=dict)  # as the file states them, where it does
 
     @property
     def setting(self) -> dict[str, float]:
         """The effects as one flat dict, ``effect.param -> value``."""
         return {f"{e}.{p}": float(v) for e, params in self.effects.items() for p, v in params.items()}
 
-    def check(self, known: Mapping[str, Mapping[str, tuple[float, float]]]) -> None:
-        """Refuse effects or parameters the robot does not know, or values outside their range; ``known`` is
-        effect -> parameter -> (low, high)."""
+    def check(self, known: Mapping[str, Mapping[str, Param]]) -> None:
+        """Refuse effects or parameters the robot does not know, values outside their range, or a value stated in
+        another unit than the catalog's; ``known`` is effect -> parameter -> catalog parameter."""
         for name, params in self.effects.items():
             if name not in known:
                 raise CalibrationError(
@@ -61,12 +67,28 @@ class Calibration:
                         f"{self.path}: field 'effects.{name}.{param}': {name} has no parameter {param!r} "
                         f"(it has {', '.join(known[name])})"
                     )
-                low, high = known[name][param]
-                if not low <= value <= high:
+                spec = known[name][param]
+                stated = self.units.get(name, {}).get(param)
+                if stated is not None and spec.unit != ANY_UNIT and _unit_key(stated) != _unit_key(spec.unit):
+                    raise CalibrationError(
+                        f"{self.path}: field 'effects.{name}.{param}.unit': {stated!r} is not the unit skitter "
+                        f"reads {name}.{param} in ({spec.unit!r}): write the value in {spec.unit}"
+                    )
+                if not spec.low <= value <= spec.high:
                     raise CalibrationError(
                         f"{self.path}: field 'effects.{name}.{param}': {value:g} is outside its range "
-                        f"[{low:g}, {high:g}]"
+                        f"[{spec.low:g}, {spec.high:g}]"
                     )
+
+
+DIMENSIONLESS = ("", "1", "-", "none", "dimensionless", "unitless")  # a ratio's unit, however it is written
+
+
+def _unit_key(unit: str) -> str:
+    """A unit's spelling, blind to spacing and the product's sign (``N m s/rad``, ``N·m·s/rad``, ``N*m*s/rad``)
+    and to how a ratio's is written."""
+    key = "".join(unit.replace("\u00b7", " ").replace("*", " ").split())
+    return "1" if key.lower() in DIMENSIONLESS else key
 
 
 FIELDS = ("format", "version", "robot", "effects", "provenance")  # as calibration_record writes a file
@@ -108,6 +130,7 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
     if not isinstance(raw, dict):
         raise CalibrationError(f"{path}: field 'effects': {raw!r} is not an object of effects")
     effects: dict[str, dict[str, float]] = {}
+    units: dict[str, dict[str, str]] = {}
     for effect, params in raw.items():
         if not isinstance(params, dict) or not params:
             raise CalibrationError(f"{path}: field 'effects.{effect}': {params!r} is not an object of parameters")
@@ -120,7 +143,12 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
                 raise CalibrationError(f"{path}: field 'effects.{effect}.{param}': {value!r} is not a finite number")
             effects[effect][param] = float(value)
-    return Calibration(name, effects, str(path), data.get("provenance") or {})
+            unit = entry.get("unit") if isinstance(entry, dict) else None
+            if unit is not None and not isinstance(unit, str):
+                raise CalibrationError(f"{path}: field 'effects.{effect}.{param}.unit': {unit!r} is not a unit's name")
+            if unit is not None:
+                units.setdefault(effect, {})[param] = unit
+    return Calibration(name, effects, str(path), data.get("provenance") or {}, units)
 
 
 def calibration_record(

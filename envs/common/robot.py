@@ -38,6 +38,7 @@ import numpy as np
 
 from envs.common.batch import BatchSimulation
 from envs.common.calibration import Calibration, CalibrationError, read_calibration
+from envs.common.effects import Effect, Param
 from envs.common.mujoco_utils import sensor_slices, spec_hash
 from envs.common.parameters import ParameterMap, SpecEdit
 from envs.common.simulation import Simulation
@@ -362,9 +363,13 @@ class Robot(ABC):
         """Look up addresses in the compiled model and allocate per-simulation controller state."""
 
     # --- calibration (subclasses that take calibration files) ---------------------------------------------------
-    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
-        """Effect -> parameter -> (low, high) of what a calibration file may hold for this robot."""
+    def calibration_effects(self) -> Mapping[str, Effect]:
+        """The catalog effects a calibration file may hold for this robot, by name."""
         raise CalibrationError(f"robot {self.name!r} takes no calibration files")
+
+    def calibration_params(self) -> dict[str, dict[str, Param]]:
+        """Effect -> parameter -> its catalog entry (unit and range) of what a calibration file may hold."""
+        return {name: {p.name: p for p in e.params} for name, e in self.calibration_effects().items()}
 
     def load_calibration(self, calibration: str | Path | Calibration) -> Calibration:
         """Read and check a calibration file against this robot's effects (one-line errors naming file and field)."""
@@ -373,7 +378,7 @@ class Robot(ABC):
         cal = calibration if isinstance(calibration, Calibration) else read_calibration(calibration, self.name)
         if cal.robot != self.name:
             raise CalibrationError(f"{cal.path}: field 'robot': the file calibrates {cal.robot!r}, not {self.name!r}")
-        cal.check(self.calibration_ranges())
+        cal.check(self.calibration_params())
         return cal
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:

@@ -12,6 +12,7 @@ import numpy as np
 from envs.actuators.battery import loaded_voltage
 from envs.actuators.dcmotor import GAIN_K, GAIN_KD, GAIN_KP, GAIN_R, SUPPLY_SLOTS, DCMotors, PIDGains
 from envs.common.calibration import Calibration
+from envs.common.effects import Effect
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number, standing_band
@@ -207,9 +208,8 @@ class VelociRoach(Robot):
         self._substep_times = (np.arange(1, self.n_substeps + 1) * float(m.opt.timestep))[None, :, None]
 
     # --- calibration (envs/velociroach/effects.py holds the effects) -------------------------------------------------
-    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
-        return {name: {p.name: (p.low, p.high) for p in e.params}
-                for name, e in roach_effects(self.physics_dt()).items() if e.catalogued}  # fmt: skip
+    def calibration_effects(self) -> dict[str, Effect]:
+        return {name: e for name, e in roach_effects(self.physics_dt()).items() if e.catalogued}
 
     @classmethod
     def physics_dt(cls) -> float:

@@ -12,6 +12,7 @@ import numpy as np
 
 from envs.actuators.motor import Motor, MotorConstants
 from envs.common.calibration import Calibration
+from envs.common.effects import Effect
 from envs.common.imu import Imu, ImuNoise
 from envs.common.parameters import FieldRef, Parameter, ParameterMap, SpecEdit
 from envs.common.robot import ActionMode, Facts, PlotGroup, Robot, check_number, standing_band
@@ -238,10 +239,9 @@ class Xjus(Robot):
                 j.actfrcrange = [-limit, limit]
 
     # --- calibration (calibrate.py --robot xjus; envs/xjus/effects.py holds the effects) ------------------------------
-    def calibration_ranges(self) -> dict[str, dict[str, tuple[float, float]]]:
+    def calibration_effects(self) -> dict[str, Effect]:
         dt = float(mujoco.MjSpec.from_file(str(self.xml_path())).option.timestep)
-        return {name: {p.name: (p.low, p.high) for p in e.params}
-                for name, e in xjus_effects(dt).items() if e.catalogued}  # fmt: skip
+        return {name: e for name, e in xjus_effects(dt).items() if e.catalogued}
 
     def calibration_edits(self, calibration: Calibration) -> Sequence[SpecEdit]:
         """The calibration's model effects as spec edits (envs/xjus/effects.py): the hips' friction and inertia,
