@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import pickle
+import re
 import zipfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -30,6 +31,14 @@ ALGOS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC, "td3": TD3}
 MANIFEST = "skitter.json"
 STATS = "vecnormalize.pkl"
 FORMAT = 1
+DIVERGED = re.compile(r"Expected parameter (\w+) .* but found invalid values")  # torch's distributions, on NaN
+
+
+def diverged_cause(exc: ValueError) -> str | None:
+    """What diverged, if ``exc`` is torch's refusal of a distribution's NaN or infinite parameter (the policy
+    diverged during training), else None."""
+    found = DIVERGED.search(str(exc).split("\n", 1)[0])
+    return None if found is None else f"the policy's action distribution got a NaN or infinite {found.group(1)}"
 
 
 class ModelFileError(ValueError):

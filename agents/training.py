@@ -93,7 +93,15 @@ from agents.residual import (
     parse_residual,
     residual_settings,
 )
-from agents.sb3 import ALGOS, ModelFileError, error_reason, load_model, read_model_file, save_model
+from agents.sb3 import (
+    ALGOS,
+    ModelFileError,
+    diverged_cause,
+    error_reason,
+    load_model,
+    read_model_file,
+    save_model,
+)
 from agents.tuning import RunCode, tune
 from agents.vec_env import make_batched_vec_env
 from envs.common.batch import default_threads
@@ -990,16 +998,6 @@ def _say_whole_rollouts(model: BaseAlgorithm, timesteps: int) -> None:
 
 class TrainingDiverged(RuntimeError):
     """The policy's parameters or outputs became NaN or infinite during training."""
-
-
-DIVERGED = re.compile(r"Expected parameter (\w+) .* but found invalid values")  # torch's distributions, on NaN
-
-
-def diverged_cause(exc: ValueError) -> str | None:
-    """What diverged, if ``exc`` is torch's refusal of a distribution's NaN or infinite parameter (the policy
-    diverged), else None."""
-    found = DIVERGED.search(str(exc).split("\n", 1)[0])
-    return None if found is None else f"the policy's action distribution got a NaN or infinite {found.group(1)}"
 
 
 def train(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any], progress: bool,

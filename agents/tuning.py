@@ -45,6 +45,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from agents.config import ConfigError
 from agents.evaluation import LOWER_IS_BETTER, episode_metrics, metric_descriptions
+from agents.sb3 import diverged_cause
 from envs.common.io import write_json, write_text
 
 if TYPE_CHECKING:
@@ -352,7 +353,10 @@ def tune(code: RunCode, env_id: str, algo: str, base: dict[str, Any], where: str
             except ConfigError:
                 raise
             except ValueError as exc:  # torch's distributions refuse NaN parameters: the trial diverged
-                raise Diverged(str(exc).splitlines()[0]) from None
+                cause = diverged_cause(exc)
+                if cause is None:  # any other ValueError is a fault to show, not a trial's bad luck
+                    raise
+                raise Diverged(cause) from None
             if callback.pruned:
                 raise optuna.TrialPruned()
             value = callback.last_score

@@ -282,3 +282,30 @@ def test_a_study_stopped_by_ctrl_c_says_so_in_one_line_and_keeps_its_trials(tmp_
     assert status == 130 and "Traceback" not in err and "interrupted: study skitter_RoachWalk-v4__ppo" in err, err
     assert not [r for r in caplog.records if "failed" in r.getMessage()], "Optuna's failed-trial warnings are dropped"
     assert [row["state"] for row in trials_csv(tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v4__ppo")] == ["FAIL"]
+
+
+def test_a_diverged_trial_is_failed_and_the_study_goes_on_but_another_fault_is_shown(tmp_path, monkeypatch, capsys):
+    """torch's refusal of a NaN action distribution fails that trial alone; any other ValueError in training is a
+    fault in the code or the env, raised rather than recorded as a trial's bad luck."""
+    (tmp_path / "tiny.yml").write_text(yaml.safe_dump({WALK: TINY}))
+    message = "Expected parameter loc (Tensor of shape (2, 4)) of distribution Normal(...) to satisfy the constraint "
+    faults = iter([ValueError(message + "Real(), but found invalid values:\ntensor([[nan]])"), None])
+
+    def learn(self, *args, **kwargs):
+        fault = next(faults)
+        if fault is not None:
+            raise fault
+        return self
+
+    monkeypatch.setattr(PPO, "learn", learn)
+    argv = ("--env", WALK, "--algo", "ppo", "--timesteps", 256, "--hyperparams", "tiny.yml", "--runs-dir", "runs")
+    assert train_py("--tune", 2, *argv, cwd=tmp_path, monkeypatch=monkeypatch) == 0
+    folder = tmp_path / "runs" / "tuning" / "skitter_RoachWalk-v4__ppo"
+    assert [row["state"] for row in trials_csv(folder)] == ["FAIL", "COMPLETE"]
+
+    def broken(self, *args, **kwargs):
+        raise ValueError("operands could not be broadcast together with shapes (2,) (3,)")
+
+    monkeypatch.setattr(PPO, "learn", broken)
+    with pytest.raises(ValueError, match="could not be broadcast"):
+        train_py("--tune", 1, *argv, cwd=tmp_path, monkeypatch=monkeypatch)
