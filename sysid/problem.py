@@ -25,7 +25,7 @@ import math
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import mujoco
@@ -1029,16 +1029,14 @@ class Problem:
     def error_outside(self, residuals: Sequence[Residual], log: str, start: float, end: float) -> float:
         """:meth:`error` with every channel's samples of ``log`` between ``start`` and ``end`` (the log's own time,
         s) left out: what the error is without one moment of one log (a stall the diagnostics found)."""
-        cost, n = 0.0, 0
+        kept = []
         for i, res in zip(self.scored, residuals, strict=True):
             segment = self.segments[i]
-            data = res.data
             if segment.log == log:
                 time = np.asarray(segment.data["time"])
-                data = data[(time < start) | (time > end)]
-            cost += float(np.sum(data * data) + res.prior @ res.prior)
-            n += data.size
-        return math.sqrt(cost / n) if n else float("nan")
+                res = replace(res, data=res.data[(time < start) | (time > end)])
+            kept.append(res)
+        return self.error(kept)
 
     def log_errors(self, residuals: Sequence[Residual]) -> dict[str, float]:
         """:meth:`error` per log (its path), of the residuals of the scored segments in order."""
