@@ -123,7 +123,7 @@ bench: setup
 	$(BIN)/python -m benchmarks.ground_rules
 	$(BIN)/python -m benchmarks.bioloid_cpg_experiments
 
-# the seed's CPG experiments 5 and 6 with its PSO at its scale (about 50 minutes each on 2 cores; each resumes from
+# the report's CPG experiments 5 and 6 with its PSO at its scale (about 50 minutes each on 2 cores; each resumes from
 # its checkpoint when run again), then their summary (make bench summarizes what the run folders hold)
 cpg-experiments: setup
 	$(BIN)/python -m agents.optimize --config agents/bioloid/optimize/experiment5.json --optimizer pso \

@@ -1,5 +1,5 @@
 """The CPG experiments 5 and 6 of [bioloid-webots] with its PSO at its scale (50 particles x 240 iterations x 32 s):
-the runs' results, read from their run folders, beside the seed's (best scores 7-17 over its six experiments), and the
+the runs' results, read from their run folders, beside the report's (best scores 7-17 over its six experiments), and the
 checks of ``benchmarks/bioloid_cpg_check.py`` on each best policy (is the gait physical, or a simulator exploit?).
 
 Each best policy is then compared with the reference trot (``ik-trot`` at 1.5 Hz) by ``evaluate.py`` (its
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = (5, 6)
 WALK = "skitter/BioloidWalk-v2"
 REFERENCE = "ik-trot:1.5"
-SEED_BEST = (7.0, 17.0)  # eq. 17, the seed's best scores over its six experiments [bioloid-webots, VI.B.4]
+SEED_BEST = (7.0, 17.0)  # eq. 17, the report's best scores over its six experiments [bioloid-webots, VI.B.4]
 
 
 def command(e: int) -> str:
@@ -47,7 +47,7 @@ def command(e: int) -> str:
 
 def oscillator_parameters(policy: dict[str, Any]) -> list[dict[str, Any]]:
     """Each oscillator's parameters in a policy file: offset x0 and amplitude sqrt(E) as angles, and the weights a, b
-    it takes from its input's x and v (bidir: its input also takes -a, -b from it), by the seed's mapping
+    it takes from its input's x and v (bidir: its input also takes -a, -b from it), by the report's mapping
     (agents/bioloid/cpg.py)."""
     coupling = parse_coupling(policy["coupling"], "policy")
     p = np.asarray(policy["parameters"], dtype=np.float64)
@@ -222,9 +222,9 @@ def main(argv: list[str] | None = None) -> None:
                          f"rebounds {drop['rebound_above_rest'] * 1000:.1f} mm above it.\n")  # fmt: skip
     md = (
         "# CPG experiments 5 and 6 of [bioloid-webots], PSO at its scale\n\n"
-        "50 particles x 240 iterations x 32 s each (107 h simulated per run), the seed's PSO (decreasing inertia, "
-        "geometric neighbourhood), eq. 17 maximized as the seed did, on both cores of this machine (the swarm as one "
-        "batch); the seed's best scores over its six experiments: 7-17.\n\n" + table + missing + "\n" + curves
+        "50 particles x 240 iterations x 32 s each (107 h simulated per run), the report's PSO (decreasing inertia, "
+        "geometric neighbourhood), eq. 17 maximized as the report did, on both cores of this machine (the swarm as one "
+        "batch); the report's best scores over its six experiments: 7-17.\n\n" + table + missing + "\n" + curves
         + "\n\nCommands (each resumes its run when run again):\n\n" + "\n".join(f"    {r['command']}" for r in rows)
         + "\n\nThe best policies: "
         + ", ".join(f"`evaluate.py --policy cpg:{_shown(best_policy(output, r['experiment']))}`" for r in done)

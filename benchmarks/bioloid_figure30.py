@@ -1,11 +1,11 @@
 """[bioloid-webots, Figure 30] on our Bioloid: the IK library's seven gaits at 0.5, 1, 1.5 and 2 Hz, each scored by
-eq. 17 over 32 s (positions every 1 s), beside the seed's Webots values.
+eq. 17 over 32 s (positions every 1 s), beside the report's Webots values.
 
 All 28 rollouts run as one batch (agents.optimize's evaluator, the gaits as ``ik-<gait>:<Hz>`` drive them, lead-in
-included), from the ready posture without noise, as the seed's single Webots run per cell; ``--seeds K`` adds K
+included), from the ready posture without noise, as the report's single Webots run per cell; ``--seeds K`` adds K
 rollouts per cell from perturbed starts (the envs' reset noise 0.1) for the spread. Beside eq. 17: the signed +x
 progress (eq. 17 counts walking backward and tumbling too) and whether the robot fell (the body tilted past 1 rad),
-the seed's four outcomes: forward, backward, fallen, on the spot (|progress| < 0.1 m).
+the report's four outcomes: forward, backward, fallen, on the spot (|progress| < 0.1 m).
 
 Run: ``python -m benchmarks.bioloid_figure30`` (about a minute on one core).
 """
@@ -75,7 +75,7 @@ def noisy(cells, seeds: int, knee_wedge: bool) -> dict:
 
     out = {}
     for g, f in cells:
-        # the seed's measure, whatever touches the ground: the ground rules end nothing
+        # the report's measure, whatever touches the ground: the ground rules end nothing
         venv = gym.make_vec("skitter/BioloidWalk-v2", num_envs=seeds, vectorization_mode="vector_entry_point",
                             nthread=1, max_episode_steps=10**6, episode_seconds=None, max_tilt=np.pi,
                             knee_wedge=knee_wedge, sensor_noise=False,
@@ -109,7 +109,7 @@ CONFIGURATIONS: dict[str, list[str]] = {"bioloid_figure30": [], "bioloid_figure3
 def make_parser() -> argparse.ArgumentParser:
     parser = ToolParser(description=__doc__)
     parser.add_argument("--seeds", type=non_negative, default=4, help="perturbed starts per cell beside the nominal")
-    parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant (seed IV.A)")
+    parser.add_argument("--knee-wedge", action="store_true", help="the 18 deg wedge variant ([bioloid-webots] IV.A)")
     add_output_options(parser)
     return parser
 
@@ -141,14 +141,14 @@ def main(argv: list[str] | None = None) -> None:
                                              f"{max(r['noisy_eq17']):.2f}]" for r in cells])  # fmt: skip
     md = (
         f"# [bioloid-webots, Figure 30] on the MuJoCo Bioloid{' (18 deg knee wedges)' if args.knee_wedge else ''}\n\n"
-        "eq. 17 over 32 s (positions every 1 s), nominal start; in brackets the seed's Webots value:\n\n"
+        "eq. 17 over 32 s (positions every 1 s), nominal start; in brackets the report's Webots value:\n\n"
         + md_table(["f (Hz)", *ORDER], table_rows)
-        + "\nSigned +x progress (m) over the 32 s and the seed's outcome classes (fallen: tilted past 1 rad):\n\n"
+        + "\nSigned +x progress (m) over the 32 s and the report's outcome classes (fallen: tilted past 1 rad):\n\n"
         + md_table(["f (Hz)", *ORDER], progress_rows)
         + (f"\neq. 17 from {args.seeds} perturbed starts (reset noise 0.1): mean [min, max]:\n\n"
            + md_table(["f (Hz)", *ORDER], spread_rows) if spread_rows else "")
         + "\nBest gait by eq. 17 per frequency: " + ", ".join(f"{f:g} Hz {g}" for f, g in best.items())
-        + " (the seed: trot at every frequency).\n"
+        + " (the report: trot at every frequency).\n"
         + f"\nWall time {wall:.0f} s (28 nominal rollouts as one batch on one thread"
         + (f", then {args.seeds} perturbed per cell)" if args.seeds else ")") + ".\n"
     )  # fmt: skip

@@ -9,8 +9,8 @@ seed's scale (50 particles x 240 iterations x 32 s = 107 h simulated).
 - **real-time factor**: simulated seconds per wall-clock second of the env with the ``ik-trot`` policy (a 10 s
   episode from seed 0, the policy's moves included), pinned to one core; beside it the same episode's physics raw
   (its control blocks replayed from its start, one native call per control step, checked to end where the env
-  ended), the two alternating in rounds. The physics step is 2 ms. Goal >= 50x (the seed's Webots: 1.5x).
-- **PSO at the seed's scale**: ``--pso-iterations`` iterations (default 4) of the seed's PSO on experiment 5's
+  ended), the two alternating in rounds. The physics step is 2 ms. Goal >= 50x (the report's Webots: 1.5x).
+- **PSO at the report's scale**: ``--pso-iterations`` iterations (default 4) of the report's PSO on experiment 5's
   coupling, 50 particles x 32 s, the swarm as one batch on both cores (agents.optimize's local backend: the CPG
   integrated for all particles at once, the robot's batched command and step); the measured time per iteration x
   240 is the run's wall time, extrapolated (stated as such). Goal: under 1 hour.
@@ -223,7 +223,7 @@ def main(argv: list[str] | None = None) -> None:
          ["real-time factor of the whole path (CPG, robot, physics)", f"{pso['rtf_machine']:.0f}x on 2 cores, "
                                                                       f"{pso['rtf_per_core']:.0f}x per core"],
          ["240 iterations (107 h simulated), extrapolated", f"{hours * 60:.0f} min ({verdict}: goal < 60 min)"],
-         ["the seed: 50 computers at 1.5x", "about 2 h"]],
+         ["the report: 50 computers at 1.5x", "about 2 h"]],
     )  # fmt: skip
     md = (
         "# Bioloid: env speed, real-time factor, seed-scale PSO\n\n"

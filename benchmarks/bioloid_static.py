@@ -1,23 +1,23 @@
 """The static validation of [bioloid-webots, V, Tables 4-5] on our Bioloid: set a posture, move one servo a count at a
-time until the robot tips, report that servo value (the "equilibrium value"), beside the real robot's and the seed's
+time until the robot tips, report that servo value (the "equilibrium value"), beside the real robot's and the report's
 Webots model's.
 
 - **Postures**: Table 4's nine, all sixteen servos in counts, on the ground.
-- **The servo moved**: N_1, the neck's pitch servo, in all nine. The seed's text does not name it, but it
+- **The servo moved**: N_1, the neck's pitch servo, in all nine. The report's text does not name it, but it
   names the head for experiment 3 ("in any position of the head the robot doesn't fall"), and N_1 is the one servo
   that moves the head's weight (N_2 and HEAD, 228 g, 13% of the robot) fore and aft without touching the support: the
   postures change the legs (experiments 1-6) and the head's roll (N_2, experiments 8-9), the moved servo probes how
   far the centre of mass may go. Mirrored setups (5 and 6) tipping the same way (261 and 274, both below 513) also
-  fit a pitch servo, not a roll servo. The seed does not give the direction either: both are run, and the one on
+  fit a pitch servo, not a roll servo. The report does not give the direction either: both are run, and the one on
   the side of the real robot's value is compared (its sign is the one fact taken from the answer).
 - **Protocol**: the robot is put down level on its lowest point (2 mm up), its servos holding the posture, and left
   3 s to settle into the attitude it rests in (a posture with legs spread fore and aft rests tilted on them, as the
-  real robot "disposed in a stable position" would). "Fell during setup" (the seed's X) if it finds no rest: its body
+  real robot "disposed in a stable position" would). "Fell during setup" (the report's X) if it finds no rest: its body
   still turning more than 1 deg over the last second of settling, or turned over (tilt past 90 deg); a threshold on
   the tilt itself would split steady rests a few degrees apart for no physical reason. Then N_1's goal moves one
   count every 0.1 s (slow against the servo: no inertia, as the seed wanted) until the robot tips: its body turns
   more than 5 deg within one count's 0.1 s, a free rotation about the edge of its support (assumed threshold: the
-  seed gives none), or N_1 reaches 0 or 1023 ("did not fall", the seed's circle). A tilt from the rest is no tip:
+  seed gives none), or N_1 reaches 0 or 1023 ("did not fall", the report's circle). A tilt from the rest is no tip:
   where the robot rests on its head (experiments 1, 3, 7, 8, 9), moving N_1 pushes the body up on it smoothly, about
   0.1 deg per count. That reading is reported beside the tip, as "tilted 15 deg from rest".
 
@@ -211,7 +211,7 @@ def main(argv: list[str] | None = None) -> None:
         f"{np.degrees(PUSHED):.0f} deg from the rest, fall or quasi-static push. Values in counts.\n\n"
         + table
         + f"\nOurs: {len(diffs)} of 9 comparable, mean |diff| {np.mean(diffs) if diffs else float('nan'):.0f} counts, "
-        f"max {max(diffs) if diffs else float('nan')}; the seed's Webots: {len(webots)} of 9, mean "
+        f"max {max(diffs) if diffs else float('nan')}; the report's Webots: {len(webots)} of 9, mean "
         f"{np.mean(webots):.0f}, max {max(webots)} (it fell twice during setup).\n"
         f"\nWall time {wall:.0f} s.\n"
     )

@@ -2,7 +2,7 @@
 
 The env (gait mode, 50 Hz control, 2 kHz physics) runs the scripted tripod for a 10 s episode from seed 0; the
 real-time factor is simulated seconds per wall-clock second, the tripod's own moves included. Goal: at least 10x.
-The seed's V-REP model ran at 0.1x real time and failed above 5 Hz [roach-sim]. Beside it, the same episode's
+The report's V-REP model ran at 0.1x real time and failed above 5 Hz [roach-sim]. Beside it, the same episode's
 physics stepped raw: the control blocks and motor gains the env gave the physics, replayed on the same model from
 the same start, one native call per control step (``benchmarks.env_speed.time_raw``; checked to end where the env
 ended). The host's speed drifts, so the episode and its replay alternate in ``--rounds`` rounds; the env's share

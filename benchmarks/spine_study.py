@@ -1,10 +1,10 @@
-"""The spine study the xJüs seed asked for and never ran: does a compliant spine beat a rigid chassis over rough ground
-and obstacles? ([xjus-report, section 2.6]: "power usage over stochastically generated terrain ... for various joint
-stiffnesses")
+"""The spine study the xJüs report asked for and never ran: does a compliant spine beat a rigid chassis over rough
+ground and obstacles? ([xjus-report, section 2.6]: "power usage over stochastically generated terrain ... for various
+joint stiffnesses")
 
 Every setting walks the same seeded terrains: ``skitter/XjusRough-v1``'s height field, lane ``k`` of field
 ``terrain_seed`` for every setting, started with the same reset perturbation (seed ``1000 + k``). Settings: the spine
-stiffness log-spaced from 0.3x to 10x the seed's design stiffness (19.4 N m/rad, 60 lbf in at 20 deg), on all four
+stiffness log-spaced from 0.3x to 10x the report's design stiffness (19.4 N m/rad, 60 lbf in at 20 deg), on all four
 spine axes, and a rigid chassis. The gait is the reference Buehler-clock tripod (T = 0.5 s, 60 deg sweep, gait mode),
 10 s per episode. Terrains: level ground and random ground at two RMS roughness levels (0.02 and 0.04 m), and a
 0.05 m step, a 0.1 m step and 0.05 m stairs on lightly rough ground (0.01 m RMS, so that lanes differ).
@@ -13,7 +13,7 @@ The spine's damping scales with the square root of its stiffness, so that every 
 the default (about 0.1); ``--damping constant`` keeps 0.1 N m s/rad instead (the stiff settings then ring).
 
 Per setting and terrain, over the lanes, with 95% bootstrap intervals (``agents.evaluation.bootstrap_ci``): forward
-speed (progress along +x / time), cost of transport (battery energy / (m g distance along the heading); the seed's
+speed (progress along +x / time), cost of transport (battery energy / (m g distance along the heading); the report's
 motor constants cap the motor's efficiency at 0.37), the variance of the middle segment's roll and pitch after the
 first second, how often the robot flips, and on the obstacle terrains how far it got and whether it got past.
 Paired differences against the rigid chassis on the same lanes. The compliant settings of a terrain run as one
@@ -315,14 +315,14 @@ def main(argv: list[str] | None = None) -> None:
         f"({os.cpu_count()} cores, shared); the default study (20 lanes, 6 stiffnesses + rigid, 6 terrains, 10 s) "
         f"takes about {full * per_episode_second / 60:.1f} min at this rate.\n",
         "Gait: Buehler-clock tripod, T = 0.5 s, 60 deg sweep (gait mode). Stiffness per spine axis = scale x 19.4 "
-        "N m/rad (the seed's 60 lbf in at 20 deg); damping "
+        "N m/rad (the report's 60 lbf in at 20 deg); damping "
         + (
             "0.1 x sqrt(scale) N m s/rad, the same damping ratio (about 0.1) at every stiffness. "
             if args.damping == "ratio"
             else "0.1 N m s/rad at every stiffness. "
         )
         + "Speed: progress along +x over the episode's time (to a flip). "
-        "Cost of transport: battery energy / (m g distance along the heading); the seed's motor constants cap the "
+        "Cost of transport: battery energy / (m g distance along the heading); the report's motor constants cap the "
         "motor's efficiency at 0.37. Roll and pitch: the middle segment's, variance after the first second.\n",
         "## Findings (95% CIs of paired differences against rigid on the same lanes)\n",
         *findings(summary, settings),

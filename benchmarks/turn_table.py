@@ -21,7 +21,8 @@ from envs.common.io import ToolParser, at_least_one, atomic_write, positive_numb
 
 PHASES_DEG = np.arange(90, 271, 10)
 # The table spans 130..230 deg: beyond it the model falls into fast spinning modes (about +-150 deg/s near 110 and
-# 250 deg at 10 Hz) rather than steady turns. The seed's V-REP model responded between 130 and 210 deg (its figure 17).
+# 250 deg at 10 Hz) rather than steady turns. The report's V-REP model responded between 130 and 210 deg (its
+# figure 17).
 TABLE_WINDOW = (130, 230)
 WARMUP = 1.0
 

@@ -6,11 +6,11 @@
   rounds' (as ``benchmarks/env_speed.py`` measures the roach). The batched env is measured the same way against its
   own ``mujoco.batch`` replaying the blocks (as ``benchmarks/batch_speed.py``). Goal: >= 0.9.
 - **real-time factor**: simulated seconds per wall-clock second of the env with the ``buehler`` policy, 10 s
-  episodes, pinned to one core; the physics step is 2 ms (the seed's Blender model used 1.7 ms and ran at 1x). Goal:
+  episodes, pinned to one core; the physics step is 2 ms (the report's Blender model used 1.7 ms and ran at 1x). Goal:
   >= 20x.
 - **flat ground**: forward speed and cost of transport of the Buehler-clock tripod (60 deg sweep) at several periods,
   10 s episodes over seeded starts, 95% bootstrap intervals, beside Research RHex's 0.55 m/s (7 kg, 0.53 m). The cost
-  of transport is battery energy / (m g distance); the seed's motor constants cap the motor's efficiency at
+  of transport is battery energy / (m g distance); the report's motor constants cap the motor's efficiency at
   eta N Kt / Ks = 0.37, so it is at least 1/0.37 = 2.7 times the mechanical one.
 - **stability**: the stiffest and softest spine offered and a rigid one walk 10 s over 0.05 m RMS ground at the 2 ms
   step; any numerically unstable episode is counted.
@@ -326,7 +326,7 @@ def main(argv: list[str] | None = None) -> None:
         + "\n## Real-time factor, one core\n\n"
         + rtf_table
         + "\n## Flat ground, Buehler-clock tripod (60 deg sweep), 10 s episodes\n\n"
-        "Cost of transport = battery energy / (m g distance). The seed's motor constants cap the motor's efficiency "
+        "Cost of transport = battery energy / (m g distance). The report's motor constants cap the motor's efficiency "
         "at eta N Kt / Ks = 0.37: every cost of transport here is at least 2.7 times the mechanical one.\n\n"
         + flat_table
         + "\n## Turning by a different sweep per side (T = 0.5 s, sweeps centred on 60 deg)\n\n"

@@ -22,7 +22,7 @@ def block_shaft(spec: mujoco.MjSpec) -> None:
     joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
 
 
-# --- the xJüs seed's gearmotor ---------------------------------------------------------------------------------
+# --- the xJüs report's gearmotor ---------------------------------------------------------------------------------
 def test_motor_torque_equals_the_seed_formula_over_a_grid():
     """tau = eta N Kt (d Vs - Ks w) / (Ra + d^2 Ramp), exactly, for held d and any shaft speed."""
     rig = MotorRig()
@@ -76,7 +76,7 @@ def test_motor_battery_current_and_power():
     i = (d * c.supply_voltage - c.speed_constant * w) / (c.motor_resistance + d * d * c.amplifier_resistance)
     assert c.current(d, w) == pytest.approx(i)
     assert c.battery_power(d, w) == pytest.approx(c.supply_voltage * d * i)
-    # the seed's constants cap the efficiency at eta N Kt / Ks
+    # the report's constants cap the efficiency at eta N Kt / Ks
     assert c.torque_per_amp / c.speed_constant == pytest.approx(0.37, abs=0.005)
 
 

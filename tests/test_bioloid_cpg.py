@@ -1,4 +1,4 @@
-"""The seed's CPG (eq. 14) on the Bioloid: the coupling files' parameter counts, the oscillator's limit cycle, the
+"""The report's CPG (eq. 14) on the Bioloid: the coupling files' parameter counts, the oscillator's limit cycle, the
 coupling matrix (bidir, sharing, mirroring), row independence, bad files, and the policy files."""
 
 import json

@@ -1,4 +1,4 @@
-"""The seed's IK gait library on the Bioloid: the trot walks forward, every gait commands its table's swing and stance
+"""The report's IK gait library on the Bioloid: the trot walks forward, every gait commands its table's swing and stance
 order within the knee limit, the trot and the walk put their feet down as commanded, turning follows the command."""
 
 import gymnasium as gym
@@ -37,7 +37,7 @@ def test_every_gait_commands_its_tables_swing_and_stance_order_within_the_knee_l
     policy = load_policy(f"ik-{gait}:{frequency}", env)
     t = np.arange(0.0, 3.0, 0.002) + 1.0  # after the one-cycle lead-in
     goal, limited = policy.counts(t, np.ones((len(t), 4)))
-    assert not limited.any(), "the seed's ellipse keeps the knee within 90 deg"
+    assert not limited.any(), "the report's ellipse keeps the knee within 90 deg"
     assert (
         goal[:, [constants.SERVO_INDEX[constants.KNEE[leg]] for leg in constants.LEGS]]
         <= constants.counts(constants.KNEE_LIMIT) + 1e-9

@@ -145,7 +145,7 @@ def test_bad_robot_arguments_are_refused_in_one_line(kwargs, message):
 
 
 def test_current_limit_clamps_each_motor_at_its_rating():
-    """The seed's 1.08 A continuous rating as a driver limit: the blocked hip's torque stops at 1.08 A x eta N Kt."""
+    """The report's 1.08 A continuous rating as a driver limit: the blocked hip's torque stops at 1.08 A x eta N Kt."""
     limit = constants.MOTOR_CONTINUOUS_CURRENT
     robot = Xjus(DUTY, spine=RIGID, imu_noise=None, current_limit=limit,
                  spec_edits=[facts.clamp(quat=facts.HIPS_VERTICAL, lock_hips=True)])  # fmt: skip

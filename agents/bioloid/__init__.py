@@ -3,7 +3,7 @@ agents/__init__.py.
 
 - ``ik-<gait>`` and ``ik-<gait>:<Hz>``: the inverse-kinematics gait library (trot, walk, gallop, canter, pace,
   bound, pronk), steering by each side's stride on a turning task (agents/bioloid/ik.py);
-- ``cpg``: the coupled oscillators of seed eq. 14 with a coupling file's default parameters (``cpg``, the seed's
+- ``cpg``: the coupled oscillators of eq. 14 with a coupling file's default parameters (``cpg``, the report's
   experiment 5 model at the middle of its parameter box), ``cpg:<file>``: a coupling file, or a policy file written
   by ``python -m agents.optimize`` (agents/bioloid/cpg.py).
 """

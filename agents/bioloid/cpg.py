@@ -1,13 +1,14 @@
-"""The seed's central pattern generator for the Bioloid quadruped [bioloid-webots, VI.B]: coupled nonlinear oscillators.
+"""The report's central pattern generator for the Bioloid quadruped [bioloid-webots, VI.B]: coupled nonlinear
+oscillators.
 
-Each oscillating servo has an oscillator of seed eq. 14 (Mojon's normalized coupling)::
+Each oscillating servo has an oscillator of the report's eq. 14 (Mojon's normalized coupling)::
 
     tau v_i' = -alpha (x_i^2 + v_i^2 - E_i) / E_i v_i - x_i + sum_j (a_ij x_j + b_ij v_j) / (x_i^2 + v_i^2)
     tau x_i' = v_i
 
-with tau = 1 / (2 pi f) (f = 1 Hz, the seed's baseline; a coupling file may free one shared frequency in [1, 2] Hz
-for some oscillators, as the seed's experiment 2 did). Its servo's goal is ``stand + sign (x0_i + A x_i)``: the
-standing posture, the oscillator's offset x0 (seed Figure 40) and its state in units of A = 45 deg, so that the
+with tau = 1 / (2 pi f) (f = 1 Hz, the report's baseline; a coupling file may free one shared frequency in [1, 2] Hz
+for some oscillators, as the report's experiment 2 did). Its servo's goal is ``stand + sign (x0_i + A x_i)``: the
+standing posture, the oscillator's offset x0 (the report's Figure 40) and its state in units of A = 45 deg, so that the
 seed's amplitude sqrt(E) in (0, 1] spans up to 45 deg; ``sign`` mirrors the right abduction servos, so that
 parameters shared by a left-right pair move the pair symmetrically.
 
@@ -29,11 +30,11 @@ parameters shared by a left-right pair move the pair symmetrically.
       "ranges": {"offset": 1.0472, "amplitude": [0.05, 1.0], "coupling": 0.7, "frequency": [1.0, 2.0]}
     }
 
-**Parameters** (the seed's mapping, VI.B.3): an optimizer's vector in [0, 1]^n, n = 4 per parameter group (the
+**Parameters** (the report's mapping, VI.B.3): an optimizer's vector in [0, 1]^n, n = 4 per parameter group (the
 oscillators not sharing are groups of one) plus 1 with a free frequency. Per group, in the order of the groups'
 first oscillators in the file: offset x0 in [-offset, +offset] rad around the standing posture, amplitude sqrt(E) in
-the amplitude range, and the weights a and b of the group's connections in [-coupling, coupling] (the seed: [-0.7,
-0.7]); then the frequency. The seed's experiments 1-6 have 64, 33, 32, 24, 16 and 24 parameters; the files here
+the amplitude range, and the weights a and b of the group's connections in [-coupling, coupling] (the report: [-0.7,
+0.7]); then the frequency. The report's experiments 1-6 have 64, 33, 32, 24, 16 and 24 parameters; the files here
 reproduce those counts (tests/test_bioloid_cpg.py).
 
 Integration: semi-implicit Euler at 2.5 ms (400 steps per 1 Hz cycle), the limit cycle's pull taken implicitly where
@@ -62,7 +63,7 @@ from envs.common.io import not_a_file
 
 CONFIGS = Path(__file__).resolve().parent / "cpg_configs"
 DEFAULT_CONFIG = "experiment5"  # the policy ``cpg`` without a file: experiment 5's model at the middle of its box
-AMPLITUDE_SCALE = math.radians(45.0)  # rad per unit of oscillator state (assumed: the seed gives no unit)
+AMPLITUDE_SCALE = math.radians(45.0)  # rad per unit of oscillator state (assumed: the report gives no unit)
 SUBSTEP = 0.0025  # s, the integration step
 DEFAULT_RANGES = {"offset": math.radians(60.0), "amplitude": [0.05, 1.0], "coupling": 0.7, "frequency": [1.0, 2.0]}
 FLOOR = 0.25  # x E: the coupling's normalization x^2 + v^2 taken no smaller (eq. 14 is singular at the origin)

@@ -1,6 +1,6 @@
-"""The seed's inverse-kinematics gait library for the Bioloid quadruped [bioloid-webots, VI.A].
+"""The report's inverse-kinematics gait library for the Bioloid quadruped [bioloid-webots, VI.A].
 
-Each foot follows the seed's ellipse (eqs. 7-8, with its rules of thumb and the knee-limit correction of the y
+Each foot follows the report's ellipse (eqs. 7-8, with its rules of thumb and the knee-limit correction of the y
 radius) under its hip; the hip and knee servos come from the leg's inverse kinematics (eqs. 3-6), the knee never
 bent past 90 deg (envs/bioloid/kinematics.py). The four legs run the same ellipse with the phase offsets of a gait
 (``GAITS``): trot, walk, gallop, canter, pace, bound and pronk, at any stride frequency. The lower half of the
@@ -10,7 +10,7 @@ sets the phases and duty factors beside the gait literature's.
 Steering, on a turning task: the trot marks time (``STEER_STRIDE``, its feet stepping in place) and swings each foot
 sideways in its stance (``IKGoals.turning``, the Four-Legged League's turn, as the soccer envs' ``commands`` mode
 steers). The turn follows the commanded yaw rate (a feed-forward) plus a proportional correction on the observed
-heading error. The seed's Webots model steered by scaling one side's stride instead; on this model that turned less
+heading error. The report's Webots model steered by scaling one side's stride instead; on this model that turned less
 than the full trot drifts from episode to episode (up to +-0.17 rad/s), and often the wrong way (docs/bioloid.md).
 
 Names in the policy registry (agents/bioloid/__init__.py): ``ik-<gait>`` (at 1.5 Hz, the trot's reference) and
@@ -41,7 +41,7 @@ class Gait:
     literature_duty: str
 
 
-# Phase offsets: the seed's Figure 29 (after Alexander [30]) as its author's Webots controller tabulates them
+# Phase offsets: the report's Figure 29 (after Alexander [30]) as its author's Webots controller tabulates them
 # (gait_phase_shift, legs FL, FR, BR, BL), here reordered to F_L, F_R, B_L, B_R.
 GAITS: dict[str, Gait] = {
     g.name: g
@@ -55,7 +55,7 @@ GAITS: dict[str, Gait] = {
         Gait("pronk", (0.0, 0.0, 0.0, 0.0), "below 0.5"),
     )
 }
-DEFAULT_FREQUENCY = TROT_FREQUENCY  # Hz: the reference trot (the seed's trot scored 11.06 at 1.5 Hz, Figure 30)
+DEFAULT_FREQUENCY = TROT_FREQUENCY  # Hz: the reference trot (the report's trot scored 11.06 at 1.5 Hz, Figure 30)
 FREQUENCY_RANGE = (0.05, 5.0)  # Hz accepted by name: beyond 5 Hz the AX-12 cannot follow a 0.1 m stride
 # Steering on BioloidTurn, chosen on it (seeds 1000-1019, docs/bioloid.md): the stride it turns at (0: the trot
 # marks time, its feet stepping in place; longer strides drift more and track worse), the turn per rad/s of wanted
@@ -80,7 +80,7 @@ def stance(gait: Gait, t: np.ndarray, frequency: float) -> np.ndarray:
 
 
 class IKGait:
-    """One gait of the seed's IK library at one frequency, for a Bioloid env.
+    """One gait of the report's IK library at one frequency, for a Bioloid env.
 
     Args:
         layout: the env's observation layout (a turning task's ``yaw_rate_command`` and ``heading_error``).
@@ -88,7 +88,7 @@ class IKGait:
         control_dt: the control step, s.
         gait: one of ``GAITS``.
         frequency: stride frequency, Hz.
-        wedge: the robot's knee wedge, rad (0 for the seed's design).
+        wedge: the robot's knee wedge, rad (0 for the report's design).
         steer: follow a turning task's yaw-rate command (default: when the env commands one).
     """
 

@@ -48,7 +48,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--config", required=True, help="a run configuration (JSON; agents/optimize/problem.py)")
     p.add_argument("--optimizer", choices=sorted(OPTIMIZERS), default="pso")
     p.add_argument("--iterations", type=int, default=240, help="iterations ([bioloid-webots]'s PSO: 240)")
-    p.add_argument("--particles", type=int, default=50, help="swarm or population size (the seed: 50)")
+    p.add_argument("--particles", type=int, default=50, help="swarm or population size (the report: 50)")
     p.add_argument("--workers", type=int, default=None,
                    help="local: the batch's threads (default: the machine's cores); ray: the batches the swarm is "
                         "split into, one actor each (default: 2)")  # fmt: skip

@@ -1,19 +1,19 @@
 """The optimizers, as ask-and-tell objects whose whole state pickles (a checkpoint resumes them exactly); both
-maximize over the unit box [0, 1]^n (the seed's mapping of parameters, VI.B.3).
+maximize over the unit box [0, 1]^n (the report's mapping of parameters, VI.B.3).
 
 **PSO** ([bioloid-webots, VI.B.2], eqs. 15-16, after Kennedy and Eberhart 1995 [16] as Bourquin [15] ran it)::
 
     v_id(t+1) = w(t) v_id(t) + phi1 rand() (p_id - x_id(t)) + phi2 rand() (p_gd - x_id(t))
     x_id(t+1) = x_id(t) + v_id(t+1)
 
-- 50 particles by default (the seed's swarm), initialized uniformly in the box, velocities uniformly within
+- 50 particles by default (the report's swarm), initialized uniformly in the box, velocities uniformly within
   +-``v_max`` (assumed);
-- inertia w decreasing linearly from 0.9 to 0.4 over the run (the seed's "decreasing inertia", after Shi and
+- inertia w decreasing linearly from 0.9 to 0.4 over the run (the report's "decreasing inertia", after Shi and
   Eberhart 1998 [17], whose values these are);
-- phi1 = phi2 = 2 (Kennedy and Eberhart's; the seed gives no values);
-- geometric neighbourhood (the seed's choice): p_g is the best previous position among the ``neighbours`` particles
+- phi1 = phi2 = 2 (Kennedy and Eberhart's; the report gives no values);
+- geometric neighbourhood (the report's choice): p_g is the best previous position among the ``neighbours`` particles
   nearest to particle i in the parameter space (i included), distances recomputed at every iteration; 5 by default
-  (assumed: the seed says "a few particles to the entire swarm");
+  (assumed: the report says "a few particles to the entire swarm");
 - velocities clipped to +-``v_max`` = 0.2 of the box (assumed, common practice); a particle leaving the box is put
   back on its face and its velocity along that axis zeroed (assumed).
 
@@ -43,7 +43,7 @@ CMA_SIGMA0 = 0.25
 
 
 class PSO:
-    """The seed's particle swarm optimizer over [0, 1]^dimension (see the module docstring), maximizing.
+    """The report's particle swarm optimizer over [0, 1]^dimension (see the module docstring), maximizing.
 
     Args:
         dimension: number of parameters.

@@ -7,9 +7,9 @@ that takes the configuration's remaining fields and the robot) and how a rollout
       "env": "skitter/BioloidWalk-v2",     # any registered id; its robot runs the rollouts
       "env_kwargs": {},                    # keyword arguments of the env (e.g. {"knee_wedge": true})
       "controller": "cpg",                 # a name in the robot folder's CONTROLLERS
-      "seconds": 32,                       # rollout length (the seed: 32 s)
+      "seconds": 32,                       # rollout length (the report: 32 s)
       "objective": "forward",              # "forward" (default) or "distance_travelled"
-      "sample_interval": 1.0,              # s between the trajectory samples of eq. 17 (the seed: 1 s)
+      "sample_interval": 1.0,              # s between the trajectory samples of eq. 17 (the report: 1 s)
       "max_tilt": 1.0,                     # rad: a body tilted further has fallen
       "coupling": "experiment5"            # ... the controller's own fields
     }

@@ -1,12 +1,12 @@
-"""The seed's controller as reference policies for xJüs: stand, walk and turn [xjus-report, sections 2.4 and 2.5].
+"""The report's controller as reference policies for xJüs: stand, walk and turn [xjus-report, sections 2.4 and 2.5].
 
 Three stages: the Buehler clock's target per leg (the Fourier series, M = 10, tripods half a cycle apart), PD
-feedback on the leg angle giving a desired torque and, through the seed's motor model inverted, the voltage Vpd and
+feedback on the leg angle giving a desired torque and, through the report's motor model inverted, the voltage Vpd and
 duty d = Vpd / Vs; then the motor model itself, in the simulation (envs/xjus/controller.py has the stages). In the
 env's ``gait`` action mode the robot runs the first two stages itself and the policy only sends the clock's period
 and sweep angles; in ``duty`` mode the policy runs them on its observations and its own clock and sends the duty.
 
-Routines (the seed's keyboard commands):
+Routines (the report's keyboard commands):
 
 - ``stand``: every leg to pointing down and held there (duty mode only: the gait mode's clock always runs);
 - ``walk``: the alternating tripod at period T (default 0.5 s) and ground sweep 60 deg on both sides;
@@ -69,7 +69,7 @@ class XjusContext:
 
 
 class BuehlerController:
-    """One routine of the seed's controller.
+    """One routine of the report's controller.
 
     Args:
         context: the env's layout and constants (:meth:`XjusContext.from_env`).

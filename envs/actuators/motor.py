@@ -1,8 +1,8 @@
-"""The DC gearmotor model of the xJüs seed ([xjus-report, section 2.3 and Table 1], after [seipel2006]).
+"""The DC gearmotor model of the xJüs report ([xjus-report, section 2.3 and Table 1], after [seipel2006]).
 
     tau = eta N Kt (d Vs - Ks thetadot) / (Ra + d^2 Ramp),    d = clip(Vpd / Vs, -1, 1)
 
-with ``thetadot`` the output-shaft speed. The duty ``d`` is held over each control step (the seed's logic step was
+with ``thetadot`` the output-shaft speed. The duty ``d`` is held over each control step (the report's logic step was
 8.3 ms); within it the torque is affine in ``thetadot``, ``tau = A(d) - B(d) thetadot``, so two native actuators per
 joint give the formula exactly at every physics step, driven through ``ctrl`` alone:
 
@@ -10,7 +10,7 @@ joint give the formula exactly at every physics step, driven through ``ctrl`` al
 - ``<joint>_emf``: a ``general`` actuator with ``gainprm = [0, 0, -1]`` (force = -velocity x ctrl),
   ``ctrl = B(d) = eta N Kt Ks / (Ra + d^2 Ramp)``.
 
-MuJoCo's ``dcmotor`` cannot express it: the seed's ``eta N Kt`` (0.28 N m/A) differs from its ``Ks`` (0.75 V s), so
+MuJoCo's ``dcmotor`` cannot express it: the report's ``eta N Kt`` (0.28 N m/A) differs from its ``Ks`` (0.75 V s), so
 the model's efficiency is capped at ``eta N Kt / Ks = 0.37`` by its own constants, and its resistance grows with
 ``d^2``. The motor current is ``i = (d Vs - Ks thetadot) / (Ra + d^2 Ramp)`` and the battery current ``d i``.
 """
@@ -33,7 +33,7 @@ LOG_SPEED_MARGIN = 5.0
 
 @dataclass(frozen=True)
 class MotorConstants:
-    """The seed's Table 1 [xjus-report]: "taken from the specifications of purchased components, except for Kt and Ks,
+    """The report's Table 1 [xjus-report]: "taken from the specifications of purchased components, except for Kt and Ks,
     which were chosen such that the model reflects the stall torque and no load speed of the motor"."""
 
     gear_ratio: float = 729 / 25  # N
@@ -65,7 +65,7 @@ class MotorConstants:
         return (d * self.supply_voltage - self.speed_constant * speed) / self.resistance(d)
 
     def torque(self, d: np.ndarray, speed: np.ndarray) -> np.ndarray:
-        """Output-shaft torque, N m: the seed's formula."""
+        """Output-shaft torque, N m: the report's formula."""
         return self.torque_per_amp * self.current(d, speed)
 
     def coefficients(self, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,7 +88,7 @@ class MotorConstants:
         return self.supply_voltage / self.speed_constant
 
     def duty(self, vpd: np.ndarray) -> np.ndarray:
-        """The seed's duty factor from the controller's voltage: clip(Vpd / Vs, -1, 1)."""
+        """The report's duty factor from the controller's voltage: clip(Vpd / Vs, -1, 1)."""
         return np.clip(np.asarray(vpd) / self.supply_voltage, -1.0, 1.0)
 
     def channel_limits(self) -> dict[str, ChannelLimit]:
@@ -114,7 +114,7 @@ class Motor:
 
     Args:
         joints: joint names in the spec.
-        constants: the motor's constants (default: the seed's Table 1).
+        constants: the motor's constants (default: the report's Table 1).
         armature: rotor inertia reflected to the joint, kg m^2 (added to the joint's own).
     """
 

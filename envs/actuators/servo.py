@@ -116,7 +116,7 @@ def add_constant_torque(actuator: mujoco.MjsActuator, torque: float) -> None:
 class ServoConstants:
     """An AX-12's constants and its control table's settings."""
 
-    supply_voltage: float = 10.0  # V: the seed's robots ran at 10 V [bioloid-webots]
+    supply_voltage: float = 10.0  # V: the report's robots ran at 10 V [bioloid-webots]
     compliance_slope: float = 32.0  # counts from the margin to full duty (ROBOTIS default 32)
     torque_limit: float = 1023.0  # of 1023: the bound of the duty (ROBOTIS default 1023)
     counts: int = 1024  # positions 0..1023

@@ -2,7 +2,7 @@
 
 The rig (``assets/bench/rig.xml``) is an output shaft turning a load about a vertical axis; its load inertia and the
 shaft's Coulomb friction and viscous damping are constructor arguments and named parameters. :class:`MotorRig`
-drives it with the xJüs seed's gearmotor (envs/actuators/motor.py), :class:`ServoRig` with the AX-12 servo
+drives it with the xJüs report's gearmotor (envs/actuators/motor.py), :class:`ServoRig` with the AX-12 servo
 (envs/actuators/servo.py). They are the actuators' test benches and, for calibration, the model of a bench log.
 """
 
@@ -154,11 +154,11 @@ class BenchRig(Robot):
 
 
 class MotorRig(BenchRig):
-    """The xJüs seed's DC gearmotor [xjus-report, Table 1] on the rig, commanded by duty cycle, held per control step.
+    """The xJüs report's DC gearmotor [xjus-report, Table 1] on the rig, commanded by duty cycle, held per control step.
 
     Args:
-        constants: the motor's constants (default: the seed's Table 1).
-        armature: rotor inertia reflected to the output, kg m^2 (the seed gives none: 0).
+        constants: the motor's constants (default: the report's Table 1).
+        armature: rotor inertia reflected to the output, kg m^2 (the report gives none: 0).
         (the rest as :class:`BenchRig`; control at 100 Hz by default)
     """
 

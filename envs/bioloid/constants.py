@@ -1,8 +1,9 @@
 """Bioloid quadruped names, source facts and servo settings.
 
 The physical model constants (masses, anchors, axes, shapes) live in ``assets/bioloid/bioloid.xml``, each with its
-source. This module holds what the code needs beside them: the servo names the seed uses ([bioloid-webots, Figure 41 and
-Table] 3), the postures in servo counts, each servo's allowed range, and the facts the model is checked against.
+source. This module holds what the code needs beside them: the servo names the report uses ([bioloid-webots,
+Figure 41 and Table] 3), the postures in servo counts, each servo's allowed range, and the facts the model is checked
+against.
 """
 
 from __future__ import annotations
@@ -37,10 +38,10 @@ FLOOR_GEOM = "floor"
 FOOT_GEOM = {leg: f"{leg}_foot" for leg in LEGS}
 
 # what may touch the ground when the robot walks: each leg's shank below the knee, its crutch and sole. Not the knee
-# servo (on the thigh, where the shank turns): a body lowered onto its knees is a crawl, though the seed's IK gaits set
-# their front knees down at the back of the stroke (ik-trot: 12% of its steps, up to 16% turning hardest; the grace
-# of envs/common/locomotion.py absorbs it). The seed warns against gaits where the dog is "almost swimming" on the
-# ground [bioloid-webots, IV.A]
+# servo (on the thigh, where the shank turns): a body lowered onto its knees is a crawl, though the report's IK gaits
+# set their front knees down at the back of the stroke (ik-trot: 12% of its steps, up to 16% turning hardest; the
+# grace of envs/common/locomotion.py absorbs it). The report warns against gaits where the dog is "almost swimming" on
+# the ground [bioloid-webots, IV.A]
 FEET = tuple(KNEE.values())
 # the body's origin above level ground in the gaits' ready posture (lowest sole on the ground), and the lowest point
 # of the body's own geoms (CM-5 and its servo cases) then, m; from the model (assets/bioloid/);
@@ -62,14 +63,14 @@ PARTS_G = {  # g, [bioloid-webots, Table 3]
     "F_L_3": 32, "F_R_3": 32, "B_L_3": 34, "B_R_3": 34,
 }  # fmt: skip
 HIP_ANCHOR_FRONT = (0.0565, 0.086, 0.0135)  # m, front-left hip in the body frame [webots-bioloid]
-L1_SEED, L2_SEED = 0.09, 0.085  # m, the leg segments the seed's IK used [bioloid-webots, VI.A]
+L1_SEED, L2_SEED = 0.09, 0.085  # m, the leg segments the report's IK used [bioloid-webots, VI.A]
 ABDUCTION_DROP = 0.0145  # m, hip pitch axis to abduction axis (Webots model)
 THIGH = 0.083  # m, abduction axis to knee, "0.083 m joint-to-joint" [webots-bioloid]
 SHANK = 0.085  # m, knee to sole, L2 [bioloid-webots, VI.A]
 BACK_CRUTCH_OFFSET = 0.0145  # m, the back crutches sit behind their knee line (Webots model)
 KNEE_LIMIT = math.radians(90.0)  # the knee cannot bend past 90 deg ([bioloid-webots, VI.A.2], Figure 27)
-# ... nor stretch past straight: the seed's postures hold every knee straight (513, Table 4) and its IK bends it one
-# way only (eq. 3's arccos); the seed's own Webots controller keeps the knee between 50 and 90 deg of bend
+# ... nor stretch past straight: the report's postures hold every knee straight (513, Table 4) and its IK bends it one
+# way only (eq. 3's arccos); the report's own Webots controller keeps the knee between 50 and 90 deg of bend
 # (cyberbotics/webots, projects/robots/robotis/bioloid/controllers/bioloid_dog/Robot.cpp, computeWalkingPosition)
 # and other public Bioloid models limit their knees to one side (dxydas/ros-bioloid bioloid.xacro: -pi..0;
 # verlab/bioloid_common typea.xacro). No source gives a backward stop (docs/bioloid.md, "Why the knees stop at

@@ -1,7 +1,7 @@
-"""The seed's inverse-kinematics gait as goal positions [bioloid-webots, VI.A]: what the IK gait library
+"""The report's inverse-kinematics gait as goal positions [bioloid-webots, VI.A]: what the IK gait library
 (agents/bioloid/ik.py) and the soccer envs' ``commands`` mode drive the Bioloid with.
 
-Each foot follows the seed's ellipse (eqs. 7-8) under its hip, at the gait's phase offset; the hip and knee servos
+Each foot follows the report's ellipse (eqs. 7-8) under its hip, at the gait's phase offset; the hip and knee servos
 come from the leg's inverse kinematics (eqs. 3-6, envs/bioloid/kinematics.py). A stride factor per leg scales the
 ellipse's x radius: 1 walks straight, 0 marks time. A turn in [-1, 1] swings each foot sideways in its stance
 (:meth:`IKGoals.turning`): the Four-Legged League quadrupeds' way of turning (Hengst, Ibbotson, Pham, Sammut,
@@ -18,7 +18,7 @@ from envs.bioloid import constants
 from envs.bioloid.kinematics import Ellipse, LegGeometry
 
 TROT = (0.0, 0.5, 0.5, 0.0)  # phase offsets, legs F_L, F_R, B_L, B_R: diagonal pairs together
-TROT_FREQUENCY = 1.5  # Hz: the reference trot (the seed's trot scored best at 1.5 Hz, Figure 30)
+TROT_FREQUENCY = 1.5  # Hz: the reference trot (the report's trot scored best at 1.5 Hz, Figure 30)
 # rad of abduction swing either way at |turn| = 1 (the foot about 5 cm sideways at the sole, 0.16 m below the
 # abduction axis; assets/bioloid/bioloid.xml): chosen on the soccer gait map, where larger swings turned no faster
 TURN_ABDUCTION = 0.3

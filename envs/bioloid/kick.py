@@ -1,7 +1,7 @@
 """A kick with a front leg, as goal positions: what the soccer envs' ``commands`` mode runs when a player kicks.
 
-The seed's robot walks and was to play soccer, but "has to [...] detect the ball [...] and try to kick it"
-[bioloid-webots, VII]: it has no kick. This one is built on the seed's leg kinematics (envs/bioloid/kinematics.py)
+The report's robot walks and was to play soccer, but "has to [...] detect the ball [...] and try to kick it"
+[bioloid-webots, VII]: it has no kick. This one is built on the report's leg kinematics (envs/bioloid/kinematics.py)
 and the IK gait's ready posture (every sole at its ellipse's centre, under its hip). Lifting a front leg from
 four-legged support leaves the centre of mass on the diagonal between the two other corners' feet, so the kick first
 leans: the body moves back (every sole forward) and the back corner diagonal to the kicking leg, on the standing

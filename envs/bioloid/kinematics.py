@@ -8,8 +8,8 @@ knee line: their shank is the vector (-0.0145, -0.085) turned with the knee). An
 fixed angle about its knee [bioloid-webots, IV.A].
 
 Inverse kinematics as [bioloid-webots, eqs. 3-6] solve it (the law of cosines for the knee, then the hip), with the
-knee bent forward-of-the-foot (a positive knee angle, as the seed's model bends it) and never past ``KNEE_LIMIT`` (eq.
-3's angle clipped: the seed's Figure 27 shows the servo value flat at that limit).
+knee bent forward-of-the-foot (a positive knee angle, as the report's model bends it) and never past ``KNEE_LIMIT`` (eq.
+3's angle clipped: the report's Figure 27 shows the servo value flat at that limit).
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ class LegGeometry:
         x, z = np.asarray(x, dtype=np.float64), np.asarray(z, dtype=np.float64)
         r2 = x * x + z * z
         cos_bend = np.clip((r2 - l1 * l1 - ls * ls) / (2.0 * l1 * ls), -1.0, 1.0)
-        bend = np.arccos(cos_bend)  # >= 0: the foot behind the thigh's line, as the seed's Figure 27 bends it
+        bend = np.arccos(cos_bend)  # >= 0: the foot behind the thigh's line, as the report's Figure 27 bends it
         knee = bend - self.wedge - self.shank_angle
         limited = knee > constants.KNEE_LIMIT + 1e-9  # the ellipse's top reaches the limit exactly
         knee = np.clip(knee, -constants.KNEE_EXTENSION, constants.KNEE_LIMIT)
@@ -84,7 +84,7 @@ class LegGeometry:
 
 @dataclass(frozen=True)
 class Ellipse:
-    """The seed's foot trajectory (eqs. 7-8) with its rules of thumb [bioloid-webots, VI.A.2]: centre (h, k) =
+    """The report's foot trajectory (eqs. 7-8) with its rules of thumb [bioloid-webots, VI.A.2]: centre (h, k) =
     (0, -(L1 + L2/2)), x radius a = 0.95 L1/2 and, corrected for the knee limit, y radius b = -k - sqrt(L1^2 + L2^2),
     so that the top of the ellipse is where the knee is bent 90 deg. L1 and L2 are this model's thigh and shank."""
 

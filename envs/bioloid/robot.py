@@ -59,7 +59,7 @@ TELEMETRY_COLUMNS: dict[str, str] = _telemetry_channels()
 
 
 def ready_angles(wedge: float = 0.0) -> dict[str, float]:
-    """The gaits' ready posture, servo -> rad: the standing posture with every sole at the centre of the seed's
+    """The gaits' ready posture, servo -> rad: the standing posture with every sole at the centre of the report's
     ellipse under its hip (knees bent by the IK)."""
     angles = dict(constants.STAND_ANGLES)
     for leg in constants.LEGS:
@@ -112,7 +112,7 @@ def _as_slice(addresses: np.ndarray) -> slice | np.ndarray:
 
 class Bioloid(Robot):
     """A Bioloid quadruped [bioloid-webots] in a MuJoCo scene: 16 AX-12 servos (envs/actuators/servo.py) on the joints
-    the seed names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
+    the report names (PELVIS; F_L_1..3, F_R_1..3, B_L_1..3, B_R_1..3; N_1, N_2, HEAD), crutch feet, 1.76 kg.
 
     Two action modes, each the 16 servos' goal positions in counts (0..1023 over 300 deg, 512 = 0 rad), clipped to
     each servo's allowed range (``constants.SERVO_RANGE``: the full span, the knees from straight to bent 90 deg),
@@ -128,7 +128,7 @@ class Bioloid(Robot):
         knee_wedge: add the 18 deg wedge at each knee ([bioloid-webots, IV.A]; False: the design the seed validated).
         servo: the servos' constants and control-table settings (default: AX-12 at 10 V, factory compliance).
         battery_voltage: the servos' supply, V (default: ``servo``'s, 10 V); a shorthand for ``servo``'s.
-        imu_noise: the IMU's error model (the seed's robot has no IMU; one on the CM-5 is assumed so that heading
+        imu_noise: the IMU's error model (the report's robot has no IMU; one on the CM-5 is assumed so that heading
             tasks can run); None for a perfect IMU.
         spec_edits, num_sims, nthread, batched, calibration: as for every robot (``calibration``: a file written by
             ``calibrate.py --robot bioloid``, sysid/adapters/bioloid.py).
@@ -357,7 +357,7 @@ class Bioloid(Robot):
     def reset(
         self, ids: np.ndarray, rngs: Sequence[np.random.Generator], noise: float = 0.0, options: Mapping | None = None
     ) -> None:
-        """The gaits' ready posture (legs down, soles at the centre of the seed's ellipse), level, its lowest sole on
+        """The gaits' ready posture (legs down, soles at the centre of the report's ellipse), level, its lowest sole on
         the ground; servo angles perturbed by U(-noise, noise) x 0.2 rad, body angular velocity by N(0, noise / 2)
         rad/s and linear velocity by N(0, noise / 20) m/s. The goals hold the perturbed posture. ``options`` may give
         ``counts`` (16 servo positions, counts) or ``angles`` (16, rad) exactly, and ``height`` (m) of the body's

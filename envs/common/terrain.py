@@ -114,7 +114,7 @@ class Terrain:
     def obstacle_profile(self, x: np.ndarray) -> np.ndarray:
         """Height of the obstacles along x, m (the same across every lane).
 
-        ``course``, in the spirit of the seed's Figure 7 (an image only): from 1.0 m a 0.3 m long, 0.04 m tall
+        ``course``, in the spirit of the report's Figure 7 (an image only): from 1.0 m a 0.3 m long, 0.04 m tall
         bump (a cosine hill), at 1.8 m a step up of ``step_height``, at 2.6 m a log (0.06 m half-cylinder of radius
         0.06 m) on the plateau, at 3.4 m a step back down, from 4.0 m a 1:6 ramp up 0.1 m, 0.6 m level, a 1:6 ramp
         down, then from 6.0 m three 0.03 m ridges 0.5 m apart.

@@ -1,4 +1,4 @@
-"""The seed's controller in three stages [xjus-report, sections 2.3 to 2.5], vectorized over simulations and legs.
+"""The report's controller in three stages [xjus-report, sections 2.3 to 2.5], vectorized over simulations and legs.
 
 1. **Buehler clock** (section 2.5): each leg's target angle over a cycle of period T, the Fourier series of a profile
    that sweeps the ground angle theta_g slowly in the first half of the cycle and the rest of the turn quickly in
@@ -11,11 +11,11 @@
 2. **PD** (section 2.4): the desired torque ``J (theta_d'' + kp e + kd e')`` with ``e = theta_d - theta`` (wrapped
    to a half turn: a leg only needs its angle modulo a turn), ``J`` the leg's inertia about the hip with the motor's
    reflected rotor.
-3. **Motor model** (section 2.3): the voltage ``Vpd`` that makes the seed's motor give that torque at the present
+3. **Motor model** (section 2.3): the voltage ``Vpd`` that makes the report's motor give that torque at the present
    speed, ``tau = eta N Kt (d Vs - Ks w) / (Ra + d^2 Ramp)`` solved for ``d = Vpd / Vs``, then clipped to [-1, 1]
-   as the seed clips it. "Combined with the motor model, this is a formal method of calculating Vpd" (section 2.4).
+   as the report clips it. "Combined with the motor model, this is a formal method of calculating Vpd" (section 2.4).
 
-The robot runs these stages in its ``gait`` action mode once per control step (the seed's logic step), and the
+The robot runs these stages in its ``gait`` action mode once per control step (the report's logic step), and the
 ``buehler`` policy (agents/xjus/) runs the same functions in ``duty`` mode: both hold the duty over the step while
 the motor model acts at every physics step.
 
@@ -85,7 +85,7 @@ def _weighted_harmonics(z: np.ndarray) -> np.ndarray:
 
 
 def buehler_clock(s: np.ndarray, sweep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The seed's target angle over a cycle and its first two derivatives per cycle.
+    """The report's target angle over a cycle and its first two derivatives per cycle.
 
     Args:
         s: the clock, in cycles (any real; the profile repeats every cycle, advancing a turn).
@@ -180,7 +180,7 @@ class Gait:
 
 @dataclass
 class MotorArrays:
-    """The seed's motor constants per simulation, (n,) each (Table 1 nominal; randomized or calibrated per
+    """The report's motor constants per simulation, (n,) each (Table 1 nominal; randomized or calibrated per
     simulation). ``torque_per_amp`` is eta N Kt at the output shaft."""
 
     supply_voltage: np.ndarray
@@ -262,7 +262,7 @@ class MotorArrays:
 def pd_torque(
     error: np.ndarray, rate_error: np.ndarray, accel: np.ndarray, inertia: np.ndarray, kp: float, kd: float
 ) -> np.ndarray:
-    """The seed's PD (section 2.4): J (theta_d'' + kp e + kd e'), N m."""
+    """The report's PD (section 2.4): J (theta_d'' + kp e + kd e'), N m."""
     return inertia * (accel + kp * error + kd * rate_error)
 
 

@@ -54,7 +54,7 @@ def hold(robot: Xjus, duty: float, seconds: float) -> None:
 
 
 def leg_load_test(load: float = constants.LEG_TEST_LOAD) -> dict[str, np.ndarray]:
-    """Static load test of every leg, as the seed's FEA loads one (section 3.3): the chassis fixed in the air, the
+    """Static load test of every leg, as the report's FEA loads one (section 3.3): the chassis fixed in the air, the
     hips locked with the legs pointing down, ``load`` (N) pushed up at each toe along the leg; returns the toe's
     deflection (m, loaded minus unloaded, so that the leg's own weight cancels) and the spring's."""
     robot = Xjus(DUTY, spine=RIGID, imu_noise=None, spec_edits=[clamp(lock_hips=True)])

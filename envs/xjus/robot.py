@@ -1,4 +1,4 @@
-"""The xJüs robot: three segments on a passive spine, six compliant legs on the seed's gearmotors, the Buehler clock
+"""The xJüs robot: three segments on a passive spine, six compliant legs on the report's gearmotors, the Buehler clock
 and PD, an IMU and telemetry, on the robot contract; it knows no task."""
 
 from __future__ import annotations
@@ -86,19 +86,19 @@ def _spine_values(
 
 class Xjus(Robot):
     """An xJüs hexapod in a MuJoCo scene: three chassis segments joined by two passive pitch-and-roll spine joints,
-    six compliant semicircular legs, each on one of the seed's gearmotors (envs/actuators/motor.py).
+    six compliant semicircular legs, each on one of the report's gearmotors (envs/actuators/motor.py).
 
-    Two action modes, both at 125 Hz by default (an 8 ms step, at least as fast as the seed's 8.3 ms logic step):
+    Two action modes, both at 125 Hz by default (an 8 ms step, at least as fast as the report's 8.3 ms logic step):
 
     - ``gait``: ``(period, sweep_left, sweep_right)``: the robot's own Buehler clock (one per robot, tripods half a
       cycle apart) and PD ([xjus-report, sections 2.4 and 2.5]; envs/xjus/controller.py) run once per control step, at
       the control rate, which must be at least 120 Hz. Equal sweeps walk straight; a larger sweep on one side makes
       that side's legs sweep the ground faster over the same period, and the robot turns away from it. The duty the PD
-      gives is held over the control step, as the seed's logic step held it. ``backward`` (n, 2), False unless a
+      gives is held over the control step, as the report's logic step held it. ``backward`` (n, 2), False unless a
       caller sets it (the soccer steering), runs a side's legs through the same clock backward: one side backward
       and the other forward turns the robot on the spot, as RHex turns in place (Saranli, Buehler, Koditschek,
       "RHex: a simple and highly mobile hexapod robot", IJRR 2001).
-    - ``duty``: the duty ``d`` per leg in [-1, 1], held over the control step (the seed's simulation input).
+    - ``duty``: the duty ``d`` per leg in [-1, 1], held over the control step (the report's simulation input).
 
     The motor model acts at every physics step natively (its back-EMF at the present speed): every input to the
     physics is a ``ctrl`` value.
@@ -109,14 +109,14 @@ class Xjus(Robot):
         spine: ``"compliant"`` (two passive joints, pitch and roll) or ``"rigid"`` (the joints removed: one rigid
             chassis).
         spine_stiffness: N m/rad, one value for all four spine axes or a mapping over ``front_pitch``,
-            ``front_roll``, ``rear_pitch``, ``rear_roll`` (default: the seed's design stiffness, 19.4 N m/rad, 60 lbf
+            ``front_roll``, ``rear_pitch``, ``rear_roll`` (default: the report's design stiffness, 19.4 N m/rad, 60 lbf
             in at 20 deg), at most 50x that (971 N m/rad: stiffer goes unstable at the 2 ms physics step). Compliant
             spine only.
         spine_damping: N m s/rad, the same way (default 0.1). Compliant spine only.
-        battery_voltage: supply voltage Vs, V (default the seed's 22.2 V).
-        current_limit: a motor driver's current limit, A per motor, or None (default; the seed gives 1.08 A
+        battery_voltage: supply voltage Vs, V (default the report's 22.2 V).
+        current_limit: a motor driver's current limit, A per motor, or None (default; the report gives 1.08 A
             continuous). The limit clamps the torque each motor puts on its hip, natively.
-        imu_noise: the IMU's error model (default the MPU-6000's, as on the VelociRoACH; the seed names no IMU); None
+        imu_noise: the IMU's error model (default the MPU-6000's, as on the VelociRoACH; the report names no IMU); None
             for a perfect IMU.
         starts: where an episode may start, (x, y) on level ground; each reset draws one (default: the origin).
         spec_edits, num_sims, nthread, batched, calibration: as for every robot (``calibration``: a file written by
@@ -185,7 +185,7 @@ class Xjus(Robot):
             if freq < constants.MIN_GAIT_CONTROL_FREQ:
                 raise ValueError(
                     f"control_freq={control_freq!r}: gait mode runs the clock and PD at the control rate, which must "
-                    f"be at least {constants.MIN_GAIT_CONTROL_FREQ:g} Hz (the seed's 8.3 ms logic step)"
+                    f"be at least {constants.MIN_GAIT_CONTROL_FREQ:g} Hz (the report's 8.3 ms logic step)"
                 )
         self.starts = self._check_starts(starts)
         self.imu_noise = imu_noise
@@ -725,6 +725,6 @@ def _as_slice(index: np.ndarray) -> slice | np.ndarray:
 
 
 def efficiency_cap(constants: MotorConstants | None = None) -> float:
-    """eta N Kt / Ks: the most electrical power the seed's motor model turns into shaft power (0.37 for Table 1)."""
+    """eta N Kt / Ks: the most electrical power the report's motor model turns into shaft power (0.37 for Table 1)."""
     c = constants or MotorConstants()
     return c.torque_per_amp / c.speed_constant

@@ -73,7 +73,7 @@ class XjusRoughEnv(SkitterEnv):
     """Walk an xJüs forward over a seeded rough terrain, optionally with a step, stairs or an obstacle course.
 
     Robot, actions, observations, starting state and info are those of :class:`envs.xjus.walk.XjusWalkEnv`; this
-    docstring lists what differs. The robot is blind, as RHex and the seed's robot are: it senses only itself.
+    docstring lists what differs. The robot is blind, as RHex and the report's robot are: it senses only itself.
 
     ## Terrain
     A height field (``envs/common/terrain.py``) of 24 parallel lanes, 1.5 m apart, each running 10 m along +x from a
@@ -82,12 +82,12 @@ class XjusRoughEnv(SkitterEnv):
     correlation length 0.1 m, ramping in over 0.4-0.8 m), the same for every setting of the robot with the same
     ``terrain_seed``. ``obstacle`` adds, across every lane: ``"step"``, a step up of ``step_height`` at x = 2 m;
     ``"stairs"``, four stairs of ``step_height``, 0.3 m deep, from x = 2 m; ``"course"``, an obstacle course in the
-    spirit of the seed's Figure 7 (a bump, a step up of ``step_height``, a log, a step down, a ramp up and down, three
+    spirit of the report's Figure 7 (a bump, a step up of ``step_height``, a log, a step down, a ramp up and down, three
     ridges; :meth:`envs.common.terrain.Terrain.obstacle_profile`).
 
     ## Rewards
     As XjusWalk: ``reward = forward + energy + upright`` (progress along +x; the cost of transport's motor efficiency
-    is capped at 0.37 by the seed's constants).
+    is capped at 0.37 by the report's constants).
 
     ## Episode End
     - terminated also (``info["fallen"]``) when anything but its feet (its six legs) has touched the ground, or its

@@ -43,7 +43,7 @@ class XjusTurnEnv(SkitterEnv):
       last ``tracking_window`` (0.5 s, one stride at the Buehler clock's T; since the reset within the first);
     - ``speed``: ``speed_reward_weight * v / 0.53 m``, v the speed along the body's heading in body lengths/s;
     - ``energy``: ``-energy_cost_weight * P`` as in XjusWalk (costs of transport: the motor's efficiency is capped at
-      0.37 by the seed's constants).
+      0.37 by the report's constants).
 
     ## Arguments
     As XjusWalk, less ``forward_reward_weight`` and ``upright_reward_weight``, plus ``yaw_rate_range`` (0.4 rad/s),

@@ -18,8 +18,8 @@ class XjusWalkEnv(SkitterEnv):
     """Walk a 4.5 kg, 0.53 m xJüs hexapod forward (+x) on flat ground.
 
     The robot (``assets/xjus/``, documented in docs/xjus.md): three chassis segments joined by two passive spine
-    joints (pitch and roll, 19.4 N m/rad by default, the seed's design stiffness), six 7 in semicircular spring-steel
-    legs with a radial spring each (29.2 N gives 7.6 mm, the seed's FEA), each turned by the seed's gearmotor
+    joints (pitch and roll, 19.4 N m/rad by default, the report's design stiffness), six 7 in semicircular spring-steel
+    legs with a radial spring each (29.2 N gives 7.6 mm, the report's FEA), each turned by the report's gearmotor
     (``tau = eta N Kt (d Vs - Ks w) / (Ra + d^2 Ramp)``, Table 1). Physics at 500 Hz, control at 125 Hz.
 
     ## Action Space
@@ -38,7 +38,7 @@ class XjusWalkEnv(SkitterEnv):
       Equal sweeps walk straight; the side with the larger sweep sweeps the ground faster, so the robot turns away
       from it. ``robot.mode.to_action([T, sweep_left, sweep_right])`` builds an action from physical values.
     - ``action_mode="duty"``, shape (6,): the duty factor ``d`` of each leg's motor (FL, ML, BL, FR, MR, BR) in
-      [-1, 1], held over the control step, as the seed's simulation took it.
+      [-1, 1], held over the control step, as the report's simulation took it.
 
     ## Observation Space
     What the robot senses, in SI units (``Box(-inf, inf)``, float64), laid out by name in
@@ -66,7 +66,7 @@ class XjusWalkEnv(SkitterEnv):
       seed's motor model (W, mean over the step's physics steps; braking returns nothing);
     - ``upright``: ``upright_reward_weight * u``, u the world-z component of the middle segment's z axis.
 
-    The cost of transport reported by evaluate.py is energy / (m g distance); the seed's motor constants cap the
+    The cost of transport reported by evaluate.py is energy / (m g distance); the report's motor constants cap the
     motor's efficiency at ``eta N Kt / Ks = 0.37``, so it is at least 1 / 0.37 of the mechanical one.
 
     ## Starting State
@@ -104,7 +104,7 @@ class XjusWalkEnv(SkitterEnv):
     ``upright_reward_weight`` (1.0), ``max_tilt`` (1.4 rad), ``reset_noise_scale`` (0.1), ``spine``
     (``"compliant"`` or ``"rigid"``), ``spine_stiffness`` (N m/rad, one value or per ``front_pitch``,
     ``front_roll``, ``rear_pitch``, ``rear_roll``; default 19.4), ``spine_damping`` (N m s/rad, default 0.1),
-    ``battery_voltage`` (V, default 22.2), ``current_limit`` (A per motor, default none; the seed gives 1.08 A
+    ``battery_voltage`` (V, default 22.2), ``current_limit`` (A per motor, default none; the report gives 1.08 A
     continuous), ``sensor_noise`` (True), ``randomize`` (parameter name -> (low, high)), ``calibration`` (a
     calibration file from ``calibrate.py --robot xjus``, docs/calibration.md), ``episode_seconds`` (the time limit,
     s; default 10, None for none), ``telemetry``, ``render_mode``, ``width``, ``height``.

@@ -1,4 +1,4 @@
-"""Calibration adapters of the bench rigs: the seed's gearmotor (``--robot motor``) and the AX-12 servo
+"""Calibration adapters of the bench rigs: the report's gearmotor (``--robot motor``) and the AX-12 servo
 (``--robot servo``) replayed against their logs.
 
 Both rigs measure the output shaft. Their effects:
@@ -186,7 +186,7 @@ class RigAdapter(Adapter):
 
 
 class MotorAdapter(RigAdapter):
-    """The seed's DC gearmotor on the rig, replayed from its duty cycle; compared on shaft angle and speed."""
+    """The report's DC gearmotor on the rig, replayed from its duty cycle; compared on shaft angle and speed."""
 
     name = "motor"
     channels = {"angle": "rad", "speed": "rad/s"}  # noqa: RUF012
@@ -200,7 +200,7 @@ class MotorAdapter(RigAdapter):
 
     def effects(self) -> dict[str, Effect]:
         # ranges of the same order as the motor's own: stall 2.17 N m, back-EMF damping 0.073 N m s/rad
-        # wide enough to take the seed's model to another gearmotor of its kind (the RHex3 log's runs at half its
+        # wide enough to take the report's model to another gearmotor of its kind (the RHex3 log's runs at half its
         # no-load speed)
         shaft = {e.name: e for e in self.shaft_effects(friction=0.4, damping=0.2, armature=0.01)}
         # the drive and the back-EMF brake both scale with the torque constant (controls), and the shaft has no

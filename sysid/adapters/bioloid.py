@@ -11,7 +11,7 @@ samples. A log's supply sets each segment's servo gains (the amplifier's duty ti
 voltage, to 0.05 V); without ``vbatt`` the nominal 10 V is assumed.
 
 Multiple shooting over one-second segments: each starts from the 16 measured servo angles; their speeds (not logged
-by the seed's robot) and the body (pose, motion, contacts) are carried over from the previous segment, as the
+by the report's robot) and the body (pose, motion, contacts) are carried over from the previous segment, as the
 VelociRoACH's and the xJüs's are, with the body lifted if a leg turned to its measured angle would start inside the
 ground. A log's first segment starts the body level at rest on its lowest sole and is only replayed to carry its end
 over (``burn_in``). The replay floor is measured on the model's own twin of the log (sysid/problem.py).
@@ -228,7 +228,7 @@ class BioloidAdapter(Adapter):
 
     # --- synthetic logs ---------------------------------------------------------------------------------------------
     def excite(self, seconds: float, rng: np.random.Generator) -> pd.DataFrame:
-        """Goals at the robot's 50 Hz: the seed's IK gaits (trot, walk, pace; 0.5 to 2.5 Hz; each side's stride
+        """Goals at the robot's 50 Hz: the report's IK gaits (trot, walk, pace; 0.5 to 2.5 Hz; each side's stride
         drawn in 0.3 to 1, so that it turns) for 1.5 to 3 s each, now and then a pause in a posture of its own,
         while the pelvis, neck and head servos wander slowly (they carry no leg, and a gait never moves them); the
         supply at 10 V sagging slowly. The first row is the ready posture, as the robot resets."""

@@ -1,7 +1,7 @@
 """Calibration of the xJüs against its telemetry (``calibrate.py --robot xjus``), and the calibrated model
 (``gym.make("skitter/XjusWalk-v1", calibration=PATH)``).
 
-**Replay.** An xJüs log holds the duty ``d`` of each leg's motor (the seed's simulation input, and what the PD of gait
+**Replay.** An xJüs log holds the duty ``d`` of each leg's motor (the report's simulation input, and what the PD of gait
 mode puts out), the battery voltage, and per leg the hip angle, its speed and the motor current; in gait mode also
 the Buehler clock (its phase, period and sweep angles). Where the log holds the clock, the replay runs the robot's
 own controller ([xjus-report, sections 2.4-2.5]; envs/xjus/controller.py) once per control step, as the robot does: the
@@ -9,7 +9,7 @@ clock's target, the PD with the firmware's gains and the inverse of the *nominal
 knows), computed for every rollout at once between native chunks of physics (``Adapter.feedback``). Replaying the
 PD's logged duty open loop instead would let a stalled leg stay stalled where the PD pushed it over, and the replay
 diverges by whole turns. Where the log has no clock (duty mode), the logged duty is replayed held between samples.
-Either way the duty acts through the seed's motor formula (envs/actuators/motor.py) at every physics step,
+Either way the duty acts through the report's motor formula (envs/actuators/motor.py) at every physics step,
 natively, through ``ctrl``, with the setting's motor constants. A row of the robot's telemetry holds the duty (and
 the clock's period and sweeps) of the control step that *ended* at its time (``envs/common/env.py`` records after
 stepping), and the clock's phase at its time, so the replay takes a step's commands from the row after its start.
@@ -60,7 +60,7 @@ add_disturbance = edits.add_site_disturbance("imu", axis=1)
 
 
 class XjusAdapter(Adapter):
-    """The xJüs replayed from its logged duty through the seed's motor formula."""
+    """The xJüs replayed from its logged duty through the report's motor formula."""
 
     name = "xjus"
     channels = {  # noqa: RUF012
