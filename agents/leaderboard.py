@@ -984,8 +984,51 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     write_json(out / "results.json", summary, strict=True)
     write_text(out / "results.md", text)
     if docs is not None:
-        write_text(docs, publish_media(text, out, docs, records or out))
+        page = publish_media(text, out, docs, records or out)
+        write_text(docs, page.replace("\n## Rows\n", discussion(plan.tasks, docs.parent) + "\n## Rows\n", 1))
     return summary
+
+
+# where the guides discuss a task's rows, and why a row falls short of its reference where it does: the guide and
+# the start of its section's heading, by the kind of task (the first that holds)
+DISCUSSED = (
+    (lambda t: is_soccer(t), "soccer.md", "Self-play"),
+    (lambda t: any(k in t for k in ("GoToBall", "ScoreEmptyGoal", "ScoreVsKeeper")), "soccer.md", "Learning on"),
+    (lambda t: t.startswith("skitter/Roach"), "velociroach.md", "Policies, real logs"),
+    (lambda t: t.startswith("skitter/Xjus"), "xjus.md", "Walking, measured"),
+    (lambda t: t.startswith("skitter/BioloidTurn"), "bioloid.md", "Steering, and BioloidTurn"),
+    (lambda t: t.startswith("skitter/Bioloid"), "bioloid.md", "PPO against"),
+)
+
+
+def _anchor(guide: Path, heading: str) -> str:
+    """The link to the section of ``guide`` whose heading starts with ``heading`` (GitHub's anchor of it), or to the
+    guide alone where no heading does."""
+    for line in guide.read_text(encoding="utf-8").splitlines():
+        title = line.lstrip("#").strip()
+        if line.startswith("#") and title.startswith(heading):
+            slug = re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+            return f"{guide.name}#{slug}"
+    return guide.name
+
+
+def discussion(tasks: list[str], folder: Path) -> str:
+    """A paragraph linking each task to the guide (in ``folder``, beside the page) that discusses its rows; empty
+    where no guide is there."""
+    links: dict[str, list[str]] = {}
+    for task in tasks:
+        for holds, name, heading in DISCUSSED:
+            if holds(task):
+                if (folder / name).is_file():
+                    links.setdefault(_anchor(folder / name, heading), []).append(f"`{task}`")
+                break
+    if not links:
+        return ""
+    parts = [f"[{link.split('#')[0]}]({link}) ({', '.join(ts)})" for link, ts in links.items()]
+    return (
+        "\nWhat each row learnt, and why a row falls short of its reference where it does, is discussed with the "
+        "robot: " + "; ".join(parts) + ".\n"
+    )
 
 
 def publish_media(text: str, out: Path, docs: Path, records: Path | None = None) -> str:

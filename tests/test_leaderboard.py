@@ -1147,3 +1147,23 @@ def test_a_record_judged_with_bootstrap_intervals_gets_a_proportions_where_its_n
         pytest.approx(expected[1]),
     )
     assert "bootstrap_intervals_kept" not in again
+
+
+def test_the_docs_page_links_every_task_of_the_plan_to_the_section_that_discusses_its_rows(tmp_path):
+    """Each task of the whole plan (the command that reproduces docs/results.md) links to a section of a guide beside
+    the page, by that section's heading; a folder without the guides gets no paragraph (a run's own --out page)."""
+    import re
+
+    command = re.search(r"Reproduce the table: `([^`]+)`", (ROOT / "docs" / "results.md").read_text()).group(1)
+    tasks = command.split(" --tasks ")[1].split(" --")[0].split()
+    assert len(tasks) > 10 and "soccer/bioloid" in tasks
+    text = leaderboard.discussion(tasks, ROOT / "docs")
+    links = dict(re.findall(r"\]\(([\w.]+#[\w-]+)\) \(([^)]*)\)", text))
+    assert sorted(t for ts in links.values() for t in re.findall(r"`([^`]+)`", ts)) == sorted(tasks)
+    for link in links:
+        guide, anchor = link.split("#")
+        headings = [line.lstrip("#").strip() for line in (ROOT / "docs" / guide).read_text().splitlines()
+                    if line.startswith("#")]  # fmt: skip
+        slugs = {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in headings}
+        assert anchor in slugs, (link, sorted(slugs))
+    assert leaderboard.discussion(tasks, tmp_path) == ""
