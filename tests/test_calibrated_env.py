@@ -248,6 +248,8 @@ def test_calibrated_env_changes_the_motion_and_batches_alike(tmp_path, robot):
          ["'effects.delay.seconds.unit': 'ms' is not the unit", "write the value in s"]),
         ("skitter/XjusWalk-v1", "xjus", {"effects": {"delay": {"seconds": {"value": 0.01, "unit": 7}}}},
          ["'effects.delay.seconds.unit': 7 is not a unit's name"]),
+        ("skitter/XjusWalk-v1", "xjus", {"effects": {"delay": {"seconds": {"value": 0.01, "unti": "s"}}}},
+         ["'effects.delay.seconds': unknown field 'unti' (did you mean 'unit'?)"]),
     ],
 )  # fmt: skip
 def test_bad_calibration_files_are_refused_naming_file_and_field(tmp_path, env_id, robot, change, needles):

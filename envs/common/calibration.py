@@ -92,6 +92,8 @@ def _unit_key(unit: str) -> str:
 
 
 FIELDS = ("format", "version", "robot", "effects", "provenance")  # as calibration_record writes a file
+# a parameter's entry, as calibrate.py and sysid.measure write it: what is read (value, unit) and what describes it
+ENTRY_FIELDS = ("value", "unit", "ci95", "interval95", "nominal", "range")
 
 
 def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
@@ -143,6 +145,12 @@ def read_calibration(path: str | Path, robot: str | None = None) -> Calibration:
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
                 raise CalibrationError(f"{path}: field 'effects.{effect}.{param}': {value!r} is not a finite number")
             effects[effect][param] = float(value)
+            stray = [key for key in entry if key not in ENTRY_FIELDS] if isinstance(entry, dict) else []
+            if stray:
+                near = nearest(str(stray[0]), ENTRY_FIELDS)
+                raise CalibrationError(f"{path}: field 'effects.{effect}.{param}': unknown field {stray[0]!r}"
+                                       + (f" (did you mean {near!r}?)" if near else "")
+                                       + f"; an entry has {', '.join(map(repr, ENTRY_FIELDS))}")  # fmt: skip
             unit = entry.get("unit") if isinstance(entry, dict) else None
             if unit is not None and not isinstance(unit, str):
                 raise CalibrationError(f"{path}: field 'effects.{effect}.{param}.unit': {unit!r} is not a unit's name")
