@@ -980,19 +980,18 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
                "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
                    ["python", "-m", "agents.leaderboard", *plan_arguments(plan)])}  # fmt: skip
-    text = render(plan, baselines, done, rows, per_task, overall, summary["command"], records or out)
+    table = (plan, baselines, done, rows, per_task, overall, summary["command"], records or out)
     write_json(out / "results.json", summary, strict=True)
-    write_text(out / "results.md", text)
-    if docs is not None:
-        page = publish_media(text, out, docs, records or out)
-        write_text(docs, page.replace("\n## Rows\n", discussion(plan.tasks, docs.parent) + "\n## Rows\n", 1))
+    write_text(out / "results.md", render(*table))
+    if docs is not None:  # the page beside the guides links each task to the one that discusses its rows
+        write_text(docs, publish_media(render(*table, guides=docs.parent), out, docs, records or out))
     return summary
 
 
 # where the guides discuss a task's rows, and why a row falls short of its reference where it does: the guide and
 # the start of its section's heading, by the kind of task (the first that holds)
 DISCUSSED = (
-    (lambda t: is_soccer(t), "soccer.md", "Self-play"),
+    (is_soccer, "soccer.md", "Self-play"),
     (lambda t: any(k in t for k in ("GoToBall", "ScoreEmptyGoal", "ScoreVsKeeper")), "soccer.md", "Learning on"),
     (lambda t: t.startswith("skitter/Roach"), "velociroach.md", "Policies, real logs"),
     (lambda t: t.startswith("skitter/Xjus"), "xjus.md", "Walking, measured"),
@@ -1013,22 +1012,19 @@ def _anchor(guide: Path, heading: str) -> str:
 
 
 def discussion(tasks: list[str], folder: Path) -> str:
-    """A paragraph linking each task to the guide (in ``folder``, beside the page) that discusses its rows; empty
-    where no guide is there."""
-    links: dict[str, list[str]] = {}
+    """A paragraph linking each task to the guide (in ``folder``, beside the page) that discusses its rows (each
+    section's link found once); empty where no guide is there."""
+    by_section: dict[tuple[str, str], list[str]] = {}
     for task in tasks:
-        for holds, name, heading in DISCUSSED:
-            if holds(task):
-                if (folder / name).is_file():
-                    links.setdefault(_anchor(folder / name, heading), []).append(f"`{task}`")
-                break
-    if not links:
+        found = next(((name, heading) for holds, name, heading in DISCUSSED if holds(task)), None)
+        if found is not None and (folder / found[0]).is_file():
+            by_section.setdefault(found, []).append(f"`{task}`")
+    parts = [f"[{name}]({_anchor(folder / name, heading)}) ({', '.join(named)})"
+             for (name, heading), named in by_section.items()]  # fmt: skip
+    if not parts:
         return ""
-    parts = [f"[{link.split('#')[0]}]({link}) ({', '.join(ts)})" for link, ts in links.items()]
-    return (
-        "\nWhat each row learnt, and why a row falls short of its reference where it does, is discussed with the "
-        "robot: " + "; ".join(parts) + ".\n"
-    )
+    return ("What each row learnt, and why a row falls short of its reference where it does, is discussed with the "
+            "robot: " + "; ".join(parts) + ".")  # fmt: skip
 
 
 def publish_media(text: str, out: Path, docs: Path, records: Path | None = None) -> str:
@@ -1312,7 +1308,7 @@ def residual_comparison(plan: Plan, baselines: dict, per_task: dict) -> list[str
 
 
 def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
-           overall: dict, command: str, records: Path) -> str:  # fmt: skip
+           overall: dict, command: str, records: Path, guides: Path | None = None) -> str:  # fmt: skip
     budget = _budget(plan) + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
     lines = [
         "# Results",
@@ -1355,6 +1351,9 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
+    paragraph = "" if guides is None else discussion(list(plan.tasks), guides)
+    if paragraph:
+        lines += ["", paragraph]
     lines += ["", "## Rows", "", "The task's metric is a walk's speed, a turn's yaw-rate error (lower is better) or an "
               "academy task's success (1 or 0 an episode); it and the energy (the cost of transport, a turn's "
               "mean electrical power or an academy episode's energy) are the model's less the reference's, paired "
