@@ -27,8 +27,9 @@ the cap trained fewer steps than another machine would. The command prints its p
 **Scores.** A row's score is its model's mean return over the evaluation episodes, normalized per task so that the
 random policy scores 0 and the reference 1. For each task and algorithm: the interquartile mean (IQM) over
 seeds, with a 95% stratified-bootstrap interval (``rliable``). Over all tasks: the same across tasks and seeds, and
-performance profiles. Learning curves are each run's TensorBoard episode return, averaged over seeds. The model's
-metric and energy (:func:`energy_metric`) beside the reference's come from ``evaluate.py``'s paired comparison.
+performance profiles; until every row is done, the same over the seeds every task has for every algorithm.
+Learning curves are each run's TensorBoard episode return, averaged over seeds. The model's metric and energy
+(:func:`energy_metric`) beside the reference's come from ``evaluate.py``'s paired comparison.
 
 Writes ``OUT/results.md``, ``OUT/results.json`` and ``OUT/plots/`` (each file whole, or not at all); with ``--docs
 PATH``, the page also goes to ``PATH``.
@@ -49,7 +50,7 @@ import subprocess
 import sys
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -883,16 +884,30 @@ def comparable(baselines: dict[str, Any]) -> bool:
     return bool(np.isfinite(low) and np.isfinite(high) and high > low)
 
 
-def aggregate(scores: dict[str, np.ndarray], seed: int = 0) -> dict[str, dict[str, float]]:
-    """IQM and its 95% stratified-bootstrap interval per algorithm, ``scores[algo]`` (runs, tasks) (rliable)."""
+@contextlib.contextmanager
+def numpy_global_seed(seed: int) -> Iterator[None]:
+    """numpy's global generator seeded for the block, and put back as it was after it: rliable's stratified bootstrap
+    draws its resamples from it (``np.random.choice``), whatever generator it is handed, as do its profiles."""
+    state = np.random.get_state()  # noqa: NPY002
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        yield
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
+
+
+def aggregate(scores: dict[str, np.ndarray], seed: int = 0, over_tasks: bool = False) -> dict[str, dict[str, float]]:
+    """IQM and its 95% stratified-bootstrap interval per algorithm, ``scores[algo]`` (runs, tasks) (rliable);
+    ``over_tasks``: the tasks resampled too (rliable's task bootstrap), for one run a task, where resampling the
+    runs within each task alone moves nothing."""
     from rliable import library, metrics
 
     def iqm(x: np.ndarray) -> np.ndarray:
         return np.array([metrics.aggregate_iqm(x)])
 
-    with warnings.catch_warnings():  # rliable hands arch a RandomState, which arch now warns of in several lines
-        warnings.filterwarnings("ignore", "random_state is deprecated", FutureWarning)
-        points, intervals = library.get_interval_estimates(scores, iqm, reps=BOOTSTRAP_REPS,
+    with warnings.catch_warnings(), numpy_global_seed(seed):  # rliable hands arch a RandomState, which arch now
+        warnings.filterwarnings("ignore", "random_state is deprecated", FutureWarning)  # warns of in several lines
+        points, intervals = library.get_interval_estimates(scores, iqm, reps=BOOTSTRAP_REPS, task_bootstrap=over_tasks,
                                                            random_state=np.random.RandomState(seed))  # fmt: skip
     return {a: {"iqm": float(points[a][0]), "low": float(intervals[a][0, 0]), "high": float(intervals[a][1, 0])}
             for a in scores}  # fmt: skip
@@ -920,6 +935,23 @@ def _curve(record: dict[str, Any], run_dir: Path) -> tuple[np.ndarray, np.ndarra
     return learning_curve(run_dir)
 
 
+def interim_scores(plan: Plan, ranked: list[str], by_seed: dict[tuple[str, str], dict[int, float]]) -> dict | None:
+    """The score over all tasks before every row is done: each algorithm's IQM over the seeds that every normalized
+    task has for every algorithm (so that each task weighs the same and every algorithm is scored on the same
+    seeds), with its 95% interval. Over one seed a task the stratified bootstrap has no run to resample, so the
+    tasks are resampled instead (rliable's task bootstrap): the interval then says how much the score depends on
+    which tasks the suite holds. None where no seed is common to every task and algorithm."""
+    if not ranked:
+        return None
+    seeds = sorted(set(plan.seeds).intersection(*(scored.keys() for scored in by_seed.values())))
+    if not seeds:
+        return None
+    matrix = {a: np.array([[by_seed[a, t][s] for t in ranked] for s in seeds]) for a in plan.algos}  # (seeds, tasks)
+    over_tasks = len(seeds) == 1
+    return {"seeds": seeds, "tasks": len(ranked), "over_tasks": over_tasks,
+            "scores": aggregate(matrix, over_tasks=over_tasks), "matrix": matrix}  # fmt: skip
+
+
 def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Row, dict | None],
                 docs: Path | None, records: Path | None = None) -> dict[str, Any]:  # fmt: skip
     """results.md, results.json and the plots from the rows done (rows not done are listed as such)."""
@@ -932,12 +964,14 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     per_task: dict[str, dict[str, dict[str, float]]] = {}
     matrix: dict[str, np.ndarray] = {}
     ranked = [t for t in plan.tasks if comparable(baselines[t])]  # tasks whose scores normalize
+    by_seed: dict[tuple[str, str], dict[int, float]] = {}  # (algo, task) -> seed -> normalized score
     for algo in plan.algos:
         columns = []
         for task in ranked:
-            scores = [float(normalized(done[r]["mean_return"], baselines[task])) for r in done if
-                      r.task == task and r.algo == algo]  # fmt: skip
-            scores = [x for x in scores if np.isfinite(x)]  # a row with no finite return has no score
+            scored = {r.seed: float(normalized(done[r]["mean_return"], baselines[task])) for r in done if
+                      r.task == task and r.algo == algo}  # fmt: skip
+            scored = by_seed[algo, task] = {s: x for s, x in scored.items() if np.isfinite(x)}  # no finite return
+            scores = list(scored.values())
             if scores:
                 cell = aggregate({algo: np.array(scores)[:, None]})[algo]
                 per_task.setdefault(task, {})[algo] = {**cell, "seeds": len(scores)}
@@ -945,17 +979,24 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
         if ranked and all(len(c) == len(plan.seeds) for c in columns):  # every row of the algorithm scored
             matrix[algo] = np.array(columns, dtype=np.float64).T  # (seeds, tasks)
     overall = aggregate(matrix) if matrix else {}
+    interim = interim_scores(plan, ranked, by_seed) if len(overall) < len(plan.algos) else None
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
-    if matrix:
+    profiled = interim["matrix"] if interim else matrix  # every algorithm on the same rows, where they have them
+    if profiled:
         from rliable import library, plot_utils
 
         taus = np.linspace(-0.5, 2.0, 101)
-        np.random.seed(0)  # noqa: NPY002 (rliable's profiles take no generator: they draw from numpy's global one)
-        profiles, cis = library.create_performance_profile(matrix, taus, reps=BOOTSTRAP_REPS)
+        with numpy_global_seed(0):  # rliable's profiles take no generator: they draw from numpy's global one
+            profiles, cis = library.create_performance_profile(
+                profiled, taus, reps=BOOTSTRAP_REPS, task_bootstrap=bool(interim and interim["over_tasks"])
+            )
         fig, ax = plt.subplots(figsize=(6, 4))
         plot_utils.plot_performance_profiles(profiles, taus, performance_profile_cis=cis, ax=ax,
                                              xlabel=r"normalized score $\tau$ (random 0, reference 1)")  # fmt: skip
+        ax.legend(loc="lower left")
+        if interim:
+            ax.set_title(f"{len(ranked)} tasks, {_seeds_named(interim['seeds'])} (the rows all share)")
         _save(fig, plots / "performance_profiles.png")
     for task in plan.tasks:
         fig, ax = plt.subplots(figsize=(6, 4))
@@ -977,10 +1018,13 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
         if ax.get_legend_handles_labels()[0]:
             ax.legend()
         _save(fig, plots / f"curve_{task.replace('/', '_')}.png")
+    if interim:  # results.json keeps its scores and seeds, not the matrix
+        interim = {k: v for k, v in interim.items() if k != "matrix"}
     summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
+               "interim": interim,
                "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
                    ["python", "-m", "agents.leaderboard", *plan_arguments(plan)])}  # fmt: skip
-    table = (plan, baselines, done, rows, per_task, overall, summary["command"], records or out)
+    table = (plan, baselines, done, rows, per_task, overall, interim, summary["command"], records or out)
     write_json(out / "results.json", summary, strict=True)
     write_text(out / "results.md", render(*table))
     if docs is not None:  # the page beside the guides links each task to the one that discusses its rows
@@ -1274,6 +1318,10 @@ def _budget(plan: Plan) -> str:
     return "env steps a row: " + ", ".join(f"{t} {n:,}" for t, n in plan.timesteps)
 
 
+def _seeds_named(seeds: list[int]) -> str:
+    return f"seed {seeds[0]}" if len(seeds) == 1 else "seeds " + ", ".join(map(str, seeds))
+
+
 def _interval(a: dict[str, float]) -> str:
     return f"{a['iqm']:.2f} [{a['low']:.2f}, {a['high']:.2f}]"
 
@@ -1308,7 +1356,8 @@ def residual_comparison(plan: Plan, baselines: dict, per_task: dict) -> list[str
 
 
 def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, dict | None], per_task: dict,
-           overall: dict, command: str, records: Path, guides: Path | None = None) -> str:  # fmt: skip
+           overall: dict, interim: dict | None, command: str, records: Path,
+           guides: Path | None = None) -> str:  # fmt: skip
     budget = _budget(plan) + ("" if plan.minutes is None else f", at most {plan.minutes:g} min")
     lines = [
         "# Results",
@@ -1351,6 +1400,17 @@ def render(plan: Plan, baselines: dict, done: dict[Row, dict], rows: dict[Row, d
                   "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
     if missing:
         lines += ["", "No score over all tasks for " + ", ".join(missing) + ": some of their rows are not done."]
+    if interim:
+        named = _seeds_named(interim["seeds"])
+        how = ("one seed a task: the interval resamples the tasks (rliable's task bootstrap), so it says how much "
+               "the score depends on which tasks are in the suite, not on training's chance" if interim["over_tasks"]
+               else "the interval resamples the seeds within each task (stratified bootstrap)")  # fmt: skip
+        lines += ["", f"Until then, over the {interim['tasks']} normalized tasks on the rows every task has for every "
+                  f"algorithm ({named}; the other rows left out, so that each task weighs the same): "
+                  + "; ".join(f"{a} {_interval(v)}" for a, v in interim["scores"].items())
+                  + f". IQM of the normalized scores, 95% interval; {how}. Performance profiles on the same rows "
+                  "(the share of runs scoring above each normalized score):", "",
+                  "![performance profiles](plots/performance_profiles.png)"]  # fmt: skip
     paragraph = "" if guides is None else discussion(list(plan.tasks), guides)
     if paragraph:
         lines += ["", paragraph]

@@ -633,6 +633,58 @@ def test_elo_against_the_scripted_team_follows_the_record():
     assert leaderboard._rating(even) == f"1000 [{even['low']:.0f}, {even['high']:.0f}]"
 
 
+def test_an_interval_is_the_same_each_time_and_leaves_numpys_generator_alone():
+    """rliable draws its bootstrap resamples from numpy's global generator whatever it is handed: the same scores
+    give the same interval every time (a table built again reads the same), and a caller's draws are not moved."""
+    scores = np.random.default_rng(1).normal(size=(2, 16))
+    np.random.seed(7)  # noqa: NPY002
+    expected = np.random.random()  # noqa: NPY002
+    np.random.seed(7)  # noqa: NPY002
+    first = leaderboard.aggregate({"a": scores})
+    assert np.random.random() == expected  # noqa: NPY002
+    assert leaderboard.aggregate({"a": scores}) == first
+    assert leaderboard.aggregate({"a": scores[:1]}, over_tasks=True) == leaderboard.aggregate(
+        {"a": scores[:1]}, over_tasks=True
+    )
+
+
+def test_before_every_row_is_done_all_tasks_are_scored_on_the_seeds_they_share(tmp_path):
+    """Until every row is done, the score over all tasks takes the seeds every task has for every algorithm: with
+    one such seed its interval resamples the tasks (a spread of tasks gives a spread of scores, where resampling the
+    one run of each would give none), with two the seeds within each task; the profiles are drawn from those rows."""
+    plan = leaderboard.Plan((WALK, XJUS), ("ppo", "sac"), (0, 1, 2), ((WALK, 100), (XJUS, 100)), None, 5, 1000, None)
+    baselines = {t: {"reference": "gait", "reference_return": 110.0, "random_return": 10.0} for t in plan.tasks}
+    score = {(WALK, "ppo"): 0.5, (XJUS, "ppo"): 1.5, (WALK, "sac"): 0.2, (XJUS, "sac"): 0.4}
+
+    def rows_of(seeds: dict[tuple[str, str], tuple[int, ...]]) -> dict:
+        return {r: ({"mean_return": 10.0 + 100.0 * (score[r.task, r.algo] + 0.01 * r.seed), "timesteps": 100,
+                     "capped": False, "paired_differences": {}} if r.seed in seeds[r.task, r.algo] else None)
+                for r in plan.rows}  # fmt: skip
+
+    # seed 0 everywhere, seed 1 on all but one task of sac: the interim is over seed 0 alone, tasks resampled
+    seeds = {key: (0, 1) for key in score} | {(XJUS, "sac"): (0,)}
+    summary = leaderboard.build_table(plan, tmp_path, baselines, rows_of(seeds), tmp_path / "results.md")
+    assert summary["overall"] == {}
+    interim = summary["interim"]
+    assert interim["seeds"] == [0] and interim["over_tasks"] and interim["tasks"] == 2
+    ppo = interim["scores"]["ppo"]
+    assert ppo["iqm"] == pytest.approx(1.0) and ppo["low"] == pytest.approx(0.5) and ppo["high"] == pytest.approx(1.5)
+    text = (tmp_path / "results.md").read_text()
+    assert "on the rows every task has for every algorithm (seed 0;" in text and "task bootstrap" in text
+    assert "![performance profiles](" in text and "plots/performance_profiles.png)" in text
+    assert (tmp_path / "plots" / "performance_profiles.png").is_file()
+    # two seeds shared: the seeds are resampled within each task, and the interval is theirs
+    seeds[XJUS, "sac"] = (0, 1)
+    interim = leaderboard.build_table(plan, tmp_path, baselines, rows_of(seeds), None)["interim"]
+    assert interim["seeds"] == [0, 1] and not interim["over_tasks"]
+    ppo = interim["scores"]["ppo"]
+    assert ppo["low"] <= ppo["iqm"] <= ppo["high"] and ppo["high"] - ppo["low"] < 0.02  # the seeds' spread alone
+    # a task one algorithm has no row of: no interim, and no profiles promised
+    seeds[XJUS, "sac"] = ()
+    summary = leaderboard.build_table(plan, tmp_path / "none", baselines, rows_of(seeds), tmp_path / "none.md")
+    assert summary["interim"] is None and "performance profiles" not in (tmp_path / "none.md").read_text()
+
+
 def test_soccer_tasks_are_rated_beside_the_normalized_table(tmp_path):
     """A soccer task's rows are rated against the scripted team in their own section; the walking task's table and
     its overall score are those of the walking rows alone."""
