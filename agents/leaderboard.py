@@ -1184,6 +1184,8 @@ def _cell(cell: dict[str, float] | None, seeds: int, comparable: bool) -> str:
     normalizes."""
     if cell is None:
         return "not run" if comparable else "-"
+    if cell["seeds"] == 1 and seeds > 1:
+        return f"{_interval(cell)} (1 of {seeds} seeds: no interval)"
     return _interval(cell) + ("" if cell["seeds"] == seeds else f" ({cell['seeds']} of {seeds} seeds)")
 
 
@@ -1323,6 +1325,9 @@ def _seeds_named(seeds: list[int]) -> str:
 
 
 def _interval(a: dict[str, float]) -> str:
+    """An IQM and its interval; over one seed, the score alone (a bootstrap of one run has no spread to show)."""
+    if a.get("seeds") == 1:
+        return f"{a['iqm']:.2f}"
     return f"{a['iqm']:.2f} [{a['low']:.2f}, {a['high']:.2f}]"
 
 
