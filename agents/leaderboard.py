@@ -935,6 +935,12 @@ def _curve(record: dict[str, Any], run_dir: Path) -> tuple[np.ndarray, np.ndarra
     return learning_curve(run_dir)
 
 
+def score_matrix(by_seed: dict[tuple[str, str], dict[int, float]], algo: str, tasks: list[str],
+                 seeds: list[int]) -> np.ndarray:  # fmt: skip
+    """(seeds, tasks) normalized scores of ``algo``, each seed's row its own across the tasks."""
+    return np.array([[by_seed[algo, t][s] for t in tasks] for s in seeds], dtype=np.float64)
+
+
 def interim_scores(plan: Plan, ranked: list[str], by_seed: dict[tuple[str, str], dict[int, float]]) -> dict | None:
     """The score over all tasks before every row is done: each algorithm's IQM over the seeds that every normalized
     task has for every algorithm (so that each task weighs the same and every algorithm is scored on the same
@@ -946,10 +952,10 @@ def interim_scores(plan: Plan, ranked: list[str], by_seed: dict[tuple[str, str],
     seeds = sorted(set(plan.seeds).intersection(*(scored.keys() for scored in by_seed.values())))
     if not seeds:
         return None
-    matrix = {a: np.array([[by_seed[a, t][s] for t in ranked] for s in seeds]) for a in plan.algos}  # (seeds, tasks)
     over_tasks = len(seeds) == 1
+    matrix = {a: score_matrix(by_seed, a, ranked, seeds) for a in plan.algos}
     return {"seeds": seeds, "tasks": len(ranked), "over_tasks": over_tasks,
-            "scores": aggregate(matrix, over_tasks=over_tasks), "matrix": matrix}  # fmt: skip
+            "scores": aggregate(matrix, over_tasks=over_tasks)}  # fmt: skip
 
 
 def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Row, dict | None],
@@ -966,23 +972,22 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
     ranked = [t for t in plan.tasks if comparable(baselines[t])]  # tasks whose scores normalize
     by_seed: dict[tuple[str, str], dict[int, float]] = {}  # (algo, task) -> seed -> normalized score
     for algo in plan.algos:
-        columns = []
         for task in ranked:
             scored = {r.seed: float(normalized(done[r]["mean_return"], baselines[task])) for r in done if
                       r.task == task and r.algo == algo}  # fmt: skip
             scored = by_seed[algo, task] = {s: x for s, x in scored.items() if np.isfinite(x)}  # no finite return
-            scores = list(scored.values())
-            if scores:
-                cell = aggregate({algo: np.array(scores)[:, None]})[algo]
-                per_task.setdefault(task, {})[algo] = {**cell, "seeds": len(scores)}
-            columns.append(scores)
-        if ranked and all(len(c) == len(plan.seeds) for c in columns):  # every row of the algorithm scored
-            matrix[algo] = np.array(columns, dtype=np.float64).T  # (seeds, tasks)
+            if scored:
+                cell = aggregate({algo: np.array(list(scored.values()))[:, None]})[algo]
+                per_task.setdefault(task, {})[algo] = {**cell, "seeds": len(scored)}
+        if ranked and all(len(by_seed[algo, t]) == len(plan.seeds) for t in ranked):  # every row of it scored
+            matrix[algo] = score_matrix(by_seed, algo, ranked, list(plan.seeds))
     overall = aggregate(matrix) if matrix else {}
     interim = interim_scores(plan, ranked, by_seed) if len(overall) < len(plan.algos) else None
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
-    profiled = interim["matrix"] if interim else matrix  # every algorithm on the same rows, where they have them
+    profiled = matrix  # every algorithm on the same rows: all of them, or until then those they all share
+    if interim:
+        profiled = {a: score_matrix(by_seed, a, ranked, interim["seeds"]) for a in plan.algos}
     if profiled:
         from rliable import library, plot_utils
 
@@ -1018,8 +1023,6 @@ def build_table(plan: Plan, out: Path, baselines: dict[str, dict], rows: dict[Ro
         if ax.get_legend_handles_labels()[0]:
             ax.legend()
         _save(fig, plots / f"curve_{task.replace('/', '_')}.png")
-    if interim:  # results.json keeps its scores and seeds, not the matrix
-        interim = {k: v for k, v in interim.items() if k != "matrix"}
     summary = {"plan": asdict(plan), "baselines": baselines, "per_task": per_task, "overall": overall,
                "interim": interim,
                "rows": {r.name: rec for r, rec in rows.items()}, "command": shlex.join(
